@@ -1,0 +1,211 @@
+//! Image and frame types shared by every visuotact crate.
+//!
+//! Images are plain row-major buffers with no padding: [`GrayImage`] holds one `u8` per pixel,
+//! [`RgbImage`] three interleaved `u8` (R, G, B). Pixel `(x, y)` is column `x`, row `y`, and its
+//! centre sits at integer coordinates, as in OpenCV and scikit-image.
+//!
+//! ```
+//! use visuotact_image::GrayImage;
+//! let img = GrayImage::from_vec(3, 2, vec![0, 1, 2, 3, 4, 5]).unwrap();
+//! assert_eq!(img.get(2, 1), 5);
+//! ```
+
+use thiserror::Error;
+
+/// Errors from building images out of raw buffers.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+pub enum ImageError {
+    /// The buffer length does not match `width × height × channels`.
+    #[error("buffer of {got} bytes does not fit a {width}×{height}×{channels} image (needs {need})")]
+    BufferSize {
+        /// Image width in pixels.
+        width: usize,
+        /// Image height in pixels.
+        height: usize,
+        /// Channels per pixel.
+        channels: usize,
+        /// Bytes expected.
+        need: usize,
+        /// Bytes given.
+        got: usize,
+    },
+}
+
+fn check_len(width: usize, height: usize, channels: usize, got: usize) -> Result<(), ImageError> {
+    let need = width * height * channels;
+    if need == got {
+        Ok(())
+    } else {
+        Err(ImageError::BufferSize { width, height, channels, need, got })
+    }
+}
+
+/// A single-channel 8-bit image.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub struct GrayImage {
+    width: usize,
+    height: usize,
+    data: Vec<u8>,
+}
+
+impl GrayImage {
+    /// A black image of the given size.
+    pub fn new(width: usize, height: usize) -> Self {
+        Self { width, height, data: vec![0; width * height] }
+    }
+
+    /// Wraps a row-major buffer; fails when its length is not `width × height`.
+    pub fn from_vec(width: usize, height: usize, data: Vec<u8>) -> Result<Self, ImageError> {
+        check_len(width, height, 1, data.len())?;
+        Ok(Self { width, height, data })
+    }
+
+    /// Builds an image from a function of `(x, y)`.
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> u8) -> Self {
+        let mut data = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                data.push(f(x, y));
+            }
+        }
+        Self { width, height, data }
+    }
+
+    /// Resizes in place (contents unspecified afterwards); used to reuse buffers in live loops.
+    pub fn resize(&mut self, width: usize, height: usize) {
+        self.width = width;
+        self.height = height;
+        self.data.resize(width * height, 0);
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The pixel at column `x`, row `y`.
+    pub fn get(&self, x: usize, y: usize) -> u8 {
+        self.data[y * self.width + x]
+    }
+
+    /// Sets the pixel at column `x`, row `y`.
+    pub fn set(&mut self, x: usize, y: usize, v: u8) {
+        self.data[y * self.width + x] = v;
+    }
+
+    /// Row `y` as a slice.
+    pub fn row(&self, y: usize) -> &[u8] {
+        &self.data[y * self.width..(y + 1) * self.width]
+    }
+
+    /// Row `y` as a mutable slice.
+    pub fn row_mut(&mut self, y: usize) -> &mut [u8] {
+        &mut self.data[y * self.width..(y + 1) * self.width]
+    }
+
+    /// The whole buffer, row-major.
+    pub fn as_slice(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// The whole buffer, row-major, mutable.
+    pub fn as_mut_slice(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    /// Consumes the image, returning its buffer.
+    pub fn into_vec(self) -> Vec<u8> {
+        self.data
+    }
+}
+
+/// A three-channel 8-bit image, interleaved R, G, B.
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub struct RgbImage {
+    width: usize,
+    height: usize,
+    data: Vec<u8>,
+}
+
+impl RgbImage {
+    /// A black image of the given size.
+    pub fn new(width: usize, height: usize) -> Self {
+        Self { width, height, data: vec![0; width * height * 3] }
+    }
+
+    /// Wraps an interleaved RGB buffer; fails when its length is not `width × height × 3`.
+    pub fn from_vec(width: usize, height: usize, data: Vec<u8>) -> Result<Self, ImageError> {
+        check_len(width, height, 3, data.len())?;
+        Ok(Self { width, height, data })
+    }
+
+    /// Builds an image from a function of `(x, y)` returning `[r, g, b]`.
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> [u8; 3]) -> Self {
+        let mut data = Vec::with_capacity(width * height * 3);
+        for y in 0..height {
+            for x in 0..width {
+                data.extend_from_slice(&f(x, y));
+            }
+        }
+        Self { width, height, data }
+    }
+
+    /// An RGB image with all three channels equal to `gray`.
+    pub fn from_gray(gray: &GrayImage) -> Self {
+        let mut data = Vec::with_capacity(gray.data.len() * 3);
+        for &v in &gray.data {
+            data.extend_from_slice(&[v, v, v]);
+        }
+        Self { width: gray.width, height: gray.height, data }
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The pixel at column `x`, row `y`.
+    pub fn get(&self, x: usize, y: usize) -> [u8; 3] {
+        let i = (y * self.width + x) * 3;
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+
+    /// The whole buffer, row-major, interleaved.
+    pub fn as_slice(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// The whole buffer, mutable.
+    pub fn as_mut_slice(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    /// Consumes the image, returning its buffer.
+    pub fn into_vec(self) -> Vec<u8> {
+        self.data
+    }
+}
+
+/// One frame from any source: the image plus where it came from and when.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// Identifier written to output tables: the file name for images, the 0-based index
+    /// (as text) for video frames.
+    pub id: String,
+    /// 0-based position of the frame in its source.
+    pub index: usize,
+    /// Monotonic timestamp in seconds from the start of the source.
+    pub timestamp_s: f64,
+    /// The pixels.
+    pub image: RgbImage,
+}

@@ -1,0 +1,513 @@
+//! Blob analysis: one fused pass of threshold + connected-component labelling + moments.
+//!
+//! Contract:
+//! - Components are 8-connected (or 4-connected on request) sets of foreground pixels
+//!   (`v > level`), numbered in raster order of their first pixel, as scikit-image's `label`.
+//! - Per blob: area, centroid, normalised second central moments, bounding box, border flag.
+//!   Moments are accumulated as exact integers per run of pixels, so centroids and central
+//!   moments equal the pixel-by-pixel definitions (and OpenCV's `moments`) to rounding of the
+//!   final division (~1e-12 px on 640×480 frames).
+//! - [`Blob::shape`] gives axes, eccentricity `sqrt(1 − λ₂/λ₁)` and orientation with
+//!   scikit-image's `regionprops` formulas, or MATLAB's (second moments + 1/12).
+//! - [`blobs_reference`] is a plain flood fill computing the same quantities pixel by pixel in
+//!   floating point; tests check the fused pass against it.
+//!
+//! ```
+//! use visuotact_image::GrayImage;
+//! use visuotact_vision::blobs::{blobs_from_gray, Connectivity, Level};
+//! // Two 2×2 squares; the right one touches the image border.
+//! let img = GrayImage::from_vec(6, 4, vec![
+//!     0, 0, 0, 0, 0, 0,
+//!     0, 9, 9, 0, 9, 9,
+//!     0, 9, 9, 0, 9, 9,
+//!     0, 0, 0, 0, 0, 0,
+//! ]).unwrap();
+//! let blobs = blobs_from_gray(&img, Level::Scalar(5), Connectivity::Eight);
+//! assert_eq!(blobs.len(), 2);
+//! assert_eq!((blobs[0].area_px, blobs[0].x_px, blobs[0].y_px), (4, 1.5, 1.5));
+//! assert!(!blobs[0].touches_border && blobs[1].touches_border);
+//! ```
+
+use serde::{Deserialize, Serialize};
+use visuotact_image::GrayImage;
+
+use crate::preprocess::{CircleMask, Roi};
+
+/// Pixel neighbourhood for labelling.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Connectivity {
+    /// Edge and corner neighbours (OpenCV's default, scikit-image `connectivity=2`).
+    #[default]
+    Eight,
+    /// Edge neighbours only (scikit-image `connectivity=1`).
+    Four,
+}
+
+/// Axis-aligned bounding box; `x1`, `y1` are exclusive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BBox {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+/// One connected component with its moments.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Blob {
+    /// Number of pixels.
+    pub area_px: u32,
+    /// Centroid column (pixel centres at integers).
+    pub x_px: f64,
+    /// Centroid row.
+    pub y_px: f64,
+    /// Normalised central moment μ20/μ00: the variance of x.
+    pub mu20_px2: f64,
+    /// Normalised central moment μ11/μ00: the covariance of x and y.
+    pub mu11_px2: f64,
+    /// Normalised central moment μ02/μ00: the variance of y.
+    pub mu02_px2: f64,
+    /// Bounding box.
+    pub bbox: BBox,
+    /// Whether the blob touches the edge of the processed region.
+    pub touches_border: bool,
+}
+
+/// Which formula turns second moments into shape figures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum MomentConvention {
+    /// Moments of the pixel centres (scikit-image, OpenCV).
+    #[default]
+    Pixel,
+    /// MATLAB `regionprops`: each pixel a unit square, adding 1/12 to μ20 and μ02.
+    Matlab,
+}
+
+/// Shape figures derived from the second moments.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shape {
+    /// Length of the major axis of the ellipse with the same second moments, `4·sqrt(λ₁)`.
+    pub major_axis_px: f64,
+    /// Length of the minor axis, `4·sqrt(λ₂)`.
+    pub minor_axis_px: f64,
+    /// `sqrt(1 − λ₂/λ₁)`, 0 for a circle or a single pixel.
+    pub eccentricity: f64,
+    /// Angle between the row axis and the major axis, in −π/2..π/2 (scikit-image convention).
+    pub orientation_rad: f64,
+}
+
+impl Blob {
+    /// Axes, eccentricity and orientation under the given convention.
+    pub fn shape(&self, convention: MomentConvention) -> Shape {
+        let extra = match convention {
+            MomentConvention::Pixel => 0.0,
+            MomentConvention::Matlab => 1.0 / 12.0,
+        };
+        let (vx, vy, c) = (self.mu20_px2 + extra, self.mu02_px2 + extra, self.mu11_px2);
+        let half_tr = 0.5 * (vx + vy);
+        let disc = (0.25 * (vx - vy) * (vx - vy) + c * c).sqrt();
+        let l1 = half_tr + disc;
+        let l2 = (half_tr - disc).max(0.0);
+        let eccentricity = if l1 > 0.0 { (1.0 - l2 / l1).max(0.0).sqrt() } else { 0.0 };
+        // scikit-image: a = var(col), b = −cov, c = var(row); 0.5·atan2(−2b, c − a).
+        let orientation_rad = if vx == vy {
+            if c > 0.0 {
+                std::f64::consts::FRAC_PI_4
+            } else {
+                -std::f64::consts::FRAC_PI_4
+            }
+        } else {
+            0.5 * (2.0 * c).atan2(vy - vx)
+        };
+        Shape {
+            major_axis_px: 4.0 * l1.sqrt(),
+            minor_axis_px: 4.0 * l2.sqrt(),
+            eccentricity,
+            orientation_rad,
+        }
+    }
+
+    /// Eccentricity with the pixel convention (scikit-image, OpenCV).
+    pub fn eccentricity(&self) -> f64 {
+        self.shape(MomentConvention::Pixel).eccentricity
+    }
+}
+
+/// The threshold level(s) the fused pass compares against: foreground is `v > level`.
+#[derive(Clone, Copy, Debug)]
+pub enum Level<'a> {
+    /// One level for every pixel.
+    Scalar(u8),
+    /// One level per pixel, row-major, same size as the image.
+    PerPixel(&'a [f32]),
+}
+
+/// Where in the image to look. Blobs touching the rectangle's edge are flagged as border blobs.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Region {
+    /// Rectangle to process (whole image when `None`).
+    pub roi: Option<Roi>,
+    /// Circle outside which pixels are background.
+    pub circle: Option<CircleMask>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    x0: u32,
+    x1: u32, // inclusive
+    label: u32,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Acc {
+    n: u64,
+    sx: u64,
+    sy: u64,
+    sxx: u64,
+    syy: u64,
+    sxy: u64,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+impl Acc {
+    #[inline]
+    fn add_run(&mut self, y: u32, a: u32, b: u32) {
+        let (a64, b64, y64) = (u64::from(a), u64::from(b), u64::from(y));
+        let n = b64 - a64 + 1;
+        let sx = (a64 + b64) * n / 2;
+        let sxx = sum_squares(b64) - if a64 == 0 { 0 } else { sum_squares(a64 - 1) };
+        self.n += n;
+        self.sx += sx;
+        self.sy += n * y64;
+        self.sxx += sxx;
+        self.syy += n * y64 * y64;
+        self.sxy += sx * y64;
+        self.x0 = self.x0.min(a);
+        self.x1 = self.x1.max(b + 1);
+        self.y0 = self.y0.min(y);
+        self.y1 = self.y1.max(y + 1);
+    }
+
+    fn fresh() -> Self {
+        Self { x0: u32::MAX, y0: u32::MAX, ..Self::default() }
+    }
+
+    fn merge(&mut self, o: &Acc) {
+        self.n += o.n;
+        self.sx += o.sx;
+        self.sy += o.sy;
+        self.sxx += o.sxx;
+        self.syy += o.syy;
+        self.sxy += o.sxy;
+        self.x0 = self.x0.min(o.x0);
+        self.y0 = self.y0.min(o.y0);
+        self.x1 = self.x1.max(o.x1);
+        self.y1 = self.y1.max(o.y1);
+    }
+
+    fn blob(&self, rect: (u32, u32, u32, u32)) -> Blob {
+        let n = i128::from(self.n);
+        let (sx, sy) = (i128::from(self.sx), i128::from(self.sy));
+        let nf = self.n as f64;
+        let n2 = nf * nf;
+        // Exact integer numerators, one rounding each.
+        let mu20 = (n * i128::from(self.sxx) - sx * sx) as f64 / n2;
+        let mu02 = (n * i128::from(self.syy) - sy * sy) as f64 / n2;
+        let mu11 = (n * i128::from(self.sxy) - sx * sy) as f64 / n2;
+        let (rx0, ry0, rx1, ry1) = rect;
+        Blob {
+            area_px: self.n as u32,
+            x_px: self.sx as f64 / nf,
+            y_px: self.sy as f64 / nf,
+            mu20_px2: mu20,
+            mu11_px2: mu11,
+            mu02_px2: mu02,
+            bbox: BBox { x0: self.x0, y0: self.y0, x1: self.x1, y1: self.y1 },
+            touches_border: self.x0 == rx0 || self.y0 == ry0 || self.x1 == rx1 || self.y1 == ry1,
+        }
+    }
+}
+
+/// `Σ_{i=0..=k} i²`.
+#[inline]
+fn sum_squares(k: u64) -> u64 {
+    k * (k + 1) * (2 * k + 1) / 6
+}
+
+/// Reusable buffers for [`blobs_from_gray_into`]; keep one per live loop.
+#[derive(Default, Debug, Clone)]
+pub struct BlobScratch {
+    bytes: Vec<u8>,
+    bits: Vec<u64>,
+    prev: Vec<Run>,
+    cur: Vec<Run>,
+    parent: Vec<u32>,
+    acc: Vec<Acc>,
+    root_to_blob: Vec<u32>,
+}
+
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    let mut r = x;
+    while parent[r as usize] != r {
+        r = parent[r as usize];
+    }
+    while parent[x as usize] != r {
+        let next = parent[x as usize];
+        parent[x as usize] = r;
+        x = next;
+    }
+    r
+}
+
+fn union(parent: &mut [u32], a: u32, b: u32) -> u32 {
+    let ra = find(parent, a);
+    let rb = find(parent, b);
+    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+    parent[hi as usize] = lo;
+    lo
+}
+
+/// Packs `bytes` (each 0 or 1) into little-endian bit words.
+#[inline]
+fn pack_bits(bytes: &[u8], bits: &mut [u64]) {
+    for (w, chunk) in bits.iter_mut().zip(bytes.chunks(64)) {
+        let mut word = 0u64;
+        let mut eights = chunk.chunks_exact(8);
+        for (k, c8) in (&mut eights).enumerate() {
+            let v = u64::from_le_bytes([c8[0], c8[1], c8[2], c8[3], c8[4], c8[5], c8[6], c8[7]]);
+            // Each byte is 0 or 1; the multiplier has bits at 56 − 7i, so byte i's bit lands on
+            // bit 56 + i and no two partial products share a bit (no carries).
+            word |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * k);
+        }
+        let base = chunk.len() / 8 * 8;
+        for (i, &b) in eights.remainder().iter().enumerate() {
+            word |= u64::from(b) << (base + i);
+        }
+        *w = word;
+    }
+}
+
+/// Fused threshold + labelling + moments. Appends every blob (border ones flagged, none
+/// filtered) to `out` after clearing it.
+pub fn blobs_from_gray_into(
+    img: &GrayImage,
+    level: Level<'_>,
+    region: Region,
+    connectivity: Connectivity,
+    s: &mut BlobScratch,
+    out: &mut Vec<Blob>,
+) {
+    out.clear();
+    let (w, h) = (img.width(), img.height());
+    let roi = region.roi.unwrap_or(Roi { x: 0, y: 0, width: w, height: h });
+    let rx0 = roi.x.min(w);
+    let ry0 = roi.y.min(h);
+    let rx1 = (roi.x + roi.width).min(w);
+    let ry1 = (roi.y + roi.height).min(h);
+    if rx1 <= rx0 || ry1 <= ry0 {
+        return;
+    }
+    if let Level::PerPixel(l) = level {
+        assert_eq!(l.len(), w * h, "per-pixel levels must match the image size");
+    }
+    let span = rx1 - rx0;
+    s.bytes.resize(span, 0);
+    s.bits.resize(span.div_ceil(64), 0);
+    s.prev.clear();
+    s.cur.clear();
+    s.parent.clear();
+    s.acc.clear();
+    let gap = match connectivity {
+        Connectivity::Eight => 1u32,
+        Connectivity::Four => 0u32,
+    };
+    for y in ry0..ry1 {
+        // Columns inside the circular mask on this row.
+        let (mut xa, mut xb) = (rx0, rx1);
+        if let Some(c) = region.circle {
+            let dy = y as f64 - c.cy_px;
+            let r2 = c.radius_px * c.radius_px - dy * dy;
+            if r2 < 0.0 {
+                s.prev.clear();
+                continue;
+            }
+            let half = r2.sqrt();
+            xa = xa.max((c.cx_px - half).ceil().max(0.0) as usize);
+            xb = xb.min(((c.cx_px + half).floor() + 1.0).max(0.0) as usize);
+            if xb <= xa {
+                s.prev.clear();
+                continue;
+            }
+        }
+        let row = &img.row(y)[rx0..rx1];
+        let bytes = &mut s.bytes[..];
+        match level {
+            Level::Scalar(t) => {
+                for (o, &v) in bytes.iter_mut().zip(row) {
+                    *o = u8::from(v > t);
+                }
+            }
+            Level::PerPixel(l) => {
+                let lrow = &l[y * w + rx0..y * w + rx1];
+                for ((o, &v), &t) in bytes.iter_mut().zip(row).zip(lrow) {
+                    *o = u8::from(f32::from(v) > t);
+                }
+            }
+        }
+        bytes[..xa - rx0].fill(0);
+        bytes[xb - rx0..].fill(0);
+        pack_bits(bytes, &mut s.bits);
+        // Runs from bit words.
+        s.cur.clear();
+        let mut open: Option<u32> = None;
+        for (wi, &word) in s.bits.iter().enumerate() {
+            let base = (wi * 64) as u32;
+            let mut wv = word;
+            let mut pos = 0u32;
+            while pos < 64 {
+                if let Some(start) = open {
+                    // Inside a run: find its end (first zero bit).
+                    let zeros = (!wv).trailing_zeros();
+                    if zeros >= 64 - pos {
+                        break; // run continues into the next word
+                    }
+                    let end = base + pos + zeros; // exclusive
+                    s.cur.push(Run { x0: start, x1: end - 1, label: 0 });
+                    open = None;
+                    wv >>= zeros;
+                    pos += zeros;
+                } else {
+                    if wv == 0 {
+                        break;
+                    }
+                    let tz = wv.trailing_zeros();
+                    open = Some(base + pos + tz);
+                    wv >>= tz;
+                    pos += tz;
+                }
+            }
+        }
+        if let Some(start) = open {
+            s.cur.push(Run { x0: start, x1: span as u32 - 1, label: 0 });
+        }
+        // Label against the previous row.
+        let yy = y as u32;
+        let mut j = 0usize;
+        for r in s.cur.iter_mut() {
+            while j < s.prev.len() && s.prev[j].x1 + gap < r.x0 {
+                j += 1;
+            }
+            let mut label = u32::MAX;
+            let mut k = j;
+            while k < s.prev.len() && s.prev[k].x0 <= r.x1 + gap {
+                let pl = s.prev[k].label;
+                label = if label == u32::MAX { find(&mut s.parent, pl) } else { union(&mut s.parent, label, pl) };
+                k += 1;
+            }
+            if label == u32::MAX {
+                label = s.parent.len() as u32;
+                s.parent.push(label);
+                s.acc.push(Acc::fresh());
+            }
+            r.label = label;
+            s.acc[label as usize].add_run(yy, r.x0 + rx0 as u32, r.x1 + rx0 as u32);
+        }
+        std::mem::swap(&mut s.prev, &mut s.cur);
+    }
+    // Fold provisional labels into their roots (roots are the smallest label of each set, so
+    // blobs come out in raster order of their first pixel).
+    let rect = (rx0 as u32, ry0 as u32, rx1 as u32, ry1 as u32);
+    s.root_to_blob.clear();
+    s.root_to_blob.resize(s.parent.len(), u32::MAX);
+    for l in 0..s.parent.len() as u32 {
+        let r = find(&mut s.parent, l);
+        if r != l {
+            let a = s.acc[l as usize];
+            s.acc[r as usize].merge(&a);
+        }
+    }
+    for l in 0..s.parent.len() {
+        if s.parent[l] == l as u32 {
+            out.push(s.acc[l].blob(rect));
+        }
+    }
+}
+
+/// Allocating form of [`blobs_from_gray_into`] on the whole image.
+pub fn blobs_from_gray(img: &GrayImage, level: Level<'_>, connectivity: Connectivity) -> Vec<Blob> {
+    let mut out = Vec::new();
+    blobs_from_gray_into(img, level, Region::default(), connectivity, &mut BlobScratch::default(), &mut out);
+    out
+}
+
+/// Reference implementation: flood fill over a boolean mask, moments summed pixel by pixel in
+/// two passes. Slow and simple; the fused pass is tested against it.
+pub fn blobs_reference(mask: &[bool], width: usize, height: usize, connectivity: Connectivity) -> Vec<Blob> {
+    assert_eq!(mask.len(), width * height);
+    let mut seen = vec![false; mask.len()];
+    let mut out = Vec::new();
+    let mut stack = Vec::new();
+    let mut pixels: Vec<(usize, usize)> = Vec::new();
+    for start in 0..mask.len() {
+        if !mask[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        stack.push(start);
+        pixels.clear();
+        while let Some(p) = stack.pop() {
+            let (x, y) = (p % width, p / width);
+            pixels.push((x, y));
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    if (dx == 0 && dy == 0) || (connectivity == Connectivity::Four && dx != 0 && dy != 0) {
+                        continue;
+                    }
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 || nx >= width as i64 || ny >= height as i64 {
+                        continue;
+                    }
+                    let q = ny as usize * width + nx as usize;
+                    if mask[q] && !seen[q] {
+                        seen[q] = true;
+                        stack.push(q);
+                    }
+                }
+            }
+        }
+        let n = pixels.len() as f64;
+        let cx = pixels.iter().map(|p| p.0 as f64).sum::<f64>() / n;
+        let cy = pixels.iter().map(|p| p.1 as f64).sum::<f64>() / n;
+        let (mut m20, mut m02, mut m11) = (0.0, 0.0, 0.0);
+        for &(x, y) in &pixels {
+            let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+            m20 += dx * dx;
+            m02 += dy * dy;
+            m11 += dx * dy;
+        }
+        let x0 = pixels.iter().map(|p| p.0).min().unwrap_or(0);
+        let x1 = pixels.iter().map(|p| p.0).max().unwrap_or(0) + 1;
+        let y0 = pixels.iter().map(|p| p.1).min().unwrap_or(0);
+        let y1 = pixels.iter().map(|p| p.1).max().unwrap_or(0) + 1;
+        out.push(Blob {
+            area_px: pixels.len() as u32,
+            x_px: cx,
+            y_px: cy,
+            mu20_px2: m20 / n,
+            mu11_px2: m11 / n,
+            mu02_px2: m02 / n,
+            bbox: BBox { x0: x0 as u32, y0: y0 as u32, x1: x1 as u32, y1: y1 as u32 },
+            touches_border: x0 == 0 || y0 == 0 || x1 == width || y1 == height,
+        });
+    }
+    out
+}

@@ -1,0 +1,12 @@
+//! Frames → markers → features.
+//!
+//! The path every visuotact frame takes: [`preprocess`] (channel, inversion, morphology,
+//! threshold level), [`blobs`] (one fused threshold + labelling + moments pass, with a plain
+//! reference implementation beside it), [`detect`] (the two with reusable buffers and a blob
+//! filter), [`grid`] (markers numbered in grid order), [`track`] (reference markers matched to
+//! the blobs of any frame), [`calibration`] (the sensor file) and [`features`] (feature vectors
+//! in named units).
+
+pub mod blobs;
+pub mod detect;
+pub mod preprocess;

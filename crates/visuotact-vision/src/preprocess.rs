@@ -1,0 +1,474 @@
+//! Preprocessing: RGB → one channel, inversion, morphology and the threshold level.
+//!
+//! Contract:
+//! - [`Channel::Luma601`] is `round(0.2989 R + 0.5870 G + 0.1140 B)` computed exactly in integers
+//!   (MATLAB `rgb2gray`), not the `image` crate's Rec. 709 luma.
+//! - Grey-level erosion / dilation use a square `k × k` window clipped at the image edge (pixels
+//!   outside the image are ignored), which equals OpenCV's `erode`/`dilate` with its default
+//!   border. Opening is erosion then dilation; closing the reverse.
+//! - [`otsu_level`] returns the level `t` that maximises the between-class variance with the
+//!   foreground `v > t`; on every image of `shared/reference/golden/otsu_cc_regionprops.json` it
+//!   equals both scikit-image's `threshold_otsu` and OpenCV's `THRESH_OTSU`.
+//! - Adaptive thresholding marks `v > mean − offset`, the mean taken over the part of a
+//!   `window × window` square inside the image (OpenCV's `ADAPTIVE_THRESH_MEAN_C` convention for
+//!   the sign of the offset: a negative offset asks pixels to be brighter than their surroundings).
+
+use serde::{Deserialize, Serialize};
+use visuotact_image::{GrayImage, RgbImage};
+
+/// Which single channel the pipeline works on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Channel {
+    /// Green only: best contrast for green markers (seed 000).
+    #[default]
+    Green,
+    /// ITU-R BT.601 luma with MATLAB's weights 0.2989 / 0.5870 / 0.1140 (seed 001).
+    Luma601,
+    /// Mean of R, G and B, rounded.
+    Mean,
+    /// Red only.
+    Red,
+    /// Blue only.
+    Blue,
+}
+
+impl Channel {
+    /// All channels, for listing in help texts.
+    pub const ALL: [Channel; 5] =
+        [Channel::Green, Channel::Luma601, Channel::Mean, Channel::Red, Channel::Blue];
+
+    /// The name used in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::Green => "green",
+            Channel::Luma601 => "luma601",
+            Channel::Mean => "mean",
+            Channel::Red => "red",
+            Channel::Blue => "blue",
+        }
+    }
+
+    /// Parses a name written by [`Channel::name`] (also accepts `luma`, `gray`, `grey`).
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "green" | "g" => Some(Channel::Green),
+            "luma601" | "luma" | "gray" | "grey" => Some(Channel::Luma601),
+            "mean" => Some(Channel::Mean),
+            "red" | "r" => Some(Channel::Red),
+            "blue" | "b" => Some(Channel::Blue),
+            _ => None,
+        }
+    }
+}
+
+/// How the foreground is separated from the background.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum Threshold {
+    /// A fixed level as a fraction of full scale (0..1): foreground `v > level · 255`
+    /// (MATLAB `im2bw`; seed 001 used 0.25).
+    Fixed {
+        /// Level in 0..1 of full scale.
+        level: f64,
+    },
+    /// Otsu's level computed on every frame (seed 000).
+    Otsu,
+    /// Local mean minus an offset, for uneven lighting.
+    Adaptive {
+        /// Side of the square window in pixels (odd, ≥ 3).
+        window_px: usize,
+        /// Offset in 0..1 of full scale, subtracted from the local mean (negative: stricter).
+        offset: f64,
+    },
+}
+
+impl Default for Threshold {
+    fn default() -> Self {
+        Threshold::Otsu
+    }
+}
+
+/// A circle outside which every pixel is background (e.g. the round window of a cone camera).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CircleMask {
+    /// Centre column in pixels.
+    pub cx_px: f64,
+    /// Centre row in pixels.
+    pub cy_px: f64,
+    /// Radius in pixels.
+    pub radius_px: f64,
+}
+
+/// A rectangular region of interest; blobs touching its edge count as touching the border.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Roi {
+    /// Left column.
+    pub x: usize,
+    /// Top row.
+    pub y: usize,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+}
+
+/// Every preprocessing setting; stored in the sensor calibration file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PreprocessConfig {
+    /// Channel to work on.
+    pub channel: Channel,
+    /// Invert the channel (dark markers on a bright gel, as GelSight).
+    pub invert: bool,
+    /// Grey-level opening (removes bright specks smaller than the window).
+    pub open: bool,
+    /// Grey-level closing (fills dark specks smaller than the window), applied after opening.
+    pub close: bool,
+    /// Side of the square morphology window in pixels (odd; 3 by default).
+    pub morph_size: usize,
+    /// Threshold rule.
+    pub threshold: Threshold,
+    /// Optional rectangular region of interest.
+    pub roi: Option<Roi>,
+    /// Optional circular mask.
+    pub circle: Option<CircleMask>,
+}
+
+impl PreprocessConfig {
+    /// Seed 000 (IATS): green channel, 3×3 opening, Otsu.
+    pub const IATS: Self = Self {
+        channel: Channel::Green,
+        invert: false,
+        open: true,
+        close: false,
+        morph_size: 3,
+        threshold: Threshold::Otsu,
+        roi: None,
+        circle: None,
+    };
+
+    /// Seed 001 (inflatable cone): BT.601 luma, fixed level 0.25.
+    pub const CONE: Self = Self {
+        channel: Channel::Luma601,
+        invert: false,
+        open: true,
+        close: false,
+        morph_size: 3,
+        threshold: Threshold::Fixed { level: 0.25 },
+        roi: None,
+        circle: None,
+    };
+
+    /// Dark markers on a bright, unevenly lit gel (GelSight, 9DTact).
+    pub const DARK_MARKERS: Self = Self {
+        channel: Channel::Luma601,
+        invert: true,
+        open: true,
+        close: false,
+        morph_size: 3,
+        threshold: Threshold::Adaptive { window_px: 31, offset: -0.06 },
+        roi: None,
+        circle: None,
+    };
+
+    /// Checks the settings; the message says which one is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        if (self.open || self.close) && (self.morph_size == 0 || self.morph_size % 2 == 0) {
+            return Err(format!("morphology size must be odd and ≥ 1, got {}", self.morph_size));
+        }
+        match self.threshold {
+            Threshold::Fixed { level } if !(0.0..=1.0).contains(&level) => {
+                return Err(format!("fixed threshold must be in 0..1 of full scale, got {level}"))
+            }
+            Threshold::Adaptive { window_px, offset } => {
+                if window_px < 3 || window_px % 2 == 0 {
+                    return Err(format!("adaptive window must be odd and ≥ 3, got {window_px}"));
+                }
+                if !(-1.0..=1.0).contains(&offset) {
+                    return Err(format!("adaptive offset must be in −1..1, got {offset}"));
+                }
+            }
+            _ => {}
+        }
+        if let Some(c) = self.circle {
+            if !(c.radius_px > 0.0) || !c.cx_px.is_finite() || !c.cy_px.is_finite() {
+                return Err("circular mask needs a finite centre and a positive radius".into());
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for PreprocessConfig {
+    fn default() -> Self {
+        Self::IATS
+    }
+}
+
+/// Writes the chosen channel of `src` into `dst` (resized to match), inverted if asked.
+pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &mut GrayImage) {
+    dst.resize(src.width(), src.height());
+    let s = src.as_slice();
+    let d = dst.as_mut_slice();
+    match channel {
+        Channel::Red => pick_channel(s, d, 0),
+        Channel::Green => pick_channel(s, d, 1),
+        Channel::Blue => pick_channel(s, d, 2),
+        Channel::Luma601 => {
+            for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
+                // 2989 + 5870 + 1140 = 9999, so the sum is ≤ 255·9999 and fits u32; adding
+                // 5000 before the division rounds half up, as MATLAB's round does.
+                let acc = 2989 * u32::from(p[0]) + 5870 * u32::from(p[1]) + 1140 * u32::from(p[2]);
+                *o = ((acc + 5000) / 10000) as u8;
+            }
+        }
+        Channel::Mean => {
+            for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
+                let acc = u32::from(p[0]) + u32::from(p[1]) + u32::from(p[2]);
+                *o = ((2 * acc + 3) / 6) as u8;
+            }
+        }
+    }
+    if invert {
+        for v in d.iter_mut() {
+            *v = 255 - *v;
+        }
+    }
+}
+
+fn pick_channel(s: &[u8], d: &mut [u8], c: usize) {
+    for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
+        *o = p[c];
+    }
+}
+
+/// Allocating form of [`gray_from_rgb_into`].
+pub fn gray_from_rgb(src: &RgbImage, channel: Channel, invert: bool) -> GrayImage {
+    let mut dst = GrayImage::new(0, 0);
+    gray_from_rgb_into(src, channel, invert, &mut dst);
+    dst
+}
+
+#[derive(Clone, Copy)]
+enum Extremum {
+    Min,
+    Max,
+}
+
+impl Extremum {
+    #[inline(always)]
+    fn pick(self, a: u8, b: u8) -> u8 {
+        match self {
+            Extremum::Min => a.min(b),
+            Extremum::Max => a.max(b),
+        }
+    }
+}
+
+/// Horizontal running min/max of radius `r` over one row, clipped at the ends.
+fn row_extremum(src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
+    let n = src.len();
+    if n == 0 {
+        return;
+    }
+    if r == 1 && n >= 3 {
+        // The 3-wide case is the hot one: three shifted slices so the loop vectorises.
+        let (a, b, c) = (&src[..n - 2], &src[1..n - 1], &src[2..]);
+        match op {
+            Extremum::Min => {
+                for (((o, &a), &b), &c) in dst[1..n - 1].iter_mut().zip(a).zip(b).zip(c) {
+                    *o = a.min(b).min(c);
+                }
+            }
+            Extremum::Max => {
+                for (((o, &a), &b), &c) in dst[1..n - 1].iter_mut().zip(a).zip(b).zip(c) {
+                    *o = a.max(b).max(c);
+                }
+            }
+        }
+        dst[0] = op.pick(src[0], src[1]);
+        dst[n - 1] = op.pick(src[n - 2], src[n - 1]);
+        return;
+    }
+    for x in 0..n {
+        let lo = x.saturating_sub(r);
+        let hi = (x + r).min(n - 1);
+        let mut v = src[lo];
+        for &s in &src[lo + 1..=hi] {
+            v = op.pick(v, s);
+        }
+        dst[x] = v;
+    }
+}
+
+/// Separable `k × k` min/max filter, `src` → `dst`, with `tmp` as scratch.
+fn extremum_filter(src: &GrayImage, dst: &mut GrayImage, tmp: &mut GrayImage, k: usize, op: Extremum) {
+    let (w, h) = (src.width(), src.height());
+    let r = k / 2;
+    tmp.resize(w, h);
+    dst.resize(w, h);
+    for y in 0..h {
+        row_extremum(src.row(y), tmp.row_mut(y), r, op);
+    }
+    let t = tmp.as_slice();
+    let d = dst.as_mut_slice();
+    for y in 0..h {
+        let lo = y.saturating_sub(r);
+        let hi = (y + r).min(h - 1);
+        let out = &mut d[y * w..(y + 1) * w];
+        out.copy_from_slice(&t[lo * w..(lo + 1) * w]);
+        for yy in lo + 1..=hi {
+            let row = &t[yy * w..(yy + 1) * w];
+            match op {
+                Extremum::Min => out.iter_mut().zip(row).for_each(|(o, &v)| *o = (*o).min(v)),
+                Extremum::Max => out.iter_mut().zip(row).for_each(|(o, &v)| *o = (*o).max(v)),
+            }
+        }
+    }
+}
+
+/// Grey-level erosion with a `k × k` square (OpenCV `erode`, default border).
+pub fn erode(src: &GrayImage, dst: &mut GrayImage, tmp: &mut GrayImage, k: usize) {
+    extremum_filter(src, dst, tmp, k, Extremum::Min);
+}
+
+/// Grey-level dilation with a `k × k` square (OpenCV `dilate`, default border).
+pub fn dilate(src: &GrayImage, dst: &mut GrayImage, tmp: &mut GrayImage, k: usize) {
+    extremum_filter(src, dst, tmp, k, Extremum::Max);
+}
+
+/// Reusable buffers for [`morphology_in_place`].
+#[derive(Default, Debug, Clone)]
+pub struct MorphScratch {
+    a: GrayImage,
+    b: GrayImage,
+}
+
+/// Applies the opening and/or closing asked for in `cfg` to `img` in place.
+pub fn morphology_in_place(img: &mut GrayImage, cfg: &PreprocessConfig, s: &mut MorphScratch) {
+    let k = cfg.morph_size;
+    if cfg.open {
+        erode(img, &mut s.a, &mut s.b, k);
+        dilate(&s.a, img, &mut s.b, k);
+    }
+    if cfg.close {
+        dilate(img, &mut s.a, &mut s.b, k);
+        erode(&s.a, img, &mut s.b, k);
+    }
+}
+
+/// 256-bin histogram of an 8-bit buffer.
+pub fn histogram(data: &[u8]) -> [u32; 256] {
+    // Four interleaved tables break the store-to-load dependency when neighbouring pixels are
+    // equal (the common case on a flat background).
+    let mut h = [[0u32; 256]; 4];
+    let mut chunks = data.chunks_exact(4);
+    for c in &mut chunks {
+        h[0][c[0] as usize] += 1;
+        h[1][c[1] as usize] += 1;
+        h[2][c[2] as usize] += 1;
+        h[3][c[3] as usize] += 1;
+    }
+    for &v in chunks.remainder() {
+        h[0][v as usize] += 1;
+    }
+    let mut out = [0u32; 256];
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = h[0][i] + h[1][i] + h[2][i] + h[3][i];
+    }
+    out
+}
+
+/// Otsu's level from a 256-bin histogram: the `t` maximising the between-class variance of
+/// `{v ≤ t}` and `{v > t}` (first maximum on ties). A histogram with one occupied bin gives that
+/// value.
+///
+/// ```
+/// use visuotact_vision::preprocess::otsu_level;
+/// let mut h = [0u32; 256];
+/// h[10] = 50;
+/// h[200] = 50;
+/// assert_eq!(otsu_level(&h), 10);
+/// ```
+pub fn otsu_level(hist: &[u32; 256]) -> u8 {
+    let total: f64 = hist.iter().map(|&c| f64::from(c)).sum();
+    if total == 0.0 {
+        return 0;
+    }
+    let sum_all: f64 = hist.iter().enumerate().map(|(i, &c)| i as f64 * f64::from(c)).sum();
+    let (mut w0, mut sum0) = (0.0f64, 0.0f64);
+    let (mut best, mut best_t) = (-1.0f64, 0usize);
+    for (t, &c) in hist.iter().enumerate().take(255) {
+        w0 += f64::from(c);
+        sum0 += t as f64 * f64::from(c);
+        let w1 = total - w0;
+        if w0 == 0.0 || w1 == 0.0 {
+            continue;
+        }
+        let m0 = sum0 / w0;
+        let m1 = (sum_all - sum0) / w1;
+        let between = w0 * w1 * (m0 - m1) * (m0 - m1);
+        if between > best {
+            best = between;
+            best_t = t;
+        }
+    }
+    if best < 0.0 {
+        // A single occupied bin: every pixel is background.
+        return hist.iter().rposition(|&c| c > 0).unwrap_or(0) as u8;
+    }
+    best_t as u8
+}
+
+/// Per-pixel levels for adaptive thresholding: `level[x, y] = mean − offset·255`, the mean over
+/// the in-image part of a `window × window` square, stored as `f32` rows. The foreground is
+/// `v > level`.
+pub fn adaptive_levels_into(src: &GrayImage, window_px: usize, offset: f64, out: &mut Vec<f32>) {
+    let (w, h) = (src.width(), src.height());
+    let r = window_px / 2;
+    out.clear();
+    out.resize(w * h, 0.0);
+    // Column sums over the vertical window, updated incrementally row by row.
+    let mut col = vec![0u32; w];
+    let mut rows_in = 0u32;
+    let src_s = src.as_slice();
+    let add_row = |col: &mut [u32], y: usize, sign: bool| {
+        let row = &src_s[y * w..(y + 1) * w];
+        if sign {
+            col.iter_mut().zip(row).for_each(|(c, &v)| *c += u32::from(v));
+        } else {
+            col.iter_mut().zip(row).for_each(|(c, &v)| *c -= u32::from(v));
+        }
+    };
+    for y in 0..r.min(h) {
+        add_row(&mut col, y, true);
+        rows_in += 1;
+    }
+    let off = (offset * 255.0) as f32;
+    for y in 0..h {
+        if y + r < h {
+            add_row(&mut col, y + r, true);
+            rows_in += 1;
+        }
+        if y > r {
+            add_row(&mut col, y - r - 1, false);
+            rows_in -= 1;
+        }
+        // Horizontal running sum over the column sums.
+        let orow = &mut out[y * w..(y + 1) * w];
+        let mut acc: u32 = col[..r.min(w)].iter().sum();
+        let mut cols_in = r.min(w) as u32;
+        for x in 0..w {
+            if x + r < w {
+                acc += col[x + r];
+                cols_in += 1;
+            }
+            if x > r {
+                acc -= col[x - r - 1];
+                cols_in -= 1;
+            }
+            orow[x] = acc as f32 / (cols_in * rows_in) as f32 - off;
+        }
+    }
+}
