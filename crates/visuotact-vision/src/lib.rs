@@ -10,3 +10,7 @@
 pub mod blobs;
 pub mod detect;
 pub mod preprocess;
+pub mod calibration;
+pub mod features;
+pub mod grid;
+pub mod track;

@@ -1,0 +1,214 @@
+//! Feature vectors: per marker, differences from the no-contact reference, in named units.
+//!
+//! Columns come marker by marker in grid order, each marker's in the order `dx_px`, `dy_px`,
+//! `darea_px`, `decc` (those selected): seed 000 uses area, x, y of 117 markers (351 inputs);
+//! seed 001 x, y and eccentricity of the annuli. A marker that is not matched in a frame has
+//! NaN in its cells (written empty in tables) and a status; other columns never move.
+
+use serde::{Deserialize, Serialize};
+use visuotact_image::RgbImage;
+
+use crate::blobs::Blob;
+use crate::calibration::{track_reference, SensorCalibration};
+use crate::detect::Detector;
+use crate::track::{track, MarkerStatus, TrackReference, TrackResult};
+
+/// Which per-marker features to output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FeatureSet {
+    /// Displacement along x, pixels.
+    pub dx: bool,
+    /// Displacement along y, pixels.
+    pub dy: bool,
+    /// Area change, pixels.
+    pub area: bool,
+    /// Eccentricity change.
+    pub eccentricity: bool,
+}
+
+impl FeatureSet {
+    /// Seed 000: area, x, y.
+    pub const IATS: Self = Self { dx: true, dy: true, area: true, eccentricity: false };
+    /// Seed 001: x, y, eccentricity.
+    pub const CONE: Self = Self { dx: true, dy: true, area: false, eccentricity: true };
+    /// Everything.
+    pub const ALL: Self = Self { dx: true, dy: true, area: true, eccentricity: true };
+
+    /// Parses a comma-separated list of `x`, `y`, `area`, `ecc` (or `eccentricity`), or `all`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let mut f = Self { dx: false, dy: false, area: false, eccentricity: false };
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            match part {
+                "x" | "dx" => f.dx = true,
+                "y" | "dy" => f.dy = true,
+                "area" => f.area = true,
+                "ecc" | "eccentricity" => f.eccentricity = true,
+                "all" => f = Self::ALL,
+                other => {
+                    return Err(format!(
+                        "unknown feature {other:?}: expected a list of x, y, area, ecc (or all)"
+                    ))
+                }
+            }
+        }
+        if f.per_marker() == 0 {
+            return Err("the feature set is empty".to_string());
+        }
+        Ok(f)
+    }
+
+    /// Features per marker.
+    pub fn per_marker(&self) -> usize {
+        usize::from(self.dx) + usize::from(self.dy) + usize::from(self.area) + usize::from(self.eccentricity)
+    }
+
+    /// Column suffixes in output order.
+    pub fn suffixes(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        if self.dx {
+            v.push("dx_px");
+        }
+        if self.dy {
+            v.push("dy_px");
+        }
+        if self.area {
+            v.push("darea_px");
+        }
+        if self.eccentricity {
+            v.push("decc");
+        }
+        v
+    }
+
+    /// Column names for markers with these ids: `m017_dx_px`, …
+    pub fn column_names(&self, ids: impl IntoIterator<Item = u32>) -> Vec<String> {
+        let suffixes = self.suffixes();
+        ids.into_iter().flat_map(|id| suffixes.iter().map(move |s| format!("m{id:03}_{s}"))).collect()
+    }
+}
+
+impl Default for FeatureSet {
+    fn default() -> Self {
+        Self::IATS
+    }
+}
+
+/// Features of one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameFeatures {
+    /// Values in column order; NaN where the marker was not matched.
+    pub values: Vec<f64>,
+    /// Per-marker tracking status.
+    pub status: Vec<MarkerStatus>,
+    /// Markers matched.
+    pub found: usize,
+    /// Blobs not given to any marker.
+    pub spurious: usize,
+    /// Overall motion found by the registration, pixels.
+    pub shift_px: (f64, f64),
+}
+
+/// A frame whose size differs from the calibration's.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("expected {expected_w}×{expected_h} like the reference, got {got_w}×{got_h}")]
+pub struct FrameSizeError {
+    /// Calibrated width.
+    pub expected_w: usize,
+    /// Calibrated height.
+    pub expected_h: usize,
+    /// Frame width.
+    pub got_w: usize,
+    /// Frame height.
+    pub got_h: usize,
+}
+
+/// Frame → feature vector for one calibrated sensor, with reusable buffers.
+#[derive(Clone, Debug)]
+pub struct FeatureExtractor {
+    cal: SensorCalibration,
+    features: FeatureSet,
+    detector: Detector,
+    reference: TrackReference,
+    blobs: Vec<Blob>,
+    last_track: TrackResult,
+}
+
+impl FeatureExtractor {
+    /// An extractor for `cal` producing `features`.
+    pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, String> {
+        let detector = Detector::new(cal.detector.clone())?;
+        let reference = track_reference(&cal.markers, cal.pitch_px);
+        Ok(Self { cal, features, detector, reference, blobs: Vec::new(), last_track: TrackResult::default() })
+    }
+
+    /// The calibration.
+    pub fn calibration(&self) -> &SensorCalibration {
+        &self.cal
+    }
+
+    /// The feature set.
+    pub fn feature_set(&self) -> FeatureSet {
+        self.features
+    }
+
+    /// Output column names.
+    pub fn column_names(&self) -> Vec<String> {
+        self.features.column_names(self.cal.markers.iter().map(|m| m.id))
+    }
+
+    /// The blobs of the last frame.
+    pub fn last_blobs(&self) -> &[Blob] {
+        &self.blobs
+    }
+
+    /// The tracking result of the last frame.
+    pub fn last_track(&self) -> &TrackResult {
+        &self.last_track
+    }
+
+    /// Features of `rgb` into `out` (buffers reused).
+    pub fn extract_into(&mut self, rgb: &RgbImage, out: &mut FrameFeatures) -> Result<(), FrameSizeError> {
+        if (rgb.width(), rgb.height()) != (self.cal.image_width, self.cal.image_height) {
+            return Err(FrameSizeError {
+                expected_w: self.cal.image_width,
+                expected_h: self.cal.image_height,
+                got_w: rgb.width(),
+                got_h: rgb.height(),
+            });
+        }
+        self.detector.detect_into(rgb, &mut self.blobs);
+        self.last_track = track(&self.reference, &self.blobs, &self.cal.track);
+        let t = &self.last_track;
+        out.values.clear();
+        out.status.clear();
+        let conv = self.cal.moment_convention;
+        for (m, (a, st)) in self.cal.markers.iter().zip(t.assignment.iter().zip(&t.status)) {
+            out.status.push(*st);
+            let b = a.map(|j| &self.blobs[j]);
+            let f = &self.features;
+            if f.dx {
+                out.values.push(b.map_or(f64::NAN, |b| b.x_px - m.x_px));
+            }
+            if f.dy {
+                out.values.push(b.map_or(f64::NAN, |b| b.y_px - m.y_px));
+            }
+            if f.area {
+                out.values.push(b.map_or(f64::NAN, |b| f64::from(b.area_px) - m.area_px));
+            }
+            if f.eccentricity {
+                out.values.push(b.map_or(f64::NAN, |b| b.shape(conv).eccentricity - m.eccentricity));
+            }
+        }
+        out.found = t.found();
+        out.spurious = t.spurious;
+        out.shift_px = t.shift_px;
+        Ok(())
+    }
+
+    /// Allocating form of [`FeatureExtractor::extract_into`].
+    pub fn extract(&mut self, rgb: &RgbImage) -> Result<FrameFeatures, FrameSizeError> {
+        let mut out = FrameFeatures::default();
+        self.extract_into(rgb, &mut out)?;
+        Ok(out)
+    }
+}

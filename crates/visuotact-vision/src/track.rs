@@ -1,0 +1,364 @@
+//! Matching reference markers to the blobs of a frame, frame by frame and order-free.
+//!
+//! Every frame is matched to the reference on its own (datasets of touches in random order need
+//! that), in two steps:
+//! 1. **Registration.** Every (marker, blob) pair closer than 1.5 pitches votes for its
+//!    displacement in a 2-D histogram; the densest cell, refined by the mean of its votes, is the
+//!    overall motion.
+//! 2. **One-to-one assignment by region growing.** Markers whose blob is unambiguous after the
+//!    overall motion (close, mutual nearest, no rival) are matched first. Then each unmatched
+//!    marker next to matched ones is predicted from its matched neighbours' displacements (the
+//!    skin moves smoothly) and takes the nearest free blob near that prediction, if no rival is
+//!    nearly as close. A drag that moves markers under the tip by a whole pitch is followed from
+//!    the still markers around it inwards; no marker is ever given a blob just because it is
+//!    the nearest one to its rest position.
+//!
+//! Markers left without a blob are reported as [`MarkerStatus::Lost`], [`MarkerStatus::Merged`]
+//! (their prediction falls on a blob already taken that is much bigger than one marker) or
+//! [`MarkerStatus::Ambiguous`] (two free blobs equally plausible). Their feature cells stay
+//! empty; other markers' columns never shift.
+
+use serde::{Deserialize, Serialize};
+
+use crate::blobs::Blob;
+
+/// What happened to one reference marker in one frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MarkerStatus {
+    /// Matched to exactly one blob.
+    Ok,
+    /// No blob near where the marker should be.
+    Lost,
+    /// Its blob merged with a neighbour's.
+    Merged,
+    /// Two or more blobs equally plausible.
+    Ambiguous,
+}
+
+impl MarkerStatus {
+    /// Name used in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            MarkerStatus::Ok => "ok",
+            MarkerStatus::Lost => "lost",
+            MarkerStatus::Merged => "merged",
+            MarkerStatus::Ambiguous => "ambiguous",
+        }
+    }
+}
+
+/// Tracker tuning, in units of the marker pitch.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TrackConfig {
+    /// Largest displacement considered, in pitches.
+    pub search_pitches: f64,
+    /// Gate around a prediction within which a blob may be taken, in pitches.
+    pub gate_pitches: f64,
+    /// A rival blob closer than `ambiguity_ratio ×` the best distance makes a match ambiguous.
+    pub ambiguity_ratio: f64,
+    /// A taken blob at least this many times the marker's reference area counts as merged.
+    pub merged_area_ratio: f64,
+}
+
+impl TrackConfig {
+    /// Defaults that follow drags up to one pitch.
+    pub const DEFAULT: Self = Self {
+        search_pitches: 1.5,
+        gate_pitches: 0.4,
+        ambiguity_ratio: 1.25,
+        merged_area_ratio: 1.6,
+    };
+}
+
+impl Default for TrackConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// The reference markers as the tracker needs them.
+#[derive(Clone, Debug)]
+pub struct TrackReference {
+    /// Marker positions `(x, y)` in pixels.
+    pub positions: Vec<(f64, f64)>,
+    /// Reference areas in pixels.
+    pub areas_px: Vec<f64>,
+    /// Neighbours of each marker in the reference (indices), nearest first.
+    pub neighbours: Vec<Vec<usize>>,
+    /// Typical spacing between neighbours in pixels.
+    pub pitch_px: f64,
+}
+
+impl TrackReference {
+    /// Builds the neighbour lists (the 8 nearest within 2 pitches) from positions and areas.
+    pub fn new(positions: Vec<(f64, f64)>, areas_px: Vec<f64>) -> Self {
+        let n = positions.len();
+        let mut neighbours = Vec::with_capacity(n);
+        let mut nn = Vec::with_capacity(n);
+        for i in 0..n {
+            let mut d: Vec<(usize, f64)> = (0..n)
+                .filter(|&j| j != i)
+                .map(|j| (j, dist(positions[i], positions[j])))
+                .collect();
+            d.sort_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some(&(_, d0)) = d.first() {
+                nn.push(d0);
+            }
+            neighbours.push(d);
+        }
+        nn.sort_by(f64::total_cmp);
+        let pitch_px = if nn.is_empty() {
+            // One marker: use its size as the scale.
+            areas_px.first().map_or(10.0, |a| 2.0 * a.sqrt())
+        } else {
+            nn[nn.len() / 2]
+        };
+        let neighbours = neighbours
+            .into_iter()
+            .map(|d| d.into_iter().take(8).filter(|&(_, dd)| dd < 2.0 * pitch_px).map(|(j, _)| j).collect())
+            .collect();
+        Self { positions, areas_px, neighbours, pitch_px }
+    }
+}
+
+/// The outcome for one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrackResult {
+    /// Blob index per marker (`None` unless the status is [`MarkerStatus::Ok`]).
+    pub assignment: Vec<Option<usize>>,
+    /// Status per marker.
+    pub status: Vec<MarkerStatus>,
+    /// Overall motion found by the registration, in pixels.
+    pub shift_px: (f64, f64),
+    /// Blobs not given to any marker.
+    pub spurious: usize,
+}
+
+impl TrackResult {
+    /// Number of markers matched.
+    pub fn found(&self) -> usize {
+        self.status.iter().filter(|s| **s == MarkerStatus::Ok).count()
+    }
+}
+
+fn dist(a: (f64, f64), b: (f64, f64)) -> f64 {
+    ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt()
+}
+
+/// Overall motion by displacement voting.
+fn register(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> (f64, f64) {
+    let p = reference.pitch_px;
+    let range = cfg.search_pitches * p;
+    let cell = p / 4.0;
+    let nb = (2.0 * range / cell).ceil() as usize + 1;
+    let mut votes = vec![0u32; nb * nb];
+    let bin = |d: f64| ((d + range) / cell).floor() as i64;
+    for &m in &reference.positions {
+        for b in blobs {
+            let (dx, dy) = (b.x_px - m.0, b.y_px - m.1);
+            if dx.abs() >= range || dy.abs() >= range {
+                continue;
+            }
+            let (bx, by) = (bin(dx), bin(dy));
+            if bx >= 0 && by >= 0 && (bx as usize) < nb && (by as usize) < nb {
+                votes[by as usize * nb + bx as usize] += 1;
+            }
+        }
+    }
+    // Densest 2 × 2 block (a vote cloud straddling a cell edge is not split), ties to the
+    // smallest motion.
+    let mut best = (0u32, f64::INFINITY, 0usize, 0usize);
+    for by in 0..nb.saturating_sub(1) {
+        for bx in 0..nb.saturating_sub(1) {
+            let s = votes[by * nb + bx] + votes[by * nb + bx + 1] + votes[(by + 1) * nb + bx] + votes[(by + 1) * nb + bx + 1];
+            let cx = (bx as f64 + 1.0) * cell - range;
+            let cy = (by as f64 + 1.0) * cell - range;
+            let r = cx.hypot(cy);
+            if s > best.0 || (s == best.0 && r < best.1) {
+                best = (s, r, bx, by);
+            }
+        }
+    }
+    if best.0 == 0 {
+        return (0.0, 0.0);
+    }
+    let cx = (best.2 as f64 + 1.0) * cell - range;
+    let cy = (best.3 as f64 + 1.0) * cell - range;
+    // Refine: mean of the votes within one cell of the block centre.
+    let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
+    for &m in &reference.positions {
+        for b in blobs {
+            let (dx, dy) = (b.x_px - m.0, b.y_px - m.1);
+            if (dx - cx).abs() <= cell && (dy - cy).abs() <= cell {
+                sx += dx;
+                sy += dy;
+                k += 1.0;
+            }
+        }
+    }
+    if k > 0.0 {
+        (sx / k, sy / k)
+    } else {
+        (cx, cy)
+    }
+}
+
+/// Nearest and second-nearest free blob to `p` within `gate`.
+fn nearest_two(p: (f64, f64), blobs: &[Blob], taken: &[bool], gate: f64) -> (Option<(usize, f64)>, f64) {
+    let mut best: Option<(usize, f64)> = None;
+    let mut second = f64::INFINITY;
+    for (j, b) in blobs.iter().enumerate() {
+        if taken[j] {
+            continue;
+        }
+        let d = dist(p, (b.x_px, b.y_px));
+        if d > gate * 2.0 {
+            continue;
+        }
+        match best {
+            Some((_, bd)) if d >= bd => second = second.min(d),
+            _ => {
+                if let Some((_, bd)) = best {
+                    second = second.min(bd);
+                }
+                best = Some((j, d));
+            }
+        }
+    }
+    (best.filter(|&(_, d)| d <= gate), second)
+}
+
+/// Matches every reference marker to at most one blob of the frame.
+pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> TrackResult {
+    let n = reference.positions.len();
+    let p = reference.pitch_px;
+    let gate = cfg.gate_pitches * p;
+    let shift = register(reference, blobs, cfg);
+    let mut assignment: Vec<Option<usize>> = vec![None; n];
+    let mut disp: Vec<(f64, f64)> = vec![(0.0, 0.0); n];
+    let mut taken = vec![false; blobs.len()];
+
+    // Seeds: unambiguous, mutual nearest after the overall motion, within half the gate.
+    let predicted: Vec<(f64, f64)> =
+        reference.positions.iter().map(|&(x, y)| (x + shift.0, y + shift.1)).collect();
+    for i in 0..n {
+        let (best, second) = nearest_two(predicted[i], blobs, &taken, 0.5 * gate);
+        let Some((j, d)) = best else { continue };
+        if second < cfg.ambiguity_ratio * 2.0 * d.max(0.05 * p) {
+            continue;
+        }
+        // Mutual: no other marker's prediction is closer to this blob.
+        let bj = (blobs[j].x_px, blobs[j].y_px);
+        let mutual = reference.neighbours[i].iter().all(|&k| dist(predicted[k], bj) > d);
+        if mutual {
+            assignment[i] = Some(j);
+            taken[j] = true;
+            disp[i] = (bj.0 - reference.positions[i].0, bj.1 - reference.positions[i].1);
+        }
+    }
+    // Region growing from matched markers.
+    // Markers the growth has given up on (nothing free, or rivals, near the prediction).
+    let mut given_up = vec![false; n];
+    loop {
+        // Candidates: unmatched markers with matched neighbours, most support first.
+        let mut cands: Vec<(usize, usize)> = (0..n)
+            .filter(|&i| assignment[i].is_none() && !given_up[i])
+            .map(|i| (i, reference.neighbours[i].iter().filter(|&&k| assignment[k].is_some()).count()))
+            .filter(|&(_, c)| c > 0)
+            .collect();
+        if cands.is_empty() {
+            break;
+        }
+        cands.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        let mut progress = false;
+        let top = cands[0].1;
+        for &(i, _) in cands.iter().take_while(|&&(_, c)| c == top) {
+            // Inverse-distance weighted displacement of matched neighbours.
+            let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
+            for &k in &reference.neighbours[i] {
+                if assignment[k].is_some() {
+                    let w = 1.0 / dist(reference.positions[i], reference.positions[k]).max(1e-6);
+                    sx += w * disp[k].0;
+                    sy += w * disp[k].1;
+                    sw += w;
+                }
+            }
+            let pred = (reference.positions[i].0 + sx / sw, reference.positions[i].1 + sy / sw);
+            let (best, second) = nearest_two(pred, blobs, &taken, gate);
+            match best {
+                Some((j, d)) if second >= cfg.ambiguity_ratio * d.max(0.05 * p) => {
+                    assignment[i] = Some(j);
+                    taken[j] = true;
+                    disp[i] = (blobs[j].x_px - reference.positions[i].0, blobs[j].y_px - reference.positions[i].1);
+                    progress = true;
+                }
+                _ => {
+                    given_up[i] = true;
+                    progress = true;
+                }
+            }
+        }
+        if !progress {
+            break;
+        }
+    }
+    // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
+    for i in 0..n {
+        if assignment[i].is_none() && !given_up[i] {
+            let (best, second) = nearest_two(predicted[i], blobs, &taken, gate);
+            if let Some((j, d)) = best {
+                if second >= cfg.ambiguity_ratio * d.max(0.05 * p) {
+                    assignment[i] = Some(j);
+                    taken[j] = true;
+                }
+            }
+        }
+    }
+    // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
+    let mut status = vec![MarkerStatus::Ok; n];
+    for i in 0..n {
+        if assignment[i].is_some() {
+            continue;
+        }
+        let (sx, sy, sw) = reference.neighbours[i].iter().filter(|&&k| assignment[k].is_some()).fold(
+            (0.0, 0.0, 0.0),
+            |acc, &k| (acc.0 + disp[k].0, acc.1 + disp[k].1, acc.2 + 1.0),
+        );
+        let pred = if sw > 0.0 {
+            (reference.positions[i].0 + sx / sw, reference.positions[i].1 + sy / sw)
+        } else {
+            predicted[i]
+        };
+        // A taken blob covering the prediction and much larger than this marker: merged.
+        let merged_with = blobs.iter().enumerate().find(|(j, b)| {
+            taken[*j]
+                && f64::from(b.area_px) >= cfg.merged_area_ratio * reference.areas_px[i]
+                && pred.0 >= f64::from(b.bbox.x0) - 0.5
+                && pred.0 <= f64::from(b.bbox.x1) - 0.5
+                && pred.1 >= f64::from(b.bbox.y0) - 0.5
+                && pred.1 <= f64::from(b.bbox.y1) - 0.5
+        });
+        status[i] = if let Some((j, _)) = merged_with {
+            // The owner of that blob is merged too: its centroid is no longer its own.
+            if let Some(owner) = assignment.iter().position(|a| *a == Some(j)) {
+                status[owner] = MarkerStatus::Merged;
+            }
+            MarkerStatus::Merged
+        } else {
+            let (best, second) = nearest_two(pred, blobs, &taken, gate);
+            match best {
+                Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * p) => MarkerStatus::Ambiguous,
+                _ => MarkerStatus::Lost,
+            }
+        };
+    }
+    for i in 0..n {
+        if status[i] != MarkerStatus::Ok {
+            assignment[i] = None;
+        }
+    }
+    let spurious = taken.iter().filter(|t| !**t).count();
+    TrackResult { assignment, status, shift_px: shift, spurious }
+}
