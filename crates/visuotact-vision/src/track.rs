@@ -2,9 +2,9 @@
 //!
 //! Every frame is matched to the reference on its own (datasets of touches in random order need
 //! that), in two steps:
-//! 1. **Registration.** Every (marker, blob) pair closer than 1.5 pitches votes for its
-//!    displacement in a 2-D histogram; the densest cell, refined by the mean of its votes, is the
-//!    overall motion.
+//! 1. **Registration.** Every marker votes for the displacement of its nearest blob in a 2-D
+//!    histogram; the densest cell, refined by the mean of its votes, is the overall motion (the
+//!    still majority of a skin clamped at its frame, or a whole-sensor shift under half a pitch).
 //! 2. **One-to-one assignment by region growing.** Markers whose blob is unambiguous after the
 //!    overall motion (close, mutual nearest, no rival) are matched first. Then each unmatched
 //!    marker next to matched ones is predicted from its matched neighbours' displacements (the
@@ -147,62 +147,58 @@ fn dist(a: (f64, f64), b: (f64, f64)) -> f64 {
     ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt()
 }
 
-/// Overall motion by displacement voting.
+/// Overall motion: each marker votes for the displacement of the blob nearest to it, and the
+/// densest cell of the vote histogram, refined by the mean of its votes, wins. A skin clamped
+/// at its frame moves locally, so the still majority decides; a whole-sensor shift (a bumped
+/// camera) is found when it is under half a pitch (a larger uniform shift of a lattice cannot be
+/// told from a smaller one).
 fn register(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> (f64, f64) {
     let p = reference.pitch_px;
     let range = cfg.search_pitches * p;
     let cell = p / 4.0;
     let nb = (2.0 * range / cell).ceil() as usize + 1;
     let mut votes = vec![0u32; nb * nb];
-    let bin = |d: f64| ((d + range) / cell).floor() as i64;
+    let mut picks: Vec<(f64, f64)> = Vec::with_capacity(reference.positions.len());
     for &m in &reference.positions {
-        for b in blobs {
-            let (dx, dy) = (b.x_px - m.0, b.y_px - m.1);
-            if dx.abs() >= range || dy.abs() >= range {
-                continue;
-            }
-            let (bx, by) = (bin(dx), bin(dy));
-            if bx >= 0 && by >= 0 && (bx as usize) < nb && (by as usize) < nb {
-                votes[by as usize * nb + bx as usize] += 1;
+        let nearest = blobs
+            .iter()
+            .map(|b| (b.x_px - m.0, b.y_px - m.1))
+            .filter(|d| d.0.abs() < range && d.1.abs() < range)
+            .min_by(|a, b| a.0.hypot(a.1).total_cmp(&b.0.hypot(b.1)));
+        if let Some(d) = nearest {
+            let bx = ((d.0 + range) / cell).floor() as usize;
+            let by = ((d.1 + range) / cell).floor() as usize;
+            if bx < nb && by < nb {
+                votes[by * nb + bx] += 1;
+                picks.push(d);
             }
         }
     }
     // Densest 2 × 2 block (a vote cloud straddling a cell edge is not split), ties to the
     // smallest motion.
-    let mut best = (0u32, f64::INFINITY, 0usize, 0usize);
+    let mut best = (0u32, f64::INFINITY, 0.0, 0.0);
     for by in 0..nb.saturating_sub(1) {
         for bx in 0..nb.saturating_sub(1) {
-            let s = votes[by * nb + bx] + votes[by * nb + bx + 1] + votes[(by + 1) * nb + bx] + votes[(by + 1) * nb + bx + 1];
+            let s = votes[by * nb + bx]
+                + votes[by * nb + bx + 1]
+                + votes[(by + 1) * nb + bx]
+                + votes[(by + 1) * nb + bx + 1];
             let cx = (bx as f64 + 1.0) * cell - range;
             let cy = (by as f64 + 1.0) * cell - range;
             let r = cx.hypot(cy);
             if s > best.0 || (s == best.0 && r < best.1) {
-                best = (s, r, bx, by);
+                best = (s, r, cx, cy);
             }
         }
     }
     if best.0 == 0 {
         return (0.0, 0.0);
     }
-    let cx = (best.2 as f64 + 1.0) * cell - range;
-    let cy = (best.3 as f64 + 1.0) * cell - range;
-    // Refine: mean of the votes within one cell of the block centre.
-    let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
-    for &m in &reference.positions {
-        for b in blobs {
-            let (dx, dy) = (b.x_px - m.0, b.y_px - m.1);
-            if (dx - cx).abs() <= cell && (dy - cy).abs() <= cell {
-                sx += dx;
-                sy += dy;
-                k += 1.0;
-            }
-        }
-    }
-    if k > 0.0 {
-        (sx / k, sy / k)
-    } else {
-        (cx, cy)
-    }
+    let (cx, cy) = (best.2, best.3);
+    let inliers: Vec<&(f64, f64)> =
+        picks.iter().filter(|d| (d.0 - cx).abs() <= cell && (d.1 - cy).abs() <= cell).collect();
+    let k = inliers.len() as f64;
+    (inliers.iter().map(|d| d.0).sum::<f64>() / k, inliers.iter().map(|d| d.1).sum::<f64>() / k)
 }
 
 /// Nearest and second-nearest free blob to `p` within `gate`.
@@ -258,15 +254,53 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
             disp[i] = (bj.0 - reference.positions[i].0, bj.1 - reference.positions[i].1);
         }
     }
+    // Keep the largest set of seeds whose displacements agree with their seeded neighbours (a
+    // smooth field); seeds elsewhere may have taken a neighbour's blob in a drag zone, so they
+    // are released and re-grown from the consistent set.
+    let mut component = vec![usize::MAX; n];
+    let mut sizes = Vec::new();
+    for s0 in 0..n {
+        if assignment[s0].is_none() || component[s0] != usize::MAX {
+            continue;
+        }
+        let c = sizes.len();
+        let mut stack = vec![s0];
+        component[s0] = c;
+        let mut size = 0;
+        while let Some(i) = stack.pop() {
+            size += 1;
+            for &k in &reference.neighbours[i] {
+                if assignment[k].is_some()
+                    && component[k] == usize::MAX
+                    && dist(disp[i], disp[k]) < 0.25 * p
+                {
+                    component[k] = c;
+                    stack.push(k);
+                }
+            }
+        }
+        sizes.push(size);
+    }
+    if let Some(keep) = (0..sizes.len()).max_by_key(|&c| (sizes[c], usize::MAX - c)) {
+        for i in 0..n {
+            if let Some(j) = assignment[i] {
+                if component[i] != keep {
+                    assignment[i] = None;
+                    taken[j] = false;
+                }
+            }
+        }
+    }
     // Region growing from matched markers.
-    // Markers the growth has given up on (nothing free, or rivals, near the prediction).
-    let mut given_up = vec![false; n];
+    // Support (matched neighbours) at which the growth last failed for each marker (nothing
+    // free, or rivals, near the prediction); it is tried again once more neighbours are matched.
+    let mut failed_at: Vec<Option<usize>> = vec![None; n];
     loop {
         // Candidates: unmatched markers with matched neighbours, most support first.
         let mut cands: Vec<(usize, usize)> = (0..n)
-            .filter(|&i| assignment[i].is_none() && !given_up[i])
+            .filter(|&i| assignment[i].is_none())
             .map(|i| (i, reference.neighbours[i].iter().filter(|&&k| assignment[k].is_some()).count()))
-            .filter(|&(_, c)| c > 0)
+            .filter(|&(i, c)| c > 0 && failed_at[i].is_none_or(|f| c > f))
             .collect();
         if cands.is_empty() {
             break;
@@ -274,7 +308,7 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
         cands.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
         let mut progress = false;
         let top = cands[0].1;
-        for &(i, _) in cands.iter().take_while(|&&(_, c)| c == top) {
+        for &(i, support) in cands.iter().take_while(|&&(_, c)| c == top) {
             // Inverse-distance weighted displacement of matched neighbours.
             let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
             for &k in &reference.neighbours[i] {
@@ -295,7 +329,7 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
                     progress = true;
                 }
                 _ => {
-                    given_up[i] = true;
+                    failed_at[i] = Some(support);
                     progress = true;
                 }
             }
@@ -306,7 +340,7 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
     }
     // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
     for i in 0..n {
-        if assignment[i].is_none() && !given_up[i] {
+        if assignment[i].is_none() && failed_at[i].is_none() {
             let (best, second) = nearest_two(predicted[i], blobs, &taken, gate);
             if let Some((j, d)) = best {
                 if second >= cfg.ambiguity_ratio * d.max(0.05 * p) {
