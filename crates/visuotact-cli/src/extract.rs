@@ -1,0 +1,122 @@
+//! `visuotact extract`: frames → one feature row per frame.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use visuotact_io::frames::FrameStream;
+use visuotact_io::table::{TableFormat, TableWriter};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use visuotact_vision::track::MarkerStatus;
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Sensor file from `calibrate`.
+    #[arg(long)]
+    sensor: PathBuf,
+    /// Frames: image files, folders of images, or videos.
+    #[arg(required = true)]
+    frames: Vec<PathBuf>,
+    /// Output table (`-` for standard output).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Features per marker: a list of x, y, area, ecc (default: the sensor file's).
+    #[arg(long)]
+    features: Option<String>,
+    /// Table format: csv or jsonl.
+    #[arg(long, default_value = "csv", value_parser = ["csv", "jsonl"])]
+    format: String,
+    /// Frame rate for image sequences (timestamps), frames per second.
+    #[arg(long, default_value_t = 25.0)]
+    fps: f64,
+    /// Print at most this many per-frame warnings (a summary always follows).
+    #[arg(long, default_value_t = 20)]
+    max_warnings: usize,
+}
+
+/// Leading columns before the per-marker features.
+pub(crate) const LEAD_COLUMNS: [&str; 6] =
+    ["timestamp_s", "n_found", "n_markers", "n_spurious", "shift_x_px", "shift_y_px"];
+
+pub(crate) fn flags_of(f: &FrameFeatures) -> String {
+    f.status
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| **s != MarkerStatus::Ok)
+        .map(|(i, s)| format!("m{i:03}:{}", s.name()))
+        .collect::<Vec<_>>()
+        .join(";")
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    if !(a.fps > 0.0 && a.fps.is_finite()) {
+        bail!("--fps must be a positive number of frames per second, got {}", a.fps);
+    }
+    let cal = crate::load_sensor(&a.sensor)?;
+    let features = match &a.features {
+        Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
+        None => cal.features,
+    };
+    let n_markers = cal.markers.len();
+    let mut ex = FeatureExtractor::new(cal, features).map_err(anyhow::Error::msg)?;
+    let stream = FrameStream::open(&a.frames, a.fps)?;
+    let format = TableFormat::from_name(&a.format).unwrap_or_default();
+    let mut columns: Vec<String> = LEAD_COLUMNS.iter().map(|s| s.to_string()).collect();
+    columns.extend(ex.column_names());
+    let mut out = TableWriter::create(&a.output, format, columns)
+        .with_context(|| format!("{}: cannot create output", a.output.display()))?;
+    let (mut written, mut skipped, mut warned, mut incomplete, mut lost_total) = (0usize, 0usize, 0usize, 0usize, 0usize);
+    let mut f = FrameFeatures::default();
+    let mut row = Vec::new();
+    let warn = |msg: String, warned: &mut usize| {
+        if *warned < a.max_warnings {
+            eprintln!("warning: {msg}");
+        }
+        *warned += 1;
+    };
+    for item in stream {
+        let frame = match item {
+            Ok(fr) => fr,
+            Err(e) => {
+                skipped += 1;
+                warn(format!("{e}; skipped"), &mut warned);
+                continue;
+            }
+        };
+        if let Err(e) = ex.extract_into(&frame.image, &mut f) {
+            skipped += 1;
+            warn(format!("frame {}: {e}; skipped", frame.id), &mut warned);
+            continue;
+        }
+        let missing = n_markers - f.found;
+        if missing > 0 {
+            incomplete += 1;
+            lost_total += missing;
+            let what = if missing * 2 >= n_markers { " (half or more of the markers: is the skin in view?)" } else { "" };
+            warn(format!("frame {}: {missing} of {n_markers} markers not found{what}: {}", frame.id, flags_of(&f)), &mut warned);
+        }
+        row.clear();
+        row.extend_from_slice(&[
+            frame.timestamp_s,
+            f.found as f64,
+            n_markers as f64,
+            f.spurious as f64,
+            f.shift_px.0,
+            f.shift_px.1,
+        ]);
+        row.extend_from_slice(&f.values);
+        out.write_row(&frame.id, &row, &flags_of(&f))
+            .with_context(|| format!("{}: write failed", a.output.display()))?;
+        written += 1;
+    }
+    if warned > a.max_warnings {
+        eprintln!("… {} more warnings not shown", warned - a.max_warnings);
+    }
+    eprintln!(
+        "extracted {written} frames ({} features each), skipped {skipped}; {incomplete} frames with missing markers ({lost_total} marker-frames)",
+        features.per_marker() * n_markers
+    );
+    if written == 0 {
+        bail!("no frame could be processed");
+    }
+    Ok(())
+}

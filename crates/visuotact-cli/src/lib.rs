@@ -1,0 +1,86 @@
+//! The `visuotact` command line: parses arguments and calls the library crates.
+//!
+//! `main` only calls [`run`]; each subcommand lives in its own module and returns
+//! `anyhow::Result`, printed once here as `error: …` with exit code 1 (2 for usage errors).
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod bench;
+mod calibrate;
+mod extract;
+mod pattern;
+
+/// Camera-based soft tactile sensors: frames in, contact position, depth and force out.
+#[derive(Parser, Debug)]
+#[command(name = "visuotact", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Average still no-contact frames into a reference and number its markers → sensor.json.
+    Calibrate(calibrate::Args),
+    /// Track every reference marker through frames → one feature row per frame.
+    Extract(extract::Args),
+    /// Time the in-memory frame → features pipeline, single-threaded.
+    Bench(bench::Args),
+    /// Render marker-grid test frames with exact truth (rest frames and touches).
+    Pattern(pattern::Args),
+}
+
+/// Runs the program with the process arguments.
+pub fn run() -> ExitCode {
+    run_with(std::env::args_os())
+}
+
+/// Runs the program with the given arguments (the first is the program name).
+pub fn run_with<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
+        }
+    };
+    let result = match cli.command {
+        Command::Calibrate(a) => calibrate::run(&a),
+        Command::Extract(a) => extract::run(&a),
+        Command::Bench(a) => bench::run(&a),
+        Command::Pattern(a) => pattern::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Reads a sensor file, naming it in errors.
+pub(crate) fn load_sensor(path: &std::path::Path) -> anyhow::Result<visuotact_vision::calibration::SensorCalibration> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read sensor file: {e}", path.display()))?;
+    visuotact_vision::calibration::SensorCalibration::from_json(&text, &path.display().to_string())
+        .map_err(anyhow::Error::msg)
+}
+
+/// Writes `text` to `path` through a temporary file and a rename, so a failure never leaves a
+/// half-written file over a good one.
+pub(crate) fn write_atomically(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+    }
+    let tmp = path.with_extension("tmp~");
+    std::fs::write(&tmp, text).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+    Ok(())
+}

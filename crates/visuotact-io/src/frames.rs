@@ -1,0 +1,399 @@
+//! Frame sources: image files, folders and videos.
+//!
+//! - Image files: PNG, JPEG, PPM/PGM/PNM (decoded by the `image` crate; grey images become RGB
+//!   with equal channels). A frame's id is its file name.
+//! - Folders: every image file inside, sorted by name; a folder with none is an error.
+//! - Videos (`.avi .mp4 .mkv .mov .webm .m4v .mpg .mpeg`): decoded by the `ffmpeg` program to
+//!   raw RGB; size and rate from `ffprobe`. A frame's id is its 0-based index (prefixed with the
+//!   file name when several inputs are given).
+//!
+//! Timestamps are `index / fps` in seconds from the start of the stream: the video's own rate,
+//! or the rate given for image sequences (25 fps by default, seed 001's camera).
+//! A frame that cannot be decoded comes out as an `Err` naming it; the stream goes on.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdout, Command, Stdio};
+
+use rayon::prelude::*;
+use visuotact_image::{Frame, RgbImage};
+
+/// Errors from opening or reading frames. Each names the file or frame.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// A path that does not exist or cannot be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A folder without image files.
+    #[error("{0}: folder has no image files (png, jpg, jpeg, ppm, pgm, pnm)")]
+    EmptyFolder(PathBuf),
+    /// No inputs at all.
+    #[error("no frames given")]
+    NoInputs,
+    /// A file that is neither an image nor a known video type.
+    #[error("{0}: not an image (png, jpg, jpeg, ppm, pgm, pnm) or video (avi, mp4, mkv, mov, webm, m4v, mpg) file")]
+    Unsupported(PathBuf),
+    /// An image that cannot be decoded.
+    #[error("frame {frame}: cannot decode image: {message}")]
+    Decode {
+        /// The frame's id (file path).
+        frame: String,
+        /// What the decoder said.
+        message: String,
+    },
+    /// ffmpeg missing, failing to open the video, or stopping early.
+    #[error("{path}: {message}")]
+    Video {
+        /// The video file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+const IMAGE_EXT: [&str; 6] = ["png", "jpg", "jpeg", "ppm", "pgm", "pnm"];
+const VIDEO_EXT: [&str; 8] = ["avi", "mp4", "mkv", "mov", "webm", "m4v", "mpg", "mpeg"];
+
+fn ext_of(p: &Path) -> String {
+    p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
+
+/// One expanded input.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Input {
+    /// An image file.
+    Image(PathBuf),
+    /// A video file.
+    Video(PathBuf),
+}
+
+/// Expands files and folders into a list of inputs (folders sorted by name).
+pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
+    if paths.is_empty() {
+        return Err(FrameError::NoInputs);
+    }
+    let mut out = Vec::new();
+    for p in paths {
+        let meta = std::fs::metadata(p).map_err(|source| FrameError::Io { path: p.clone(), source })?;
+        if meta.is_dir() {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(p)
+                .map_err(|source| FrameError::Io { path: p.clone(), source })?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| f.is_file() && IMAGE_EXT.contains(&ext_of(f).as_str()))
+                .collect();
+            if files.is_empty() {
+                return Err(FrameError::EmptyFolder(p.clone()));
+            }
+            files.sort();
+            out.extend(files.into_iter().map(Input::Image));
+        } else {
+            let e = ext_of(p);
+            if IMAGE_EXT.contains(&e.as_str()) {
+                out.push(Input::Image(p.clone()));
+            } else if VIDEO_EXT.contains(&e.as_str()) {
+                out.push(Input::Video(p.clone()));
+            } else {
+                return Err(FrameError::Unsupported(p.clone()));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Decodes one image file into RGB.
+pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
+    let frame = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| FrameError::Io { path: path.to_path_buf(), source })?;
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| FrameError::Decode { frame: frame.clone(), message: e.to_string() })?
+        .into_rgb8();
+    let (w, h) = img.dimensions();
+    RgbImage::from_vec(w as usize, h as usize, img.into_raw())
+        .map_err(|e| FrameError::Decode { frame, message: e.to_string() })
+}
+
+/// Writes an RGB image as PNG.
+pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), FrameError> {
+    image::save_buffer(path, img.as_slice(), img.width() as u32, img.height() as u32, image::ExtendedColorType::Rgb8)
+        .map_err(|e| FrameError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) })
+}
+
+/// Size and rate of a video, from `ffprobe`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VideoInfo {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Frames per second.
+    pub fps: f64,
+}
+
+fn tool_missing(path: &Path, tool: &str, e: &std::io::Error) -> FrameError {
+    FrameError::Video {
+        path: path.to_path_buf(),
+        message: if e.kind() == std::io::ErrorKind::NotFound {
+            format!("cannot decode video: the `{tool}` program is not installed (Debian package `ffmpeg`)")
+        } else {
+            format!("cannot run {tool}: {e}")
+        },
+    }
+}
+
+/// Probes a video's size and frame rate.
+pub fn probe_video(path: &Path) -> Result<VideoInfo, FrameError> {
+    if !path.is_file() {
+        return Err(FrameError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        });
+    }
+    let out = Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries", "stream=width,height,avg_frame_rate,r_frame_rate", "-of", "default=noprint_wrappers=1"])
+        .arg(path)
+        .output()
+        .map_err(|e| tool_missing(path, "ffprobe", &e))?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let field = |k: &str| text.lines().find_map(|l| l.strip_prefix(k).and_then(|v| v.strip_prefix('=')).map(str::trim));
+    let bad = |what: &str| FrameError::Video {
+        path: path.to_path_buf(),
+        message: format!("ffmpeg cannot open it as a video ({what}){}", if err.trim().is_empty() { String::new() } else { format!(": {}", err.trim()) }),
+    };
+    let width: usize = field("width").and_then(|v| v.parse().ok()).ok_or_else(|| bad("no video stream"))?;
+    let height: usize = field("height").and_then(|v| v.parse().ok()).ok_or_else(|| bad("no frame size"))?;
+    let rate = |s: &str| -> Option<f64> {
+        let (a, b) = s.split_once('/').unwrap_or((s, "1"));
+        let (a, b): (f64, f64) = (a.parse().ok()?, b.parse().ok()?);
+        (b > 0.0 && a > 0.0).then_some(a / b)
+    };
+    let fps = field("avg_frame_rate").and_then(rate).or_else(|| field("r_frame_rate").and_then(rate)).unwrap_or(25.0);
+    if width == 0 || height == 0 {
+        return Err(bad("zero frame size"));
+    }
+    Ok(VideoInfo { width, height, fps })
+}
+
+/// Frames of one video, decoded by a child `ffmpeg` process.
+pub struct VideoFrames {
+    path: PathBuf,
+    info: VideoInfo,
+    child: Option<Child>,
+    stdout: Option<ChildStdout>,
+    index: usize,
+    prefix: Option<String>,
+    done: bool,
+}
+
+impl VideoFrames {
+    /// Opens `path`; `prefix` is put before frame ids (`name#index`) when several inputs mix.
+    pub fn open(path: &Path, prefix: Option<String>) -> Result<Self, FrameError> {
+        let info = probe_video(path)?;
+        let mut child = Command::new("ffmpeg")
+            .args(["-nostdin", "-v", "error", "-i"])
+            .arg(path)
+            .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| tool_missing(path, "ffmpeg", &e))?;
+        let stdout = child.stdout.take();
+        Ok(Self { path: path.to_path_buf(), info, child: Some(child), stdout, index: 0, prefix, done: false })
+    }
+
+    /// Size and rate.
+    pub fn info(&self) -> VideoInfo {
+        self.info
+    }
+
+    fn finish(&mut self) -> Option<FrameError> {
+        self.done = true;
+        self.stdout = None;
+        let child = self.child.take()?;
+        let out = child.wait_with_output().ok()?;
+        if out.status.success() {
+            return None;
+        }
+        let err = String::from_utf8_lossy(&out.stderr);
+        Some(FrameError::Video {
+            path: self.path.clone(),
+            message: format!(
+                "ffmpeg stopped after {} frames: {}",
+                self.index,
+                err.lines().last().unwrap_or("unknown error").trim()
+            ),
+        })
+    }
+}
+
+impl Iterator for VideoFrames {
+    type Item = Result<Frame, FrameError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let n = self.info.width * self.info.height * 3;
+        let mut buf = vec![0u8; n];
+        let mut got = 0;
+        let stdout = self.stdout.as_mut()?;
+        while got < n {
+            match stdout.read(&mut buf[got..]) {
+                Ok(0) => break,
+                Ok(k) => got += k,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(FrameError::Video { path: self.path.clone(), message: format!("reading ffmpeg output: {e}") }));
+                }
+            }
+        }
+        if got < n {
+            let err = self.finish();
+            if got > 0 {
+                return Some(Err(FrameError::Video {
+                    path: self.path.clone(),
+                    message: format!("frame {} truncated ({got} of {n} bytes)", self.index),
+                }));
+            }
+            return err.map(Err);
+        }
+        let index = self.index;
+        self.index += 1;
+        let id = match &self.prefix {
+            Some(p) => format!("{p}#{index}"),
+            None => index.to_string(),
+        };
+        let image = RgbImage::from_vec(self.info.width, self.info.height, buf).ok()?;
+        Some(Ok(Frame { id, index, timestamp_s: index as f64 / self.info.fps, image }))
+    }
+}
+
+impl Drop for VideoFrames {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// How many images are decoded at once (in parallel) by [`FrameStream`].
+const DECODE_BATCH: usize = 32;
+
+/// All frames of a list of inputs, in order, as one stream.
+pub struct FrameStream {
+    inputs: Vec<Input>,
+    next_input: usize,
+    image_fps: f64,
+    video: Option<VideoFrames>,
+    decoded: std::collections::VecDeque<Result<Frame, FrameError>>,
+    index: usize,
+    multi: bool,
+    limit: Option<usize>,
+}
+
+impl FrameStream {
+    /// Opens files and folders; `image_fps` sets image-sequence timestamps.
+    pub fn open(paths: &[PathBuf], image_fps: f64) -> Result<Self, FrameError> {
+        let inputs = expand_inputs(paths)?;
+        let multi = inputs.iter().filter(|i| matches!(i, Input::Video(_))).count() > 1
+            || (inputs.iter().any(|i| matches!(i, Input::Video(_))) && inputs.len() > 1);
+        Ok(Self {
+            inputs,
+            next_input: 0,
+            image_fps: if image_fps > 0.0 { image_fps } else { 25.0 },
+            video: None,
+            decoded: Default::default(),
+            index: 0,
+            multi,
+            limit: None,
+        })
+    }
+
+    /// Stops after `n` frames.
+    pub fn take_first(mut self, n: usize) -> Self {
+        self.limit = Some(n);
+        self
+    }
+
+    /// The expanded inputs.
+    pub fn inputs(&self) -> &[Input] {
+        &self.inputs
+    }
+}
+
+impl Iterator for FrameStream {
+    type Item = Result<Frame, FrameError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.limit.is_some_and(|l| self.index >= l) {
+            return None;
+        }
+        loop {
+            if let Some(f) = self.decoded.pop_front() {
+                self.index += 1;
+                return Some(f);
+            }
+            if let Some(v) = self.video.as_mut() {
+                match v.next() {
+                    Some(Ok(mut f)) => {
+                        f.index = self.index;
+                        self.index += 1;
+                        return Some(Ok(f));
+                    }
+                    Some(Err(e)) => {
+                        self.index += 1;
+                        return Some(Err(e));
+                    }
+                    None => self.video = None,
+                }
+            }
+            let input = self.inputs.get(self.next_input)?.clone();
+            match input {
+                Input::Video(p) => {
+                    self.next_input += 1;
+                    let prefix = self.multi.then(|| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
+                    match VideoFrames::open(&p, prefix) {
+                        Ok(v) => self.video = Some(v),
+                        Err(e) => return Some(Err(e)),
+                    }
+                }
+                Input::Image(_) => {
+                    // Decode the run of images that follows, a batch at a time, in parallel.
+                    let mut batch = Vec::new();
+                    while batch.len() < DECODE_BATCH {
+                        match self.inputs.get(self.next_input) {
+                            Some(Input::Image(p)) => {
+                                batch.push(p.clone());
+                                self.next_input += 1;
+                            }
+                            _ => break,
+                        }
+                    }
+                    let base = self.index;
+                    let fps = self.image_fps;
+                    let frames: Vec<_> = batch
+                        .par_iter()
+                        .enumerate()
+                        .map(|(k, p)| {
+                            read_image(p).map(|image| Frame {
+                                id: p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+                                index: base + k,
+                                timestamp_s: (base + k) as f64 / fps,
+                                image,
+                            })
+                        })
+                        .collect();
+                    self.decoded.extend(frames);
+                }
+            }
+        }
+    }
+}

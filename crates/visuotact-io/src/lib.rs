@@ -1,0 +1,9 @@
+//! Getting frames in and tables out.
+//!
+//! [`frames`] opens image files, folders of images (sorted by name) and video files (decoded by
+//! the `ffmpeg` program) as one stream of timestamped [`visuotact_image::Frame`]s, reporting a
+//! frame that cannot be read by name and carrying on. [`table`] writes per-frame rows as CSV or
+//! JSON lines, flushing as it goes.
+
+pub mod frames;
+pub mod table;

@@ -1,0 +1,126 @@
+//! Per-frame tables written as they are produced: CSV or JSON lines.
+//!
+//! A row is the frame id, numeric cells and one free-text `flags` cell. Non-finite numbers are
+//! missing values: empty in CSV, `null` in JSON. Every row is flushed, so a run that stops early
+//! leaves complete rows behind.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// Table layout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TableFormat {
+    /// Comma-separated values with a header row.
+    #[default]
+    Csv,
+    /// One JSON object per line.
+    Jsonl,
+}
+
+impl TableFormat {
+    /// Parses `csv` or `jsonl`.
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "csv" => Some(Self::Csv),
+            "jsonl" | "json" | "ndjson" => Some(Self::Jsonl),
+            _ => None,
+        }
+    }
+}
+
+/// Writes rows of `frame`, numeric columns and `flags`.
+pub struct TableWriter {
+    out: Box<dyn Write>,
+    path: PathBuf,
+    format: TableFormat,
+    columns: Vec<String>,
+    line: String,
+}
+
+fn csv_escape(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+impl TableWriter {
+    /// Creates `path` (`-` for standard output) with the given numeric column names.
+    pub fn create(path: &Path, format: TableFormat, columns: Vec<String>) -> std::io::Result<Self> {
+        let out: Box<dyn Write> = if path.as_os_str() == "-" {
+            Box::new(std::io::stdout())
+        } else {
+            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir)?;
+            }
+            Box::new(BufWriter::new(File::create(path)?))
+        };
+        let mut w = Self { out, path: path.to_path_buf(), format, columns, line: String::new() };
+        if format == TableFormat::Csv {
+            let mut header = String::from("frame");
+            for c in &w.columns {
+                header.push(',');
+                header.push_str(&csv_escape(c));
+            }
+            header.push_str(",flags\n");
+            w.out.write_all(header.as_bytes())?;
+            w.out.flush()?;
+        }
+        Ok(w)
+    }
+
+    /// Where the table goes.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Appends one row; `values` must have one entry per column.
+    pub fn write_row(&mut self, frame: &str, values: &[f64], flags: &str) -> std::io::Result<()> {
+        assert_eq!(values.len(), self.columns.len(), "row width must match the header");
+        self.line.clear();
+        match self.format {
+            TableFormat::Csv => {
+                self.line.push_str(&csv_escape(frame));
+                for v in values {
+                    self.line.push(',');
+                    if v.is_finite() {
+                        self.line.push_str(&format_number(*v));
+                    }
+                }
+                self.line.push(',');
+                self.line.push_str(&csv_escape(flags));
+            }
+            TableFormat::Jsonl => {
+                self.line.push_str("{\"frame\":");
+                self.line.push_str(&serde_json::to_string(frame).unwrap_or_default());
+                for (c, v) in self.columns.iter().zip(values) {
+                    self.line.push(',');
+                    self.line.push_str(&serde_json::to_string(c).unwrap_or_default());
+                    self.line.push(':');
+                    if v.is_finite() {
+                        self.line.push_str(&format_number(*v));
+                    } else {
+                        self.line.push_str("null");
+                    }
+                }
+                self.line.push_str(",\"flags\":");
+                self.line.push_str(&serde_json::to_string(flags).unwrap_or_default());
+                self.line.push('}');
+            }
+        }
+        self.line.push('\n');
+        self.out.write_all(self.line.as_bytes())?;
+        self.out.flush()
+    }
+}
+
+/// Shortest text that reads back as the same `f64` (integers without a decimal point).
+pub fn format_number(v: f64) -> String {
+    if v == v.trunc() && v.abs() < 1e15 {
+        format!("{}", v as i64)
+    } else {
+        format!("{v}")
+    }
+}
