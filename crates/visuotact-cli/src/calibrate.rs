@@ -110,7 +110,10 @@ impl DetectorArgs {
         };
         if let Some(c) = &self.channel {
             p.channel = Channel::from_name(c).with_context(|| {
-                format!("--channel {c:?}: expected one of {}", Channel::ALL.map(Channel::name).join(", "))
+                format!(
+                    "--channel {c:?}: expected one of {}",
+                    Channel::ALL.map(Channel::name).join(", ")
+                )
             })?;
         }
         if self.invert {
@@ -141,10 +144,15 @@ impl DetectorArgs {
         if let Some(t) = &self.threshold {
             p.threshold = match t.as_str() {
                 "otsu" => Threshold::Otsu,
-                "adaptive" => Threshold::Adaptive { window_px: def_window, offset: def_offset },
+                "adaptive" => Threshold::Adaptive {
+                    window_px: def_window,
+                    offset: def_offset,
+                },
                 other => match other.parse::<f64>() {
                     Ok(level) => Threshold::Fixed { level },
-                    Err(_) => bail!("--threshold {other:?}: expected otsu, adaptive or a level in 0..1"),
+                    Err(_) => {
+                        bail!("--threshold {other:?}: expected otsu, adaptive or a level in 0..1")
+                    }
                 },
             };
         }
@@ -163,11 +171,20 @@ impl DetectorArgs {
             if v.iter().any(|x| *x < 0.0) || v[2] < 1.0 || v[3] < 1.0 {
                 bail!("--roi {r:?}: expects a non-negative corner and a positive size");
             }
-            p.roi = Some(Roi { x: v[0] as usize, y: v[1] as usize, width: v[2] as usize, height: v[3] as usize });
+            p.roi = Some(Roi {
+                x: v[0] as usize,
+                y: v[1] as usize,
+                width: v[2] as usize,
+                height: v[3] as usize,
+            });
         }
         if let Some(c) = &self.circle {
             let v = numbers(c, 3, "circle")?;
-            p.circle = Some(CircleMask { cx_px: v[0], cy_px: v[1], radius_px: v[2] });
+            p.circle = Some(CircleMask {
+                cx_px: v[0],
+                cy_px: v[1],
+                radius_px: v[2],
+            });
         }
         p.validate().map_err(anyhow::Error::msg)?;
         let mut filter = BlobFilter::DEFAULT;
@@ -178,11 +195,25 @@ impl DetectorArgs {
             filter.max_area_px = a;
         }
         if filter.min_area_px > filter.max_area_px {
-            bail!("--min-area {} exceeds --max-area {}", filter.min_area_px, filter.max_area_px);
+            bail!(
+                "--min-area {} exceeds --max-area {}",
+                filter.min_area_px,
+                filter.max_area_px
+            );
         }
         filter.keep_border = self.keep_border;
-        filter.connectivity = if self.connectivity == 4 { Connectivity::Four } else { Connectivity::Eight };
-        Ok((DetectorConfig { preprocess: p, filter }, features))
+        filter.connectivity = if self.connectivity == 4 {
+            Connectivity::Four
+        } else {
+            Connectivity::Eight
+        };
+        Ok((
+            DetectorConfig {
+                preprocess: p,
+                filter,
+            },
+            features,
+        ))
     }
 }
 
@@ -192,7 +223,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
     };
-    let layout = if a.layout == "rings" { Layout::Rings } else { Layout::Grid };
+    let layout = if a.layout == "rings" {
+        Layout::Rings
+    } else {
+        Layout::Grid
+    };
     let mut stream = FrameStream::open(&a.frames, 25.0)?;
     if let Some(n) = a.first {
         if n == 0 {
@@ -209,9 +244,16 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if frames.is_empty() {
         bail!("no frames could be read");
     }
-    let (cal, report) = calibrate(frames.iter().map(|f| (f.id.as_str(), &f.image)), detector, layout, features)?;
+    let (cal, report) = calibrate(
+        frames.iter().map(|f| (f.id.as_str(), &f.image)),
+        detector,
+        layout,
+        features,
+    )?;
     write_sensor(a, &cal)?;
-    let level = report.level.map_or("adaptive".to_string(), |t| format!("{t}"));
+    let level = report
+        .level
+        .map_or("adaptive".to_string(), |t| format!("{t}"));
     eprintln!(
         "calibrated {} markers ({} rows × {} columns, pitch {:.1} px) from {} frames of {}×{}; threshold {level}; {} blobs, {} off the grid",
         cal.markers.len(),
@@ -224,10 +266,19 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         report.raw_blobs,
         report.off_grid.len()
     );
-    let mut jitter: Vec<f64> = cal.markers.iter().map(|m| m.jitter_px).filter(|j| j.is_finite()).collect();
+    let mut jitter: Vec<f64> = cal
+        .markers
+        .iter()
+        .map(|m| m.jitter_px)
+        .filter(|j| j.is_finite())
+        .collect();
     jitter.sort_by(f64::total_cmp);
     if let Some(&worst) = jitter.last() {
-        eprintln!("marker jitter over the calibration frames: median {:.3} px, worst {:.3} px", jitter[jitter.len() / 2], worst);
+        eprintln!(
+            "marker jitter over the calibration frames: median {:.3} px, worst {:.3} px",
+            jitter[jitter.len() / 2],
+            worst
+        );
     }
     for (id, n) in report.missing_per_frame.iter().take(10) {
         eprintln!("warning: frame {id}: {n} markers not found in this still frame");
@@ -236,6 +287,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_sensor(a: &Args, cal: &visuotact_vision::calibration::SensorCalibration) -> anyhow::Result<()> {
+fn write_sensor(
+    a: &Args,
+    cal: &visuotact_vision::calibration::SensorCalibration,
+) -> anyhow::Result<()> {
     crate::write_atomically(&a.output, &cal.to_json())
 }

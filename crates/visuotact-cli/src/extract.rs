@@ -34,8 +34,14 @@ pub(crate) struct Args {
 }
 
 /// Leading columns before the per-marker features.
-pub(crate) const LEAD_COLUMNS: [&str; 6] =
-    ["timestamp_s", "n_found", "n_markers", "n_spurious", "shift_x_px", "shift_y_px"];
+pub(crate) const LEAD_COLUMNS: [&str; 6] = [
+    "timestamp_s",
+    "n_found",
+    "n_markers",
+    "n_spurious",
+    "shift_x_px",
+    "shift_y_px",
+];
 
 pub(crate) fn flags_of(f: &FrameFeatures) -> String {
     f.status
@@ -49,7 +55,10 @@ pub(crate) fn flags_of(f: &FrameFeatures) -> String {
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if !(a.fps > 0.0 && a.fps.is_finite()) {
-        bail!("--fps must be a positive number of frames per second, got {}", a.fps);
+        bail!(
+            "--fps must be a positive number of frames per second, got {}",
+            a.fps
+        );
     }
     let cal = crate::load_sensor(&a.sensor)?;
     let features = match &a.features {
@@ -64,7 +73,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     columns.extend(ex.column_names());
     let mut out = TableWriter::create(&a.output, format, columns)
         .with_context(|| format!("{}: cannot create output", a.output.display()))?;
-    let (mut written, mut skipped, mut warned, mut incomplete, mut lost_total) = (0usize, 0usize, 0usize, 0usize, 0usize);
+    let (mut written, mut skipped, mut warned, mut incomplete, mut lost_total) =
+        (0usize, 0usize, 0usize, 0usize, 0usize);
     let mut f = FrameFeatures::default();
     let mut row = Vec::new();
     let warn = |msg: String, warned: &mut usize| {
@@ -91,8 +101,19 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         if missing > 0 {
             incomplete += 1;
             lost_total += missing;
-            let what = if missing * 2 >= n_markers { " (half or more of the markers: is the skin in view?)" } else { "" };
-            warn(format!("frame {}: {missing} of {n_markers} markers not found{what}: {}", frame.id, flags_of(&f)), &mut warned);
+            let what = if missing * 2 >= n_markers {
+                " (half or more of the markers: is the skin in view?)"
+            } else {
+                ""
+            };
+            warn(
+                format!(
+                    "frame {}: {missing} of {n_markers} markers not found{what}: {}",
+                    frame.id,
+                    flags_of(&f)
+                ),
+                &mut warned,
+            );
         }
         row.clear();
         row.extend_from_slice(&[

@@ -47,7 +47,11 @@ where
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
-            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
         }
     };
     let result = match cli.command {
@@ -66,7 +70,9 @@ where
 }
 
 /// Reads a sensor file, naming it in errors.
-pub(crate) fn load_sensor(path: &std::path::Path) -> anyhow::Result<visuotact_vision::calibration::SensorCalibration> {
+pub(crate) fn load_sensor(
+    path: &std::path::Path,
+) -> anyhow::Result<visuotact_vision::calibration::SensorCalibration> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow::anyhow!("{}: cannot read sensor file: {e}", path.display()))?;
     visuotact_vision::calibration::SensorCalibration::from_json(&text, &path.display().to_string())
@@ -80,7 +86,9 @@ pub(crate) fn write_atomically(path: &std::path::Path, text: &str) -> anyhow::Re
         std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
     }
     let tmp = path.with_extension("tmp~");
-    std::fs::write(&tmp, text).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+    std::fs::write(&tmp, text)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
     Ok(())
 }

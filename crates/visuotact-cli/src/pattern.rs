@@ -37,10 +37,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let rest_dir = a.output.join("rest");
     let touch_dir = a.output.join("touch");
     for d in [&rest_dir, &touch_dir] {
-        std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create folder", d.display()))?;
+        std::fs::create_dir_all(d)
+            .with_context(|| format!("{}: cannot create folder", d.display()))?;
     }
     for i in 0..a.rest {
-        let (img, _) = render_grid(&pattern, None, a.seed.wrapping_mul(1_000_003).wrapping_add(i as u64));
+        let (img, _) = render_grid(
+            &pattern,
+            None,
+            a.seed.wrapping_mul(1_000_003).wrapping_add(i as u64),
+        );
         write_png(&rest_dir.join(format!("rest_{i:04}.png")), &img)?;
     }
     // SplitMix64: a fixed, documented sequence for the touch parameters.
@@ -52,7 +57,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
     };
-    let mut truth = String::from("frame,x_px,y_px,sigma_px,push_px,shear_x_px,shear_y_px,grow,stretch\n");
+    let mut truth =
+        String::from("frame,x_px,y_px,sigma_px,push_px,shear_x_px,shear_y_px,grow,stretch\n");
     for i in 0..a.touches {
         let ang = uniform() * std::f64::consts::TAU;
         let drag = a.max_drag * pattern.pitch_x_px * uniform();
@@ -66,7 +72,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             grow: 0.3 * uniform(),
             stretch: 0.25 * uniform(),
         };
-        let (img, _) = render_grid(&pattern, Some(&p), a.seed.wrapping_mul(7_919).wrapping_add(10_000 + i as u64));
+        let (img, _) = render_grid(
+            &pattern,
+            Some(&p),
+            a.seed.wrapping_mul(7_919).wrapping_add(10_000 + i as u64),
+        );
         let name = format!("touch_{i:04}.png");
         write_png(&touch_dir.join(&name), &img)?;
         let _ = writeln!(
@@ -76,6 +86,14 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         );
     }
     crate::write_atomically(&a.output.join("truth.csv"), &truth)?;
-    eprintln!("wrote {} rest and {} touch frames ({}×{}, {} markers) to {}", a.rest, a.touches, pattern.width, pattern.height, pattern.rows * pattern.cols, a.output.display());
+    eprintln!(
+        "wrote {} rest and {} touch frames ({}×{}, {} markers) to {}",
+        a.rest,
+        a.touches,
+        pattern.width,
+        pattern.height,
+        pattern.rows * pattern.cols,
+        a.output.display()
+    );
     Ok(())
 }

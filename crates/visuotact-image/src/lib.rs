@@ -16,7 +16,9 @@ use thiserror::Error;
 #[derive(Debug, Error, Clone, PartialEq, Eq)]
 pub enum ImageError {
     /// The buffer length does not match `width × height × channels`.
-    #[error("buffer of {got} bytes does not fit a {width}×{height}×{channels} image (needs {need})")]
+    #[error(
+        "buffer of {got} bytes does not fit a {width}×{height}×{channels} image (needs {need})"
+    )]
     BufferSize {
         /// Image width in pixels.
         width: usize,
@@ -36,7 +38,13 @@ fn check_len(width: usize, height: usize, channels: usize, got: usize) -> Result
     if need == got {
         Ok(())
     } else {
-        Err(ImageError::BufferSize { width, height, channels, need, got })
+        Err(ImageError::BufferSize {
+            width,
+            height,
+            channels,
+            need,
+            got,
+        })
     }
 }
 
@@ -51,13 +59,21 @@ pub struct GrayImage {
 impl GrayImage {
     /// A black image of the given size.
     pub fn new(width: usize, height: usize) -> Self {
-        Self { width, height, data: vec![0; width * height] }
+        Self {
+            width,
+            height,
+            data: vec![0; width * height],
+        }
     }
 
     /// Wraps a row-major buffer; fails when its length is not `width × height`.
     pub fn from_vec(width: usize, height: usize, data: Vec<u8>) -> Result<Self, ImageError> {
         check_len(width, height, 1, data.len())?;
-        Ok(Self { width, height, data })
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
     }
 
     /// Builds an image from a function of `(x, y)`.
@@ -68,7 +84,11 @@ impl GrayImage {
                 data.push(f(x, y));
             }
         }
-        Self { width, height, data }
+        Self {
+            width,
+            height,
+            data,
+        }
     }
 
     /// Resizes in place (contents unspecified afterwards); used to reuse buffers in live loops.
@@ -135,24 +155,40 @@ pub struct RgbImage {
 impl RgbImage {
     /// A black image of the given size.
     pub fn new(width: usize, height: usize) -> Self {
-        Self { width, height, data: vec![0; width * height * 3] }
+        Self {
+            width,
+            height,
+            data: vec![0; width * height * 3],
+        }
     }
 
     /// Wraps an interleaved RGB buffer; fails when its length is not `width × height × 3`.
     pub fn from_vec(width: usize, height: usize, data: Vec<u8>) -> Result<Self, ImageError> {
         check_len(width, height, 3, data.len())?;
-        Ok(Self { width, height, data })
+        Ok(Self {
+            width,
+            height,
+            data,
+        })
     }
 
     /// Builds an image from a function of `(x, y)` returning `[r, g, b]`.
-    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> [u8; 3]) -> Self {
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> [u8; 3],
+    ) -> Self {
         let mut data = Vec::with_capacity(width * height * 3);
         for y in 0..height {
             for x in 0..width {
                 data.extend_from_slice(&f(x, y));
             }
         }
-        Self { width, height, data }
+        Self {
+            width,
+            height,
+            data,
+        }
     }
 
     /// An RGB image with all three channels equal to `gray`.
@@ -161,7 +197,11 @@ impl RgbImage {
         for &v in &gray.data {
             data.extend_from_slice(&[v, v, v]);
         }
-        Self { width: gray.width, height: gray.height, data }
+        Self {
+            width: gray.width,
+            height: gray.height,
+            data,
+        }
     }
 
     /// Width in pixels.

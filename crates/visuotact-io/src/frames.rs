@@ -60,7 +60,10 @@ const IMAGE_EXT: [&str; 6] = ["png", "jpg", "jpeg", "ppm", "pgm", "pnm"];
 const VIDEO_EXT: [&str; 8] = ["avi", "mp4", "mkv", "mov", "webm", "m4v", "mpg", "mpeg"];
 
 fn ext_of(p: &Path) -> String {
-    p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+    p.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
 }
 
 /// One expanded input.
@@ -79,10 +82,16 @@ pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
     }
     let mut out = Vec::new();
     for p in paths {
-        let meta = std::fs::metadata(p).map_err(|source| FrameError::Io { path: p.clone(), source })?;
+        let meta = std::fs::metadata(p).map_err(|source| FrameError::Io {
+            path: p.clone(),
+            source,
+        })?;
         if meta.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(p)
-                .map_err(|source| FrameError::Io { path: p.clone(), source })?
+                .map_err(|source| FrameError::Io {
+                    path: p.clone(),
+                    source,
+                })?
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|f| f.is_file() && IMAGE_EXT.contains(&ext_of(f).as_str()))
                 .collect();
@@ -108,19 +117,36 @@ pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
 /// Decodes one image file into RGB.
 pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
     let frame = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| FrameError::Io { path: path.to_path_buf(), source })?;
+    let bytes = std::fs::read(path).map_err(|source| FrameError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let img = image::load_from_memory(&bytes)
-        .map_err(|e| FrameError::Decode { frame: frame.clone(), message: e.to_string() })?
+        .map_err(|e| FrameError::Decode {
+            frame: frame.clone(),
+            message: e.to_string(),
+        })?
         .into_rgb8();
     let (w, h) = img.dimensions();
-    RgbImage::from_vec(w as usize, h as usize, img.into_raw())
-        .map_err(|e| FrameError::Decode { frame, message: e.to_string() })
+    RgbImage::from_vec(w as usize, h as usize, img.into_raw()).map_err(|e| FrameError::Decode {
+        frame,
+        message: e.to_string(),
+    })
 }
 
 /// Writes an RGB image as PNG.
 pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), FrameError> {
-    image::save_buffer(path, img.as_slice(), img.width() as u32, img.height() as u32, image::ExtendedColorType::Rgb8)
-        .map_err(|e| FrameError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) })
+    image::save_buffer(
+        path,
+        img.as_slice(),
+        img.width() as u32,
+        img.height() as u32,
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|e| FrameError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    })
 }
 
 /// Size and rate of a video, from `ffprobe`.
@@ -154,25 +180,54 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, FrameError> {
         });
     }
     let out = Command::new("ffprobe")
-        .args(["-v", "error", "-select_streams", "v:0", "-show_entries", "stream=width,height,avg_frame_rate,r_frame_rate", "-of", "default=noprint_wrappers=1"])
+        .args([
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=width,height,avg_frame_rate,r_frame_rate",
+            "-of",
+            "default=noprint_wrappers=1",
+        ])
         .arg(path)
         .output()
         .map_err(|e| tool_missing(path, "ffprobe", &e))?;
     let text = String::from_utf8_lossy(&out.stdout);
     let err = String::from_utf8_lossy(&out.stderr);
-    let field = |k: &str| text.lines().find_map(|l| l.strip_prefix(k).and_then(|v| v.strip_prefix('=')).map(str::trim));
+    let field = |k: &str| {
+        text.lines().find_map(|l| {
+            l.strip_prefix(k)
+                .and_then(|v| v.strip_prefix('='))
+                .map(str::trim)
+        })
+    };
     let bad = |what: &str| FrameError::Video {
         path: path.to_path_buf(),
-        message: format!("ffmpeg cannot open it as a video ({what}){}", if err.trim().is_empty() { String::new() } else { format!(": {}", err.trim()) }),
+        message: format!(
+            "ffmpeg cannot open it as a video ({what}){}",
+            if err.trim().is_empty() {
+                String::new()
+            } else {
+                format!(": {}", err.trim())
+            }
+        ),
     };
-    let width: usize = field("width").and_then(|v| v.parse().ok()).ok_or_else(|| bad("no video stream"))?;
-    let height: usize = field("height").and_then(|v| v.parse().ok()).ok_or_else(|| bad("no frame size"))?;
+    let width: usize = field("width")
+        .and_then(|v| v.parse().ok())
+        .ok_or_else(|| bad("no video stream"))?;
+    let height: usize = field("height")
+        .and_then(|v| v.parse().ok())
+        .ok_or_else(|| bad("no frame size"))?;
     let rate = |s: &str| -> Option<f64> {
         let (a, b) = s.split_once('/').unwrap_or((s, "1"));
         let (a, b): (f64, f64) = (a.parse().ok()?, b.parse().ok()?);
         (b > 0.0 && a > 0.0).then_some(a / b)
     };
-    let fps = field("avg_frame_rate").and_then(rate).or_else(|| field("r_frame_rate").and_then(rate)).unwrap_or(25.0);
+    let fps = field("avg_frame_rate")
+        .and_then(rate)
+        .or_else(|| field("r_frame_rate").and_then(rate))
+        .unwrap_or(25.0);
     if width == 0 || height == 0 {
         return Err(bad("zero frame size"));
     }
@@ -204,7 +259,15 @@ impl VideoFrames {
             .spawn()
             .map_err(|e| tool_missing(path, "ffmpeg", &e))?;
         let stdout = child.stdout.take();
-        Ok(Self { path: path.to_path_buf(), info, child: Some(child), stdout, index: 0, prefix, done: false })
+        Ok(Self {
+            path: path.to_path_buf(),
+            info,
+            child: Some(child),
+            stdout,
+            index: 0,
+            prefix,
+            done: false,
+        })
     }
 
     /// Size and rate.
@@ -250,7 +313,10 @@ impl Iterator for VideoFrames {
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 Err(e) => {
                     self.done = true;
-                    return Some(Err(FrameError::Video { path: self.path.clone(), message: format!("reading ffmpeg output: {e}") }));
+                    return Some(Err(FrameError::Video {
+                        path: self.path.clone(),
+                        message: format!("reading ffmpeg output: {e}"),
+                    }));
                 }
             }
         }
@@ -271,7 +337,12 @@ impl Iterator for VideoFrames {
             None => index.to_string(),
         };
         let image = RgbImage::from_vec(self.info.width, self.info.height, buf).ok()?;
-        Some(Ok(Frame { id, index, timestamp_s: index as f64 / self.info.fps, image }))
+        Some(Ok(Frame {
+            id,
+            index,
+            timestamp_s: index as f64 / self.info.fps,
+            image,
+        }))
     }
 }
 
@@ -303,7 +374,11 @@ impl FrameStream {
     /// Opens files and folders; `image_fps` sets image-sequence timestamps.
     pub fn open(paths: &[PathBuf], image_fps: f64) -> Result<Self, FrameError> {
         let inputs = expand_inputs(paths)?;
-        let multi = inputs.iter().filter(|i| matches!(i, Input::Video(_))).count() > 1
+        let multi = inputs
+            .iter()
+            .filter(|i| matches!(i, Input::Video(_)))
+            .count()
+            > 1
             || (inputs.iter().any(|i| matches!(i, Input::Video(_))) && inputs.len() > 1);
         Ok(Self {
             inputs,
@@ -359,7 +434,11 @@ impl Iterator for FrameStream {
             match input {
                 Input::Video(p) => {
                     self.next_input += 1;
-                    let prefix = self.multi.then(|| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
+                    let prefix = self.multi.then(|| {
+                        p.file_name()
+                            .map(|n| n.to_string_lossy().into_owned())
+                            .unwrap_or_default()
+                    });
                     match VideoFrames::open(&p, prefix) {
                         Ok(v) => self.video = Some(v),
                         Err(e) => return Some(Err(e)),
@@ -384,7 +463,10 @@ impl Iterator for FrameStream {
                         .enumerate()
                         .map(|(k, p)| {
                             read_image(p).map(|image| Frame {
-                                id: p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+                                id: p
+                                    .file_name()
+                                    .map(|n| n.to_string_lossy().into_owned())
+                                    .unwrap_or_default(),
                                 index: base + k,
                                 timestamp_s: (base + k) as f64 / fps,
                                 image,

@@ -57,7 +57,13 @@ impl TableWriter {
             }
             Box::new(BufWriter::new(File::create(path)?))
         };
-        let mut w = Self { out, path: path.to_path_buf(), format, columns, line: String::new() };
+        let mut w = Self {
+            out,
+            path: path.to_path_buf(),
+            format,
+            columns,
+            line: String::new(),
+        };
         if format == TableFormat::Csv {
             let mut header = String::from("frame");
             for c in &w.columns {
@@ -78,7 +84,11 @@ impl TableWriter {
 
     /// Appends one row; `values` must have one entry per column.
     pub fn write_row(&mut self, frame: &str, values: &[f64], flags: &str) -> std::io::Result<()> {
-        assert_eq!(values.len(), self.columns.len(), "row width must match the header");
+        assert_eq!(
+            values.len(),
+            self.columns.len(),
+            "row width must match the header"
+        );
         self.line.clear();
         match self.format {
             TableFormat::Csv => {
@@ -94,10 +104,12 @@ impl TableWriter {
             }
             TableFormat::Jsonl => {
                 self.line.push_str("{\"frame\":");
-                self.line.push_str(&serde_json::to_string(frame).unwrap_or_default());
+                self.line
+                    .push_str(&serde_json::to_string(frame).unwrap_or_default());
                 for (c, v) in self.columns.iter().zip(values) {
                     self.line.push(',');
-                    self.line.push_str(&serde_json::to_string(c).unwrap_or_default());
+                    self.line
+                        .push_str(&serde_json::to_string(c).unwrap_or_default());
                     self.line.push(':');
                     if v.is_finite() {
                         self.line.push_str(&format_number(*v));
@@ -106,7 +118,8 @@ impl TableWriter {
                     }
                 }
                 self.line.push_str(",\"flags\":");
-                self.line.push_str(&serde_json::to_string(flags).unwrap_or_default());
+                self.line
+                    .push_str(&serde_json::to_string(flags).unwrap_or_default());
                 self.line.push('}');
             }
         }

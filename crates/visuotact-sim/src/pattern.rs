@@ -27,11 +27,19 @@ pub struct Look {
 
 impl Look {
     /// Green markers on dark fabric (seed 000).
-    pub const GREEN_ON_DARK: Self =
-        Self { background: [30.0, 40.0, 35.0], marker: [60.0, 200.0, 80.0], noise_sigma: 3.0, vignetting: 0.25 };
+    pub const GREEN_ON_DARK: Self = Self {
+        background: [30.0, 40.0, 35.0],
+        marker: [60.0, 200.0, 80.0],
+        noise_sigma: 3.0,
+        vignetting: 0.25,
+    };
     /// White annuli on black (seed 001).
-    pub const WHITE_ON_BLACK: Self =
-        Self { background: [15.0, 15.0, 15.0], marker: [230.0, 230.0, 230.0], noise_sigma: 3.0, vignetting: 0.2 };
+    pub const WHITE_ON_BLACK: Self = Self {
+        background: [15.0, 15.0, 15.0],
+        marker: [230.0, 230.0, 230.0],
+        noise_sigma: 3.0,
+        vignetting: 0.2,
+    };
 }
 
 /// A dot grid.
@@ -116,17 +124,26 @@ pub fn grid_markers(pattern: &GridPattern, press: Option<&Press>) -> Vec<MarkerT
                 let (dx, dy) = (x - p.x_px, y - p.y_px);
                 let r = dx.hypot(dy);
                 let g = (-(r * r) / (2.0 * p.sigma_px * p.sigma_px)).exp();
-                let (ux, uy) = if r > 1e-9 { (dx / r, dy / r) } else { (1.0, 0.0) };
+                let (ux, uy) = if r > 1e-9 {
+                    (dx / r, dy / r)
+                } else {
+                    (1.0, 0.0)
+                };
                 // Outward push grows from 0 at the centre, peaks at r = sigma.
                 let push = p.push_px * g * (r / p.sigma_px).min(1.0);
                 e.cx_px += ux * push + p.shear_x_px * g;
                 e.cy_px += uy * push + p.shear_y_px * g;
                 let scale = 1.0 + p.grow * g;
-                e.a_px = pattern.radius_px * scale * (1.0 + p.stretch * g * (r / p.sigma_px).min(1.0));
+                e.a_px =
+                    pattern.radius_px * scale * (1.0 + p.stretch * g * (r / p.sigma_px).min(1.0));
                 e.b_px = pattern.radius_px * scale;
                 e.angle_rad = uy.atan2(ux);
             }
-            out.push(MarkerTruth { ellipse: e, row, col });
+            out.push(MarkerTruth {
+                ellipse: e,
+                row,
+                col,
+            });
         }
     }
     out
@@ -146,7 +163,8 @@ pub fn render_markers(
         cov.fill(outer, inner.as_ref(), 1.0);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0f32, look.noise_sigma.max(0.0)).unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
+    let noise = Normal::new(0.0f32, look.noise_sigma.max(0.0))
+        .unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
     let (cx, cy) = (width as f32 / 2.0, height as f32 / 2.0);
     let rmax2 = cx * cx + cy * cy;
     RgbImage::from_fn(width, height, |x, y| {
@@ -155,7 +173,8 @@ pub fn render_markers(
         let light = 1.0 - look.vignetting * r2;
         let mut px = [0u8; 3];
         for k in 0..3 {
-            let v = (look.background[k] * (1.0 - c) + look.marker[k] * c) * light + noise.sample(&mut rng);
+            let v = (look.background[k] * (1.0 - c) + look.marker[k] * c) * light
+                + noise.sample(&mut rng);
             px[k] = v.round().clamp(0.0, 255.0) as u8;
         }
         px
@@ -163,8 +182,16 @@ pub fn render_markers(
 }
 
 /// Renders a grid pattern; returns the frame and the truth per marker in grid order.
-pub fn render_grid(pattern: &GridPattern, press: Option<&Press>, seed: u64) -> (RgbImage, Vec<MarkerTruth>) {
+pub fn render_grid(
+    pattern: &GridPattern,
+    press: Option<&Press>,
+    seed: u64,
+) -> (RgbImage, Vec<MarkerTruth>) {
     let markers = grid_markers(pattern, press);
-    let shapes: Vec<(Ellipse, Option<Ellipse>)> = markers.iter().map(|m| (m.ellipse, None)).collect();
-    (render_markers(pattern.width, pattern.height, &shapes, &pattern.look, seed), markers)
+    let shapes: Vec<(Ellipse, Option<Ellipse>)> =
+        markers.iter().map(|m| (m.ellipse, None)).collect();
+    (
+        render_markers(pattern.width, pattern.height, &shapes, &pattern.look, seed),
+        markers,
+    )
 }

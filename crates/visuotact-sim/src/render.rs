@@ -22,7 +22,13 @@ pub struct Ellipse {
 impl Ellipse {
     /// A circle.
     pub fn circle(cx_px: f64, cy_px: f64, r_px: f64) -> Self {
-        Self { cx_px, cy_px, a_px: r_px, b_px: r_px, angle_rad: 0.0 }
+        Self {
+            cx_px,
+            cy_px,
+            a_px: r_px,
+            b_px: r_px,
+            angle_rad: 0.0,
+        }
     }
 
     /// Area `π a b`.
@@ -32,7 +38,11 @@ impl Ellipse {
 
     /// Eccentricity `sqrt(1 − (minor/major)²)`.
     pub fn eccentricity(&self) -> f64 {
-        let (ma, mi) = if self.a_px >= self.b_px { (self.a_px, self.b_px) } else { (self.b_px, self.a_px) };
+        let (ma, mi) = if self.a_px >= self.b_px {
+            (self.a_px, self.b_px)
+        } else {
+            (self.b_px, self.a_px)
+        };
         if ma <= 0.0 {
             0.0
         } else {
@@ -74,7 +84,11 @@ const SS: usize = 16;
 impl Canvas {
     /// A canvas filled with `v`.
     pub fn filled(width: usize, height: usize, v: f32) -> Self {
-        Self { width, height, data: vec![v; width * height] }
+        Self {
+            width,
+            height,
+            data: vec![v; width * height],
+        }
     }
 
     /// Coverage of pixel `(x, y)` by the shape `inside(x, y) -> bool`.
@@ -109,7 +123,8 @@ impl Canvas {
         };
         let mo = margin(outer);
         let mi = inner.map_or(0.0, margin);
-        let inside = |x: f64, y: f64| outer.value(x, y) <= 1.0 && inner.is_none_or(|e| e.value(x, y) > 1.0);
+        let inside =
+            |x: f64, y: f64| outer.value(x, y) <= 1.0 && inner.is_none_or(|e| e.value(x, y) > 1.0);
         for y in y0..y1 {
             for x in x0..x1 {
                 let vo = outer.value(x as f64, y as f64);

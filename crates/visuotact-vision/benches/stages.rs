@@ -1,1 +1,118 @@
-fn main() {}
+//! Criterion benches for each stage of the frame → features pipeline on a 640×480 frame with
+//! 117 markers (the IATS test pattern, pressed and dragged).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use std::hint::black_box;
+use visuotact_image::GrayImage;
+use visuotact_sim::pattern::{render_grid, GridPattern, Press};
+use visuotact_vision::blobs::{blobs_from_gray_into, BlobScratch, Connectivity, Level, Region};
+use visuotact_vision::calibration::{calibrate, track_reference};
+use visuotact_vision::detect::{Detector, DetectorConfig};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use visuotact_vision::grid::Layout;
+use visuotact_vision::preprocess::{
+    gray_from_rgb_into, histogram, morphology_in_place, otsu_level, Channel, MorphScratch,
+    PreprocessConfig,
+};
+use visuotact_vision::track::{track, TrackConfig};
+
+fn stages(c: &mut Criterion) {
+    let pattern = GridPattern::IATS;
+    let rest = render_grid(&pattern, None, 1).0;
+    let press = Press {
+        x_px: 300.0,
+        y_px: 220.0,
+        sigma_px: 80.0,
+        push_px: 5.0,
+        shear_x_px: 20.0,
+        shear_y_px: -10.0,
+        grow: 0.2,
+        stretch: 0.15,
+    };
+    let img = render_grid(&pattern, Some(&press), 2).0;
+    let det_cfg = DetectorConfig {
+        preprocess: PreprocessConfig::IATS,
+        ..Default::default()
+    };
+    let (cal, _) = calibrate(
+        [("rest", &rest)],
+        det_cfg.clone(),
+        Layout::Grid,
+        FeatureSet::IATS,
+    )
+    .unwrap();
+
+    let mut gray = GrayImage::new(0, 0);
+    c.bench_function("green_channel", |b| {
+        b.iter(|| gray_from_rgb_into(black_box(&img), Channel::Green, false, &mut gray))
+    });
+    c.bench_function("luma601", |b| {
+        b.iter(|| gray_from_rgb_into(black_box(&img), Channel::Luma601, false, &mut gray))
+    });
+    gray_from_rgb_into(&img, Channel::Green, false, &mut gray);
+    let mut opened = gray.clone();
+    let mut ms = MorphScratch::default();
+    c.bench_function("open_3x3", |b| {
+        b.iter(|| {
+            opened.as_mut_slice().copy_from_slice(gray.as_slice());
+            morphology_in_place(&mut opened, &PreprocessConfig::IATS, &mut ms);
+        })
+    });
+    c.bench_function("histogram_otsu", |b| {
+        b.iter(|| otsu_level(&histogram(black_box(opened.as_slice()))))
+    });
+    let t = otsu_level(&histogram(opened.as_slice()));
+    let mut bs = BlobScratch::default();
+    let mut blobs = Vec::new();
+    c.bench_function("fused_label_moments", |b| {
+        b.iter(|| {
+            blobs_from_gray_into(
+                black_box(&opened),
+                Level::Scalar(t),
+                Region::default(),
+                Connectivity::Eight,
+                &mut bs,
+                &mut blobs,
+            )
+        })
+    });
+    c.bench_function("fused_on_empty_frame", |b| {
+        b.iter(|| {
+            blobs_from_gray_into(
+                black_box(&opened),
+                Level::Scalar(255),
+                Region::default(),
+                Connectivity::Eight,
+                &mut bs,
+                &mut blobs,
+            )
+        })
+    });
+    let mut det = Detector::new(det_cfg).unwrap();
+    let mut found = Vec::new();
+    c.bench_function("detect_total", |b| {
+        b.iter(|| det.detect_into(black_box(&img), &mut found))
+    });
+    let reference = track_reference(&cal.markers, cal.pitch_px);
+    c.bench_function("track_117", |b| {
+        b.iter(|| {
+            track(
+                black_box(&reference),
+                black_box(&found),
+                &TrackConfig::DEFAULT,
+            )
+        })
+    });
+    let mut ex = FeatureExtractor::new(cal, FeatureSet::IATS).unwrap();
+    let mut out = FrameFeatures::default();
+    c.bench_function("frame_to_features", |b| {
+        b.iter(|| ex.extract_into(black_box(&img), &mut out).unwrap())
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(2));
+    targets = stages
+}
+criterion_main!(benches);

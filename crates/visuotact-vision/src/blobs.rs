@@ -114,7 +114,11 @@ impl Blob {
         let disc = (0.25 * (vx - vy) * (vx - vy) + c * c).sqrt();
         let l1 = half_tr + disc;
         let l2 = (half_tr - disc).max(0.0);
-        let eccentricity = if l1 > 0.0 { (1.0 - l2 / l1).max(0.0).sqrt() } else { 0.0 };
+        let eccentricity = if l1 > 0.0 {
+            (1.0 - l2 / l1).max(0.0).sqrt()
+        } else {
+            0.0
+        };
         // scikit-image: a = var(col), b = −cov, c = var(row); 0.5·atan2(−2b, c − a).
         let orientation_rad = if vx == vy {
             if c > 0.0 {
@@ -198,7 +202,11 @@ impl Acc {
     }
 
     fn fresh() -> Self {
-        Self { x0: u32::MAX, y0: u32::MAX, ..Self::default() }
+        Self {
+            x0: u32::MAX,
+            y0: u32::MAX,
+            ..Self::default()
+        }
     }
 
     fn merge(&mut self, o: &Acc) {
@@ -231,7 +239,12 @@ impl Acc {
             mu20_px2: mu20,
             mu11_px2: mu11,
             mu02_px2: mu02,
-            bbox: BBox { x0: self.x0, y0: self.y0, x1: self.x1, y1: self.y1 },
+            bbox: BBox {
+                x0: self.x0,
+                y0: self.y0,
+                x1: self.x1,
+                y1: self.y1,
+            },
             touches_border: self.x0 == rx0 || self.y0 == ry0 || self.x1 == rx1 || self.y1 == ry1,
         }
     }
@@ -276,23 +289,25 @@ fn union(parent: &mut [u32], a: u32, b: u32) -> u32 {
     lo
 }
 
-/// Packs `bytes` (each 0 or 1) into little-endian bit words.
-#[inline]
-fn pack_bits(bytes: &[u8], bits: &mut [u64]) {
-    for (w, chunk) in bits.iter_mut().zip(bytes.chunks(64)) {
-        let mut word = 0u64;
-        let mut eights = chunk.chunks_exact(8);
-        for (k, c8) in (&mut eights).enumerate() {
-            let v = u64::from_le_bytes([c8[0], c8[1], c8[2], c8[3], c8[4], c8[5], c8[6], c8[7]]);
-            // Each byte is 0 or 1; the multiplier has bits at 56 − 7i, so byte i's bit lands on
-            // bit 56 + i and no two partial products share a bit (no carries).
-            word |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * k);
-        }
-        let base = chunk.len() / 8 * 8;
-        for (i, &b) in eights.remainder().iter().enumerate() {
-            word |= u64::from(b) << (base + i);
-        }
-        *w = word;
+/// Clears every bit outside `[lo, hi)`.
+fn clear_bits_outside(bits: &mut [u64], lo: usize, hi: usize) {
+    for (k, w) in bits.iter_mut().enumerate() {
+        let (a, b) = (k * 64, k * 64 + 64);
+        let keep_lo = if lo <= a {
+            u64::MAX
+        } else if lo >= b {
+            0
+        } else {
+            u64::MAX << (lo - a)
+        };
+        let keep_hi = if hi >= b {
+            u64::MAX
+        } else if hi <= a {
+            0
+        } else {
+            u64::MAX >> (b - hi)
+        };
+        *w &= keep_lo & keep_hi;
     }
 }
 
@@ -308,7 +323,12 @@ pub fn blobs_from_gray_into(
 ) {
     out.clear();
     let (w, h) = (img.width(), img.height());
-    let roi = region.roi.unwrap_or(Roi { x: 0, y: 0, width: w, height: h });
+    let roi = region.roi.unwrap_or(Roi {
+        x: 0,
+        y: 0,
+        width: w,
+        height: h,
+    });
     let rx0 = roi.x.min(w);
     let ry0 = roi.y.min(h);
     let rx1 = (roi.x + roi.width).min(w);
@@ -349,23 +369,20 @@ pub fn blobs_from_gray_into(
             }
         }
         let row = &img.row(y)[rx0..rx1];
-        let bytes = &mut s.bytes[..];
         match level {
-            Level::Scalar(t) => {
-                for (o, &v) in bytes.iter_mut().zip(row) {
-                    *o = u8::from(v > t);
-                }
-            }
+            Level::Scalar(t) => crate::kernels::above_bits(row, t, &mut s.bits),
             Level::PerPixel(l) => {
                 let lrow = &l[y * w + rx0..y * w + rx1];
+                let bytes = &mut s.bytes[..];
                 for ((o, &v), &t) in bytes.iter_mut().zip(row).zip(lrow) {
                     *o = u8::from(f32::from(v) > t);
                 }
+                crate::kernels::pack_bits(bytes, &mut s.bits);
             }
         }
-        bytes[..xa - rx0].fill(0);
-        bytes[xb - rx0..].fill(0);
-        pack_bits(bytes, &mut s.bits);
+        if xa > rx0 || xb < rx1 {
+            clear_bits_outside(&mut s.bits, xa - rx0, xb - rx0);
+        }
         // Runs from bit words.
         s.cur.clear();
         let mut open: Option<u32> = None;
@@ -381,7 +398,11 @@ pub fn blobs_from_gray_into(
                         break; // run continues into the next word
                     }
                     let end = base + pos + zeros; // exclusive
-                    s.cur.push(Run { x0: start, x1: end - 1, label: 0 });
+                    s.cur.push(Run {
+                        x0: start,
+                        x1: end - 1,
+                        label: 0,
+                    });
                     open = None;
                     wv >>= zeros;
                     pos += zeros;
@@ -397,7 +418,11 @@ pub fn blobs_from_gray_into(
             }
         }
         if let Some(start) = open {
-            s.cur.push(Run { x0: start, x1: span as u32 - 1, label: 0 });
+            s.cur.push(Run {
+                x0: start,
+                x1: span as u32 - 1,
+                label: 0,
+            });
         }
         // Label against the previous row.
         let yy = y as u32;
@@ -410,7 +435,11 @@ pub fn blobs_from_gray_into(
             let mut k = j;
             while k < s.prev.len() && s.prev[k].x0 <= r.x1 + gap {
                 let pl = s.prev[k].label;
-                label = if label == u32::MAX { find(&mut s.parent, pl) } else { union(&mut s.parent, label, pl) };
+                label = if label == u32::MAX {
+                    find(&mut s.parent, pl)
+                } else {
+                    union(&mut s.parent, label, pl)
+                };
                 k += 1;
             }
             if label == u32::MAX {
@@ -445,13 +474,25 @@ pub fn blobs_from_gray_into(
 /// Allocating form of [`blobs_from_gray_into`] on the whole image.
 pub fn blobs_from_gray(img: &GrayImage, level: Level<'_>, connectivity: Connectivity) -> Vec<Blob> {
     let mut out = Vec::new();
-    blobs_from_gray_into(img, level, Region::default(), connectivity, &mut BlobScratch::default(), &mut out);
+    blobs_from_gray_into(
+        img,
+        level,
+        Region::default(),
+        connectivity,
+        &mut BlobScratch::default(),
+        &mut out,
+    );
     out
 }
 
 /// Reference implementation: flood fill over a boolean mask, moments summed pixel by pixel in
 /// two passes. Slow and simple; the fused pass is tested against it.
-pub fn blobs_reference(mask: &[bool], width: usize, height: usize, connectivity: Connectivity) -> Vec<Blob> {
+pub fn blobs_reference(
+    mask: &[bool],
+    width: usize,
+    height: usize,
+    connectivity: Connectivity,
+) -> Vec<Blob> {
     assert_eq!(mask.len(), width * height);
     let mut seen = vec![false; mask.len()];
     let mut out = Vec::new();
@@ -469,7 +510,9 @@ pub fn blobs_reference(mask: &[bool], width: usize, height: usize, connectivity:
             pixels.push((x, y));
             for dy in -1i64..=1 {
                 for dx in -1i64..=1 {
-                    if (dx == 0 && dy == 0) || (connectivity == Connectivity::Four && dx != 0 && dy != 0) {
+                    if (dx == 0 && dy == 0)
+                        || (connectivity == Connectivity::Four && dx != 0 && dy != 0)
+                    {
                         continue;
                     }
                     let (nx, ny) = (x as i64 + dx, y as i64 + dy);
@@ -505,7 +548,12 @@ pub fn blobs_reference(mask: &[bool], width: usize, height: usize, connectivity:
             mu20_px2: m20 / n,
             mu11_px2: m11 / n,
             mu02_px2: m02 / n,
-            bbox: BBox { x0: x0 as u32, y0: y0 as u32, x1: x1 as u32, y1: y1 as u32 },
+            bbox: BBox {
+                x0: x0 as u32,
+                y0: y0 as u32,
+                x1: x1 as u32,
+                y1: y1 as u32,
+            },
             touches_border: x0 == 0 || y0 == 0 || x1 == width || y1 == height,
         });
     }

@@ -143,7 +143,9 @@ where
     I: IntoIterator<Item = (&'a str, &'a RgbImage)>,
 {
     let frames: Vec<(&str, &RgbImage)> = frames.into_iter().collect();
-    let Some(&(_, first)) = frames.first() else { return Err(CalibrationError::NoFrames) };
+    let Some(&(_, first)) = frames.first() else {
+        return Err(CalibrationError::NoFrames);
+    };
     let (w, h) = (first.width(), first.height());
     let mut det = Detector::new(detector.clone()).map_err(CalibrationError::Config)?;
     // Mean of the frames in the working channel.
@@ -159,17 +161,30 @@ where
                 got_h: img.height(),
             });
         }
-        gray_from_rgb_into(img, detector.preprocess.channel, detector.preprocess.invert, &mut gray);
-        sum.iter_mut().zip(gray.as_slice()).for_each(|(s, &v)| *s += u32::from(v));
+        gray_from_rgb_into(
+            img,
+            detector.preprocess.channel,
+            detector.preprocess.invert,
+            &mut gray,
+        );
+        sum.iter_mut()
+            .zip(gray.as_slice())
+            .for_each(|(s, &v)| *s += u32::from(v));
     }
     let n = frames.len() as u32;
-    let mean = GrayImage::from_vec(w, h, sum.iter().map(|&s| ((2 * s + n) / (2 * n)) as u8).collect())
-        .map_err(|e| CalibrationError::Config(e.to_string()))?;
+    let mean = GrayImage::from_vec(
+        w,
+        h,
+        sum.iter().map(|&s| ((2 * s + n) / (2 * n)) as u8).collect(),
+    )
+    .map_err(|e| CalibrationError::Config(e.to_string()))?;
     let mut blobs = Vec::new();
     let detection = det.detect_gray_into(&mean, &mut blobs);
     if blobs.is_empty() {
         return Err(CalibrationError::NoMarkers {
-            threshold: detection.level.map_or("adaptive".to_string(), |t| format!("level {t}")),
+            threshold: detection
+                .level
+                .map_or("adaptive".to_string(), |t| format!("level {t}")),
             raw: detection.raw_count,
         });
     }
@@ -184,12 +199,17 @@ where
         Layout::Rings => {
             let mut b = blobs.clone();
             b.sort_by(|a, c| {
-                a.shape(convention).major_axis_px.total_cmp(&c.shape(convention).major_axis_px)
+                a.shape(convention)
+                    .major_axis_px
+                    .total_cmp(&c.shape(convention).major_axis_px)
             });
             let pitch = if b.len() > 1 {
                 let mut gaps: Vec<f64> = b
                     .windows(2)
-                    .map(|p| 0.5 * (p[1].shape(convention).major_axis_px - p[0].shape(convention).major_axis_px))
+                    .map(|p| {
+                        0.5 * (p[1].shape(convention).major_axis_px
+                            - p[0].shape(convention).major_axis_px)
+                    })
                     .collect();
                 gaps.sort_by(f64::total_cmp);
                 gaps[0].max(1.0)
@@ -197,14 +217,32 @@ where
                 b[0].shape(convention).major_axis_px.max(1.0)
             };
             let n = b.len() as u32;
-            (b.into_iter().enumerate().map(|(k, bl)| (bl, 0, k as u32)).collect(), 1, n, pitch)
+            (
+                b.into_iter()
+                    .enumerate()
+                    .map(|(k, bl)| (bl, 0, k as u32))
+                    .collect(),
+                1,
+                n,
+                pitch,
+            )
         }
         Layout::Grid => {
             let pts: Vec<(f64, f64)> = blobs.iter().map(|b| (b.x_px, b.y_px)).collect();
             let lat = lattice_from_points(&pts)?;
             report.off_grid = lat.left_out.iter().map(|&i| pts[i]).collect();
-            let ordered = lat.order.iter().zip(&lat.row_col).map(|(&i, &(r, c))| (blobs[i], r, c)).collect();
-            (ordered, lat.rows, lat.cols, 0.5 * (lat.pitch_x_px + lat.pitch_y_px))
+            let ordered = lat
+                .order
+                .iter()
+                .zip(&lat.row_col)
+                .map(|(&i, &(r, c))| (blobs[i], r, c))
+                .collect();
+            (
+                ordered,
+                lat.rows,
+                lat.cols,
+                0.5 * (lat.pitch_x_px + lat.pitch_y_px),
+            )
         }
     };
     let mut markers: Vec<ReferenceMarker> = ordered
@@ -255,7 +293,8 @@ where
             match a {
                 Some(j) => {
                     let b = &blobs[*j];
-                    sq[i] += (b.x_px - markers[i].x_px).powi(2) + (b.y_px - markers[i].y_px).powi(2);
+                    sq[i] +=
+                        (b.x_px - markers[i].x_px).powi(2) + (b.y_px - markers[i].y_px).powi(2);
                     cnt[i] += 1;
                 }
                 None => missing += 1,
@@ -266,7 +305,11 @@ where
         }
     }
     for (m, (s, c)) in markers.iter_mut().zip(sq.iter().zip(&cnt)) {
-        m.jitter_px = if *c > 0 { (s / f64::from(*c)).sqrt() } else { f64::NAN };
+        m.jitter_px = if *c > 0 {
+            (s / f64::from(*c)).sqrt()
+        } else {
+            f64::NAN
+        };
     }
     cal.markers = markers;
     Ok((cal, report))
@@ -291,7 +334,10 @@ impl SensorCalibration {
         let cal: SensorCalibration =
             serde_json::from_str(text).map_err(|e| format!("{source}: not a sensor file: {e}"))?;
         if cal.format != SENSOR_FORMAT {
-            return Err(format!("{source}: format is {:?}, expected {SENSOR_FORMAT:?}", cal.format));
+            return Err(format!(
+                "{source}: format is {:?}, expected {SENSOR_FORMAT:?}",
+                cal.format
+            ));
         }
         if cal.version > SENSOR_VERSION {
             return Err(format!(
@@ -302,7 +348,10 @@ impl SensorCalibration {
         if cal.markers.is_empty() {
             return Err(format!("{source}: the sensor file lists no markers"));
         }
-        cal.detector.preprocess.validate().map_err(|e| format!("{source}: {e}"))?;
+        cal.detector
+            .preprocess
+            .validate()
+            .map_err(|e| format!("{source}: {e}"))?;
         Ok(cal)
     }
 

@@ -141,7 +141,10 @@ impl Detector {
 
     fn blobs_of_gray(&mut self, out: &mut Vec<Blob>) -> Detection {
         let p = &self.cfg.preprocess;
-        let region = Region { roi: p.roi, circle: p.circle };
+        let region = Region {
+            roi: p.roi,
+            circle: p.circle,
+        };
         let level = match p.threshold {
             Threshold::Fixed { level } => Some((level * 255.0).round().clamp(0.0, 255.0) as u8),
             Threshold::Otsu => Some(otsu_level(&histogram(self.gray.as_slice()))),
@@ -154,9 +157,19 @@ impl Detector {
             Some(t) => Level::Scalar(t),
             None => Level::PerPixel(&self.levels),
         };
-        blobs_from_gray_into(&self.gray, lv, region, self.cfg.filter.connectivity, &mut self.scratch, &mut self.all);
+        blobs_from_gray_into(
+            &self.gray,
+            lv,
+            region,
+            self.cfg.filter.connectivity,
+            &mut self.scratch,
+            &mut self.all,
+        );
         out.clear();
         out.extend(self.all.iter().filter(|b| self.cfg.filter.keeps(b)));
-        Detection { level, raw_count: self.all.len() }
+        Detection {
+            level,
+            raw_count: self.all.len(),
+        }
     }
 }

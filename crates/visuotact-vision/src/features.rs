@@ -28,15 +28,35 @@ pub struct FeatureSet {
 
 impl FeatureSet {
     /// Seed 000: area, x, y.
-    pub const IATS: Self = Self { dx: true, dy: true, area: true, eccentricity: false };
+    pub const IATS: Self = Self {
+        dx: true,
+        dy: true,
+        area: true,
+        eccentricity: false,
+    };
     /// Seed 001: x, y, eccentricity.
-    pub const CONE: Self = Self { dx: true, dy: true, area: false, eccentricity: true };
+    pub const CONE: Self = Self {
+        dx: true,
+        dy: true,
+        area: false,
+        eccentricity: true,
+    };
     /// Everything.
-    pub const ALL: Self = Self { dx: true, dy: true, area: true, eccentricity: true };
+    pub const ALL: Self = Self {
+        dx: true,
+        dy: true,
+        area: true,
+        eccentricity: true,
+    };
 
     /// Parses a comma-separated list of `x`, `y`, `area`, `ecc` (or `eccentricity`), or `all`.
     pub fn parse(s: &str) -> Result<Self, String> {
-        let mut f = Self { dx: false, dy: false, area: false, eccentricity: false };
+        let mut f = Self {
+            dx: false,
+            dy: false,
+            area: false,
+            eccentricity: false,
+        };
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
             match part {
                 "x" | "dx" => f.dx = true,
@@ -59,7 +79,10 @@ impl FeatureSet {
 
     /// Features per marker.
     pub fn per_marker(&self) -> usize {
-        usize::from(self.dx) + usize::from(self.dy) + usize::from(self.area) + usize::from(self.eccentricity)
+        usize::from(self.dx)
+            + usize::from(self.dy)
+            + usize::from(self.area)
+            + usize::from(self.eccentricity)
     }
 
     /// Column suffixes in output order.
@@ -83,7 +106,9 @@ impl FeatureSet {
     /// Column names for markers with these ids: `m017_dx_px`, …
     pub fn column_names(&self, ids: impl IntoIterator<Item = u32>) -> Vec<String> {
         let suffixes = self.suffixes();
-        ids.into_iter().flat_map(|id| suffixes.iter().map(move |s| format!("m{id:03}_{s}"))).collect()
+        ids.into_iter()
+            .flat_map(|id| suffixes.iter().map(move |s| format!("m{id:03}_{s}")))
+            .collect()
     }
 }
 
@@ -138,7 +163,14 @@ impl FeatureExtractor {
     pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, String> {
         let detector = Detector::new(cal.detector.clone())?;
         let reference = track_reference(&cal.markers, cal.pitch_px);
-        Ok(Self { cal, features, detector, reference, blobs: Vec::new(), last_track: TrackResult::default() })
+        Ok(Self {
+            cal,
+            features,
+            detector,
+            reference,
+            blobs: Vec::new(),
+            last_track: TrackResult::default(),
+        })
     }
 
     /// The calibration.
@@ -153,7 +185,8 @@ impl FeatureExtractor {
 
     /// Output column names.
     pub fn column_names(&self) -> Vec<String> {
-        self.features.column_names(self.cal.markers.iter().map(|m| m.id))
+        self.features
+            .column_names(self.cal.markers.iter().map(|m| m.id))
     }
 
     /// The blobs of the last frame.
@@ -167,7 +200,11 @@ impl FeatureExtractor {
     }
 
     /// Features of `rgb` into `out` (buffers reused).
-    pub fn extract_into(&mut self, rgb: &RgbImage, out: &mut FrameFeatures) -> Result<(), FrameSizeError> {
+    pub fn extract_into(
+        &mut self,
+        rgb: &RgbImage,
+        out: &mut FrameFeatures,
+    ) -> Result<(), FrameSizeError> {
         if (rgb.width(), rgb.height()) != (self.cal.image_width, self.cal.image_height) {
             return Err(FrameSizeError {
                 expected_w: self.cal.image_width,
@@ -182,7 +219,12 @@ impl FeatureExtractor {
         out.values.clear();
         out.status.clear();
         let conv = self.cal.moment_convention;
-        for (m, (a, st)) in self.cal.markers.iter().zip(t.assignment.iter().zip(&t.status)) {
+        for (m, (a, st)) in self
+            .cal
+            .markers
+            .iter()
+            .zip(t.assignment.iter().zip(&t.status))
+        {
             out.status.push(*st);
             let b = a.map(|j| &self.blobs[j]);
             let f = &self.features;
@@ -193,10 +235,12 @@ impl FeatureExtractor {
                 out.values.push(b.map_or(f64::NAN, |b| b.y_px - m.y_px));
             }
             if f.area {
-                out.values.push(b.map_or(f64::NAN, |b| f64::from(b.area_px) - m.area_px));
+                out.values
+                    .push(b.map_or(f64::NAN, |b| f64::from(b.area_px) - m.area_px));
             }
             if f.eccentricity {
-                out.values.push(b.map_or(f64::NAN, |b| b.shape(conv).eccentricity - m.eccentricity));
+                out.values
+                    .push(b.map_or(f64::NAN, |b| b.shape(conv).eccentricity - m.eccentricity));
             }
         }
         out.found = t.found();

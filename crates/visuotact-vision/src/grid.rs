@@ -275,7 +275,13 @@ mod tests {
 
     #[test]
     fn too_few_points() {
-        assert_eq!(lattice_from_points(&[(1.0, 1.0)]), Err(GridError::TooFew(1)));
-        assert_eq!(lattice_from_points(&[(1.0, 1.0), (1.0, 1.0)]), Err(GridError::NoSpacing));
+        assert_eq!(
+            lattice_from_points(&[(1.0, 1.0)]),
+            Err(GridError::TooFew(1))
+        );
+        assert_eq!(
+            lattice_from_points(&[(1.0, 1.0), (1.0, 1.0)]),
+            Err(GridError::NoSpacing)
+        );
     }
 }

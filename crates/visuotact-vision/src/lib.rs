@@ -8,9 +8,10 @@
 //! in named units).
 
 pub mod blobs;
-pub mod detect;
-pub mod preprocess;
 pub mod calibration;
+pub mod detect;
 pub mod features;
 pub mod grid;
+pub mod kernels;
+pub mod preprocess;
 pub mod track;

@@ -35,8 +35,13 @@ pub enum Channel {
 
 impl Channel {
     /// All channels, for listing in help texts.
-    pub const ALL: [Channel; 5] =
-        [Channel::Green, Channel::Luma601, Channel::Mean, Channel::Red, Channel::Blue];
+    pub const ALL: [Channel; 5] = [
+        Channel::Green,
+        Channel::Luma601,
+        Channel::Mean,
+        Channel::Red,
+        Channel::Blue,
+    ];
 
     /// The name used in files and on the command line.
     pub fn name(self) -> &'static str {
@@ -167,7 +172,10 @@ impl PreprocessConfig {
         open: true,
         close: false,
         morph_size: 3,
-        threshold: Threshold::Adaptive { window_px: 31, offset: -0.06 },
+        threshold: Threshold::Adaptive {
+            window_px: 31,
+            offset: -0.06,
+        },
         roi: None,
         circle: None,
     };
@@ -175,15 +183,22 @@ impl PreprocessConfig {
     /// Checks the settings; the message says which one is wrong.
     pub fn validate(&self) -> Result<(), String> {
         if (self.open || self.close) && (self.morph_size == 0 || self.morph_size % 2 == 0) {
-            return Err(format!("morphology size must be odd and ≥ 1, got {}", self.morph_size));
+            return Err(format!(
+                "morphology size must be odd and ≥ 1, got {}",
+                self.morph_size
+            ));
         }
         match self.threshold {
             Threshold::Fixed { level } if !(0.0..=1.0).contains(&level) => {
-                return Err(format!("fixed threshold must be in 0..1 of full scale, got {level}"))
+                return Err(format!(
+                    "fixed threshold must be in 0..1 of full scale, got {level}"
+                ))
             }
             Threshold::Adaptive { window_px, offset } => {
                 if window_px < 3 || window_px % 2 == 0 {
-                    return Err(format!("adaptive window must be odd and ≥ 3, got {window_px}"));
+                    return Err(format!(
+                        "adaptive window must be odd and ≥ 3, got {window_px}"
+                    ));
                 }
                 if !(-1.0..=1.0).contains(&offset) {
                     return Err(format!("adaptive offset must be in −1..1, got {offset}"));
@@ -215,14 +230,8 @@ pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &
         Channel::Red => pick_channel(s, d, 0),
         Channel::Green => pick_channel(s, d, 1),
         Channel::Blue => pick_channel(s, d, 2),
-        Channel::Luma601 => {
-            for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
-                // 2989 + 5870 + 1140 = 9999, so the sum is ≤ 255·9999 and fits u32; adding
-                // 5000 before the division rounds half up, as MATLAB's round does.
-                let acc = 2989 * u32::from(p[0]) + 5870 * u32::from(p[1]) + 1140 * u32::from(p[2]);
-                *o = ((acc + 5000) / 10000) as u8;
-            }
-        }
+        // Adding 5000 before dividing by 10000 rounds half up, as MATLAB's round does.
+        Channel::Luma601 => crate::kernels::luma601(s, d),
         Channel::Mean => {
             for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
                 let acc = u32::from(p[0]) + u32::from(p[1]) + u32::from(p[2]);
@@ -238,9 +247,7 @@ pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &
 }
 
 fn pick_channel(s: &[u8], d: &mut [u8], c: usize) {
-    for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
-        *o = p[c];
-    }
+    crate::kernels::pick_channel(s, d, c);
 }
 
 /// Allocating form of [`gray_from_rgb_into`].
@@ -275,18 +282,7 @@ fn row_extremum(src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
     if r == 1 && n >= 3 {
         // The 3-wide case is the hot one: three shifted slices so the loop vectorises.
         let (a, b, c) = (&src[..n - 2], &src[1..n - 1], &src[2..]);
-        match op {
-            Extremum::Min => {
-                for (((o, &a), &b), &c) in dst[1..n - 1].iter_mut().zip(a).zip(b).zip(c) {
-                    *o = a.min(b).min(c);
-                }
-            }
-            Extremum::Max => {
-                for (((o, &a), &b), &c) in dst[1..n - 1].iter_mut().zip(a).zip(b).zip(c) {
-                    *o = a.max(b).max(c);
-                }
-            }
-        }
+        crate::kernels::extremum3(a, b, c, &mut dst[1..n - 1], matches!(op, Extremum::Max));
         dst[0] = op.pick(src[0], src[1]);
         dst[n - 1] = op.pick(src[n - 2], src[n - 1]);
         return;
@@ -303,7 +299,13 @@ fn row_extremum(src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
 }
 
 /// Separable `k × k` min/max filter, `src` → `dst`, with `tmp` as scratch.
-fn extremum_filter(src: &GrayImage, dst: &mut GrayImage, tmp: &mut GrayImage, k: usize, op: Extremum) {
+fn extremum_filter(
+    src: &GrayImage,
+    dst: &mut GrayImage,
+    tmp: &mut GrayImage,
+    k: usize,
+    op: Extremum,
+) {
     let (w, h) = (src.width(), src.height());
     let r = k / 2;
     tmp.resize(w, h);
@@ -317,13 +319,19 @@ fn extremum_filter(src: &GrayImage, dst: &mut GrayImage, tmp: &mut GrayImage, k:
         let lo = y.saturating_sub(r);
         let hi = (y + r).min(h - 1);
         let out = &mut d[y * w..(y + 1) * w];
+        let max = matches!(op, Extremum::Max);
+        if hi - lo == 2 {
+            let (a, b, c) = (
+                &t[lo * w..(lo + 1) * w],
+                &t[(lo + 1) * w..(lo + 2) * w],
+                &t[hi * w..(hi + 1) * w],
+            );
+            crate::kernels::extremum3(a, b, c, out, max);
+            continue;
+        }
         out.copy_from_slice(&t[lo * w..(lo + 1) * w]);
         for yy in lo + 1..=hi {
-            let row = &t[yy * w..(yy + 1) * w];
-            match op {
-                Extremum::Min => out.iter_mut().zip(row).for_each(|(o, &v)| *o = (*o).min(v)),
-                Extremum::Max => out.iter_mut().zip(row).for_each(|(o, &v)| *o = (*o).max(v)),
-            }
+            crate::kernels::extremum_acc(&t[yy * w..(yy + 1) * w], out, max);
         }
     }
 }
@@ -360,22 +368,27 @@ pub fn morphology_in_place(img: &mut GrayImage, cfg: &PreprocessConfig, s: &mut 
 
 /// 256-bin histogram of an 8-bit buffer.
 pub fn histogram(data: &[u8]) -> [u32; 256] {
-    // Four interleaved tables break the store-to-load dependency when neighbouring pixels are
-    // equal (the common case on a flat background).
-    let mut h = [[0u32; 256]; 4];
-    let mut chunks = data.chunks_exact(4);
+    // Eight interleaved tables break the store-to-load dependency when neighbouring pixels are
+    // equal (the common case on a flat background): each table sees every eighth pixel.
+    let mut h = [[0u32; 256]; 8];
+    let mut chunks = data.chunks_exact(8);
     for c in &mut chunks {
-        h[0][c[0] as usize] += 1;
-        h[1][c[1] as usize] += 1;
-        h[2][c[2] as usize] += 1;
-        h[3][c[3] as usize] += 1;
+        let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+        h[0][(v & 0xff) as usize] += 1;
+        h[1][((v >> 8) & 0xff) as usize] += 1;
+        h[2][((v >> 16) & 0xff) as usize] += 1;
+        h[3][((v >> 24) & 0xff) as usize] += 1;
+        h[4][((v >> 32) & 0xff) as usize] += 1;
+        h[5][((v >> 40) & 0xff) as usize] += 1;
+        h[6][((v >> 48) & 0xff) as usize] += 1;
+        h[7][(v >> 56) as usize] += 1;
     }
     for &v in chunks.remainder() {
         h[0][v as usize] += 1;
     }
     let mut out = [0u32; 256];
     for (i, o) in out.iter_mut().enumerate() {
-        *o = h[0][i] + h[1][i] + h[2][i] + h[3][i];
+        *o = h.iter().map(|t| t[i]).sum();
     }
     out
 }
@@ -396,7 +409,11 @@ pub fn otsu_level(hist: &[u32; 256]) -> u8 {
     if total == 0.0 {
         return 0;
     }
-    let sum_all: f64 = hist.iter().enumerate().map(|(i, &c)| i as f64 * f64::from(c)).sum();
+    let sum_all: f64 = hist
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| i as f64 * f64::from(c))
+        .sum();
     let (mut w0, mut sum0) = (0.0f64, 0.0f64);
     let (mut best, mut best_t) = (-1.0f64, 0usize);
     for (t, &c) in hist.iter().enumerate().take(255) {
@@ -436,9 +453,13 @@ pub fn adaptive_levels_into(src: &GrayImage, window_px: usize, offset: f64, out:
     let add_row = |col: &mut [u32], y: usize, sign: bool| {
         let row = &src_s[y * w..(y + 1) * w];
         if sign {
-            col.iter_mut().zip(row).for_each(|(c, &v)| *c += u32::from(v));
+            col.iter_mut()
+                .zip(row)
+                .for_each(|(c, &v)| *c += u32::from(v));
         } else {
-            col.iter_mut().zip(row).for_each(|(c, &v)| *c -= u32::from(v));
+            col.iter_mut()
+                .zip(row)
+                .for_each(|(c, &v)| *c -= u32::from(v));
         }
     };
     for y in 0..r.min(h) {

@@ -117,9 +117,20 @@ impl TrackReference {
         };
         let neighbours = neighbours
             .into_iter()
-            .map(|d| d.into_iter().take(8).filter(|&(_, dd)| dd < 2.0 * pitch_px).map(|(j, _)| j).collect())
+            .map(|d| {
+                d.into_iter()
+                    .take(8)
+                    .filter(|&(_, dd)| dd < 2.0 * pitch_px)
+                    .map(|(j, _)| j)
+                    .collect()
+            })
             .collect();
-        Self { positions, areas_px, neighbours, pitch_px }
+        Self {
+            positions,
+            areas_px,
+            neighbours,
+            pitch_px,
+        }
     }
 }
 
@@ -139,12 +150,105 @@ pub struct TrackResult {
 impl TrackResult {
     /// Number of markers matched.
     pub fn found(&self) -> usize {
-        self.status.iter().filter(|s| **s == MarkerStatus::Ok).count()
+        self.status
+            .iter()
+            .filter(|s| **s == MarkerStatus::Ok)
+            .count()
     }
 }
 
 fn dist(a: (f64, f64), b: (f64, f64)) -> f64 {
-    ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt()
+    ((a.0 - b.0) * (a.0 - b.0) + (a.1 - b.1) * (a.1 - b.1)).sqrt()
+}
+
+/// Blob centroids bucketed on a square grid of cell size `cell` for near look-ups.
+struct BlobIndex {
+    cell: f64,
+    x0: f64,
+    y0: f64,
+    nx: usize,
+    ny: usize,
+    starts: Vec<u32>,
+    items: Vec<u32>,
+    pts: Vec<(f64, f64)>,
+}
+
+impl BlobIndex {
+    fn new(blobs: &[Blob], cell: f64) -> Self {
+        let pts: Vec<(f64, f64)> = blobs.iter().map(|b| (b.x_px, b.y_px)).collect();
+        let (mut x0, mut y0, mut x1, mut y1) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &(x, y) in &pts {
+            x0 = x0.min(x);
+            y0 = y0.min(y);
+            x1 = x1.max(x);
+            y1 = y1.max(y);
+        }
+        if pts.is_empty() {
+            (x0, y0, x1, y1) = (0.0, 0.0, 0.0, 0.0);
+        }
+        let nx = ((x1 - x0) / cell).floor() as usize + 1;
+        let ny = ((y1 - y0) / cell).floor() as usize + 1;
+        let cell_of =
+            |&(x, y): &(f64, f64)| ((y - y0) / cell) as usize * nx + ((x - x0) / cell) as usize;
+        // Counting sort of blob indices by cell.
+        let mut starts = vec![0u32; nx * ny + 1];
+        for p in &pts {
+            starts[cell_of(p) + 1] += 1;
+        }
+        for k in 1..starts.len() {
+            starts[k] += starts[k - 1];
+        }
+        let mut fill = starts.clone();
+        let mut items = vec![0u32; pts.len()];
+        for (j, p) in pts.iter().enumerate() {
+            let c = cell_of(p);
+            items[fill[c] as usize] = j as u32;
+            fill[c] += 1;
+        }
+        Self {
+            cell,
+            x0,
+            y0,
+            nx,
+            ny,
+            starts,
+            items,
+            pts,
+        }
+    }
+
+    /// Calls `f(index, distance)` for every blob within `r` of `p`.
+    fn near(&self, p: (f64, f64), r: f64, mut f: impl FnMut(usize, f64)) {
+        if self.pts.is_empty() {
+            return;
+        }
+        let cx0 = ((p.0 - r - self.x0) / self.cell).floor().max(0.0) as usize;
+        let cy0 = ((p.1 - r - self.y0) / self.cell).floor().max(0.0) as usize;
+        let cx1 = ((p.0 + r - self.x0) / self.cell).floor();
+        let cy1 = ((p.1 + r - self.y0) / self.cell).floor();
+        if cx1 < 0.0 || cy1 < 0.0 {
+            return;
+        }
+        let cx1 = (cx1 as usize).min(self.nx - 1);
+        let cy1 = (cy1 as usize).min(self.ny - 1);
+        for cy in cy0..=cy1 {
+            for cx in cx0..=cx1 {
+                let c = cy * self.nx + cx;
+                for &j in &self.items[self.starts[c] as usize..self.starts[c + 1] as usize] {
+                    let q = self.pts[j as usize];
+                    let d2 = (q.0 - p.0) * (q.0 - p.0) + (q.1 - p.1) * (q.1 - p.1);
+                    if d2 <= r * r {
+                        f(j as usize, d2.sqrt());
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Overall motion: each marker votes for the displacement of the blob nearest to it, and the
@@ -152,7 +256,7 @@ fn dist(a: (f64, f64), b: (f64, f64)) -> f64 {
 /// at its frame moves locally, so the still majority decides; a whole-sensor shift (a bumped
 /// camera) is found when it is under half a pitch (a larger uniform shift of a lattice cannot be
 /// told from a smaller one).
-fn register(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> (f64, f64) {
+fn register(reference: &TrackReference, index: &BlobIndex, cfg: &TrackConfig) -> (f64, f64) {
     let p = reference.pitch_px;
     let range = cfg.search_pitches * p;
     let cell = p / 4.0;
@@ -160,12 +264,15 @@ fn register(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> (f
     let mut votes = vec![0u32; nb * nb];
     let mut picks: Vec<(f64, f64)> = Vec::with_capacity(reference.positions.len());
     for &m in &reference.positions {
-        let nearest = blobs
-            .iter()
-            .map(|b| (b.x_px - m.0, b.y_px - m.1))
-            .filter(|d| d.0.abs() < range && d.1.abs() < range)
-            .min_by(|a, b| a.0.hypot(a.1).total_cmp(&b.0.hypot(b.1)));
-        if let Some(d) = nearest {
+        let mut nearest: Option<(usize, f64)> = None;
+        index.near(m, range, |j, d| {
+            if nearest.is_none_or(|(_, bd)| d < bd) {
+                nearest = Some((j, d));
+            }
+        });
+        if let Some((j, _)) = nearest {
+            let q = index.pts[j];
+            let d = (q.0 - m.0, q.1 - m.1);
             let bx = ((d.0 + range) / cell).floor() as usize;
             let by = ((d.1 + range) / cell).floor() as usize;
             if bx < nb && by < nb {
@@ -195,23 +302,29 @@ fn register(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> (f
         return (0.0, 0.0);
     }
     let (cx, cy) = (best.2, best.3);
-    let inliers: Vec<&(f64, f64)> =
-        picks.iter().filter(|d| (d.0 - cx).abs() <= cell && (d.1 - cy).abs() <= cell).collect();
+    let inliers: Vec<&(f64, f64)> = picks
+        .iter()
+        .filter(|d| (d.0 - cx).abs() <= cell && (d.1 - cy).abs() <= cell)
+        .collect();
     let k = inliers.len() as f64;
-    (inliers.iter().map(|d| d.0).sum::<f64>() / k, inliers.iter().map(|d| d.1).sum::<f64>() / k)
+    (
+        inliers.iter().map(|d| d.0).sum::<f64>() / k,
+        inliers.iter().map(|d| d.1).sum::<f64>() / k,
+    )
 }
 
 /// Nearest and second-nearest free blob to `p` within `gate`.
-fn nearest_two(p: (f64, f64), blobs: &[Blob], taken: &[bool], gate: f64) -> (Option<(usize, f64)>, f64) {
+fn nearest_two(
+    p: (f64, f64),
+    index: &BlobIndex,
+    taken: &[bool],
+    gate: f64,
+) -> (Option<(usize, f64)>, f64) {
     let mut best: Option<(usize, f64)> = None;
     let mut second = f64::INFINITY;
-    for (j, b) in blobs.iter().enumerate() {
+    index.near(p, 2.0 * gate, |j, d| {
         if taken[j] {
-            continue;
-        }
-        let d = dist(p, (b.x_px, b.y_px));
-        if d > gate * 2.0 {
-            continue;
+            return;
         }
         match best {
             Some((_, bd)) if d >= bd => second = second.min(d),
@@ -222,7 +335,7 @@ fn nearest_two(p: (f64, f64), blobs: &[Blob], taken: &[bool], gate: f64) -> (Opt
                 best = Some((j, d));
             }
         }
-    }
+    });
     (best.filter(|&(_, d)| d <= gate), second)
 }
 
@@ -231,27 +344,36 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
     let n = reference.positions.len();
     let p = reference.pitch_px;
     let gate = cfg.gate_pitches * p;
-    let shift = register(reference, blobs, cfg);
+    let index = BlobIndex::new(blobs, p.max(1.0));
+    let shift = register(reference, &index, cfg);
     let mut assignment: Vec<Option<usize>> = vec![None; n];
     let mut disp: Vec<(f64, f64)> = vec![(0.0, 0.0); n];
     let mut taken = vec![false; blobs.len()];
 
     // Seeds: unambiguous, mutual nearest after the overall motion, within half the gate.
-    let predicted: Vec<(f64, f64)> =
-        reference.positions.iter().map(|&(x, y)| (x + shift.0, y + shift.1)).collect();
+    let predicted: Vec<(f64, f64)> = reference
+        .positions
+        .iter()
+        .map(|&(x, y)| (x + shift.0, y + shift.1))
+        .collect();
     for i in 0..n {
-        let (best, second) = nearest_two(predicted[i], blobs, &taken, 0.5 * gate);
+        let (best, second) = nearest_two(predicted[i], &index, &taken, 0.5 * gate);
         let Some((j, d)) = best else { continue };
         if second < cfg.ambiguity_ratio * 2.0 * d.max(0.05 * p) {
             continue;
         }
         // Mutual: no other marker's prediction is closer to this blob.
         let bj = (blobs[j].x_px, blobs[j].y_px);
-        let mutual = reference.neighbours[i].iter().all(|&k| dist(predicted[k], bj) > d);
+        let mutual = reference.neighbours[i]
+            .iter()
+            .all(|&k| dist(predicted[k], bj) > d);
         if mutual {
             assignment[i] = Some(j);
             taken[j] = true;
-            disp[i] = (bj.0 - reference.positions[i].0, bj.1 - reference.positions[i].1);
+            disp[i] = (
+                bj.0 - reference.positions[i].0,
+                bj.1 - reference.positions[i].1,
+            );
         }
     }
     // Keep the largest set of seeds whose displacements agree with their seeded neighbours (a
@@ -299,7 +421,15 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
         // Candidates: unmatched markers with matched neighbours, most support first.
         let mut cands: Vec<(usize, usize)> = (0..n)
             .filter(|&i| assignment[i].is_none())
-            .map(|i| (i, reference.neighbours[i].iter().filter(|&&k| assignment[k].is_some()).count()))
+            .map(|i| {
+                (
+                    i,
+                    reference.neighbours[i]
+                        .iter()
+                        .filter(|&&k| assignment[k].is_some())
+                        .count(),
+                )
+            })
             .filter(|&(i, c)| c > 0 && failed_at[i].is_none_or(|f| c > f))
             .collect();
         if cands.is_empty() {
@@ -319,13 +449,19 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
                     sw += w;
                 }
             }
-            let pred = (reference.positions[i].0 + sx / sw, reference.positions[i].1 + sy / sw);
-            let (best, second) = nearest_two(pred, blobs, &taken, gate);
+            let pred = (
+                reference.positions[i].0 + sx / sw,
+                reference.positions[i].1 + sy / sw,
+            );
+            let (best, second) = nearest_two(pred, &index, &taken, gate);
             match best {
                 Some((j, d)) if second >= cfg.ambiguity_ratio * d.max(0.05 * p) => {
                     assignment[i] = Some(j);
                     taken[j] = true;
-                    disp[i] = (blobs[j].x_px - reference.positions[i].0, blobs[j].y_px - reference.positions[i].1);
+                    disp[i] = (
+                        blobs[j].x_px - reference.positions[i].0,
+                        blobs[j].y_px - reference.positions[i].1,
+                    );
                     progress = true;
                 }
                 _ => {
@@ -341,7 +477,7 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
     // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
     for i in 0..n {
         if assignment[i].is_none() && failed_at[i].is_none() {
-            let (best, second) = nearest_two(predicted[i], blobs, &taken, gate);
+            let (best, second) = nearest_two(predicted[i], &index, &taken, gate);
             if let Some((j, d)) = best {
                 if second >= cfg.ambiguity_ratio * d.max(0.05 * p) {
                     assignment[i] = Some(j);
@@ -356,12 +492,17 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
         if assignment[i].is_some() {
             continue;
         }
-        let (sx, sy, sw) = reference.neighbours[i].iter().filter(|&&k| assignment[k].is_some()).fold(
-            (0.0, 0.0, 0.0),
-            |acc, &k| (acc.0 + disp[k].0, acc.1 + disp[k].1, acc.2 + 1.0),
-        );
+        let (sx, sy, sw) = reference.neighbours[i]
+            .iter()
+            .filter(|&&k| assignment[k].is_some())
+            .fold((0.0, 0.0, 0.0), |acc, &k| {
+                (acc.0 + disp[k].0, acc.1 + disp[k].1, acc.2 + 1.0)
+            });
         let pred = if sw > 0.0 {
-            (reference.positions[i].0 + sx / sw, reference.positions[i].1 + sy / sw)
+            (
+                reference.positions[i].0 + sx / sw,
+                reference.positions[i].1 + sy / sw,
+            )
         } else {
             predicted[i]
         };
@@ -381,9 +522,11 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
             }
             MarkerStatus::Merged
         } else {
-            let (best, second) = nearest_two(pred, blobs, &taken, gate);
+            let (best, second) = nearest_two(pred, &index, &taken, gate);
             match best {
-                Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * p) => MarkerStatus::Ambiguous,
+                Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * p) => {
+                    MarkerStatus::Ambiguous
+                }
                 _ => MarkerStatus::Lost,
             }
         };
@@ -394,5 +537,10 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
         }
     }
     let spurious = taken.iter().filter(|t| !**t).count();
-    TrackResult { assignment, status, shift_px: shift, spurious }
+    TrackResult {
+        assignment,
+        status,
+        shift_px: shift,
+        spurious,
+    }
 }

@@ -15,7 +15,9 @@ use proptest::prelude::*;
 use visuotact_image::GrayImage;
 use visuotact_sim::pattern::{render_markers, Look};
 use visuotact_sim::render::Ellipse;
-use visuotact_vision::blobs::{blobs_from_gray, blobs_reference, Blob, Connectivity, Level, MomentConvention};
+use visuotact_vision::blobs::{
+    blobs_from_gray, blobs_reference, Blob, Connectivity, Level, MomentConvention,
+};
 use visuotact_vision::detect::{Detector, DetectorConfig};
 use visuotact_vision::preprocess::PreprocessConfig;
 
@@ -26,10 +28,20 @@ fn perimeter(a: f64, b: f64) -> f64 {
 }
 
 fn detect_one(shapes: &[(Ellipse, Option<Ellipse>)], seed: u64, open: bool) -> Vec<Blob> {
-    let look = Look { vignetting: 0.0, ..Look::GREEN_ON_DARK };
+    let look = Look {
+        vignetting: 0.0,
+        ..Look::GREEN_ON_DARK
+    };
     let img = render_markers(160, 120, shapes, &look, seed);
-    let preprocess = PreprocessConfig { open, ..PreprocessConfig::IATS };
-    let mut det = Detector::new(DetectorConfig { preprocess, ..Default::default() }).unwrap();
+    let preprocess = PreprocessConfig {
+        open,
+        ..PreprocessConfig::IATS
+    };
+    let mut det = Detector::new(DetectorConfig {
+        preprocess,
+        ..Default::default()
+    })
+    .unwrap();
     det.detect(&img)
 }
 
@@ -44,53 +56,117 @@ fn ellipses_of_known_moments() {
 fn ellipses_within(open: bool, centroid_tol_px: f64) {
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
     let mut seed = 0;
-    for &(a, b) in &[(8.0, 8.0), (12.0, 7.0), (20.0, 10.0), (15.0, 6.0), (25.0, 24.0)] {
+    for &(a, b) in &[
+        (8.0, 8.0),
+        (12.0, 7.0),
+        (20.0, 10.0),
+        (15.0, 6.0),
+        (25.0, 24.0),
+    ] {
         for k in 0..6 {
             seed += 1;
             let angle = f64::from(k) * 0.47;
-            let e = Ellipse { cx_px: 80.3 + 0.13 * f64::from(k), cy_px: 59.71, a_px: a, b_px: b, angle_rad: angle };
+            let e = Ellipse {
+                cx_px: 80.3 + 0.13 * f64::from(k),
+                cy_px: 59.71,
+                a_px: a,
+                b_px: b,
+                angle_rad: angle,
+            };
             let blobs = detect_one(&[(e, None)], seed, open);
-            assert_eq!(blobs.len(), 1, "ellipse {a}×{b} at {angle}: {} blobs", blobs.len());
+            assert_eq!(
+                blobs.len(),
+                1,
+                "ellipse {a}×{b} at {angle}: {} blobs",
+                blobs.len()
+            );
             let bl = blobs[0];
             let dc = (bl.x_px - e.cx_px).hypot(bl.y_px - e.cy_px);
             let da = (f64::from(bl.area_px) - e.area_px()).abs();
             let sh = bl.shape(MomentConvention::Pixel);
             let ratio = sh.minor_axis_px / sh.major_axis_px;
             let dr = (ratio - b / a).abs();
-            assert!(dc < centroid_tol_px, "centroid off by {dc} px for {a}×{b} at {angle}");
-            assert!(da <= 0.5 * perimeter(a, b), "area {} vs {} for {a}×{b}", bl.area_px, e.area_px());
-            assert!(dr < 0.25 / b, "axis ratio {ratio} vs {} for {a}×{b} at {angle}", b / a);
+            assert!(
+                dc < centroid_tol_px,
+                "centroid off by {dc} px for {a}×{b} at {angle}"
+            );
+            assert!(
+                da <= 0.5 * perimeter(a, b),
+                "area {} vs {} for {a}×{b}",
+                bl.area_px,
+                e.area_px()
+            );
+            assert!(
+                dr < 0.25 / b,
+                "axis ratio {ratio} vs {} for {a}×{b} at {angle}",
+                b / a
+            );
             if e.eccentricity() > 0.5 {
                 let de = (sh.eccentricity - e.eccentricity()).abs();
-                assert!(de < 0.02, "eccentricity {} vs {} for {a}×{b}", sh.eccentricity, e.eccentricity());
+                assert!(
+                    de < 0.02,
+                    "eccentricity {} vs {} for {a}×{b}",
+                    sh.eccentricity,
+                    e.eccentricity()
+                );
             }
-            worst = (worst.0.max(dc), worst.1.max(da / e.area_px()), worst.2.max(dr));
+            worst = (
+                worst.0.max(dc),
+                worst.1.max(da / e.area_px()),
+                worst.2.max(dr),
+            );
         }
     }
-    eprintln!("open {open}: worst centroid {:.4} px, area {:.3} %, axis ratio {:.4}", worst.0, 100.0 * worst.1, worst.2);
+    eprintln!(
+        "open {open}: worst centroid {:.4} px, area {:.3} %, axis ratio {:.4}",
+        worst.0,
+        100.0 * worst.1,
+        worst.2
+    );
 }
 
 #[test]
 fn annulus_of_known_moments() {
-    for (k, &(ro, ri)) in [(30.0, 22.0), (40.0, 30.0), (25.0, 15.0)].iter().enumerate() {
-        let outer = Ellipse { cx_px: 79.6, cy_px: 60.2, a_px: ro, b_px: ro * 0.9, angle_rad: 0.3 };
-        let inner = Ellipse { a_px: ri, b_px: ri * 0.9, ..outer };
+    for (k, &(ro, ri)) in [(30.0, 22.0), (40.0, 30.0), (25.0, 15.0)]
+        .iter()
+        .enumerate()
+    {
+        let outer = Ellipse {
+            cx_px: 79.6,
+            cy_px: 60.2,
+            a_px: ro,
+            b_px: ro * 0.9,
+            angle_rad: 0.3,
+        };
+        let inner = Ellipse {
+            a_px: ri,
+            b_px: ri * 0.9,
+            ..outer
+        };
         let blobs = detect_one(&[(outer, Some(inner))], k as u64, false);
         assert_eq!(blobs.len(), 1);
         let bl = blobs[0];
         let area = outer.area_px() - inner.area_px();
         let tol = 0.5 * (perimeter(ro, 0.9 * ro) + perimeter(ri, 0.9 * ri));
         let dc = (bl.x_px - 79.6).hypot(bl.y_px - 60.2);
-        eprintln!("annulus {ro}/{ri}: centre off by {dc:.4} px, area {} vs {area:.1}", bl.area_px);
+        eprintln!(
+            "annulus {ro}/{ri}: centre off by {dc:.4} px, area {} vs {area:.1}",
+            bl.area_px
+        );
         assert!(dc < 0.1, "annulus centre {} {}", bl.x_px, bl.y_px);
-        assert!((f64::from(bl.area_px) - area).abs() <= tol, "annulus area {} vs {area}", bl.area_px);
+        assert!(
+            (f64::from(bl.area_px) - area).abs() <= tol,
+            "annulus area {} vs {area}",
+            bl.area_px
+        );
         // An annulus with equal axis ratios has the same eccentricity as its ellipses.
         assert!((bl.eccentricity() - outer.eccentricity()).abs() < 0.03);
     }
 }
 
 fn arb_image() -> impl Strategy<Value = (usize, usize, Vec<u8>)> {
-    (1usize..70, 1usize..40).prop_flat_map(|(w, h)| (Just(w), Just(h), prop::collection::vec(0u8..4, w * h)))
+    (1usize..70, 1usize..40)
+        .prop_flat_map(|(w, h)| (Just(w), Just(h), prop::collection::vec(0u8..4, w * h)))
 }
 
 proptest! {

@@ -11,16 +11,35 @@ use visuotact_vision::preprocess::PreprocessConfig;
 use visuotact_vision::track::MarkerStatus;
 
 fn calibrated(pattern: &GridPattern) -> SensorCalibration {
-    let frames: Vec<_> = (0..5).map(|s| render_grid(pattern, None, 100 + s).0).collect();
+    let frames: Vec<_> = (0..5)
+        .map(|s| render_grid(pattern, None, 100 + s).0)
+        .collect();
     let ids: Vec<String> = (0..5).map(|i| format!("ref{i}")).collect();
-    let det = DetectorConfig { preprocess: PreprocessConfig::IATS, ..Default::default() };
-    let (cal, report) =
-        calibrate(ids.iter().map(String::as_str).zip(frames.iter()), det, Layout::Grid, FeatureSet::ALL).unwrap();
-    assert!(report.missing_per_frame.is_empty(), "{:?}", report.missing_per_frame);
+    let det = DetectorConfig {
+        preprocess: PreprocessConfig::IATS,
+        ..Default::default()
+    };
+    let (cal, report) = calibrate(
+        ids.iter().map(String::as_str).zip(frames.iter()),
+        det,
+        Layout::Grid,
+        FeatureSet::ALL,
+    )
+    .unwrap();
+    assert!(
+        report.missing_per_frame.is_empty(),
+        "{:?}",
+        report.missing_per_frame
+    );
     cal
 }
 
-fn check_frame(ex: &mut FeatureExtractor, truth: &[MarkerTruth], img: &visuotact_image::RgbImage, what: &str) {
+fn check_frame(
+    ex: &mut FeatureExtractor,
+    truth: &[MarkerTruth],
+    img: &visuotact_image::RgbImage,
+    what: &str,
+) {
     let f = ex.extract(img).unwrap();
     let cal = ex.calibration();
     for (k, m) in cal.markers.iter().enumerate() {
@@ -37,11 +56,21 @@ fn check_frame(ex: &mut FeatureExtractor, truth: &[MarkerTruth], img: &visuotact
                 continue;
             }
         }
-        assert_eq!(f.status[k], MarkerStatus::Ok, "{what}: marker {k} {:?}", f.status[k]);
+        assert_eq!(
+            f.status[k],
+            MarkerStatus::Ok,
+            "{what}: marker {k} {:?}",
+            f.status[k]
+        );
         let x = m.x_px + f.values[4 * k];
         let y = m.y_px + f.values[4 * k + 1];
         let err = (x - t.cx_px).hypot(y - t.cy_px);
-        assert!(err < 0.3, "{what}: marker {k} at ({x:.2},{y:.2}), truth ({:.2},{:.2})", t.cx_px, t.cy_px);
+        assert!(
+            err < 0.3,
+            "{what}: marker {k} at ({x:.2},{y:.2}), truth ({:.2},{:.2})",
+            t.cx_px,
+            t.cy_px
+        );
     }
 }
 
@@ -68,7 +97,9 @@ fn drags_up_to_a_full_pitch_in_random_order() {
     // pitch in any direction.
     let mut s = 12345u64;
     let mut next = || {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (s >> 11) as f64 / (1u64 << 53) as f64
     };
     for i in 0..120 {
@@ -85,7 +116,12 @@ fn drags_up_to_a_full_pitch_in_random_order() {
             stretch: 0.2 * next(),
         };
         let (img, truth) = render_grid(&pattern, Some(&press), 1000 + i);
-        check_frame(&mut ex, &truth, &img, &format!("touch {i} (drag {drag:.1} px)"));
+        check_frame(
+            &mut ex,
+            &truth,
+            &img,
+            &format!("touch {i} (drag {drag:.1} px)"),
+        );
     }
 }
 

@@ -1,0 +1,294 @@
+//! Pixel kernels with runtime CPU dispatch.
+//!
+//! Each kernel is written once as plain safe Rust that the compiler vectorises, and compiled
+//! twice: for the baseline target (SSE2 on x86-64) and with AVX2 enabled. The AVX2 copy is
+//! used when the running CPU has it (checked once by `std`); nothing is pinned to the build
+//! machine. Both copies compute identical results (integer code, no reassociation); the tests
+//! run whichever the machine picks and compare with scalar references.
+
+/// Generates `pub fn $name(args)` that dispatches between an AVX2 build and a baseline build of
+/// the same body.
+macro_rules! dispatch {
+    ($(#[$m:meta])* pub fn $name:ident($($arg:ident : $ty:ty),*) $body:block) => {
+        $(#[$m])*
+        pub fn $name($($arg: $ty),*) {
+            #[inline(always)]
+            fn body($($arg: $ty),*) $body
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                fn avx2($($arg: $ty),*) {
+                    body($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2, checked on the line above.
+                    #[allow(unsafe_code, reason = "calling a target_feature function after the runtime check")]
+                    unsafe {
+                        return avx2($($arg),*);
+                    }
+                }
+            }
+            body($($arg),*)
+        }
+    };
+}
+
+/// `dst[i] = src[3 i + c]`: one channel of interleaved RGB (SSSE3 byte shuffles when the CPU
+/// has them, else the portable loop).
+pub fn pick_channel(src: &[u8], dst: &mut [u8], c: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("ssse3") {
+            let n = dst.len().min(src.len() / 3) / 16 * 16;
+            // SAFETY: the CPU supports SSSE3, checked on the line above.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function after the runtime check"
+            )]
+            unsafe {
+                shuffle::pick_channel_ssse3(&src[..3 * n], &mut dst[..n], c);
+            }
+            pick_channel_portable(&src[3 * n..], &mut dst[n..], c);
+            return;
+        }
+    }
+    pick_channel_portable(src, dst, c);
+}
+
+/// Bit `i` of the result words is `src[i] > t` (little-endian words, as [`pack_bits`]).
+pub fn above_bits(src: &[u8], t: u8, bits: &mut [u64]) {
+    assert!(bits.len() >= src.len().div_ceil(64), "bit buffer too short");
+    if t == 255 {
+        bits.iter_mut().for_each(|w| *w = 0);
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SSE2 is part of the x86-64 baseline.
+        let n = src.len() / 64 * 64;
+        shuffle::above_bits_sse2(&src[..n], t, &mut bits[..n / 64]);
+        let rest = &src[n..];
+        if !rest.is_empty() {
+            let mut bytes = [0u8; 64];
+            above(rest, t, &mut bytes[..rest.len()]);
+            pack_bits(&bytes[..rest.len()], &mut bits[n / 64..n / 64 + 1]);
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut bytes = vec![0u8; src.len()];
+        above(src, t, &mut bytes);
+        pack_bits(&bytes, bits);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(
+    unsafe_code,
+    reason = "SSE2/SSSE3 intrinsics on bounds-checked 16/48/64-byte chunks"
+)]
+mod shuffle {
+    use std::arch::x86_64::{
+        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_max_epu8, _mm_movemask_epi8, _mm_or_si128,
+        _mm_set1_epi8, _mm_shuffle_epi8, _mm_storeu_si128,
+    };
+
+    /// `src.len()` a multiple of 64, `bits.len() == src.len() / 64`, `t < 255`.
+    pub(super) fn above_bits_sse2(src: &[u8], t: u8, bits: &mut [u64]) {
+        // SAFETY: SSE2 is always present on x86-64; every load reads 16 bytes inside a
+        // 64-byte chunk from chunks_exact.
+        unsafe {
+            // v > t  ⟺  max(v, t + 1) == v (unsigned bytes, t < 255).
+            let t1 = _mm_set1_epi8((t + 1) as i8);
+            for (w, c) in bits.iter_mut().zip(src.chunks_exact(64)) {
+                let mut word = 0u64;
+                for k in 0..4 {
+                    let v = _mm_loadu_si128(c[16 * k..].as_ptr().cast::<__m128i>());
+                    let m = _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(v, t1), v)) as u32 as u64;
+                    word |= m << (16 * k);
+                }
+                *w = word;
+            }
+        }
+    }
+
+    /// Shuffle masks taking bytes `3 i + c` (i = 0..16) from three consecutive 16-byte loads.
+    fn masks(c: usize) -> [[u8; 16]; 3] {
+        let mut m = [[0x80u8; 16]; 3];
+        for i in 0..16 {
+            let k = 3 * i + c;
+            m[k / 16][i] = (k % 16) as u8;
+        }
+        m
+    }
+
+    /// `dst[i] = src[3 i + c]` for `dst.len()` a multiple of 16 and `src.len() == 3 dst.len()`.
+    #[target_feature(enable = "ssse3")]
+    pub(super) fn pick_channel_ssse3(src: &[u8], dst: &mut [u8], c: usize) {
+        let m = masks(c);
+        // SAFETY: each pointer comes from a chunk of exactly 16 bytes (chunks_exact), so the
+        // unaligned 16-byte loads and stores stay inside the slices.
+        unsafe {
+            let ma = _mm_loadu_si128(m[0].as_ptr().cast::<__m128i>());
+            let mb = _mm_loadu_si128(m[1].as_ptr().cast::<__m128i>());
+            let mc = _mm_loadu_si128(m[2].as_ptr().cast::<__m128i>());
+            for (d, s) in dst.chunks_exact_mut(16).zip(src.chunks_exact(48)) {
+                let (s0, rest) = s.split_at(16);
+                let (s1, s2) = rest.split_at(16);
+                let a = _mm_shuffle_epi8(_mm_loadu_si128(s0.as_ptr().cast::<__m128i>()), ma);
+                let b = _mm_shuffle_epi8(_mm_loadu_si128(s1.as_ptr().cast::<__m128i>()), mb);
+                let cc = _mm_shuffle_epi8(_mm_loadu_si128(s2.as_ptr().cast::<__m128i>()), mc);
+                _mm_storeu_si128(
+                    d.as_mut_ptr().cast::<__m128i>(),
+                    _mm_or_si128(_mm_or_si128(a, b), cc),
+                );
+            }
+        }
+    }
+}
+
+dispatch! {
+    /// Portable form of [`pick_channel`].
+    pub fn pick_channel_portable(src: &[u8], dst: &mut [u8], c: usize) {
+        let n = dst.len().min(src.len() / 3);
+        let (src, dst) = (&src[..3 * n], &mut dst[..n]);
+        let mut d16 = dst.chunks_exact_mut(16);
+        let mut s48 = src.chunks_exact(48);
+        for (d, s) in (&mut d16).zip(&mut s48) {
+            for i in 0..16 {
+                d[i] = s[3 * i + c];
+            }
+        }
+        for (d, s) in d16.into_remainder().iter_mut().zip(s48.remainder().chunks_exact(3)) {
+            *d = s[c];
+        }
+    }
+}
+
+dispatch! {
+    /// `dst[i] = round(0.2989 R + 0.5870 G + 0.1140 B)` exactly (MATLAB `rgb2gray`), from
+    /// interleaved RGB.
+    pub fn luma601(src: &[u8], dst: &mut [u8]) {
+        for (o, p) in dst.iter_mut().zip(src.chunks_exact(3)) {
+            // 2989 + 5870 + 1140 = 9999: x = weighted sum + 5000 < 2^22. floor(x / 10000) is
+            // (x · 1717987) >> 34 for every such x: the multiplier exceeds 2^34/10^4 by 0.08, an
+            // error below 2·10^-5 that never reaches the next integer.
+            let x = 2989 * u64::from(p[0]) + 5870 * u64::from(p[1]) + 1140 * u64::from(p[2]) + 5000;
+            *o = ((x * 1_717_987) >> 34) as u8;
+        }
+    }
+}
+
+dispatch! {
+    /// `dst[i] = min(a[i], b[i], c[i])` (or max): the 3-tap step of a separable filter.
+    pub fn extremum3(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
+        if max {
+            for (((o, &x), &y), &z) in dst.iter_mut().zip(a).zip(b).zip(c) {
+                *o = x.max(y).max(z);
+            }
+        } else {
+            for (((o, &x), &y), &z) in dst.iter_mut().zip(a).zip(b).zip(c) {
+                *o = x.min(y).min(z);
+            }
+        }
+    }
+}
+
+dispatch! {
+    /// `dst[i] = min(dst[i], src[i])` (or max).
+    pub fn extremum_acc(src: &[u8], dst: &mut [u8], max: bool) {
+        if max {
+            dst.iter_mut().zip(src).for_each(|(o, &v)| *o = (*o).max(v));
+        } else {
+            dst.iter_mut().zip(src).for_each(|(o, &v)| *o = (*o).min(v));
+        }
+    }
+}
+
+dispatch! {
+    /// `dst[i] = (src[i] > t) as u8`.
+    pub fn above(src: &[u8], t: u8, dst: &mut [u8]) {
+        for (o, &v) in dst.iter_mut().zip(src) {
+            *o = u8::from(v > t);
+        }
+    }
+}
+
+dispatch! {
+    /// Packs bytes that are 0 or 1 into little-endian 64-bit words (bit `i` of word `k` is
+    /// byte `64 k + i`).
+    pub fn pack_bits(bytes: &[u8], bits: &mut [u64]) {
+        for (w, chunk) in bits.iter_mut().zip(bytes.chunks(64)) {
+            let mut word = 0u64;
+            let mut eights = chunk.chunks_exact(8);
+            for (k, c8) in (&mut eights).enumerate() {
+                let v = u64::from_le_bytes([c8[0], c8[1], c8[2], c8[3], c8[4], c8[5], c8[6], c8[7]]);
+                // The multiplier has bits at 56 − 7i, so byte i's bit lands on bit 56 + i and no
+                // two partial products share a bit (no carries).
+                word |= (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * k);
+            }
+            let base = chunk.len() / 8 * 8;
+            for (i, &b) in eights.remainder().iter().enumerate() {
+                word |= u64::from(b) << (base + i);
+            }
+            *w = word;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn luma_multiplier_is_exact_for_every_input() {
+        for x in 0..=(255 * 9999 + 5000) as u64 {
+            assert_eq!((x * 1_717_987) >> 34, x / 10000, "x = {x}");
+        }
+    }
+
+    #[test]
+    fn kernels_match_scalar() {
+        let src: Vec<u8> = (0..3 * 131).map(|i| ((i * 37 + 11) % 251) as u8).collect();
+        for c in 0..3 {
+            let mut d = vec![0; 131];
+            pick_channel(&src, &mut d, c);
+            assert!(d.iter().enumerate().all(|(i, &v)| v == src[3 * i + c]));
+            let mut e = vec![0; 131];
+            pick_channel_portable(&src, &mut e, c);
+            assert_eq!(d, e);
+        }
+        let mut l = vec![0; 131];
+        luma601(&src, &mut l);
+        for (i, &v) in l.iter().enumerate() {
+            let x = 2989 * u32::from(src[3 * i])
+                + 5870 * u32::from(src[3 * i + 1])
+                + 1140 * u32::from(src[3 * i + 2]);
+            assert_eq!(u32::from(v), (x + 5000) / 10000);
+        }
+        let (a, b, c) = (&src[..100], &src[1..101], &src[2..102]);
+        let mut d = vec![0; 100];
+        extremum3(a, b, c, &mut d, false);
+        assert!((0..100).all(|i| d[i] == a[i].min(b[i]).min(c[i])));
+        extremum3(a, b, c, &mut d, true);
+        assert!((0..100).all(|i| d[i] == a[i].max(b[i]).max(c[i])));
+        let mut bytes = vec![0u8; 150];
+        above(&src[..150], 120, &mut bytes);
+        let mut bits = vec![0u64; 3];
+        pack_bits(&bytes, &mut bits);
+        for i in 0..150 {
+            assert_eq!((bits[i / 64] >> (i % 64)) & 1 == 1, src[i] > 120, "bit {i}");
+        }
+        for t in [0u8, 1, 120, 200, 254, 255] {
+            let mut direct = vec![0u64; 3];
+            above_bits(&src[..150], t, &mut direct);
+            for i in 0..150 {
+                assert_eq!(
+                    (direct[i / 64] >> (i % 64)) & 1 == 1,
+                    src[i] > t,
+                    "t {t} bit {i}"
+                );
+            }
+        }
+    }
+}
