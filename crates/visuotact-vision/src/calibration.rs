@@ -188,6 +188,18 @@ where
             raw: detection.raw_count,
         });
     }
+    // Markers are alike in size: interior blobs under a fifth of the median interior area are
+    // specks, not markers (border blobs are cut markers and may be any size).
+    let mut interior: Vec<u32> = blobs
+        .iter()
+        .filter(|b| !b.touches_border)
+        .map(|b| b.area_px)
+        .collect();
+    if !interior.is_empty() {
+        interior.sort_unstable();
+        let floor = interior[interior.len() / 2] / 5;
+        blobs.retain(|b| b.touches_border || b.area_px >= floor);
+    }
     let convention = MomentConvention::Pixel;
     let mut report = CalibrationReport {
         raw_blobs: detection.raw_count,

@@ -199,6 +199,37 @@ fn golden_files_images() {
     }
 }
 
+/// OpenCV's `RGB2GRAY` fixed-point formula, which the golden file's GelSight entries used.
+fn gray_like_opencv(rgb: &visuotact_image::RgbImage) -> GrayImage {
+    let d: Vec<u8> = rgb
+        .as_slice()
+        .chunks_exact(3)
+        .map(|p| {
+            ((4899 * u32::from(p[0]) + 9617 * u32::from(p[1]) + 1868 * u32::from(p[2]) + 8192)
+                >> 14) as u8
+        })
+        .collect();
+    GrayImage::from_vec(rgb.width(), rgb.height(), d).unwrap()
+}
+
+/// The GelSight Mini frames 0 and 133, decoded by ffmpeg (needs the `ffmpeg` program).
+#[test]
+fn golden_gelsight_frames() {
+    let Some((dir, g)) = golden() else { return };
+    let video = dir.join("real/gelsight_mini/mini_example.avi");
+    let frames: Vec<_> = visuotact_io::frames::FrameStream::open(&[video], 25.0)
+        .unwrap()
+        .take_first(134)
+        .map(|f| f.expect("decode"))
+        .collect();
+    for (key, i) in [
+        ("gelsight_mini_frame000", 0),
+        ("gelsight_mini_frame133", 133),
+    ] {
+        check_image(key, &g["images"][key], &gray_like_opencv(&frames[i].image));
+    }
+}
+
 #[test]
 fn golden_histograms_give_golden_otsu() {
     let Some((_, g)) = golden() else { return };
