@@ -266,12 +266,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         report.raw_blobs,
         report.off_grid.len()
     );
-    let mut jitter: Vec<f64> = cal
-        .markers
-        .iter()
-        .map(|m| m.jitter_px)
-        .filter(|j| j.is_finite())
-        .collect();
+    let mut jitter: Vec<f64> = cal.markers.iter().filter_map(|m| m.jitter_px).collect();
     jitter.sort_by(f64::total_cmp);
     if let Some(&worst) = jitter.last() {
         eprintln!(
@@ -279,6 +274,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             jitter[jitter.len() / 2],
             worst
         );
+    }
+    let never = cal.markers.iter().filter(|m| m.jitter_px.is_none()).count();
+    if never > 0 {
+        eprintln!("warning: {never} markers were not matched in any single calibration frame (only in their mean)");
     }
     for (id, n) in report.missing_per_frame.iter().take(10) {
         eprintln!("warning: frame {id}: {n} markers not found in this still frame");

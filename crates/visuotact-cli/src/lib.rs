@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod bench;
+mod blobs;
 mod calibrate;
 mod extract;
 mod pattern;
@@ -26,6 +27,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Track every reference marker through frames → one feature row per frame.
     Extract(extract::Args),
+    /// Detect blobs in frames and list them, one row per blob (no calibration needed).
+    Blobs(blobs::Args),
     /// Time the in-memory frame → features pipeline, single-threaded.
     Bench(bench::Args),
     /// Render marker-grid test frames with exact truth (rest frames and touches).
@@ -57,6 +60,7 @@ where
     let result = match cli.command {
         Command::Calibrate(a) => calibrate::run(&a),
         Command::Extract(a) => extract::run(&a),
+        Command::Blobs(a) => blobs::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Pattern(a) => pattern::run(&a),
     };

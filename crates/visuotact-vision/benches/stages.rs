@@ -93,7 +93,7 @@ fn stages(c: &mut Criterion) {
     c.bench_function("detect_total", |b| {
         b.iter(|| det.detect_into(black_box(&img), &mut found))
     });
-    let reference = track_reference(&cal.markers, cal.pitch_px);
+    let reference = track_reference(&cal.markers, cal.pitch_px, cal.layout);
     c.bench_function("track_117", |b| {
         b.iter(|| {
             track(

@@ -44,8 +44,9 @@ pub struct ReferenceMarker {
     pub minor_axis_px: f64,
     /// Whether the marker touches the image border (cut markers kept with `keep_border`).
     pub touches_border: bool,
-    /// RMS displacement over the calibration frames, pixels (0 with one frame).
-    pub jitter_px: f64,
+    /// RMS displacement over the calibration frames, pixels (0 with one frame; `None` when the
+    /// marker was never matched in a single calibration frame).
+    pub jitter_px: Option<f64>,
 }
 
 /// Everything `extract` needs to turn frames of this sensor into features.
@@ -273,7 +274,7 @@ where
                 major_axis_px: s.major_axis_px,
                 minor_axis_px: s.minor_axis_px,
                 touches_border: b.touches_border,
-                jitter_px: 0.0,
+                jitter_px: None,
             }
         })
         .collect();
@@ -293,8 +294,8 @@ where
         pitch_px: pitch,
         markers: Vec::new(),
     };
-    // Jitter: track each still frame against the mean reference.
-    let reference = track_reference(&markers, pitch);
+    // Jitter: track each still frame against the mean reference (major axes as tracked).
+    let reference = track_reference(&markers, pitch, layout);
     let mut sq = vec![0.0f64; markers.len()];
     let mut cnt = vec![0u32; markers.len()];
     for &(id, img) in &frames {
@@ -317,25 +318,28 @@ where
         }
     }
     for (m, (s, c)) in markers.iter_mut().zip(sq.iter().zip(&cnt)) {
-        m.jitter_px = if *c > 0 {
-            (s / f64::from(*c)).sqrt()
-        } else {
-            f64::NAN
-        };
+        m.jitter_px = (*c > 0).then(|| (s / f64::from(*c)).sqrt());
     }
     cal.markers = markers;
     Ok((cal, report))
 }
 
 /// The tracker's view of a set of reference markers.
-pub fn track_reference(markers: &[ReferenceMarker], pitch_px: f64) -> TrackReference {
+pub fn track_reference(
+    markers: &[ReferenceMarker],
+    pitch_px: f64,
+    layout: Layout,
+) -> TrackReference {
     let mut r = TrackReference::new(
         markers.iter().map(|m| (m.x_px, m.y_px)).collect(),
         markers.iter().map(|m| m.area_px).collect(),
     );
-    if pitch_px > 0.0 && markers.len() <= 4 {
-        // Few markers (rings): the neighbour spacing says little; use the calibrated pitch.
-        r.pitch_px = pitch_px;
+    if layout == Layout::Rings {
+        // Concentric rings share a centre: they are told apart by size.
+        r.ring_sizes_px = Some(markers.iter().map(|m| m.major_axis_px).collect());
+        if pitch_px > 0.0 {
+            r.pitch_px = pitch_px;
+        }
     }
     r
 }

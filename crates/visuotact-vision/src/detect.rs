@@ -8,8 +8,8 @@ use visuotact_image::{GrayImage, RgbImage};
 
 use crate::blobs::{blobs_from_gray_into, Blob, BlobScratch, Connectivity, Level, Region};
 use crate::preprocess::{
-    adaptive_levels_into, gray_from_rgb_into, histogram, morphology_in_place, otsu_level,
-    MorphScratch, PreprocessConfig, Threshold,
+    adaptive_levels_into, gray_from_rgb_into, histogram, morphology_in_place, open3_from_rgb_into,
+    otsu_level, MorphScratch, Open3Scratch, PreprocessConfig, Threshold,
 };
 
 /// Which blobs count as markers.
@@ -77,6 +77,9 @@ pub struct Detector {
     levels: Vec<f32>,
     scratch: BlobScratch,
     all: Vec<Blob>,
+    open3: Open3Scratch,
+    /// Histogram of the preprocessed image, when the streaming path computed it.
+    hist: Option<[u32; 256]>,
 }
 
 impl Detector {
@@ -96,6 +99,8 @@ impl Detector {
             levels: Vec::new(),
             scratch: BlobScratch::default(),
             all: Vec::new(),
+            open3: Open3Scratch::default(),
+            hist: None,
         })
     }
 
@@ -113,8 +118,27 @@ impl Detector {
     /// morphology) and returns it.
     pub fn preprocess(&mut self, rgb: &RgbImage) -> &GrayImage {
         let p = &self.cfg.preprocess;
-        gray_from_rgb_into(rgb, p.channel, p.invert, &mut self.gray);
-        morphology_in_place(&mut self.gray, p, &mut self.morph);
+        self.hist = None;
+        if p.open && !p.close && p.morph_size == 3 {
+            // The common case streams channel + opening (+ histogram for Otsu) row by row.
+            let mut hist = [0u32; 256];
+            let want = matches!(p.threshold, Threshold::Otsu).then_some(&mut hist);
+            let got = want.is_some();
+            open3_from_rgb_into(
+                rgb,
+                p.channel,
+                p.invert,
+                &mut self.gray,
+                want,
+                &mut self.open3,
+            );
+            if got {
+                self.hist = Some(hist);
+            }
+        } else {
+            gray_from_rgb_into(rgb, p.channel, p.invert, &mut self.gray);
+            morphology_in_place(&mut self.gray, p, &mut self.morph);
+        }
         &self.gray
     }
 
@@ -129,6 +153,7 @@ impl Detector {
     pub fn detect_gray_into(&mut self, gray: &GrayImage, out: &mut Vec<Blob>) -> Detection {
         self.gray.clone_from(gray);
         morphology_in_place(&mut self.gray, &self.cfg.preprocess, &mut self.morph);
+        self.hist = None;
         self.blobs_of_gray(out)
     }
 
@@ -147,7 +172,9 @@ impl Detector {
         };
         let level = match p.threshold {
             Threshold::Fixed { level } => Some((level * 255.0).round().clamp(0.0, 255.0) as u8),
-            Threshold::Otsu => Some(otsu_level(&histogram(self.gray.as_slice()))),
+            Threshold::Otsu => Some(otsu_level(
+                &self.hist.unwrap_or_else(|| histogram(self.gray.as_slice())),
+            )),
             Threshold::Adaptive { window_px, offset } => {
                 adaptive_levels_into(&self.gray, window_px, offset, &mut self.levels);
                 None

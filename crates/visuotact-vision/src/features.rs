@@ -162,7 +162,7 @@ impl FeatureExtractor {
     /// An extractor for `cal` producing `features`.
     pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, String> {
         let detector = Detector::new(cal.detector.clone())?;
-        let reference = track_reference(&cal.markers, cal.pitch_px);
+        let reference = track_reference(&cal.markers, cal.pitch_px, cal.layout);
         Ok(Self {
             cal,
             features,

@@ -224,12 +224,15 @@ impl Default for PreprocessConfig {
 /// Writes the chosen channel of `src` into `dst` (resized to match), inverted if asked.
 pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &mut GrayImage) {
     dst.resize(src.width(), src.height());
-    let s = src.as_slice();
-    let d = dst.as_mut_slice();
+    channel_from_rgb(src.as_slice(), channel, invert, dst.as_mut_slice());
+}
+
+/// One channel of interleaved RGB `s` into `d` (any length: whole images or single rows).
+fn channel_from_rgb(s: &[u8], channel: Channel, invert: bool, d: &mut [u8]) {
     match channel {
-        Channel::Red => pick_channel(s, d, 0),
-        Channel::Green => pick_channel(s, d, 1),
-        Channel::Blue => pick_channel(s, d, 2),
+        Channel::Red => crate::kernels::pick_channel(s, d, 0),
+        Channel::Green => crate::kernels::pick_channel(s, d, 1),
+        Channel::Blue => crate::kernels::pick_channel(s, d, 2),
         // Adding 5000 before dividing by 10000 rounds half up, as MATLAB's round does.
         Channel::Luma601 => crate::kernels::luma601(s, d),
         Channel::Mean => {
@@ -246,8 +249,110 @@ pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &
     }
 }
 
-fn pick_channel(s: &[u8], d: &mut [u8], c: usize) {
-    crate::kernels::pick_channel(s, d, c);
+/// Ring buffers for [`open3_from_rgb_into`].
+#[derive(Default, Debug, Clone)]
+pub struct Open3Scratch {
+    g: Vec<u8>,
+    he: Vec<u8>,
+    e: Vec<u8>,
+    hd: Vec<u8>,
+    tables: Vec<[u32; 256]>,
+}
+
+/// Channel selection, inversion and a 3×3 grey opening in one streaming pass over rows (three
+/// rows of each intermediate kept, in L1 cache), accumulating the histogram of the result when
+/// `hist` is given. Equals [`gray_from_rgb_into`] followed by [`morphology_in_place`] with
+/// `open` and size 3, and [`histogram`] of the result. Images narrower or shorter than 3 pixels
+/// take that general path.
+pub fn open3_from_rgb_into(
+    src: &RgbImage,
+    channel: Channel,
+    invert: bool,
+    dst: &mut GrayImage,
+    hist: Option<&mut [u32; 256]>,
+    s: &mut Open3Scratch,
+) {
+    let (w, h) = (src.width(), src.height());
+    if w < 3 || h < 3 {
+        gray_from_rgb_into(src, channel, invert, dst);
+        let cfg = PreprocessConfig {
+            open: true,
+            close: false,
+            morph_size: 3,
+            ..PreprocessConfig::IATS
+        };
+        morphology_in_place(dst, &cfg, &mut MorphScratch::default());
+        if let Some(hh) = hist {
+            *hh = histogram(dst.as_slice());
+        }
+        return;
+    }
+    dst.resize(w, h);
+    s.g.resize(w, 0);
+    s.he.resize(3 * w, 0);
+    s.e.resize(w, 0);
+    s.hd.resize(3 * w, 0);
+    s.tables.clear();
+    let want_hist = hist.is_some();
+    if want_hist {
+        s.tables.resize(8, [0; 256]);
+    }
+    let rgb = src.as_slice();
+    let slot = |y: usize| (y % 3) * w..(y % 3) * w + w;
+    for y_in in 0..h + 2 {
+        // Stage A: channel row y_in, eroded horizontally.
+        if y_in < h {
+            channel_from_rgb(
+                &rgb[3 * w * y_in..3 * w * (y_in + 1)],
+                channel,
+                invert,
+                &mut s.g,
+            );
+            row_extremum(&s.g, &mut s.he[slot(y_in)], 1, Extremum::Min);
+        }
+        // Stage B: row y_in − 1 eroded vertically, then dilated horizontally.
+        if (1..=h).contains(&y_in) {
+            let y = y_in - 1;
+            vertical3(&s.he, w, y, h, &mut s.e, false);
+            row_extremum(&s.e, &mut s.hd[slot(y)], 1, Extremum::Max);
+        }
+        // Stage C: row y_in − 2 dilated vertically: the opened row.
+        if y_in >= 2 {
+            let y = y_in - 2;
+            let out = dst.row_mut(y);
+            vertical3(&s.hd, w, y, h, out, true);
+            if want_hist {
+                let t = &mut s.tables;
+                let mut chunks = out.chunks_exact(8);
+                for c in &mut chunks {
+                    for k in 0..8 {
+                        t[k][c[k] as usize] += 1;
+                    }
+                }
+                for &v in chunks.remainder() {
+                    t[0][v as usize] += 1;
+                }
+            }
+        }
+    }
+    if let Some(hh) = hist {
+        for (i, o) in hh.iter_mut().enumerate() {
+            *o = s.tables.iter().map(|t| t[i]).sum();
+        }
+    }
+}
+
+/// Min (or max) of ring-buffer rows `y − 1, y, y + 1` (clipped to `0..h`) into `out`.
+fn vertical3(ring: &[u8], w: usize, y: usize, h: usize, out: &mut [u8], max: bool) {
+    let row = |yy: usize| &ring[(yy % 3) * w..(yy % 3) * w + w];
+    match (y > 0, y + 1 < h) {
+        (true, true) => crate::kernels::extremum3(row(y - 1), row(y), row(y + 1), out, max),
+        (lo, _) => {
+            let other = if lo { y - 1 } else { y + 1 };
+            out.copy_from_slice(row(y));
+            crate::kernels::extremum_acc(row(other), out, max);
+        }
+    }
 }
 
 /// Allocating form of [`gray_from_rgb_into`].
@@ -490,6 +595,70 @@ pub fn adaptive_levels_into(src: &GrayImage, window_px: usize, offset: f64, out:
                 cols_in -= 1;
             }
             orow[x] = acc as f32 / (cols_in * rows_in) as f32 - off;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn streaming_open3_equals_separate_passes() {
+        let mut seed = 7u64;
+        for &(w, h) in &[(3, 3), (5, 4), (17, 9), (64, 33), (2, 7), (9, 1)] {
+            let rgb = RgbImage::from_fn(w, h, |_, _| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let v = (seed >> 40) as u32;
+                [v as u8, (v >> 8) as u8, (v >> 16) as u8]
+            });
+            for channel in Channel::ALL {
+                for invert in [false, true] {
+                    let mut want = gray_from_rgb(&rgb, channel, invert);
+                    let cfg = PreprocessConfig {
+                        open: true,
+                        close: false,
+                        morph_size: 3,
+                        ..PreprocessConfig::IATS
+                    };
+                    morphology_in_place(&mut want, &cfg, &mut MorphScratch::default());
+                    let mut got = GrayImage::new(0, 0);
+                    let mut hist = [0u32; 256];
+                    open3_from_rgb_into(
+                        &rgb,
+                        channel,
+                        invert,
+                        &mut got,
+                        Some(&mut hist),
+                        &mut Open3Scratch::default(),
+                    );
+                    assert_eq!(got, want, "{w}×{h} {channel:?} {invert}");
+                    assert_eq!(hist, histogram(want.as_slice()));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn erosion_matches_brute_force_window() {
+        let img = GrayImage::from_fn(11, 7, |x, y| ((x * 37 + y * 91) % 256) as u8);
+        for k in [1usize, 3, 5] {
+            let (mut out, mut tmp) = (GrayImage::new(0, 0), GrayImage::new(0, 0));
+            erode(&img, &mut out, &mut tmp, k);
+            let r = k / 2;
+            for y in 0..7usize {
+                for x in 0..11usize {
+                    let mut m = 255u8;
+                    for yy in y.saturating_sub(r)..=(y + r).min(6) {
+                        for xx in x.saturating_sub(r)..=(x + r).min(10) {
+                            m = m.min(img.get(xx, yy));
+                        }
+                    }
+                    assert_eq!(out.get(x, y), m);
+                }
+            }
         }
     }
 }

@@ -89,6 +89,9 @@ pub struct TrackReference {
     pub neighbours: Vec<Vec<usize>>,
     /// Typical spacing between neighbours in pixels.
     pub pitch_px: f64,
+    /// For concentric rings, each ring's major axis in pixels: rings share a centre, so they
+    /// are matched by size near the reference centre instead of by position.
+    pub ring_sizes_px: Option<Vec<f64>>,
 }
 
 impl TrackReference {
@@ -130,6 +133,7 @@ impl TrackReference {
             areas_px,
             neighbours,
             pitch_px,
+            ring_sizes_px: None,
         }
     }
 }
@@ -339,8 +343,62 @@ fn nearest_two(
     (best.filter(|&(_, d)| d <= gate), second)
 }
 
+/// Concentric rings: each reference ring (smallest first) takes the free blob whose size and
+/// centre are closest (cost `|Δmajor|/major + distance/major`), within 30 % in size and half its
+/// major axis in position.
+fn track_rings(reference: &TrackReference, sizes: &[f64], blobs: &[Blob]) -> TrackResult {
+    let n = reference.positions.len();
+    let mut taken = vec![false; blobs.len()];
+    let mut assignment = vec![None; n];
+    let mut status = vec![MarkerStatus::Lost; n];
+    let majors: Vec<f64> = blobs
+        .iter()
+        .map(|b| b.shape(crate::blobs::MomentConvention::Pixel).major_axis_px)
+        .collect();
+    let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let size = sizes[i].max(1.0);
+        let p = reference.positions[i];
+        let mut best: Option<(usize, f64)> = None;
+        for (j, b) in blobs.iter().enumerate() {
+            let d = dist(p, (b.x_px, b.y_px));
+            let ds = (majors[j] - size).abs() / size;
+            if taken[j] || ds > 0.3 || d > 0.5 * size {
+                continue;
+            }
+            let cost = ds + d / size;
+            if best.is_none_or(|(_, c)| cost < c) {
+                best = Some((j, cost));
+            }
+        }
+        if let Some((j, _)) = best {
+            taken[j] = true;
+            assignment[i] = Some(j);
+            status[i] = MarkerStatus::Ok;
+            sx += blobs[j].x_px - p.0;
+            sy += blobs[j].y_px - p.1;
+            k += 1.0;
+        }
+    }
+    let shift_px = if k > 0.0 {
+        (sx / k, sy / k)
+    } else {
+        (0.0, 0.0)
+    };
+    let spurious = taken.iter().filter(|t| !**t).count();
+    TrackResult {
+        assignment,
+        status,
+        shift_px,
+        spurious,
+    }
+}
+
 /// Matches every reference marker to at most one blob of the frame.
 pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> TrackResult {
+    if let Some(sizes) = &reference.ring_sizes_px {
+        return track_rings(reference, sizes, blobs);
+    }
     let n = reference.positions.len();
     let p = reference.pitch_px;
     let gate = cfg.gate_pitches * p;
