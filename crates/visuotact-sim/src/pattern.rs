@@ -172,10 +172,9 @@ pub fn render_markers(
         let r2 = ((x as f32 - cx).powi(2) + (y as f32 - cy).powi(2)) / rmax2;
         let light = 1.0 - look.vignetting * r2;
         let mut px = [0u8; 3];
-        for k in 0..3 {
-            let v = (look.background[k] * (1.0 - c) + look.marker[k] * c) * light
-                + noise.sample(&mut rng);
-            px[k] = v.round().clamp(0.0, 255.0) as u8;
+        for (o, (bg, mk)) in px.iter_mut().zip(look.background.iter().zip(&look.marker)) {
+            let v = (bg * (1.0 - c) + mk * c) * light + noise.sample(&mut rng);
+            *o = v.round().clamp(0.0, 255.0) as u8;
         }
         px
     })

@@ -99,7 +99,7 @@ pub fn lattice_from_points(points: &[(f64, f64)]) -> Result<Lattice, GridError> 
     let neighbours: Vec<Vec<(usize, f64)>> = (0..n).map(|i| k_nearest(points, i, 8)).collect();
     let mut nn: Vec<f64> = neighbours.iter().map(|v| v[0].1).collect();
     let pitch = median(&mut nn);
-    if !(pitch > 1e-9) {
+    if pitch.is_nan() || pitch <= 1e-9 {
         return Err(GridError::NoSpacing);
     }
     // Grid rotation: 4-fold circular mean of the short neighbour directions.

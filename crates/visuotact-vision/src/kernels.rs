@@ -6,6 +6,11 @@
 //! machine. Both copies compute identical results (integer code, no reassociation); the tests
 //! run whichever the machine picks and compare with scalar references.
 
+#![allow(
+    clippy::needless_range_loop,
+    reason = "fixed-width inner loops index several arrays in lockstep; the index form is what vectorises"
+)]
+
 /// Generates `pub fn $name(args)` that dispatches between an AVX2 build and a baseline build of
 /// the same body.
 macro_rules! dispatch {

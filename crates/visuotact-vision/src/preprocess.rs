@@ -68,7 +68,7 @@ impl Channel {
 }
 
 /// How the foreground is separated from the background.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case", tag = "kind")]
 pub enum Threshold {
     /// A fixed level as a fraction of full scale (0..1): foreground `v > level · 255`
@@ -78,6 +78,7 @@ pub enum Threshold {
         level: f64,
     },
     /// Otsu's level computed on every frame (seed 000).
+    #[default]
     Otsu,
     /// Local mean minus an offset, for uneven lighting.
     Adaptive {
@@ -86,12 +87,6 @@ pub enum Threshold {
         /// Offset in 0..1 of full scale, subtracted from the local mean (negative: stricter).
         offset: f64,
     },
-}
-
-impl Default for Threshold {
-    fn default() -> Self {
-        Threshold::Otsu
-    }
 }
 
 /// A circle outside which every pixel is background (e.g. the round window of a cone camera).
@@ -207,7 +202,11 @@ impl PreprocessConfig {
             _ => {}
         }
         if let Some(c) = self.circle {
-            if !(c.radius_px > 0.0) || !c.cx_px.is_finite() || !c.cy_px.is_finite() {
+            if c.radius_px.is_nan()
+                || c.radius_px <= 0.0
+                || !c.cx_px.is_finite()
+                || !c.cy_px.is_finite()
+            {
                 return Err("circular mask needs a finite centre and a positive radius".into());
             }
         }
@@ -392,14 +391,10 @@ fn row_extremum(src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
         dst[n - 1] = op.pick(src[n - 2], src[n - 1]);
         return;
     }
-    for x in 0..n {
+    for (x, o) in dst.iter_mut().enumerate().take(n) {
         let lo = x.saturating_sub(r);
         let hi = (x + r).min(n - 1);
-        let mut v = src[lo];
-        for &s in &src[lo + 1..=hi] {
-            v = op.pick(v, s);
-        }
-        dst[x] = v;
+        *o = src[lo + 1..=hi].iter().fold(src[lo], |v, &s| op.pick(v, s));
     }
 }
 
