@@ -183,12 +183,13 @@ struct Acc {
 }
 
 impl Acc {
+    /// Adds the run of pixels `a..=b` on row `y`; `sq[x]` is `Σ_{i<x} i²`.
     #[inline]
-    fn add_run(&mut self, y: u32, a: u32, b: u32) {
+    fn add_run(&mut self, y: u32, a: u32, b: u32, sq: &[u64]) {
         let (a64, b64, y64) = (u64::from(a), u64::from(b), u64::from(y));
         let n = b64 - a64 + 1;
-        let sx = (a64 + b64) * n / 2;
-        let sxx = sum_squares(b64) - if a64 == 0 { 0 } else { sum_squares(a64 - 1) };
+        let sx = ((a64 + b64) * n) >> 1;
+        let sxx = sq[b as usize + 1] - sq[a as usize];
         self.n += n;
         self.sx += sx;
         self.sy += n * y64;
@@ -250,12 +251,6 @@ impl Acc {
     }
 }
 
-/// `Σ_{i=0..=k} i²`.
-#[inline]
-fn sum_squares(k: u64) -> u64 {
-    k * (k + 1) * (2 * k + 1) / 6
-}
-
 /// Reusable buffers for [`blobs_from_gray_into`]; keep one per live loop.
 #[derive(Default, Debug, Clone)]
 pub struct BlobScratch {
@@ -265,7 +260,8 @@ pub struct BlobScratch {
     cur: Vec<Run>,
     parent: Vec<u32>,
     acc: Vec<Acc>,
-    root_to_blob: Vec<u32>,
+    /// `sq[x] = Σ_{i<x} i²` for every column (exact integers; no divisions per run).
+    sq: Vec<u64>,
 }
 
 fn find(parent: &mut [u32], mut x: u32) -> u32 {
@@ -346,6 +342,14 @@ pub fn blobs_from_gray_into(
     s.cur.clear();
     s.parent.clear();
     s.acc.clear();
+    if s.sq.len() != w + 1 {
+        s.sq.clear();
+        s.sq.push(0);
+        for x in 0..w as u64 {
+            let last = s.sq[x as usize];
+            s.sq.push(last + x * x);
+        }
+    }
     let gap = match connectivity {
         Connectivity::Eight => 1u32,
         Connectivity::Four => 0u32,
@@ -448,15 +452,13 @@ pub fn blobs_from_gray_into(
                 s.acc.push(Acc::fresh());
             }
             r.label = label;
-            s.acc[label as usize].add_run(yy, r.x0 + rx0 as u32, r.x1 + rx0 as u32);
+            s.acc[label as usize].add_run(yy, r.x0 + rx0 as u32, r.x1 + rx0 as u32, &s.sq);
         }
         std::mem::swap(&mut s.prev, &mut s.cur);
     }
     // Fold provisional labels into their roots (roots are the smallest label of each set, so
     // blobs come out in raster order of their first pixel).
     let rect = (rx0 as u32, ry0 as u32, rx1 as u32, ry1 as u32);
-    s.root_to_blob.clear();
-    s.root_to_blob.resize(s.parent.len(), u32::MAX);
     for l in 0..s.parent.len() as u32 {
         let r = find(&mut s.parent, l);
         if r != l {

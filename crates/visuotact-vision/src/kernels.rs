@@ -170,16 +170,44 @@ dispatch! {
     }
 }
 
+/// `dst[i] = round(0.2989 R + 0.5870 G + 0.1140 B)` exactly (MATLAB `rgb2gray`), from
+/// interleaved RGB: planes of up to 1024 pixels are split out with [`pick_channel`], then
+/// combined by [`luma601_planar`].
+pub fn luma601(src: &[u8], dst: &mut [u8]) {
+    const BLOCK: usize = 1024;
+    let n = dst.len().min(src.len() / 3);
+    let (mut r, mut g, mut b) = ([0u8; BLOCK], [0u8; BLOCK], [0u8; BLOCK]);
+    for (d, s) in dst[..n]
+        .chunks_mut(BLOCK)
+        .zip(src[..3 * n].chunks(3 * BLOCK))
+    {
+        let k = d.len();
+        pick_channel(s, &mut r[..k], 0);
+        pick_channel(s, &mut g[..k], 1);
+        pick_channel(s, &mut b[..k], 2);
+        luma601_planar(&r[..k], &g[..k], &b[..k], d);
+    }
+}
+
+/// `floor(x / 10000)` for `x < 2^22` in u32 lanes: the estimate `((x >> 4) · 6711) >> 22`
+/// (products < 2^31) is within one of it, then one exact correction step each way. Checked for
+/// every `x` by a test.
+#[inline(always)]
+fn floor_div_10000(x: u32) -> u32 {
+    let mut q = ((x >> 4) * 6711) >> 22;
+    q += u32::from((q + 1) * 10000 <= x);
+    q -= u32::from(q * 10000 > x);
+    q
+}
+
 dispatch! {
-    /// `dst[i] = round(0.2989 R + 0.5870 G + 0.1140 B)` exactly (MATLAB `rgb2gray`), from
-    /// interleaved RGB.
-    pub fn luma601(src: &[u8], dst: &mut [u8]) {
-        for (o, p) in dst.iter_mut().zip(src.chunks_exact(3)) {
-            // 2989 + 5870 + 1140 = 9999: x = weighted sum + 5000 < 2^22. floor(x / 10000) is
-            // (x · 1717987) >> 34 for every such x: the multiplier exceeds 2^34/10^4 by 0.08, an
-            // error below 2·10^-5 that never reaches the next integer.
-            let x = 2989 * u64::from(p[0]) + 5870 * u64::from(p[1]) + 1140 * u64::from(p[2]) + 5000;
-            *o = ((x * 1_717_987) >> 34) as u8;
+    /// [`luma601`] on separate R, G, B planes.
+    pub fn luma601_planar(r: &[u8], g: &[u8], b: &[u8], dst: &mut [u8]) {
+        for (((o, &r), &g), &b) in dst.iter_mut().zip(r).zip(g).zip(b) {
+            // 2989 + 5870 + 1140 = 9999: x = weighted sum + 5000 < 2^22 (adding 5000 rounds
+            // half up, as MATLAB's round does).
+            let x = 2989 * u32::from(r) + 5870 * u32::from(g) + 1140 * u32::from(b) + 5000;
+            *o = floor_div_10000(x) as u8;
         }
     }
 }
@@ -246,9 +274,39 @@ mod tests {
     use super::*;
 
     #[test]
-    fn luma_multiplier_is_exact_for_every_input() {
-        for x in 0..=(255 * 9999 + 5000) as u64 {
-            assert_eq!((x * 1_717_987) >> 34, x / 10000, "x = {x}");
+    fn division_is_exact_for_every_luma_sum() {
+        for x in 0..=255 * 9999 + 5000u32 {
+            assert_eq!(floor_div_10000(x), x / 10000, "x = {x}");
+        }
+    }
+
+    #[test]
+    fn luma_is_exact_for_every_colour() {
+        // Every (r, g, b) on a coarse lattice plus the extremes, against integer division.
+        let mut r = Vec::new();
+        let mut g = Vec::new();
+        let mut b = Vec::new();
+        for rv in (0..=255u32).step_by(3).chain([254, 255]) {
+            for gv in (0..=255u32).step_by(5).chain([254, 255]) {
+                for bv in (0..=255u32).step_by(7).chain([254, 255]) {
+                    r.push(rv as u8);
+                    g.push(gv as u8);
+                    b.push(bv as u8);
+                }
+            }
+        }
+        let mut out = vec![0u8; r.len()];
+        luma601_planar(&r, &g, &b, &mut out);
+        for i in 0..out.len() {
+            let x = 2989 * u32::from(r[i]) + 5870 * u32::from(g[i]) + 1140 * u32::from(b[i]) + 5000;
+            assert_eq!(
+                u32::from(out[i]),
+                x / 10000,
+                "rgb {} {} {}",
+                r[i],
+                g[i],
+                b[i]
+            );
         }
     }
 

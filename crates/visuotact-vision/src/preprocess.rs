@@ -249,13 +249,13 @@ fn channel_from_rgb(s: &[u8], channel: Channel, invert: bool, d: &mut [u8]) {
 }
 
 /// Ring buffers for [`open3_from_rgb_into`].
-#[derive(Default, Debug, Clone)]
+#[derive(Debug, Clone)]
 pub struct Open3Scratch {
     g: Vec<u8>,
     he: Vec<u8>,
     e: Vec<u8>,
     hd: Vec<u8>,
-    tables: Vec<[u32; 256]>,
+    tables: Box<[[u32; 256]; 8]>,
 }
 
 /// Channel selection, inversion and a 3×3 grey opening in one streaming pass over rows (three
@@ -291,10 +291,9 @@ pub fn open3_from_rgb_into(
     s.he.resize(3 * w, 0);
     s.e.resize(w, 0);
     s.hd.resize(3 * w, 0);
-    s.tables.clear();
     let want_hist = hist.is_some();
     if want_hist {
-        s.tables.resize(8, [0; 256]);
+        *s.tables = [[0; 256]; 8];
     }
     let rgb = src.as_slice();
     let slot = |y: usize| (y % 3) * w..(y % 3) * w + w;
@@ -321,11 +320,12 @@ pub fn open3_from_rgb_into(
             let out = dst.row_mut(y);
             vertical3(&s.hd, w, y, h, out, true);
             if want_hist {
-                let t = &mut s.tables;
+                let t: &mut [[u32; 256]; 8] = &mut s.tables;
                 let mut chunks = out.chunks_exact(8);
                 for c in &mut chunks {
-                    for k in 0..8 {
-                        t[k][c[k] as usize] += 1;
+                    let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+                    for (k, table) in t.iter_mut().enumerate() {
+                        table[((v >> (8 * k)) & 0xff) as usize] += 1;
                     }
                 }
                 for &v in chunks.remainder() {
@@ -337,6 +337,18 @@ pub fn open3_from_rgb_into(
     if let Some(hh) = hist {
         for (i, o) in hh.iter_mut().enumerate() {
             *o = s.tables.iter().map(|t| t[i]).sum();
+        }
+    }
+}
+
+impl Default for Open3Scratch {
+    fn default() -> Self {
+        Self {
+            g: Vec::new(),
+            he: Vec::new(),
+            e: Vec::new(),
+            hd: Vec::new(),
+            tables: Box::new([[0; 256]; 8]),
         }
     }
 }

@@ -226,7 +226,7 @@ impl BlobIndex {
         }
     }
 
-    /// Calls `f(index, distance)` for every blob within `r` of `p`.
+    /// Calls `f(index, squared distance)` for every blob within `r` of `p`.
     fn near(&self, p: (f64, f64), r: f64, mut f: impl FnMut(usize, f64)) {
         if self.pts.is_empty() {
             return;
@@ -247,7 +247,7 @@ impl BlobIndex {
                     let q = self.pts[j as usize];
                     let d2 = (q.0 - p.0) * (q.0 - p.0) + (q.1 - p.1) * (q.1 - p.1);
                     if d2 <= r * r {
-                        f(j as usize, d2.sqrt());
+                        f(j as usize, d2);
                     }
                 }
             }
@@ -296,7 +296,7 @@ fn register(reference: &TrackReference, index: &BlobIndex, cfg: &TrackConfig) ->
                 + votes[(by + 1) * nb + bx + 1];
             let cx = (bx as f64 + 1.0) * cell - range;
             let cy = (by as f64 + 1.0) * cell - range;
-            let r = cx.hypot(cy);
+            let r = cx * cx + cy * cy;
             if s > best.0 || (s == best.0 && r < best.1) {
                 best = (s, r, cx, cy);
             }
@@ -326,21 +326,23 @@ fn nearest_two(
 ) -> (Option<(usize, f64)>, f64) {
     let mut best: Option<(usize, f64)> = None;
     let mut second = f64::INFINITY;
-    index.near(p, 2.0 * gate, |j, d| {
+    // Squared distances throughout; one square root for each of the two results.
+    index.near(p, 2.0 * gate, |j, d2| {
         if taken[j] {
             return;
         }
         match best {
-            Some((_, bd)) if d >= bd => second = second.min(d),
+            Some((_, bd)) if d2 >= bd => second = second.min(d2),
             _ => {
                 if let Some((_, bd)) = best {
                     second = second.min(bd);
                 }
-                best = Some((j, d));
+                best = Some((j, d2));
             }
         }
     });
-    (best.filter(|&(_, d)| d <= gate), second)
+    let best = best.map(|(j, d2)| (j, d2.sqrt()));
+    (best.filter(|&(_, d)| d <= gate), second.sqrt())
 }
 
 /// Concentric rings: each reference ring (smallest first) takes the free blob whose size and
