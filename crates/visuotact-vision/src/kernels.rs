@@ -171,12 +171,16 @@ dispatch! {
 }
 
 /// `dst[i] = round(0.2989 R + 0.5870 G + 0.1140 B)` exactly (MATLAB `rgb2gray`), from
-/// interleaved RGB: planes of up to 1024 pixels are split out with [`pick_channel`], then
-/// combined by [`luma601_planar`].
-pub fn luma601(src: &[u8], dst: &mut [u8]) {
+/// interleaved RGB: planes of up to 1024 pixels are split out with [`pick_channel`] into
+/// `planes` (caller scratch, reused between calls), then combined by [`luma601_planar`].
+pub fn luma601(src: &[u8], dst: &mut [u8], planes: &mut Vec<u8>) {
     const BLOCK: usize = 1024;
     let n = dst.len().min(src.len() / 3);
-    let (mut r, mut g, mut b) = ([0u8; BLOCK], [0u8; BLOCK], [0u8; BLOCK]);
+    if planes.len() < 3 * BLOCK {
+        planes.resize(3 * BLOCK, 0);
+    }
+    let (r, rest) = planes.split_at_mut(BLOCK);
+    let (g, b) = rest.split_at_mut(BLOCK);
     for (d, s) in dst[..n]
         .chunks_mut(BLOCK)
         .zip(src[..3 * n].chunks(3 * BLOCK))
@@ -322,7 +326,7 @@ mod tests {
             assert_eq!(d, e);
         }
         let mut l = vec![0; 131];
-        luma601(&src, &mut l);
+        luma601(&src, &mut l, &mut Vec::new());
         for (i, &v) in l.iter().enumerate() {
             let x = 2989 * u32::from(src[3 * i])
                 + 5870 * u32::from(src[3 * i + 1])

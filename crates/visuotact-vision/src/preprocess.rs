@@ -223,17 +223,24 @@ impl Default for PreprocessConfig {
 /// Writes the chosen channel of `src` into `dst` (resized to match), inverted if asked.
 pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &mut GrayImage) {
     dst.resize(src.width(), src.height());
-    channel_from_rgb(src.as_slice(), channel, invert, dst.as_mut_slice());
+    channel_from_rgb(
+        src.as_slice(),
+        channel,
+        invert,
+        dst.as_mut_slice(),
+        &mut Vec::new(),
+    );
 }
 
-/// One channel of interleaved RGB `s` into `d` (any length: whole images or single rows).
-fn channel_from_rgb(s: &[u8], channel: Channel, invert: bool, d: &mut [u8]) {
+/// One channel of interleaved RGB `s` into `d` (any length: whole images or single rows);
+/// `planes` is scratch for the luma conversion.
+fn channel_from_rgb(s: &[u8], channel: Channel, invert: bool, d: &mut [u8], planes: &mut Vec<u8>) {
     match channel {
         Channel::Red => crate::kernels::pick_channel(s, d, 0),
         Channel::Green => crate::kernels::pick_channel(s, d, 1),
         Channel::Blue => crate::kernels::pick_channel(s, d, 2),
         // Adding 5000 before dividing by 10000 rounds half up, as MATLAB's round does.
-        Channel::Luma601 => crate::kernels::luma601(s, d),
+        Channel::Luma601 => crate::kernels::luma601(s, d, planes),
         Channel::Mean => {
             for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
                 let acc = u32::from(p[0]) + u32::from(p[1]) + u32::from(p[2]);
@@ -255,6 +262,7 @@ pub struct Open3Scratch {
     he: Vec<u8>,
     e: Vec<u8>,
     hd: Vec<u8>,
+    planes: Vec<u8>,
     tables: Box<[[u32; 256]; 8]>,
 }
 
@@ -305,6 +313,7 @@ pub fn open3_from_rgb_into(
                 channel,
                 invert,
                 &mut s.g,
+                &mut s.planes,
             );
             row_extremum(&s.g, &mut s.he[slot(y_in)], 1, Extremum::Min);
         }
@@ -348,6 +357,7 @@ impl Default for Open3Scratch {
             he: Vec::new(),
             e: Vec::new(),
             hd: Vec::new(),
+            planes: Vec::new(),
             tables: Box::new([[0; 256]; 8]),
         }
     }
