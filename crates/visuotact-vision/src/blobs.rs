@@ -561,3 +561,90 @@ pub fn blobs_reference(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn squares() -> GrayImage {
+        // Three 3×3 squares at columns 1, 8, 15 on a 20×7 image, rows 2..5.
+        GrayImage::from_fn(20, 7, |x, y| {
+            u8::from((2..5).contains(&y) && [1, 8, 15].iter().any(|&c| (c..c + 3).contains(&x)))
+                * 200
+        })
+    }
+
+    #[test]
+    fn roi_limits_blobs_and_defines_the_border() {
+        let img = squares();
+        let mut out = Vec::new();
+        let region = Region {
+            roi: Some(Roi {
+                x: 8,
+                y: 0,
+                width: 12,
+                height: 7,
+            }),
+            circle: None,
+        };
+        blobs_from_gray_into(
+            &img,
+            Level::Scalar(100),
+            region,
+            Connectivity::Eight,
+            &mut BlobScratch::default(),
+            &mut out,
+        );
+        assert_eq!(out.len(), 2);
+        assert!(
+            out[0].touches_border,
+            "the square at column 8 starts on the ROI edge"
+        );
+        assert_eq!(out[0].x_px, 9.0);
+        assert!(!out[1].touches_border);
+    }
+
+    #[test]
+    fn circle_mask_removes_pixels_outside() {
+        let img = squares();
+        let mut out = Vec::new();
+        let region = Region {
+            roi: None,
+            circle: Some(CircleMask {
+                cx_px: 9.0,
+                cy_px: 3.0,
+                radius_px: 2.0,
+            }),
+        };
+        blobs_from_gray_into(
+            &img,
+            Level::Scalar(100),
+            region,
+            Connectivity::Eight,
+            &mut BlobScratch::default(),
+            &mut out,
+        );
+        assert_eq!(out.len(), 1);
+        assert_eq!((out[0].x_px, out[0].y_px, out[0].area_px), (9.0, 3.0, 9));
+        let region = Region {
+            roi: None,
+            circle: Some(CircleMask {
+                cx_px: 9.0,
+                cy_px: 3.0,
+                radius_px: 1.0,
+            }),
+        };
+        blobs_from_gray_into(
+            &img,
+            Level::Scalar(100),
+            region,
+            Connectivity::Eight,
+            &mut BlobScratch::default(),
+            &mut out,
+        );
+        assert_eq!(
+            out[0].area_px, 5,
+            "a radius-1 disc keeps the centre and its 4 neighbours"
+        );
+    }
+}

@@ -548,6 +548,7 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
     }
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
     let mut status = vec![MarkerStatus::Ok; n];
+    let mut merged_blob = vec![false; blobs.len()];
     for i in 0..n {
         if assignment[i].is_some() {
             continue;
@@ -566,10 +567,10 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
         } else {
             predicted[i]
         };
-        // A taken blob covering the prediction and much larger than this marker: merged.
-        let merged_with = blobs.iter().enumerate().find(|(j, b)| {
-            taken[*j]
-                && f64::from(b.area_px) >= cfg.merged_area_ratio * reference.areas_px[i]
+        // A blob covering the prediction and much larger than this marker: merged (with the
+        // marker that took it, or with a neighbour that is also left without a blob).
+        let merged_with = blobs.iter().enumerate().find(|(_, b)| {
+            f64::from(b.area_px) >= cfg.merged_area_ratio * reference.areas_px[i]
                 && pred.0 >= f64::from(b.bbox.x0) - 0.5
                 && pred.0 <= f64::from(b.bbox.x1) - 0.5
                 && pred.1 >= f64::from(b.bbox.y0) - 0.5
@@ -580,6 +581,7 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
             if let Some(owner) = assignment.iter().position(|a| *a == Some(j)) {
                 status[owner] = MarkerStatus::Merged;
             }
+            merged_blob[j] = true;
             MarkerStatus::Merged
         } else {
             let (best, second) = nearest_two(pred, &index, &taken, gate);
@@ -596,7 +598,9 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
             assignment[i] = None;
         }
     }
-    let spurious = taken.iter().filter(|t| !**t).count();
+    let spurious = (0..blobs.len())
+        .filter(|&j| !taken[j] && !merged_blob[j])
+        .count();
     TrackResult {
         assignment,
         status,

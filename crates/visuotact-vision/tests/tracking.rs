@@ -160,3 +160,57 @@ fn missing_markers_are_reported_not_shifted() {
     }
     assert_eq!(f.found, 9 * 6);
 }
+
+#[test]
+fn merged_markers_are_flagged() {
+    let pattern = GridPattern::IATS;
+    let cal = calibrated(&pattern);
+    let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
+    // Paint a bridge between markers 60 and 61 (row 4, columns 8 and 9) in marker colour.
+    let (mut img, _) = render_grid(&pattern, None, 9);
+    let (a, b) = (&cal.markers[60], &cal.markers[61]);
+    let fg = img.get(a.x_px as usize, a.y_px as usize);
+    let w = img.width();
+    let y0 = a.y_px as usize;
+    for y in y0 - 3..=y0 + 3 {
+        for x in a.x_px as usize..=b.x_px as usize {
+            let i = (y * w + x) * 3;
+            img.as_mut_slice()[i..i + 3].copy_from_slice(&fg);
+        }
+    }
+    let f = ex.extract(&img).unwrap();
+    assert_eq!(f.status[60], MarkerStatus::Merged);
+    assert_eq!(f.status[61], MarkerStatus::Merged);
+    assert!(f.values[4 * 60].is_nan() && f.values[4 * 61].is_nan());
+    assert_eq!(f.found, 115);
+    // Every other marker is unaffected.
+    for k in (0..117).filter(|k| *k != 60 && *k != 61) {
+        assert_eq!(f.status[k], MarkerStatus::Ok);
+    }
+}
+
+#[test]
+fn spurious_blobs_are_counted_not_assigned() {
+    let pattern = GridPattern::IATS;
+    let cal = calibrated(&pattern);
+    let mut ex = FeatureExtractor::new(cal, FeatureSet::ALL).unwrap();
+    let (mut img, _) = render_grid(&pattern, None, 11);
+    // A 5×5 bright speck halfway between four markers.
+    let fg = img.get(44, 48);
+    let w = img.width();
+    for y in 70..75 {
+        for x in 64..69 {
+            let i = (y * w + x) * 3;
+            img.as_mut_slice()[i..i + 3].copy_from_slice(&fg);
+        }
+    }
+    let f = ex.extract(&img).unwrap();
+    assert_eq!(f.found, 117);
+    assert_eq!(f.spurious, 1);
+    for k in 0..117 {
+        assert!(
+            f.values[4 * k].abs() < 0.5 && f.values[4 * k + 1].abs() < 0.5,
+            "marker {k} moved"
+        );
+    }
+}
