@@ -26,6 +26,13 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `extract --sensor SENSOR FRAMES -o OUT`, plus any extra arguments.
+fn extract(sensor: &Path, frames: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["extract", "--sensor", s(sensor), s(frames), "-o", s(out)];
+    args.extend_from_slice(extra);
+    vt(&args)
+}
+
 /// Renders test frames and calibrates on them; returns (folder, sensor file).
 fn setup(name: &str, touches: usize) -> (PathBuf, PathBuf) {
     let d = tmp(name);
@@ -54,14 +61,7 @@ fn setup(name: &str, touches: usize) -> (PathBuf, PathBuf) {
 fn readme_main_job_pattern_calibrate_extract() {
     let (d, sensor) = setup("main", 6);
     let out = d.join("features.csv");
-    let o = vt(&[
-        "extract",
-        "--sensor",
-        s(&sensor),
-        s(&d.join("touch")),
-        "-o",
-        s(&out),
-    ]);
+    let o = extract(&sensor, &d.join("touch"), &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines();
@@ -78,16 +78,7 @@ fn readme_main_job_pattern_calibrate_extract() {
     }
     // JSON lines carry the same numbers.
     let outj = d.join("features.jsonl");
-    let o = vt(&[
-        "extract",
-        "--sensor",
-        s(&sensor),
-        s(&d.join("touch")),
-        "-o",
-        s(&outj),
-        "--format",
-        "jsonl",
-    ]);
+    let o = extract(&sensor, &d.join("touch"), &outj, &["--format", "jsonl"]);
     assert!(o.status.success());
     let first: serde_json::Value = serde_json::from_str(
         std::fs::read_to_string(&outj)
@@ -112,7 +103,7 @@ fn bad_frames_are_named_and_skipped() {
     let small = image::RgbImage::new(320, 240);
     small.save(frames.join("touch_0102.png")).unwrap();
     let out = d.join("f.csv");
-    let o = vt(&["extract", "--sensor", s(&sensor), s(&frames), "-o", s(&out)]);
+    let o = extract(&sensor, &frames, &out, &[]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("touch_0100.png: cannot decode image"), "{err}");
@@ -141,14 +132,7 @@ fn half_the_markers_vanishing_is_reported_without_shifting_columns() {
     }
     img.save(&path).unwrap();
     let out = d.join("f.csv");
-    let o = vt(&[
-        "extract",
-        "--sensor",
-        s(&sensor),
-        s(&d.join("touch")),
-        "-o",
-        s(&out),
-    ]);
+    let o = extract(&sensor, &d.join("touch"), &out, &[]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(
@@ -197,14 +181,7 @@ fn unusable_inputs_fail_with_the_reason() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("missing.png"), "{}", stderr(&o));
 
-    let o = vt(&[
-        "extract",
-        "--sensor",
-        s(&d.join("nope.json")),
-        s(&empty),
-        "-o",
-        "-",
-    ]);
+    let o = extract(&d.join("nope.json"), &empty, Path::new("-"), &[]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).contains("nope.json: cannot read sensor file"),
@@ -213,14 +190,7 @@ fn unusable_inputs_fail_with_the_reason() {
     );
 
     std::fs::write(d.join("bad.json"), "{\"format\": 3}").unwrap();
-    let o = vt(&[
-        "extract",
-        "--sensor",
-        s(&d.join("bad.json")),
-        s(&empty),
-        "-o",
-        "-",
-    ]);
+    let o = extract(&d.join("bad.json"), &empty, Path::new("-"), &[]);
     assert!(
         stderr(&o).contains("bad.json: not a sensor file"),
         "{}",
@@ -266,7 +236,7 @@ fn video_input_is_decoded_by_ffmpeg() {
         stderr(&o)
     );
     let out = d.join("gs.csv");
-    let o = vt(&["extract", "--sensor", s(&sensor), s(&video), "-o", s(&out)]);
+    let o = extract(&sensor, &video, &out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<&str> = text.lines().skip(1).collect();

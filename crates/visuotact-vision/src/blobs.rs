@@ -566,6 +566,20 @@ pub fn blobs_reference(
 mod tests {
     use super::*;
 
+    fn blobs_in(img: &GrayImage, region: Region) -> Vec<Blob> {
+        let mut out = Vec::new();
+        let mut scratch = BlobScratch::default();
+        blobs_from_gray_into(
+            img,
+            Level::Scalar(100),
+            region,
+            Connectivity::Eight,
+            &mut scratch,
+            &mut out,
+        );
+        out
+    }
+
     fn squares() -> GrayImage {
         // Three 3×3 squares at columns 1, 8, 15 on a 20×7 image, rows 2..5.
         GrayImage::from_fn(20, 7, |x, y| {
@@ -577,7 +591,6 @@ mod tests {
     #[test]
     fn roi_limits_blobs_and_defines_the_border() {
         let img = squares();
-        let mut out = Vec::new();
         let region = Region {
             roi: Some(Roi {
                 x: 8,
@@ -587,14 +600,7 @@ mod tests {
             }),
             circle: None,
         };
-        blobs_from_gray_into(
-            &img,
-            Level::Scalar(100),
-            region,
-            Connectivity::Eight,
-            &mut BlobScratch::default(),
-            &mut out,
-        );
+        let out = blobs_in(&img, region);
         assert_eq!(out.len(), 2);
         assert!(
             out[0].touches_border,
@@ -607,7 +613,6 @@ mod tests {
     #[test]
     fn circle_mask_removes_pixels_outside() {
         let img = squares();
-        let mut out = Vec::new();
         let region = Region {
             roi: None,
             circle: Some(CircleMask {
@@ -616,14 +621,7 @@ mod tests {
                 radius_px: 2.0,
             }),
         };
-        blobs_from_gray_into(
-            &img,
-            Level::Scalar(100),
-            region,
-            Connectivity::Eight,
-            &mut BlobScratch::default(),
-            &mut out,
-        );
+        let out = blobs_in(&img, region);
         assert_eq!(out.len(), 1);
         assert_eq!((out[0].x_px, out[0].y_px, out[0].area_px), (9.0, 3.0, 9));
         let region = Region {
@@ -634,14 +632,7 @@ mod tests {
                 radius_px: 1.0,
             }),
         };
-        blobs_from_gray_into(
-            &img,
-            Level::Scalar(100),
-            region,
-            Connectivity::Eight,
-            &mut BlobScratch::default(),
-            &mut out,
-        );
+        let out = blobs_in(&img, region);
         assert_eq!(
             out[0].area_px, 5,
             "a radius-1 disc keeps the centre and its 4 neighbours"
