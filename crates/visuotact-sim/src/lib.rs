@@ -9,5 +9,10 @@
 //! This is the test-pattern generator the vision pipeline is checked against; the sensor
 //! physics of the two seed sensors builds on it.
 
+pub mod camera;
+pub mod cone;
+pub mod iats;
+pub mod jr3;
 pub mod pattern;
+pub mod protocol;
 pub mod render;

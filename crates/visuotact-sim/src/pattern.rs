@@ -162,6 +162,13 @@ pub fn render_markers(
     for (outer, inner) in shapes {
         cov.fill(outer, inner.as_ref(), 1.0);
     }
+    frame_from_coverage(&cov, look, seed)
+}
+
+/// Colours a coverage canvas (0 background, 1 marker) with the look's colours, vignetting,
+/// Gaussian noise and 8-bit rounding. The noise sequence is fixed by `seed`.
+pub fn frame_from_coverage(cov: &Canvas, look: &Look, seed: u64) -> RgbImage {
+    let (width, height) = (cov.width, cov.height);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0f32, look.noise_sigma.max(0.0))
         .unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());

@@ -1,0 +1,198 @@
+//! Experiment protocols: the sequences of touches and loads the source documents used, with
+//! frame timestamps at the camera rate. Deterministic given a seed.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::cone::{ConeConfig, ConeLoad};
+use crate::iats::{IatsConfig, Touch};
+
+/// Seed 000's grid: x in 4 mm steps × 16, y in 3 mm steps × 16, at depths 1..=5 mm
+/// (1 280 touches), depth-major then rows then columns.
+pub fn iats_grid() -> Vec<Touch> {
+    let mut out = Vec::with_capacity(1280);
+    for depth in 1..=5 {
+        for iy in 0..16 {
+            for ix in 0..16 {
+                out.push(Touch {
+                    x_mm: 4.0 * f64::from(ix),
+                    y_mm: 3.0 * f64::from(iy),
+                    depth_mm: f64::from(depth),
+                    ..Touch::default()
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Seed 000's Table 2 line: y = 30 mm, x = 4..=28 mm in 4 mm steps, 4 mm deep.
+pub fn iats_line() -> Vec<Touch> {
+    (1..=7)
+        .map(|k| Touch {
+            x_mm: 4.0 * f64::from(k),
+            y_mm: 30.0,
+            depth_mm: 4.0,
+            ..Touch::default()
+        })
+        .collect()
+}
+
+/// `n` touches uniform over the marker area, depth uniform in 1..5 mm.
+pub fn iats_random(cfg: &IatsConfig, n: usize, seed: u64) -> Vec<Touch> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| Touch {
+            x_mm: rng.random_range(0.0..=cfg.span_x_mm),
+            y_mm: rng.random_range(0.0..=cfg.span_y_mm),
+            depth_mm: rng.random_range(1.0..=cfg.max_depth_mm.min(5.0)),
+            ..Touch::default()
+        })
+        .collect()
+}
+
+/// Random touches that also drag the fabric sideways by up to one marker pitch in a random
+/// direction (frames in random order, as a dataset of independent touches).
+pub fn iats_shear(cfg: &IatsConfig, n: usize, seed: u64) -> Vec<Touch> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EA5);
+    let pitch = cfg.pitch_x_mm().min(cfg.pitch_y_mm());
+    iats_random(cfg, n, seed)
+        .into_iter()
+        .map(|mut t| {
+            let ang = rng.random_range(0.0..std::f64::consts::TAU);
+            let drag = pitch * rng.random_range(0.0..=1.0);
+            t.shear_x_mm = drag * ang.cos();
+            t.shear_y_mm = drag * ang.sin();
+            t
+        })
+        .collect()
+}
+
+/// Pressure over time: a slow leak and the compressor's ripple.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PressureDrift {
+    /// Fraction of pressure lost per second.
+    pub leak_per_s: f64,
+    /// Ripple amplitude, kPa.
+    pub ripple_kpa: f64,
+    /// Ripple frequency, Hz.
+    pub ripple_hz: f64,
+}
+
+impl PressureDrift {
+    /// A slightly leaky link with a small compressor ripple.
+    pub const DEFAULT: Self = Self {
+        leak_per_s: 0.0015,
+        ripple_kpa: 0.05,
+        ripple_hz: 0.5,
+    };
+
+    /// Pressure at time `t_s` for nominal pressure `p0`.
+    pub fn at(&self, p0: f64, t_s: f64) -> f64 {
+        p0 * (1.0 - self.leak_per_s * t_s)
+            + self.ripple_kpa * (std::f64::consts::TAU * self.ripple_hz * t_s).sin()
+    }
+}
+
+/// A cone press: force rises smoothly from 0 to `max_force_n` and back over `duration_s`, at 30°
+/// elevation; with `rotate`, the direction turns once about the axis during the press.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConePress {
+    /// Peak force, N.
+    pub max_force_n: f64,
+    /// Press and release time, s.
+    pub duration_s: f64,
+    /// Force direction about the axis at the start, radians.
+    pub azimuth_rad: f64,
+    /// Turn the direction about the axis (seed 001's "with rotation").
+    pub rotate: bool,
+    /// Pressure drift.
+    pub drift: PressureDrift,
+}
+
+impl ConePress {
+    /// Seed 001's slow press: up to 10 N over 20 s.
+    pub const SEED001: Self = Self {
+        max_force_n: 10.0,
+        duration_s: 20.0,
+        azimuth_rad: 0.0,
+        rotate: false,
+        drift: PressureDrift::DEFAULT,
+    };
+
+    /// The load at time `t_s` from the start of the press (no force outside `0..duration`).
+    pub fn load_at(&self, cfg: &ConeConfig, t_s: f64, t0_s: f64) -> ConeLoad {
+        let u = (t_s / self.duration_s).clamp(0.0, 1.0);
+        let force_n = self.max_force_n * (std::f64::consts::PI * u).sin().powi(2);
+        let azimuth_rad = self.azimuth_rad
+            + if self.rotate {
+                std::f64::consts::TAU * u
+            } else {
+                0.0
+            };
+        ConeLoad {
+            force_n,
+            elevation_rad: 30f64.to_radians(),
+            azimuth_rad,
+            pressure_kpa: self.drift.at(cfg.pressure_kpa, t0_s + t_s),
+        }
+    }
+
+    /// Checks the protocol.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.max_force_n.is_finite() && self.max_force_n >= 0.0) {
+            return Err(format!(
+                "peak force must be ≥ 0 N, got {}",
+                self.max_force_n
+            ));
+        }
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
+            return Err(format!(
+                "press duration must be positive, got {} s",
+                self.duration_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_is_seed000s() {
+        let g = iats_grid();
+        assert_eq!(g.len(), 1280);
+        assert_eq!((g[0].x_mm, g[0].y_mm, g[0].depth_mm), (0.0, 0.0, 1.0));
+        assert_eq!(
+            (g[1279].x_mm, g[1279].y_mm, g[1279].depth_mm),
+            (60.0, 45.0, 5.0)
+        );
+        let cfg = IatsConfig::SEED000;
+        assert!(g.iter().all(|t| t.validate(&cfg).is_ok()));
+    }
+
+    #[test]
+    fn random_and_shear_touches_are_valid_and_seeded() {
+        let cfg = IatsConfig::SEED000;
+        let a = iats_shear(&cfg, 50, 3);
+        assert_eq!(a, iats_shear(&cfg, 50, 3));
+        assert_ne!(a, iats_shear(&cfg, 50, 4));
+        assert!(a.iter().all(|t| t.validate(&cfg).is_ok()));
+        assert!(a
+            .iter()
+            .any(|t| t.shear_x_mm.hypot(t.shear_y_mm) > 0.8 * cfg.pitch_x_mm()));
+    }
+
+    #[test]
+    fn press_rises_and_falls() {
+        let c = ConeConfig::SEED001;
+        let p = ConePress::SEED001;
+        assert_eq!(p.load_at(&c, 0.0, 0.0).force_n, 0.0);
+        assert!((p.load_at(&c, 10.0, 0.0).force_n - 10.0).abs() < 1e-9);
+        assert!(p.load_at(&c, 20.0, 0.0).force_n < 1e-9);
+        let r = ConePress { rotate: true, ..p };
+        assert!((r.load_at(&c, 10.0, 0.0).azimuth_rad - std::f64::consts::PI).abs() < 1e-9);
+    }
+}
