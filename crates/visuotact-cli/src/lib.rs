@@ -12,6 +12,7 @@ mod blobs;
 mod calibrate;
 mod extract;
 mod pattern;
+mod simulate;
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.
 #[derive(Parser, Debug)]
@@ -33,6 +34,8 @@ enum Command {
     Bench(bench::Args),
     /// Render marker-grid test frames with exact truth (rest frames and touches).
     Pattern(pattern::Args),
+    /// Simulate a sensor (iats or cone) through a protocol → a session folder with truth.
+    Simulate(simulate::Args),
 }
 
 /// Runs the program with the process arguments.
@@ -63,6 +66,7 @@ where
         Command::Blobs(a) => blobs::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Pattern(a) => pattern::run(&a),
+        Command::Simulate(a) => simulate::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,7 +3,10 @@
 //! [`frames`] opens image files, folders of images (sorted by name) and video files (decoded by
 //! the `ffmpeg` program) as one stream of timestamped [`visuotact_image::Frame`]s, reporting a
 //! frame that cannot be read by name and carrying on. [`table`] writes per-frame rows as CSV or
-//! JSON lines, flushing as it goes.
+//! JSON lines, flushing as it goes. [`session`] writes session folders (frames, labels, force),
+//! and [`force`] defines the force/torque packet layout shared by senders and receivers.
 
+pub mod force;
 pub mod frames;
+pub mod session;
 pub mod table;

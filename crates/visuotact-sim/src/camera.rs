@@ -13,7 +13,7 @@
 //! ```
 
 /// Intrinsics and distortion.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Camera {
     /// Image width, pixels.
     pub width: usize,

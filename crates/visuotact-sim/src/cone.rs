@@ -19,7 +19,7 @@ use crate::pattern::Look;
 use crate::render::{ring_area_centroid, Canvas, ConvexPolygon};
 
 /// Every physical and optical parameter of the cone simulator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ConeConfig {
     /// Length from the base (camera) to the distal end, mm.
     pub length_mm: f64,
@@ -121,7 +121,7 @@ impl Default for ConeConfig {
 }
 
 /// The load on the distal end and the pressure at that moment.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ConeLoad {
     /// Force magnitude, N.
     pub force_n: f64,

@@ -27,7 +27,7 @@ use crate::pattern::Look;
 use crate::render::{ring_area_centroid, Canvas, ConvexPolygon};
 
 /// Every physical and optical parameter of the IATS simulator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct IatsConfig {
     /// Marker columns.
     pub cols: usize,
@@ -132,7 +132,7 @@ impl Default for IatsConfig {
 }
 
 /// A touch: where, how deep, and how far the tip drags the fabric sideways.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Default, serde::Serialize)]
 pub struct Touch {
     /// Contact x in marker coordinates (0 at the first column), mm.
     pub x_mm: f64,

@@ -13,7 +13,7 @@ use visuotact_image::RgbImage;
 use crate::render::{Canvas, Ellipse};
 
 /// Camera and colours.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Look {
     /// Background colour (R, G, B), 0..255.
     pub background: [f32; 3],

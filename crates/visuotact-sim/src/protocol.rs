@@ -69,7 +69,7 @@ pub fn iats_shear(cfg: &IatsConfig, n: usize, seed: u64) -> Vec<Touch> {
 }
 
 /// Pressure over time: a slow leak and the compressor's ripple.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct PressureDrift {
     /// Fraction of pressure lost per second.
     pub leak_per_s: f64,
@@ -96,7 +96,7 @@ impl PressureDrift {
 
 /// A cone press: force rises smoothly from 0 to `max_force_n` and back over `duration_s`, at 30°
 /// elevation; with `rotate`, the direction turns once about the axis during the press.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ConePress {
     /// Peak force, N.
     pub max_force_n: f64,

@@ -265,8 +265,10 @@ impl Canvas {
         let y0 = (by0 - 1.0).floor().max(0.0) as usize;
         let x1 = ((bx1 + 2.0).ceil().max(0.0) as usize).min(self.width);
         let y1 = ((by1 + 2.0).ceil().max(0.0) as usize).min(self.height);
-        let inside =
-            |x: f64, y: f64| outer.depth(x, y) >= 0.0 && hole.is_none_or(|h| h.depth(x, y) < 0.0);
+        // Edges whose line passes within a pixel's half-diagonal of its centre; the others are
+        // on the same side for every sample of the pixel, so only these need testing.
+        let mut near_out: Vec<(f64, f64, f64)> = Vec::with_capacity(8);
+        let mut near_hole: Vec<(f64, f64, f64)> = Vec::with_capacity(8);
         for y in y0..y1 {
             for x in x0..x1 {
                 let (fx, fy) = (x as f64, y as f64);
@@ -279,12 +281,37 @@ impl Canvas {
                 } else if d_out >= 0.75 && d_hole.is_none_or(|d| d <= -0.75) {
                     1.0
                 } else {
+                    near_out.clear();
+                    near_out.extend(
+                        outer
+                            .edges
+                            .iter()
+                            .copied()
+                            .filter(|&(a, b, c)| a * fx + b * fy + c < 0.75),
+                    );
+                    // The hole matters only where the centre is near or inside it.
+                    let hole_near = d_hole.is_some_and(|d| d > -0.75);
+                    near_hole.clear();
+                    if let (true, Some(h)) = (hole_near, hole) {
+                        near_hole.extend(
+                            h.edges
+                                .iter()
+                                .copied()
+                                .filter(|&(a, b, c)| a * fx + b * fy + c < 0.75),
+                        );
+                    }
                     let mut k = 0;
                     for j in 0..POLY_SS {
                         let sy = fy - 0.5 + (j as f64 + 0.5) / POLY_SS as f64;
                         for i in 0..POLY_SS {
                             let sx = fx - 0.5 + (i as f64 + 0.5) / POLY_SS as f64;
-                            k += usize::from(inside(sx, sy));
+                            let in_outer =
+                                near_out.iter().all(|&(a, b, c)| a * sx + b * sy + c >= 0.0);
+                            let in_hole = hole_near
+                                && near_hole
+                                    .iter()
+                                    .all(|&(a, b, c)| a * sx + b * sy + c >= 0.0);
+                            k += usize::from(in_outer && !in_hole);
                         }
                     }
                     k as f64 / (POLY_SS * POLY_SS) as f64

@@ -1,0 +1,319 @@
+//! `visuotact simulate`: a session folder of simulated frames with exact ground truth.
+
+use std::net::UdpSocket;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use rayon::prelude::*;
+use visuotact_image::RgbImage;
+use visuotact_io::force::{ForceLayout, ForceSample};
+use visuotact_io::frames::write_png;
+use visuotact_io::session::SessionWriter;
+use visuotact_sim::cone::{ConeConfig, ConeLoad};
+use visuotact_sim::iats::{IatsConfig, Touch};
+use visuotact_sim::jr3::{Jr3, Jr3Config};
+use visuotact_sim::protocol::{self, ConePress};
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Which sensor: iats (seed 000's areal touch sensor) or cone (seed 001's inflatable link).
+    #[arg(long, value_parser = ["iats", "cone"])]
+    sensor: String,
+    /// iats: grid, random, shear, line; cone: press, press-rotate.
+    #[arg(long)]
+    protocol: String,
+    /// Random seed: the same seed writes the same bytes.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Session folder to create (must not hold a session).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Touches for the random and shear protocols.
+    #[arg(long, default_value_t = 200)]
+    touches: usize,
+    /// No-contact reference frames written first.
+    #[arg(long, default_value_t = 10)]
+    references: usize,
+    /// Camera frame rate, frames per second.
+    #[arg(long, default_value_t = 25.0)]
+    fps: f64,
+    /// cone: press and release time, seconds.
+    #[arg(long, default_value_t = 20.0)]
+    duration_s: f64,
+    /// cone: peak force, N.
+    #[arg(long, default_value_t = 10.0)]
+    max_force_n: f64,
+    /// cone: force sensor sample rate, Hz.
+    #[arg(long, default_value_t = 1000.0)]
+    force_rate_hz: f64,
+    /// cone: also send the force stream as UDP packets to this address (loopback), paced in
+    /// real time, with the layout of --force-layout.
+    #[arg(long, value_name = "HOST:PORT")]
+    udp: Option<String>,
+    /// Packet fields for --udp (packed little-endian f64).
+    #[arg(long, default_value = "timestamp_s,fx,fy,fz,tx,ty,tz")]
+    force_layout: String,
+}
+
+/// Per-frame noise seed: SplitMix64 of the session seed and the frame number.
+fn frame_seed(seed: u64, k: u64) -> u64 {
+    let mut z = seed.wrapping_add(k.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Frames rendered and written per parallel batch.
+const BATCH: usize = 64;
+
+struct Rendered {
+    labels: Vec<f64>,
+    truth: Vec<(f64, f64, f64, bool)>,
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        bail!("--fps must be a positive frame rate, got {}", a.fps);
+    }
+    let t_start = Instant::now();
+    let n_frames = match a.sensor.as_str() {
+        "iats" => simulate_iats(a)?,
+        _ => simulate_cone(a)?,
+    };
+    eprintln!(
+        "wrote {} reference and {n_frames} frames to {} in {:.1} s",
+        a.references,
+        a.output.display(),
+        t_start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Renders `count` frames with `render(k) -> (image, rendered)` in parallel batches, writing
+/// PNGs as they come and the CSV rows in order.
+fn write_frames(
+    w: &mut SessionWriter,
+    count: usize,
+    first_index: usize,
+    fps: f64,
+    render: impl Fn(usize) -> anyhow::Result<(RgbImage, Rendered)> + Sync,
+) -> anyhow::Result<()> {
+    for start in (0..count).step_by(BATCH) {
+        let end = (start + BATCH).min(count);
+        let rows: Vec<(String, Rendered)> = (start..end)
+            .into_par_iter()
+            .map(|k| -> anyhow::Result<(String, Rendered)> {
+                let (img, r) = render(k)?;
+                let name = format!("frame_{k:06}.png");
+                write_png(&w.frame_path(&name), &img)?;
+                Ok((name, r))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        for (k, (name, r)) in (start..end).zip(rows) {
+            let index = first_index + k;
+            w.add_frame(&name, index, index as f64 / fps, &r.labels, &r.truth)?;
+        }
+    }
+    Ok(())
+}
+
+fn write_references(
+    w: &mut SessionWriter,
+    n: usize,
+    fps: f64,
+    render: impl Fn(usize) -> anyhow::Result<RgbImage> + Sync,
+) -> anyhow::Result<()> {
+    let imgs: Vec<RgbImage> = (0..n)
+        .into_par_iter()
+        .map(&render)
+        .collect::<anyhow::Result<_>>()?;
+    for (k, img) in imgs.iter().enumerate() {
+        let name = format!("ref_{k:04}.png");
+        write_png(&w.reference_path(&name), img)?;
+        w.add_reference(&name, k, k as f64 / fps)?;
+    }
+    Ok(())
+}
+
+fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
+    let cfg = IatsConfig::SEED000;
+    cfg.validate().map_err(anyhow::Error::msg)?;
+    let touches: Vec<Touch> = match a.protocol.as_str() {
+        "grid" => protocol::iats_grid(),
+        "random" => protocol::iats_random(&cfg, a.touches, a.seed),
+        "shear" => protocol::iats_shear(&cfg, a.touches, a.seed),
+        "line" => protocol::iats_line(),
+        other => bail!(
+            "--protocol {other:?} is not an iats protocol: expected grid, random, shear or line"
+        ),
+    };
+    for (k, t) in touches.iter().enumerate() {
+        t.validate(&cfg)
+            .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
+    }
+    let shear = a.protocol == "shear";
+    let mut cols = vec!["x_mm", "y_mm", "depth_mm"];
+    if shear {
+        cols.extend(["shear_x_mm", "shear_y_mm"]);
+    }
+    let mut w = SessionWriter::create(&a.output, &cols, true, false)?;
+    let rest = Touch::default();
+    write_references(&mut w, a.references, a.fps, |k| {
+        Ok(
+            visuotact_sim::iats::render(&cfg, &rest, frame_seed(a.seed, k as u64))
+                .map_err(anyhow::Error::msg)?
+                .0,
+        )
+    })?;
+    write_frames(&mut w, touches.len(), a.references, a.fps, |k| {
+        let t = &touches[k];
+        let (img, truth) =
+            visuotact_sim::iats::render(&cfg, t, frame_seed(a.seed, (a.references + k) as u64))
+                .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
+        let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
+        if shear {
+            labels.extend([t.shear_x_mm, t.shear_y_mm]);
+        }
+        let truth = truth
+            .iter()
+            .map(|m| (m.x_px, m.y_px, m.area_px, m.fully_in_view))
+            .collect();
+        Ok((img, Rendered { labels, truth }))
+    })?;
+    w.finish(serde_json::json!({
+        "sensor": "iats",
+        "protocol": a.protocol,
+        "seed": a.seed,
+        "fps": a.fps,
+        "reference_frames": a.references,
+        "frames": touches.len(),
+        "labels": cols,
+        "config": cfg,
+        "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),
+    }))?;
+    Ok(touches.len())
+}
+
+fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
+    let cfg = ConeConfig::SEED001;
+    cfg.validate().map_err(anyhow::Error::msg)?;
+    let press = ConePress {
+        max_force_n: a.max_force_n,
+        duration_s: a.duration_s,
+        rotate: match a.protocol.as_str() {
+            "press" => false,
+            "press-rotate" => true,
+            other => {
+                bail!("--protocol {other:?} is not a cone protocol: expected press or press-rotate")
+            }
+        },
+        ..ConePress::SEED001
+    };
+    press.validate().map_err(anyhow::Error::msg)?;
+    let jr3_cfg = Jr3Config {
+        rate_hz: a.force_rate_hz,
+        ..Jr3Config::JR3_1KHZ
+    };
+    jr3_cfg.validate().map_err(anyhow::Error::msg)?;
+    let layout =
+        ForceLayout::parse(&a.force_layout).map_err(|e| anyhow::anyhow!("--force-layout: {e}"))?;
+    let socket = match &a.udp {
+        Some(addr) => {
+            let s = UdpSocket::bind("127.0.0.1:0").context("cannot open a UDP socket")?;
+            s.connect(addr)
+                .with_context(|| format!("--udp {addr}: cannot address it"))?;
+            Some(s)
+        }
+        None => None,
+    };
+    let t0 = a.references as f64 / a.fps;
+    let n = (a.duration_s * a.fps).round() as usize;
+    let cols = ["force_n", "fx_n", "fy_n", "fz_n", "pressure_kpa"];
+    let mut w = SessionWriter::create(&a.output, &cols, true, true)?;
+    write_references(&mut w, a.references, a.fps, |k| {
+        let t = k as f64 / a.fps;
+        let load = ConeLoad::none(press.drift.at(cfg.pressure_kpa, t));
+        Ok(
+            visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, k as u64))
+                .map_err(anyhow::Error::msg)?
+                .0,
+        )
+    })?;
+    write_frames(&mut w, n, a.references, a.fps, |k| {
+        let load = press.load_at(&cfg, k as f64 / a.fps, t0);
+        let (img, rings) =
+            visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, (a.references + k) as u64))
+                .map_err(|e| anyhow::anyhow!("frame {k}: {e}"))?;
+        let [fx, fy, fz] = load.components_n();
+        let labels = vec![load.force_n, fx, fy, fz, load.pressure_kpa];
+        let truth = rings
+            .iter()
+            .map(|r| (r.x_px, r.y_px, r.area_px, r.fully_in_view))
+            .collect();
+        Ok((img, Rendered { labels, truth }))
+    })?;
+    // The force stream covers the references and the press, at the sensor's own rate.
+    let mut jr3 = Jr3::new(jr3_cfg, a.seed ^ 0x4A33);
+    let total_s = t0 + a.duration_s;
+    let n_samples = (total_s * jr3_cfg.rate_hz).round() as usize;
+    let mut samples = Vec::with_capacity(n_samples);
+    for i in 0..n_samples {
+        let t = i as f64 / jr3_cfg.rate_hz;
+        let load = if t < t0 {
+            ConeLoad::none(cfg.pressure_kpa)
+        } else {
+            press.load_at(&cfg, t - t0, t0)
+        };
+        samples.push(ForceSample {
+            timestamp_s: t,
+            values: jr3.sample(load.components_n()),
+        });
+    }
+    w.add_force(&samples)?;
+    w.finish(serde_json::json!({
+        "sensor": "cone",
+        "protocol": a.protocol,
+        "seed": a.seed,
+        "fps": a.fps,
+        "reference_frames": a.references,
+        "frames": n,
+        "labels": cols,
+        "config": cfg,
+        "press": press,
+        "force_sensor": jr3_cfg,
+        "force_layout": layout.fields.iter().map(|f| f.name()).collect::<Vec<_>>(),
+        "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),
+    }))?;
+    if let Some(sock) = socket {
+        send_paced(&sock, &layout, &samples, jr3_cfg.rate_hz)?;
+    }
+    Ok(n)
+}
+
+/// Sends samples as UDP packets at their own rate (in bursts of 1 ms of samples).
+fn send_paced(
+    sock: &UdpSocket,
+    layout: &ForceLayout,
+    samples: &[ForceSample],
+    rate_hz: f64,
+) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let mut dropped = 0usize;
+    for (i, s) in samples.iter().enumerate() {
+        let due = Duration::from_secs_f64(i as f64 / rate_hz);
+        let now = start.elapsed();
+        if due > now + Duration::from_micros(500) {
+            std::thread::sleep(due - now);
+        }
+        // A receiver that is not listening yet refuses datagrams on loopback; count, go on.
+        if sock.send(&layout.encode(s, i as u64)).is_err() {
+            dropped += 1;
+        }
+    }
+    eprintln!(
+        "sent {} force packets ({dropped} refused by the receiver)",
+        samples.len()
+    );
+    Ok(())
+}
