@@ -182,18 +182,29 @@ impl ConvexPolygon {
         Some(Self { vertices, edges })
     }
 
-    /// Signed distance to the nearest edge line: positive inside.
-    fn depth(&self, x: f64, y: f64) -> f64 {
-        self.edges
-            .iter()
-            .map(|&(a, b, c)| a * x + b * y + c)
-            .fold(f64::INFINITY, f64::min)
-    }
-
     /// Area (positive) and centroid `(x, y)`.
     pub fn area_centroid(&self) -> (f64, (f64, f64)) {
         let (a, c) = shoelace(&self.vertices);
         (a.abs(), c)
+    }
+
+    /// The x-range where the horizontal line at `y` crosses the polygon.
+    fn cross_section(&self, y: f64) -> Option<(f64, f64)> {
+        let n = self.vertices.len();
+        let mut range: Option<(f64, f64)> = None;
+        for i in 0..n {
+            let (x0, y0) = self.vertices[i];
+            let (x1, y1) = self.vertices[(i + 1) % n];
+            if (y0 <= y && y <= y1) || (y1 <= y && y <= y0) {
+                let x = if (y1 - y0).abs() < 1e-300 {
+                    x0
+                } else {
+                    x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+                };
+                range = Some(range.map_or((x, x), |(a, b)| (a.min(x), b.max(x))));
+            }
+        }
+        range
     }
 
     /// Axis-aligned bounds `(x0, y0, x1, y1)`.
@@ -207,6 +218,46 @@ impl ConvexPolygon {
             ),
             |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
         )
+    }
+}
+
+/// A convex polygon seen by one row of pixel squares `[x ± ½] × [y ± ½]`.
+struct Band {
+    /// x-extent of the polygon within the band (where squares can meet it).
+    meet: Option<(f64, f64)>,
+    /// x-range inside the polygon at both band edges (squares within it lie wholly inside:
+    /// a convex polygon's cross-sections narrow monotonically towards its top and bottom, so
+    /// the band's narrowest cross-section is at one of its edges).
+    inside: Option<(f64, f64)>,
+}
+
+impl Band {
+    fn of(p: &ConvexPolygon, y: f64) -> Self {
+        let (top, bottom) = (p.cross_section(y - 0.5), p.cross_section(y + 0.5));
+        let mut meet: Option<(f64, f64)> = None;
+        let mut widen = |lo: f64, hi: f64| {
+            meet = Some(meet.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        };
+        for s in [top, bottom].into_iter().flatten() {
+            widen(s.0, s.1);
+        }
+        for &(vx, vy) in &p.vertices {
+            if (y - 0.5..=y + 0.5).contains(&vy) {
+                widen(vx, vx);
+            }
+        }
+        let inside = top.zip(bottom).map(|(t, b)| (t.0.max(b.0), t.1.min(b.1)));
+        Self { meet, inside }
+    }
+
+    /// Whether the square at column `x` meets the polygon.
+    fn meets(&self, x: f64) -> bool {
+        self.meet.is_some_and(|(l, r)| x + 0.5 >= l && x - 0.5 <= r)
+    }
+
+    /// Whether the square at column `x` lies wholly inside the polygon.
+    fn contains(&self, x: f64) -> bool {
+        self.inside.is_some_and(|(l, r)| x - 0.5 > l && x + 0.5 < r)
     }
 }
 
@@ -270,15 +321,17 @@ impl Canvas {
         let mut near_out: Vec<(f64, f64, f64)> = Vec::with_capacity(8);
         let mut near_hole: Vec<(f64, f64, f64)> = Vec::with_capacity(8);
         for y in y0..y1 {
+            let fy = y as f64;
+            // Per row: where the pixel squares of this row meet each polygon, and where they
+            // lie wholly inside it (exact for convex polygons; see `Band`).
+            let bo = Band::of(outer, fy);
+            let bh = hole.map(|h| Band::of(h, fy));
             for x in x0..x1 {
-                let (fx, fy) = (x as f64, y as f64);
-                let d_out = outer.depth(fx, fy);
-                let d_hole = hole.map(|h| h.depth(fx, fy));
-                // A pixel's half-diagonal is 0.71 px: farther than that from every edge line
-                // means fully inside or outside.
-                let c = if d_out <= -0.75 || d_hole.is_some_and(|d| d >= 0.75) {
+                let fx = x as f64;
+                let meets_hole = bh.as_ref().is_some_and(|b| b.meets(fx));
+                let c = if !bo.meets(fx) || bh.as_ref().is_some_and(|b| b.contains(fx)) {
                     0.0
-                } else if d_out >= 0.75 && d_hole.is_none_or(|d| d <= -0.75) {
+                } else if bo.contains(fx) && !meets_hole {
                     1.0
                 } else {
                     near_out.clear();
@@ -289,10 +342,8 @@ impl Canvas {
                             .copied()
                             .filter(|&(a, b, c)| a * fx + b * fy + c < 0.75),
                     );
-                    // The hole matters only where the centre is near or inside it.
-                    let hole_near = d_hole.is_some_and(|d| d > -0.75);
                     near_hole.clear();
-                    if let (true, Some(h)) = (hole_near, hole) {
+                    if let (true, Some(h)) = (meets_hole, hole) {
                         near_hole.extend(
                             h.edges
                                 .iter()
@@ -307,7 +358,7 @@ impl Canvas {
                             let sx = fx - 0.5 + (i as f64 + 0.5) / POLY_SS as f64;
                             let in_outer =
                                 near_out.iter().all(|&(a, b, c)| a * sx + b * sy + c >= 0.0);
-                            let in_hole = hole_near
+                            let in_hole = meets_hole
                                 && near_hole
                                     .iter()
                                     .all(|&(a, b, c)| a * sx + b * sy + c >= 0.0);

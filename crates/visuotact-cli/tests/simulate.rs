@@ -1,0 +1,371 @@
+//! `simulate` end to end: session folders of both sensors that `calibrate` and `extract` read,
+//! measured centroids against the simulator's projected truth, byte-identical reruns, and
+//! clear errors for impossible settings.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn vt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(args)
+        .output()
+        .expect("run visuotact")
+}
+
+fn ok(o: &Output) -> String {
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    err
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("visuotact-sim-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn rows(path: &Path) -> Vec<HashMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(str::to_string))
+                .collect()
+        })
+        .collect()
+}
+
+/// Extracted positions (reference + displacement) against truth.csv for fully visible markers;
+/// returns (checked, mean error px, worst error px). Grid markers are paired with the nearest visible truth;
+/// concentric rings share a centre, so ring `k` is paired with truth ring `k`.
+fn compare_with_truth(
+    session: &Path,
+    sensor: &Path,
+    features: &Path,
+    by_index: bool,
+) -> (usize, f64, f64) {
+    let cal: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sensor).unwrap()).unwrap();
+    let markers = cal["markers"].as_array().unwrap();
+    let feats = rows(features);
+    let truth = rows(&session.join("truth.csv"));
+    let (mut checked, mut worst, mut sum) = (0, 0.0f64, 0.0);
+    for f in &feats {
+        let frame = &f["frame"];
+        let frame_truth: Vec<&HashMap<String, String>> =
+            truth.iter().filter(|t| &t["frame"] == frame).collect();
+        for (k, m) in markers.iter().enumerate() {
+            let dx = &f[&format!("m{k:03}_dx_px")];
+            if dx.is_empty() {
+                continue;
+            }
+            let x = m["x_px"].as_f64().unwrap() + dx.parse::<f64>().unwrap();
+            let y =
+                m["y_px"].as_f64().unwrap() + f[&format!("m{k:03}_dy_px")].parse::<f64>().unwrap();
+            // The truth row of this marker: the nearest fully visible one (identities are
+            // checked by the tracker tests; here the geometry).
+            let t = frame_truth
+                .iter()
+                .filter(|t| {
+                    t["fully_in_view"] == "1" && (!by_index || t["marker"] == k.to_string())
+                })
+                .map(|t| {
+                    (
+                        t["x_px"].parse::<f64>().unwrap(),
+                        t["y_px"].parse::<f64>().unwrap(),
+                    )
+                })
+                .min_by(|a, b| {
+                    (a.0 - x)
+                        .hypot(a.1 - y)
+                        .total_cmp(&(b.0 - x).hypot(b.1 - y))
+                });
+            if let Some(t) = t {
+                let e = (t.0 - x).hypot(t.1 - y);
+                if e < 5.0 {
+                    checked += 1;
+                    worst = worst.max(e);
+                    sum += e;
+                }
+            }
+        }
+    }
+    (checked, sum / checked.max(1) as f64, worst)
+}
+
+#[test]
+fn iats_session_calibrates_extracts_and_matches_truth() {
+    let d = tmp("iats");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "6",
+        "--references",
+        "4",
+        "--seed",
+        "7",
+        "-o",
+        s(&d),
+    ]));
+    for f in [
+        "session.json",
+        "frames.csv",
+        "labels.csv",
+        "truth.csv",
+        "reference/ref_0003.png",
+        "frames/frame_000005.png",
+    ] {
+        assert!(d.join(f).is_file(), "{f} missing");
+    }
+    let labels = rows(&d.join("labels.csv"));
+    assert_eq!(labels.len(), 6);
+    assert!(labels
+        .iter()
+        .all(|r| r["depth_mm"].parse::<f64>().unwrap() >= 1.0));
+    let sensor = d.join("sensor.json");
+    let err = ok(&vt(&[
+        "calibrate",
+        s(&d.join("reference")),
+        "-o",
+        s(&sensor),
+    ]));
+    assert!(
+        err.contains("calibrated 117 markers (9 rows × 13 columns"),
+        "{err}"
+    );
+    let out = d.join("f.csv");
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&d.join("frames")),
+        "-o",
+        s(&out),
+    ]));
+    let (checked, mean, worst) = compare_with_truth(&d, &sensor, &out, false);
+    eprintln!(
+        "iats: {checked} marker-frames, centroid error mean {mean:.3} px, worst {worst:.3} px"
+    );
+    assert!(checked >= 6 * 110, "{checked}");
+    assert!(
+        mean < 0.1 && worst < 0.3,
+        "mean {mean} px, worst {worst} px"
+    );
+    // Every fully visible marker is found.
+    let feats = rows(&out);
+    let truth = rows(&d.join("truth.csv"));
+    for f in &feats {
+        let visible = truth
+            .iter()
+            .filter(|t| t["frame"] == f["frame"] && t["fully_in_view"] == "1")
+            .count();
+        assert!(
+            f["n_found"].parse::<usize>().unwrap() >= visible,
+            "{}",
+            f["frame"]
+        );
+    }
+}
+
+#[test]
+fn cone_session_with_force_stream() {
+    let d = tmp("cone");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "cone",
+        "--protocol",
+        "press-rotate",
+        "--duration-s",
+        "2",
+        "--references",
+        "5",
+        "-o",
+        s(&d),
+    ]));
+    let force = rows(&d.join("force.csv"));
+    assert_eq!(
+        force.len(),
+        2200,
+        "1 kHz over 0.2 s of references and the 2 s press"
+    );
+    let labels = rows(&d.join("labels.csv"));
+    assert_eq!(labels.len(), 50);
+    let peak = labels
+        .iter()
+        .map(|r| r["force_n"].parse::<f64>().unwrap())
+        .fold(0.0, f64::max);
+    assert!((peak - 10.0).abs() < 0.1, "peak {peak}");
+    let sensor = d.join("sensor.json");
+    let err = ok(&vt(&[
+        "calibrate",
+        s(&d.join("reference")),
+        "--preset",
+        "cone",
+        "--layout",
+        "rings",
+        "-o",
+        s(&sensor),
+    ]));
+    assert!(
+        err.contains("calibrated 2 markers"),
+        "the outermost ring is cut by the border: {err}"
+    );
+    let out = d.join("f.csv");
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&d.join("frames")),
+        "-o",
+        s(&out),
+    ]));
+    let (checked, mean, worst) = compare_with_truth(&d, &sensor, &out, true);
+    eprintln!("cone: {checked} ring-frames, centroid error mean {mean:.3} px, worst {worst:.3} px");
+    assert_eq!(checked, 100);
+    // A ring's centroid moves by radius / area ≈ 0.03 px for every pixel the camera noise flips
+    // across the threshold (the lever arm of a 200 px ring): rings are noisier than dots.
+    assert!(
+        mean < 0.3 && worst < 0.8,
+        "mean {mean} px, worst {worst} px"
+    );
+}
+
+#[test]
+fn same_seed_same_bytes() {
+    let (a, b) = (tmp("det-a"), tmp("det-b"));
+    for d in [&a, &b] {
+        ok(&vt(&[
+            "simulate",
+            "--sensor",
+            "iats",
+            "--protocol",
+            "line",
+            "--references",
+            "2",
+            "--seed",
+            "5",
+            "-o",
+            s(d),
+        ]));
+    }
+    for f in [
+        "session.json",
+        "frames.csv",
+        "labels.csv",
+        "truth.csv",
+        "reference/ref_0001.png",
+        "frames/frame_000006.png",
+    ] {
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    let c = tmp("det-c");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "line",
+        "--references",
+        "2",
+        "--seed",
+        "6",
+        "-o",
+        s(&c),
+    ]));
+    assert_ne!(
+        std::fs::read(a.join("frames/frame_000006.png")).unwrap(),
+        std::fs::read(c.join("frames/frame_000006.png")).unwrap()
+    );
+}
+
+#[test]
+fn impossible_settings_are_refused() {
+    let d = tmp("bad");
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["--sensor", "iats", "--protocol", "grid", "--fps", "0"],
+            "--fps must be a positive frame rate",
+        ),
+        (
+            &["--sensor", "iats", "--protocol", "press"],
+            "not an iats protocol",
+        ),
+        (
+            &["--sensor", "cone", "--protocol", "grid"],
+            "not a cone protocol",
+        ),
+        (
+            &[
+                "--sensor",
+                "cone",
+                "--protocol",
+                "press",
+                "--max-force-n=-3",
+            ],
+            "peak force must be ≥ 0 N",
+        ),
+        (
+            &[
+                "--sensor",
+                "cone",
+                "--protocol",
+                "press",
+                "--force-rate-hz",
+                "0",
+            ],
+            "force sample rate must be positive",
+        ),
+    ];
+    for (args, want) in cases {
+        let mut all = vec!["simulate", "-o", s(&d)];
+        all.extend_from_slice(args);
+        let o = vt(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "line",
+        "--references",
+        "1",
+        "-o",
+        s(&d),
+    ]));
+    let o = vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "line",
+        "-o",
+        s(&d),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already holds a session"));
+}
