@@ -369,3 +369,38 @@ fn impossible_settings_are_refused() {
     ]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("already holds a session"));
 }
+
+#[test]
+fn force_stream_goes_out_over_udp_on_loopback() {
+    use visuotact_io::force::ForceLayout;
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    sock.set_read_timeout(Some(std::time::Duration::from_secs(5))).unwrap();
+    let addr = sock.local_addr().unwrap().to_string();
+    let d = tmp("udp");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(["simulate", "--sensor", "cone", "--protocol", "press", "--duration-s", "0.4", "--references", "2"])
+        .args(["--udp", &addr, "-o", s(&d)])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let layout = ForceLayout::default();
+    let mut buf = [0u8; 128];
+    let mut got = Vec::new();
+    while got.len() < 480 {
+        match sock.recv(&mut buf) {
+            Ok(n) => got.push(layout.decode(&buf[..n]).unwrap()),
+            Err(_) => break,
+        }
+    }
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // 0.08 s of references + 0.4 s of press at 1 kHz; loopback may drop a few under load.
+    assert!(got.len() >= 470, "received {} packets", got.len());
+    let file = rows(&d.join("force.csv"));
+    assert_eq!(file.len(), 480);
+    for p in got.iter().take(10) {
+        let k = (p.timestamp_s * 1000.0).round() as usize;
+        let fx: f64 = file[k]["fx_n"].parse().unwrap();
+        assert!((p.values[0] - fx).abs() < 1e-5, "packet and file agree");
+    }
+}

@@ -8,8 +8,9 @@
 //!   contact to the clamped frame in the direction of the point: touches near an edge make a
 //!   steeper, shorter dent than central ones. `w = 0` on the frame, `w = d` under the tip.
 //! - The fabric is pulled towards the dent: a point at distance `r` moves inwards by
-//!   `ε ∫_r^L (sqrt(1 + w'(s)²) − 1) ds`, the arc-length excess between it and the frame times
-//!   a coupling `ε` (1: inextensible fabric). This grows with `d²`: the response is nonlinear.
+//!   `ε (r/ρ) ∫_ρ^L (sqrt(1 + w'(s)²) − 1) ds` with `ρ = sqrt(r² + a²)`, the arc-length excess
+//!   between it and the frame times a coupling `ε` (1: inextensible fabric), faded smoothly to
+//!   zero at the centre. This grows with `d²`: the response is nonlinear.
 //! - A sideways drag `s` moves material by `s · w/d` (all of it under the tip, none at the frame).
 //! - Each marker is a circle painted on the fabric: its boundary points are moved by the field
 //!   (in plane and towards the camera), so the marker shifts, grows as it comes closer to the
@@ -235,9 +236,11 @@ pub fn displacement_mm(cfg: &IatsConfig, touch: &Touch, x: f64, y: f64) -> [f64;
         }
     };
     let p = psi(r);
-    // Arc-length excess from max(r, a) to the frame: ∫ sqrt(1 + w'²) − 1, w' = −d/(s Λ),
-    // integrated on a log scale (Simpson, 32 intervals).
-    let s0 = r.max(a);
+    // Arc-length excess from ρ = sqrt(r² + a²) (a smooth stand-in for max(r, a): no kink at the
+    // contact edge) to the frame: ∫ sqrt(1 + w'²) − 1, w' = −d/(s Λ), integrated on a log scale
+    // (Simpson, 32 intervals).
+    let rho = r.hypot(a);
+    let s0 = rho;
     let excess = if s0 >= l {
         0.0
     } else {
@@ -255,8 +258,8 @@ pub fn displacement_mm(cfg: &IatsConfig, touch: &Touch, x: f64, y: f64) -> [f64;
         }
         acc * h / 3.0
     };
-    // Inside the contact the pull fades linearly to zero at the centre.
-    let inward = cfg.stretch_coupling * excess * if r < a { r / a } else { 1.0 };
+    // The pull fades smoothly to zero at the centre of the contact (r / ρ).
+    let inward = cfg.stretch_coupling * excess * r / rho;
     [
         -ux * inward + touch.shear_x_mm * p,
         -uy * inward + touch.shear_y_mm * p,

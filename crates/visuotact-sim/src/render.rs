@@ -155,9 +155,10 @@ pub struct ConvexPolygon {
 }
 
 impl ConvexPolygon {
-    /// From vertices in order (either direction). Returns `None` for fewer than 3 vertices or a
-    /// degenerate (zero-area) polygon.
-    pub fn new(vertices: Vec<(f64, f64)>) -> Option<Self> {
+    /// The convex hull of `points` (so a slightly dented outline is drawn, and measured as
+    /// truth, as its hull). Returns `None` for fewer than 3 points or a zero-area hull.
+    pub fn new(points: Vec<(f64, f64)>) -> Option<Self> {
+        let vertices = convex_hull(points);
         if vertices.len() < 3 {
             return None;
         }
@@ -219,6 +220,35 @@ impl ConvexPolygon {
             |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
         )
     }
+}
+
+/// Andrew's monotone chain: hull vertices counter-clockwise (in x-right, y-down pixels,
+/// clockwise on screen), collinear points dropped.
+fn convex_hull(mut p: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    p.retain(|q| q.0.is_finite() && q.1.is_finite());
+    p.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let mut hull: Vec<(f64, f64)> = Vec::with_capacity(2 * p.len());
+    // Lower chain, then upper chain; the upper chain never pops into the lower one.
+    for &q in &p {
+        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(q);
+    }
+    let lower = hull.len() + 1;
+    for &q in p.iter().rev().skip(1) {
+        while hull.len() >= lower && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(q);
+    }
+    hull.pop();
+    hull
 }
 
 /// A convex polygon seen by one row of pixel squares `[x ± ½] × [y ± ½]`.
@@ -439,6 +469,14 @@ mod tests {
         let (a, (cx, cy)) = poly.area_centroid();
         assert!((s - a).abs() < 0.01 * a, "coverage {s} vs area {a}");
         assert!((sx / s - cx).abs() < 0.01 && (sy / s - cy).abs() < 0.01);
+    }
+
+    #[test]
+    fn dented_outlines_become_their_hull() {
+        let square_with_dent = vec![(0.0, 0.0), (2.0, 1.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)];
+        let p = ConvexPolygon::new(square_with_dent).unwrap();
+        let (a, (x, y)) = p.area_centroid();
+        assert!((a - 16.0).abs() < 1e-12 && (x - 2.0).abs() < 1e-12 && (y - 2.0).abs() < 1e-12);
     }
 
     #[test]
