@@ -54,6 +54,24 @@ pub(crate) struct Args {
     /// Packet fields for --udp (packed little-endian f64).
     #[arg(long, default_value = "timestamp_s,fx,fy,fz,tx,ty,tz")]
     force_layout: String,
+    /// JSON file with the sensor model's settings (any subset of the fields of the `config`
+    /// object in a session.json; the rest keep the seed's preset), to match your own sensor.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+}
+
+/// The sensor model: the seed preset, overridden by `--config` when given.
+fn sensor_config<T: serde::de::DeserializeOwned + Default>(a: &Args) -> anyhow::Result<T> {
+    match &a.config {
+        None => Ok(T::default()),
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("{}: cannot read", p.display()))?;
+            serde_json::from_str(&text).map_err(|e| {
+                anyhow::anyhow!("{}: not a {} sensor model: {e}", p.display(), a.sensor)
+            })
+        }
+    }
 }
 
 /// Per-frame noise seed: SplitMix64 of the session seed and the frame number.
@@ -137,8 +155,9 @@ fn write_references(
 }
 
 fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
-    let cfg = IatsConfig::SEED000;
-    cfg.validate().map_err(anyhow::Error::msg)?;
+    let cfg: IatsConfig = sensor_config(a)?;
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
     let touches: Vec<Touch> = match a.protocol.as_str() {
         "grid" => protocol::iats_grid(),
         "random" => protocol::iats_random(&cfg, a.touches, a.seed),
@@ -196,8 +215,9 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
 }
 
 fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
-    let cfg = ConeConfig::SEED001;
-    cfg.validate().map_err(anyhow::Error::msg)?;
+    let cfg: ConeConfig = sensor_config(a)?;
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
     let press = ConePress {
         max_force_n: a.max_force_n,
         duration_s: a.duration_s,

@@ -374,11 +374,22 @@ fn impossible_settings_are_refused() {
 fn force_stream_goes_out_over_udp_on_loopback() {
     use visuotact_io::force::ForceLayout;
     let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-    sock.set_read_timeout(Some(std::time::Duration::from_secs(5))).unwrap();
+    sock.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+        .unwrap();
     let addr = sock.local_addr().unwrap().to_string();
     let d = tmp("udp");
     let child = std::process::Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(["simulate", "--sensor", "cone", "--protocol", "press", "--duration-s", "0.4", "--references", "2"])
+        .args([
+            "simulate",
+            "--sensor",
+            "cone",
+            "--protocol",
+            "press",
+            "--duration-s",
+            "0.4",
+            "--references",
+            "2",
+        ])
         .args(["--udp", &addr, "-o", s(&d)])
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -393,7 +404,11 @@ fn force_stream_goes_out_over_udp_on_loopback() {
         }
     }
     let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // 0.08 s of references + 0.4 s of press at 1 kHz; loopback may drop a few under load.
     assert!(got.len() >= 470, "received {} packets", got.len());
     let file = rows(&d.join("force.csv"));
@@ -403,4 +418,60 @@ fn force_stream_goes_out_over_udp_on_loopback() {
         let fx: f64 = file[k]["fx_n"].parse().unwrap();
         assert!((p.values[0] - fx).abs() < 1e-5, "packet and file agree");
     }
+}
+
+#[test]
+fn a_config_file_matches_the_simulator_to_another_sensor() {
+    let d = tmp("config");
+    std::fs::create_dir_all(&d).unwrap();
+    let cfg = d.join("my_sensor.json");
+    std::fs::write(
+        &cfg,
+        r#"{"cols": 8, "rows": 6, "span_x_mm": 40, "span_y_mm": 30, "camera": {"k1": -0.2}}"#,
+    )
+    .unwrap();
+    let session = d.join("session");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "line",
+        "--config",
+        s(&cfg),
+        "-o",
+        s(&session),
+    ]));
+    let desc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(session.join("session.json")).unwrap())
+            .unwrap();
+    assert_eq!(desc["config"]["cols"], 8);
+    assert_eq!(desc["config"]["camera"]["k1"], -0.2);
+    assert_eq!(
+        desc["config"]["tip_radius_mm"], 5.0,
+        "unspecified fields keep the preset"
+    );
+    let err = ok(&vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "-o",
+        s(&d.join("s.json")),
+    ]));
+    assert!(
+        err.contains("calibrated 48 markers (6 rows × 8 columns"),
+        "{err}"
+    );
+    std::fs::write(&cfg, r#"{"colz": 8}"#).unwrap();
+    let o = vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "line",
+        "--config",
+        s(&cfg),
+        "-o",
+        s(&d.join("x")),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown field `colz`"));
 }

@@ -13,7 +13,8 @@
 //! ```
 
 /// Intrinsics and distortion.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Camera {
     /// Image width, pixels.
     pub width: usize,
@@ -111,6 +112,12 @@ impl Camera {
     pub fn mm_from_px(&self, u: f64, v: f64, z_mm: f64) -> [f64; 3] {
         let (x, y) = self.ray_from_px(u, v);
         [x * z_mm, y * z_mm, z_mm]
+    }
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Self::WEBCAM_640X480
     }
 }
 

@@ -19,7 +19,8 @@ use crate::pattern::Look;
 use crate::render::{ring_area_centroid, Canvas, ConvexPolygon};
 
 /// Every physical and optical parameter of the cone simulator.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ConeConfig {
     /// Length from the base (camera) to the distal end, mm.
     pub length_mm: f64,

@@ -28,7 +28,8 @@ use crate::pattern::Look;
 use crate::render::{ring_area_centroid, Canvas, ConvexPolygon};
 
 /// Every physical and optical parameter of the IATS simulator.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct IatsConfig {
     /// Marker columns.
     pub cols: usize,

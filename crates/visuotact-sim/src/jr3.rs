@@ -6,7 +6,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 /// Sensor parameters.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Jr3Config {
     /// Sample rate, Hz.
     pub rate_hz: f64,
@@ -55,6 +56,12 @@ impl Jr3Config {
             return Err("force sensor noise, drift and lever arm must be ≥ 0".into());
         }
         Ok(())
+    }
+}
+
+impl Default for Jr3Config {
+    fn default() -> Self {
+        Self::JR3_1KHZ
     }
 }
 

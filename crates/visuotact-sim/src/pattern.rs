@@ -13,7 +13,8 @@ use visuotact_image::RgbImage;
 use crate::render::{Canvas, Ellipse};
 
 /// Camera and colours.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Look {
     /// Background colour (R, G, B), 0..255.
     pub background: [f32; 3],
@@ -40,6 +41,12 @@ impl Look {
         noise_sigma: 3.0,
         vignetting: 0.2,
     };
+}
+
+impl Default for Look {
+    fn default() -> Self {
+        Self::GREEN_ON_DARK
+    }
 }
 
 /// A dot grid.

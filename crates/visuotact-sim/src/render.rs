@@ -231,7 +231,9 @@ fn convex_hull(mut p: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     if p.len() < 3 {
         return p;
     }
-    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
     let mut hull: Vec<(f64, f64)> = Vec::with_capacity(2 * p.len());
     // Lower chain, then upper chain; the upper chain never pops into the lower one.
     for &q in &p {
