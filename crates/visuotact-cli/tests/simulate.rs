@@ -107,6 +107,26 @@ fn compare_with_truth(
     (checked, sum / checked.max(1) as f64, worst)
 }
 
+/// `calibrate SESSION/reference [extra]` then `extract SESSION/frames`; returns the sensor
+/// file, the feature table and what calibrate printed.
+fn calibrate_and_extract(d: &Path, extra: &[&str]) -> (PathBuf, PathBuf, String) {
+    let sensor = d.join("sensor.json");
+    let reference = d.join("reference");
+    let mut args = vec!["calibrate", s(&reference), "-o", s(&sensor)];
+    args.extend_from_slice(extra);
+    let err = ok(&vt(&args));
+    let out = d.join("f.csv");
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&d.join("frames")),
+        "-o",
+        s(&out),
+    ]));
+    (sensor, out, err)
+}
+
 #[test]
 fn iats_session_calibrates_extracts_and_matches_truth() {
     let d = tmp("iats");
@@ -140,26 +160,11 @@ fn iats_session_calibrates_extracts_and_matches_truth() {
     assert!(labels
         .iter()
         .all(|r| r["depth_mm"].parse::<f64>().unwrap() >= 1.0));
-    let sensor = d.join("sensor.json");
-    let err = ok(&vt(&[
-        "calibrate",
-        s(&d.join("reference")),
-        "-o",
-        s(&sensor),
-    ]));
+    let (sensor, out, err) = calibrate_and_extract(&d, &[]);
     assert!(
         err.contains("calibrated 117 markers (9 rows × 13 columns"),
         "{err}"
     );
-    let out = d.join("f.csv");
-    ok(&vt(&[
-        "extract",
-        "--sensor",
-        s(&sensor),
-        s(&d.join("frames")),
-        "-o",
-        s(&out),
-    ]));
     let (checked, mean, worst) = compare_with_truth(&d, &sensor, &out, false);
     eprintln!(
         "iats: {checked} marker-frames, centroid error mean {mean:.3} px, worst {worst:.3} px"
@@ -214,30 +219,11 @@ fn cone_session_with_force_stream() {
         .map(|r| r["force_n"].parse::<f64>().unwrap())
         .fold(0.0, f64::max);
     assert!((peak - 10.0).abs() < 0.1, "peak {peak}");
-    let sensor = d.join("sensor.json");
-    let err = ok(&vt(&[
-        "calibrate",
-        s(&d.join("reference")),
-        "--preset",
-        "cone",
-        "--layout",
-        "rings",
-        "-o",
-        s(&sensor),
-    ]));
+    let (sensor, out, err) = calibrate_and_extract(&d, &["--preset", "cone", "--layout", "rings"]);
     assert!(
         err.contains("calibrated 2 markers"),
         "the outermost ring is cut by the border: {err}"
     );
-    let out = d.join("f.csv");
-    ok(&vt(&[
-        "extract",
-        "--sensor",
-        s(&sensor),
-        s(&d.join("frames")),
-        "-o",
-        s(&out),
-    ]));
     let (checked, mean, worst) = compare_with_truth(&d, &sensor, &out, true);
     eprintln!("cone: {checked} ring-frames, centroid error mean {mean:.3} px, worst {worst:.3} px");
     assert_eq!(checked, 100);
