@@ -1,0 +1,386 @@
+//! Levenberg–Marquardt for any least-squares problem `min ‖r(p)‖²`.
+//!
+//! Each iteration solves `(JᵀJ + μD) δ = −Jᵀr` (D = I as MATLAB's `trainlm`, or
+//! D = diag(JᵀJ), Marquardt's scaling) with a Cholesky factorisation (faer `llt`); when there
+//! are fewer residuals than parameters it solves the smaller dual system
+//! `δ = −Jᵀ (JJᵀ + μI)⁻¹ r`, which is the same step for D = I. A factorisation that fails
+//! (not positive definite in floating point) raises μ and tries again. A step that lowers the
+//! cost is taken and μ shrinks by `mu_dec`; otherwise μ grows by `mu_inc` until `mu_max`.
+//!
+//! Not converging is an outcome ([`StopReason`]), never an error; the caller's callback sees
+//! every iteration and can stop the solver.
+
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
+
+/// A least-squares problem: residuals and their Jacobian at a parameter vector.
+pub trait Problem {
+    /// Number of parameters.
+    fn n_params(&self) -> usize;
+    /// Number of residuals.
+    fn n_residuals(&self) -> usize;
+    /// Residuals at `p` into `out` (length [`Problem::n_residuals`]).
+    fn residuals(&mut self, p: &[f64], out: &mut [f64]);
+    /// Jacobian `∂rᵢ/∂pⱼ` at `p` into `jac` (n_residuals × n_params).
+    fn jacobian(&mut self, p: &[f64], jac: &mut Mat<f64>);
+}
+
+/// Damping matrix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Damping {
+    /// μ·I, as MATLAB `trainlm`.
+    Identity,
+    /// μ·diag(JᵀJ) (Marquardt 1963): invariant to the scale of each parameter.
+    Marquardt,
+}
+
+/// Solver settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LmConfig {
+    /// Initial μ.
+    pub mu: f64,
+    /// μ factor after a successful step.
+    pub mu_dec: f64,
+    /// μ factor after a failed step.
+    pub mu_inc: f64,
+    /// Stop when μ exceeds this.
+    pub mu_max: f64,
+    /// Stop when ‖Jᵀr‖ falls below this.
+    pub min_grad: f64,
+    /// Stop after this many iterations (epochs).
+    pub max_iterations: usize,
+    /// Stop when a step changes every parameter by less than this relative amount.
+    pub min_relative_step: f64,
+    /// Damping matrix.
+    pub damping: Damping,
+}
+
+impl LmConfig {
+    /// MATLAB `trainlm` defaults: μ = 1e−3, ×0.1 / ×10, μ_max 1e10, min gradient 1e−7,
+    /// 1000 epochs.
+    pub const TRAINLM: Self = Self {
+        mu: 1e-3,
+        mu_dec: 0.1,
+        mu_inc: 10.0,
+        mu_max: 1e10,
+        min_grad: 1e-7,
+        max_iterations: 1000,
+        min_relative_step: 0.0,
+        damping: Damping::Identity,
+    };
+
+    /// For precise curve fitting (NIST StRD): Marquardt scaling, iterate until steps stop
+    /// changing the parameters.
+    pub const PRECISE: Self = Self {
+        mu: 1e-3,
+        mu_dec: 0.1,
+        mu_inc: 10.0,
+        mu_max: 1e16,
+        min_grad: 0.0,
+        max_iterations: 10_000,
+        min_relative_step: 1e-15,
+        damping: Damping::Marquardt,
+    };
+}
+
+impl Default for LmConfig {
+    fn default() -> Self {
+        Self::TRAINLM
+    }
+}
+
+/// Why the solver stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    /// ‖Jᵀr‖ below `min_grad`.
+    MinGradient,
+    /// `max_iterations` reached.
+    MaxIterations,
+    /// μ exceeded `mu_max`: no step lowers the cost.
+    MuMax,
+    /// The last step changed no parameter by more than `min_relative_step`.
+    SmallStep,
+    /// The residuals are exactly zero.
+    ZeroResidual,
+    /// The callback asked to stop.
+    Callback,
+    /// Residuals or Jacobian are not finite at the start.
+    NonFinite,
+}
+
+/// What the callback sees after each iteration.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Iterations done.
+    pub iteration: usize,
+    /// Current sum of squared residuals.
+    pub cost: f64,
+    /// Current μ.
+    pub mu: f64,
+    /// ‖Jᵀr‖ at the start of the iteration.
+    pub gradient_norm: f64,
+}
+
+/// The callback's answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Control {
+    /// Keep going.
+    Continue,
+    /// Stop now (the outcome says [`StopReason::Callback`]).
+    Stop,
+}
+
+/// The result of a run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LmOutcome {
+    /// Best parameters found.
+    pub params: Vec<f64>,
+    /// Their sum of squared residuals.
+    pub cost: f64,
+    /// Iterations done.
+    pub iterations: usize,
+    /// Residual evaluations.
+    pub evaluations: usize,
+    /// Final μ.
+    pub mu: f64,
+    /// Why it stopped.
+    pub reason: StopReason,
+}
+
+fn sum_sq(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
+}
+
+/// Minimises `‖r(p)‖²` from `p0`, calling `callback` after every iteration.
+pub fn minimize<P: Problem>(
+    problem: &mut P,
+    p0: &[f64],
+    cfg: &LmConfig,
+    mut callback: impl FnMut(&Progress) -> Control,
+) -> LmOutcome {
+    let (n, m) = (problem.n_params(), problem.n_residuals());
+    assert_eq!(p0.len(), n, "starting point must have n_params entries");
+    let mut p = p0.to_vec();
+    let mut r = vec![0.0; m];
+    let mut r_new = vec![0.0; m];
+    let mut p_new = vec![0.0; n];
+    let mut jac = Mat::<f64>::zeros(m, n);
+    problem.residuals(&p, &mut r);
+    let mut evaluations = 1;
+    let mut cost = sum_sq(&r);
+    let mut mu = cfg.mu;
+    let outcome = |p: Vec<f64>, cost, iterations, evaluations, mu, reason| LmOutcome {
+        params: p,
+        cost,
+        iterations,
+        evaluations,
+        mu,
+        reason,
+    };
+    if !cost.is_finite() {
+        return outcome(p, cost, 0, evaluations, mu, StopReason::NonFinite);
+    }
+    let dual = m < n;
+    for iteration in 0..cfg.max_iterations {
+        if cost == 0.0 {
+            return outcome(
+                p,
+                cost,
+                iteration,
+                evaluations,
+                mu,
+                StopReason::ZeroResidual,
+            );
+        }
+        problem.jacobian(&p, &mut jac);
+        let rv = Mat::<f64>::from_fn(m, 1, |i, _| r[i]);
+        let g = jac.transpose() * &rv; // n × 1
+        let gnorm = (0..n).map(|i| g[(i, 0)] * g[(i, 0)]).sum::<f64>().sqrt();
+        if !gnorm.is_finite() {
+            return outcome(p, cost, iteration, evaluations, mu, StopReason::NonFinite);
+        }
+        if gnorm < cfg.min_grad {
+            return outcome(p, cost, iteration, evaluations, mu, StopReason::MinGradient);
+        }
+        // The Gram matrix once per iteration; μ changes only its diagonal.
+        let gram = if dual {
+            &jac * jac.transpose()
+        } else {
+            jac.transpose() * &jac
+        };
+        let k = gram.nrows();
+        let diag: Vec<f64> = match (cfg.damping, dual) {
+            (Damping::Marquardt, false) => (0..k).map(|i| gram[(i, i)].max(1e-300)).collect(),
+            _ => vec![1.0; k],
+        };
+        let mut accepted = false;
+        let mut small_step = false;
+        while mu <= cfg.mu_max {
+            let mut a = gram.clone();
+            for i in 0..k {
+                a[(i, i)] += mu * diag[i];
+            }
+            let step: Option<Mat<f64>> = match a.llt(Side::Lower) {
+                Ok(llt) => {
+                    if dual {
+                        // δ = −Jᵀ (JJᵀ + μI)⁻¹ r
+                        let y = llt.solve(&rv);
+                        Some(-(jac.transpose() * &y))
+                    } else {
+                        Some(-llt.solve(&g))
+                    }
+                }
+                Err(_) => None,
+            };
+            let Some(step) = step.filter(|s| (0..n).all(|i| s[(i, 0)].is_finite())) else {
+                mu *= cfg.mu_inc;
+                continue;
+            };
+            let mut max_rel = 0.0f64;
+            for i in 0..n {
+                p_new[i] = p[i] + step[(i, 0)];
+                max_rel = max_rel.max(step[(i, 0)].abs() / p[i].abs().max(1e-300));
+            }
+            problem.residuals(&p_new, &mut r_new);
+            evaluations += 1;
+            let c = sum_sq(&r_new);
+            if c.is_finite() && c < cost {
+                std::mem::swap(&mut p, &mut p_new);
+                std::mem::swap(&mut r, &mut r_new);
+                cost = c;
+                mu = (mu * cfg.mu_dec).max(1e-300);
+                accepted = true;
+                small_step = max_rel < cfg.min_relative_step;
+                break;
+            }
+            if max_rel < cfg.min_relative_step {
+                small_step = true;
+                break;
+            }
+            mu *= cfg.mu_inc;
+        }
+        let progress = Progress {
+            iteration: iteration + 1,
+            cost,
+            mu,
+            gradient_norm: gnorm,
+        };
+        if !accepted && !small_step {
+            return outcome(p, cost, iteration + 1, evaluations, mu, StopReason::MuMax);
+        }
+        if small_step {
+            return outcome(
+                p,
+                cost,
+                iteration + 1,
+                evaluations,
+                mu,
+                StopReason::SmallStep,
+            );
+        }
+        if callback(&progress) == Control::Stop {
+            return outcome(
+                p,
+                cost,
+                iteration + 1,
+                evaluations,
+                mu,
+                StopReason::Callback,
+            );
+        }
+    }
+    outcome(
+        p,
+        cost,
+        cfg.max_iterations,
+        evaluations,
+        mu,
+        StopReason::MaxIterations,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// r(p) = A p − b for a fixed A (m × n).
+    struct Linear {
+        a: Mat<f64>,
+        b: Vec<f64>,
+    }
+
+    impl Problem for Linear {
+        fn n_params(&self) -> usize {
+            self.a.ncols()
+        }
+        fn n_residuals(&self) -> usize {
+            self.a.nrows()
+        }
+        fn residuals(&mut self, p: &[f64], out: &mut [f64]) {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = (0..p.len()).map(|j| self.a[(i, j)] * p[j]).sum::<f64>() - self.b[i];
+            }
+        }
+        fn jacobian(&mut self, _p: &[f64], jac: &mut Mat<f64>) {
+            jac.copy_from(&self.a);
+        }
+    }
+
+    fn linear(m: usize, n: usize) -> Linear {
+        let a = Mat::from_fn(m, n, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 - 5.0 + if i == j { 10.0 } else { 0.0 }
+        });
+        let b = (0..m).map(|i| (i as f64).sin()).collect();
+        Linear { a, b }
+    }
+
+    #[test]
+    fn overdetermined_linear_problem_reaches_the_least_squares_solution() {
+        let mut prob = linear(12, 4);
+        let out = minimize(&mut prob, &[0.0; 4], &LmConfig::TRAINLM, |_| {
+            Control::Continue
+        });
+        // At the optimum the gradient Aᵀr vanishes.
+        let mut r = vec![0.0; 12];
+        prob.residuals(&out.params, &mut r);
+        for j in 0..4 {
+            let g: f64 = (0..12).map(|i| prob.a[(i, j)] * r[i]).sum();
+            assert!(g.abs() < 1e-6, "gradient {g}");
+        }
+        assert_eq!(out.reason, StopReason::MinGradient);
+    }
+
+    #[test]
+    fn underdetermined_problem_uses_the_dual_system_and_fits_exactly() {
+        let mut prob = linear(3, 8);
+        let out = minimize(&mut prob, &[0.0; 8], &LmConfig::TRAINLM, |_| {
+            Control::Continue
+        });
+        assert!(out.cost < 1e-12, "cost {}", out.cost);
+    }
+
+    #[test]
+    fn callback_can_stop_and_sees_decreasing_cost() {
+        let mut prob = linear(12, 4);
+        let mut costs = Vec::new();
+        let out = minimize(&mut prob, &[5.0; 4], &LmConfig::TRAINLM, |p| {
+            costs.push(p.cost);
+            if p.iteration == 2 {
+                Control::Stop
+            } else {
+                Control::Continue
+            }
+        });
+        assert_eq!((out.reason, out.iterations), (StopReason::Callback, 2));
+        assert!(costs.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    #[test]
+    fn non_finite_start_is_an_outcome() {
+        let mut prob = linear(4, 2);
+        let out = minimize(&mut prob, &[f64::NAN, 0.0], &LmConfig::TRAINLM, |_| {
+            Control::Continue
+        });
+        assert_eq!(out.reason, StopReason::NonFinite);
+    }
+}
