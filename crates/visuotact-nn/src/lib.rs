@@ -6,4 +6,5 @@
 
 pub mod dual;
 pub mod lm;
+pub mod mlp;
 pub mod nist;

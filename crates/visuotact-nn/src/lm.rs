@@ -110,7 +110,7 @@ pub enum StopReason {
 
 /// What the callback sees after each iteration.
 #[derive(Clone, Copy, Debug)]
-pub struct Progress {
+pub struct Progress<'a> {
     /// Iterations done.
     pub iteration: usize,
     /// Current sum of squared residuals.
@@ -119,6 +119,8 @@ pub struct Progress {
     pub mu: f64,
     /// ‖Jᵀr‖ at the start of the iteration.
     pub gradient_norm: f64,
+    /// Current parameters.
+    pub params: &'a [f64],
 }
 
 /// The callback's answer.
@@ -156,7 +158,7 @@ pub fn minimize<P: Problem>(
     problem: &mut P,
     p0: &[f64],
     cfg: &LmConfig,
-    mut callback: impl FnMut(&Progress) -> Control,
+    mut callback: impl FnMut(&Progress<'_>) -> Control,
 ) -> LmOutcome {
     let (n, m) = (problem.n_params(), problem.n_residuals());
     assert_eq!(p0.len(), n, "starting point must have n_params entries");
@@ -259,12 +261,6 @@ pub fn minimize<P: Problem>(
             }
             mu *= cfg.mu_inc;
         }
-        let progress = Progress {
-            iteration: iteration + 1,
-            cost,
-            mu,
-            gradient_norm: gnorm,
-        };
         if !accepted && !small_step {
             return outcome(p, cost, iteration + 1, evaluations, mu, StopReason::MuMax);
         }
@@ -278,6 +274,13 @@ pub fn minimize<P: Problem>(
                 StopReason::SmallStep,
             );
         }
+        let progress = Progress {
+            iteration: iteration + 1,
+            cost,
+            mu,
+            gradient_norm: gnorm,
+            params: &p,
+        };
         if callback(&progress) == Control::Stop {
             return outcome(
                 p,

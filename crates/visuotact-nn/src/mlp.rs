@@ -1,0 +1,459 @@
+//! Feed-forward networks as MATLAB's `feedforwardnet` + `trainlm` build them: tanh hidden
+//! layers, a linear output layer, inputs and targets scaled to [−1, 1] (`mapminmax`),
+//! Nguyen–Widrow initial weights, the Jacobian of the outputs by back-propagation, and
+//! training by Levenberg–Marquardt with a train/validation/test split and early stopping.
+//!
+//! Parameter layout: layer by layer, each layer's weights row by row (`out × in`) then its
+//! biases.
+
+use faer::Mat;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::lm::{minimize, Control, LmConfig, LmOutcome, Problem, StopReason};
+
+/// Layer sizes and weights.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Mlp {
+    /// `[inputs, hidden…, outputs]`.
+    pub sizes: Vec<usize>,
+    /// All weights and biases in layer order.
+    pub params: Vec<f64>,
+}
+
+impl Mlp {
+    /// Number of parameters of a network with these sizes.
+    pub fn n_params_for(sizes: &[usize]) -> usize {
+        sizes.windows(2).map(|w| w[1] * w[0] + w[1]).sum()
+    }
+
+    /// Nguyen–Widrow initialisation for the hidden layers (β = 0.7 H^(1/N), weight rows of norm
+    /// β, biases uniform in ±β), uniform ±0.5 for the output layer; deterministic in `seed`.
+    pub fn nguyen_widrow(sizes: &[usize], seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut params = Vec::with_capacity(Self::n_params_for(sizes));
+        let layers = sizes.len() - 1;
+        for (l, w) in sizes.windows(2).enumerate() {
+            let (n_in, n_out) = (w[0], w[1]);
+            if l + 1 == layers {
+                for _ in 0..n_out * n_in + n_out {
+                    params.push(rng.random_range(-0.5..0.5));
+                }
+                continue;
+            }
+            let beta = 0.7 * (n_out as f64).powf(1.0 / n_in.max(1) as f64);
+            for _ in 0..n_out {
+                let row: Vec<f64> = (0..n_in).map(|_| rng.random_range(-1.0..1.0)).collect();
+                let norm = row.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-12);
+                params.extend(row.iter().map(|v| beta * v / norm));
+            }
+            for _ in 0..n_out {
+                params.push(rng.random_range(-beta..beta));
+            }
+        }
+        Self {
+            sizes: sizes.to_vec(),
+            params,
+        }
+    }
+
+    /// Outputs for one (scaled) input into `out`; `acts` receives every layer's activations.
+    fn forward_into(&self, p: &[f64], x: &[f64], acts: &mut Vec<Vec<f64>>) {
+        let layers = self.sizes.len() - 1;
+        acts.resize(layers + 1, Vec::new());
+        acts[0].clear();
+        acts[0].extend_from_slice(x);
+        let mut off = 0;
+        for l in 0..layers {
+            let (n_in, n_out) = (self.sizes[l], self.sizes[l + 1]);
+            let (w, rest) = p[off..].split_at(n_in * n_out);
+            let b = &rest[..n_out];
+            off += n_in * n_out + n_out;
+            let (prev, next) = acts.split_at_mut(l + 1);
+            let a = &prev[l];
+            let z = &mut next[0];
+            z.clear();
+            for o in 0..n_out {
+                let row = &w[o * n_in..(o + 1) * n_in];
+                let s: f64 = row.iter().zip(a).map(|(wi, ai)| wi * ai).sum::<f64>() + b[o];
+                z.push(if l + 1 == layers { s } else { s.tanh() });
+            }
+        }
+    }
+
+    /// Outputs for one scaled input.
+    pub fn forward(&self, x: &[f64]) -> Vec<f64> {
+        let mut acts = Vec::new();
+        self.forward_into(&self.params, x, &mut acts);
+        acts.pop().unwrap_or_default()
+    }
+
+    /// Rows `row0..row0 + outputs` of the Jacobian of the outputs with respect to `p` for one
+    /// input, by back-propagation (one backward pass per output).
+    fn jacobian_rows(
+        &self,
+        p: &[f64],
+        x: &[f64],
+        acts: &mut Vec<Vec<f64>>,
+        jac: &mut Mat<f64>,
+        row0: usize,
+    ) {
+        self.forward_into(p, x, acts);
+        let layers = self.sizes.len() - 1;
+        let n_out = self.sizes[layers];
+        // Offsets of each layer's parameters.
+        let mut offs = Vec::with_capacity(layers);
+        let mut off = 0;
+        for l in 0..layers {
+            offs.push(off);
+            off += self.sizes[l] * self.sizes[l + 1] + self.sizes[l + 1];
+        }
+        let mut delta: Vec<f64> = Vec::new();
+        let mut prev_delta: Vec<f64> = Vec::new();
+        for k in 0..n_out {
+            let r = row0 + k;
+            delta.clear();
+            delta.extend((0..n_out).map(|o| if o == k { 1.0 } else { 0.0 }));
+            for l in (0..layers).rev() {
+                let (n_in, n_o) = (self.sizes[l], self.sizes[l + 1]);
+                let a = &acts[l];
+                let o0 = offs[l];
+                for o in 0..n_o {
+                    let d = delta[o];
+                    for i in 0..n_in {
+                        jac[(r, o0 + o * n_in + i)] = d * a[i];
+                    }
+                    jac[(r, o0 + n_o * n_in + o)] = d;
+                }
+                if l > 0 {
+                    let w = &p[o0..o0 + n_o * n_in];
+                    prev_delta.clear();
+                    for i in 0..n_in {
+                        let s: f64 = (0..n_o).map(|o| w[o * n_in + i] * delta[o]).sum();
+                        prev_delta.push(s * (1.0 - a[i] * a[i]));
+                    }
+                    std::mem::swap(&mut delta, &mut prev_delta);
+                }
+            }
+        }
+    }
+}
+
+/// Per-column linear map to [−1, 1] (MATLAB `mapminmax`); a constant column maps to 0.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MinMax {
+    /// Column minima.
+    pub min: Vec<f64>,
+    /// Column maxima.
+    pub max: Vec<f64>,
+}
+
+impl MinMax {
+    /// Fits the ranges of `rows`.
+    pub fn fit(rows: &[Vec<f64>]) -> Self {
+        let n = rows.first().map_or(0, Vec::len);
+        let mut min = vec![f64::INFINITY; n];
+        let mut max = vec![f64::NEG_INFINITY; n];
+        for r in rows {
+            for (j, &v) in r.iter().enumerate() {
+                min[j] = min[j].min(v);
+                max[j] = max[j].max(v);
+            }
+        }
+        Self { min, max }
+    }
+
+    /// Scaled copy of a row.
+    pub fn apply(&self, row: &[f64]) -> Vec<f64> {
+        row.iter()
+            .enumerate()
+            .map(|(j, &v)| {
+                let span = self.max[j] - self.min[j];
+                if span > 0.0 {
+                    2.0 * (v - self.min[j]) / span - 1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// Back from [−1, 1] to the original units.
+    pub fn invert(&self, row: &[f64]) -> Vec<f64> {
+        row.iter()
+            .enumerate()
+            .map(|(j, &v)| {
+                let span = self.max[j] - self.min[j];
+                if span > 0.0 {
+                    self.min[j] + (v + 1.0) * span / 2.0
+                } else {
+                    self.min[j]
+                }
+            })
+            .collect()
+    }
+}
+
+/// Training settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainConfig {
+    /// The LM settings (MATLAB `trainlm` by default).
+    pub lm: LmConfig,
+    /// Fractions of samples for training, validation, test (random split).
+    pub split: [f64; 3],
+    /// Stop after this many epochs without a better validation error (MATLAB `max_fail`).
+    pub max_fail: usize,
+    /// Seed for the split and the initial weights.
+    pub seed: u64,
+}
+
+impl TrainConfig {
+    /// MATLAB's defaults: trainlm, 70/15/15, 6 validation failures.
+    pub const TRAINLM: Self = Self {
+        lm: LmConfig::TRAINLM,
+        split: [0.70, 0.15, 0.15],
+        max_fail: 6,
+        seed: 1,
+    };
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self::TRAINLM
+    }
+}
+
+/// Why training stopped, and the errors (mean squared, in scaled units) of each subset.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainOutcome {
+    /// The solver's outcome (its params are the last ones; the network keeps the best).
+    pub lm: LmOutcome,
+    /// Whether validation stopped it.
+    pub validation_stop: bool,
+    /// Epoch with the best validation error.
+    pub best_epoch: usize,
+    /// Mean squared error on training, validation and test samples (scaled targets).
+    pub mse: [f64; 3],
+    /// Sample indices of the three subsets.
+    pub subsets: [Vec<usize>; 3],
+}
+
+struct Fit<'a> {
+    net: &'a Mlp,
+    x: Vec<&'a [f64]>,
+    t: Vec<&'a [f64]>,
+    acts: Vec<Vec<f64>>,
+}
+
+impl Problem for Fit<'_> {
+    fn n_params(&self) -> usize {
+        self.net.params.len()
+    }
+    fn n_residuals(&self) -> usize {
+        self.x.len() * self.net.sizes[self.net.sizes.len() - 1]
+    }
+    fn residuals(&mut self, p: &[f64], out: &mut [f64]) {
+        let k = self.net.sizes[self.net.sizes.len() - 1];
+        for (s, (x, t)) in self.x.iter().zip(&self.t).enumerate() {
+            self.net.forward_into(p, x, &mut self.acts);
+            let y = &self.acts[self.acts.len() - 1];
+            for j in 0..k {
+                out[s * k + j] = y[j] - t[j];
+            }
+        }
+    }
+    fn jacobian(&mut self, p: &[f64], jac: &mut Mat<f64>) {
+        let k = self.net.sizes[self.net.sizes.len() - 1];
+        for (s, x) in self.x.iter().enumerate() {
+            self.net.jacobian_rows(p, x, &mut self.acts, jac, s * k);
+        }
+    }
+}
+
+fn refs(rows: &[Vec<f64>]) -> Vec<&[f64]> {
+    rows.iter().map(Vec::as_slice).collect()
+}
+
+fn mse(net: &Mlp, p: &[f64], x: &[&[f64]], t: &[&[f64]]) -> f64 {
+    if x.is_empty() {
+        return f64::NAN;
+    }
+    let mut acts = Vec::new();
+    let mut sum = 0.0;
+    let mut n = 0;
+    for (xi, ti) in x.iter().zip(t) {
+        net.forward_into(p, xi, &mut acts);
+        for (y, tv) in acts[acts.len() - 1].iter().zip(ti.iter()) {
+            sum += (y - tv) * (y - tv);
+            n += 1;
+        }
+    }
+    sum / n as f64
+}
+
+/// Splits `n` samples at random (seeded) into train / validation / test index lists.
+pub fn random_split(n: usize, split: [f64; 3], seed: u64) -> [Vec<usize>; 3] {
+    let mut idx: Vec<usize> = (0..n).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5_9117);
+    for i in (1..n).rev() {
+        let j = rng.random_range(0..=i);
+        idx.swap(i, j);
+    }
+    let total = split.iter().sum::<f64>().max(1e-12);
+    let n_val = ((split[1] / total) * n as f64).round() as usize;
+    let n_test = ((split[2] / total) * n as f64).round() as usize;
+    let n_train = n.saturating_sub(n_val + n_test);
+    let test = idx.split_off(n_train + n_val);
+    let val = idx.split_off(n_train);
+    [idx, val, test]
+}
+
+/// Trains `net` on scaled inputs `x` and targets `t` (rows are samples), keeping the weights
+/// with the best validation error; `progress(epoch, train_mse, val_mse)` can stop it.
+pub fn train(
+    net: &mut Mlp,
+    x: &[Vec<f64>],
+    t: &[Vec<f64>],
+    cfg: &TrainConfig,
+    mut progress: impl FnMut(usize, f64, f64) -> Control,
+) -> TrainOutcome {
+    assert_eq!(x.len(), t.len(), "one target row per input row");
+    let subsets = random_split(x.len(), cfg.split, cfg.seed);
+    let pick = |ids: &[usize], rows: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        ids.iter().map(|&i| rows[i].clone()).collect()
+    };
+    let (xs, ts): (Vec<Vec<Vec<f64>>>, Vec<Vec<Vec<f64>>>) = subsets
+        .iter()
+        .map(|ids| (pick(ids, x), pick(ids, t)))
+        .unzip();
+    let snapshot = net.clone();
+    let mut fit = Fit {
+        net: &snapshot,
+        x: refs(&xs[0]),
+        t: refs(&ts[0]),
+        acts: Vec::new(),
+    };
+    let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
+    let mut best = (f64::INFINITY, net.params.clone(), 0usize);
+    let mut fails = 0;
+    let mut validation_stop = false;
+    let lm = minimize(&mut fit, &snapshot.params, &cfg.lm, |p| {
+        let train_mse =
+            p.cost / (xs[0].len() * snapshot.sizes[snapshot.sizes.len() - 1]).max(1) as f64;
+        let v = mse(&snapshot, p.params, &xv, &tv);
+        if xv.is_empty() || v < best.0 {
+            best = (v, p.params.to_vec(), p.iteration);
+            fails = 0;
+        } else {
+            fails += 1;
+        }
+        if progress(p.iteration, train_mse, v) == Control::Stop {
+            return Control::Stop;
+        }
+        if !xv.is_empty() && fails >= cfg.max_fail {
+            validation_stop = true;
+            return Control::Stop;
+        }
+        Control::Continue
+    });
+    net.params = if best.0.is_finite() || !xv.is_empty() {
+        best.1
+    } else {
+        lm.params.clone()
+    };
+    if xv.is_empty() {
+        net.params = lm.params.clone();
+    }
+    let all_mse = [0, 1, 2].map(|k| mse(net, &net.params, &refs(&xs[k]), &refs(&ts[k])));
+    let validation_stop = validation_stop && lm.reason == StopReason::Callback;
+    TrainOutcome {
+        lm,
+        validation_stop,
+        best_epoch: best.2,
+        mse: all_mse,
+        subsets,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn backprop_jacobian_equals_finite_differences() {
+        let net = Mlp::nguyen_widrow(&[4, 6, 5, 3], 2);
+        let x = [0.3, -0.7, 0.1, 0.9];
+        let n = net.params.len();
+        let mut jac = Mat::<f64>::zeros(3, n);
+        let mut acts = Vec::new();
+        net.jacobian_rows(&net.params, &x, &mut acts, &mut jac, 0);
+        let h = 1e-6;
+        for j in 0..n {
+            let (mut pp, mut pm) = (net.params.clone(), net.params.clone());
+            pp[j] += h;
+            pm[j] -= h;
+            let yp = Mlp {
+                params: pp,
+                ..net.clone()
+            }
+            .forward(&x);
+            let ym = Mlp {
+                params: pm,
+                ..net.clone()
+            }
+            .forward(&x);
+            for k in 0..3 {
+                let fd = (yp[k] - ym[k]) / (2.0 * h);
+                // Central differences are exact to O(h²) ≈ 1e-12 plus rounding ≈ 1e-10.
+                assert!(
+                    (jac[(k, j)] - fd).abs() < 1e-8,
+                    "∂y{k}/∂p{j}: {} vs {fd}",
+                    jac[(k, j)]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn minmax_round_trips() {
+        let rows = vec![vec![1.0, 5.0, 2.0], vec![3.0, 5.0, -2.0]];
+        let s = MinMax::fit(&rows);
+        assert_eq!(s.apply(&rows[0]), vec![-1.0, 0.0, 1.0]);
+        assert_eq!(s.invert(&s.apply(&rows[1])), vec![3.0, 5.0, -2.0]);
+    }
+
+    #[test]
+    fn a_representable_function_is_learned_to_noise_level() {
+        // Targets from a random 6→20→1 network plus noise of σ = 0.01: a 6→20→1 network trained
+        // with trainlm must reach a test MSE near σ² = 1e-4.
+        let teacher = Mlp::nguyen_widrow(&[6, 20, 1], 7);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let x: Vec<Vec<f64>> = (0..2000)
+            .map(|_| (0..6).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let t: Vec<Vec<f64>> = x
+            .iter()
+            .map(|xi| {
+                let noise: f64 = (0..12).map(|_| rng.random_range(-0.5..0.5)).sum::<f64>() * 0.01;
+                vec![teacher.forward(xi)[0] + noise]
+            })
+            .collect();
+        let mut best = f64::INFINITY;
+        for seed in 1..=3 {
+            let mut net = Mlp::nguyen_widrow(&[6, 20, 1], 100 + seed);
+            let out = train(
+                &mut net,
+                &x,
+                &t,
+                &TrainConfig {
+                    seed,
+                    ..TrainConfig::TRAINLM
+                },
+                |_, _, _| Control::Continue,
+            );
+            best = best.min(out.mse[2]);
+        }
+        assert!(best < 2e-4, "test MSE {best}, noise variance 1e-4");
+    }
+}
