@@ -10,8 +10,43 @@
 //! Not converging is an outcome ([`StopReason`]), never an error; the caller's callback sees
 //! every iteration and can stop the solver.
 
+use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use faer::{Accum, Mat, Side};
+
+/// The lower triangle of `JJᵀ` (dual) or `JᵀJ`: a symmetric product computes half the
+/// entries, and the Cholesky factorisation reads only that half.
+fn gram_lower(jac: &Mat<f64>, dual: bool) -> Mat<f64> {
+    let k = if dual { jac.nrows() } else { jac.ncols() };
+    let mut g = Mat::<f64>::zeros(k, k);
+    let par = faer::get_global_parallelism();
+    if dual {
+        matmul(
+            g.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            jac.as_ref(),
+            BlockStructure::Rectangular,
+            jac.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            par,
+        );
+    } else {
+        matmul(
+            g.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            jac.transpose(),
+            BlockStructure::Rectangular,
+            jac.as_ref(),
+            BlockStructure::Rectangular,
+            1.0,
+            par,
+        );
+    }
+    g
+}
 
 /// A least-squares problem: residuals and their Jacobian at a parameter vector.
 pub trait Problem {
@@ -205,11 +240,7 @@ pub fn minimize<P: Problem>(
             return outcome(p, cost, iteration, evaluations, mu, StopReason::MinGradient);
         }
         // The Gram matrix once per iteration; μ changes only its diagonal.
-        let gram = if dual {
-            &jac * jac.transpose()
-        } else {
-            jac.transpose() * &jac
-        };
+        let gram = gram_lower(&jac, dual);
         let k = gram.nrows();
         let diag: Vec<f64> = match (cfg.damping, dual) {
             (Damping::Marquardt, false) => (0..k).map(|i| gram[(i, i)].max(1e-300)).collect(),

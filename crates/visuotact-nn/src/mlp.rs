@@ -271,6 +271,9 @@ impl Problem for Fit<'_> {
     }
 }
 
+/// Samples as rows.
+type Rows = Vec<Vec<f64>>;
+
 fn refs(rows: &[Vec<f64>]) -> Vec<&[f64]> {
     rows.iter().map(Vec::as_slice).collect()
 }
@@ -320,13 +323,12 @@ pub fn train(
 ) -> TrainOutcome {
     assert_eq!(x.len(), t.len(), "one target row per input row");
     let subsets = random_split(x.len(), cfg.split, cfg.seed);
-    let pick = |ids: &[usize], rows: &[Vec<f64>]| -> Vec<Vec<f64>> {
+    // Rows of each subset: [train, validation, test].
+    let pick = |ids: &[usize], rows: &[Vec<f64>]| -> Rows {
         ids.iter().map(|&i| rows[i].clone()).collect()
     };
-    let (xs, ts): (Vec<Vec<Vec<f64>>>, Vec<Vec<Vec<f64>>>) = subsets
-        .iter()
-        .map(|ids| (pick(ids, x), pick(ids, t)))
-        .unzip();
+    let xs: Vec<Rows> = subsets.iter().map(|ids| pick(ids, x)).collect();
+    let ts: Vec<Rows> = subsets.iter().map(|ids| pick(ids, t)).collect();
     let snapshot = net.clone();
     let mut fit = Fit {
         net: &snapshot,

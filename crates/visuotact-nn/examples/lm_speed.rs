@@ -1,0 +1,66 @@
+//! Times LM iterations on seed 000's network (351 inputs, five hidden layers of 20, 3 outputs,
+//! 1 280 samples, 70 % for training) and trains seed 001's 6→20→1 on 2 000 samples:
+//! `cargo run --release -p visuotact-nn --example lm_speed`
+
+use std::time::Instant;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use visuotact_nn::lm::{Control, LmConfig};
+use visuotact_nn::mlp::{train, Mlp, TrainConfig};
+
+fn data(n: usize, d_in: usize, d_out: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let teacher = Mlp::nguyen_widrow(&[d_in, 8, d_out], seed + 1);
+    let x: Vec<Vec<f64>> = (0..n)
+        .map(|_| (0..d_in).map(|_| rng.random_range(-1.0..1.0)).collect())
+        .collect();
+    let t = x.iter().map(|xi| teacher.forward(xi)).collect();
+    (x, t)
+}
+
+fn main() {
+    let (x, t) = data(2000, 6, 1, 11);
+    let mut net = Mlp::nguyen_widrow(&[6, 20, 1], 1);
+    let t0 = Instant::now();
+    let out = train(&mut net, &x, &t, &TrainConfig::TRAINLM, |_, _, _| {
+        Control::Continue
+    });
+    println!(
+        "6→20→1, 2000 samples: {:.3} s, {} epochs, stop {:?} (validation stop {}), test MSE {:.2e}",
+        t0.elapsed().as_secs_f64(),
+        out.lm.iterations,
+        out.lm.reason,
+        out.validation_stop,
+        out.mse[2]
+    );
+
+    let (x, t) = data(1280, 351, 3, 21);
+    let sizes = [351, 20, 20, 20, 20, 20, 3];
+    let mut net = Mlp::nguyen_widrow(&sizes, 1);
+    let mut times = Vec::new();
+    let mut last = Instant::now();
+    let cfg = TrainConfig {
+        lm: LmConfig {
+            max_iterations: 5,
+            ..LmConfig::TRAINLM
+        },
+        ..TrainConfig::TRAINLM
+    };
+    let t0 = Instant::now();
+    let out = train(&mut net, &x, &t, &cfg, |_, _, _| {
+        times.push(last.elapsed().as_secs_f64());
+        last = Instant::now();
+        Control::Continue
+    });
+    println!(
+        "351→5×20→3 ({} weights), 1280 samples: {} iterations in {:.2} s, per iteration {:?} s",
+        Mlp::n_params_for(&sizes),
+        out.lm.iterations,
+        t0.elapsed().as_secs_f64(),
+        times
+            .iter()
+            .map(|t| (t * 100.0).round() / 100.0)
+            .collect::<Vec<_>>()
+    );
+}
