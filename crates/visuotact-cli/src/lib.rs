@@ -13,6 +13,7 @@ mod calibrate;
 mod extract;
 mod pattern;
 mod simulate;
+mod train;
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.
 #[derive(Parser, Debug)]
@@ -36,6 +37,12 @@ enum Command {
     Pattern(pattern::Args),
     /// Simulate a sensor (iats or cone) through a protocol → a session folder with truth.
     Simulate(simulate::Args),
+    /// Train a network (Levenberg–Marquardt) from features and labels → model.json.
+    Train(train::TrainArgs),
+    /// Run a model over a feature table → predictions.csv.
+    Predict(train::PredictArgs),
+    /// Error figures of predictions against labels (MSE, R, mean/max error, MPE, accuracy, D).
+    Eval(train::EvalArgs),
 }
 
 /// Runs the program with the process arguments.
@@ -67,6 +74,9 @@ where
         Command::Bench(a) => bench::run(&a),
         Command::Pattern(a) => pattern::run(&a),
         Command::Simulate(a) => simulate::run(&a),
+        Command::Train(a) => train::train(&a),
+        Command::Predict(a) => train::predict(&a),
+        Command::Eval(a) => train::eval(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -137,3 +137,85 @@ pub fn format_number(v: f64) -> String {
         format!("{v}")
     }
 }
+
+/// A CSV table keyed by its `frame` column, every other column numeric (empty cells and the
+/// text `NaN` are missing values, NaN); non-numeric columns named in `text_columns` are skipped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KeyedTable {
+    /// Column names, without `frame` and skipped text columns.
+    pub columns: Vec<String>,
+    /// The `frame` value of each row.
+    pub keys: Vec<String>,
+    /// Values, one row per key.
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl KeyedTable {
+    /// Reads `path`; errors name the file, the line and the column.
+    pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, String> {
+        let name = path.display();
+        let mut rd = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .from_path(path)
+            .map_err(|e| format!("{name}: cannot read: {e}"))?;
+        let header: Vec<String> = rd
+            .headers()
+            .map_err(|e| format!("{name}: bad header: {e}"))?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        let key_col = header
+            .iter()
+            .position(|h| h == "frame")
+            .ok_or_else(|| format!("{name}: no `frame` column (columns: {})", header.join(", ")))?;
+        let keep: Vec<usize> = (0..header.len())
+            .filter(|&i| i != key_col && !text_columns.contains(&header[i].as_str()))
+            .collect();
+        let columns = keep.iter().map(|&i| header[i].clone()).collect();
+        let (mut keys, mut rows) = (Vec::new(), Vec::new());
+        for (n, rec) in rd.records().enumerate() {
+            let line = n + 2;
+            let rec = rec.map_err(|e| format!("{name}: line {line}: {e}"))?;
+            if rec.len() != header.len() {
+                return Err(format!(
+                    "{name}: line {line}: {} cells, the header has {}",
+                    rec.len(),
+                    header.len()
+                ));
+            }
+            keys.push(rec[key_col].to_string());
+            let mut row = Vec::with_capacity(keep.len());
+            for &i in &keep {
+                let cell = rec[i].trim();
+                let v = if cell.is_empty() || cell.eq_ignore_ascii_case("nan") {
+                    f64::NAN
+                } else {
+                    cell.parse::<f64>().map_err(|_| {
+                        format!(
+                            "{name}: line {line}, column `{}`: {cell:?} is not a number",
+                            header[i]
+                        )
+                    })?
+                };
+                if v.is_infinite() {
+                    return Err(format!(
+                        "{name}: line {line}, column `{}`: infinite value",
+                        header[i]
+                    ));
+                }
+                row.push(v);
+            }
+            rows.push(row);
+        }
+        Ok(Self {
+            columns,
+            keys,
+            rows,
+        })
+    }
+
+    /// Index of a column.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.columns.iter().position(|c| c == name)
+    }
+}

@@ -7,4 +7,5 @@
 pub mod dual;
 pub mod lm;
 pub mod mlp;
+pub mod model;
 pub mod nist;

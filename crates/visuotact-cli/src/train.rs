@@ -1,0 +1,477 @@
+//! `visuotact train`, `predict` and `eval`: networks from feature tables, estimates, and the
+//! error figures of the source documents.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
+use visuotact_nn::lm::{Control, LmConfig};
+use visuotact_nn::mlp::{MinMax, Mlp, TrainConfig};
+use visuotact_nn::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct TrainArgs {
+    /// Feature table from `extract` (per-marker columns `mNNN_…` are the inputs).
+    #[arg(long)]
+    features: PathBuf,
+    /// Label table keyed by `frame` (a session's labels.csv).
+    #[arg(long)]
+    labels: PathBuf,
+    /// Target columns of the labels, comma-separated (e.g. x_mm,y_mm,depth_mm).
+    #[arg(long)]
+    targets: String,
+    /// Hidden layer sizes, comma-separated (e.g. 20 or 20,20).
+    #[arg(long, default_value = "20")]
+    hidden: String,
+    /// Model file to write.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Seed of the split and the initial weights.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Most epochs (trainlm: 1000).
+    #[arg(long, default_value_t = 1000)]
+    max_epochs: usize,
+    /// Sensor file to store in the model (the calibration the features came from).
+    #[arg(long)]
+    sensor: Option<PathBuf>,
+    /// Leave out frames with missing feature cells (lost markers) instead of failing.
+    #[arg(long)]
+    drop_incomplete: bool,
+}
+
+/// Is this a per-marker feature column (`m017_dx_px`)?
+fn is_marker_column(c: &str) -> bool {
+    let b = c.as_bytes();
+    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
+}
+
+fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T>> {
+    s.split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<T>()
+                .map_err(|_| anyhow::anyhow!("--{what}: {p:?} is not valid"))
+        })
+        .collect()
+}
+
+/// Features and labels joined on `frame`.
+struct Joined {
+    /// Input rows (per-marker features).
+    x: Vec<Vec<f64>>,
+    /// Target rows.
+    t: Vec<Vec<f64>>,
+    /// Names of the input columns.
+    feature_columns: Vec<String>,
+}
+
+/// Joins features and labels on `frame`.
+fn joined(
+    features: &Path,
+    labels: &Path,
+    targets: &[String],
+    drop_incomplete: bool,
+) -> anyhow::Result<Joined> {
+    let f = KeyedTable::read(features, &["flags"]).map_err(anyhow::Error::msg)?;
+    let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
+    let fcols: Vec<usize> = (0..f.columns.len())
+        .filter(|&i| is_marker_column(&f.columns[i]))
+        .collect();
+    if fcols.is_empty() {
+        bail!(
+            "{}: no per-marker feature columns (mNNN_…)",
+            features.display()
+        );
+    }
+    let tcols: Vec<usize> = targets
+        .iter()
+        .map(|t| {
+            l.column(t).with_context(|| {
+                format!(
+                    "{}: no target column `{t}` (columns: {})",
+                    labels.display(),
+                    l.columns.join(", ")
+                )
+            })
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let by_key: std::collections::HashMap<&str, usize> = l
+        .keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| (k.as_str(), i))
+        .collect();
+    let (mut x, mut t) = (Vec::new(), Vec::new());
+    let (mut unlabelled, mut dropped) = (0, 0);
+    for (r, key) in f.keys.iter().enumerate() {
+        let Some(&li) = by_key.get(key.as_str()) else {
+            unlabelled += 1;
+            continue;
+        };
+        let xi: Vec<f64> = fcols.iter().map(|&c| f.rows[r][c]).collect();
+        if let Some(c) = xi.iter().position(|v| v.is_nan()) {
+            if drop_incomplete {
+                dropped += 1;
+                continue;
+            }
+            bail!(
+                "{}: line {}, column `{}`: missing value (a lost marker); use --drop-incomplete to leave such frames out",
+                features.display(),
+                r + 2,
+                f.columns[fcols[c]]
+            );
+        }
+        let ti: Vec<f64> = tcols.iter().map(|&c| l.rows[li][c]).collect();
+        if let Some(c) = ti.iter().position(|v| v.is_nan()) {
+            bail!(
+                "{}: frame {key}, column `{}`: missing target",
+                labels.display(),
+                targets[c]
+            );
+        }
+        x.push(xi);
+        t.push(ti);
+    }
+    if unlabelled > 0 {
+        eprintln!(
+            "warning: {unlabelled} feature rows have no label in {} and were left out",
+            labels.display()
+        );
+    }
+    if dropped > 0 {
+        eprintln!("warning: {dropped} frames with missing feature cells were left out");
+    }
+    if x.len() < 10 {
+        bail!(
+            "only {} frames have both features ({}) and labels ({}): too few to train",
+            x.len(),
+            features.display(),
+            labels.display()
+        );
+    }
+    Ok(Joined {
+        x,
+        t,
+        feature_columns: fcols.iter().map(|&c| f.columns[c].clone()).collect(),
+    })
+}
+
+pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
+    let targets: Vec<String> = a
+        .targets
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if targets.is_empty() {
+        bail!("--targets is empty");
+    }
+    let hidden: Vec<usize> = parse_list(&a.hidden, "hidden")?;
+    if hidden.is_empty() || hidden.contains(&0) {
+        bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
+    }
+    let sensor = match &a.sensor {
+        Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
+        None => None,
+    };
+    let Joined {
+        x,
+        t,
+        feature_columns,
+    } = joined(&a.features, &a.labels, &targets, a.drop_incomplete)?;
+    let input_scaling = MinMax::fit(&x);
+    let target_scaling = MinMax::fit(&t);
+    let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
+    let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
+    let mut sizes = vec![feature_columns.len()];
+    sizes.extend(&hidden);
+    sizes.push(targets.len());
+    let mut net = Mlp::nguyen_widrow(&sizes, a.seed);
+    let cfg = TrainConfig {
+        lm: LmConfig {
+            max_iterations: a.max_epochs,
+            ..LmConfig::TRAINLM
+        },
+        seed: a.seed,
+        ..TrainConfig::TRAINLM
+    };
+    eprintln!(
+        "training {} → {} → {} ({} weights) on {} frames",
+        sizes[0],
+        hidden
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" → "),
+        targets.len(),
+        net.params.len(),
+        x.len()
+    );
+    let t0 = std::time::Instant::now();
+    let out = visuotact_nn::mlp::train(&mut net, &xs, &ts, &cfg, |epoch, train_mse, val_mse| {
+        if epoch % 10 == 0 {
+            eprintln!(
+                "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
+            );
+        }
+        Control::Continue
+    });
+    // MSE per target in target units: scaled MSE × (span / 2)².
+    let unit_mse = |ids: &[usize]| -> Vec<f64> {
+        (0..targets.len())
+            .map(|j| {
+                let s: f64 = ids
+                    .iter()
+                    .map(|&i| (net.forward(&xs[i])[j] - ts[i][j]).powi(2))
+                    .sum();
+                let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
+                s / ids.len().max(1) as f64 * half * half
+            })
+            .collect()
+    };
+    let mse = [
+        unit_mse(&out.subsets[0]),
+        unit_mse(&out.subsets[1]),
+        unit_mse(&out.subsets[2]),
+    ];
+    let stop = if out.validation_stop {
+        "validation".to_string()
+    } else {
+        format!("{:?}", out.lm.reason)
+    };
+    let model = Model {
+        format: MODEL_FORMAT.to_string(),
+        version: MODEL_VERSION,
+        net,
+        input_scaling,
+        target_scaling,
+        feature_columns,
+        target_columns: targets.clone(),
+        training: TrainingSummary {
+            epochs: out.lm.iterations,
+            best_epoch: out.best_epoch,
+            stop: stop.clone(),
+            samples: [
+                out.subsets[0].len(),
+                out.subsets[1].len(),
+                out.subsets[2].len(),
+            ],
+            mse: mse.clone(),
+            seed: a.seed,
+        },
+        sensor,
+    };
+    crate::write_atomically(&a.output, &model.to_json())?;
+    eprintln!(
+        "trained in {:.2} s: {} epochs (best {}), stopped by {stop}",
+        t0.elapsed().as_secs_f64(),
+        out.lm.iterations,
+        out.best_epoch
+    );
+    for (j, name) in targets.iter().enumerate() {
+        eprintln!(
+            "  {name}: mse train {:.4e}, validation {:.4e}, test {:.4e}",
+            mse[0][j], mse[1][j], mse[2][j]
+        );
+    }
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct PredictArgs {
+    /// Model file from `train`.
+    #[arg(long)]
+    model: PathBuf,
+    /// Feature table from `extract`.
+    #[arg(long)]
+    features: PathBuf,
+    /// Output table (`-` for standard output).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub(crate) fn load_model(path: &Path) -> anyhow::Result<Model> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read model file", path.display()))?;
+    Model::from_json(&text, &path.display().to_string()).map_err(anyhow::Error::msg)
+}
+
+pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
+    let model = load_model(&a.model)?;
+    let f = KeyedTable::read(&a.features, &["flags"]).map_err(anyhow::Error::msg)?;
+    let cols: Vec<usize> = model
+        .feature_columns
+        .iter()
+        .map(|c| {
+            f.column(c).with_context(|| {
+                format!(
+                    "{}: no column `{c}`: the model {} was trained on other features",
+                    a.features.display(),
+                    a.model.display()
+                )
+            })
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut out = TableWriter::create(&a.output, TableFormat::Csv, model.target_columns.clone())?;
+    let (mut written, mut missing) = (0, 0);
+    for (r, key) in f.keys.iter().enumerate() {
+        let x: Vec<f64> = cols.iter().map(|&c| f.rows[r][c]).collect();
+        if x.iter().any(|v| v.is_nan()) {
+            // A lost marker: no estimate rather than a wrong one.
+            out.write_row(
+                key,
+                &vec![f64::NAN; model.target_columns.len()],
+                "missing features",
+            )?;
+            missing += 1;
+            continue;
+        }
+        out.write_row(key, &model.predict(&x), "")?;
+        written += 1;
+    }
+    eprintln!("{written} estimates, {missing} frames without (missing features)");
+    Ok(())
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct EvalArgs {
+    /// Predictions from `predict`.
+    #[arg(long)]
+    predictions: PathBuf,
+    /// Labels keyed by `frame`.
+    #[arg(long)]
+    labels: PathBuf,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Error figures of one target.
+#[derive(serde::Serialize, Debug)]
+struct TargetErrors {
+    target: String,
+    n: usize,
+    mse: f64,
+    r: f64,
+    mean_abs: f64,
+    max_abs: f64,
+    mean_percentage_error: f64,
+    accuracy_percent: f64,
+}
+
+pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
+    let p = KeyedTable::read(&a.predictions, &["flags"]).map_err(anyhow::Error::msg)?;
+    let l = KeyedTable::read(&a.labels, &[]).map_err(anyhow::Error::msg)?;
+    let by_key: std::collections::HashMap<&str, usize> = l
+        .keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| (k.as_str(), i))
+        .collect();
+    let mut figures = Vec::new();
+    let mut pairs_xy: Vec<(f64, f64)> = Vec::new();
+    let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));
+    for (j, name) in p.columns.iter().enumerate() {
+        let Some(lj) = l.column(name) else { continue };
+        let mut e = Vec::new();
+        let mut pv = Vec::new();
+        let mut lv = Vec::new();
+        for (r, key) in p.keys.iter().enumerate() {
+            let Some(&li) = by_key.get(key.as_str()) else {
+                continue;
+            };
+            let (est, truth) = (p.rows[r][j], l.rows[li][lj]);
+            if est.is_nan() || truth.is_nan() {
+                continue;
+            }
+            e.push(est - truth);
+            pv.push(est);
+            lv.push(truth);
+        }
+        if e.is_empty() {
+            continue;
+        }
+        let n = e.len() as f64;
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let (mp, ml) = (mean(&pv), mean(&lv));
+        let cov: f64 = pv.iter().zip(&lv).map(|(a, b)| (a - mp) * (b - ml)).sum();
+        let sp: f64 = pv.iter().map(|a| (a - mp).powi(2)).sum::<f64>().sqrt();
+        let sl: f64 = lv.iter().map(|b| (b - ml).powi(2)).sum::<f64>().sqrt();
+        let rel: Vec<f64> = e
+            .iter()
+            .zip(&lv)
+            .filter(|(_, t)| t.abs() > 1e-12)
+            .map(|(e, t)| (e / t).abs())
+            .collect();
+        let mpe = if rel.is_empty() {
+            f64::NAN
+        } else {
+            100.0 * mean(&rel)
+        };
+        figures.push(TargetErrors {
+            target: name.clone(),
+            n: e.len(),
+            mse: e.iter().map(|v| v * v).sum::<f64>() / n,
+            r: cov / (sp * sl),
+            mean_abs: e.iter().map(|v| v.abs()).sum::<f64>() / n,
+            max_abs: e.iter().fold(0.0f64, |m, v| m.max(v.abs())),
+            mean_percentage_error: mpe,
+            accuracy_percent: 100.0 - mpe,
+        });
+    }
+    if figures.is_empty() {
+        bail!(
+            "no target column of {} is in {}",
+            a.predictions.display(),
+            a.labels.display()
+        );
+    }
+    if let (Some(xi), Some(yi), Some(lx), Some(ly)) = (xi, yi, l.column("x_mm"), l.column("y_mm")) {
+        for (r, key) in p.keys.iter().enumerate() {
+            if let Some(&li) = by_key.get(key.as_str()) {
+                let d = (p.rows[r][xi] - l.rows[li][lx]).hypot(p.rows[r][yi] - l.rows[li][ly]);
+                if d.is_finite() {
+                    pairs_xy.push((d, 0.0));
+                }
+            }
+        }
+    }
+    let distance = (!pairs_xy.is_empty()).then(|| {
+        let n = pairs_xy.len() as f64;
+        (
+            pairs_xy.iter().map(|p| p.0).sum::<f64>() / n,
+            pairs_xy.iter().fold(0.0f64, |m, p| m.max(p.0)),
+        )
+    });
+    if a.json {
+        let v = serde_json::json!({
+            "targets": figures,
+            "distance_mm": distance.map(|(mean, max)| serde_json::json!({"mean": mean, "max": max})),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{:<12} {:>6} {:>11} {:>8} {:>10} {:>10} {:>8} {:>9}",
+        "target", "n", "mse", "R", "mean |e|", "max |e|", "MPE %", "acc. %"
+    );
+    for f in &figures {
+        println!(
+            "{:<12} {:>6} {:>11.4e} {:>8.5} {:>10.4} {:>10.4} {:>8.2} {:>9.2}",
+            f.target,
+            f.n,
+            f.mse,
+            f.r,
+            f.mean_abs,
+            f.max_abs,
+            f.mean_percentage_error,
+            f.accuracy_percent
+        );
+    }
+    if let Some((mean, max)) = distance {
+        println!("distance D (x, y): mean {mean:.3} mm, max {max:.3} mm");
+    }
+    Ok(())
+}

@@ -1,0 +1,191 @@
+//! `train`, `predict`, `eval` end to end on a simulated cone session, and their errors for bad
+//! tables: a non-numeric cell (file, line, column named), a missing target column, a model used
+//! with features it was not trained on, a half-written model never replacing a good one.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn vt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(args)
+        .output()
+        .expect("run visuotact")
+}
+
+fn ok(o: &Output) -> String {
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    err
+}
+
+fn fails(o: &Output) -> String {
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn session() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("visuotact-train-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "cone",
+        "--protocol",
+        "press",
+        "--duration-s",
+        "6",
+        "--references",
+        "5",
+        "-o",
+        s(&d),
+    ]));
+    ok(&vt(&[
+        "calibrate",
+        s(&d.join("reference")),
+        "--preset",
+        "cone",
+        "--layout",
+        "rings",
+        "-o",
+        s(&d.join("s.json")),
+    ]));
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&d.join("s.json")),
+        s(&d.join("frames")),
+        "-o",
+        s(&d.join("f.csv")),
+    ]));
+    d
+}
+
+#[test]
+fn train_predict_eval_and_bad_tables() {
+    let d = session();
+    let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("model.json"));
+    let err = ok(&vt(&[
+        "train",
+        "--features",
+        s(&f),
+        "--labels",
+        s(&l),
+        "--targets",
+        "force_n",
+        "--hidden",
+        "10",
+        "-o",
+        s(&m),
+        "--sensor",
+        s(&d.join("s.json")),
+    ]));
+    assert!(err.contains("training 6 → 10 → 1"), "{err}");
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+    assert_eq!(model["format"], "visuotact-model");
+    assert_eq!(model["target_columns"][0], "force_n");
+    assert_eq!(model["feature_columns"].as_array().unwrap().len(), 6);
+    assert!(model["sensor"]["markers"].is_array());
+    let p = d.join("p.csv");
+    ok(&vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--features",
+        s(&f),
+        "-o",
+        s(&p),
+    ]));
+    let o = vt(&["eval", "--predictions", s(&p), "--labels", s(&l), "--json"]);
+    ok(&o);
+    let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = &ev["targets"][0];
+    assert_eq!(t["target"], "force_n");
+    assert_eq!(t["n"], 150);
+    assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
+    assert!(t["mean_abs"].as_f64().unwrap() < 0.5, "{t}");
+
+    // A non-numeric cell.
+    let text = std::fs::read_to_string(&f).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let cells: Vec<&str> = lines[3].split(',').collect();
+    let mut bad_cells: Vec<String> = cells.iter().map(|c| c.to_string()).collect();
+    bad_cells[8] = "abc".into();
+    lines[3] = bad_cells.join(",");
+    let bad = d.join("bad.csv");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let before = std::fs::read(&m).unwrap();
+    let err = fails(&vt(&[
+        "train",
+        "--features",
+        s(&bad),
+        "--labels",
+        s(&l),
+        "--targets",
+        "force_n",
+        "-o",
+        s(&m),
+    ]));
+    assert!(
+        err.contains("bad.csv: line 4, column `m000_dy_px`: \"abc\" is not a number"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(&m).unwrap(),
+        before,
+        "a failed training leaves the model alone"
+    );
+    // A target that is not in the labels.
+    let err = fails(&vt(&[
+        "train",
+        "--features",
+        s(&f),
+        "--labels",
+        s(&l),
+        "--targets",
+        "torque",
+        "-o",
+        s(&d.join("x.json")),
+    ]));
+    assert!(err.contains("no target column `torque`"), "{err}");
+    // A model used on other features.
+    let other = d.join("other.csv");
+    std::fs::write(&other, "frame,m000_dx_px\nframe_000000.png,1.0\n").unwrap();
+    let err = fails(&vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--features",
+        s(&other),
+        "-o",
+        "-",
+    ]));
+    assert!(
+        err.contains("the model") && err.contains("was trained on other features"),
+        "{err}"
+    );
+    // Labels with no matching frames.
+    let nolab = d.join("nolab.csv");
+    std::fs::write(&nolab, "frame,force_n\nnot_a_frame.png,1.0\n").unwrap();
+    let err = fails(&vt(&[
+        "train",
+        "--features",
+        s(&f),
+        "--labels",
+        s(&nolab),
+        "--targets",
+        "force_n",
+        "-o",
+        s(&d.join("y.json")),
+    ]));
+    assert!(err.contains("too few to train"), "{err}");
+}

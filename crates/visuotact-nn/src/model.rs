@@ -1,0 +1,96 @@
+//! The model file: a trained network with everything needed to use it on new data — its input
+//! and target scaling, the feature columns it expects in order, the target names with units,
+//! how training went, and the sensor calibration it was trained with. JSON, versioned.
+
+use serde::{Deserialize, Serialize};
+
+use crate::mlp::{MinMax, Mlp};
+
+/// Identifies model files.
+pub const MODEL_FORMAT: &str = "visuotact-model";
+/// Current model file version.
+pub const MODEL_VERSION: u32 = 1;
+
+/// How training went.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainingSummary {
+    /// Epochs run.
+    pub epochs: usize,
+    /// Epoch whose weights were kept (best validation error).
+    pub best_epoch: usize,
+    /// Why it stopped.
+    pub stop: String,
+    /// Samples in training, validation, test.
+    pub samples: [usize; 3],
+    /// Mean squared error per target in target units: training, validation, test.
+    pub mse: [Vec<f64>; 3],
+    /// Seed of the split and the initial weights.
+    pub seed: u64,
+}
+
+/// A trained model.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Model {
+    /// Always [`MODEL_FORMAT`].
+    pub format: String,
+    /// File version.
+    pub version: u32,
+    /// The network.
+    pub net: Mlp,
+    /// Input scaling (mapminmax over the training inputs).
+    pub input_scaling: MinMax,
+    /// Target scaling.
+    pub target_scaling: MinMax,
+    /// Feature columns, in input order.
+    pub feature_columns: Vec<String>,
+    /// Target names with units (`x_mm`, `force_n`, …), in output order.
+    pub target_columns: Vec<String>,
+    /// Training summary.
+    pub training: TrainingSummary,
+    /// The sensor calibration the features came from, when known.
+    pub sensor: Option<serde_json::Value>,
+}
+
+impl Model {
+    /// Estimates targets (original units) from one row of features (original units).
+    pub fn predict(&self, features: &[f64]) -> Vec<f64> {
+        let x = self.input_scaling.apply(features);
+        self.target_scaling.invert(&self.net.forward(&x))
+    }
+
+    /// Parses a model file's text; `source` names it in errors.
+    pub fn from_json(text: &str, source: &str) -> Result<Self, String> {
+        let m: Model =
+            serde_json::from_str(text).map_err(|e| format!("{source}: not a model file: {e}"))?;
+        if m.format != MODEL_FORMAT {
+            return Err(format!(
+                "{source}: format is {:?}, expected {MODEL_FORMAT:?}",
+                m.format
+            ));
+        }
+        if m.version > MODEL_VERSION {
+            return Err(format!(
+                "{source}: model version {} is newer than this program reads ({MODEL_VERSION})",
+                m.version
+            ));
+        }
+        let s = &m.net.sizes;
+        if s.len() < 2
+            || s[0] != m.feature_columns.len()
+            || s[s.len() - 1] != m.target_columns.len()
+            || m.net.params.len() != Mlp::n_params_for(s)
+            || m.input_scaling.min.len() != s[0]
+            || m.target_scaling.min.len() != s[s.len() - 1]
+        {
+            return Err(format!(
+                "{source}: inconsistent model (layer sizes, columns and weights disagree)"
+            ));
+        }
+        Ok(m)
+    }
+
+    /// The JSON text.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
