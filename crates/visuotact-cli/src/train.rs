@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 use visuotact_nn::lm::{Control, LmConfig};
+use visuotact_nn::metrics::target_errors;
 use visuotact_nn::mlp::{MinMax, Mlp, TrainConfig};
 use visuotact_nn::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 
@@ -348,19 +349,6 @@ pub(crate) struct EvalArgs {
     json: bool,
 }
 
-/// Error figures of one target.
-#[derive(serde::Serialize, Debug)]
-struct TargetErrors {
-    target: String,
-    n: usize,
-    mse: f64,
-    r: f64,
-    mean_abs: f64,
-    max_abs: f64,
-    mean_percentage_error: f64,
-    accuracy_percent: f64,
-}
-
 pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let p = KeyedTable::read(&a.predictions, &["flags"]).map_err(anyhow::Error::msg)?;
     let l = KeyedTable::read(&a.labels, &[]).map_err(anyhow::Error::msg)?;
@@ -375,51 +363,17 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));
     for (j, name) in p.columns.iter().enumerate() {
         let Some(lj) = l.column(name) else { continue };
-        let mut e = Vec::new();
-        let mut pv = Vec::new();
-        let mut lv = Vec::new();
+        let (mut pv, mut lv) = (Vec::new(), Vec::new());
         for (r, key) in p.keys.iter().enumerate() {
-            let Some(&li) = by_key.get(key.as_str()) else {
-                continue;
-            };
-            let (est, truth) = (p.rows[r][j], l.rows[li][lj]);
-            if est.is_nan() || truth.is_nan() {
-                continue;
+            if let Some(&li) = by_key.get(key.as_str()) {
+                pv.push(p.rows[r][j]);
+                lv.push(l.rows[li][lj]);
             }
-            e.push(est - truth);
-            pv.push(est);
-            lv.push(truth);
         }
-        if e.is_empty() {
-            continue;
+        let e = target_errors(name, &pv, &lv);
+        if e.n > 0 {
+            figures.push(e);
         }
-        let n = e.len() as f64;
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        let (mp, ml) = (mean(&pv), mean(&lv));
-        let cov: f64 = pv.iter().zip(&lv).map(|(a, b)| (a - mp) * (b - ml)).sum();
-        let sp: f64 = pv.iter().map(|a| (a - mp).powi(2)).sum::<f64>().sqrt();
-        let sl: f64 = lv.iter().map(|b| (b - ml).powi(2)).sum::<f64>().sqrt();
-        let rel: Vec<f64> = e
-            .iter()
-            .zip(&lv)
-            .filter(|(_, t)| t.abs() > 1e-12)
-            .map(|(e, t)| (e / t).abs())
-            .collect();
-        let mpe = if rel.is_empty() {
-            f64::NAN
-        } else {
-            100.0 * mean(&rel)
-        };
-        figures.push(TargetErrors {
-            target: name.clone(),
-            n: e.len(),
-            mse: e.iter().map(|v| v * v).sum::<f64>() / n,
-            r: cov / (sp * sl),
-            mean_abs: e.iter().map(|v| v.abs()).sum::<f64>() / n,
-            max_abs: e.iter().fold(0.0f64, |m, v| m.max(v.abs())),
-            mean_percentage_error: mpe,
-            accuracy_percent: 100.0 - mpe,
-        });
     }
     if figures.is_empty() {
         bail!(

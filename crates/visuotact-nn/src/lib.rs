@@ -6,6 +6,7 @@
 
 pub mod dual;
 pub mod lm;
+pub mod metrics;
 pub mod mlp;
 pub mod model;
 pub mod nist;
