@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod blobs;
 mod calibrate;
+mod demo;
 mod extract;
 mod pattern;
 mod simulate;
@@ -25,6 +26,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Both papers' experiments end to end on the simulator, beside the papers' numbers.
+    Demo(demo::Args),
     /// Average still no-contact frames into a reference and number its markers → sensor.json.
     Calibrate(calibrate::Args),
     /// Track every reference marker through frames → one feature row per frame.
@@ -68,6 +71,7 @@ where
         }
     };
     let result = match cli.command {
+        Command::Demo(a) => demo::run(&a),
         Command::Calibrate(a) => calibrate::run(&a),
         Command::Extract(a) => extract::run(&a),
         Command::Blobs(a) => blobs::run(&a),

@@ -27,16 +27,37 @@ pub struct TargetErrors {
 
 /// Figures for estimates `est` against `truth` (pairs with a NaN are left out).
 pub fn target_errors(target: &str, est: &[f64], truth: &[f64]) -> TargetErrors {
-    let pairs: Vec<(f64, f64)> = est.iter().zip(truth).map(|(a, b)| (*a, *b)).filter(|(a, b)| a.is_finite() && b.is_finite()).collect();
+    let pairs: Vec<(f64, f64)> = est
+        .iter()
+        .zip(truth)
+        .map(|(a, b)| (*a, *b))
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .collect();
     let n = pairs.len();
     let nf = n.max(1) as f64;
     let mean_p = pairs.iter().map(|p| p.0).sum::<f64>() / nf;
     let mean_t = pairs.iter().map(|p| p.1).sum::<f64>() / nf;
     let cov: f64 = pairs.iter().map(|(a, b)| (a - mean_p) * (b - mean_t)).sum();
-    let sp = pairs.iter().map(|(a, _)| (a - mean_p).powi(2)).sum::<f64>().sqrt();
-    let st = pairs.iter().map(|(_, b)| (b - mean_t).powi(2)).sum::<f64>().sqrt();
-    let rel: Vec<f64> = pairs.iter().filter(|(_, t)| t.abs() > 1e-12).map(|(e, t)| ((e - t) / t).abs()).collect();
-    let mpe = if rel.is_empty() { f64::NAN } else { 100.0 * rel.iter().sum::<f64>() / rel.len() as f64 };
+    let sp = pairs
+        .iter()
+        .map(|(a, _)| (a - mean_p).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let st = pairs
+        .iter()
+        .map(|(_, b)| (b - mean_t).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let rel: Vec<f64> = pairs
+        .iter()
+        .filter(|(_, t)| t.abs() > 1e-12)
+        .map(|(e, t)| ((e - t) / t).abs())
+        .collect();
+    let mpe = if rel.is_empty() {
+        f64::NAN
+    } else {
+        100.0 * rel.iter().sum::<f64>() / rel.len() as f64
+    };
     TargetErrors {
         target: target.to_string(),
         n,
