@@ -14,6 +14,7 @@ mod demo;
 mod extract;
 mod pattern;
 mod simulate;
+mod sweep;
 mod train;
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.
@@ -42,6 +43,8 @@ enum Command {
     Simulate(simulate::Args),
     /// Train a network (Levenberg–Marquardt) from features and labels → model.json.
     Train(train::TrainArgs),
+    /// Train many hidden sizes × repeats on every core → sweep.csv, best model, plot.
+    Sweep(sweep::Args),
     /// Run a model over a feature table → predictions.csv.
     Predict(train::PredictArgs),
     /// Error figures of predictions against labels (MSE, R, mean/max error, MPE, accuracy, D).
@@ -79,6 +82,7 @@ where
         Command::Pattern(a) => pattern::run(&a),
         Command::Simulate(a) => simulate::run(&a),
         Command::Train(a) => train::train(&a),
+        Command::Sweep(a) => sweep::run(&a),
         Command::Predict(a) => train::predict(&a),
         Command::Eval(a) => train::eval(&a),
     };

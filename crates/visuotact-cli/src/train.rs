@@ -58,17 +58,17 @@ fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T
 }
 
 /// Features and labels joined on `frame`.
-struct Joined {
+pub(crate) struct Joined {
     /// Input rows (per-marker features).
-    x: Vec<Vec<f64>>,
+    pub(crate) x: Vec<Vec<f64>>,
     /// Target rows.
-    t: Vec<Vec<f64>>,
+    pub(crate) t: Vec<Vec<f64>>,
     /// Names of the input columns.
-    feature_columns: Vec<String>,
+    pub(crate) feature_columns: Vec<String>,
 }
 
 /// Joins features and labels on `frame`.
-fn joined(
+pub(crate) fn joined(
     features: &Path,
     labels: &Path,
     targets: &[String],
@@ -158,69 +158,43 @@ fn joined(
     })
 }
 
-pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
-    let targets: Vec<String> = a
-        .targets
-        .split(',')
-        .map(|s| s.trim().to_string())
-        .filter(|s| !s.is_empty())
-        .collect();
-    if targets.is_empty() {
-        bail!("--targets is empty");
-    }
-    let hidden: Vec<usize> = parse_list(&a.hidden, "hidden")?;
-    if hidden.is_empty() || hidden.contains(&0) {
-        bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
-    }
-    let sensor = match &a.sensor {
-        Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
-        None => None,
-    };
-    let Joined {
-        x,
-        t,
-        feature_columns,
-    } = joined(&a.features, &a.labels, &targets, a.drop_incomplete)?;
-    let input_scaling = MinMax::fit(&x);
-    let target_scaling = MinMax::fit(&t);
+/// Everything one training needs besides the data.
+pub(crate) struct FitSpec<'a> {
+    pub(crate) feature_columns: &'a [String],
+    pub(crate) targets: &'a [String],
+    pub(crate) hidden: &'a [usize],
+    pub(crate) seed: u64,
+    pub(crate) max_epochs: usize,
+    pub(crate) sensor: Option<serde_json::Value>,
+}
+
+/// Scales, initialises and trains one network; the model keeps the best-validation weights.
+pub(crate) fn fit_model(
+    x: &[Vec<f64>],
+    t: &[Vec<f64>],
+    spec: FitSpec<'_>,
+    progress: impl FnMut(usize, f64, f64) -> Control,
+) -> Model {
+    let input_scaling = MinMax::fit(x);
+    let target_scaling = MinMax::fit(t);
     let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
     let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
-    let mut sizes = vec![feature_columns.len()];
-    sizes.extend(&hidden);
-    sizes.push(targets.len());
-    let mut net = Mlp::nguyen_widrow(&sizes, a.seed);
+    let mut sizes = vec![spec.feature_columns.len()];
+    sizes.extend(spec.hidden);
+    sizes.push(spec.targets.len());
+    let mut net = Mlp::nguyen_widrow(&sizes, spec.seed);
     let cfg = TrainConfig {
         lm: LmConfig {
-            max_iterations: a.max_epochs,
+            max_iterations: spec.max_epochs,
             ..LmConfig::TRAINLM
         },
-        seed: a.seed,
+        seed: spec.seed,
         ..TrainConfig::TRAINLM
     };
-    eprintln!(
-        "training {} → {} → {} ({} weights) on {} frames",
-        sizes[0],
-        hidden
-            .iter()
-            .map(usize::to_string)
-            .collect::<Vec<_>>()
-            .join(" → "),
-        targets.len(),
-        net.params.len(),
-        x.len()
-    );
-    let t0 = std::time::Instant::now();
-    let out = visuotact_nn::mlp::train(&mut net, &xs, &ts, &cfg, |epoch, train_mse, val_mse| {
-        if epoch % 10 == 0 {
-            eprintln!(
-                "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
-            );
-        }
-        Control::Continue
-    });
+    let out = visuotact_nn::mlp::train(&mut net, &xs, &ts, &cfg, progress);
     // MSE per target in target units: scaled MSE × (span / 2)².
     let unit_mse = |ids: &[usize]| -> Vec<f64> {
-        (0..targets.len())
+        (0..spec.targets.len())
             .map(|j| {
                 let s: f64 = ids
                     .iter()
@@ -241,39 +215,99 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
     } else {
         format!("{:?}", out.lm.reason)
     };
-    let model = Model {
+    Model {
         format: MODEL_FORMAT.to_string(),
         version: MODEL_VERSION,
         net,
         input_scaling,
         target_scaling,
-        feature_columns,
-        target_columns: targets.clone(),
+        feature_columns: spec.feature_columns.to_vec(),
+        target_columns: spec.targets.to_vec(),
         training: TrainingSummary {
             epochs: out.lm.iterations,
             best_epoch: out.best_epoch,
-            stop: stop.clone(),
+            stop,
             samples: [
                 out.subsets[0].len(),
                 out.subsets[1].len(),
                 out.subsets[2].len(),
             ],
-            mse: mse.clone(),
-            seed: a.seed,
+            mse,
+            seed: spec.seed,
         },
+        sensor: spec.sensor,
+    }
+}
+
+pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
+    let targets: Vec<String> = s
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if targets.is_empty() {
+        bail!("--targets is empty");
+    }
+    Ok(targets)
+}
+
+pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
+    let targets = parse_targets(&a.targets)?;
+    let hidden: Vec<usize> = parse_list(&a.hidden, "hidden")?;
+    if hidden.is_empty() || hidden.contains(&0) {
+        bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
+    }
+    let sensor = match &a.sensor {
+        Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
+        None => None,
+    };
+    let Joined {
+        x,
+        t,
+        feature_columns,
+    } = joined(&a.features, &a.labels, &targets, a.drop_incomplete)?;
+    eprintln!(
+        "training {} → {} → {} ({} weights) on {} frames",
+        feature_columns.len(),
+        hidden
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" → "),
+        targets.len(),
+        Mlp::n_params_for(&[&[feature_columns.len()][..], &hidden, &[targets.len()]].concat()),
+        x.len()
+    );
+    let t0 = std::time::Instant::now();
+    let spec = FitSpec {
+        feature_columns: &feature_columns,
+        targets: &targets,
+        hidden: &hidden,
+        seed: a.seed,
+        max_epochs: a.max_epochs,
         sensor,
     };
+    let model = fit_model(&x, &t, spec, |epoch, train_mse, val_mse| {
+        if epoch % 10 == 0 {
+            eprintln!(
+                "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
+            );
+        }
+        Control::Continue
+    });
     crate::write_atomically(&a.output, &model.to_json())?;
+    let tr = &model.training;
     eprintln!(
-        "trained in {:.2} s: {} epochs (best {}), stopped by {stop}",
+        "trained in {:.2} s: {} epochs (best {}), stopped by {}",
         t0.elapsed().as_secs_f64(),
-        out.lm.iterations,
-        out.best_epoch
+        tr.epochs,
+        tr.best_epoch,
+        tr.stop
     );
     for (j, name) in targets.iter().enumerate() {
         eprintln!(
             "  {name}: mse train {:.4e}, validation {:.4e}, test {:.4e}",
-            mse[0][j], mse[1][j], mse[2][j]
+            tr.mse[0][j], tr.mse[1][j], tr.mse[2][j]
         );
     }
     eprintln!("wrote {}", a.output.display());

@@ -114,6 +114,38 @@ fn train_predict_eval_and_bad_tables() {
     assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
     assert!(t["mean_abs"].as_f64().unwrap() < 0.5, "{t}");
 
+    // A sweep over sizes with repeats: table, best model, plot.
+    let sw = d.join("sweep");
+    let err = ok(&vt(&[
+        "sweep",
+        "--features",
+        s(&f),
+        "--labels",
+        s(&l),
+        "--targets",
+        "force_n",
+        "--hidden",
+        "1..4",
+        "--repeats",
+        "3",
+        "-o",
+        s(&sw),
+    ]));
+    assert!(err.contains("12 trainings of 4 architectures"), "{err}");
+    let table = std::fs::read_to_string(sw.join("sweep.csv")).unwrap();
+    assert_eq!(table.lines().count(), 5);
+    assert!(table.lines().nth(1).unwrap().starts_with("1,3,"));
+    let best: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sw.join("best_model.json")).unwrap())
+            .unwrap();
+    assert_eq!(best["format"], "visuotact-model");
+    let svg = std::fs::read_to_string(sw.join("performance.svg")).unwrap();
+    assert!(
+        svg.starts_with("<svg")
+            && svg.contains("hidden neurons")
+            && svg.matches("<circle").count() >= 4
+    );
+
     // A non-numeric cell.
     let text = std::fs::read_to_string(&f).unwrap();
     let mut lines: Vec<String> = text.lines().map(str::to_string).collect();

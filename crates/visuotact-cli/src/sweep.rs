@@ -1,0 +1,270 @@
+//! `visuotact sweep`: train networks of many hidden sizes, several times each with different
+//! seeds, on every core; mean and best performance per size, the best model, and the plot of
+//! mean performance against size (seed 001 Figs. 4.8/4.11/4.13).
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use indicatif::{ProgressBar, ProgressStyle};
+use plotters::prelude::*;
+use rayon::prelude::*;
+use visuotact_nn::lm::Control;
+use visuotact_nn::model::Model;
+
+use crate::train::{fit_model, joined, parse_targets, FitSpec, Joined};
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Feature table from `extract`.
+    #[arg(long)]
+    features: PathBuf,
+    /// Label table keyed by `frame`.
+    #[arg(long)]
+    labels: PathBuf,
+    /// Target columns, comma-separated.
+    #[arg(long)]
+    targets: String,
+    /// Hidden sizes: `1..40` (one layer), `1..20x1..20` (two layers), or a list `5,10,20`.
+    #[arg(long, default_value = "1..20")]
+    hidden: String,
+    /// Trainings per size (different seeds).
+    #[arg(long, default_value_t = 10)]
+    repeats: usize,
+    /// Output folder: sweep.csv, best_model.json, performance.svg.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Base seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Most epochs per training.
+    #[arg(long, default_value_t = 1000)]
+    max_epochs: usize,
+    /// Leave out frames with missing feature cells.
+    #[arg(long)]
+    drop_incomplete: bool,
+}
+
+fn range(s: &str) -> anyhow::Result<Vec<usize>> {
+    let (a, b) = s
+        .split_once("..")
+        .with_context(|| format!("--hidden: {s:?} is not a range like 1..40"))?;
+    let (a, b): (usize, usize) = (a.trim().parse()?, b.trim().parse()?);
+    if a == 0 || b < a {
+        bail!("--hidden: range {s:?} must be 1 ≤ start ≤ end");
+    }
+    Ok((a..=b).collect())
+}
+
+/// The architectures a `--hidden` spec names.
+pub(crate) fn architectures(spec: &str) -> anyhow::Result<Vec<Vec<usize>>> {
+    if let Some((l, r)) = spec.split_once('x') {
+        let (a, b) = (range(l)?, range(r)?);
+        return Ok(a
+            .iter()
+            .flat_map(|&i| b.iter().map(move |&j| vec![i, j]))
+            .collect());
+    }
+    if spec.contains("..") {
+        return Ok(range(spec)?.into_iter().map(|n| vec![n]).collect());
+    }
+    let v: Result<Vec<usize>, _> = spec.split(',').map(|p| p.trim().parse::<usize>()).collect();
+    match v {
+        Ok(v) if !v.is_empty() && !v.contains(&0) => Ok(v.into_iter().map(|n| vec![n]).collect()),
+        _ => bail!("--hidden: {spec:?} is not a range (1..40, 1..20x1..20) or a list of sizes"),
+    }
+}
+
+fn mean_of(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let targets = parse_targets(&a.targets)?;
+    let archs = architectures(&a.hidden)?;
+    if a.repeats == 0 {
+        bail!("--repeats must be at least 1");
+    }
+    let Joined {
+        x,
+        t,
+        feature_columns,
+    } = joined(&a.features, &a.labels, &targets, a.drop_incomplete)?;
+    std::fs::create_dir_all(&a.output)
+        .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
+    let jobs: Vec<(usize, usize)> = (0..archs.len())
+        .flat_map(|k| (0..a.repeats).map(move |r| (k, r)))
+        .collect();
+    let bar = ProgressBar::new(jobs.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} trainings, {elapsed} elapsed, ~{eta} left",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let t0 = std::time::Instant::now();
+    // Every (size, repeat) on the rayon pool: all cores.
+    let results: Vec<(usize, Model)> = jobs
+        .par_iter()
+        .map(|&(k, r)| {
+            let spec = FitSpec {
+                feature_columns: &feature_columns,
+                targets: &targets,
+                hidden: &archs[k],
+                seed: a.seed.wrapping_add(1000 * r as u64 + k as u64),
+                max_epochs: a.max_epochs,
+                sensor: None,
+            };
+            let m = fit_model(&x, &t, spec, |_, _, _| Control::Continue);
+            bar.inc(1);
+            (k, m)
+        })
+        .collect();
+    bar.finish_and_clear();
+    // Performance: mean over targets of the test MSE (validation MSE picks the best model).
+    let perf = |m: &Model, subset: usize| mean_of(&m.training.mse[subset]);
+    let mut rows = String::from("hidden,repeats,mean_test_mse,best_test_mse,mean_validation_mse,best_validation_mse,mean_epochs\n");
+    let mut points = Vec::new();
+    for (k, arch) in archs.iter().enumerate() {
+        let ms: Vec<&Model> = results
+            .iter()
+            .filter(|(kk, _)| *kk == k)
+            .map(|(_, m)| m)
+            .collect();
+        let test: Vec<f64> = ms.iter().map(|m| perf(m, 2)).collect();
+        let val: Vec<f64> = ms.iter().map(|m| perf(m, 1)).collect();
+        let epochs: Vec<f64> = ms.iter().map(|m| m.training.epochs as f64).collect();
+        let name = arch
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join("x");
+        let best = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+        rows.push_str(&format!(
+            "{name},{},{},{},{},{},{}\n",
+            ms.len(),
+            mean_of(&test),
+            best(&test),
+            mean_of(&val),
+            best(&val),
+            mean_of(&epochs)
+        ));
+        points.push((
+            arch.iter().sum::<usize>() as f64,
+            mean_of(&test),
+            best(&test),
+        ));
+    }
+    crate::write_atomically(&a.output.join("sweep.csv"), &rows)?;
+    let (_, best_model) = results
+        .iter()
+        .min_by(|p, q| perf(&p.1, 1).total_cmp(&perf(&q.1, 1)))
+        .context("no training ran")?;
+    crate::write_atomically(&a.output.join("best_model.json"), &best_model.to_json())?;
+    plot(&a.output.join("performance.svg"), &points, &targets).context("performance plot")?;
+    eprintln!(
+        "{} trainings of {} architectures in {:.1} s; best: hidden {:?}, validation MSE {:.4e}, test MSE {:.4e}",
+        results.len(),
+        archs.len(),
+        t0.elapsed().as_secs_f64(),
+        &best_model.net.sizes[1..best_model.net.sizes.len() - 1],
+        perf(best_model, 1),
+        perf(best_model, 2)
+    );
+    eprintln!(
+        "wrote {}/sweep.csv, best_model.json, performance.svg",
+        a.output.display()
+    );
+    Ok(())
+}
+
+/// Mean and best test MSE against the number of hidden neurons.
+fn plot(
+    path: &std::path::Path,
+    points: &[(f64, f64, f64)],
+    targets: &[String],
+) -> anyhow::Result<()> {
+    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let xmax = points.iter().map(|p| p.0).fold(1.0, f64::max);
+    let ys: Vec<f64> = points
+        .iter()
+        .flat_map(|p| [p.1, p.2])
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let (ymin, ymax) = (
+        ys.iter().copied().fold(f64::INFINITY, f64::min),
+        ys.iter().copied().fold(0.0, f64::max),
+    );
+    let (ymin, ymax) = if ys.is_empty() {
+        (1e-6, 1.0)
+    } else {
+        (ymin * 0.8, ymax * 1.25)
+    };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("Performance against network size ({})", targets.join(", ")),
+            ("sans-serif", 20),
+        )
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..xmax + 1.0, (ymin..ymax).log_scale())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("hidden neurons")
+        .y_desc("test MSE (target units²)")
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut mean: Vec<(f64, f64)> = points
+        .iter()
+        .map(|p| (p.0, p.1))
+        .filter(|p| p.1 > 0.0)
+        .collect();
+    mean.sort_by(|a, b| a.0.total_cmp(&b.0));
+    chart
+        .draw_series(LineSeries::new(mean.clone(), &BLUE))
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .label("mean of repeats")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .draw_series(
+            points
+                .iter()
+                .filter(|p| p.2 > 0.0)
+                .map(|p| Circle::new((p.0, p.2), 3, RED.filled())),
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .label("best of repeats")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, RED.filled()));
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::architectures;
+
+    #[test]
+    fn hidden_specs() {
+        assert_eq!(
+            architectures("1..3").unwrap(),
+            vec![vec![1], vec![2], vec![3]]
+        );
+        assert_eq!(
+            architectures("1..2x3..4").unwrap(),
+            vec![vec![1, 3], vec![1, 4], vec![2, 3], vec![2, 4]]
+        );
+        assert_eq!(architectures("5,10").unwrap(), vec![vec![5], vec![10]]);
+        assert!(
+            architectures("0..3").is_err()
+                && architectures("4..2").is_err()
+                && architectures("a").is_err()
+        );
+    }
+}
