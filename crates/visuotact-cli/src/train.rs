@@ -97,12 +97,7 @@ pub(crate) fn joined(
             })
         })
         .collect::<anyhow::Result<_>>()?;
-    let by_key: std::collections::HashMap<&str, usize> = l
-        .keys
-        .iter()
-        .enumerate()
-        .map(|(i, k)| (k.as_str(), i))
-        .collect();
+    let by_key = l.rows_by_key();
     let (mut x, mut t) = (Vec::new(), Vec::new());
     let (mut unlabelled, mut dropped) = (0, 0);
     for (r, key) in f.keys.iter().enumerate() {
@@ -386,12 +381,7 @@ pub(crate) struct EvalArgs {
 pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let p = KeyedTable::read(&a.predictions, &["flags"]).map_err(anyhow::Error::msg)?;
     let l = KeyedTable::read(&a.labels, &[]).map_err(anyhow::Error::msg)?;
-    let by_key: std::collections::HashMap<&str, usize> = l
-        .keys
-        .iter()
-        .enumerate()
-        .map(|(i, k)| (k.as_str(), i))
-        .collect();
+    let by_key = l.rows_by_key();
     let mut figures = Vec::new();
     let mut pairs_xy: Vec<(f64, f64)> = Vec::new();
     let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));

@@ -235,23 +235,29 @@ fn cone_session_with_force_stream() {
     );
 }
 
+/// `simulate --sensor iats --protocol line --references 2 --seed SEED -o DIR`.
+fn simulate_line(seed: u64, dir: &Path) {
+    let seed = seed.to_string();
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "line",
+        "--references",
+        "2",
+        "--seed",
+        &seed,
+        "-o",
+        s(dir),
+    ]));
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let (a, b) = (tmp("det-a"), tmp("det-b"));
     for d in [&a, &b] {
-        ok(&vt(&[
-            "simulate",
-            "--sensor",
-            "iats",
-            "--protocol",
-            "line",
-            "--references",
-            "2",
-            "--seed",
-            "5",
-            "-o",
-            s(d),
-        ]));
+        simulate_line(5, d);
     }
     for f in [
         "session.json",
@@ -268,19 +274,7 @@ fn same_seed_same_bytes() {
         );
     }
     let c = tmp("det-c");
-    ok(&vt(&[
-        "simulate",
-        "--sensor",
-        "iats",
-        "--protocol",
-        "line",
-        "--references",
-        "2",
-        "--seed",
-        "6",
-        "-o",
-        s(&c),
-    ]));
+    simulate_line(6, &c);
     assert_ne!(
         std::fs::read(a.join("frames/frame_000006.png")).unwrap(),
         std::fs::read(c.join("frames/frame_000006.png")).unwrap()

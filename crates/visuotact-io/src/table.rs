@@ -214,6 +214,15 @@ impl KeyedTable {
         })
     }
 
+    /// Row index of each key.
+    pub fn rows_by_key(&self) -> std::collections::HashMap<&str, usize> {
+        self.keys
+            .iter()
+            .enumerate()
+            .map(|(i, k)| (k.as_str(), i))
+            .collect()
+    }
+
     /// Index of a column.
     pub fn column(&self, name: &str) -> Option<usize> {
         self.columns.iter().position(|c| c == name)
