@@ -4,11 +4,13 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 use visuotact_nn::lm::{Control, LmConfig};
 use visuotact_nn::metrics::target_errors;
 use visuotact_nn::mlp::{MinMax, Mlp, TrainConfig};
 use visuotact_nn::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct TrainArgs {
@@ -314,12 +316,69 @@ pub(crate) struct PredictArgs {
     /// Model file from `train`.
     #[arg(long)]
     model: PathBuf,
-    /// Feature table from `extract`.
-    #[arg(long)]
-    features: PathBuf,
+    /// Feature table from `extract` (or give --sensor and frames).
+    #[arg(long, conflicts_with_all = ["sensor", "frames"])]
+    features: Option<PathBuf>,
+    /// Sensor file: extract features from FRAMES with it, then estimate.
+    #[arg(long, requires = "frames")]
+    sensor: Option<PathBuf>,
+    /// Frames (image files, folders, videos) when --sensor is given.
+    frames: Vec<PathBuf>,
     /// Output table (`-` for standard output).
     #[arg(short, long)]
     output: PathBuf,
+}
+
+/// The per-marker feature set that produces `columns` (`m000_dx_px`, `m000_decc`, …).
+fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
+    let mut kinds: Vec<&str> = Vec::new();
+    for c in columns {
+        let kind = match c.get(5..) {
+            Some("dx_px") => "x",
+            Some("dy_px") => "y",
+            Some("darea_px") => "area",
+            Some("decc") => "ecc",
+            _ => bail!("the model's feature column `{c}` is not a per-marker feature"),
+        };
+        if !kinds.contains(&kind) {
+            kinds.push(kind);
+        }
+    }
+    FeatureSet::parse(&kinds.join(",")).map_err(anyhow::Error::msg)
+}
+
+/// Features of frames extracted with a sensor file, as a keyed table.
+fn features_from_frames(
+    sensor: &Path,
+    frames: &[PathBuf],
+    columns: &[String],
+) -> anyhow::Result<KeyedTable> {
+    let cal = crate::load_sensor(sensor)?;
+    let mut ex =
+        FeatureExtractor::new(cal, feature_set_of(columns)?).map_err(anyhow::Error::msg)?;
+    let names = ex.column_names();
+    let (mut keys, mut rows) = (Vec::new(), Vec::new());
+    for item in FrameStream::open(frames, 25.0)? {
+        let frame = match item {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("warning: {e}; skipped");
+                continue;
+            }
+        };
+        match ex.extract(&frame.image) {
+            Ok(f) => {
+                keys.push(frame.id);
+                rows.push(f.values);
+            }
+            Err(e) => eprintln!("warning: frame {}: {e}; skipped", frame.id),
+        }
+    }
+    Ok(KeyedTable {
+        columns: names,
+        keys,
+        rows,
+    })
 }
 
 pub(crate) fn load_model(path: &Path) -> anyhow::Result<Model> {
@@ -330,15 +389,24 @@ pub(crate) fn load_model(path: &Path) -> anyhow::Result<Model> {
 
 pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
     let model = load_model(&a.model)?;
-    let f = KeyedTable::read(&a.features, &["flags"]).map_err(anyhow::Error::msg)?;
+    let (f, source) = match (&a.features, &a.sensor) {
+        (Some(p), _) => (
+            KeyedTable::read(p, &["flags"]).map_err(anyhow::Error::msg)?,
+            p.display().to_string(),
+        ),
+        (None, Some(sensor)) => (
+            features_from_frames(sensor, &a.frames, &model.feature_columns)?,
+            format!("frames read with {}", sensor.display()),
+        ),
+        (None, None) => bail!("give --features TABLE, or --sensor SENSOR FRAMES..."),
+    };
     let cols: Vec<usize> = model
         .feature_columns
         .iter()
         .map(|c| {
             f.column(c).with_context(|| {
                 format!(
-                    "{}: no column `{c}`: the model {} was trained on other features",
-                    a.features.display(),
+                    "{source}: no column `{c}`: the model {} was trained on other features",
                     a.model.display()
                 )
             })

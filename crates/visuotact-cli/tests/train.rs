@@ -105,6 +105,19 @@ fn train_predict_eval_and_bad_tables() {
         "-o",
         s(&p),
     ]));
+    // Straight from frames with the sensor file: the same estimates.
+    let p2 = d.join("p2.csv");
+    ok(&vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--sensor",
+        s(&d.join("s.json")),
+        s(&d.join("frames")),
+        "-o",
+        s(&p2),
+    ]));
+    assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&p2).unwrap());
     let o = vt(&["eval", "--predictions", s(&p), "--labels", s(&l), "--json"]);
     ok(&o);
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
