@@ -444,6 +444,57 @@ pub(crate) struct EvalArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
+    /// Also draw the regression plot (estimate against truth, one panel per target) as SVG.
+    #[arg(long, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
+}
+
+/// Estimates against truth, one panel per target, with the y = x line and R.
+fn regression_plot(path: &Path, panels: &[(String, Vec<(f64, f64)>, f64)]) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: {e}", path.display());
+    let root = SVGBackend::new(path, (420 * panels.len().max(1) as u32, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    for (area, (name, pts, r)) in root
+        .split_evenly((1, panels.len().max(1)))
+        .iter()
+        .zip(panels)
+    {
+        let lo = pts
+            .iter()
+            .flat_map(|p| [p.0, p.1])
+            .fold(f64::INFINITY, f64::min);
+        let hi = pts
+            .iter()
+            .flat_map(|p| [p.0, p.1])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let pad = 0.05 * (hi - lo).max(1e-9);
+        let (lo, hi) = (lo - pad, hi + pad);
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{name}: R = {r:.5}"), ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(50)
+            .build_cartesian_2d(lo..hi, lo..hi)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc("target")
+            .y_desc("estimate")
+            .draw()
+            .map_err(|e| err(&e))?;
+        chart
+            .draw_series(LineSeries::new([(lo, lo), (hi, hi)], &BLACK))
+            .map_err(|e| err(&e))?;
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|&(t, e)| Circle::new((t, e), 2, BLUE.mix(0.5).filled())),
+            )
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
 }
 
 pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
@@ -451,6 +502,7 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let l = KeyedTable::read(&a.labels, &[]).map_err(anyhow::Error::msg)?;
     let by_key = l.rows_by_key();
     let mut figures = Vec::new();
+    let mut panels = Vec::new();
     let mut pairs_xy: Vec<(f64, f64)> = Vec::new();
     let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));
     for (j, name) in p.columns.iter().enumerate() {
@@ -464,6 +516,13 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         }
         let e = target_errors(name, &pv, &lv);
         if e.n > 0 {
+            let pts = lv
+                .iter()
+                .zip(&pv)
+                .filter(|(t, p)| t.is_finite() && p.is_finite())
+                .map(|(t, p)| (*t, *p))
+                .collect();
+            panels.push((name.clone(), pts, e.r));
             figures.push(e);
         }
     }
@@ -491,6 +550,10 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             pairs_xy.iter().fold(0.0f64, |m, p| m.max(p.0)),
         )
     });
+    if let Some(path) = &a.plot {
+        regression_plot(path, &panels)?;
+        eprintln!("wrote {}", path.display());
+    }
     if a.json {
         let v = serde_json::json!({
             "targets": figures,

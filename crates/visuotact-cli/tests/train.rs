@@ -118,7 +118,17 @@ fn train_predict_eval_and_bad_tables() {
         s(&p2),
     ]));
     assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&p2).unwrap());
-    let o = vt(&["eval", "--predictions", s(&p), "--labels", s(&l), "--json"]);
+    let plot = d.join("regression.svg");
+    let o = vt(&[
+        "eval",
+        "--predictions",
+        s(&p),
+        "--labels",
+        s(&l),
+        "--json",
+        "--plot",
+        s(&plot),
+    ]);
     ok(&o);
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let t = &ev["targets"][0];
@@ -126,6 +136,8 @@ fn train_predict_eval_and_bad_tables() {
     assert_eq!(t["n"], 150);
     assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
     assert!(t["mean_abs"].as_f64().unwrap() < 0.5, "{t}");
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.contains("force_n: R = ") && svg.matches("<circle").count() == 150);
 
     // A sweep over sizes with repeats: table, best model, plot.
     let sw = d.join("sweep");
