@@ -449,8 +449,11 @@ pub(crate) struct EvalArgs {
     plot: Option<PathBuf>,
 }
 
+/// One regression panel: target name, (truth, estimate) pairs, R.
+type Panel = (String, Vec<(f64, f64)>, f64);
+
 /// Estimates against truth, one panel per target, with the y = x line and R.
-fn regression_plot(path: &Path, panels: &[(String, Vec<(f64, f64)>, f64)]) -> anyhow::Result<()> {
+fn regression_plot(path: &Path, panels: &[Panel]) -> anyhow::Result<()> {
     use plotters::prelude::*;
     let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: {e}", path.display());
     let root = SVGBackend::new(path, (420 * panels.len().max(1) as u32, 420)).into_drawing_area();
@@ -502,7 +505,7 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let l = KeyedTable::read(&a.labels, &[]).map_err(anyhow::Error::msg)?;
     let by_key = l.rows_by_key();
     let mut figures = Vec::new();
-    let mut panels = Vec::new();
+    let mut panels: Vec<Panel> = Vec::new();
     let mut pairs_xy: Vec<(f64, f64)> = Vec::new();
     let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));
     for (j, name) in p.columns.iter().enumerate() {
