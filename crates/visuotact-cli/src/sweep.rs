@@ -11,19 +11,12 @@ use rayon::prelude::*;
 use visuotact_nn::lm::Control;
 use visuotact_nn::model::Model;
 
-use crate::train::{fit_model, joined, parse_targets, FitSpec, Joined};
+use crate::train::{fit_model, DataArgs, FitSpec, Joined};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// Feature table from `extract`.
-    #[arg(long)]
-    features: PathBuf,
-    /// Label table keyed by `frame`.
-    #[arg(long)]
-    labels: PathBuf,
-    /// Target columns, comma-separated.
-    #[arg(long)]
-    targets: String,
+    #[command(flatten)]
+    data: DataArgs,
     /// Hidden sizes: `1..40` (one layer), `1..20x1..20` (two layers), or a list `5,10,20`.
     #[arg(long, default_value = "1..20")]
     hidden: String,
@@ -39,9 +32,6 @@ pub(crate) struct Args {
     /// Most epochs per training.
     #[arg(long, default_value_t = 1000)]
     max_epochs: usize,
-    /// Leave out frames with missing feature cells.
-    #[arg(long)]
-    drop_incomplete: bool,
 }
 
 fn range(s: &str) -> anyhow::Result<Vec<usize>> {
@@ -79,16 +69,18 @@ fn mean_of(v: &[f64]) -> f64 {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let targets = parse_targets(&a.targets)?;
     let archs = architectures(&a.hidden)?;
     if a.repeats == 0 {
         bail!("--repeats must be at least 1");
     }
-    let Joined {
-        x,
-        t,
-        feature_columns,
-    } = joined(&a.features, &a.labels, &targets, a.drop_incomplete)?;
+    let (
+        targets,
+        Joined {
+            x,
+            t,
+            feature_columns,
+        },
+    ) = a.data.load()?;
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
     let jobs: Vec<(usize, usize)> = (0..archs.len())

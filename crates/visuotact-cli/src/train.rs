@@ -14,15 +14,8 @@ use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct TrainArgs {
-    /// Feature table from `extract` (per-marker columns `mNNN_…` are the inputs).
-    #[arg(long)]
-    features: PathBuf,
-    /// Label table keyed by `frame` (a session's labels.csv).
-    #[arg(long)]
-    labels: PathBuf,
-    /// Target columns of the labels, comma-separated (e.g. x_mm,y_mm,depth_mm).
-    #[arg(long)]
-    targets: String,
+    #[command(flatten)]
+    data: DataArgs,
     /// Hidden layer sizes, comma-separated (e.g. 20 or 20,20).
     #[arg(long, default_value = "20")]
     hidden: String,
@@ -38,9 +31,32 @@ pub(crate) struct TrainArgs {
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
     sensor: Option<PathBuf>,
+}
+
+/// The training data: features, labels, which targets, what to do with incomplete frames.
+#[derive(clap::Args, Debug)]
+pub(crate) struct DataArgs {
+    /// Feature table from `extract` (per-marker columns `mNNN_…` are the inputs).
+    #[arg(long)]
+    pub(crate) features: PathBuf,
+    /// Label table keyed by `frame` (a session's labels.csv).
+    #[arg(long)]
+    pub(crate) labels: PathBuf,
+    /// Target columns of the labels, comma-separated (e.g. x_mm,y_mm,depth_mm).
+    #[arg(long)]
+    pub(crate) targets: String,
     /// Leave out frames with missing feature cells (lost markers) instead of failing.
     #[arg(long)]
-    drop_incomplete: bool,
+    pub(crate) drop_incomplete: bool,
+}
+
+impl DataArgs {
+    /// The target names and the joined table.
+    pub(crate) fn load(&self) -> anyhow::Result<(Vec<String>, Joined)> {
+        let targets = parse_targets(&self.targets)?;
+        let j = joined(&self.features, &self.labels, &targets, self.drop_incomplete)?;
+        Ok((targets, j))
+    }
 }
 
 /// Is this a per-marker feature column (`m017_dx_px`)?
@@ -249,7 +265,6 @@ pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
 }
 
 pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
-    let targets = parse_targets(&a.targets)?;
     let hidden: Vec<usize> = parse_list(&a.hidden, "hidden")?;
     if hidden.is_empty() || hidden.contains(&0) {
         bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
@@ -258,11 +273,14 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
         None => None,
     };
-    let Joined {
-        x,
-        t,
-        feature_columns,
-    } = joined(&a.features, &a.labels, &targets, a.drop_incomplete)?;
+    let (
+        targets,
+        Joined {
+            x,
+            t,
+            feature_columns,
+        },
+    ) = a.data.load()?;
     eprintln!(
         "training {} → {} → {} ({} weights) on {} frames",
         feature_columns.len(),
