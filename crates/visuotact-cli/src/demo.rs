@@ -7,9 +7,9 @@ use std::time::Instant;
 use anyhow::Context;
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
-use visuotact_nn::lm::{Control, LmConfig};
+use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::{target_errors, TargetErrors};
-use visuotact_nn::mlp::{train, MinMax, Mlp, TrainConfig};
+use visuotact_nn::model::Model;
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress};
@@ -18,6 +18,8 @@ use visuotact_vision::detect::DetectorConfig;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 use visuotact_vision::grid::Layout;
 use visuotact_vision::preprocess::PreprocessConfig;
+
+use crate::train::{fit_model, FitSpec};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -62,34 +64,29 @@ fn features_of(
         .collect()
 }
 
-/// Trains on rows with features; returns a predictor in target units.
+/// Trains on rows with features (the same path as `visuotact train`); returns the model
+/// (which predicts in target units), its epochs and the training time in seconds.
 fn fit(
     x: &[Vec<f64>],
     t: &[Vec<f64>],
+    targets: &[&str],
     hidden: &[usize],
     seed: u64,
-) -> (impl Fn(&[f64]) -> Vec<f64>, usize, f64) {
-    let xs = MinMax::fit(x);
-    let ts = MinMax::fit(t);
-    let xn: Vec<Vec<f64>> = x.iter().map(|r| xs.apply(r)).collect();
-    let tn: Vec<Vec<f64>> = t.iter().map(|r| ts.apply(r)).collect();
-    let mut sizes = vec![x[0].len()];
-    sizes.extend(hidden);
-    sizes.push(t[0].len());
-    let mut net = Mlp::nguyen_widrow(&sizes, seed);
-    let t0 = Instant::now();
-    let cfg = TrainConfig {
-        lm: LmConfig::TRAINLM,
+) -> (Model, usize, f64) {
+    let feature_columns: Vec<String> = (0..x[0].len()).map(|i| format!("f{i}")).collect();
+    let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
+    let spec = FitSpec {
+        feature_columns: &feature_columns,
+        targets: &targets,
+        hidden,
         seed,
-        ..TrainConfig::TRAINLM
+        max_epochs: 1000,
+        sensor: None,
     };
-    let out = train(&mut net, &xn, &tn, &cfg, |_, _, _| Control::Continue);
-    let secs = t0.elapsed().as_secs_f64();
-    (
-        move |f: &[f64]| ts.invert(&net.forward(&xs.apply(f))),
-        out.lm.iterations,
-        secs,
-    )
+    let t0 = Instant::now();
+    let model = fit_model(x, t, spec, |_, _, _| Control::Continue);
+    let epochs = model.training.epochs;
+    (model, epochs, t0.elapsed().as_secs_f64())
 }
 
 fn row(e: &TargetErrors) -> String {
@@ -155,7 +152,8 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         t0.elapsed().as_secs_f64()
     );
     let hidden = [10];
-    let (predict, epochs, secs) = fit(&x, &t, &hidden, a.seed);
+    let (model, epochs, secs) = fit(&x, &t, &["x_mm", "y_mm", "depth_mm"], &hidden, a.seed);
+    let predict = |f: &[f64]| model.predict(f);
     println!("trained 351 → 10 → 3 by Levenberg–Marquardt: {epochs} epochs in {secs:.1} s (seed 000: 13 h 20 min)");
 
     // Table 3: six touches anywhere.
@@ -297,7 +295,8 @@ fn cone(a: &Args) -> anyhow::Result<()> {
             t.push(vec![l.force_n]);
         }
     }
-    let (predict, epochs, secs) = fit(&x, &t, &[20], a.seed);
+    let (model, epochs, secs) = fit(&x, &t, &["force_n"], &[20], a.seed);
+    let predict = |f: &[f64]| model.predict(f);
     println!(
         "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {epochs} epochs in {secs:.2} s",
         cal.markers.len(),

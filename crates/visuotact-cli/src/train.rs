@@ -524,7 +524,7 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     let by_key = l.rows_by_key();
     let mut figures = Vec::new();
     let mut panels: Vec<Panel> = Vec::new();
-    let mut pairs_xy: Vec<(f64, f64)> = Vec::new();
+    let mut distances: Vec<f64> = Vec::new();
     let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));
     for (j, name) in p.columns.iter().enumerate() {
         let Some(lj) = l.column(name) else { continue };
@@ -559,17 +559,14 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
             if let Some(&li) = by_key.get(key.as_str()) {
                 let d = (p.rows[r][xi] - l.rows[li][lx]).hypot(p.rows[r][yi] - l.rows[li][ly]);
                 if d.is_finite() {
-                    pairs_xy.push((d, 0.0));
+                    distances.push(d);
                 }
             }
         }
     }
-    let distance = (!pairs_xy.is_empty()).then(|| {
-        let n = pairs_xy.len() as f64;
-        (
-            pairs_xy.iter().map(|p| p.0).sum::<f64>() / n,
-            pairs_xy.iter().fold(0.0f64, |m, p| m.max(p.0)),
-        )
+    let distance = (!distances.is_empty()).then(|| {
+        let mean = distances.iter().sum::<f64>() / distances.len() as f64;
+        (mean, distances.iter().fold(0.0f64, |m, d| m.max(*d)))
     });
     if let Some(path) = &a.plot {
         regression_plot(path, &panels)?;

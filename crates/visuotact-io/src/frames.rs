@@ -374,12 +374,8 @@ impl FrameStream {
     /// Opens files and folders; `image_fps` sets image-sequence timestamps.
     pub fn open(paths: &[PathBuf], image_fps: f64) -> Result<Self, FrameError> {
         let inputs = expand_inputs(paths)?;
-        let multi = inputs
-            .iter()
-            .filter(|i| matches!(i, Input::Video(_)))
-            .count()
-            > 1
-            || (inputs.iter().any(|i| matches!(i, Input::Video(_))) && inputs.len() > 1);
+        // Video frame ids are bare indices unless several inputs could make them collide.
+        let multi = inputs.len() > 1 && inputs.iter().any(|i| matches!(i, Input::Video(_)));
         Ok(Self {
             inputs,
             next_input: 0,

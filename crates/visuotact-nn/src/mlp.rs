@@ -359,14 +359,12 @@ pub fn train(
         }
         Control::Continue
     });
-    net.params = if best.0.is_finite() || !xv.is_empty() {
-        best.1
-    } else {
+    // With a validation set keep its best weights, otherwise the last ones.
+    net.params = if xv.is_empty() {
         lm.params.clone()
+    } else {
+        best.1
     };
-    if xv.is_empty() {
-        net.params = lm.params.clone();
-    }
     let all_mse = [0, 1, 2].map(|k| mse(net, &net.params, &refs(&xs[k]), &refs(&ts[k])));
     let validation_stop = validation_stop && lm.reason == StopReason::Callback;
     TrainOutcome {

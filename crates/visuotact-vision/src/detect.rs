@@ -12,6 +12,12 @@ use crate::preprocess::{
     otsu_level, MorphScratch, Open3Scratch, PreprocessConfig, Threshold,
 };
 
+/// The integer level `t` with `v > t` ⟺ `v > level · 255` for 8-bit `v` (MATLAB `im2bw`):
+/// `floor(level · 255)` (0.25 → 63, so 64 is foreground and 63 is not).
+pub fn fixed_level(level: f64) -> u8 {
+    (level * 255.0).floor().clamp(0.0, 255.0) as u8
+}
+
 /// Which blobs count as markers.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -171,7 +177,7 @@ impl Detector {
             circle: p.circle,
         };
         let level = match p.threshold {
-            Threshold::Fixed { level } => Some((level * 255.0).round().clamp(0.0, 255.0) as u8),
+            Threshold::Fixed { level } => Some(fixed_level(level)),
             Threshold::Otsu => Some(otsu_level(
                 &self.hist.unwrap_or_else(|| histogram(self.gray.as_slice())),
             )),
@@ -197,6 +203,21 @@ impl Detector {
         Detection {
             level,
             raw_count: self.all.len(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fixed_level;
+
+    #[test]
+    fn fixed_level_is_im2bw() {
+        for level in [0.0, 0.1, 0.25, 0.5, 0.99, 1.0] {
+            let t = fixed_level(level);
+            for v in 0..=255u8 {
+                assert_eq!(v > t, f64::from(v) > level * 255.0, "level {level}, v {v}");
+            }
         }
     }
 }
