@@ -25,8 +25,9 @@ pub(crate) struct Args {
     #[command(flatten)]
     detector: DetectorArgs,
     /// How to number markers: grid (rows top to bottom, then columns) or rings (smallest first).
-    #[arg(long, default_value = "grid", value_parser = ["grid", "rings"])]
-    layout: String,
+    /// Default: rings for the cone preset, grid otherwise.
+    #[arg(long, value_parser = ["grid", "rings"])]
+    layout: Option<String>,
     /// Default feature set for `extract`: a list of x, y, area, ecc (default: the preset's).
     #[arg(long)]
     features: Option<String>,
@@ -223,10 +224,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
     };
-    let layout = if a.layout == "rings" {
-        Layout::Rings
-    } else {
-        Layout::Grid
+    // Concentric rings share one centre at rest: numbering them as a grid would leave the
+    // tracker to guess between them, so the cone preset implies rings.
+    let layout = match a.layout.as_deref() {
+        Some("rings") => Layout::Rings,
+        Some(_) => Layout::Grid,
+        None if a.detector.preset == "cone" => Layout::Rings,
+        None => Layout::Grid,
     };
     let mut stream = FrameStream::open(&a.frames, 25.0)?;
     if let Some(n) = a.first {

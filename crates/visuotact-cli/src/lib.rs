@@ -13,6 +13,7 @@ mod calibrate;
 mod demo;
 mod extract;
 mod pattern;
+mod plot;
 mod simulate;
 mod sweep;
 mod train;

@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use rayon::prelude::*;
 use visuotact_nn::lm::Control;
@@ -23,7 +25,7 @@ pub(crate) struct Args {
     /// Trainings per size (different seeds).
     #[arg(long, default_value_t = 10)]
     repeats: usize,
-    /// Output folder: sweep.csv, best_model.json, performance.svg.
+    /// Output folder: sweep.csv, best_model.json, performance.svg and .png.
     #[arg(short, long)]
     output: PathBuf,
     /// Base seed.
@@ -152,7 +154,14 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .min_by(|p, q| perf(&p.1, 1).total_cmp(&perf(&q.1, 1)))
         .context("no training ran")?;
     crate::write_atomically(&a.output.join("best_model.json"), &best_model.to_json())?;
-    plot(&a.output.join("performance.svg"), &points, &targets).context("performance plot")?;
+    crate::plot::save_both(
+        &PerformancePlot {
+            points: &points,
+            targets: &targets,
+        },
+        &a.output.join("performance"),
+    )
+    .context("performance plot")?;
     eprintln!(
         "{} trainings of {} architectures in {:.1} s; best: hidden {:?}, validation MSE {:.4e}, test MSE {:.4e}",
         results.len(),
@@ -163,79 +172,109 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         perf(best_model, 2)
     );
     eprintln!(
-        "wrote {}/sweep.csv, best_model.json, performance.svg",
+        "wrote {}/sweep.csv, best_model.json, performance.svg, performance.png",
         a.output.display()
     );
     Ok(())
 }
 
-/// Mean and best test MSE against the number of hidden neurons.
-fn plot(
-    path: &std::path::Path,
-    points: &[(f64, f64, f64)],
-    targets: &[String],
-) -> anyhow::Result<()> {
-    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let xmax = points.iter().map(|p| p.0).fold(1.0, f64::max);
-    let ys: Vec<f64> = points
-        .iter()
-        .flat_map(|p| [p.1, p.2])
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    let (ymin, ymax) = (
-        ys.iter().copied().fold(f64::INFINITY, f64::min),
-        ys.iter().copied().fold(0.0, f64::max),
-    );
-    let (ymin, ymax) = if ys.is_empty() {
-        (1e-6, 1.0)
-    } else {
-        (ymin * 0.8, ymax * 1.25)
-    };
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("Performance against network size ({})", targets.join(", ")),
-            ("sans-serif", 20),
-        )
-        .margin(15)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..xmax + 1.0, (ymin..ymax).log_scale())
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    chart
-        .configure_mesh()
-        .x_desc("hidden neurons")
-        .y_desc("test MSE (target units²)")
-        .draw()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut mean: Vec<(f64, f64)> = points
-        .iter()
-        .map(|p| (p.0, p.1))
-        .filter(|p| p.1 > 0.0)
-        .collect();
-    mean.sort_by(|a, b| a.0.total_cmp(&b.0));
-    chart
-        .draw_series(LineSeries::new(mean.clone(), &BLUE))
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .label("mean of repeats")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    chart
-        .draw_series(
-            points
-                .iter()
-                .filter(|p| p.2 > 0.0)
-                .map(|p| Circle::new((p.0, p.2), 3, RED.filled())),
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .label("best of repeats")
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, RED.filled()));
-    chart
-        .configure_series_labels()
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
-    Ok(())
+/// Mean and best test MSE against the number of hidden neurons (seed 001 Figs. 4.8/4.11/4.13).
+struct PerformancePlot<'a> {
+    /// (hidden neurons, mean test MSE, best test MSE) per architecture.
+    points: &'a [(f64, f64, f64)],
+    targets: &'a [String],
+}
+
+impl crate::plot::Figure for PerformancePlot<'_> {
+    fn size(&self) -> (u32, u32) {
+        (800, 500)
+    }
+
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String> {
+        use crate::plot::text;
+        root.fill(&WHITE).map_err(text)?;
+        let xmax = self.points.iter().map(|p| p.0).fold(1.0, f64::max);
+        let ys = self
+            .points
+            .iter()
+            .flat_map(|p| [p.1, p.2])
+            .filter(|v| *v > 0.0);
+        let (ymin, ymax) =
+            crate::plot::finite_range(ys).map_or((1e-6, 1.0), |(lo, hi)| (lo * 0.8, hi * 1.25));
+        let caption = format!(
+            "Performance against network size ({})",
+            self.targets.join(", ")
+        );
+        let mut builder = ChartBuilder::on(root);
+        builder
+            .caption(caption, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(40)
+            .y_label_area_size(80);
+        // A log axis only pays when the errors span decades; within one it has no labels.
+        if ymax / ymin > 20.0 {
+            let mut chart = builder
+                .build_cartesian_2d(0.0..xmax + 1.0, (ymin..ymax).log_scale())
+                .map_err(text)?;
+            self.draw_series(&mut chart)
+        } else {
+            let mut chart = builder
+                .build_cartesian_2d(0.0..xmax + 1.0, 0.0..ymax)
+                .map_err(text)?;
+            self.draw_series(&mut chart)
+        }
+    }
+}
+
+impl PerformancePlot<'_> {
+    fn draw_series<'a, DB: DrawingBackend + 'a, Y>(
+        &self,
+        chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y>>,
+    ) -> Result<(), String>
+    where
+        Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    {
+        use crate::plot::text;
+        chart
+            .configure_mesh()
+            .x_desc("hidden neurons")
+            .y_desc("test MSE (target units²)")
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.3e}"))
+            .draw()
+            .map_err(text)?;
+        let mut mean: Vec<(f64, f64)> = self
+            .points
+            .iter()
+            .map(|p| (p.0, p.1))
+            .filter(|p| p.1 > 0.0)
+            .collect();
+        mean.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(mean, &BLUE))
+            .map_err(text)?
+            .label("mean of repeats")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        chart
+            .draw_series(
+                self.points
+                    .iter()
+                    .filter(|p| p.2 > 0.0)
+                    .map(|p| Circle::new((p.0, p.2), 3, RED.filled())),
+            )
+            .map_err(text)?
+            .label("best of repeats")
+            .legend(|(x, y)| Circle::new((x + 10, y), 3, RED.filled()));
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .draw()
+            .map_err(text)
+    }
 }
 
 #[cfg(test)]

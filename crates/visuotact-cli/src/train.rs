@@ -462,8 +462,9 @@ pub(crate) struct EvalArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
-    /// Also draw the regression plot (estimate against truth, one panel per target) as SVG.
-    #[arg(long, value_name = "FILE.svg")]
+    /// Also draw the regression plot (estimate against truth, one panel per target), as SVG or
+    /// PNG by the file's extension.
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
     plot: Option<PathBuf>,
 }
 
@@ -471,51 +472,55 @@ pub(crate) struct EvalArgs {
 type Panel = (String, Vec<(f64, f64)>, f64);
 
 /// Estimates against truth, one panel per target, with the y = x line and R.
-fn regression_plot(path: &Path, panels: &[Panel]) -> anyhow::Result<()> {
-    use plotters::prelude::*;
-    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{}: {e}", path.display());
-    let root = SVGBackend::new(path, (420 * panels.len().max(1) as u32, 420)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    for (area, (name, pts, r)) in root
-        .split_evenly((1, panels.len().max(1)))
-        .iter()
-        .zip(panels)
-    {
-        let lo = pts
-            .iter()
-            .flat_map(|p| [p.0, p.1])
-            .fold(f64::INFINITY, f64::min);
-        let hi = pts
-            .iter()
-            .flat_map(|p| [p.0, p.1])
-            .fold(f64::NEG_INFINITY, f64::max);
-        let pad = 0.05 * (hi - lo).max(1e-9);
-        let (lo, hi) = (lo - pad, hi + pad);
-        let mut chart = ChartBuilder::on(area)
-            .caption(format!("{name}: R = {r:.5}"), ("sans-serif", 18))
-            .margin(10)
-            .x_label_area_size(35)
-            .y_label_area_size(50)
-            .build_cartesian_2d(lo..hi, lo..hi)
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("target")
-            .y_desc("estimate")
-            .draw()
-            .map_err(|e| err(&e))?;
-        chart
-            .draw_series(LineSeries::new([(lo, lo), (hi, hi)], &BLACK))
-            .map_err(|e| err(&e))?;
-        chart
-            .draw_series(
-                pts.iter()
-                    .map(|&(t, e)| Circle::new((t, e), 2, BLUE.mix(0.5).filled())),
-            )
-            .map_err(|e| err(&e))?;
+struct RegressionPlot<'a>(&'a [Panel]);
+
+impl crate::plot::Figure for RegressionPlot<'_> {
+    fn size(&self) -> (u32, u32) {
+        (420 * self.0.len().max(1) as u32, 420)
     }
-    root.present().map_err(|e| err(&e))?;
-    Ok(())
+
+    fn draw<DB: plotters::prelude::DrawingBackend>(
+        &self,
+        root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String> {
+        use crate::plot::text;
+        use plotters::prelude::*;
+        root.fill(&WHITE).map_err(text)?;
+        for (area, (name, pts, r)) in root
+            .split_evenly((1, self.0.len().max(1)))
+            .iter()
+            .zip(self.0)
+        {
+            let (lo, hi) = crate::plot::padded(
+                crate::plot::finite_range(pts.iter().flat_map(|p| [p.0, p.1]))
+                    .unwrap_or((0.0, 1.0)),
+                0.05,
+            );
+            let mut chart = ChartBuilder::on(area)
+                .caption(format!("{name}: R = {r:.5}"), ("sans-serif", 18))
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(50)
+                .build_cartesian_2d(lo..hi, lo..hi)
+                .map_err(text)?;
+            chart
+                .configure_mesh()
+                .x_desc("target")
+                .y_desc("estimate")
+                .draw()
+                .map_err(text)?;
+            chart
+                .draw_series(LineSeries::new([(lo, lo), (hi, hi)], &BLACK))
+                .map_err(text)?;
+            chart
+                .draw_series(
+                    pts.iter()
+                        .map(|&(t, e)| Circle::new((t, e), 2, BLUE.mix(0.5).filled())),
+                )
+                .map_err(text)?;
+        }
+        Ok(())
+    }
 }
 
 pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
@@ -569,7 +574,7 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         (mean, distances.iter().fold(0.0f64, |m, d| m.max(*d)))
     });
     if let Some(path) = &a.plot {
-        regression_plot(path, &panels)?;
+        crate::plot::save(&RegressionPlot(&panels), path)?;
         eprintln!("wrote {}", path.display());
     }
     if a.json {

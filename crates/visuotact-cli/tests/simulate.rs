@@ -219,7 +219,7 @@ fn cone_session_with_force_stream() {
         .map(|r| r["force_n"].parse::<f64>().unwrap())
         .fold(0.0, f64::max);
     assert!((peak - 10.0).abs() < 0.1, "peak {peak}");
-    let (sensor, out, err) = calibrate_and_extract(&d, &["--preset", "cone", "--layout", "rings"]);
+    let (sensor, out, err) = calibrate_and_extract(&d, &["--preset", "cone"]);
     assert!(
         err.contains("calibrated 2 markers"),
         "the outermost ring is cut by the border: {err}"

@@ -170,6 +170,8 @@ fn train_predict_eval_and_bad_tables() {
             && svg.contains("hidden neurons")
             && svg.matches("<circle").count() >= 4
     );
+    let png = visuotact_io::frames::read_image(&sw.join("performance.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (800, 500));
 
     // A non-numeric cell.
     let text = std::fs::read_to_string(&f).unwrap();
