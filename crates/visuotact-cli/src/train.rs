@@ -605,5 +605,9 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     if let Some((mean, max)) = distance {
         println!("distance D (x, y): mean {mean:.3} mm, max {max:.3} mm");
     }
+    println!(
+        "MPE and accuracy over samples with |target| ≥ {:.0} % of the largest |target|",
+        100.0 * visuotact_nn::metrics::MPE_FLOOR_FRACTION
+    );
     Ok(())
 }
