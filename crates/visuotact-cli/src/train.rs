@@ -396,6 +396,7 @@ fn features_from_frames(
         columns: names,
         keys,
         rows,
+        dropped_partial_line: false,
     })
 }
 

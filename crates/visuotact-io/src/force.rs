@@ -165,6 +165,282 @@ impl ForceLayout {
     }
 }
 
+/// Force samples read from a CSV file: `timestamp_s` and any of `fx_n … tz_nm` (absent axes
+/// read as 0), plus `recv_s` (receive time on the recorder's clock) when `record` wrote it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ForceTable {
+    /// Sample times, seconds, in file order.
+    pub timestamp_s: Vec<f64>,
+    /// `[fx, fy, fz, tx, ty, tz]` per sample.
+    pub values: Vec<[f64; 6]>,
+    /// Which of the six axes the file has.
+    pub present: [bool; 6],
+    /// Receive times on the recorder's clock, when recorded over the network.
+    pub recv_s: Option<Vec<f64>>,
+    /// Whether an unfinished last line was left out.
+    pub dropped_partial_line: bool,
+}
+
+/// Names of the six axes in files.
+pub const AXES: [&str; 6] = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"];
+
+impl ForceTable {
+    /// Reads a force CSV; errors name the file, line and column. A last line without a line end
+    /// (a recorder stopped mid-row) is left out and reported in `dropped_partial_line`.
+    pub fn read(path: &std::path::Path) -> Result<Self, String> {
+        let name = path.display();
+        let text =
+            std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot read: {e}"))?;
+        let (text, dropped_partial_line) = crate::table::complete_lines(&text);
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines
+            .next()
+            .ok_or_else(|| format!("{name}: empty file"))?
+            .split(',')
+            .map(str::trim)
+            .collect();
+        let col = |n: &str| header.iter().position(|h| *h == n);
+        let tcol = col("timestamp_s").ok_or_else(|| {
+            format!(
+                "{name}: no `timestamp_s` column (columns: {})",
+                header.join(", ")
+            )
+        })?;
+        let axes: Vec<Option<usize>> = AXES.iter().map(|a| col(a)).collect();
+        if axes.iter().all(Option::is_none) {
+            return Err(format!(
+                "{name}: no force column; expected some of {}",
+                AXES.join(", ")
+            ));
+        }
+        let rcol = col("recv_s");
+        let mut t = Self {
+            timestamp_s: Vec::new(),
+            values: Vec::new(),
+            present: std::array::from_fn(|i| axes[i].is_some()),
+            recv_s: rcol.map(|_| Vec::new()),
+            dropped_partial_line,
+        };
+        for (n, line) in lines.enumerate() {
+            let line_no = n + 2;
+            if line.trim().is_empty() {
+                continue;
+            }
+            let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+            if cells.len() != header.len() {
+                return Err(format!(
+                    "{name}: line {line_no}: {} cells, the header has {}",
+                    cells.len(),
+                    header.len()
+                ));
+            }
+            let num = |i: usize| -> Result<f64, String> {
+                let v: f64 = cells[i].parse().map_err(|_| {
+                    format!(
+                        "{name}: line {line_no}, column `{}`: {:?} is not a number",
+                        header[i], cells[i]
+                    )
+                })?;
+                if v.is_finite() {
+                    Ok(v)
+                } else {
+                    Err(format!(
+                        "{name}: line {line_no}, column `{}`: not a finite number",
+                        header[i]
+                    ))
+                }
+            };
+            t.timestamp_s.push(num(tcol)?);
+            let mut v = [0.0; 6];
+            for (k, a) in axes.iter().enumerate() {
+                if let Some(i) = a {
+                    v[k] = num(*i)?;
+                }
+            }
+            t.values.push(v);
+            if let (Some(i), Some(r)) = (rcol, t.recv_s.as_mut()) {
+                r.push(num(i)?);
+            }
+        }
+        Ok(t)
+    }
+
+    /// One axis as a column (0 = fx … 5 = tz).
+    pub fn axis(&self, k: usize) -> Vec<f64> {
+        self.values.iter().map(|v| v[k]).collect()
+    }
+
+    /// Samples sorted by time with exact duplicate times dropped (a network may reorder and
+    /// repeat packets); returns how many duplicates were dropped.
+    pub fn sort_dedup(&mut self) -> usize {
+        let mut idx: Vec<usize> = (0..self.timestamp_s.len()).collect();
+        idx.sort_by(|&a, &b| self.timestamp_s[a].total_cmp(&self.timestamp_s[b]));
+        idx.dedup_by(|a, b| self.timestamp_s[*a] == self.timestamp_s[*b]);
+        let dropped = self.timestamp_s.len() - idx.len();
+        self.timestamp_s = idx.iter().map(|&i| self.timestamp_s[i]).collect();
+        self.values = idx.iter().map(|&i| self.values[i]).collect();
+        if let Some(r) = &self.recv_s {
+            self.recv_s = Some(idx.iter().map(|&i| r[i]).collect());
+        }
+        dropped
+    }
+}
+
+/// What a [`ForceReceiver`] has seen so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ReceiveStats {
+    /// Datagrams received.
+    pub packets: u64,
+    /// Samples kept (well-formed, not repeated).
+    pub kept: u64,
+    /// Datagrams of the wrong size or with non-finite values, dropped.
+    pub malformed: u64,
+    /// Samples whose time was already received, dropped.
+    pub duplicates: u64,
+    /// Samples older than one already received (kept; sorted when the data set is built).
+    pub reordered: u64,
+    /// Samples missing from the time span covered, at the expected rate (when it is known).
+    pub lost: u64,
+}
+
+/// Receives force samples over UDP and keeps count of what went wrong; never fails on a bad
+/// packet.
+pub struct ForceReceiver {
+    socket: std::net::UdpSocket,
+    layout: ForceLayout,
+    rate_hz: Option<f64>,
+    stats: ReceiveStats,
+    recent: std::collections::HashSet<u64>,
+    recent_order: std::collections::VecDeque<u64>,
+    span: Option<(f64, f64)>,
+    buf: Vec<u8>,
+}
+
+/// One received sample with its arrival time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Received {
+    /// The sample as sent.
+    pub sample: ForceSample,
+    /// Arrival time on the caller's clock, seconds.
+    pub recv_s: f64,
+}
+
+impl ForceReceiver {
+    /// How many recent sample times are remembered to recognise repeats.
+    const MEMORY: usize = 8192;
+
+    /// Binds `addr` (e.g. `127.0.0.1:9000`); `rate_hz` is the sender's sample rate, used to
+    /// count lost samples (`None`: not counted) and, with a `Counter` field, to turn counts
+    /// into seconds.
+    pub fn bind(addr: &str, layout: ForceLayout, rate_hz: Option<f64>) -> std::io::Result<Self> {
+        let socket = std::net::UdpSocket::bind(addr).map_err(|e| {
+            std::io::Error::new(
+                e.kind(),
+                format!("cannot listen for force packets on {addr}: {e}"),
+            )
+        })?;
+        Ok(Self {
+            socket,
+            layout,
+            rate_hz,
+            stats: ReceiveStats::default(),
+            recent: Default::default(),
+            recent_order: Default::default(),
+            span: None,
+            buf: vec![0; 65536],
+        })
+    }
+
+    /// The bound address (useful after binding port 0).
+    pub fn local_addr(&self) -> std::io::Result<std::net::SocketAddr> {
+        self.socket.local_addr()
+    }
+
+    /// Waits up to `timeout` for the next good sample; `Ok(None)` on timeout. Bad packets are
+    /// counted and skipped. `now_s` gives the arrival time on the caller's clock.
+    pub fn recv(
+        &mut self,
+        timeout: std::time::Duration,
+        now_s: impl Fn() -> f64,
+    ) -> std::io::Result<Option<Received>> {
+        let deadline = std::time::Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                return Ok(None);
+            }
+            self.socket.set_read_timeout(Some(left))?;
+            let n = match self.socket.recv(&mut self.buf) {
+                Ok(n) => n,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    return Ok(None)
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                // ICMP errors from an earlier send on some systems: not ours to fail on.
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+                Err(e) => return Err(e),
+            };
+            let recv_s = now_s();
+            self.stats.packets += 1;
+            let Ok(mut sample) = self.layout.decode(&self.buf[..n]) else {
+                self.stats.malformed += 1;
+                continue;
+            };
+            if self.layout.fields.contains(&ForceField::Counter) {
+                if let Some(rate) = self.rate_hz {
+                    sample.timestamp_s /= rate;
+                }
+            }
+            if let Some(s) = self.accept(sample) {
+                return Ok(Some(Received { sample: s, recv_s }));
+            }
+        }
+    }
+
+    /// Counts a decoded sample as kept, repeated or reordered.
+    fn accept(&mut self, s: ForceSample) -> Option<ForceSample> {
+        let key = s.timestamp_s.to_bits();
+        if self.recent.contains(&key) {
+            self.stats.duplicates += 1;
+            return None;
+        }
+        self.recent.insert(key);
+        self.recent_order.push_back(key);
+        if self.recent_order.len() > Self::MEMORY {
+            if let Some(old) = self.recent_order.pop_front() {
+                self.recent.remove(&old);
+            }
+        }
+        match &mut self.span {
+            None => self.span = Some((s.timestamp_s, s.timestamp_s)),
+            Some((lo, hi)) => {
+                if s.timestamp_s < *hi {
+                    self.stats.reordered += 1;
+                }
+                *lo = lo.min(s.timestamp_s);
+                *hi = hi.max(s.timestamp_s);
+            }
+        }
+        self.stats.kept += 1;
+        Some(s)
+    }
+
+    /// Counts so far; `lost` is estimated from the time span and the expected rate.
+    pub fn stats(&self) -> ReceiveStats {
+        let mut s = self.stats;
+        if let (Some(rate), Some((lo, hi))) = (self.rate_hz, self.span) {
+            let expected = ((hi - lo) * rate).round() as u64 + 1;
+            s.lost = expected.saturating_sub(s.kept);
+        }
+        s
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -183,5 +459,77 @@ mod tests {
         nan[8..16].copy_from_slice(&f64::NAN.to_le_bytes());
         assert!(l.decode(&nan).is_err());
         assert!(ForceLayout::parse("fx,speed").is_err());
+    }
+
+    #[test]
+    fn a_faulty_stream_is_counted_and_good_samples_kept() {
+        let mut rx =
+            ForceReceiver::bind("127.0.0.1:0", ForceLayout::default(), Some(1000.0)).unwrap();
+        let addr = rx.local_addr().unwrap();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let layout = ForceLayout::default();
+        let pkt = |k: u64| {
+            layout.encode(
+                &ForceSample {
+                    timestamp_s: k as f64 / 1000.0,
+                    values: [k as f64, 0.0, 1.0, 0.0, 0.0, 0.0],
+                },
+                k,
+            )
+        };
+        // 0..100 with 10..15 lost, 20 sent twice, 31 before 30, and three bad datagrams.
+        let mut order: Vec<u64> = (0..100).filter(|k| !(10..15).contains(k)).collect();
+        let i30 = order.iter().position(|&k| k == 30).unwrap();
+        order.swap(i30, i30 + 1);
+        let i20 = order.iter().position(|&k| k == 20).unwrap();
+        order.insert(i20 + 1, 20);
+        for (n, k) in order.iter().enumerate() {
+            tx.send_to(&pkt(*k), addr).unwrap();
+            if n == 40 {
+                tx.send_to(b"garbage", addr).unwrap();
+                tx.send_to(&[0u8; 57], addr).unwrap();
+                let mut nan = pkt(500);
+                nan[8..16].copy_from_slice(&f64::NAN.to_le_bytes());
+                tx.send_to(&nan, addr).unwrap();
+            }
+        }
+        let mut got = Vec::new();
+        while let Some(r) = rx
+            .recv(std::time::Duration::from_millis(300), || 0.0)
+            .unwrap()
+        {
+            got.push(r.sample.values[0] as u64);
+        }
+        let s = rx.stats();
+        assert_eq!(got.len(), 95, "{s:?}");
+        assert_eq!(
+            (
+                s.packets,
+                s.kept,
+                s.malformed,
+                s.duplicates,
+                s.reordered,
+                s.lost
+            ),
+            (99, 95, 3, 1, 1, 5)
+        );
+    }
+
+    #[test]
+    fn force_tables_name_bad_cells_and_drop_a_partial_last_line() {
+        let dir = std::env::temp_dir().join(format!("vt-force-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("force.csv");
+        std::fs::write(&p, "timestamp_s,fz_n,fx_n\n0.0,1,2\n0.001,1.5,2\n0.002,1.").unwrap();
+        let t = ForceTable::read(&p).unwrap();
+        assert_eq!(t.timestamp_s, vec![0.0, 0.001]);
+        assert_eq!(t.values[1], [2.0, 0.0, 1.5, 0.0, 0.0, 0.0]);
+        assert!(t.dropped_partial_line && t.present == [true, false, true, false, false, false]);
+        std::fs::write(&p, "timestamp_s,fz_n\n0.0,1\n0.001,x\n").unwrap();
+        let e = ForceTable::read(&p).unwrap_err();
+        assert!(e.contains("line 3, column `fz_n`"), "{e}");
+        std::fs::write(&p, "time,fz_n\n").unwrap();
+        assert!(ForceTable::read(&p).unwrap_err().contains("timestamp_s"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -148,16 +148,33 @@ pub struct KeyedTable {
     pub keys: Vec<String>,
     /// Values, one row per key.
     pub rows: Vec<Vec<f64>>,
+    /// Whether an unfinished last line (no line end: a writer stopped mid-row) was left out.
+    pub dropped_partial_line: bool,
+}
+
+/// The text of a table a writer may have been killed while appending to: complete lines only.
+/// Returns the text up to the last line end and whether a partial line was cut off.
+pub fn complete_lines(text: &str) -> (&str, bool) {
+    match text.rfind('\n') {
+        Some(i) if i + 1 < text.len() => (&text[..=i], true),
+        Some(_) => (text, false),
+        None => ("", !text.is_empty()),
+    }
 }
 
 impl KeyedTable {
     /// Reads `path`; errors name the file, the line and the column.
     pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, String> {
         let name = path.display();
+        let text =
+            std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot read: {e}"))?;
+        let (text, dropped_partial_line) = complete_lines(&text);
+        if text.is_empty() {
+            return Err(format!("{name}: empty table (no complete header line)"));
+        }
         let mut rd = csv::ReaderBuilder::new()
             .has_headers(true)
-            .from_path(path)
-            .map_err(|e| format!("{name}: cannot read: {e}"))?;
+            .from_reader(text.as_bytes());
         let header: Vec<String> = rd
             .headers()
             .map_err(|e| format!("{name}: bad header: {e}"))?
@@ -211,6 +228,7 @@ impl KeyedTable {
             columns,
             keys,
             rows,
+            dropped_partial_line,
         })
     }
 
