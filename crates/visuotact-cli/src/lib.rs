@@ -12,6 +12,7 @@ mod blobs;
 mod calibrate;
 mod demo;
 mod extract;
+mod force;
 mod pattern;
 mod plot;
 mod simulate;
@@ -50,6 +51,8 @@ enum Command {
     Predict(train::PredictArgs),
     /// Error figures of predictions against labels (MSE, R, mean/max error, MPE, accuracy, D).
     Eval(train::EvalArgs),
+    /// Force CSV → zero-phase low-passed, debiased CSV (and a before/after plot).
+    Filter(force::FilterArgs),
 }
 
 /// Runs the program with the process arguments.
@@ -86,6 +89,7 @@ where
         Command::Sweep(a) => sweep::run(&a),
         Command::Predict(a) => train::predict(&a),
         Command::Eval(a) => train::eval(&a),
+        Command::Filter(a) => force::filter(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,14 +5,16 @@
 //! bias that drifts slowly is followed from one no-contact period to the next. Quiet windows
 //! are given as time ranges or detected:
 //!
-//! 1. the signal is cut into windows of `window_s`; each channel's noise σ is the median of
-//!    its window standard deviations;
-//! 2. a window is *flat* when every detection channel's standard deviation is at most
-//!    `flat_sigmas · σ`;
-//! 3. the first flat window is taken as no contact (a recording starts untouched, as seed 001's
-//!    procedure does), and later flat windows are quiet when every detection channel stays
-//!    within `contact_threshold` of the last quiet level: a held press is flat too, but sits
-//!    far from the unloaded level.
+//! 1. the signal is cut into windows of `window_s`; in each a straight line is fitted per
+//!    channel, and the channel's noise σ is the median of the windows' residual standard
+//!    deviations (detrended, so slow presses do not count as noise);
+//! 2. a window is *flat* when, on every detection channel, both its residual deviation and
+//!    the change of its line across the window are at most `flat_sigmas · σ`;
+//! 3. the first window is taken as no contact (a recording starts untouched, as seed 001's
+//!    procedure does), and a later flat window is quiet when every detection channel stays
+//!    within `flat_sigmas · σ + max_drift_per_s · Δt` (at most `contact_threshold`) of the last
+//!    quiet level, Δt after it: a held press is flat too, but sits far from the unloaded level,
+//!    and a slow press cannot creep in window by window.
 //!
 //! ```
 //! use visuotact_signal::bias::{Bias, BiasConfig};
@@ -36,6 +38,8 @@ pub struct BiasConfig {
     /// Largest change of the unloaded level between quiet windows, in signal units (N):
     /// anything further away is contact.
     pub contact_threshold: f64,
+    /// Fastest bias drift followed, signal units per second.
+    pub max_drift_per_s: f64,
 }
 
 impl Default for BiasConfig {
@@ -44,6 +48,7 @@ impl Default for BiasConfig {
             window_s: 0.25,
             flat_sigmas: 3.0,
             contact_threshold: 0.25,
+            max_drift_per_s: 0.02,
         }
     }
 }
@@ -100,6 +105,28 @@ fn check_lengths(t: &[f64], channels: &[&[f64]]) -> Result<(), BiasError> {
     Ok(())
 }
 
+/// Mean, residual standard deviation about a fitted line, and the line's change across the
+/// window.
+fn line_stats(t: &[f64], v: &[f64]) -> (f64, f64, f64) {
+    let n = v.len().max(1) as f64;
+    let tm = t.iter().sum::<f64>() / n;
+    let vm = v.iter().sum::<f64>() / n;
+    let (mut stt, mut stv) = (0.0, 0.0);
+    for (a, b) in t.iter().zip(v) {
+        stt += (a - tm) * (a - tm);
+        stv += (a - tm) * (b - vm);
+    }
+    let slope = if stt > 0.0 { stv / stt } else { 0.0 };
+    let res = t
+        .iter()
+        .zip(v)
+        .map(|(a, b)| (b - vm - slope * (a - tm)).powi(2))
+        .sum::<f64>()
+        / n;
+    let span = t.last().unwrap_or(&0.0) - t.first().unwrap_or(&0.0);
+    (vm, res.sqrt(), (slope * span).abs())
+}
+
 fn mean_std(v: &[f64]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
     let m = v.iter().sum::<f64>() / n;
@@ -132,9 +159,13 @@ impl Bias {
     ) -> Result<Self, BiasError> {
         check_lengths(t, detect)?;
         check_lengths(t, channels)?;
-        if !(cfg.window_s > 0.0 && cfg.flat_sigmas > 0.0 && cfg.contact_threshold > 0.0) {
+        if !(cfg.window_s > 0.0
+            && cfg.flat_sigmas > 0.0
+            && cfg.contact_threshold > 0.0
+            && cfg.max_drift_per_s >= 0.0)
+        {
             return Err(BiasError::Config(
-                "window, flat σ multiple and contact threshold must be positive".into(),
+                "window, flat σ multiple and contact threshold must be positive, drift ≥ 0".into(),
             ));
         }
         let wins: Vec<_> = windows(t, cfg.window_s)
@@ -146,9 +177,14 @@ impl Bias {
                 "the signal is shorter than a window".into(),
             ));
         }
-        let stats: Vec<Vec<(f64, f64)>> = wins
+        let stats: Vec<Vec<(f64, f64, f64)>> = wins
             .iter()
-            .map(|r| detect.iter().map(|c| mean_std(&c[r.clone()])).collect())
+            .map(|r| {
+                detect
+                    .iter()
+                    .map(|c| line_stats(&t[r.clone()], &c[r.clone()]))
+                    .collect()
+            })
             .collect();
         let sigma: Vec<f64> = (0..detect.len())
             .map(|c| {
@@ -157,25 +193,27 @@ impl Bias {
                 s[s.len() / 2]
             })
             .collect();
-        let mut last: Option<Vec<f64>> = None;
+        let mut last: Option<(f64, Vec<f64>)> = None;
         let mut quiet = Vec::new();
         for (r, st) in wins.iter().zip(&stats) {
-            let flat = st
-                .iter()
-                .zip(&sigma)
-                .all(|((_, sd), s)| *sd <= cfg.flat_sigmas * s.max(1e-300));
-            if !flat {
+            let flat = st.iter().zip(&sigma).all(|((_, sd, change), s)| {
+                let lim = cfg.flat_sigmas * s.max(1e-300);
+                *sd <= lim && *change <= lim
+            });
+            if !flat && last.is_some() {
                 continue;
             }
-            let level: Vec<f64> = st.iter().map(|(m, _)| *m).collect();
-            let near = last.as_ref().is_none_or(|l| {
-                l.iter()
-                    .zip(&level)
-                    .all(|(a, b)| (a - b).abs() <= cfg.contact_threshold)
+            let level: Vec<f64> = st.iter().map(|(m, _, _)| *m).collect();
+            let t_mid = 0.5 * (t[r.start] + t[r.end - 1]);
+            let near = last.as_ref().is_none_or(|(t_last, l)| {
+                let drift = cfg.max_drift_per_s * (t_mid - t_last);
+                l.iter().zip(&level).zip(&sigma).all(|((a, b), s)| {
+                    (a - b).abs() <= (cfg.flat_sigmas * s + drift).min(cfg.contact_threshold)
+                })
             });
             if near {
                 quiet.push(r.clone());
-                last = Some(level);
+                last = Some((t_mid, level));
             }
         }
         if quiet.is_empty() {
