@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod blobs;
 mod calibrate;
+mod dataset;
 mod demo;
 mod extract;
 mod force;
@@ -53,6 +54,9 @@ enum Command {
     Eval(train::EvalArgs),
     /// Force CSV → zero-phase low-passed, debiased CSV (and a before/after plot).
     Filter(force::FilterArgs),
+    /// Session folders → features.csv + labels.csv for `train` (force filtered, debiased and
+    /// aligned onto the frames).
+    Dataset(dataset::Args),
 }
 
 /// Runs the program with the process arguments.
@@ -90,6 +94,7 @@ where
         Command::Predict(a) => train::predict(&a),
         Command::Eval(a) => train::eval(&a),
         Command::Filter(a) => force::filter(&a),
+        Command::Dataset(a) => dataset::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
