@@ -43,6 +43,9 @@ pub(crate) struct Args {
     force: ForceArgs,
 }
 
+/// Column names and each frame's values.
+type Columns = (Vec<String>, HashMap<String, Vec<f64>>);
+
 /// One session's rows.
 struct Rows {
     keys: Vec<String>,
@@ -137,7 +140,11 @@ fn touch_frames(session: &Path) -> anyhow::Result<Vec<(String, f64)>> {
     Ok(t.keys
         .iter()
         .zip(&t.rows)
-        .filter(|(k, _)| kinds.get(k.as_str()).is_none_or(|kind| *kind != "reference"))
+        .filter(|(k, _)| {
+            kinds
+                .get(k.as_str())
+                .is_none_or(|kind| *kind != "reference")
+        })
         .map(|(k, r)| (k.clone(), r[ts]))
         .collect())
 }
@@ -145,33 +152,32 @@ fn touch_frames(session: &Path) -> anyhow::Result<Vec<(String, f64)>> {
 fn session_rows(a: &Args, s: &Path) -> anyhow::Result<(Vec<String>, Vec<String>, Rows)> {
     let frames = touch_frames(s)?;
     // Features.
-    let (fcols, feats): (Vec<String>, HashMap<String, Vec<f64>>) =
-        if s.join("features.csv").exists() {
-            let t = KeyedTable::read(&s.join("features.csv"), &["flags"])
-                .map_err(anyhow::Error::msg)?;
-            let idx: Vec<usize> = (0..t.columns.len())
-                .filter(|&i| t.columns[i].starts_with('m') && t.columns[i].contains('_'))
-                .collect();
-            (
-                idx.iter().map(|&i| t.columns[i].clone()).collect(),
-                t.keys
-                    .iter()
-                    .zip(&t.rows)
-                    .map(|(k, r)| (k.clone(), idx.iter().map(|&i| r[i]).collect()))
-                    .collect(),
+    let (fcols, feats): Columns = if s.join("features.csv").exists() {
+        let t =
+            KeyedTable::read(&s.join("features.csv"), &["flags"]).map_err(anyhow::Error::msg)?;
+        let idx: Vec<usize> = (0..t.columns.len())
+            .filter(|&i| t.columns[i].starts_with('m') && t.columns[i].contains('_'))
+            .collect();
+        (
+            idx.iter().map(|&i| t.columns[i].clone()).collect(),
+            t.keys
+                .iter()
+                .zip(&t.rows)
+                .map(|(k, r)| (k.clone(), idx.iter().map(|&i| r[i]).collect()))
+                .collect(),
+        )
+    } else {
+        let sensor = a.sensor.as_ref().with_context(|| {
+            format!(
+                "{}: no features.csv; give --sensor to extract features from its frames",
+                s.display()
             )
-        } else {
-            let sensor = a.sensor.as_ref().with_context(|| {
-                format!(
-                    "{}: no features.csv; give --sensor to extract features from its frames",
-                    s.display()
-                )
-            })?;
-            extract(sensor, &s.join("frames"))?
-        };
+        })?;
+        extract(sensor, &s.join("frames"))?
+    };
     // Labels.
     let force_path = s.join("force.csv");
-    let (lcols, labels): (Vec<String>, HashMap<String, Vec<f64>>) = if force_path.exists() {
+    let (lcols, labels): Columns = if force_path.exists() {
         let table = ForceTable::read(&force_path).map_err(anyhow::Error::msg)?;
         if table.dropped_partial_line {
             eprintln!(
@@ -186,9 +192,7 @@ fn session_rows(a: &Args, s: &Path) -> anyhow::Result<(Vec<String>, Vec<String>,
                 .map(|(r, t)| r - t)
                 .fold(f64::INFINITY, f64::min)
         });
-        let p = a
-            .force
-            .process(table, &force_path.display().to_string())?;
+        let p = a.force.process(table, &force_path.display().to_string())?;
         let times: Vec<f64> = frames.iter().map(|(_, t)| t - offset).collect();
         let rs = Resampler::new(&p.t, &times, a.latency_s, a.max_gap_s.max(1.5 / p.rate_hz))
             .map_err(|e| anyhow::anyhow!("{}: {e}", force_path.display()))?;
@@ -256,10 +260,7 @@ fn session_rows(a: &Args, s: &Path) -> anyhow::Result<(Vec<String>, Vec<String>,
 }
 
 /// Marker features of every frame in `dir`, extracted with `sensor`.
-fn extract(
-    sensor: &Path,
-    dir: &Path,
-) -> anyhow::Result<(Vec<String>, HashMap<String, Vec<f64>>)> {
+fn extract(sensor: &Path, dir: &Path) -> anyhow::Result<Columns> {
     let cal = crate::load_sensor(sensor)?;
     let set = cal.features;
     let mut ex = FeatureExtractor::new(cal, set).map_err(anyhow::Error::msg)?;

@@ -101,7 +101,9 @@ impl ForceArgs {
             })
             .collect();
         if raw.iter().flatten().any(|v| !v.is_finite()) {
-            bail!("{name}: force samples do not cover a uniform grid; are the timestamps in seconds?");
+            bail!(
+                "{name}: force samples do not cover a uniform grid; are the timestamps in seconds?"
+            );
         }
         let spec = FirSpec {
             window: Window::parse(&self.window)?,
@@ -191,9 +193,7 @@ pub(crate) fn filter(a: &FilterArgs) -> anyhow::Result<()> {
             a.input.display()
         );
     }
-    let p = a
-        .force
-        .process(table, &a.input.display().to_string())?;
+    let p = a.force.process(table, &a.input.display().to_string())?;
     let cols: Vec<usize> = (0..6).filter(|&k| p.present[k]).collect();
     let mut text = String::from("timestamp_s");
     for &k in &cols {
@@ -264,7 +264,10 @@ impl crate::plot::Figure for ForcePlot<'_> {
             );
             let mut chart = ChartBuilder::on(area)
                 .caption(
-                    format!("{}: raw (grey), filtered and debiased (blue), bias (red)", AXES[k]),
+                    format!(
+                        "{}: raw (grey), filtered and debiased (blue), bias (red)",
+                        AXES[k]
+                    ),
                     ("sans-serif", 15),
                 )
                 .margin(8)
@@ -278,7 +281,11 @@ impl crate::plot::Figure for ForcePlot<'_> {
                 .draw()
                 .map_err(text)?;
             let line = |v: &[f64]| -> Vec<(f64, f64)> {
-                p.t.iter().zip(v).step_by(step).map(|(t, v)| (*t, *v)).collect()
+                p.t.iter()
+                    .zip(v)
+                    .step_by(step)
+                    .map(|(t, v)| (*t, *v))
+                    .collect()
             };
             chart
                 .draw_series(LineSeries::new(line(&p.raw[k]), RGBColor(170, 170, 170)))
@@ -287,12 +294,8 @@ impl crate::plot::Figure for ForcePlot<'_> {
                 .draw_series(LineSeries::new(line(&p.clean[k]), BLUE))
                 .map_err(text)?;
             if let Some(b) = &p.bias {
-                let pts: Vec<(f64, f64)> = p
-                    .t
-                    .iter()
-                    .step_by(step)
-                    .map(|&t| (t, b.at(t)[k]))
-                    .collect();
+                let pts: Vec<(f64, f64)> =
+                    p.t.iter().step_by(step).map(|&t| (t, b.at(t)[k])).collect();
                 chart.draw_series(LineSeries::new(pts, RED)).map_err(text)?;
             }
         }
