@@ -85,11 +85,20 @@ impl ForceArgs {
         }
         let mut dt: Vec<f64> = table.timestamp_s.windows(2).map(|w| w[1] - w[0]).collect();
         dt.sort_by(f64::total_cmp);
-        let period = dt[dt.len() / 2];
-        let rate_hz = 1.0 / period;
         let (t0, t1) = (table.timestamp_s[0], table.timestamp_s[n - 1]);
-        let len = ((t1 - t0) / period).round() as usize + 1;
-        let t: Vec<f64> = (0..len).map(|k| t0 + k as f64 * period).collect();
+        let len = ((t1 - t0) / dt[dt.len() / 2]).round() as usize + 1;
+        // The grid spans exactly the first to the last sample.
+        let period = (t1 - t0) / (len - 1).max(1) as f64;
+        let rate_hz = 1.0 / period;
+        let t: Vec<f64> = (0..len)
+            .map(|k| {
+                if k + 1 == len {
+                    t1
+                } else {
+                    t0 + k as f64 * period
+                }
+            })
+            .collect();
         let rs = Resampler::new(&table.timestamp_s, &t, 0.0, f64::INFINITY)
             .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
         let raw: Vec<Vec<f64>> = (0..6)

@@ -14,8 +14,11 @@ mod dataset;
 mod demo;
 mod extract;
 mod force;
+mod live;
 mod pattern;
 mod plot;
+mod record;
+mod replay;
 mod simulate;
 mod sweep;
 mod train;
@@ -57,6 +60,11 @@ enum Command {
     /// Session folders → features.csv + labels.csv for `train` (force filtered, debiased and
     /// aligned onto the frames).
     Dataset(dataset::Args),
+    /// Frames (files, video, simulator) and force (UDP, CSV) → a session folder, written as it
+    /// goes; `--resume` continues a stopped one.
+    Record(record::Args),
+    /// Run a model over a recorded session or video frame by frame → estimates (and errors).
+    Replay(replay::Args),
 }
 
 /// Runs the program with the process arguments.
@@ -95,6 +103,8 @@ where
         Command::Eval(a) => train::eval(&a),
         Command::Filter(a) => force::filter(&a),
         Command::Dataset(a) => dataset::run(&a),
+        Command::Record(a) => record::run(&a),
+        Command::Replay(a) => replay::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

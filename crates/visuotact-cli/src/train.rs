@@ -348,7 +348,7 @@ pub(crate) struct PredictArgs {
 }
 
 /// The per-marker feature set that produces `columns` (`m000_dx_px`, `m000_decc`, …).
-fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
+pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
     let mut kinds: Vec<&str> = Vec::new();
     for c in columns {
         let kind = match c.get(5..) {
@@ -525,8 +525,18 @@ impl crate::plot::Figure for RegressionPlot<'_> {
 }
 
 pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
-    let p = KeyedTable::read(&a.predictions, &["flags"]).map_err(anyhow::Error::msg)?;
-    let l = KeyedTable::read(&a.labels, &[]).map_err(anyhow::Error::msg)?;
+    evaluate(&a.predictions, &a.labels, a.json, a.plot.as_deref())
+}
+
+/// Prints the error figures of a predictions table against a labels table.
+pub(crate) fn evaluate(
+    predictions: &Path,
+    labels: &Path,
+    json: bool,
+    plot: Option<&Path>,
+) -> anyhow::Result<()> {
+    let p = KeyedTable::read(predictions, &["flags"]).map_err(anyhow::Error::msg)?;
+    let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
     let by_key = l.rows_by_key();
     let mut figures = Vec::new();
     let mut panels: Vec<Panel> = Vec::new();
@@ -556,8 +566,8 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     if figures.is_empty() {
         bail!(
             "no target column of {} is in {}",
-            a.predictions.display(),
-            a.labels.display()
+            predictions.display(),
+            labels.display()
         );
     }
     if let (Some(xi), Some(yi), Some(lx), Some(ly)) = (xi, yi, l.column("x_mm"), l.column("y_mm")) {
@@ -574,11 +584,11 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
         let mean = distances.iter().sum::<f64>() / distances.len() as f64;
         (mean, distances.iter().fold(0.0f64, |m, d| m.max(*d)))
     });
-    if let Some(path) = &a.plot {
+    if let Some(path) = plot {
         crate::plot::save(&RegressionPlot(&panels), path)?;
         eprintln!("wrote {}", path.display());
     }
-    if a.json {
+    if json {
         let v = serde_json::json!({
             "targets": figures,
             "distance_mm": distance.map(|(mean, max)| serde_json::json!({"mean": mean, "max": max})),

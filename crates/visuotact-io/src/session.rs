@@ -176,3 +176,171 @@ impl SessionWriter {
         std::fs::write(self.dir.join("session.json"), text + "\n")
     }
 }
+
+/// A table appended to while a recording runs: every line is written and flushed as it comes
+/// (a killed process leaves every completed line readable), and the file is `fsync`ed at
+/// intervals (a power cut loses at most the last interval).
+pub struct AppendLog {
+    out: BufWriter<File>,
+    path: PathBuf,
+    every: std::time::Duration,
+    last_sync: std::time::Instant,
+    lines: usize,
+}
+
+impl AppendLog {
+    /// Opens `path` with its `header` line. New: creates it. `resume`: keeps its complete
+    /// lines (cutting off an unfinished last line) and checks the header; returns them too.
+    pub fn open(
+        path: &Path,
+        header: &str,
+        resume: bool,
+        sync_every: std::time::Duration,
+    ) -> std::io::Result<(Self, String)> {
+        let err =
+            |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+        let mut kept = String::new();
+        let file = if resume && path.exists() {
+            let text = std::fs::read_to_string(path).map_err(err)?;
+            let (complete, _) = crate::table::complete_lines(&text);
+            let first = complete.lines().next().unwrap_or("");
+            if !complete.is_empty() && first != header {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!(
+                        "{}: header {first:?} differs from {header:?}: resume with the same settings",
+                        path.display()
+                    ),
+                ));
+            }
+            kept = complete.to_string();
+            let f = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .open(path)
+                .map_err(err)?;
+            f.set_len(kept.len() as u64).map_err(err)?;
+            let mut f = std::fs::OpenOptions::new()
+                .append(true)
+                .open(path)
+                .map_err(err)?;
+            if kept.is_empty() {
+                writeln!(f, "{header}").map_err(err)?;
+            }
+            f
+        } else {
+            let mut f = File::create(path).map_err(err)?;
+            writeln!(f, "{header}").map_err(err)?;
+            f
+        };
+        let lines = kept.lines().count().saturating_sub(1);
+        Ok((
+            Self {
+                out: BufWriter::new(file),
+                path: path.to_path_buf(),
+                every: sync_every,
+                last_sync: std::time::Instant::now(),
+                lines,
+            },
+            kept,
+        ))
+    }
+
+    /// Appends one line (without its line end) and flushes it; syncs when the interval is up.
+    pub fn line(&mut self, s: &str) -> std::io::Result<()> {
+        let r = (|| {
+            self.out.write_all(s.as_bytes())?;
+            self.out.write_all(b"\n")?;
+            self.out.flush()
+        })();
+        r.map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", self.path.display())))?;
+        self.lines += 1;
+        if self.last_sync.elapsed() >= self.every {
+            self.sync()?;
+        }
+        Ok(())
+    }
+
+    /// Forces written lines to disk.
+    pub fn sync(&mut self) -> std::io::Result<()> {
+        self.out.flush()?;
+        self.out
+            .get_ref()
+            .sync_data()
+            .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", self.path.display())))?;
+        self.last_sync = std::time::Instant::now();
+        Ok(())
+    }
+
+    /// Data lines in the file (header not counted).
+    pub fn lines(&self) -> usize {
+        self.lines
+    }
+}
+
+/// Checks that `dir` can take a recording: writes and removes a probe of `bytes` bytes, so
+/// an unwritable folder or a full disk is reported before anything is recorded.
+pub fn probe_writable(dir: &Path, bytes: usize) -> std::io::Result<()> {
+    probe_file(&dir.join(".visuotact-probe"), bytes)
+}
+
+fn probe_file(path: &Path, bytes: usize) -> std::io::Result<()> {
+    let explain = |e: std::io::Error| {
+        let why = if e.raw_os_error() == Some(28) {
+            "the disk is full".to_string()
+        } else {
+            e.to_string()
+        };
+        std::io::Error::new(
+            e.kind(),
+            format!("cannot record into {}: {why}", path.display()),
+        )
+    };
+    let mut f = File::create(path).map_err(explain)?;
+    f.write_all(&vec![0u8; bytes]).map_err(explain)?;
+    f.sync_all().map_err(explain)?;
+    drop(f);
+    if path.is_file() {
+        std::fs::remove_file(path).map_err(explain)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn append_logs_resume_after_a_partial_line() {
+        let dir = std::env::temp_dir().join(format!("vt-append-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("t.csv");
+        let every = std::time::Duration::from_secs(1);
+        let (mut log, _) = AppendLog::open(&p, "a,b", false, every).unwrap();
+        log.line("1,2").unwrap();
+        log.line("3,4").unwrap();
+        drop(log);
+        // A writer killed mid-line.
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(&p)
+            .unwrap()
+            .write_all(b"5,")
+            .unwrap();
+        let (mut log, kept) = AppendLog::open(&p, "a,b", true, every).unwrap();
+        assert_eq!((kept.as_str(), log.lines()), ("a,b\n1,2\n3,4\n", 2));
+        log.line("5,6").unwrap();
+        log.sync().unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "a,b\n1,2\n3,4\n5,6\n");
+        assert!(AppendLog::open(&p, "a,c", true, every).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn full_disks_and_unwritable_places_are_reported() {
+        let e = probe_file(Path::new("/dev/full"), 4096).unwrap_err();
+        assert!(e.to_string().contains("the disk is full"), "{e}");
+        let e = probe_writable(Path::new("/proc/version"), 16).unwrap_err();
+        assert!(e.to_string().contains("cannot record into"), "{e}");
+    }
+}

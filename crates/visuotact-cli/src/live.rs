@@ -1,0 +1,102 @@
+//! Frame → features → estimate, the per-frame step `record --model`, `replay` and `predict
+//! --sensor` share, so that the same frame gives the same numbers in each.
+
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use visuotact_image::RgbImage;
+use visuotact_nn::model::Model;
+use visuotact_vision::calibration::SensorCalibration;
+use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
+
+/// Per-frame estimator with reusable buffers.
+pub(crate) struct Estimator {
+    ex: FeatureExtractor,
+    model: Option<(Model, Vec<usize>)>,
+    features: FrameFeatures,
+    x: Vec<f64>,
+    n_markers: usize,
+}
+
+impl Estimator {
+    /// Features from `sensor` (or the calibration stored in the model), and estimates when a
+    /// model is given. The feature set is the model's, else the sensor file's.
+    pub(crate) fn new(sensor: Option<&Path>, model: Option<Model>) -> anyhow::Result<Self> {
+        let cal = match (sensor, &model) {
+            (Some(p), _) => crate::load_sensor(p)?,
+            (None, Some(m)) => match &m.sensor {
+                Some(v) => SensorCalibration::from_json(&v.to_string(), "the model's sensor")
+                    .map_err(anyhow::Error::msg)?,
+                None => bail!("the model holds no sensor calibration: give --sensor"),
+            },
+            (None, None) => bail!("give --sensor (and --model for estimates)"),
+        };
+        let set = match &model {
+            Some(m) => crate::train::feature_set_of(&m.feature_columns)?,
+            None => cal.features,
+        };
+        let n_markers = cal.markers.len();
+        let ex = FeatureExtractor::new(cal, set).map_err(anyhow::Error::msg)?;
+        let names = ex.column_names();
+        let model = match model {
+            Some(m) => {
+                let cols = m
+                    .feature_columns
+                    .iter()
+                    .map(|c| {
+                        names.iter().position(|n| n == c).with_context(|| {
+                            format!(
+                                "the sensor has no feature `{c}`: the model was trained with another sensor file"
+                            )
+                        })
+                    })
+                    .collect::<anyhow::Result<Vec<usize>>>()?;
+                Some((m, cols))
+            }
+            None => None,
+        };
+        Ok(Self {
+            ex,
+            model,
+            features: FrameFeatures::default(),
+            x: Vec::new(),
+            n_markers,
+        })
+    }
+
+    /// Feature column names, in extraction order.
+    pub(crate) fn feature_columns(&self) -> Vec<String> {
+        self.ex.column_names()
+    }
+
+    /// The model's target columns (empty without a model).
+    pub(crate) fn target_columns(&self) -> Vec<String> {
+        self.model
+            .as_ref()
+            .map(|(m, _)| m.target_columns.clone())
+            .unwrap_or_default()
+    }
+
+    /// Markers in the calibration.
+    pub(crate) fn n_markers(&self) -> usize {
+        self.n_markers
+    }
+
+    /// Processes one frame: its features, and the estimate (`None` without a model or when a
+    /// marker the model needs was lost — no estimate rather than a wrong one).
+    pub(crate) fn process(
+        &mut self,
+        img: &RgbImage,
+    ) -> anyhow::Result<(&FrameFeatures, Option<Vec<f64>>)> {
+        self.ex.extract_into(img, &mut self.features)?;
+        let est = match &self.model {
+            Some((m, cols)) => {
+                self.x.clear();
+                self.x.extend(cols.iter().map(|&c| self.features.values[c]));
+                (!self.x.iter().any(|v| v.is_nan())).then(|| m.predict(&self.x))
+            }
+            None => None,
+        };
+        Ok((&self.features, est))
+    }
+}

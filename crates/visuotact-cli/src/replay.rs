@@ -1,0 +1,104 @@
+//! `visuotact replay`: a trained model run over a recorded session (or a video, or frames)
+//! frame by frame, as the live loop would — seed 001's Neural Network Testing Model. Writes
+//! the estimates and, when labels exist, their error figures.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use visuotact_io::frames::FrameStream;
+use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
+
+use crate::live::Estimator;
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Model from `train` or `sweep`.
+    #[arg(long)]
+    model: PathBuf,
+    /// Sensor file (default: the calibration stored in the model).
+    #[arg(long)]
+    sensor: Option<PathBuf>,
+    /// A session folder (its frames/, in frames.csv order), or videos / images / folders.
+    #[arg(required = true)]
+    input: Vec<PathBuf>,
+    /// Estimates table.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Labels to score against (default: the session's labels.csv, if any).
+    #[arg(long)]
+    labels: Option<PathBuf>,
+    /// Frame rate of image sequences, frames per second.
+    #[arg(long, default_value_t = 25.0)]
+    fps: f64,
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let model = crate::train::load_model(&a.model)?;
+    let mut est = Estimator::new(a.sensor.as_deref(), Some(model))?;
+    let session =
+        (a.input.len() == 1 && a.input[0].join("frames.csv").is_file()).then(|| a.input[0].clone());
+    // A session's frames in recorded order; anything else as given.
+    let paths: Vec<PathBuf> = match &session {
+        Some(s) => {
+            let t =
+                KeyedTable::read(&s.join("frames.csv"), &["kind"]).map_err(anyhow::Error::msg)?;
+            let frames: Vec<PathBuf> = t
+                .keys
+                .iter()
+                .map(|k| s.join("frames").join(k))
+                .filter(|p| p.is_file())
+                .collect();
+            if frames.is_empty() {
+                bail!(
+                    "{}: no saved frames (record with --save-frames to replay a session)",
+                    s.display()
+                );
+            }
+            frames
+        }
+        None => a.input.clone(),
+    };
+    let targets = est.target_columns();
+    let mut out = TableWriter::create(&a.output, TableFormat::Csv, targets.clone())
+        .with_context(|| format!("{}: cannot create", a.output.display()))?;
+    let nan = vec![f64::NAN; targets.len()];
+    let (mut n, mut missing) = (0usize, 0usize);
+    let t0 = std::time::Instant::now();
+    for item in FrameStream::open(&paths, a.fps)? {
+        let frame = match item {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("warning: {e}; skipped");
+                continue;
+            }
+        };
+        match est.process(&frame.image) {
+            Ok((_, Some(v))) => out.write_row(&frame.id, &v, "")?,
+            Ok((_, None)) => {
+                missing += 1;
+                out.write_row(&frame.id, &nan, "missing features")?;
+            }
+            Err(e) => {
+                missing += 1;
+                out.write_row(&frame.id, &nan, &format!("error: {e}"))?;
+            }
+        }
+        n += 1;
+    }
+    drop(out);
+    let secs = t0.elapsed().as_secs_f64();
+    eprintln!(
+        "replayed {n} frames in {secs:.2} s ({:.2} ms per frame, decoding included); {missing} without an estimate; wrote {}",
+        1e3 * secs / n.max(1) as f64,
+        a.output.display()
+    );
+    let labels = a
+        .labels
+        .clone()
+        .or_else(|| session.map(|s| s.join("labels.csv")))
+        .filter(|p| p.is_file());
+    if let Some(l) = labels {
+        crate::train::evaluate(&a.output, &l, false, None)?;
+    }
+    Ok(())
+}
