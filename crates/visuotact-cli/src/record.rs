@@ -203,18 +203,35 @@ fn sim_of(a: &Args, kind: &str) -> anyhow::Result<Sim> {
     })
 }
 
-/// Sends the simulated JR3 stream of the cone rig to `addr`, paced on `clock` from `t_from`.
-fn spawn_jr3(
-    sim: &Sim,
-    addr: &str,
+/// Where and when the simulated JR3 streams.
+struct Jr3Stream<'a> {
+    /// Destination address.
+    addr: &'a str,
     layout: ForceLayout,
     rate_hz: f64,
     seed: u64,
+    /// Time zero of the rig.
     clock: Instant,
+    /// First and last sample times, s.
     t_from: f64,
     t_end: f64,
+}
+
+/// Sends the simulated JR3 stream of the cone rig, paced in real time, until `stop`.
+fn spawn_jr3(
+    sim: &Sim,
+    j: Jr3Stream<'_>,
     stop: Arc<AtomicBool>,
 ) -> anyhow::Result<Option<std::thread::JoinHandle<u64>>> {
+    let Jr3Stream {
+        addr,
+        layout,
+        rate_hz,
+        seed,
+        clock,
+        t_from,
+        t_end,
+    } = j;
     let Sim::Cone { cfg, press, rest_s } = sim else {
         return Ok(None);
     };
@@ -455,13 +472,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                     .unwrap_or(clock);
                 jr3 = spawn_jr3(
                     s,
-                    &bound,
-                    layout.clone(),
-                    a.force_rate_hz,
-                    a.seed,
-                    sim_clock,
-                    t_offset,
-                    t_end,
+                    Jr3Stream {
+                        addr: &bound,
+                        layout: layout.clone(),
+                        rate_hz: a.force_rate_hz,
+                        seed: a.seed,
+                        clock: sim_clock,
+                        t_from: t_offset,
+                        t_end,
+                    },
                     stop.clone(),
                 )?;
             }
