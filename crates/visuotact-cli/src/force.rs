@@ -228,7 +228,7 @@ pub(crate) fn filter(a: &FilterArgs) -> anyhow::Result<()> {
         a.force.cutoff_hz
     );
     if let Some(b) = &p.bias {
-        let periods = b.periods(1.5 / p.rate_hz);
+        let periods = b.periods(0.5);
         let first = b.at(p.t[0]);
         let last = b.at(p.t[p.t.len() - 1]);
         eprintln!(
