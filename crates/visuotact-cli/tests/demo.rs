@@ -18,7 +18,7 @@ fn quick_demo_runs_both_experiments() {
         "Table 3 layout",
         "random touches (not in training)",
         "Table 5.1 layout",
-        "mean absolute error",
+        "best of sweep, over its own press",
         "calibrated 117 markers",
         "calibrated 2 rings",
     ] {
