@@ -10,6 +10,8 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod blobs;
 mod calibrate;
+mod camera;
+mod dashboard;
 mod dataset;
 mod demo;
 mod extract;
@@ -19,6 +21,7 @@ mod pattern;
 mod plot;
 mod record;
 mod replay;
+mod run;
 mod simulate;
 mod sweep;
 mod train;
@@ -65,6 +68,11 @@ enum Command {
     Record(record::Args),
     /// Run a model over a recorded session or video frame by frame → estimates (and errors).
     Replay(replay::Args),
+    /// Live estimation: camera, video, frames or simulator → estimates on stdout (JSON lines),
+    /// UDP and the dashboard (`--serve`), with latency measured per frame.
+    Run(run::Args),
+    /// List the V4L2 cameras (`/dev/videoN`) and their names.
+    Cameras,
 }
 
 /// Runs the program with the process arguments.
@@ -105,6 +113,17 @@ where
         Command::Dataset(a) => dataset::run(&a),
         Command::Record(a) => record::run(&a),
         Command::Replay(a) => replay::run(&a),
+        Command::Run(a) => run::run(&a),
+        Command::Cameras => {
+            let list = camera::list_devices();
+            if list.is_empty() {
+                println!("no V4L2 cameras (/sys/class/video4linux is empty)");
+            }
+            for (dev, name) in list {
+                println!("{dev}\t{name}");
+            }
+            Ok(())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

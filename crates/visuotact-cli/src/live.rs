@@ -77,6 +77,16 @@ impl Estimator {
             .unwrap_or_default()
     }
 
+    /// The sensor calibration in use.
+    pub(crate) fn calibration(&self) -> &SensorCalibration {
+        self.ex.calibration()
+    }
+
+    /// The feature set in use.
+    pub(crate) fn feature_set(&self) -> visuotact_vision::features::FeatureSet {
+        self.ex.feature_set()
+    }
+
     /// Markers in the calibration.
     pub(crate) fn n_markers(&self) -> usize {
         self.n_markers

@@ -40,7 +40,11 @@ fn quick_demo_runs_both_experiments() {
         .parse()
         .unwrap();
     assert!(mean < 0.6, "{depth_line}");
-    let r_line = out.lines().find(|l| l.contains("regression R")).unwrap();
+    // "best of sweep, over its own press (paper's way)   0.088  0.386  2.12 0.99951": R last.
+    let r_line = out
+        .lines()
+        .find(|l| l.contains("best of sweep, over its own press"))
+        .unwrap();
     let r: f64 = r_line.split_whitespace().last().unwrap().parse().unwrap();
     assert!(r > 0.99, "{r_line}");
 }

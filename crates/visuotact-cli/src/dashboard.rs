@@ -1,0 +1,238 @@
+//! The live dashboard: one page served from the binary (no CDN, no external files), estimates
+//! pushed over a WebSocket, the latest frame as JPEG, and a re-zero button.
+//!
+//! Routes: `GET /` the page, `GET /ws` estimates (JSON text messages), `GET /frame.jpg` the
+//! latest frame, `GET /info` image size, targets and markers, `POST /rezero`. The estimator
+//! never waits for a client: messages go through a bounded broadcast channel, and a client that
+//! falls behind loses the oldest messages (counted).
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use anyhow::Context;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::State;
+use axum::http::header;
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use tokio::sync::broadcast;
+use visuotact_image::RgbImage;
+use visuotact_vision::calibration::SensorCalibration;
+
+use crate::run::{Estimate, MarkerView};
+
+/// The page, embedded.
+const PAGE: &str = include_str!("../assets/dashboard.html");
+
+struct Shared {
+    tx: broadcast::Sender<Arc<str>>,
+    frame: Mutex<Option<Arc<RgbImage>>>,
+    rezero: AtomicBool,
+    rezero_count: AtomicU64,
+    rezero_applied: AtomicU64,
+    clients: AtomicUsize,
+    dropped: AtomicU64,
+    info: serde_json::Value,
+}
+
+/// A running dashboard server.
+pub(crate) struct Dashboard {
+    shared: Arc<Shared>,
+    shutdown: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Dashboard {
+    /// Serves on `addr` from a thread of its own.
+    pub(crate) fn start(
+        addr: &str,
+        cal: &SensorCalibration,
+        targets: Vec<String>,
+    ) -> anyhow::Result<Self> {
+        let sock: SocketAddr = addr.parse().with_context(|| {
+            format!("--serve {addr:?}: expected HOST:PORT, e.g. 127.0.0.1:8080")
+        })?;
+        if !sock.ip().is_loopback() {
+            eprintln!("warning: the dashboard on {sock} is reachable from other machines");
+        }
+        let (tx, _) = broadcast::channel(16);
+        let info = serde_json::json!({
+            "width": cal.image_width,
+            "height": cal.image_height,
+            "targets": targets,
+            "markers": cal.markers.len(),
+        });
+        let shared = Arc::new(Shared {
+            tx,
+            frame: Mutex::new(None),
+            rezero: AtomicBool::new(false),
+            rezero_count: AtomicU64::new(0),
+            rezero_applied: AtomicU64::new(0),
+            clients: AtomicUsize::new(0),
+            dropped: AtomicU64::new(0),
+            info,
+        });
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .context("cannot start the dashboard's runtime")?;
+        let listener = rt
+            .block_on(tokio::net::TcpListener::bind(sock))
+            .with_context(|| format!("--serve {sock}: cannot listen"))?;
+        let bound = listener.local_addr()?;
+        let app = Router::new()
+            .route("/", get(|| async { Html(PAGE) }))
+            .route("/ws", get(ws))
+            .route("/frame.jpg", get(frame))
+            .route("/info", get(info_route))
+            .route("/rezero", post(rezero))
+            .with_state(shared.clone());
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            rt.block_on(async move {
+                let serve = axum::serve(listener, app).with_graceful_shutdown(async {
+                    let _ = stop_rx.await;
+                });
+                if let Err(e) = serve.await {
+                    eprintln!("warning: dashboard: {e}");
+                }
+            });
+            rt.shutdown_background();
+        });
+        eprintln!("dashboard on http://{bound}/");
+        Ok(Self {
+            shared,
+            shutdown: Some(stop_tx),
+            thread: Some(thread),
+        })
+    }
+
+    /// Whether a WebSocket client is connected (the estimator then prepares drawing data).
+    pub(crate) fn has_clients(&self) -> bool {
+        self.shared.clients.load(Ordering::Relaxed) > 0
+    }
+
+    /// Whether the re-zero button was pressed since the last call.
+    pub(crate) fn take_rezero(&self) -> bool {
+        self.shared.rezero.swap(false, Ordering::Relaxed)
+    }
+
+    /// The estimator re-zeroed (the count goes out with the next estimates).
+    pub(crate) fn rezero_applied(&self) {
+        self.shared.rezero_applied.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Messages lost by slow clients.
+    pub(crate) fn dropped(&self) -> u64 {
+        self.shared.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Sends an estimate to every client and keeps the frame for `/frame.jpg`.
+    pub(crate) fn publish(
+        &self,
+        e: &Estimate,
+        markers: Option<&[MarkerView]>,
+        img: &Arc<RgbImage>,
+    ) {
+        if !self.has_clients() {
+            return;
+        }
+        if let Ok(mut f) = self.shared.frame.lock() {
+            *f = Some(img.clone());
+        }
+        let msg = serde_json::json!({
+            "estimate": e,
+            "markers": markers,
+            "rezeros": self.shared.rezero_applied.load(Ordering::Relaxed),
+        });
+        // No receiver is fine: the client may have just left.
+        let _ = self.shared.tx.send(Arc::from(msg.to_string()));
+    }
+
+    /// Stops the server.
+    pub(crate) fn stop(mut self) {
+        if let Some(s) = self.shutdown.take() {
+            let _ = s.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+async fn ws(State(s): State<Arc<Shared>>, upgrade: WebSocketUpgrade) -> Response {
+    upgrade.on_upgrade(move |socket| client(socket, s))
+}
+
+async fn client(mut socket: WebSocket, s: Arc<Shared>) {
+    let mut rx = s.tx.subscribe();
+    s.clients.fetch_add(1, Ordering::Relaxed);
+    loop {
+        tokio::select! {
+            m = rx.recv() => match m {
+                Ok(text) => {
+                    if socket.send(Message::Text(text.as_ref().into())).await.is_err() {
+                        break;
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    s.dropped.fetch_add(n, Ordering::Relaxed);
+                }
+                Err(broadcast::error::RecvError::Closed) => break,
+            },
+            incoming = socket.recv() => match incoming {
+                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,
+                Some(Ok(_)) => {}
+            },
+        }
+    }
+    s.clients.fetch_sub(1, Ordering::Relaxed);
+}
+
+async fn frame(State(s): State<Arc<Shared>>) -> Response {
+    let img = s.frame.lock().ok().and_then(|f| f.clone());
+    let Some(img) = img else {
+        return (axum::http::StatusCode::NO_CONTENT, "").into_response();
+    };
+    let jpeg = tokio::task::spawn_blocking(move || {
+        let mut out = Vec::new();
+        let enc = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 80);
+        image::ImageEncoder::write_image(
+            enc,
+            img.as_slice(),
+            img.width() as u32,
+            img.height() as u32,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map(|()| out)
+    })
+    .await;
+    match jpeg {
+        Ok(Ok(bytes)) => (
+            [
+                (header::CONTENT_TYPE, "image/jpeg"),
+                (header::CACHE_CONTROL, "no-store"),
+            ],
+            bytes,
+        )
+            .into_response(),
+        _ => (
+            axum::http::StatusCode::INTERNAL_SERVER_ERROR,
+            "encoding failed",
+        )
+            .into_response(),
+    }
+}
+
+async fn info_route(State(s): State<Arc<Shared>>) -> Json<serde_json::Value> {
+    Json(s.info.clone())
+}
+
+async fn rezero(State(s): State<Arc<Shared>>) -> Json<serde_json::Value> {
+    s.rezero.store(true, Ordering::Relaxed);
+    let n = s.rezero_count.fetch_add(1, Ordering::Relaxed) + 1;
+    Json(serde_json::json!({ "rezero": n }))
+}

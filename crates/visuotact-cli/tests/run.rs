@@ -1,0 +1,266 @@
+//! `visuotact run`: live estimates from the simulator as JSON lines (contact and no contact,
+//! latency, health), a UDP target that does not exist, the GelSight Mini video (no contact
+//! before the press, contact during it), and the dashboard driven by headless Chromium.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn vt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(args)
+        .output()
+        .expect("run visuotact")
+}
+
+fn ok(o: &Output) -> String {
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    err
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A small IATS model: 150 random touches, 351 → 8 → 3.
+fn iats_model(d: &Path) -> PathBuf {
+    let sess = d.join("sess");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "150",
+        "-o",
+        s(&sess),
+    ]));
+    ok(&vt(&[
+        "calibrate",
+        s(&sess.join("reference")),
+        "-o",
+        s(&d.join("sensor.json")),
+    ]));
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&d.join("sensor.json")),
+        s(&sess.join("frames")),
+        "-o",
+        s(&d.join("f.csv")),
+    ]));
+    ok(&vt(&[
+        "train",
+        "--features",
+        s(&d.join("f.csv")),
+        "--labels",
+        s(&sess.join("labels.csv")),
+        "--targets",
+        "x_mm,y_mm,depth_mm",
+        "--hidden",
+        "8",
+        "--drop-incomplete",
+        "--sensor",
+        s(&d.join("sensor.json")),
+        "-o",
+        s(&d.join("model.json")),
+    ]));
+    d.join("model.json")
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("visuotact-run-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn simulated_touches_stream_as_json_lines_with_an_ensemble() {
+    let d = dir("sim");
+    let m = iats_model(&d);
+    // The same model twice is an ensemble of two: the spread must be zero.
+    let o = vt(&[
+        "run",
+        "--model",
+        s(&m),
+        "--model",
+        s(&m),
+        "--source",
+        "sim:iats",
+        "--sim-frames",
+        "20",
+        "--fps",
+        "50",
+        "--max-frames",
+        "60",
+        "--udp",
+        "127.0.0.1:9",
+        "--summary",
+        s(&d.join("summary.json")),
+    ]);
+    let err = ok(&o);
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 60, "{err}");
+    let contact: Vec<&serde_json::Value> = lines.iter().filter(|e| e["contact"] == true).collect();
+    let free: Vec<&serde_json::Value> = lines.iter().filter(|e| e["contact"] == false).collect();
+    // The simulated cycle is 40 % untouched (8 of 20 frames), then touches 1–5 mm deep.
+    assert_eq!(free.len(), 24, "{err}");
+    assert_eq!(contact.len(), 36);
+    for e in &free {
+        assert_eq!(e["targets"].as_array().unwrap().len(), 0);
+    }
+    for e in &contact {
+        let t = e["targets"].as_array().unwrap();
+        assert_eq!(t.len(), 3);
+        assert_eq!(t[0]["name"], "x_mm");
+        assert!(t[2]["std"].as_f64().unwrap() < 1e-9);
+        let depth = t[2]["value"].as_f64().unwrap();
+        assert!((0.0..6.0).contains(&depth), "{depth}");
+    }
+    assert_eq!(lines[0]["health"]["ok"], 117);
+    assert!(lines
+        .iter()
+        .all(|e| e["latency_ms"].as_f64().unwrap() > 0.0));
+    // Nobody listens on the discard port: the run goes on and counts what it could not send.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["frames_estimated"], 60);
+    assert!(summary["processing_ms_median"].as_f64().unwrap() > 0.0);
+    assert!(err.contains("UDP errors"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn gelsight_video_contact_only_during_the_press() {
+    let video = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/real/gelsight_mini/mini_example.avi");
+    if !video.is_file() {
+        eprintln!("skipped: {} not found", video.display());
+        return;
+    }
+    let d = dir("gelsight");
+    ok(&vt(&[
+        "calibrate",
+        s(&video),
+        "--first",
+        "10",
+        "--preset",
+        "dark-markers",
+        "--keep-border",
+        "-o",
+        s(&d.join("gs.json")),
+    ]));
+    let o = vt(&[
+        "run",
+        "--sensor",
+        s(&d.join("gs.json")),
+        "--source",
+        &format!("video:{}", video.display()),
+        "--unpaced",
+        "--queue",
+        "1000",
+    ]);
+    ok(&o);
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 219);
+    let first = rows.iter().position(|r| r["contact"] == true).unwrap();
+    // The press starts near frame 57 (displacements jump from 0.3 to 7 px over 8 frames).
+    assert!((50..=62).contains(&first), "first contact at frame {first}");
+    let during = rows[70..].iter().filter(|r| r["contact"] == true).count();
+    assert_eq!(during, rows.len() - 70);
+    // All 80 markers are tracked before the press; during it a few top-row slivers leave the
+    // image (they are cut by its border).
+    assert!(rows[..first].iter().all(|r| r["health"]["ok"] == 80));
+    assert!(rows
+        .iter()
+        .all(|r| r["health"]["ok"].as_u64().unwrap() >= 74));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn dashboard_in_headless_chromium() {
+    let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|c| {
+            Command::new(c)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+    else {
+        eprintln!("skipped: no chromium (scripts/test installs Debian's)");
+        return;
+    };
+    let d = dir("dash");
+    let m = iats_model(&d);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args([
+            "run",
+            "--model",
+            s(&m),
+            "--source",
+            "sim:iats",
+            "--sim-frames",
+            "20",
+            "--duration-s",
+            "60",
+            "--quiet",
+            "--serve",
+            "127.0.0.1:0",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    let url = loop {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "run ended early");
+        if let Some(u) = line.trim().strip_prefix("dashboard on ") {
+            break u.to_string();
+        }
+    };
+    let profile = d.join("profile");
+    let dom = Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            &format!("--user-data-dir={}", profile.display()),
+            "--virtual-time-budget=15000",
+            "--dump-dom",
+            &format!("{url}?selftest=1"),
+        ])
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    // The page loaded, received estimates over the WebSocket, drew them, pressed re-zero and
+    // saw the estimator apply it.
+    assert!(dom.contains("data-selftest=\"ok\""), "{dom}");
+    assert!(dom.contains("re-zero 1 applied"), "{dom}");
+    let received: usize = dom
+        .split("data-received=\"")
+        .nth(1)
+        .and_then(|r| r.split('"').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert!(received >= 25, "{received}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
