@@ -42,16 +42,20 @@ pub(crate) fn parse_formats(text: &str) -> Vec<CameraFormat> {
         let Some(rest) = line.split("] ").nth(1) else {
             continue;
         };
-        let cells: Vec<&str> = rest.split(" : ").map(str::trim).collect();
-        if cells.len() < 4 {
+        // "Compressed:  mjpeg :  Motion-JPEG : 640x480 …" (the description may hold colons).
+        let Some((_, fields)) = rest.split_once(':') else {
+            continue;
+        };
+        let cells: Vec<&str> = fields.split(" : ").map(str::trim).collect();
+        if cells.len() < 3 {
             continue;
         }
-        let pixel = match cells[1] {
+        let pixel = match cells[0] {
             "mjpeg" => PixelFormat::Mjpeg,
             "yuyv422" => PixelFormat::Yuyv,
             _ => continue,
         };
-        for size in cells[3].split_whitespace() {
+        for size in cells[cells.len() - 1].split_whitespace() {
             if let Some((w, h)) = size.split_once('x') {
                 if let (Ok(width), Ok(height)) = (w.parse(), h.parse()) {
                     out.push(CameraFormat {
