@@ -3,8 +3,8 @@
 //!
 //! Routes: `GET /` the page, `GET /ws` estimates (JSON text messages), `GET /frame.jpg` the
 //! latest frame, `GET /info` image size, targets and markers, `POST /rezero`. The estimator
-//! never waits for a client: messages go through a bounded broadcast channel, and a client that
-//! falls behind loses the oldest messages (counted).
+//! never waits for a client: each client has a small queue of its own, and a message that does
+//! not fit (the client reads too slowly) is dropped for that client and counted.
 
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -17,7 +17,7 @@ use axum::http::header;
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use tokio::sync::broadcast;
+use tokio::sync::mpsc;
 use visuotact_image::RgbImage;
 use visuotact_vision::calibration::SensorCalibration;
 
@@ -26,8 +26,11 @@ use crate::run::{Estimate, MarkerView};
 /// The page, embedded.
 const PAGE: &str = include_str!("../assets/dashboard.html");
 
+/// Messages a client may have waiting before new ones are dropped for it.
+const CLIENT_QUEUE: usize = 8;
+
 struct Shared {
-    tx: broadcast::Sender<Arc<str>>,
+    clients_tx: Mutex<Vec<mpsc::Sender<Arc<str>>>>,
     frame: Mutex<Option<Arc<RgbImage>>>,
     rezero: AtomicBool,
     rezero_count: AtomicU64,
@@ -57,7 +60,6 @@ impl Dashboard {
         if !sock.ip().is_loopback() {
             eprintln!("warning: the dashboard on {sock} is reachable from other machines");
         }
-        let (tx, _) = broadcast::channel(16);
         let info = serde_json::json!({
             "width": cal.image_width,
             "height": cal.image_height,
@@ -65,7 +67,7 @@ impl Dashboard {
             "markers": cal.markers.len(),
         });
         let shared = Arc::new(Shared {
-            tx,
+            clients_tx: Mutex::new(Vec::new()),
             frame: Mutex::new(None),
             rezero: AtomicBool::new(false),
             rezero_count: AtomicU64::new(0),
@@ -148,8 +150,18 @@ impl Dashboard {
             "markers": markers,
             "rezeros": self.shared.rezero_applied.load(Ordering::Relaxed),
         });
-        // No receiver is fine: the client may have just left.
-        let _ = self.shared.tx.send(Arc::from(msg.to_string()));
+        let text: Arc<str> = Arc::from(msg.to_string());
+        if let Ok(mut clients) = self.shared.clients_tx.lock() {
+            clients.retain(|c| match c.try_send(text.clone()) {
+                Ok(()) => true,
+                Err(mpsc::error::TrySendError::Full(_)) => {
+                    self.shared.dropped.fetch_add(1, Ordering::Relaxed);
+                    true
+                }
+                // The client left.
+                Err(mpsc::error::TrySendError::Closed(_)) => false,
+            });
+        }
     }
 
     /// Stops the server.
@@ -168,20 +180,20 @@ async fn ws(State(s): State<Arc<Shared>>, upgrade: WebSocketUpgrade) -> Response
 }
 
 async fn client(mut socket: WebSocket, s: Arc<Shared>) {
-    let mut rx = s.tx.subscribe();
+    let (tx, mut rx) = mpsc::channel::<Arc<str>>(CLIENT_QUEUE);
+    if let Ok(mut c) = s.clients_tx.lock() {
+        c.push(tx);
+    }
     s.clients.fetch_add(1, Ordering::Relaxed);
     loop {
         tokio::select! {
             m = rx.recv() => match m {
-                Ok(text) => {
+                Some(text) => {
                     if socket.send(Message::Text(text.as_ref().into())).await.is_err() {
                         break;
                     }
                 }
-                Err(broadcast::error::RecvError::Lagged(n)) => {
-                    s.dropped.fetch_add(n, Ordering::Relaxed);
-                }
-                Err(broadcast::error::RecvError::Closed) => break,
+                None => break,
             },
             incoming = socket.recv() => match incoming {
                 Some(Ok(Message::Close(_))) | None | Some(Err(_)) => break,

@@ -41,7 +41,8 @@ pub(crate) struct Args {
     /// Frame rate of simulated cameras and image sequences, frames per second.
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
-    /// Deliver frames as fast as they can be processed (soak tests), not at the camera rate.
+    /// Deliver frames as fast as they can be processed (soak tests), not at the camera rate;
+    /// every frame is then estimated (the source waits instead of dropping).
     #[arg(long)]
     unpaced: bool,
     /// Stop after this many frames.
@@ -127,6 +128,17 @@ impl<T> LatestQueue<T> {
         self.ready.notify_one();
     }
 
+    /// Adds an item, waiting while the queue is full (a source that must not lose frames:
+    /// files and simulations run unpaced).
+    pub(crate) fn push_wait(&self, item: T) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        while g.0.len() >= self.cap && !g.1 {
+            g = self.ready.wait(g).unwrap_or_else(|e| e.into_inner());
+        }
+        g.0.push_back(item);
+        self.ready.notify_all();
+    }
+
     /// No more items will come.
     pub(crate) fn close(&self) {
         let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
@@ -139,6 +151,7 @@ impl<T> LatestQueue<T> {
         let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         loop {
             if let Some(x) = g.0.pop_front() {
+                self.ready.notify_all();
                 return Some(x);
             }
             if g.1 {
@@ -515,16 +528,23 @@ impl Source {
                 }
             }
         };
+        // Paced sources behave like cameras (the oldest frame goes when the estimator is
+        // behind); unpaced ones wait for it, so every frame is estimated.
         let push =
             move |queue: &LatestQueue<Captured>, id: String, k: u64, image: Arc<RgbImage>| {
                 let captured = Instant::now();
-                queue.push(Captured {
+                let c = Captured {
                     id,
                     index: k,
                     timestamp_s: (captured - clock).as_secs_f64(),
                     captured,
                     image,
-                });
+                };
+                if paced {
+                    queue.push(c);
+                } else {
+                    queue.push_wait(c);
+                }
             };
         Ok(match self {
             Self::Sim(frames) => std::thread::spawn(move || {
@@ -587,6 +607,9 @@ pub(crate) struct Summary {
     pub udp_send_errors: u64,
     pub websocket_messages_dropped: u64,
     pub seconds: f64,
+    /// Resident memory after the first 1 000 estimates, KiB.
+    pub rss_kib_after_1000: Option<u64>,
+    /// Largest resident memory seen (sampled every 1 000 estimates), KiB.
     pub max_rss_kib: Option<u64>,
 }
 
@@ -696,7 +719,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             d.publish(&e, want_markers.then_some(&markers[..]), &cap.image);
         }
         if summary.frames_estimated % 1000 == 0 {
-            max_rss = max_rss.max(rss_kib().unwrap_or(0));
+            let rss = rss_kib();
+            if summary.frames_estimated == 1000 {
+                summary.rss_kib_after_1000 = rss;
+            }
+            max_rss = max_rss.max(rss.unwrap_or(0));
         }
         if stop.load(Ordering::Relaxed) && deadline.is_some() {
             break;

@@ -264,3 +264,64 @@ fn dashboard_in_headless_chromium() {
     assert!(received >= 25, "{received}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn slow_and_vanishing_websocket_clients_do_not_slow_the_estimator() {
+    let d = dir("slow");
+    let m = iats_model(&d);
+    let summary = d.join("summary.json");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args([
+            "run",
+            "--model",
+            s(&m),
+            "--source",
+            "sim:iats",
+            "--sim-frames",
+            "20",
+            "--unpaced",
+            "--max-frames",
+            "12000",
+            "--quiet",
+            "--serve",
+            "127.0.0.1:0",
+            "--summary",
+            s(&summary),
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    let addr = loop {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "run ended early");
+        if let Some(u) = line.trim().strip_prefix("dashboard on http://") {
+            break u.trim_end_matches('/').to_string();
+        }
+    };
+    // One client reads a message and then never again; another connects and drops at once.
+    let (mut slow, _) = tungstenite::connect(format!("ws://{addr}/ws")).unwrap();
+    let first = slow.read().unwrap();
+    assert!(first.to_text().unwrap().contains("\"estimate\""));
+    let (gone, _) = tungstenite::connect(format!("ws://{addr}/ws")).unwrap();
+    drop(gone);
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    assert!(child.wait().unwrap().success(), "{rest}");
+    drop(slow);
+    let sum: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    // Every frame was estimated (the queue is only dropped from when the estimator is behind),
+    // and the slow client lost messages instead of holding the estimator up.
+    assert_eq!(
+        sum["frames_estimated"].as_u64().unwrap() + sum["frames_dropped"].as_u64().unwrap(),
+        12000,
+        "{sum}"
+    );
+    assert!(
+        sum["websocket_messages_dropped"].as_u64().unwrap() > 0,
+        "{sum}"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
