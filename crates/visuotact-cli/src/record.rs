@@ -35,7 +35,8 @@ pub(crate) struct Args {
     /// Session folder to write.
     #[arg(short, long)]
     output: PathBuf,
-    /// Frame source: frames:DIR, video:FILE, sim:cone, sim:iats, or image/video paths.
+    /// Frame source: camera:/dev/videoN, frames:DIR, video:FILE, sim:cone, sim:iats, or
+    /// image/video paths.
     #[arg(long)]
     source: String,
     /// Frame rate of image folders and of the simulated camera, frames per second.
@@ -500,9 +501,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
 
     // Frames.
-    let mut stream = match &sim {
-        Some(_) => None,
-        None => {
+    // A camera captures on its own thread into a drop-oldest queue, timestamped on arrival.
+    let camera = match a.source.strip_prefix("camera:") {
+        Some(dev) => {
+            let q = Arc::new(crate::run::LatestQueue::new(4));
+            let h = crate::camera::spawn(dev, a.fps, q.clone(), stop.clone(), clock, u64::MAX)?;
+            Some((q, h))
+        }
+        None => None,
+    };
+    let mut stream = match (&sim, &camera) {
+        (Some(_), _) | (_, Some(_)) => None,
+        _ => {
             let spec = a
                 .source
                 .strip_prefix("frames:")
@@ -567,7 +577,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                         }
                     }
                 },
-                (None, None) => break,
+                (None, None) => match camera.as_ref().and_then(|(q, _)| q.pop()) {
+                    Some(c) => Captured {
+                        id: format!("frame_{k:06}.png"),
+                        timestamp_s: t_offset + c.timestamp_s,
+                        image: Arc::try_unwrap(c.image).unwrap_or_else(|a| (*a).clone()),
+                        labels: Vec::new(),
+                    },
+                    None => break,
+                },
             };
             if a.save_frames {
                 let name = if cap.id.ends_with(".png") {
@@ -641,8 +659,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         }
         Ok(())
     })();
-    // Stop the force side, whatever happened to the frames.
+    // Stop the camera and the force side, whatever happened to the frames.
     stop.store(true, Ordering::Relaxed);
+    if let Some((q, h)) = camera {
+        q.close();
+        let _ = h.join();
+    }
     let sent = jr3.and_then(|h| h.join().ok());
     std::thread::sleep(Duration::from_millis(100));
     stop_force.store(true, Ordering::Relaxed);

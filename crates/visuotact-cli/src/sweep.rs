@@ -34,6 +34,10 @@ pub(crate) struct Args {
     /// Most epochs per training.
     #[arg(long, default_value_t = 1000)]
     max_epochs: usize,
+    /// Also keep the N best networks (by validation MSE) as ensemble/model_K.json, for
+    /// `run --model …` several times (mean ± standard deviation).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    keep: usize,
 }
 
 fn range(s: &str) -> anyhow::Result<Vec<usize>> {
@@ -154,6 +158,22 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .min_by(|p, q| perf(&p.1, 1).total_cmp(&perf(&q.1, 1)))
         .context("no training ran")?;
     crate::write_atomically(&a.output.join("best_model.json"), &best_model.to_json())?;
+    if a.keep > 0 {
+        let mut ranked: Vec<&Model> = results.iter().map(|r| &r.1).collect();
+        ranked.sort_by(|p, q| perf(p, 1).total_cmp(&perf(q, 1)));
+        for (k, m) in ranked.iter().take(a.keep).enumerate() {
+            let p = a
+                .output
+                .join("ensemble")
+                .join(format!("model_{}.json", k + 1));
+            crate::write_atomically(&p, &m.to_json())?;
+        }
+        eprintln!(
+            "kept the {} best networks in {}/ensemble/",
+            a.keep.min(ranked.len()),
+            a.output.display()
+        );
+    }
     crate::plot::save_both(
         &PerformancePlot {
             points: &points,

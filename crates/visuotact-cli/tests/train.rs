@@ -153,9 +153,15 @@ fn train_predict_eval_and_bad_tables() {
         "1..4",
         "--repeats",
         "3",
+        "--keep",
+        "3",
         "-o",
         s(&sw),
     ]));
+    for k in 1..=3 {
+        assert!(sw.join(format!("ensemble/model_{k}.json")).is_file());
+    }
+    assert!(!sw.join("ensemble/model_4.json").exists());
     assert!(err.contains("12 trainings of 4 architectures"), "{err}");
     let table = std::fs::read_to_string(sw.join("sweep.csv")).unwrap();
     assert_eq!(table.lines().count(), 5);
