@@ -552,7 +552,14 @@ impl Source {
                 while k < max && !stop.load(Ordering::Relaxed) {
                     pace(k);
                     let (id, img) = &frames[(k % frames.len() as u64) as usize];
-                    push(&queue, format!("{id}#{k}"), k, img.clone());
+                    // A camera's driver or decoder writes each frame just before it is
+                    // delivered; so does the simulated camera (a copy, not a shared buffer).
+                    push(
+                        &queue,
+                        format!("{id}#{k}"),
+                        k,
+                        Arc::new(RgbImage::clone(img)),
+                    );
                     k += 1;
                 }
                 queue.close();
