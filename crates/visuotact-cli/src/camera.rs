@@ -199,9 +199,41 @@ fn offered_formats(dev: &str) -> anyhow::Result<Vec<CameraFormat>> {
     Ok(parse_formats(&String::from_utf8_lossy(&o.stderr)))
 }
 
+/// What to ask a camera for.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CameraRequest {
+    /// Frame size; `None`: the largest offered up to 640×480.
+    pub size: Option<(usize, usize)>,
+    /// Pixel format; `None`: MJPEG when offered, else YUYV.
+    pub pixel: Option<PixelFormat>,
+}
+
+impl CameraRequest {
+    /// Parses `--camera-size WxH` and `--camera-format mjpeg|yuyv`.
+    pub(crate) fn parse(size: Option<&str>, format: Option<&str>) -> anyhow::Result<Self> {
+        let size = match size {
+            Some(s) => {
+                let (w, h) = s
+                    .split_once('x')
+                    .with_context(|| format!("--camera-size {s:?}: expected WxH, e.g. 640x480"))?;
+                Some((w.parse()?, h.parse()?))
+            }
+            None => None,
+        };
+        let pixel = match format {
+            Some("mjpeg") => Some(PixelFormat::Mjpeg),
+            Some("yuyv") => Some(PixelFormat::Yuyv),
+            Some(f) => bail!("--camera-format {f:?}: expected mjpeg or yuyv"),
+            None => None,
+        };
+        Ok(Self { size, pixel })
+    }
+}
+
 /// Starts capturing from `dev` into `queue` until `stop` or `max` frames.
 pub(crate) fn spawn(
     dev: &str,
+    req: CameraRequest,
     fps: f64,
     queue: Arc<LatestQueue<Captured>>,
     stop: Arc<AtomicBool>,
@@ -223,8 +255,9 @@ pub(crate) fn spawn(
         );
     }
     let offered = offered_formats(dev)?;
-    let fmt = negotiate(&offered, None, None)
-        .with_context(|| format!("camera {dev} offers neither MJPEG nor YUYV ({offered:?})"))?;
+    let fmt = negotiate(&offered, req.size, req.pixel).with_context(|| {
+        format!("camera {dev} offers no format matching {req:?}; it offers {offered:?}")
+    })?;
     eprintln!(
         "camera {dev}: {:?} {}×{} at {fps} fps",
         fmt.pixel, fmt.width, fmt.height
@@ -364,6 +397,13 @@ mod tests {
         );
         assert_eq!(negotiate(&f, Some((800, 600)), None), None);
         assert_eq!(negotiate(&parse_formats("no camera"), None, None), None);
+        let r = CameraRequest::parse(Some("1280x720"), Some("yuyv")).unwrap();
+        assert_eq!(
+            negotiate(&f, r.size, r.pixel),
+            Some(want(PixelFormat::Yuyv, 1280, 720))
+        );
+        assert!(CameraRequest::parse(Some("1280"), None).is_err());
+        assert!(CameraRequest::parse(None, Some("h264")).is_err());
     }
 
     #[test]

@@ -505,7 +505,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let camera = match a.source.strip_prefix("camera:") {
         Some(dev) => {
             let q = Arc::new(crate::run::LatestQueue::new(4));
-            let h = crate::camera::spawn(dev, a.fps, q.clone(), stop.clone(), clock, u64::MAX)?;
+            let h = crate::camera::spawn(
+                dev,
+                crate::camera::CameraRequest::default(),
+                a.fps,
+                q.clone(),
+                stop.clone(),
+                clock,
+                u64::MAX,
+            )?;
             Some((q, h))
         }
         None => None,

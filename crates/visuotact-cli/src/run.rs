@@ -41,6 +41,12 @@ pub(crate) struct Args {
     /// Frame rate of simulated cameras and image sequences, frames per second.
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
+    /// Camera frame size, WxH (default: the largest offered up to 640×480).
+    #[arg(long, value_name = "WxH")]
+    camera_size: Option<String>,
+    /// Camera pixel format: mjpeg or yuyv (default: MJPEG when offered).
+    #[arg(long)]
+    camera_format: Option<String>,
     /// Deliver frames as fast as they can be processed (soak tests), not at the camera rate;
     /// every frame is then estimated (the source waits instead of dropping).
     #[arg(long)]
@@ -565,7 +571,13 @@ impl Source {
                 queue.close();
                 Ok(k)
             }),
-            Self::Camera(dev) => crate::camera::spawn(&dev, a.fps, queue, stop, clock, max)?,
+            Self::Camera(dev) => {
+                let req = crate::camera::CameraRequest::parse(
+                    a.camera_size.as_deref(),
+                    a.camera_format.as_deref(),
+                )?;
+                crate::camera::spawn(&dev, req, a.fps, queue, stop, clock, max)?
+            }
             Self::Stream(stream) => std::thread::spawn(move || {
                 let mut k = 0u64;
                 for item in stream {
