@@ -4,24 +4,10 @@
 //! unwritable place, a session that exists, `filter` on a bad file.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn vt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(args)
-        .output()
-        .expect("run visuotact")
-}
-
-fn ok(o: &Output) -> String {
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{err}");
-    err
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::*;
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("visuotact-{name}-{}", std::process::id()));

@@ -4,24 +4,10 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
-fn vt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(args)
-        .output()
-        .expect("run visuotact")
-}
-
-fn ok(o: &Output) -> String {
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{err}");
-    err
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::*;
 
 /// A small IATS model: 150 random touches, 351 → 8 → 3.
 fn iats_model(d: &Path) -> PathBuf {

@@ -4,29 +4,14 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn vt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(args)
-        .output()
-        .expect("run visuotact")
-}
-
-fn ok(o: &Output) -> String {
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{err}");
-    err
-}
+mod common;
+use common::*;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("visuotact-sim-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn rows(path: &Path) -> Vec<HashMap<String, String>> {

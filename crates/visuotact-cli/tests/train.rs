@@ -2,35 +2,10 @@
 //! tables: a non-numeric cell (file, line, column named), a missing target column, a model used
 //! with features it was not trained on, a half-written model never replacing a good one.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
 
-fn vt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(args)
-        .output()
-        .expect("run visuotact")
-}
-
-fn ok(o: &Output) -> String {
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{err}");
-    err
-}
-
-fn fails(o: &Output) -> String {
-    assert_eq!(
-        o.status.code(),
-        Some(1),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::*;
 
 fn session() -> PathBuf {
     let d = std::env::temp_dir().join(format!("visuotact-train-{}", std::process::id()));
