@@ -6,7 +6,7 @@ use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
 use visuotact_vision::blobs::Connectivity;
 use visuotact_vision::calibration::calibrate;
-use visuotact_vision::detect::{BlobFilter, DetectorConfig};
+use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::grid::Layout;
 use visuotact_vision::preprocess::{Channel, CircleMask, PreprocessConfig, Roi, Threshold};
@@ -82,6 +82,10 @@ pub(crate) struct DetectorArgs {
     /// Keep blobs touching the image border (markers cut by the frame).
     #[arg(long)]
     keep_border: bool,
+    /// Blob centroid: binary (pixel mean, as OpenCV) or weighted (by grey level above the
+    /// threshold; the cone preset's default).
+    #[arg(long, value_parser = ["binary", "weighted"])]
+    centroid: Option<String>,
     /// Pixel connectivity: 8 or 4.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(4..=8))]
     connectivity: u8,
@@ -208,10 +212,19 @@ impl DetectorArgs {
         } else {
             Connectivity::Eight
         };
+        // Thin concentric rings (the cone preset) jitter with every pixel noise flips at the
+        // level; their grey-weighted centroids do not.
+        let centroid = match self.centroid.as_deref() {
+            Some("weighted") => Centroid::Weighted,
+            Some(_) => Centroid::Binary,
+            None if self.preset == "cone" => Centroid::Weighted,
+            None => Centroid::Binary,
+        };
         Ok((
             DetectorConfig {
                 preprocess: p,
                 filter,
+                centroid,
             },
             features,
         ))

@@ -14,7 +14,7 @@ use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress};
 use visuotact_vision::calibration::{calibrate, SensorCalibration};
-use visuotact_vision::detect::DetectorConfig;
+use visuotact_vision::detect::{Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 use visuotact_vision::grid::Layout;
 use visuotact_vision::preprocess::PreprocessConfig;
@@ -260,6 +260,7 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     let ids: Vec<String> = (0..rest.len()).map(|k| format!("ref{k}")).collect();
     let det = DetectorConfig {
         preprocess: PreprocessConfig::CONE,
+        centroid: Centroid::Weighted,
         ..Default::default()
     };
     let (cal, _) = calibrate(

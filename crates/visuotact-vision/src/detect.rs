@@ -6,7 +6,10 @@
 use serde::{Deserialize, Serialize};
 use visuotact_image::{GrayImage, RgbImage};
 
-use crate::blobs::{blobs_from_gray_into, Blob, BlobScratch, Connectivity, Level, Region};
+use crate::blobs::{
+    blobs_from_gray_into, blobs_weighted_from_gray_into, Blob, BlobScratch, Connectivity, Level,
+    Region,
+};
 use crate::preprocess::{
     adaptive_levels_into, gray_from_rgb_into, histogram, morphology_in_place, open3_from_rgb_into,
     otsu_level, MorphScratch, Open3Scratch, PreprocessConfig, Threshold,
@@ -55,6 +58,18 @@ impl Default for BlobFilter {
     }
 }
 
+/// Which centroid a blob's `x_px`, `y_px` report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Centroid {
+    /// The mean of the blob's pixels (OpenCV, scikit-image, MATLAB `regionprops`).
+    #[default]
+    Binary,
+    /// Pixels weighted by how far their grey value exceeds the level: pixels that noise flips
+    /// across the level barely count (thin rings: 5–8× less jitter). Shape moments stay binary.
+    Weighted,
+}
+
 /// Preprocessing plus blob filter: everything needed to turn a frame into marker blobs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default)]
@@ -63,6 +78,8 @@ pub struct DetectorConfig {
     pub preprocess: PreprocessConfig,
     /// Which blobs are markers.
     pub filter: BlobFilter,
+    /// Which centroid the blobs report.
+    pub centroid: Centroid,
 }
 
 /// What one detection produced besides the blobs.
@@ -83,6 +100,7 @@ pub struct Detector {
     levels: Vec<f32>,
     scratch: BlobScratch,
     all: Vec<Blob>,
+    centroids: Vec<(f64, f64)>,
     open3: Open3Scratch,
     /// Histogram of the preprocessed image, when the streaming path computed it.
     hist: Option<[u32; 256]>,
@@ -105,6 +123,7 @@ impl Detector {
             levels: Vec::new(),
             scratch: BlobScratch::default(),
             all: Vec::new(),
+            centroids: Vec::new(),
             open3: Open3Scratch::default(),
             hist: None,
         })
@@ -190,14 +209,30 @@ impl Detector {
             Some(t) => Level::Scalar(t),
             None => Level::PerPixel(&self.levels),
         };
-        blobs_from_gray_into(
-            &self.gray,
-            lv,
-            region,
-            self.cfg.filter.connectivity,
-            &mut self.scratch,
-            &mut self.all,
-        );
+        match self.cfg.centroid {
+            Centroid::Binary => blobs_from_gray_into(
+                &self.gray,
+                lv,
+                region,
+                self.cfg.filter.connectivity,
+                &mut self.scratch,
+                &mut self.all,
+            ),
+            Centroid::Weighted => {
+                blobs_weighted_from_gray_into(
+                    &self.gray,
+                    lv,
+                    region,
+                    self.cfg.filter.connectivity,
+                    &mut self.scratch,
+                    &mut self.all,
+                    &mut self.centroids,
+                );
+                for (b, &(x, y)) in self.all.iter_mut().zip(&self.centroids) {
+                    (b.x_px, b.y_px) = (x, y);
+                }
+            }
+        }
         out.clear();
         out.extend(self.all.iter().filter(|b| self.cfg.filter.keeps(b)));
         Detection {

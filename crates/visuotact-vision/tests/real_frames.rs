@@ -45,6 +45,7 @@ fn gelsight_mini_tracks_all_80_markers() {
             keep_border: true,
             ..BlobFilter::DEFAULT
         },
+        ..Default::default()
     };
     let (cal, _) = calibrate(
         frames[..10].iter().map(|f| (f.id.as_str(), &f.image)),
@@ -132,6 +133,7 @@ fn ninedtact_grid_of_63_dots_in_grid_order() {
             ..PreprocessConfig::DARK_MARKERS
         },
         filter: BlobFilter::DEFAULT,
+        ..Default::default()
     };
     let (cal, _) = calibrate([("sample.png", &img)], det, Layout::Grid, FeatureSet::IATS).unwrap();
     assert_eq!(cal.markers.len(), 63);
