@@ -63,6 +63,47 @@ fn dir(name: &str) -> PathBuf {
     d
 }
 
+/// Starts `visuotact run --model MODEL --source sim:iats --sim-frames 20 --serve 127.0.0.1:0
+/// EXTRA…` and waits for the dashboard's address; returns the child, its standard error (for
+/// the rest of the output) and `http://HOST:PORT/`.
+fn serving(
+    model: &Path,
+    extra: &[&str],
+) -> (
+    std::process::Child,
+    BufReader<std::process::ChildStderr>,
+    String,
+) {
+    let mut args = vec![
+        "run",
+        "--model",
+        s(model),
+        "--source",
+        "sim:iats",
+        "--sim-frames",
+        "20",
+        "--quiet",
+        "--serve",
+        "127.0.0.1:0",
+    ];
+    args.extend_from_slice(extra);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(&args)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    let url = loop {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "run ended early");
+        if let Some(u) = line.trim().strip_prefix("dashboard on ") {
+            break u.to_string();
+        }
+    };
+    (child, err, url)
+}
+
 #[test]
 fn simulated_touches_stream_as_json_lines_with_an_ensemble() {
     let d = dir("sim");
@@ -188,33 +229,7 @@ fn dashboard_in_headless_chromium() {
     };
     let d = dir("dash");
     let m = iats_model(&d);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args([
-            "run",
-            "--model",
-            s(&m),
-            "--source",
-            "sim:iats",
-            "--sim-frames",
-            "20",
-            "--duration-s",
-            "60",
-            "--quiet",
-            "--serve",
-            "127.0.0.1:0",
-        ])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    let url = loop {
-        line.clear();
-        assert!(err.read_line(&mut line).unwrap() > 0, "run ended early");
-        if let Some(u) = line.trim().strip_prefix("dashboard on ") {
-            break u.to_string();
-        }
-    };
+    let (mut child, _err, url) = serving(&m, &["--duration-s", "60"]);
     let profile = d.join("profile");
     let dom = Command::new(chromium)
         .args([
@@ -256,36 +271,20 @@ fn slow_and_vanishing_websocket_clients_do_not_slow_the_estimator() {
     let d = dir("slow");
     let m = iats_model(&d);
     let summary = d.join("summary.json");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args([
-            "run",
-            "--model",
-            s(&m),
-            "--source",
-            "sim:iats",
-            "--sim-frames",
-            "20",
+    let (mut child, mut err, url) = serving(
+        &m,
+        &[
             "--unpaced",
             "--max-frames",
             "12000",
-            "--quiet",
-            "--serve",
-            "127.0.0.1:0",
             "--summary",
             s(&summary),
-        ])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    let addr = loop {
-        line.clear();
-        assert!(err.read_line(&mut line).unwrap() > 0, "run ended early");
-        if let Some(u) = line.trim().strip_prefix("dashboard on http://") {
-            break u.trim_end_matches('/').to_string();
-        }
-    };
+        ],
+    );
+    let addr = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string();
     // One client reads a message and then never again; another connects and drops at once.
     let (mut slow, _) = tungstenite::connect(format!("ws://{addr}/ws")).unwrap();
     let first = slow.read().unwrap();
