@@ -37,20 +37,9 @@ impl Estimator {
         };
         let n_markers = cal.markers.len();
         let ex = FeatureExtractor::new(cal, set).map_err(anyhow::Error::msg)?;
-        let names = ex.column_names();
         let model = match model {
             Some(m) => {
-                let cols = m
-                    .feature_columns
-                    .iter()
-                    .map(|c| {
-                        names.iter().position(|n| n == c).with_context(|| {
-                            format!(
-                                "the sensor has no feature `{c}`: the model was trained with another sensor file"
-                            )
-                        })
-                    })
-                    .collect::<anyhow::Result<Vec<usize>>>()?;
+                let cols = columns_of(&ex, &m)?;
                 Some((m, cols))
             }
             None => None,
@@ -92,13 +81,24 @@ impl Estimator {
         self.n_markers
     }
 
+    /// Where each of `m`'s inputs sits in this estimator's feature vector.
+    pub(crate) fn columns_of(&self, m: &Model) -> anyhow::Result<Vec<usize>> {
+        columns_of(&self.ex, m)
+    }
+
+    /// One frame's features only (no estimate).
+    pub(crate) fn features(&mut self, img: &RgbImage) -> anyhow::Result<&FrameFeatures> {
+        self.ex.extract_into(img, &mut self.features)?;
+        Ok(&self.features)
+    }
+
     /// Processes one frame: its features, and the estimate (`None` without a model or when a
     /// marker the model needs was lost — no estimate rather than a wrong one).
     pub(crate) fn process(
         &mut self,
         img: &RgbImage,
     ) -> anyhow::Result<(&FrameFeatures, Option<Vec<f64>>)> {
-        self.ex.extract_into(img, &mut self.features)?;
+        self.features(img)?;
         let est = match &self.model {
             Some((m, cols)) => {
                 self.x.clear();
@@ -109,4 +109,19 @@ impl Estimator {
         };
         Ok((&self.features, est))
     }
+}
+
+/// Where each of `m`'s inputs sits in `ex`'s feature vector.
+fn columns_of(ex: &FeatureExtractor, m: &Model) -> anyhow::Result<Vec<usize>> {
+    let names = ex.column_names();
+    m.feature_columns
+        .iter()
+        .map(|c| {
+            names.iter().position(|n| n == c).with_context(|| {
+                format!(
+                    "the sensor has no feature `{c}`: the model was trained with another sensor file"
+                )
+            })
+        })
+        .collect()
 }

@@ -251,17 +251,8 @@ impl LiveEstimator {
             .iter()
             .enumerate()
             .map(|(k, m)| {
-                m.feature_columns
-                    .iter()
-                    .map(|c| {
-                        names.iter().position(|n| n == c).with_context(|| {
-                            format!(
-                                "model {}: needs feature `{c}` the others do not have",
-                                k + 1
-                            )
-                        })
-                    })
-                    .collect::<anyhow::Result<Vec<usize>>>()
+                est.columns_of(m)
+                    .with_context(|| format!("model {} of the ensemble", k + 1))
             })
             .collect::<anyhow::Result<Vec<_>>>()?;
         if models
@@ -328,7 +319,8 @@ impl LiveEstimator {
         img: &RgbImage,
         markers: Option<&mut Vec<MarkerView>>,
     ) -> anyhow::Result<(bool, f64, Vec<TargetEstimate>, Health)> {
-        let (f, _) = self.est.process(img)?;
+        // Features only: the ensemble below predicts on the re-zeroed ones.
+        let f = self.est.features(img)?;
         // Re-zeroed features.
         self.zeroed.clear();
         self.zeroed
