@@ -43,6 +43,25 @@ pub(crate) const LEAD_COLUMNS: [&str; 6] = [
     "shift_y_px",
 ];
 
+/// One feature-table row: the [`LEAD_COLUMNS`] values, then the marker features.
+pub(crate) fn feature_row_into(
+    row: &mut Vec<f64>,
+    timestamp_s: f64,
+    n_markers: usize,
+    f: &FrameFeatures,
+) {
+    row.clear();
+    row.extend_from_slice(&[
+        timestamp_s,
+        f.found as f64,
+        n_markers as f64,
+        f.spurious as f64,
+        f.shift_px.0,
+        f.shift_px.1,
+    ]);
+    row.extend_from_slice(&f.values);
+}
+
 pub(crate) fn flags_of(f: &FrameFeatures) -> String {
     f.status
         .iter()
@@ -115,16 +134,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 &mut warned,
             );
         }
-        row.clear();
-        row.extend_from_slice(&[
-            frame.timestamp_s,
-            f.found as f64,
-            n_markers as f64,
-            f.spurious as f64,
-            f.shift_px.0,
-            f.shift_px.1,
-        ]);
-        row.extend_from_slice(&f.values);
+        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f);
         out.write_row(&frame.id, &row, &flags_of(&f))
             .with_context(|| format!("{}: write failed", a.output.display()))?;
         written += 1;

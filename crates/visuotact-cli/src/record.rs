@@ -21,13 +21,13 @@ use visuotact_image::RgbImage;
 use visuotact_io::force::{ForceLayout, ForceReceiver, ForceSample, ForceTable, ReceiveStats};
 use visuotact_io::frames::{write_png, FrameStream};
 use visuotact_io::session::{probe_writable, AppendLog, SESSION_FORMAT, SESSION_VERSION};
-use visuotact_io::table::format_number;
+use visuotact_io::table::{format_number, push_csv_row};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::protocol::{self, ConePress};
 
-use crate::extract::{flags_of, LEAD_COLUMNS};
+use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
 use crate::live::Estimator;
 
 #[derive(clap::Args, Debug)]
@@ -532,7 +532,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let (mut written, mut dropped, mut failed) = (0usize, 0usize, 0usize);
     let n_targets = est.as_ref().map_or(0, |e| e.target_columns().len());
     let mut k = first_index;
-    let mut line = String::new();
+    let (mut line, mut row) = (String::new(), Vec::new());
     let result: anyhow::Result<()> = (|| {
         loop {
             if stop.load(Ordering::Relaxed)
@@ -608,43 +608,21 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 match e.process(&cap.image) {
                     Ok((f, estimate)) => {
                         if let Some(log) = features_log.as_mut() {
+                            feature_row_into(&mut row, cap.timestamp_s, n_markers, f);
                             line.clear();
-                            line.push_str(&cap.id);
-                            let lead = [
-                                cap.timestamp_s,
-                                f.found as f64,
-                                n_markers as f64,
-                                f.spurious as f64,
-                                f.shift_px.0,
-                                f.shift_px.1,
-                            ];
-                            for v in lead.iter().chain(&f.values) {
-                                line.push(',');
-                                if v.is_finite() {
-                                    line.push_str(&format_number(*v));
-                                }
-                            }
-                            line.push(',');
-                            line.push_str(&flags_of(f));
+                            push_csv_row(&mut line, &cap.id, &row, &flags_of(f));
                             log.line(&line)?;
                         }
                         if let Some(log) = estimates_log.as_mut() {
                             line.clear();
-                            line.push_str(&cap.id);
                             match &estimate {
-                                Some(v) => {
-                                    for x in v {
-                                        line.push(',');
-                                        line.push_str(&format_number(*x));
-                                    }
-                                    line.push(',');
-                                }
-                                None => {
-                                    for _ in 0..n_targets {
-                                        line.push(',');
-                                    }
-                                    line.push_str(",missing features");
-                                }
+                                Some(v) => push_csv_row(&mut line, &cap.id, v, ""),
+                                None => push_csv_row(
+                                    &mut line,
+                                    &cap.id,
+                                    &vec![f64::NAN; n_targets],
+                                    "missing features",
+                                ),
                             }
                             log.line(&line)?;
                         }

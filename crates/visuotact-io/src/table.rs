@@ -29,6 +29,20 @@ impl TableFormat {
     }
 }
 
+/// Appends one CSV row of [`TableWriter`]'s layout (`frame`, the values — empty where not
+/// finite — and `flags`) to `line`, without the line end.
+pub fn push_csv_row(line: &mut String, frame: &str, values: &[f64], flags: &str) {
+    line.push_str(&csv_escape(frame));
+    for v in values {
+        line.push(',');
+        if v.is_finite() {
+            line.push_str(&format_number(*v));
+        }
+    }
+    line.push(',');
+    line.push_str(&csv_escape(flags));
+}
+
 /// Writes rows of `frame`, numeric columns and `flags`.
 pub struct TableWriter {
     out: Box<dyn Write>,
@@ -91,17 +105,7 @@ impl TableWriter {
         );
         self.line.clear();
         match self.format {
-            TableFormat::Csv => {
-                self.line.push_str(&csv_escape(frame));
-                for v in values {
-                    self.line.push(',');
-                    if v.is_finite() {
-                        self.line.push_str(&format_number(*v));
-                    }
-                }
-                self.line.push(',');
-                self.line.push_str(&csv_escape(flags));
-            }
+            TableFormat::Csv => push_csv_row(&mut self.line, frame, values, flags),
             TableFormat::Jsonl => {
                 self.line.push_str("{\"frame\":");
                 self.line
