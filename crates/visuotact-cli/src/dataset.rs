@@ -124,28 +124,12 @@ fn touch_frames(session: &Path) -> anyhow::Result<Vec<(String, f64)>> {
     let ts = t
         .column("timestamp_s")
         .with_context(|| format!("{}: no timestamp_s column", p.display()))?;
-    // `kind` is a text column: read it separately.
-    let text = std::fs::read_to_string(&p)?;
-    let (text, _) = visuotact_io::table::complete_lines(&text);
-    let header: Vec<&str> = text.lines().next().unwrap_or("").split(',').collect();
-    let kind_col = header.iter().position(|h| *h == "kind");
-    let kinds: HashMap<&str, &str> = text
-        .lines()
-        .skip(1)
-        .filter_map(|l| {
-            let c: Vec<&str> = l.split(',').collect();
-            Some((*c.first()?, *c.get(kind_col?)?))
-        })
-        .collect();
     Ok(t.keys
         .iter()
         .zip(&t.rows)
-        .filter(|(k, _)| {
-            kinds
-                .get(k.as_str())
-                .is_none_or(|kind| *kind != "reference")
-        })
-        .map(|(k, r)| (k.clone(), r[ts]))
+        .zip(&t.text)
+        .filter(|(_, kind)| kind[0] != "reference")
+        .map(|((k, r), _)| (k.clone(), r[ts]))
         .collect())
 }
 

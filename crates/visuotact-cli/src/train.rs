@@ -392,9 +392,11 @@ fn features_from_frames(
             Err(e) => eprintln!("warning: frame {}: {e}; skipped", frame.id),
         }
     }
+    let n_rows = rows.len();
     Ok(KeyedTable {
         columns: names,
         keys,
+        text: vec![Vec::new(); n_rows],
         rows,
         dropped_partial_line: false,
     })

@@ -152,6 +152,9 @@ pub struct KeyedTable {
     pub keys: Vec<String>,
     /// Values, one row per key.
     pub rows: Vec<Vec<f64>>,
+    /// Cells of the `text_columns` the file has (in the order asked for), one row per key;
+    /// a text column the file lacks reads as an empty cell.
+    pub text: Vec<Vec<String>>,
     /// Whether an unfinished last line (no line end: a writer stopped mid-row) was left out.
     pub dropped_partial_line: bool,
 }
@@ -193,7 +196,11 @@ impl KeyedTable {
             .filter(|&i| i != key_col && !text_columns.contains(&header[i].as_str()))
             .collect();
         let columns = keep.iter().map(|&i| header[i].clone()).collect();
-        let (mut keys, mut rows) = (Vec::new(), Vec::new());
+        let text_at: Vec<Option<usize>> = text_columns
+            .iter()
+            .map(|c| header.iter().position(|h| h == c))
+            .collect();
+        let (mut keys, mut rows, mut text) = (Vec::new(), Vec::new(), Vec::new());
         for (n, rec) in rd.records().enumerate() {
             let line = n + 2;
             let rec = rec.map_err(|e| format!("{name}: line {line}: {e}"))?;
@@ -205,6 +212,12 @@ impl KeyedTable {
                 ));
             }
             keys.push(rec[key_col].to_string());
+            text.push(
+                text_at
+                    .iter()
+                    .map(|i| i.map_or_else(String::new, |i| rec[i].to_string()))
+                    .collect(),
+            );
             let mut row = Vec::with_capacity(keep.len());
             for &i in &keep {
                 let cell = rec[i].trim();
@@ -232,6 +245,7 @@ impl KeyedTable {
             columns,
             keys,
             rows,
+            text,
             dropped_partial_line,
         })
     }
