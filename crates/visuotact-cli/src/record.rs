@@ -29,6 +29,7 @@ use visuotact_sim::protocol::{self, ConePress};
 
 use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
 use crate::live::Estimator;
+use crate::simulate::frame_seed;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -168,10 +169,6 @@ impl Sim {
             }
         }
     }
-}
-
-fn frame_seed(seed: u64, k: u64) -> u64 {
-    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k.wrapping_mul(0xBF58_476D_1CE4_E5B9)
 }
 
 fn sim_of(a: &Args, kind: &str) -> anyhow::Result<Sim> {

@@ -75,7 +75,7 @@ fn sensor_config<T: serde::de::DeserializeOwned + Default>(a: &Args) -> anyhow::
 }
 
 /// Per-frame noise seed: SplitMix64 of the session seed and the frame number.
-fn frame_seed(seed: u64, k: u64) -> u64 {
+pub(crate) fn frame_seed(seed: u64, k: u64) -> u64 {
     let mut z = seed.wrapping_add(k.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);

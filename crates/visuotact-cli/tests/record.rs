@@ -3,17 +3,11 @@
 //! live with the model, `replay` — and the faults: SIGKILL mid-session then `--resume`, an
 //! unwritable place, a session that exists, `filter` on a bad file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 mod common;
 use common::*;
-
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("visuotact-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
 
 /// `frame → row` of a CSV keyed by its first column.
 fn rows(p: &Path) -> Vec<(String, Vec<String>)> {
@@ -43,8 +37,7 @@ fn column(p: &Path, name: &str) -> Vec<(String, f64)> {
 
 #[test]
 fn record_dataset_train_replay_on_the_simulated_cone() {
-    let d = dir("record");
-    std::fs::create_dir_all(&d).unwrap();
+    let d = fresh_dir("record");
     let a = d.join("a");
     // 1 s rest, 6 s press to 10 N, 1 s rest at 10 fps; the JR3 streams at 1 kHz over UDP.
     let err = ok(&vt(&[
@@ -168,7 +161,7 @@ fn record_dataset_train_replay_on_the_simulated_cone() {
 
 #[test]
 fn a_killed_recording_keeps_its_rows_and_resumes() {
-    let d = dir("kill");
+    let d = fresh_dir("kill");
     let args = [
         "record",
         "--source",
@@ -251,8 +244,7 @@ fn unwritable_places_and_bad_force_files_are_refused_up_front() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("/proc/visuotact-session"), "{err}");
 
-    let d = dir("filter");
-    std::fs::create_dir_all(&d).unwrap();
+    let d = fresh_dir("filter");
     let bad = d.join("force.csv");
     std::fs::write(&bad, "timestamp_s,fz_n\n0,1\n0.001,oops\n").unwrap();
     let o = vt(&["filter", s(&bad), "-o", s(&d.join("out.csv"))]);
@@ -267,8 +259,7 @@ fn unwritable_places_and_bad_force_files_are_refused_up_front() {
 #[test]
 fn filter_removes_noise_and_a_drifting_bias() {
     // 20 s at 1 kHz: bias 0.3 → 0.5 N, presses of 4 N at 4–8 s and 12–16 s, noise 0.05 N.
-    let d = dir("filter-ok");
-    std::fs::create_dir_all(&d).unwrap();
+    let d = fresh_dir("filter-ok");
     let mut text = String::from("timestamp_s,fx_n,fz_n\n");
     let mut seed = 12345u64;
     let mut noise = || {

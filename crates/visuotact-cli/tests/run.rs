@@ -56,13 +56,6 @@ fn iats_model(d: &Path) -> PathBuf {
     d.join("model.json")
 }
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("visuotact-run-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 /// Starts `visuotact run --model MODEL --source sim:iats --sim-frames 20 --serve 127.0.0.1:0
 /// EXTRA…` and waits for the dashboard's address; returns the child, its standard error (for
 /// the rest of the output) and `http://HOST:PORT/`.
@@ -106,7 +99,7 @@ fn serving(
 
 #[test]
 fn simulated_touches_stream_as_json_lines_with_an_ensemble() {
-    let d = dir("sim");
+    let d = fresh_dir("run-sim");
     let m = iats_model(&d);
     // The same model twice is an ensemble of two: the spread must be zero.
     let o = vt(&[
@@ -171,7 +164,7 @@ fn gelsight_video_contact_only_during_the_press() {
         eprintln!("skipped: {} not found", video.display());
         return;
     }
-    let d = dir("gelsight");
+    let d = fresh_dir("run-gelsight");
     ok(&vt(&[
         "calibrate",
         s(&video),
@@ -227,7 +220,7 @@ fn dashboard_in_headless_chromium() {
         eprintln!("skipped: no chromium (scripts/test installs Debian's)");
         return;
     };
-    let d = dir("dash");
+    let d = fresh_dir("run-dash");
     let m = iats_model(&d);
     let (mut child, _err, url) = serving(&m, &["--duration-s", "60"]);
     let profile = d.join("profile");
@@ -268,7 +261,7 @@ fn dashboard_in_headless_chromium() {
 
 #[test]
 fn slow_and_vanishing_websocket_clients_do_not_slow_the_estimator() {
-    let d = dir("slow");
+    let d = fresh_dir("run-slow");
     let m = iats_model(&d);
     let summary = d.join("summary.json");
     let (mut child, mut err, url) = serving(
