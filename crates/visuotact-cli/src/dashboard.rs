@@ -21,7 +21,7 @@ use tokio::sync::mpsc;
 use visuotact_image::RgbImage;
 use visuotact_vision::calibration::SensorCalibration;
 
-use crate::run::{Estimate, MarkerView};
+use crate::run::MarkerView;
 
 /// The page, embedded.
 const PAGE: &str = include_str!("../assets/dashboard.html");
@@ -133,9 +133,10 @@ impl Dashboard {
     }
 
     /// Sends an estimate to every client and keeps the frame for `/frame.jpg`.
+    /// `estimate_json` is the estimate as already serialised for the other outputs.
     pub(crate) fn publish(
         &self,
-        e: &Estimate,
+        estimate_json: &str,
         markers: Option<&[MarkerView]>,
         img: &Arc<RgbImage>,
     ) {
@@ -145,12 +146,11 @@ impl Dashboard {
         if let Ok(mut f) = self.shared.frame.lock() {
             *f = Some(img.clone());
         }
-        let msg = serde_json::json!({
-            "estimate": e,
-            "markers": markers,
-            "rezeros": self.shared.rezero_applied.load(Ordering::Relaxed),
-        });
-        let text: Arc<str> = Arc::from(msg.to_string());
+        let markers = serde_json::to_string(&markers).unwrap_or_else(|_| "null".into());
+        let text: Arc<str> = Arc::from(format!(
+            "{{\"estimate\":{estimate_json},\"markers\":{markers},\"rezeros\":{}}}",
+            self.shared.rezero_applied.load(Ordering::Relaxed)
+        ));
         if let Ok(mut clients) = self.shared.clients_tx.lock() {
             clients.retain(|c| match c.try_send(text.clone()) {
                 Ok(()) => true,

@@ -727,7 +727,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             }
         }
         if let Some(d) = &dashboard {
-            d.publish(&e, want_markers.then_some(&markers[..]), &cap.image);
+            d.publish(&line, want_markers.then_some(&markers[..]), &cap.image);
         }
         if summary.frames_estimated % 1000 == 0 {
             let rss = rss_kib();
