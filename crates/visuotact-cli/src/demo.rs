@@ -12,13 +12,14 @@ use visuotact_nn::metrics::{target_errors, TargetErrors};
 use visuotact_nn::model::Model;
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
-use visuotact_sim::protocol::{self, ConePress};
+use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 use visuotact_vision::calibration::{calibrate, SensorCalibration};
 use visuotact_vision::detect::{Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 use visuotact_vision::grid::Layout;
 use visuotact_vision::preprocess::PreprocessConfig;
 
+use crate::simulate::{frame_seed, GAUGE_SEED};
 use crate::train::{fit_model, FitSpec};
 
 #[derive(clap::Args, Debug)]
@@ -40,11 +41,6 @@ const TABLE3: [([f64; 3], [f64; 3]); 6] = [
     ([40.0, 3.0, 5.0], [38.96, 2.7, 5.1]),
     ([32.0, 24.0, 3.0], [32.8, 22.4, 3.08]),
 ];
-
-fn frame_seed(seed: u64, k: u64) -> u64 {
-    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add(k.wrapping_mul(0xBF58_476D_1CE4_E5B9))
-}
 
 /// Features of frames rendered by `render(k)`, in parallel; `None` where markers were lost.
 fn features_of(
@@ -151,10 +147,11 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         x.len(),
         t0.elapsed().as_secs_f64()
     );
-    let hidden = [10];
+    // Seed 000's architecture: five hidden layers of 20.
+    let hidden = [20; 5];
     let (model, epochs, secs) = fit(&x, &t, &["x_mm", "y_mm", "depth_mm"], &hidden, a.seed);
     let predict = |f: &[f64]| model.predict(f);
-    println!("trained 351 → 10 → 3 by Levenberg–Marquardt: {epochs} epochs in {secs:.1} s (seed 000: 13 h 20 min)");
+    println!("trained 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt: {epochs} epochs in {secs:.1} s (seed 000: 13 h 20 min)");
 
     // Table 3: six touches anywhere.
     let t3: Vec<Touch> = TABLE3
@@ -289,13 +286,43 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     let fte = features_of(&cal, FeatureSet::CONE, n, |k| {
         render(&test_loads[k], 220_000 + k as u64)
     })?;
-    let (mut x, mut t) = (Vec::new(), Vec::new());
-    for (f, l) in ftr.iter().zip(&train_loads) {
-        if let Some(f) = f {
-            x.push(f.clone());
-            t.push(vec![l.force_n]);
-        }
-    }
+    // The link's pressure gauge, read with every frame: an input the paper did not use.
+    let gauge = |loads: &[ConeLoad], t0: f64, base: u64| -> Vec<f64> {
+        (0..loads.len())
+            .map(|k| {
+                PressureGauge::SEED001.reading_kpa(
+                    &press.drift,
+                    cfg.pressure_kpa,
+                    t0 + k as f64 / fps,
+                    frame_seed(a.seed ^ GAUGE_SEED, base + k as u64),
+                )
+            })
+            .collect()
+    };
+    let with_gauge = |feats: &[Option<Vec<f64>>], g: &[f64]| -> Vec<Option<Vec<f64>>> {
+        feats
+            .iter()
+            .zip(g)
+            .map(|(f, &p)| {
+                f.as_ref().map(|f| {
+                    let mut v = f.clone();
+                    v.push(p);
+                    v
+                })
+            })
+            .collect()
+    };
+    let gtr = with_gauge(&ftr, &gauge(&train_loads, 0.0, 210_000));
+    let gte = with_gauge(&fte, &gauge(&test_loads, duration + 5.0, 220_000));
+    let rows = |feats: &[Option<Vec<f64>>]| -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        feats
+            .iter()
+            .zip(&train_loads)
+            .filter_map(|(f, l)| f.as_ref().map(|f| (f.clone(), vec![l.force_n])))
+            .unzip()
+    };
+    let (x, t) = rows(&ftr);
+    let (xg, tg) = rows(&gtr);
     let (model, epochs, secs) = fit(&x, &t, &["force_n"], &[20], a.seed);
     println!(
         "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {epochs} epochs in {secs:.2} s",
@@ -316,45 +343,73 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     // Seed 001's own protocol: 1..40 neurons × repeats, the best net kept (lowest test MSE),
     // then run by the Neural Network Testing Model over the recorded press.
     let repeats: u64 = if a.quick { 2 } else { 5 };
-    let t_sweep = Instant::now();
-    let runs: Vec<(Model, usize)> = (1..=40usize)
-        .flat_map(|h| (0..repeats).map(move |r| (h, r)))
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|(h, r)| (fit(&x, &t, &["force_n"], &[h], a.seed + 7919 * r).0, h))
-        .collect();
-    let (best, best_h) = runs
-        .iter()
-        .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))
-        .context("no training ran")?;
-    let own = errors_on(best, &ftr, &train_loads);
-    let best_unseen = errors_on(best, &fte, &test_loads);
-    println!(
-        "sweep 1..40 neurons × {repeats} in {:.1} s: best 6 → {best_h} → 1 (test MSE {:.4})",
-        t_sweep.elapsed().as_secs_f64(),
-        best.training.mse[2][0]
-    );
-    println!(
-        "\nTable 5.1 layout: visuotact | paper (no rotation)\n  {:<46} {:>8} {:>8} {:>8} {:>7}",
-        "", "mean N", "max N", "MPE %", "R"
-    );
-    let line = |what: &str, e: &TargetErrors| {
+    let best_of_sweep = |x: &[Vec<f64>], t: &[Vec<f64>]| -> anyhow::Result<(Model, usize, f64)> {
+        let t_sweep = Instant::now();
+        let runs: Vec<(Model, usize)> = (1..=40usize)
+            .flat_map(|h| (0..repeats).map(move |r| (h, r)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(h, r)| (fit(x, t, &["force_n"], &[h], a.seed + 7919 * r).0, h))
+            .collect();
+        let (best, h) = runs
+            .into_iter()
+            .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))
+            .context("no training ran")?;
+        Ok((best, h, t_sweep.elapsed().as_secs_f64()))
+    };
+    let (best, best_h, sweep_s) = best_of_sweep(&x, &t)?;
+    let (best_g, best_gh, sweep_gs) = best_of_sweep(&xg, &tg)?;
+    for (inputs, n_in, (m, h, secs)) in [
+        ("rings", 6, (&best, best_h, sweep_s)),
+        ("rings + gauge", 7, (&best_g, best_gh, sweep_gs)),
+    ] {
         println!(
-            "  {what:<46} {:>8.3} {:>8.3} {:>8.2} {:>7.5}",
+            "sweep 1..40 neurons × {repeats}, inputs {inputs}, in {secs:.1} s: best {n_in} → {h} → 1 (test MSE {:.4})",
+            m.training.mse[2][0]
+        );
+    }
+    println!(
+        "\nTable 5.1 layout: visuotact | paper (no rotation)\n  {:<48} {:<14} {:>8} {:>8} {:>8} {:>7}",
+        "", "inputs", "mean N", "max N", "MPE %", "R"
+    );
+    let line = |what: &str, inputs: &str, e: &TargetErrors| {
+        println!(
+            "  {what:<48} {inputs:<14} {:>8.3} {:>8.3} {:>8.2} {:>7.5}",
             e.mean_abs, e.max_abs, e.mean_percentage_error, e.r
         );
     };
-    line("best of sweep, over its own press (paper's way)", &own);
-    line("best of sweep, on a later press (unseen)", &best_unseen);
-    line("6 → 20 → 1, one training, on the later press", &unseen);
-    println!(
-        "  {:<46} {:>8.3} {:>8.3} {:>8.2}",
-        "paper (best of sweep, Testing Model)", 0.051, 0.531, 1.25
+    let own = "best of sweep, over its own press (paper's way)";
+    let later = "best of sweep, on a later press (unseen)";
+    line(own, "rings", &errors_on(&best, &ftr, &train_loads));
+    line(later, "rings", &errors_on(&best, &fte, &test_loads));
+    line(
+        "6 → 20 → 1, one training, on the later press",
+        "rings",
+        &unseen,
+    );
+    line(
+        own,
+        "rings + gauge",
+        &errors_on(&best_g, &gtr, &train_loads),
+    );
+    line(
+        later,
+        "rings + gauge",
+        &errors_on(&best_g, &gte, &test_loads),
     );
     println!(
-        "  (MPE over frames ≥ {:.2} N; the later press starts 5 s after the first ends, with the link's pressure {:.1} % lower)",
+        "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2}",
+        "paper (best of sweep, Testing Model)", "rings", 0.051, 0.531, 1.25
+    );
+    println!(
+        "  (MPE over frames ≥ {:.2} N; the later press starts 5 s after the first ends, with the link's pressure {:.1} % lower;",
         unseen.mpe_floor,
         100.0 * (1.0 - test_loads[0].pressure_kpa / train_loads[0].pressure_kpa)
+    );
+    println!(
+        "   gauge: the link's pressure through a {} s lag with {} kPa noise, read with each frame)",
+        PressureGauge::SEED001.time_constant_s,
+        PressureGauge::SEED001.noise_kpa
     );
     Ok(())
 }

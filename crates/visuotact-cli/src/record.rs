@@ -25,11 +25,11 @@ use visuotact_io::table::{format_number, push_csv_row};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
-use visuotact_sim::protocol::{self, ConePress};
+use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 
 use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
 use crate::live::Estimator;
-use crate::simulate::frame_seed;
+use crate::simulate::{frame_seed, CONE_LABELS, GAUGE_SEED};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -114,7 +114,7 @@ enum Sim {
 impl Sim {
     fn label_columns(&self) -> Vec<&'static str> {
         match self {
-            Sim::Cone { .. } => vec!["force_n", "fx_n", "fy_n", "fz_n", "pressure_kpa"],
+            Sim::Cone { .. } => CONE_LABELS.to_vec(),
             Sim::Iats { .. } => vec!["x_mm", "y_mm", "depth_mm"],
         }
     }
@@ -158,7 +158,16 @@ impl Sim {
                     .map_err(anyhow::Error::msg)?
                     .0;
                 let [fx, fy, fz] = load.components_n();
-                Ok((img, vec![load.force_n, fx, fy, fz, load.pressure_kpa]))
+                let gauge = PressureGauge::SEED001.reading_kpa(
+                    &press.drift,
+                    cfg.pressure_kpa,
+                    t,
+                    seed ^ GAUGE_SEED,
+                );
+                Ok((
+                    img,
+                    vec![load.force_n, fx, fy, fz, load.pressure_kpa, gauge],
+                ))
             }
             Sim::Iats { cfg, touches } => {
                 let t = &touches[k % touches.len()];

@@ -13,7 +13,7 @@ use visuotact_io::session::SessionWriter;
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
-use visuotact_sim::protocol::{self, ConePress};
+use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -81,6 +81,20 @@ pub(crate) fn frame_seed(seed: u64, k: u64) -> u64 {
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
 }
+
+/// Label columns of a simulated cone: the true load and link pressure, and the reading of the
+/// link's pressure gauge (lagged and noisy, as a real one: an input a network may use).
+pub(crate) const CONE_LABELS: [&str; 6] = [
+    "force_n",
+    "fx_n",
+    "fy_n",
+    "fz_n",
+    "pressure_kpa",
+    "gauge_kpa",
+];
+
+/// Mixed into the session seed for the pressure gauge's reading noise.
+pub(crate) const GAUGE_SEED: u64 = 0x6761_7567_655F_6B70;
 
 /// Frames rendered and written per parallel batch.
 const BATCH: usize = 64;
@@ -249,7 +263,7 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
     };
     let t0 = a.references as f64 / a.fps;
     let n = (a.duration_s * a.fps).round() as usize;
-    let cols = ["force_n", "fx_n", "fy_n", "fz_n", "pressure_kpa"];
+    let cols = CONE_LABELS;
     let mut w = SessionWriter::create(&a.output, &cols, true, true)?;
     write_references(&mut w, a.references, a.fps, |k| {
         let t = k as f64 / a.fps;
@@ -266,7 +280,13 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
             visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, (a.references + k) as u64))
                 .map_err(|e| anyhow::anyhow!("frame {k}: {e}"))?;
         let [fx, fy, fz] = load.components_n();
-        let labels = vec![load.force_n, fx, fy, fz, load.pressure_kpa];
+        let gauge = PressureGauge::SEED001.reading_kpa(
+            &press.drift,
+            cfg.pressure_kpa,
+            t0 + k as f64 / a.fps,
+            frame_seed(a.seed ^ GAUGE_SEED, k as u64),
+        );
+        let labels = vec![load.force_n, fx, fy, fz, load.pressure_kpa, gauge];
         let truth = rings
             .iter()
             .map(|r| (r.x_px, r.y_px, r.area_px, r.fully_in_view))
@@ -301,6 +321,7 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
         "labels": cols,
         "config": cfg,
         "press": press,
+        "pressure_gauge": PressureGauge::SEED001,
         "force_sensor": jr3_cfg,
         "force_layout": layout.fields.iter().map(|f| f.name()).collect::<Vec<_>>(),
         "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),

@@ -45,16 +45,68 @@ pub(crate) struct DataArgs {
     /// Target columns of the labels, comma-separated (e.g. x_mm,y_mm,depth_mm).
     #[arg(long)]
     pub(crate) targets: String,
+    #[command(flatten)]
+    pub(crate) extra: ExtraInputs,
     /// Leave out frames with missing feature cells (lost markers) instead of failing.
     #[arg(long)]
     pub(crate) drop_incomplete: bool,
+}
+
+/// Inputs besides the marker features, e.g. the reading of a pressure gauge on an inflatable
+/// link: named columns of the feature table or of a readings table keyed by `frame`.
+#[derive(clap::Args, Debug, Default)]
+pub(crate) struct ExtraInputs {
+    /// Extra input columns, comma-separated (e.g. gauge_kpa), looked up in the feature table,
+    /// then in --readings.
+    #[arg(long, value_name = "COLUMNS")]
+    pub(crate) inputs: Option<String>,
+    /// Table keyed by `frame` holding the extra inputs (a simulated cone session's labels.csv
+    /// has the gauge reading `gauge_kpa`).
+    #[arg(long, value_name = "TABLE", requires = "inputs")]
+    pub(crate) readings: Option<PathBuf>,
+}
+
+impl ExtraInputs {
+    /// The extra input names (empty without --inputs).
+    fn names(&self) -> anyhow::Result<Vec<String>> {
+        match &self.inputs {
+            None => Ok(Vec::new()),
+            Some(s) => {
+                let names: Vec<String> = s
+                    .split(',')
+                    .map(|p| p.trim().to_string())
+                    .filter(|p| !p.is_empty())
+                    .collect();
+                if names.is_empty() {
+                    bail!("--inputs is empty");
+                }
+                if let Some(c) = names.iter().find(|c| is_marker_column(c)) {
+                    bail!("--inputs {c}: marker features are inputs already; name other columns");
+                }
+                Ok(names)
+            }
+        }
+    }
+
+    fn readings_table(&self) -> anyhow::Result<Option<KeyedTable>> {
+        self.readings
+            .as_ref()
+            .map(|p| KeyedTable::read(p, &[]).map_err(anyhow::Error::msg))
+            .transpose()
+    }
 }
 
 impl DataArgs {
     /// The target names and the joined table.
     pub(crate) fn load(&self) -> anyhow::Result<(Vec<String>, Joined)> {
         let targets = parse_targets(&self.targets)?;
-        let j = joined(&self.features, &self.labels, &targets, self.drop_incomplete)?;
+        let j = joined(
+            &self.features,
+            &self.labels,
+            &targets,
+            &self.extra,
+            self.drop_incomplete,
+        )?;
         Ok((targets, j))
     }
 }
@@ -77,7 +129,7 @@ fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T
 
 /// Features and labels joined on `frame`.
 pub(crate) struct Joined {
-    /// Input rows (per-marker features).
+    /// Input rows (per-marker features, then the extra inputs).
     pub(crate) x: Vec<Vec<f64>>,
     /// Target rows.
     pub(crate) t: Vec<Vec<f64>>,
@@ -85,24 +137,93 @@ pub(crate) struct Joined {
     pub(crate) feature_columns: Vec<String>,
 }
 
-/// Joins features and labels on `frame`.
+/// Where the model's inputs come from: the feature table's columns, then the readings table's.
+struct InputSources<'a> {
+    features: &'a KeyedTable,
+    /// Per input: `Ok(column)` in the feature table or `Err(column)` in the readings table.
+    columns: Vec<Result<usize, usize>>,
+    readings: Option<(&'a KeyedTable, std::collections::HashMap<&'a str, usize>)>,
+}
+
+impl<'a> InputSources<'a> {
+    /// Finds each of `names` (the feature table first); errors name both tables.
+    fn new(
+        names: &[String],
+        features: &'a KeyedTable,
+        features_name: &str,
+        readings: Option<(&'a KeyedTable, &Path)>,
+        what: &str,
+    ) -> anyhow::Result<Self> {
+        let columns = names
+            .iter()
+            .map(|c| {
+                if let Some(i) = features.column(c) {
+                    return Ok(Ok(i));
+                }
+                if let Some(i) = readings.and_then(|(r, _)| r.column(c)) {
+                    return Ok(Err(i));
+                }
+                let also = match readings {
+                    Some((_, p)) => format!(" nor in {}", p.display()),
+                    None if is_marker_column(c) => String::new(),
+                    None => " (give the table that has it with --readings)".to_string(),
+                };
+                bail!("{features_name}: no column `{c}`{also}: {what}")
+            })
+            .collect::<anyhow::Result<_>>()?;
+        Ok(Self {
+            features,
+            columns,
+            readings: readings.map(|(r, _)| (r, r.rows_by_key())),
+        })
+    }
+
+    /// The inputs of feature row `r` into `x` (NaN where the readings have no such frame).
+    fn row_into(&self, r: usize, x: &mut Vec<f64>) {
+        let key = self.features.keys[r].as_str();
+        let reading_row = self
+            .readings
+            .as_ref()
+            .and_then(|(t, by_key)| by_key.get(key).map(|&i| &t.rows[i]));
+        x.clear();
+        x.extend(self.columns.iter().map(|c| match c {
+            Ok(i) => self.features.rows[r][*i],
+            Err(i) => reading_row.map_or(f64::NAN, |row| row[*i]),
+        }));
+    }
+}
+
+/// Joins features (and extra inputs) and labels on `frame`.
 pub(crate) fn joined(
     features: &Path,
     labels: &Path,
     targets: &[String],
+    extra: &ExtraInputs,
     drop_incomplete: bool,
 ) -> anyhow::Result<Joined> {
     let f = KeyedTable::read(features, &["flags"]).map_err(anyhow::Error::msg)?;
     let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
-    let fcols: Vec<usize> = (0..f.columns.len())
-        .filter(|&i| is_marker_column(&f.columns[i]))
+    let readings = extra.readings_table()?;
+    let mut names: Vec<String> = f
+        .columns
+        .iter()
+        .filter(|c| is_marker_column(c))
+        .cloned()
         .collect();
-    if fcols.is_empty() {
+    if names.is_empty() {
         bail!(
             "{}: no per-marker feature columns (mNNN_…)",
             features.display()
         );
     }
+    names.extend(extra.names()?);
+    let sources = InputSources::new(
+        &names,
+        &f,
+        &features.display().to_string(),
+        readings.as_ref().zip(extra.readings.as_deref()),
+        "an input named by --inputs",
+    )?;
     let tcols: Vec<usize> = targets
         .iter()
         .map(|t| {
@@ -118,22 +239,28 @@ pub(crate) fn joined(
     let by_key = l.rows_by_key();
     let (mut x, mut t) = (Vec::new(), Vec::new());
     let (mut unlabelled, mut dropped) = (0, 0);
+    let mut xi = Vec::with_capacity(names.len());
     for (r, key) in f.keys.iter().enumerate() {
         let Some(&li) = by_key.get(key.as_str()) else {
             unlabelled += 1;
             continue;
         };
-        let xi: Vec<f64> = fcols.iter().map(|&c| f.rows[r][c]).collect();
+        sources.row_into(r, &mut xi);
         if let Some(c) = xi.iter().position(|v| v.is_nan()) {
             if drop_incomplete {
                 dropped += 1;
                 continue;
             }
+            let why = if is_marker_column(&names[c]) {
+                "a lost marker".to_string()
+            } else {
+                format!("no reading `{}` for this frame", names[c])
+            };
             bail!(
-                "{}: line {}, column `{}`: missing value (a lost marker); use --drop-incomplete to leave such frames out",
+                "{}: line {}, frame {key}, column `{}`: missing value ({why}); use --drop-incomplete to leave such frames out",
                 features.display(),
                 r + 2,
-                f.columns[fcols[c]]
+                names[c]
             );
         }
         let ti: Vec<f64> = tcols.iter().map(|&c| l.rows[li][c]).collect();
@@ -144,7 +271,7 @@ pub(crate) fn joined(
                 targets[c]
             );
         }
-        x.push(xi);
+        x.push(xi.clone());
         t.push(ti);
     }
     if unlabelled > 0 {
@@ -154,7 +281,7 @@ pub(crate) fn joined(
         );
     }
     if dropped > 0 {
-        eprintln!("warning: {dropped} frames with missing feature cells were left out");
+        eprintln!("warning: {dropped} frames with missing inputs were left out");
     }
     if x.len() < 10 {
         bail!(
@@ -167,7 +294,7 @@ pub(crate) fn joined(
     Ok(Joined {
         x,
         t,
-        feature_columns: fcols.iter().map(|&c| f.columns[c].clone()).collect(),
+        feature_columns: names,
     })
 }
 
@@ -342,6 +469,10 @@ pub(crate) struct PredictArgs {
     sensor: Option<PathBuf>,
     /// Frames (image files, folders, videos) when --sensor is given.
     frames: Vec<PathBuf>,
+    /// Table keyed by `frame` holding inputs of the model that are not in the feature table
+    /// (e.g. a pressure gauge's `gauge_kpa`).
+    #[arg(long, value_name = "TABLE", requires = "features")]
+    readings: Option<PathBuf>,
     /// Output table (`-` for standard output).
     #[arg(short, long)]
     output: PathBuf,
@@ -356,7 +487,9 @@ pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
             Some("dy_px") => "y",
             Some("darea_px") => "area",
             Some("decc") => "ecc",
-            _ => bail!("the model's feature column `{c}` is not a per-marker feature"),
+            _ => bail!(
+                "the model needs the input `{c}`, which is not a marker feature: frames alone cannot give it (estimate from a table that has it: predict --features TABLE [--readings TABLE])"
+            ),
         };
         if !kinds.contains(&kind) {
             kinds.push(kind);
@@ -421,24 +554,28 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
         ),
         (None, None) => bail!("give --features TABLE, or --sensor SENSOR FRAMES..."),
     };
-    let cols: Vec<usize> = model
-        .feature_columns
-        .iter()
-        .map(|c| {
-            f.column(c).with_context(|| {
-                format!(
-                    "{source}: no column `{c}`: the model {} was trained on other features",
-                    a.model.display()
-                )
-            })
-        })
-        .collect::<anyhow::Result<_>>()?;
+    let readings = a
+        .readings
+        .as_ref()
+        .map(|p| KeyedTable::read(p, &[]).map_err(anyhow::Error::msg))
+        .transpose()?;
+    let sources = InputSources::new(
+        &model.feature_columns,
+        &f,
+        &source,
+        readings.as_ref().zip(a.readings.as_deref()),
+        &format!(
+            "the model {} was trained on other inputs",
+            a.model.display()
+        ),
+    )?;
     let mut out = TableWriter::create(&a.output, TableFormat::Csv, model.target_columns.clone())?;
     let (mut written, mut missing) = (0, 0);
+    let mut x = Vec::with_capacity(model.feature_columns.len());
     for (r, key) in f.keys.iter().enumerate() {
-        let x: Vec<f64> = cols.iter().map(|&c| f.rows[r][c]).collect();
+        sources.row_into(r, &mut x);
         if x.iter().any(|v| v.is_nan()) {
-            // A lost marker: no estimate rather than a wrong one.
+            // A lost marker or a missing reading: no estimate rather than a wrong one.
             out.write_row(
                 key,
                 &vec![f64::NAN; model.target_columns.len()],
@@ -450,7 +587,7 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
         out.write_row(key, &model.predict(&x), "")?;
         written += 1;
     }
-    eprintln!("{written} estimates, {missing} frames without (missing features)");
+    eprintln!("{written} estimates, {missing} frames without (missing inputs)");
     Ok(())
 }
 

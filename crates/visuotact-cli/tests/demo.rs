@@ -21,6 +21,7 @@ fn quick_demo_runs_both_experiments() {
         "best of sweep, over its own press",
         "calibrated 117 markers",
         "calibrated 2 rings",
+        "inputs rings + gauge",
     ] {
         assert!(out.contains(want), "missing {want:?} in\n{out}");
     }

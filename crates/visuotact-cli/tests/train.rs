@@ -1,15 +1,17 @@
 //! `train`, `predict`, `eval` end to end on a simulated cone session, and their errors for bad
 //! tables: a non-numeric cell (file, line, column named), a missing target column, a model used
-//! with features it was not trained on, a half-written model never replacing a good one.
+//! with features it was not trained on, a half-written model never replacing a good one; an
+//! extra input (the simulated pressure gauge) beside the marker features.
 
 use std::path::PathBuf;
 
 mod common;
 use common::*;
 
-fn session() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("visuotact-train-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
+/// A simulated 6 s cone press in a fresh folder `name`: calibrated (s.json) and extracted
+/// (f.csv).
+fn session(name: &str) -> PathBuf {
+    let d = fresh_dir(name).join("session");
     ok(&vt(&[
         "simulate",
         "--sensor",
@@ -46,7 +48,7 @@ fn session() -> PathBuf {
 
 #[test]
 fn train_predict_eval_and_bad_tables() {
-    let d = session();
+    let d = session("train");
     let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("model.json"));
     let err = ok(&vt(&[
         "train",
@@ -210,7 +212,7 @@ fn train_predict_eval_and_bad_tables() {
         "-",
     ]));
     assert!(
-        err.contains("the model") && err.contains("was trained on other features"),
+        err.contains("the model") && err.contains("was trained on other inputs"),
         "{err}"
     );
     // Labels with no matching frames.
@@ -228,4 +230,135 @@ fn train_predict_eval_and_bad_tables() {
         s(&d.join("y.json")),
     ]));
     assert!(err.contains("too few to train"), "{err}");
+}
+
+#[test]
+fn gauge_reading_as_an_extra_input() {
+    let d = session("train-gauge");
+    let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("model.json"));
+    let labels = std::fs::read_to_string(&l).unwrap();
+    assert!(labels.starts_with("frame,force_n,fx_n,fy_n,fz_n,pressure_kpa,gauge_kpa\n"));
+    let train = |extra: &[&str], model: &std::path::Path| {
+        let mut args = vec![
+            "train",
+            "--features",
+            s(&f),
+            "--labels",
+            s(&l),
+            "--targets",
+            "force_n",
+            "--hidden",
+            "8",
+            "-o",
+            s(model),
+        ];
+        args.extend_from_slice(extra);
+        vt(&args)
+    };
+    // The gauge is not in the feature table: without --readings the error says where to look.
+    let err = fails(&train(&["--inputs", "gauge_kpa"], &m));
+    assert!(
+        err.contains("f.csv: no column `gauge_kpa` (give the table that has it with --readings)"),
+        "{err}"
+    );
+    let err = fails(&train(&["--inputs", "gauge", "--readings", s(&l)], &m));
+    assert!(err.contains("no column `gauge` nor in"), "{err}");
+    let err = fails(&train(&["--inputs", "m000_dx_px"], &m));
+    assert!(err.contains("marker features are inputs already"), "{err}");
+    let err = ok(&train(&["--inputs", "gauge_kpa", "--readings", s(&l)], &m));
+    assert!(err.contains("training 7 → 8 → 1"), "{err}");
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+    let cols = model["feature_columns"].as_array().unwrap();
+    assert_eq!((cols.len(), cols[6].as_str()), (7, Some("gauge_kpa")));
+
+    // Estimates need the reading too; frames alone cannot give it.
+    let err = fails(&vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--features",
+        s(&f),
+        "-o",
+        "-",
+    ]));
+    assert!(err.contains("no column `gauge_kpa`"), "{err}");
+    let err = fails(&vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--sensor",
+        s(&d.join("s.json")),
+        s(&d.join("frames")),
+        "-o",
+        "-",
+    ]));
+    assert!(
+        err.contains("needs the input `gauge_kpa`, which is not a marker feature"),
+        "{err}"
+    );
+    let err = fails(&vt(&[
+        "run",
+        "--source",
+        "sim:cone",
+        "--sensor",
+        s(&d.join("s.json")),
+        "--model",
+        s(&m),
+        "--duration-s",
+        "1",
+    ]));
+    assert!(err.contains("needs the input `gauge_kpa`"), "{err}");
+
+    // A frame whose reading is missing: no estimate for it rather than a wrong one; training
+    // names the frame unless told to leave such frames out.
+    let mut lines: Vec<&str> = labels.lines().collect();
+    let gone = lines.remove(11);
+    let frame = gone.split(',').next().unwrap().to_string();
+    let partial = d.join("partial_readings.csv");
+    std::fs::write(&partial, lines.join("\n") + "\n").unwrap();
+    let err = fails(&train(
+        &["--inputs", "gauge_kpa", "--readings", s(&partial)],
+        &d.join("x.json"),
+    ));
+    assert!(
+        err.contains(&format!("frame {frame}, column `gauge_kpa`: missing value (no reading `gauge_kpa` for this frame)")),
+        "{err}"
+    );
+    let p = d.join("p.csv");
+    let err = ok(&vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--features",
+        s(&f),
+        "--readings",
+        s(&partial),
+        "-o",
+        s(&p),
+    ]));
+    assert!(err.contains("149 estimates, 1 frames without"), "{err}");
+    let pred = std::fs::read_to_string(&p).unwrap();
+    let row = pred.lines().find(|r| r.starts_with(&frame)).unwrap();
+    assert!(row.ends_with("missing features"), "{row}");
+
+    // With every reading: the estimates are close to the truth.
+    let o = vt(&[
+        "predict",
+        "--model",
+        s(&m),
+        "--features",
+        s(&f),
+        "--readings",
+        s(&l),
+        "-o",
+        s(&p),
+    ]);
+    ok(&o);
+    let o = vt(&["eval", "--predictions", s(&p), "--labels", s(&l), "--json"]);
+    ok(&o);
+    let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = &ev["targets"][0];
+    assert_eq!(t["n"], 150);
+    assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
 }

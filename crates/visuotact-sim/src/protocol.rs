@@ -3,6 +3,7 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::Distribution;
 
 use crate::cone::{ConeConfig, ConeLoad};
 use crate::iats::{IatsConfig, Touch};
@@ -91,6 +92,47 @@ impl PressureDrift {
     pub fn at(&self, p0: f64, t_s: f64) -> f64 {
         p0 * (1.0 - self.leak_per_s * t_s)
             + self.ripple_kpa * (std::f64::consts::TAU * self.ripple_hz * t_s).sin()
+    }
+}
+
+/// The gauge pressure sensor on the link's air line (seed 001 §3.2: a gauge sensor teed into
+/// the line to the link, on a longer tube that acts as a pneumatic low-pass filter): the link's
+/// pressure through a first-order lag, plus white reading noise.
+///
+/// The lag is applied in closed form to [`PressureDrift`] (its steady-state response: the leak
+/// ramp delayed by the time constant, the ripple attenuated by `1/√(1 + (ωτ)²)` and delayed by
+/// `atan(ωτ)/ω`), so a reading depends only on its time and its noise draw.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct PressureGauge {
+    /// Time constant of the tube and sensor, s.
+    pub time_constant_s: f64,
+    /// Standard deviation of the reading noise, kPa.
+    pub noise_kpa: f64,
+}
+
+impl PressureGauge {
+    /// A 0–10 kPa gauge (12-bit readout, a few counts of noise) on a tube with a 0.1 s lag.
+    pub const SEED001: Self = Self {
+        time_constant_s: 0.1,
+        noise_kpa: 0.01,
+    };
+
+    /// The noise-free reading at `t_s` of a link at nominal pressure `p0` drifting as `drift`.
+    pub fn mean_reading_kpa(&self, drift: &PressureDrift, p0: f64, t_s: f64) -> f64 {
+        let tau = self.time_constant_s.max(0.0);
+        let w = std::f64::consts::TAU * drift.ripple_hz;
+        let gain = 1.0 / (1.0 + (w * tau).powi(2)).sqrt();
+        let phase = (w * tau).atan();
+        p0 * (1.0 - drift.leak_per_s * (t_s - tau))
+            + drift.ripple_kpa * gain * (w * t_s - phase).sin()
+    }
+
+    /// The reading at `t_s` with its noise: one draw from `seed` (the same seed, the same
+    /// reading).
+    pub fn reading_kpa(&self, drift: &PressureDrift, p0: f64, t_s: f64, seed: u64) -> f64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let z: f64 = rand_distr::StandardNormal.sample(&mut rng);
+        self.mean_reading_kpa(drift, p0, t_s) + self.noise_kpa * z
     }
 }
 
@@ -183,6 +225,43 @@ mod tests {
         assert!(a
             .iter()
             .any(|t| t.shear_x_mm.hypot(t.shear_y_mm) > 0.8 * cfg.pitch_x_mm()));
+    }
+
+    #[test]
+    fn gauge_lags_the_link_pressure_as_a_first_order_filter() {
+        let g = PressureGauge {
+            time_constant_s: 0.2,
+            noise_kpa: 0.0,
+        };
+        let d = PressureDrift::DEFAULT;
+        // Integrate τ·y' + y = p(t) numerically from well before; after the transient the
+        // closed form must agree.
+        let (dt, tau) = (1e-4, 0.2);
+        let mut t = -5.0;
+        let mut y = d.at(4.0, t);
+        while t < 3.0 {
+            y += dt / tau * (d.at(4.0, t) - y);
+            t += dt;
+        }
+        let closed = g.mean_reading_kpa(&d, 4.0, t);
+        assert!((y - closed).abs() < 2e-4, "{y} vs {closed}");
+        // No lag: the reading is the pressure.
+        let none = PressureGauge {
+            time_constant_s: 0.0,
+            noise_kpa: 0.0,
+        };
+        assert!((none.mean_reading_kpa(&d, 4.0, 1.3) - d.at(4.0, 1.3)).abs() < 1e-12);
+        // Noise: seeded, with the stated spread.
+        let n = PressureGauge::SEED001;
+        let r: Vec<f64> = (0..4000)
+            .map(|k| n.reading_kpa(&d, 4.0, 1.0, k) - n.mean_reading_kpa(&d, 4.0, 1.0))
+            .collect();
+        assert_eq!(
+            n.reading_kpa(&d, 4.0, 1.0, 9),
+            n.reading_kpa(&d, 4.0, 1.0, 9)
+        );
+        let sd = (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt();
+        assert!((sd / n.noise_kpa - 1.0).abs() < 0.05, "noise sd {sd}");
     }
 
     #[test]
