@@ -98,7 +98,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .or_else(|| session.map(|s| s.join("labels.csv")))
         .filter(|p| p.is_file());
     if let Some(l) = labels {
-        crate::train::evaluate(&a.output, &l, false, None)?;
+        crate::train::evaluate(&a.output, &l, false, None, None)?;
     }
     Ok(())
 }

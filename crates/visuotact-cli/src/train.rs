@@ -350,6 +350,22 @@ pub(crate) fn fit_model(
         unit_mse(&out.subsets[1]),
         unit_mse(&out.subsets[2]),
     ];
+    // R is unchanged by mapminmax (a linear map per target): computed on the scaled values.
+    let subset_r = |ids: &[usize]| -> Vec<f64> {
+        let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
+        (0..spec.targets.len())
+            .map(|j| {
+                let e: Vec<f64> = est.iter().map(|v| v[j]).collect();
+                let t: Vec<f64> = ids.iter().map(|&i| ts[i][j]).collect();
+                target_errors("", &e, &t).r
+            })
+            .collect()
+    };
+    let r = [
+        subset_r(&out.subsets[0]),
+        subset_r(&out.subsets[1]),
+        subset_r(&out.subsets[2]),
+    ];
     let stop = if out.validation_stop {
         "validation".to_string()
     } else {
@@ -373,6 +389,7 @@ pub(crate) fn fit_model(
                 out.subsets[2].len(),
             ],
             mse,
+            r,
             seed: spec.seed,
         },
         sensor: spec.sensor,
@@ -448,8 +465,8 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
     );
     for (j, name) in targets.iter().enumerate() {
         eprintln!(
-            "  {name}: mse train {:.4e}, validation {:.4e}, test {:.4e}",
-            tr.mse[0][j], tr.mse[1][j], tr.mse[2][j]
+            "  {name}: mse train {:.4e}, validation {:.4e}, test {:.4e}; R train {:.5}, validation {:.5}, test {:.5}",
+            tr.mse[0][j], tr.mse[1][j], tr.mse[2][j], tr.r[0][j], tr.r[1][j], tr.r[2][j]
         );
     }
     eprintln!("wrote {}", a.output.display());
@@ -606,6 +623,98 @@ pub(crate) struct EvalArgs {
     /// PNG by the file's extension.
     #[arg(long, value_name = "FILE.svg|FILE.png")]
     plot: Option<PathBuf>,
+    /// Also draw the contact map (seed 000 Fig. 10): actual and estimated contact points
+    /// (`x_mm`, `y_mm`), joined, circle size ∝ depth (`depth_mm`, when present); SVG or PNG.
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
+    map: Option<PathBuf>,
+}
+
+/// One touch on the contact map: actual and estimated (x, y, depth); depth NaN when absent.
+type MapPoint = ([f64; 3], [f64; 3]);
+
+/// Seed 000 Fig. 10: actual contact points (rings) and estimates (discs), joined; radius ∝
+/// depth; y down, as the marker coordinates.
+struct ContactMap<'a> {
+    points: &'a [MapPoint],
+    distance_mean_mm: f64,
+}
+
+impl crate::plot::Figure for ContactMap<'_> {
+    fn size(&self) -> (u32, u32) {
+        (800, 640)
+    }
+
+    fn draw<DB: plotters::prelude::DrawingBackend>(
+        &self,
+        root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String> {
+        use crate::plot::{finite_range, padded, text};
+        use plotters::prelude::*;
+        root.fill(&WHITE).map_err(text)?;
+        let pts = self.points;
+        let (x_lo, x_hi) = padded(
+            finite_range(pts.iter().flat_map(|(a, e)| [a[0], e[0]])).unwrap_or((0.0, 1.0)),
+            0.04,
+        );
+        let (y_lo, y_hi) = padded(
+            finite_range(pts.iter().flat_map(|(a, e)| [a[1], e[1]])).unwrap_or((0.0, 1.0)),
+            0.04,
+        );
+        let depth_max = pts
+            .iter()
+            .flat_map(|(a, e)| [a[2], e[2]])
+            .filter(|d| d.is_finite())
+            .fold(0.0f64, |m, d| m.max(d.abs()));
+        let radius = |d: f64| -> i32 {
+            if d.is_finite() && depth_max > 0.0 {
+                (2.0 + 10.0 * (d.abs() / depth_max)).round() as i32
+            } else {
+                4
+            }
+        };
+        let depth_note = if depth_max > 0.0 {
+            ", radius ∝ depth"
+        } else {
+            ""
+        };
+        let mut chart = ChartBuilder::on(root)
+            .caption(
+                format!(
+                    "contact map: actual (rings) and estimated (discs){depth_note}; D mean {:.3} mm",
+                    self.distance_mean_mm
+                ),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(x_lo..x_hi, y_hi..y_lo)
+            .map_err(text)?;
+        chart
+            .configure_mesh()
+            .x_desc("x, mm")
+            .y_desc("y, mm")
+            .draw()
+            .map_err(text)?;
+        chart
+            .draw_series(pts.iter().map(|(a, e)| {
+                PathElement::new([(a[0], a[1]), (e[0], e[1])], RED.mix(0.6).stroke_width(1))
+            }))
+            .map_err(text)?;
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|(a, _)| Circle::new((a[0], a[1]), radius(a[2]), BLACK.stroke_width(1))),
+            )
+            .map_err(text)?;
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|(_, e)| Circle::new((e[0], e[1]), radius(e[2]), BLUE.mix(0.45).filled())),
+            )
+            .map_err(text)?;
+        Ok(())
+    }
 }
 
 /// One regression panel: target name, (truth, estimate) pairs, R.
@@ -664,7 +773,13 @@ impl crate::plot::Figure for RegressionPlot<'_> {
 }
 
 pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
-    evaluate(&a.predictions, &a.labels, a.json, a.plot.as_deref())
+    evaluate(
+        &a.predictions,
+        &a.labels,
+        a.json,
+        a.plot.as_deref(),
+        a.map.as_deref(),
+    )
 }
 
 /// Prints the error figures of a predictions table against a labels table.
@@ -673,6 +788,7 @@ pub(crate) fn evaluate(
     labels: &Path,
     json: bool,
     plot: Option<&Path>,
+    map: Option<&Path>,
 ) -> anyhow::Result<()> {
     let p = KeyedTable::read(predictions, &["flags"]).map_err(anyhow::Error::msg)?;
     let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
@@ -709,12 +825,20 @@ pub(crate) fn evaluate(
             labels.display()
         );
     }
+    let mut map_points: Vec<MapPoint> = Vec::new();
     if let (Some(xi), Some(yi), Some(lx), Some(ly)) = (xi, yi, l.column("x_mm"), l.column("y_mm")) {
+        let (pd, ld) = (p.column("depth_mm"), l.column("depth_mm"));
+        let depth = |row: &[f64], c: Option<usize>| c.map_or(f64::NAN, |c| row[c]);
         for (r, key) in p.keys.iter().enumerate() {
             if let Some(&li) = by_key.get(key.as_str()) {
-                let d = (p.rows[r][xi] - l.rows[li][lx]).hypot(p.rows[r][yi] - l.rows[li][ly]);
+                let (pr, lr) = (&p.rows[r], &l.rows[li]);
+                let d = (pr[xi] - lr[lx]).hypot(pr[yi] - lr[ly]);
                 if d.is_finite() {
                     distances.push(d);
+                    map_points.push((
+                        [lr[lx], lr[ly], depth(lr, ld)],
+                        [pr[xi], pr[yi], depth(pr, pd)],
+                    ));
                 }
             }
         }
@@ -725,6 +849,21 @@ pub(crate) fn evaluate(
     });
     if let Some(path) = plot {
         crate::plot::save(&RegressionPlot(&panels), path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = map {
+        let Some((distance_mean_mm, _)) = distance else {
+            bail!(
+                "--map needs contact positions: columns x_mm and y_mm in both {} and {}",
+                predictions.display(),
+                labels.display()
+            );
+        };
+        let figure = ContactMap {
+            points: &map_points,
+            distance_mean_mm,
+        };
+        crate::plot::save(&figure, path)?;
         eprintln!("wrote {}", path.display());
     }
     if json {

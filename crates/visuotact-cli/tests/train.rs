@@ -66,12 +66,17 @@ fn train_predict_eval_and_bad_tables() {
         s(&d.join("s.json")),
     ]));
     assert!(err.contains("training 6 → 10 → 1"), "{err}");
+    assert!(err.contains("R train 0.99"), "{err}");
     let model: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
     assert_eq!(model["format"], "visuotact-model");
     assert_eq!(model["target_columns"][0], "force_n");
     assert_eq!(model["feature_columns"].as_array().unwrap().len(), 6);
     assert!(model["sensor"]["markers"].is_array());
+    for subset in 0..3 {
+        let r = model["training"]["r"][subset][0].as_f64().unwrap();
+        assert!(r > 0.99 && r <= 1.0, "R of subset {subset}: {r}");
+    }
     let p = d.join("p.csv");
     ok(&vt(&[
         "predict",
@@ -361,4 +366,56 @@ fn gauge_reading_as_an_extra_input() {
     let t = &ev["targets"][0];
     assert_eq!(t["n"], 150);
     assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
+}
+
+#[test]
+fn contact_map_of_literal_tables() {
+    let d = fresh_dir("contact-map");
+    let (p, l) = (d.join("p.csv"), d.join("l.csv"));
+    std::fs::write(
+        &p,
+        "frame,x_mm,y_mm,depth_mm,flags\na,1,2,1,\nb,10,5,2.5,\nc,,,,missing features\n",
+    )
+    .unwrap();
+    std::fs::write(&l, "frame,x_mm,y_mm,depth_mm\na,1,1,1\nb,14,8,3\nc,3,3,3\n").unwrap();
+    let map = d.join("map.svg");
+    let o = vt(&[
+        "eval",
+        "--predictions",
+        s(&p),
+        "--labels",
+        s(&l),
+        "--map",
+        s(&map),
+    ]);
+    ok(&o);
+    // D: 1 mm and 5 mm (a 3-4-5 triangle); the frame without an estimate is not drawn.
+    assert!(String::from_utf8_lossy(&o.stdout)
+        .contains("distance D (x, y): mean 3.000 mm, max 5.000 mm"));
+    let svg = std::fs::read_to_string(&map).unwrap();
+    assert!(
+        svg.contains("D mean 3.000 mm") && svg.contains("radius ∝ depth"),
+        "{svg}"
+    );
+    assert_eq!(
+        svg.matches("<circle").count(),
+        4,
+        "two touches, actual and estimate"
+    );
+    // Without positions there is nothing to map.
+    std::fs::write(&p, "frame,force_n\na,1\n").unwrap();
+    std::fs::write(&l, "frame,force_n\na,1.2\n").unwrap();
+    let err = fails(&vt(&[
+        "eval",
+        "--predictions",
+        s(&p),
+        "--labels",
+        s(&l),
+        "--map",
+        s(&map),
+    ]));
+    assert!(
+        err.contains("--map needs contact positions: columns x_mm and y_mm"),
+        "{err}"
+    );
 }

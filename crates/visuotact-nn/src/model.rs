@@ -24,6 +24,11 @@ pub struct TrainingSummary {
     pub samples: [usize; 3],
     /// Mean squared error per target in target units: training, validation, test.
     pub mse: [Vec<f64>; 3],
+    /// Regression R per target (estimates against targets): training, validation, test —
+    /// MATLAB's `plotregression` figures (seed 000 Figs. 6–7). Empty in models written before
+    /// it was kept.
+    #[serde(default)]
+    pub r: [Vec<f64>; 3],
     /// Seed of the split and the initial weights.
     pub seed: u64,
 }
