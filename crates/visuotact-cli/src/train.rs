@@ -72,14 +72,7 @@ impl ExtraInputs {
         match &self.inputs {
             None => Ok(Vec::new()),
             Some(s) => {
-                let names: Vec<String> = s
-                    .split(',')
-                    .map(|p| p.trim().to_string())
-                    .filter(|p| !p.is_empty())
-                    .collect();
-                if names.is_empty() {
-                    bail!("--inputs is empty");
-                }
+                let names = column_names(s, "inputs")?;
                 if let Some(c) = names.iter().find(|c| is_marker_column(c)) {
                     bail!("--inputs {c}: marker features are inputs already; name other columns");
                 }
@@ -397,15 +390,20 @@ pub(crate) fn fit_model(
 }
 
 pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
-    let targets: Vec<String> = s
+    column_names(s, "targets")
+}
+
+/// Column names from the comma-separated list of option `--what` (at least one).
+fn column_names(s: &str, what: &str) -> anyhow::Result<Vec<String>> {
+    let names: Vec<String> = s
         .split(',')
         .map(|s| s.trim().to_string())
         .filter(|s| !s.is_empty())
         .collect();
-    if targets.is_empty() {
-        bail!("--targets is empty");
+    if names.is_empty() {
+        bail!("--{what} is empty");
     }
-    Ok(targets)
+    Ok(names)
 }
 
 pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {

@@ -3,10 +3,43 @@
 //! with features it was not trained on, a half-written model never replacing a good one; an
 //! extra input (the simulated pressure gauge) beside the marker features.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 mod common;
 use common::*;
+
+/// `visuotact train --targets force_n` from features `f` and labels `l` into `model`, with
+/// `extra` arguments.
+fn train(f: &Path, l: &Path, model: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "train",
+        "--features",
+        s(f),
+        "--labels",
+        s(l),
+        "--targets",
+        "force_n",
+        "-o",
+        s(model),
+    ];
+    args.extend_from_slice(extra);
+    vt(&args)
+}
+
+/// `visuotact predict --model model -o out` with `extra` arguments (the inputs).
+fn predict(model: &Path, out: &str, extra: &[&str]) -> Output {
+    let mut args = vec!["predict", "--model", s(model), "-o", out];
+    args.extend_from_slice(extra);
+    vt(&args)
+}
+
+/// `visuotact eval --predictions p --labels l` with `extra` arguments.
+fn eval(p: &Path, l: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["eval", "--predictions", s(p), "--labels", s(l)];
+    args.extend_from_slice(extra);
+    vt(&args)
+}
 
 /// A simulated 6 s cone press in a fresh folder `name`: calibrated (s.json) and extracted
 /// (f.csv).
@@ -50,21 +83,12 @@ fn session(name: &str) -> PathBuf {
 fn train_predict_eval_and_bad_tables() {
     let d = session("train");
     let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("model.json"));
-    let err = ok(&vt(&[
-        "train",
-        "--features",
-        s(&f),
-        "--labels",
-        s(&l),
-        "--targets",
-        "force_n",
-        "--hidden",
-        "10",
-        "-o",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-    ]));
+    let err = ok(&train(
+        &f,
+        &l,
+        &m,
+        &["--hidden", "10", "--sensor", s(&d.join("s.json"))],
+    ));
     assert!(err.contains("training 6 → 10 → 1"), "{err}");
     assert!(err.contains("R train 0.99"), "{err}");
     let model: serde_json::Value =
@@ -78,39 +102,17 @@ fn train_predict_eval_and_bad_tables() {
         assert!(r > 0.99 && r <= 1.0, "R of subset {subset}: {r}");
     }
     let p = d.join("p.csv");
-    ok(&vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--features",
-        s(&f),
-        "-o",
-        s(&p),
-    ]));
+    ok(&predict(&m, s(&p), &["--features", s(&f)]));
     // Straight from frames with the sensor file: the same estimates.
     let p2 = d.join("p2.csv");
-    ok(&vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d.join("frames")),
-        "-o",
+    ok(&predict(
+        &m,
         s(&p2),
-    ]));
+        &["--sensor", s(&d.join("s.json")), s(&d.join("frames"))],
+    ));
     assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&p2).unwrap());
     let plot = d.join("regression.svg");
-    let o = vt(&[
-        "eval",
-        "--predictions",
-        s(&p),
-        "--labels",
-        s(&l),
-        "--json",
-        "--plot",
-        s(&plot),
-    ]);
+    let o = eval(&p, &l, &["--json", "--plot", s(&plot)]);
     ok(&o);
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let t = &ev["targets"][0];
@@ -171,17 +173,7 @@ fn train_predict_eval_and_bad_tables() {
     let bad = d.join("bad.csv");
     std::fs::write(&bad, lines.join("\n")).unwrap();
     let before = std::fs::read(&m).unwrap();
-    let err = fails(&vt(&[
-        "train",
-        "--features",
-        s(&bad),
-        "--labels",
-        s(&l),
-        "--targets",
-        "force_n",
-        "-o",
-        s(&m),
-    ]));
+    let err = fails(&train(&bad, &l, &m, &[]));
     assert!(
         err.contains("bad.csv: line 4, column `m000_dy_px`: \"abc\" is not a number"),
         "{err}"
@@ -207,15 +199,7 @@ fn train_predict_eval_and_bad_tables() {
     // A model used on other features.
     let other = d.join("other.csv");
     std::fs::write(&other, "frame,m000_dx_px\nframe_000000.png,1.0\n").unwrap();
-    let err = fails(&vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--features",
-        s(&other),
-        "-o",
-        "-",
-    ]));
+    let err = fails(&predict(&m, "-", &["--features", s(&other)]));
     assert!(
         err.contains("the model") && err.contains("was trained on other inputs"),
         "{err}"
@@ -223,17 +207,7 @@ fn train_predict_eval_and_bad_tables() {
     // Labels with no matching frames.
     let nolab = d.join("nolab.csv");
     std::fs::write(&nolab, "frame,force_n\nnot_a_frame.png,1.0\n").unwrap();
-    let err = fails(&vt(&[
-        "train",
-        "--features",
-        s(&f),
-        "--labels",
-        s(&nolab),
-        "--targets",
-        "force_n",
-        "-o",
-        s(&d.join("y.json")),
-    ]));
+    let err = fails(&train(&f, &nolab, &d.join("y.json"), &[]));
     assert!(err.contains("too few to train"), "{err}");
 }
 
@@ -243,23 +217,8 @@ fn gauge_reading_as_an_extra_input() {
     let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("model.json"));
     let labels = std::fs::read_to_string(&l).unwrap();
     assert!(labels.starts_with("frame,force_n,fx_n,fy_n,fz_n,pressure_kpa,gauge_kpa\n"));
-    let train = |extra: &[&str], model: &std::path::Path| {
-        let mut args = vec![
-            "train",
-            "--features",
-            s(&f),
-            "--labels",
-            s(&l),
-            "--targets",
-            "force_n",
-            "--hidden",
-            "8",
-            "-o",
-            s(model),
-        ];
-        args.extend_from_slice(extra);
-        vt(&args)
-    };
+    let train =
+        |extra: &[&str], model: &Path| train(&f, &l, model, &[&["--hidden", "8"], extra].concat());
     // The gauge is not in the feature table: without --readings the error says where to look.
     let err = fails(&train(&["--inputs", "gauge_kpa"], &m));
     assert!(
@@ -278,26 +237,13 @@ fn gauge_reading_as_an_extra_input() {
     assert_eq!((cols.len(), cols[6].as_str()), (7, Some("gauge_kpa")));
 
     // Estimates need the reading too; frames alone cannot give it.
-    let err = fails(&vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--features",
-        s(&f),
-        "-o",
-        "-",
-    ]));
+    let err = fails(&predict(&m, "-", &["--features", s(&f)]));
     assert!(err.contains("no column `gauge_kpa`"), "{err}");
-    let err = fails(&vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d.join("frames")),
-        "-o",
+    let err = fails(&predict(
+        &m,
         "-",
-    ]));
+        &["--sensor", s(&d.join("s.json")), s(&d.join("frames"))],
+    ));
     assert!(
         err.contains("needs the input `gauge_kpa`, which is not a marker feature"),
         "{err}"
@@ -331,36 +277,20 @@ fn gauge_reading_as_an_extra_input() {
         "{err}"
     );
     let p = d.join("p.csv");
-    let err = ok(&vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--features",
-        s(&f),
-        "--readings",
-        s(&partial),
-        "-o",
+    let err = ok(&predict(
+        &m,
         s(&p),
-    ]));
+        &["--features", s(&f), "--readings", s(&partial)],
+    ));
     assert!(err.contains("149 estimates, 1 frames without"), "{err}");
     let pred = std::fs::read_to_string(&p).unwrap();
     let row = pred.lines().find(|r| r.starts_with(&frame)).unwrap();
     assert!(row.ends_with("missing features"), "{row}");
 
     // With every reading: the estimates are close to the truth.
-    let o = vt(&[
-        "predict",
-        "--model",
-        s(&m),
-        "--features",
-        s(&f),
-        "--readings",
-        s(&l),
-        "-o",
-        s(&p),
-    ]);
+    let o = predict(&m, s(&p), &["--features", s(&f), "--readings", s(&l)]);
     ok(&o);
-    let o = vt(&["eval", "--predictions", s(&p), "--labels", s(&l), "--json"]);
+    let o = eval(&p, &l, &["--json"]);
     ok(&o);
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let t = &ev["targets"][0];
@@ -379,15 +309,7 @@ fn contact_map_of_literal_tables() {
     .unwrap();
     std::fs::write(&l, "frame,x_mm,y_mm,depth_mm\na,1,1,1\nb,14,8,3\nc,3,3,3\n").unwrap();
     let map = d.join("map.svg");
-    let o = vt(&[
-        "eval",
-        "--predictions",
-        s(&p),
-        "--labels",
-        s(&l),
-        "--map",
-        s(&map),
-    ]);
+    let o = eval(&p, &l, &["--map", s(&map)]);
     ok(&o);
     // D: 1 mm and 5 mm (a 3-4-5 triangle); the frame without an estimate is not drawn.
     assert!(String::from_utf8_lossy(&o.stdout)
@@ -405,15 +327,7 @@ fn contact_map_of_literal_tables() {
     // Without positions there is nothing to map.
     std::fs::write(&p, "frame,force_n\na,1\n").unwrap();
     std::fs::write(&l, "frame,force_n\na,1.2\n").unwrap();
-    let err = fails(&vt(&[
-        "eval",
-        "--predictions",
-        s(&p),
-        "--labels",
-        s(&l),
-        "--map",
-        s(&map),
-    ]));
+    let err = fails(&eval(&p, &l, &["--map", s(&map)]));
     assert!(
         err.contains("--map needs contact positions: columns x_mm and y_mm"),
         "{err}"
