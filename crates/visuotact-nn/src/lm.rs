@@ -7,45 +7,38 @@
 //! (not positive definite in floating point) raises μ and tries again. A step that lowers the
 //! cost is taken and μ shrinks by `mu_dec`; otherwise μ grows by `mu_inc` until `mu_max`.
 //!
+//! A problem whose Jacobian has structure can hand the solver a [`DualJacobian`] instead of the
+//! dense matrix: the dual system then needs only `JJᵀ` and products `Jᵀv`, which a network
+//! forms layer by layer far faster than from `J` itself (see [`crate::mlp`]).
+//!
 //! Not converging is an outcome ([`StopReason`]), never an error; the caller's callback sees
 //! every iteration and can stop the solver.
 
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt;
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};
-use faer::linalg::solvers::Solve;
-use faer::{Accum, Mat, Side};
+use faer::{Accum, Mat, MatMut};
 
-/// The lower triangle of `JJᵀ` (dual) or `JᵀJ`: a symmetric product computes half the
-/// entries, and the Cholesky factorisation reads only that half.
-fn gram_lower(jac: &Mat<f64>, dual: bool) -> Mat<f64> {
-    let k = if dual { jac.nrows() } else { jac.ncols() };
-    let mut g = Mat::<f64>::zeros(k, k);
+/// The lower triangle of `JJᵀ` (dual) or `JᵀJ` into `out`: a symmetric product computes half
+/// the entries, and the Cholesky factorisation reads only that half.
+fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) {
     let par = faer::get_global_parallelism();
-    if dual {
-        matmul(
-            g.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            jac.as_ref(),
-            BlockStructure::Rectangular,
-            jac.transpose(),
-            BlockStructure::Rectangular,
-            1.0,
-            par,
-        );
+    let (lhs, rhs) = if dual {
+        (jac.as_ref(), jac.transpose())
     } else {
-        matmul(
-            g.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            jac.transpose(),
-            BlockStructure::Rectangular,
-            jac.as_ref(),
-            BlockStructure::Rectangular,
-            1.0,
-            par,
-        );
-    }
-    g
+        (jac.transpose(), jac.as_ref())
+    };
+    matmul(
+        out,
+        BlockStructure::TriangularLower,
+        Accum::Replace,
+        lhs,
+        BlockStructure::Rectangular,
+        rhs,
+        BlockStructure::Rectangular,
+        1.0,
+        par,
+    );
 }
 
 /// A least-squares problem: residuals and their Jacobian at a parameter vector.
@@ -58,6 +51,56 @@ pub trait Problem {
     fn residuals(&mut self, p: &[f64], out: &mut [f64]);
     /// Jacobian `∂rᵢ/∂pⱼ` at `p` into `jac` (n_residuals × n_params).
     fn jacobian(&mut self, p: &[f64], jac: &mut Mat<f64>);
+    /// The Jacobian at `p` in the problem's own structured form, used when the solver takes
+    /// the dual system (fewer residuals than parameters); the solver then never asks for the
+    /// dense one. `None` (the default): the dense Jacobian is used.
+    fn dual_jacobian(&mut self, p: &[f64]) -> Option<Box<dyn DualJacobian>> {
+        let _ = p;
+        None
+    }
+}
+
+/// A Jacobian `J` (n_residuals × n_params) known through the two products the dual system
+/// needs. Both must equal those of the dense [`Problem::jacobian`] to rounding.
+pub trait DualJacobian {
+    /// The lower triangle of `JJᵀ` into `out` (n_residuals × n_residuals; the upper part is
+    /// neither read nor needed).
+    fn gram_lower_into(&self, out: MatMut<'_, f64>);
+    /// `Jᵀv` into `out` (length n_params) for `v` of length n_residuals.
+    fn transpose_times(&self, v: &[f64], out: &mut [f64]);
+}
+
+/// `J` as the solver holds it in one iteration.
+enum Jacobian<'a> {
+    Dense(&'a Mat<f64>),
+    /// The structured form and the number of parameters.
+    Structured(&'a dyn DualJacobian, usize),
+}
+
+impl Jacobian<'_> {
+    /// `Jᵀv`.
+    fn transpose_times(&self, v: &[f64]) -> Vec<f64> {
+        match *self {
+            Jacobian::Dense(jac) => {
+                let vm = Mat::<f64>::from_fn(v.len(), 1, |i, _| v[i]);
+                let g = jac.transpose() * &vm;
+                (0..g.nrows()).map(|i| g[(i, 0)]).collect()
+            }
+            Jacobian::Structured(sj, n) => {
+                let mut out = vec![0.0; n];
+                sj.transpose_times(v, &mut out);
+                out
+            }
+        }
+    }
+
+    /// The lower triangle of `JJᵀ` (dual) or `JᵀJ` into `out`.
+    fn gram_lower_into(&self, dual: bool, out: MatMut<'_, f64>) {
+        match *self {
+            Jacobian::Dense(jac) => gram_lower_into(jac, dual, out),
+            Jacobian::Structured(sj, _) => sj.gram_lower_into(out),
+        }
+    }
 }
 
 /// Damping matrix.
@@ -201,7 +244,20 @@ pub fn minimize<P: Problem>(
     let mut r = vec![0.0; m];
     let mut r_new = vec![0.0; m];
     let mut p_new = vec![0.0; n];
-    let mut jac = Mat::<f64>::zeros(m, n);
+    // The dense Jacobian, allocated only if the problem gives no structured one.
+    let mut dense: Option<Mat<f64>> = None;
+    let dual = m < n;
+    // The Gram matrix, its damped copy that is factorised in place, and the factorisation's
+    // scratch: allocated once, reused by every iteration and μ trial.
+    let k = if dual { m } else { n };
+    let mut gram = Mat::<f64>::zeros(k, k);
+    let mut factor = Mat::<f64>::zeros(k, k);
+    let par = faer::get_global_parallelism();
+    let mut scratch = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
+        k,
+        par,
+        Default::default(),
+    ));
     problem.residuals(&p, &mut r);
     let mut evaluations = 1;
     let mut cost = sum_sq(&r);
@@ -217,7 +273,6 @@ pub fn minimize<P: Problem>(
     if !cost.is_finite() {
         return outcome(p, cost, 0, evaluations, mu, StopReason::NonFinite);
     }
-    let dual = m < n;
     for iteration in 0..cfg.max_iterations {
         if cost == 0.0 {
             return outcome(
@@ -229,10 +284,21 @@ pub fn minimize<P: Problem>(
                 StopReason::ZeroResidual,
             );
         }
-        problem.jacobian(&p, &mut jac);
-        let rv = Mat::<f64>::from_fn(m, 1, |i, _| r[i]);
-        let g = jac.transpose() * &rv; // n × 1
-        let gnorm = (0..n).map(|i| g[(i, 0)] * g[(i, 0)]).sum::<f64>().sqrt();
+        let structured = if dual {
+            problem.dual_jacobian(&p)
+        } else {
+            None
+        };
+        let jac = match &structured {
+            Some(sj) => Jacobian::Structured(sj.as_ref(), n),
+            None => {
+                let jac = dense.get_or_insert_with(|| Mat::<f64>::zeros(m, n));
+                problem.jacobian(&p, jac);
+                Jacobian::Dense(jac)
+            }
+        };
+        let g = jac.transpose_times(&r);
+        let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
         if !gnorm.is_finite() {
             return outcome(p, cost, iteration, evaluations, mu, StopReason::NonFinite);
         }
@@ -240,8 +306,7 @@ pub fn minimize<P: Problem>(
             return outcome(p, cost, iteration, evaluations, mu, StopReason::MinGradient);
         }
         // The Gram matrix once per iteration; μ changes only its diagonal.
-        let gram = gram_lower(&jac, dual);
-        let k = gram.nrows();
+        jac.gram_lower_into(dual, gram.as_mut());
         let diag: Vec<f64> = match (cfg.damping, dual) {
             (Damping::Marquardt, false) => (0..k).map(|i| gram[(i, i)].max(1e-300)).collect(),
             _ => vec![1.0; k],
@@ -249,30 +314,39 @@ pub fn minimize<P: Problem>(
         let mut accepted = false;
         let mut small_step = false;
         while mu <= cfg.mu_max {
-            let mut a = gram.clone();
+            factor.copy_from(&gram);
             for i in 0..k {
-                a[(i, i)] += mu * diag[i];
+                factor[(i, i)] += mu * diag[i];
             }
-            let step: Option<Mat<f64>> = match a.llt(Side::Lower) {
-                Ok(llt) => {
-                    if dual {
-                        // δ = −Jᵀ (JJᵀ + μI)⁻¹ r
-                        let y = llt.solve(&rv);
-                        Some(-(jac.transpose() * &y))
-                    } else {
-                        Some(-llt.solve(&g))
-                    }
-                }
-                Err(_) => None,
-            };
-            let Some(step) = step.filter(|s| (0..n).all(|i| s[(i, 0)].is_finite())) else {
+            let factored = llt::factor::cholesky_in_place(
+                factor.as_mut(),
+                Default::default(),
+                par,
+                MemStack::new(&mut scratch),
+                Default::default(),
+            );
+            let step: Option<Vec<f64>> = factored.ok().map(|_| {
+                // Dual: δ = −Jᵀ (JJᵀ + μI)⁻¹ r; primal: δ = −(JᵀJ + μD)⁻¹ Jᵀr.
+                let rhs = if dual { &r } else { &g };
+                let mut y = Mat::<f64>::from_fn(k, 1, |i, _| rhs[i]);
+                llt::solve::solve_in_place(
+                    factor.as_ref(),
+                    y.as_mut(),
+                    par,
+                    MemStack::new(&mut scratch),
+                );
+                let y: Vec<f64> = (0..k).map(|i| y[(i, 0)]).collect();
+                let d = if dual { jac.transpose_times(&y) } else { y };
+                d.iter().map(|v| -v).collect()
+            });
+            let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
                 mu *= cfg.mu_inc;
                 continue;
             };
             let mut max_rel = 0.0f64;
             for i in 0..n {
-                p_new[i] = p[i] + step[(i, 0)];
-                max_rel = max_rel.max(step[(i, 0)].abs() / p[i].abs().max(1e-300));
+                p_new[i] = p[i] + step[i];
+                max_rel = max_rel.max(step[i].abs() / p[i].abs().max(1e-300));
             }
             problem.residuals(&p_new, &mut r_new);
             evaluations += 1;

@@ -6,12 +6,15 @@
 //! Parameter layout: layer by layer, each layer's weights row by row (`out × in`) then its
 //! biases.
 
-use faer::Mat;
+use std::sync::Arc;
+
+use faer::linalg::matmul::{self, triangular};
+use faer::{Accum, Mat, MatMut};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::lm::{minimize, Control, LmConfig, LmOutcome, Problem, StopReason};
+use crate::lm::{minimize, Control, DualJacobian, LmConfig, LmOutcome, Problem, StopReason};
 
 /// Layer sizes and weights.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -89,6 +92,49 @@ impl Mlp {
         acts.pop().unwrap_or_default()
     }
 
+    /// Offsets of each layer's parameters in `params`.
+    fn layer_offsets(&self) -> Vec<usize> {
+        let mut offs = Vec::with_capacity(self.sizes.len() - 1);
+        let mut off = 0;
+        for w in self.sizes.windows(2) {
+            offs.push(off);
+            off += w[0] * w[1] + w[1];
+        }
+        offs
+    }
+
+    /// Back-propagates output `k` through the activations `acts` of one forward pass: calls
+    /// `f(layer, delta)` with the sensitivity of output `k` to each layer's pre-activations,
+    /// last layer first.
+    fn backprop(
+        &self,
+        p: &[f64],
+        acts: &[Vec<f64>],
+        offs: &[usize],
+        k: usize,
+        scratch: &mut (Vec<f64>, Vec<f64>),
+        mut f: impl FnMut(usize, &[f64]),
+    ) {
+        let layers = self.sizes.len() - 1;
+        let (delta, prev_delta) = scratch;
+        delta.clear();
+        delta.extend((0..self.sizes[layers]).map(|o| if o == k { 1.0 } else { 0.0 }));
+        for l in (0..layers).rev() {
+            f(l, delta);
+            if l > 0 {
+                let (n_in, n_o) = (self.sizes[l], self.sizes[l + 1]);
+                let a = &acts[l];
+                let w = &p[offs[l]..offs[l] + n_o * n_in];
+                prev_delta.clear();
+                for i in 0..n_in {
+                    let s: f64 = (0..n_o).map(|o| w[o * n_in + i] * delta[o]).sum();
+                    prev_delta.push(s * (1.0 - a[i] * a[i]));
+                }
+                std::mem::swap(delta, prev_delta);
+            }
+        }
+    }
+
     /// Rows `row0..row0 + outputs` of the Jacobian of the outputs with respect to `p` for one
     /// input, by back-propagation (one backward pass per output).
     fn jacobian_rows(
@@ -100,41 +146,134 @@ impl Mlp {
         row0: usize,
     ) {
         self.forward_into(p, x, acts);
-        let layers = self.sizes.len() - 1;
-        let n_out = self.sizes[layers];
-        // Offsets of each layer's parameters.
-        let mut offs = Vec::with_capacity(layers);
-        let mut off = 0;
-        for l in 0..layers {
-            offs.push(off);
-            off += self.sizes[l] * self.sizes[l + 1] + self.sizes[l + 1];
-        }
-        let mut delta: Vec<f64> = Vec::new();
-        let mut prev_delta: Vec<f64> = Vec::new();
+        let n_out = self.sizes[self.sizes.len() - 1];
+        let offs = self.layer_offsets();
+        let mut scratch = (Vec::new(), Vec::new());
         for k in 0..n_out {
             let r = row0 + k;
-            delta.clear();
-            delta.extend((0..n_out).map(|o| if o == k { 1.0 } else { 0.0 }));
-            for l in (0..layers).rev() {
+            self.backprop(p, acts, &offs, k, &mut scratch, |l, delta| {
                 let (n_in, n_o) = (self.sizes[l], self.sizes[l + 1]);
                 let a = &acts[l];
                 let o0 = offs[l];
-                for o in 0..n_o {
-                    let d = delta[o];
+                for (o, &d) in delta.iter().enumerate().take(n_o) {
                     for i in 0..n_in {
                         jac[(r, o0 + o * n_in + i)] = d * a[i];
                     }
                     jac[(r, o0 + n_o * n_in + o)] = d;
                 }
-                if l > 0 {
-                    let w = &p[o0..o0 + n_o * n_in];
-                    prev_delta.clear();
-                    for i in 0..n_in {
-                        let s: f64 = (0..n_o).map(|o| w[o * n_in + i] * delta[o]).sum();
-                        prev_delta.push(s * (1.0 - a[i] * a[i]));
-                    }
-                    std::mem::swap(&mut delta, &mut prev_delta);
+            });
+        }
+    }
+}
+
+/// A layer's inputs with the column of ones, and the lower triangle of their Gram matrix.
+type SharedGram = (Arc<Mat<f64>>, Arc<Mat<f64>>);
+
+/// One layer of a [`LayerJacobian`].
+struct LayerBlock {
+    /// Sensitivity of each residual to the layer's pre-activations (n_residuals × n_out).
+    d: Mat<f64>,
+    /// The layer's inputs per sample, with a last column of ones for the bias
+    /// (n_samples × (n_in + 1)).
+    a: Arc<Mat<f64>>,
+    /// Lower triangle of `A Aᵀ` (n_samples × n_samples).
+    aa: Arc<Mat<f64>>,
+    /// Offset of the layer's parameters.
+    offset: usize,
+}
+
+/// A network's Jacobian by layers, for the dual system. The Jacobian column of layer `l`'s
+/// weight (o, i) is `D_l[:, o] ∘ A_l[s(:), i]` (residual `r` belongs to sample `s(r)`; the
+/// bias is the column of ones), so
+/// `JJᵀ = Σ_l (D_l D_lᵀ) ∘ (A_l A_lᵀ)[s(r), s(r')]` — inner dimensions the layer widths
+/// instead of the number of weights — and `Jᵀv` for layer `l` is `Ŝ_lᵀ A_l` with
+/// `Ŝ_l[s, o] = Σ_k v[sK + k] D_l[sK + k, o]`. The first layer's `A` and `A Aᵀ` are the
+/// inputs' and never change during a fit.
+struct LayerJacobian {
+    outputs: usize,
+    layers: Vec<LayerBlock>,
+}
+
+/// The lower triangle of `A Aᵀ`.
+fn gram_rows_lower(a: &Mat<f64>) -> Mat<f64> {
+    let mut g = Mat::<f64>::zeros(a.nrows(), a.nrows());
+    triangular::matmul(
+        g.as_mut(),
+        triangular::BlockStructure::TriangularLower,
+        Accum::Replace,
+        a.as_ref(),
+        triangular::BlockStructure::Rectangular,
+        a.transpose(),
+        triangular::BlockStructure::Rectangular,
+        1.0,
+        faer::get_global_parallelism(),
+    );
+    g
+}
+
+impl DualJacobian for LayerJacobian {
+    fn gram_lower_into(&self, mut out: MatMut<'_, f64>) {
+        use rayon::prelude::*;
+        // Columns in blocks: D_l D_lᵀ for one block of columns (rows from the block's first
+        // down) at a time, so no second n_residuals² matrix is made.
+        const BLOCK: usize = 128;
+        let m = self.layers.first().map_or(0, |b| b.d.nrows());
+        let k = self.outputs.max(1);
+        let par = faer::get_global_parallelism();
+        out.fill(0.0);
+        let mut dd = Mat::<f64>::zeros(m, BLOCK.min(m));
+        for c0 in (0..m).step_by(BLOCK) {
+            let (w, h) = (BLOCK.min(m - c0), m - c0);
+            for b in &self.layers {
+                matmul::matmul(
+                    dd.as_mut().submatrix_mut(0, 0, h, w),
+                    Accum::Replace,
+                    b.d.as_ref().subrows(c0, h),
+                    b.d.as_ref().subrows(c0, w).transpose(),
+                    1.0,
+                    par,
+                );
+                // out += dd ∘ (A Aᵀ)[s(r), s(c)] on and below the diagonal; the rows of one
+                // sample share the factor.
+                let (dd, aa) = (&dd, &*b.aa);
+                out.as_mut()
+                    .subcols_mut(c0, w)
+                    .par_col_iter_mut()
+                    .enumerate()
+                    .for_each(|(j, o_col)| {
+                        let c = c0 + j;
+                        let aa = aa.col_as_slice(c / k);
+                        let dd_col = &dd.col_as_slice(j)[..h];
+                        let mut o_col = o_col;
+                        let mut r = c;
+                        let mut s = c / k;
+                        while r < m {
+                            let end = ((s + 1) * k).min(m);
+                            let f = aa[s];
+                            for rr in r..end {
+                                o_col[rr] += dd_col[rr - c0] * f;
+                            }
+                            r = end;
+                            s += 1;
+                        }
+                    });
+            }
+        }
+    }
+
+    fn transpose_times(&self, v: &[f64], out: &mut [f64]) {
+        let k = self.outputs.max(1);
+        for b in &self.layers {
+            let (n_s, n_o, n_in) = (b.a.nrows(), b.d.ncols(), b.a.ncols() - 1);
+            let s_hat = Mat::<f64>::from_fn(n_s, n_o, |s, o| {
+                (0..k).map(|j| v[s * k + j] * b.d[(s * k + j, o)]).sum()
+            });
+            let grad = s_hat.transpose() * b.a.as_ref();
+            for o in 0..n_o {
+                for i in 0..n_in {
+                    out[b.offset + o * n_in + i] = grad[(o, i)];
                 }
+                out[b.offset + n_o * n_in + o] = grad[(o, n_in)];
             }
         }
     }
@@ -244,6 +383,9 @@ struct Fit<'a> {
     x: Vec<&'a [f64]>,
     t: Vec<&'a [f64]>,
     acts: Vec<Vec<f64>>,
+    /// The inputs with a column of ones, and the lower triangle of their Gram matrix: the first
+    /// layer's part of every [`LayerJacobian`], made once.
+    inputs: Option<SharedGram>,
 }
 
 impl Problem for Fit<'_> {
@@ -268,6 +410,75 @@ impl Problem for Fit<'_> {
         for (s, x) in self.x.iter().enumerate() {
             self.net.jacobian_rows(p, x, &mut self.acts, jac, s * k);
         }
+    }
+
+    fn dual_jacobian(&mut self, p: &[f64]) -> Option<Box<dyn DualJacobian>> {
+        let net = self.net;
+        let sizes = &net.sizes;
+        let layers = sizes.len() - 1;
+        let k = sizes[layers];
+        let n_s = self.x.len();
+        let x = &self.x;
+        let (a0, aa0) = self
+            .inputs
+            .get_or_insert_with(|| {
+                let a = Mat::<f64>::from_fn(n_s, sizes[0] + 1, |s, i| {
+                    if i < sizes[0] {
+                        x[s][i]
+                    } else {
+                        1.0
+                    }
+                });
+                let aa = gram_rows_lower(&a);
+                (Arc::new(a), Arc::new(aa))
+            })
+            .clone();
+        let offs = net.layer_offsets();
+        let mut d: Vec<Mat<f64>> = (0..layers)
+            .map(|l| Mat::<f64>::zeros(n_s * k, sizes[l + 1]))
+            .collect();
+        let mut a: Vec<Mat<f64>> = (1..layers)
+            .map(|l| Mat::<f64>::zeros(n_s, sizes[l] + 1))
+            .collect();
+        let mut scratch = (Vec::new(), Vec::new());
+        for (s, xs) in self.x.iter().enumerate() {
+            net.forward_into(p, xs, &mut self.acts);
+            for l in 1..layers {
+                let al = &mut a[l - 1];
+                for (i, &v) in self.acts[l].iter().enumerate() {
+                    al[(s, i)] = v;
+                }
+                al[(s, sizes[l])] = 1.0;
+            }
+            for j in 0..k {
+                net.backprop(p, &self.acts, &offs, j, &mut scratch, |l, delta| {
+                    for (o, &v) in delta.iter().enumerate() {
+                        d[l][(s * k + j, o)] = v;
+                    }
+                });
+            }
+        }
+        let mut blocks = Vec::with_capacity(layers);
+        let mut a_iter = a.into_iter();
+        for (l, dl) in d.into_iter().enumerate() {
+            let (al, aal) = if l == 0 {
+                (a0.clone(), aa0.clone())
+            } else {
+                let al = a_iter.next()?;
+                let aal = gram_rows_lower(&al);
+                (Arc::new(al), Arc::new(aal))
+            };
+            blocks.push(LayerBlock {
+                d: dl,
+                a: al,
+                aa: aal,
+                offset: offs[l],
+            });
+        }
+        Some(Box::new(LayerJacobian {
+            outputs: k,
+            layers: blocks,
+        }))
     }
 }
 
@@ -335,6 +546,7 @@ pub fn train(
         x: refs(&xs[0]),
         t: refs(&ts[0]),
         acts: Vec::new(),
+        inputs: None,
     };
     let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
     let mut best = (f64::INFINITY, net.params.clone(), 0usize);
@@ -379,6 +591,61 @@ pub fn train(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn layer_jacobian_products_equal_the_dense_jacobians() {
+        let net = Mlp::nguyen_widrow(&[4, 5, 3, 2], 3);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let x: Rows = (0..7)
+            .map(|_| (0..4).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let t: Rows = (0..7)
+            .map(|_| (0..2).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let mut fit = Fit {
+            net: &net,
+            x: refs(&x),
+            t: refs(&t),
+            acts: Vec::new(),
+            inputs: None,
+        };
+        let (m, n) = (fit.n_residuals(), fit.n_params());
+        assert!(m < n, "the dual system applies");
+        // Away from the initial weights, so that every layer's part is exercised.
+        let p: Vec<f64> = net
+            .params
+            .iter()
+            .map(|v| v + rng.random_range(-0.3..0.3))
+            .collect();
+        let mut jac = Mat::<f64>::zeros(m, n);
+        fit.jacobian(&p, &mut jac);
+        // Twice: the second call reuses the cached first-layer part.
+        for _ in 0..2 {
+            let sj = fit
+                .dual_jacobian(&p)
+                .expect("a network has a layer Jacobian");
+            let dense = &jac * jac.transpose();
+            let mut g = Mat::<f64>::from_fn(m, m, |_, _| f64::NAN);
+            sj.gram_lower_into(g.as_mut());
+            for c in 0..m {
+                for r in c..m {
+                    assert!(
+                        (g[(r, c)] - dense[(r, c)]).abs() < 1e-12 * (1.0 + dense[(r, c)].abs()),
+                        "JJᵀ[{r}, {c}]: {} vs {}",
+                        g[(r, c)],
+                        dense[(r, c)]
+                    );
+                }
+            }
+            let v: Vec<f64> = (0..m).map(|i| (i as f64 * 0.7).sin()).collect();
+            let mut out = vec![f64::NAN; n];
+            sj.transpose_times(&v, &mut out);
+            for (j, o) in out.iter().enumerate() {
+                let want: f64 = (0..m).map(|i| jac[(i, j)] * v[i]).sum();
+                assert!((o - want).abs() < 1e-12 * (1.0 + want.abs()), "Jᵀv[{j}]");
+            }
+        }
+    }
 
     #[test]
     fn backprop_jacobian_equals_finite_differences() {
