@@ -1,11 +1,13 @@
 //! Levenberg–Marquardt for any least-squares problem `min ‖r(p)‖²`.
 //!
 //! Each iteration solves `(JᵀJ + μD) δ = −Jᵀr` (D = I as MATLAB's `trainlm`, or
-//! D = diag(JᵀJ), Marquardt's scaling) with a Cholesky factorisation (faer `llt`); when there
-//! are fewer residuals than parameters it solves the smaller dual system
-//! `δ = −Jᵀ (JJᵀ + μI)⁻¹ r`, which is the same step for D = I. A factorisation that fails
-//! (not positive definite in floating point) raises μ and tries again. A step that lowers the
-//! cost is taken and μ shrinks by `mu_dec`; otherwise μ grows by `mu_inc` until `mu_max`.
+//! D = diag(JᵀJ), Marquardt's scaling) with a Cholesky factorisation (faer's, in place); when
+//! there are fewer residuals than parameters it solves the smaller dual system
+//! `δ = −Jᵀ (JJᵀ + μI)⁻¹ r`, which is the same step for D = I. A Cholesky factorisation that
+//! fails (not positive definite in floating point) falls back to LU with partial pivoting, as
+//! MATLAB's backslash does; a step that is still not finite raises μ and tries again. A step
+//! that lowers the cost is taken and μ shrinks by `mu_dec`; otherwise μ grows by `mu_inc` until
+//! `mu_max`.
 //!
 //! A problem whose Jacobian has structure can hand the solver a [`DualJacobian`] instead of the
 //! dense matrix: the dual system then needs only `JJᵀ` and products `Jᵀv`, which a network
@@ -17,6 +19,7 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+use faer::linalg::solvers::Solve;
 use faer::{Accum, Mat, MatMut};
 
 /// The lower triangle of `JJᵀ` (dual) or `JᵀJ` into `out`: a symmetric product computes half
@@ -39,6 +42,72 @@ fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) {
         1.0,
         par,
     );
+}
+
+/// Solves the damped system `(G + μD) y = b` for a symmetric `G` given by its lower triangle:
+/// Cholesky in place in a buffer reused by every call; when Cholesky fails (the matrix is not
+/// positive definite in floating point) it falls back, as MATLAB's backslash does, to LU with
+/// partial pivoting on the whole symmetric matrix.
+struct DampedSolver {
+    factor: Mat<f64>,
+    scratch: MemBuffer,
+    par: faer::Par,
+    /// Systems solved by the LU fallback.
+    fallbacks: usize,
+}
+
+impl DampedSolver {
+    fn new(k: usize) -> Self {
+        let par = faer::get_global_parallelism();
+        Self {
+            factor: Mat::<f64>::zeros(k, k),
+            scratch: MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
+                k,
+                par,
+                Default::default(),
+            )),
+            par,
+            fallbacks: 0,
+        }
+    }
+
+    /// `y` with `(G + μ·diag(d)) y = b`; `None` when neither factorisation gives finite numbers.
+    fn solve(&mut self, gram: &Mat<f64>, mu: f64, d: &[f64], b: &[f64]) -> Option<Vec<f64>> {
+        let k = gram.nrows();
+        self.factor.copy_from(gram);
+        for (i, di) in d.iter().enumerate() {
+            self.factor[(i, i)] += mu * di;
+        }
+        let mut y = Mat::<f64>::from_fn(k, 1, |i, _| b[i]);
+        let cholesky = llt::factor::cholesky_in_place(
+            self.factor.as_mut(),
+            Default::default(),
+            self.par,
+            MemStack::new(&mut self.scratch),
+            Default::default(),
+        );
+        if cholesky.is_ok() {
+            llt::solve::solve_in_place(
+                self.factor.as_ref(),
+                y.as_mut(),
+                self.par,
+                MemStack::new(&mut self.scratch),
+            );
+        } else {
+            self.fallbacks += 1;
+            let full = Mat::<f64>::from_fn(k, k, |i, j| {
+                let g = if i >= j { gram[(i, j)] } else { gram[(j, i)] };
+                if i == j {
+                    g + mu * d[i]
+                } else {
+                    g
+                }
+            });
+            y = full.partial_piv_lu().solve(&y);
+        }
+        let y: Vec<f64> = (0..k).map(|i| y[(i, 0)]).collect();
+        y.iter().all(|v| v.is_finite()).then_some(y)
+    }
 }
 
 /// A least-squares problem: residuals and their Jacobian at a parameter vector.
@@ -161,6 +230,29 @@ impl LmConfig {
     };
 }
 
+impl LmConfig {
+    /// Checks that μ can grow and shrink: `mu > 0`, `mu_inc > 1`, `0 < mu_dec < 1`,
+    /// `mu_max ≥ mu`.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.mu > 0.0 && self.mu.is_finite()) {
+            return Err(format!("mu must be positive, got {}", self.mu));
+        }
+        if !(self.mu_inc > 1.0 && self.mu_inc.is_finite()) {
+            return Err(format!("mu_inc must exceed 1, got {}", self.mu_inc));
+        }
+        if !(self.mu_dec > 0.0 && self.mu_dec < 1.0) {
+            return Err(format!("mu_dec must lie in (0, 1), got {}", self.mu_dec));
+        }
+        if self.mu_max.is_nan() || self.mu_max < self.mu {
+            return Err(format!(
+                "mu_max ({}) must be at least mu ({})",
+                self.mu_max, self.mu
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for LmConfig {
     fn default() -> Self {
         Self::TRAINLM
@@ -184,6 +276,8 @@ pub enum StopReason {
     Callback,
     /// Residuals or Jacobian are not finite at the start.
     NonFinite,
+    /// The settings cannot work ([`LmConfig::validate`] says why); nothing was done.
+    InvalidConfig,
 }
 
 /// What the callback sees after each iteration.
@@ -225,6 +319,9 @@ pub struct LmOutcome {
     pub mu: f64,
     /// Why it stopped.
     pub reason: StopReason,
+    /// Damped systems that Cholesky could not factorise (not positive definite in floating
+    /// point) and LU with partial pivoting solved instead.
+    pub lu_fallbacks: usize,
 }
 
 fn sum_sq(r: &[f64]) -> f64 {
@@ -247,21 +344,16 @@ pub fn minimize<P: Problem>(
     // The dense Jacobian, allocated only if the problem gives no structured one.
     let mut dense: Option<Mat<f64>> = None;
     let dual = m < n;
-    // The Gram matrix, its damped copy that is factorised in place, and the factorisation's
-    // scratch: allocated once, reused by every iteration and μ trial.
+    // The Gram matrix and the solver's buffers: allocated once, reused by every iteration and
+    // μ trial.
     let k = if dual { m } else { n };
     let mut gram = Mat::<f64>::zeros(k, k);
-    let mut factor = Mat::<f64>::zeros(k, k);
-    let par = faer::get_global_parallelism();
-    let mut scratch = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
-        k,
-        par,
-        Default::default(),
-    ));
+    let mut solver = DampedSolver::new(k);
     problem.residuals(&p, &mut r);
     let mut evaluations = 1;
     let mut cost = sum_sq(&r);
     let mut mu = cfg.mu;
+    let lu_fallbacks = std::cell::Cell::new(0);
     let outcome = |p: Vec<f64>, cost, iterations, evaluations, mu, reason| LmOutcome {
         params: p,
         cost,
@@ -269,7 +361,11 @@ pub fn minimize<P: Problem>(
         evaluations,
         mu,
         reason,
+        lu_fallbacks: lu_fallbacks.get(),
     };
+    if cfg.validate().is_err() {
+        return outcome(p, cost, 0, evaluations, mu, StopReason::InvalidConfig);
+    }
     if !cost.is_finite() {
         return outcome(p, cost, 0, evaluations, mu, StopReason::NonFinite);
     }
@@ -314,31 +410,13 @@ pub fn minimize<P: Problem>(
         let mut accepted = false;
         let mut small_step = false;
         while mu <= cfg.mu_max {
-            factor.copy_from(&gram);
-            for i in 0..k {
-                factor[(i, i)] += mu * diag[i];
-            }
-            let factored = llt::factor::cholesky_in_place(
-                factor.as_mut(),
-                Default::default(),
-                par,
-                MemStack::new(&mut scratch),
-                Default::default(),
-            );
-            let step: Option<Vec<f64>> = factored.ok().map(|_| {
-                // Dual: δ = −Jᵀ (JJᵀ + μI)⁻¹ r; primal: δ = −(JᵀJ + μD)⁻¹ Jᵀr.
-                let rhs = if dual { &r } else { &g };
-                let mut y = Mat::<f64>::from_fn(k, 1, |i, _| rhs[i]);
-                llt::solve::solve_in_place(
-                    factor.as_ref(),
-                    y.as_mut(),
-                    par,
-                    MemStack::new(&mut scratch),
-                );
-                let y: Vec<f64> = (0..k).map(|i| y[(i, 0)]).collect();
+            // Dual: δ = −Jᵀ (JJᵀ + μI)⁻¹ r; primal: δ = −(JᵀJ + μD)⁻¹ Jᵀr.
+            let rhs = if dual { &r } else { &g };
+            let step: Option<Vec<f64>> = solver.solve(&gram, mu, &diag, rhs).map(|y| {
                 let d = if dual { jac.transpose_times(&y) } else { y };
                 d.iter().map(|v| -v).collect()
             });
+            lu_fallbacks.set(solver.fallbacks);
             let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
                 mu *= cfg.mu_inc;
                 continue;
@@ -481,6 +559,55 @@ mod tests {
         });
         assert_eq!((out.reason, out.iterations), (StopReason::Callback, 2));
         assert!(costs.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    #[test]
+    fn cholesky_failure_falls_back_to_lu() {
+        // Symmetric but indefinite (eigenvalues 3 and −1): Cholesky fails, LU solves it.
+        let g = Mat::<f64>::from_fn(2, 2, |i, j| if i == j { 1.0 } else { 2.0 });
+        let mut s = DampedSolver::new(2);
+        let y = s.solve(&g, 0.0, &[1.0, 1.0], &[3.0, 0.0]).unwrap();
+        // [[1, 2], [2, 1]] y = [3, 0] → y = [−1, 2].
+        assert!(
+            (y[0] + 1.0).abs() < 1e-12 && (y[1] - 2.0).abs() < 1e-12,
+            "{y:?}"
+        );
+        assert_eq!(s.fallbacks, 1);
+        // Positive definite once damped: Cholesky, no fallback; only the lower triangle is read.
+        let mut lower = g.clone();
+        lower[(0, 1)] = f64::NAN;
+        let y = s.solve(&lower, 2.0, &[1.0, 1.0], &[3.0, 0.0]).unwrap();
+        // [[3, 2], [2, 3]] y = [3, 0] → y = [9/5, −6/5].
+        assert!(
+            (y[0] - 1.8).abs() < 1e-12 && (y[1] + 1.2).abs() < 1e-12,
+            "{y:?}"
+        );
+        assert_eq!(s.fallbacks, 1);
+        // Singular even for LU: no step.
+        let z = Mat::<f64>::zeros(2, 2);
+        assert!(s.solve(&z, 0.0, &[1.0, 1.0], &[1.0, 1.0]).is_none());
+    }
+
+    #[test]
+    fn settings_that_cannot_work_are_an_outcome() {
+        let mut pr = linear(6, 3);
+        for cfg in [
+            LmConfig {
+                mu: 0.0,
+                ..LmConfig::TRAINLM
+            },
+            LmConfig {
+                mu_inc: 1.0,
+                ..LmConfig::TRAINLM
+            },
+            LmConfig {
+                mu_dec: 1.5,
+                ..LmConfig::TRAINLM
+            },
+        ] {
+            let out = minimize(&mut pr, &[0.0; 3], &cfg, |_| Control::Continue);
+            assert_eq!((out.reason, out.iterations), (StopReason::InvalidConfig, 0));
+        }
     }
 
     #[test]
