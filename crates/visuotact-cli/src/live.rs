@@ -9,10 +9,21 @@ use visuotact_nn::model::Model;
 use visuotact_vision::calibration::SensorCalibration;
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
 
+/// Where one of the model's inputs comes from.
+#[derive(Clone, Copy, Debug)]
+enum Input {
+    /// This position of the frame's feature vector.
+    Feature(usize),
+    /// This position of the extra inputs given with the frame.
+    Extra(usize),
+}
+
 /// Per-frame estimator with reusable buffers.
 pub(crate) struct Estimator {
     ex: FeatureExtractor,
-    model: Option<(Model, Vec<usize>)>,
+    model: Option<(Model, Vec<Input>)>,
+    /// The model's inputs that are not marker features (given with each frame), in order.
+    extra_inputs: Vec<String>,
     features: FrameFeatures,
     x: Vec<f64>,
     n_markers: usize,
@@ -20,8 +31,22 @@ pub(crate) struct Estimator {
 
 impl Estimator {
     /// Features from `sensor` (or the calibration stored in the model), and estimates when a
-    /// model is given. The feature set is the model's, else the sensor file's.
+    /// model is given. The feature set is the model's, else the sensor file's. A model with
+    /// inputs besides the marker features is refused: frames alone cannot give them.
     pub(crate) fn new(sensor: Option<&Path>, model: Option<Model>) -> anyhow::Result<Self> {
+        if let Some(m) = &model {
+            crate::train::feature_set_of(&m.feature_columns)?;
+        }
+        Self::with_extra_inputs(sensor, model)
+    }
+
+    /// As [`Estimator::new`], also for a model with inputs besides the marker features; their
+    /// values come with each frame to [`Estimator::process_with`], in the order of
+    /// [`Estimator::extra_inputs`].
+    pub(crate) fn with_extra_inputs(
+        sensor: Option<&Path>,
+        model: Option<Model>,
+    ) -> anyhow::Result<Self> {
         let cal = match (sensor, &model) {
             (Some(p), _) => crate::load_sensor(p)?,
             (None, Some(m)) => match &m.sensor {
@@ -31,15 +56,40 @@ impl Estimator {
             },
             (None, None) => bail!("give --sensor (and --model for estimates)"),
         };
+        let extra_inputs: Vec<String> = model
+            .as_ref()
+            .map(|m| {
+                m.feature_columns
+                    .iter()
+                    .filter(|c| !crate::train::is_marker_column(c))
+                    .cloned()
+                    .collect()
+            })
+            .unwrap_or_default();
         let set = match &model {
-            Some(m) => crate::train::feature_set_of(&m.feature_columns)?,
+            Some(m) => {
+                let markers: Vec<String> = m
+                    .feature_columns
+                    .iter()
+                    .filter(|c| crate::train::is_marker_column(c))
+                    .cloned()
+                    .collect();
+                crate::train::feature_set_of(&markers)?
+            }
             None => cal.features,
         };
         let n_markers = cal.markers.len();
         let ex = FeatureExtractor::new(cal, set).map_err(anyhow::Error::msg)?;
         let model = match model {
             Some(m) => {
-                let cols = columns_of(&ex, &m)?;
+                let cols = m
+                    .feature_columns
+                    .iter()
+                    .map(|c| match extra_inputs.iter().position(|e| e == c) {
+                        Some(j) => Ok(Input::Extra(j)),
+                        None => feature_index(&ex, c).map(Input::Feature),
+                    })
+                    .collect::<anyhow::Result<_>>()?;
                 Some((m, cols))
             }
             None => None,
@@ -47,6 +97,7 @@ impl Estimator {
         Ok(Self {
             ex,
             model,
+            extra_inputs,
             features: FrameFeatures::default(),
             x: Vec::new(),
             n_markers,
@@ -56,6 +107,11 @@ impl Estimator {
     /// Feature column names, in extraction order.
     pub(crate) fn feature_columns(&self) -> Vec<String> {
         self.ex.column_names()
+    }
+
+    /// The model's inputs that come with each frame rather than from it.
+    pub(crate) fn extra_inputs(&self) -> &[String] {
+        &self.extra_inputs
     }
 
     /// The model's target columns (empty without a model).
@@ -98,11 +154,24 @@ impl Estimator {
         &mut self,
         img: &RgbImage,
     ) -> anyhow::Result<(&FrameFeatures, Option<Vec<f64>>)> {
+        self.process_with(img, &[])
+    }
+
+    /// As [`Estimator::process`], with the values of the model's extra inputs for this frame
+    /// (in the order of [`Estimator::extra_inputs`]); a missing or NaN value gives no estimate.
+    pub(crate) fn process_with(
+        &mut self,
+        img: &RgbImage,
+        extra: &[f64],
+    ) -> anyhow::Result<(&FrameFeatures, Option<Vec<f64>>)> {
         self.features(img)?;
         let est = match &self.model {
             Some((m, cols)) => {
                 self.x.clear();
-                self.x.extend(cols.iter().map(|&c| self.features.values[c]));
+                self.x.extend(cols.iter().map(|&c| match c {
+                    Input::Feature(i) => self.features.values[i],
+                    Input::Extra(j) => extra.get(j).copied().unwrap_or(f64::NAN),
+                }));
                 (!self.x.iter().any(|v| v.is_nan())).then(|| m.predict(&self.x))
             }
             None => None,
@@ -111,17 +180,22 @@ impl Estimator {
     }
 }
 
+/// Where feature `c` sits in `ex`'s feature vector.
+fn feature_index(ex: &FeatureExtractor, c: &str) -> anyhow::Result<usize> {
+    ex.column_names()
+        .iter()
+        .position(|n| n == c)
+        .with_context(|| {
+            format!(
+                "the sensor has no feature `{c}`: the model was trained with another sensor file"
+            )
+        })
+}
+
 /// Where each of `m`'s inputs sits in `ex`'s feature vector.
 fn columns_of(ex: &FeatureExtractor, m: &Model) -> anyhow::Result<Vec<usize>> {
-    let names = ex.column_names();
     m.feature_columns
         .iter()
-        .map(|c| {
-            names.iter().position(|n| n == c).with_context(|| {
-                format!(
-                    "the sensor has no feature `{c}`: the model was trained with another sensor file"
-                )
-            })
-        })
+        .map(|c| feature_index(ex, c))
         .collect()
 }

@@ -1,8 +1,9 @@
 //! `visuotact replay`: a trained model run over a recorded session (or a video, or frames)
 //! frame by frame, as the live loop would — seed 001's Neural Network Testing Model. Writes
-//! the estimates and, when labels exist, their error figures.
+//! the estimates and, when labels exist, their error figures. Inputs of the model besides the
+//! marker features (a pressure gauge's reading) come from a table keyed by frame.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
@@ -30,13 +31,60 @@ pub(crate) struct Args {
     /// Frame rate of image sequences, frames per second.
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
+    /// Table keyed by `frame` with the model's inputs besides the marker features (e.g. a
+    /// pressure gauge's `gauge_kpa`; default: the session's labels.csv when the model has such
+    /// inputs).
+    #[arg(long, value_name = "TABLE")]
+    readings: Option<PathBuf>,
+}
+
+/// The extra inputs of each frame, from a table keyed by `frame`.
+struct Readings {
+    table: KeyedTable,
+    columns: Vec<usize>,
+}
+
+impl Readings {
+    /// Finds `names` in the table at `path`.
+    fn open(path: &Path, names: &[String]) -> anyhow::Result<Self> {
+        let table = KeyedTable::read(path, &[]).map_err(anyhow::Error::msg)?;
+        let columns = names
+            .iter()
+            .map(|c| {
+                table.column(c).with_context(|| {
+                    format!("{}: no column `{c}`, an input of the model", path.display())
+                })
+            })
+            .collect::<anyhow::Result<_>>()?;
+        Ok(Self { table, columns })
+    }
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let model = crate::train::load_model(&a.model)?;
-    let mut est = Estimator::new(a.sensor.as_deref(), Some(model))?;
+    let mut est = Estimator::with_extra_inputs(a.sensor.as_deref(), Some(model))?;
     let session =
         (a.input.len() == 1 && a.input[0].join("frames.csv").is_file()).then(|| a.input[0].clone());
+    let extra = est.extra_inputs().to_vec();
+    let readings = if extra.is_empty() {
+        None
+    } else {
+        let path = a
+            .readings
+            .clone()
+            .or_else(|| session.as_ref().map(|s| s.join("labels.csv")))
+            .filter(|p| p.is_file())
+            .with_context(|| {
+                format!(
+                    "the model {} needs {} besides the marker features: give --readings TABLE (keyed by frame)",
+                    a.model.display(),
+                    extra.join(", ")
+                )
+            })?;
+        Some(Readings::open(&path, &extra)?)
+    };
+    let by_key = readings.as_ref().map(|r| r.table.rows_by_key());
+    let mut extra_values = Vec::with_capacity(extra.len());
     // A session's frames in recorded order; anything else as given.
     let paths: Vec<PathBuf> = match &session {
         Some(s) => {
@@ -72,7 +120,16 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 continue;
             }
         };
-        match est.process(&frame.image) {
+        extra_values.clear();
+        if let (Some(r), Some(by_key)) = (&readings, &by_key) {
+            let row = by_key.get(frame.id.as_str()).map(|&i| &r.table.rows[i]);
+            extra_values.extend(
+                r.columns
+                    .iter()
+                    .map(|&c| row.map_or(f64::NAN, |row| row[c])),
+            );
+        }
+        match est.process_with(&frame.image, &extra_values) {
             Ok((_, Some(v))) => out.write_row(&frame.id, &v, "")?,
             Ok((_, None)) => {
                 missing += 1;

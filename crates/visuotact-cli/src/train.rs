@@ -105,7 +105,7 @@ impl DataArgs {
 }
 
 /// Is this a per-marker feature column (`m017_dx_px`)?
-fn is_marker_column(c: &str) -> bool {
+pub(crate) fn is_marker_column(c: &str) -> bool {
     let b = c.as_bytes();
     b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
 }
