@@ -503,7 +503,7 @@ pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
             Some("darea_px") => "area",
             Some("decc") => "ecc",
             _ => bail!(
-                "the model needs the input `{c}`, which is not a marker feature: frames alone cannot give it (estimate from a table that has it: predict --features TABLE [--readings TABLE])"
+                "the model needs the input `{c}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)"
             ),
         };
         if !kinds.contains(&kind) {
