@@ -300,59 +300,34 @@ fn gauge_reading_as_an_extra_input() {
     // Replay over the session's frames takes the gauge from its labels.csv: the same
     // estimates as from the feature table.
     let r = d.join("replay.csv");
-    let err = ok(&vt(&[
-        "replay",
-        "--model",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d),
-        "-o",
-        s(&r),
-    ]));
+    let replay = |input: &str, extra: &[&str]| {
+        let sensor = d.join("s.json");
+        let mut args = vec![
+            "replay",
+            "--model",
+            s(&m),
+            "--sensor",
+            s(&sensor),
+            input,
+            "-o",
+            s(&r),
+        ];
+        args.extend_from_slice(extra);
+        vt(&args)
+    };
+    let err = ok(&replay(s(&d), &[]));
     assert!(err.contains("0 without an estimate"), "{err}");
     assert_eq!(std::fs::read(&r).unwrap(), std::fs::read(&p).unwrap());
     // With a readings table that lacks a frame, that frame has no estimate.
-    let err = ok(&vt(&[
-        "replay",
-        "--model",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d),
-        "--readings",
-        s(&partial),
-        "-o",
-        s(&r),
-    ]));
+    let err = ok(&replay(s(&d), &["--readings", s(&partial)]));
     assert!(err.contains("1 without an estimate"), "{err}");
     // A table without the input, or a video with no table at all: clear errors.
-    let err = fails(&vt(&[
-        "replay",
-        "--model",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d),
-        "--readings",
-        s(&f),
-        "-o",
-        s(&r),
-    ]));
+    let err = fails(&replay(s(&d), &["--readings", s(&f)]));
     assert!(
         err.contains("f.csv: no column `gauge_kpa`, an input of the model"),
         "{err}"
     );
-    let err = fails(&vt(&[
-        "replay",
-        "--model",
-        s(&m),
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d.join("frames")),
-        "-o",
-        s(&r),
-    ]));
+    let err = fails(&replay(s(&d.join("frames")), &[]));
     assert!(
         err.contains("needs gauge_kpa besides the marker features: give --readings"),
         "{err}"
