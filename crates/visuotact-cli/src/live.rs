@@ -34,10 +34,11 @@ impl Estimator {
     /// model is given. The feature set is the model's, else the sensor file's. A model with
     /// inputs besides the marker features is refused: frames alone cannot give them.
     pub(crate) fn new(sensor: Option<&Path>, model: Option<Model>) -> anyhow::Result<Self> {
-        if let Some(m) = &model {
-            crate::train::feature_set_of(&m.feature_columns)?;
+        let est = Self::with_extra_inputs(sensor, model)?;
+        match est.extra_inputs.first() {
+            Some(c) => Err(crate::train::non_marker_input(c)),
+            None => Ok(est),
         }
-        Self::with_extra_inputs(sensor, model)
     }
 
     /// As [`Estimator::new`], also for a model with inputs besides the marker features; their
@@ -56,26 +57,12 @@ impl Estimator {
             },
             (None, None) => bail!("give --sensor (and --model for estimates)"),
         };
-        let extra_inputs: Vec<String> = model
-            .as_ref()
-            .map(|m| {
-                m.feature_columns
-                    .iter()
-                    .filter(|c| !crate::train::is_marker_column(c))
-                    .cloned()
-                    .collect()
-            })
-            .unwrap_or_default();
+        let (markers, extra_inputs): (Vec<String>, Vec<String>) = model
+            .iter()
+            .flat_map(|m| m.feature_columns.iter().cloned())
+            .partition(|c| crate::train::is_marker_column(c));
         let set = match &model {
-            Some(m) => {
-                let markers: Vec<String> = m
-                    .feature_columns
-                    .iter()
-                    .filter(|c| crate::train::is_marker_column(c))
-                    .cloned()
-                    .collect();
-                crate::train::feature_set_of(&markers)?
-            }
+            Some(_) => crate::train::feature_set_of(&markers)?,
             None => cal.features,
         };
         let n_markers = cal.markers.len();

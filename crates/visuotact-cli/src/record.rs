@@ -25,11 +25,11 @@ use visuotact_io::table::{format_number, push_csv_row};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
-use visuotact_sim::protocol::{self, ConePress, PressureGauge};
+use visuotact_sim::protocol::{self, ConePress};
 
 use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
 use crate::live::Estimator;
-use crate::simulate::{frame_seed, CONE_LABELS, GAUGE_SEED};
+use crate::simulate::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -157,17 +157,7 @@ impl Sim {
                 let img = visuotact_sim::cone::render(cfg, &load, seed)
                     .map_err(anyhow::Error::msg)?
                     .0;
-                let [fx, fy, fz] = load.components_n();
-                let gauge = PressureGauge::SEED001.reading_kpa(
-                    &press.drift,
-                    cfg.pressure_kpa,
-                    t,
-                    seed ^ GAUGE_SEED,
-                );
-                Ok((
-                    img,
-                    vec![load.force_n, fx, fy, fz, load.pressure_kpa, gauge],
-                ))
+                Ok((img, cone_labels(cfg, press, &load, t, seed ^ GAUGE_SEED)))
             }
             Sim::Iats { cfg, touches } => {
                 let t = &touches[k % touches.len()];

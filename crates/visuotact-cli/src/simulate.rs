@@ -96,6 +96,20 @@ pub(crate) const CONE_LABELS: [&str; 6] = [
 /// Mixed into the session seed for the pressure gauge's reading noise.
 pub(crate) const GAUGE_SEED: u64 = 0x6761_7567_655F_6B70;
 
+/// One frame's [`CONE_LABELS`] row: the load at time `t_s` of a link drifting as `press` says,
+/// and the gauge's reading then, its noise drawn from `gauge_seed`.
+pub(crate) fn cone_labels(
+    cfg: &ConeConfig,
+    press: &ConePress,
+    load: &ConeLoad,
+    t_s: f64,
+    gauge_seed: u64,
+) -> Vec<f64> {
+    let [fx, fy, fz] = load.components_n();
+    let gauge = PressureGauge::SEED001.reading_kpa(&press.drift, cfg.pressure_kpa, t_s, gauge_seed);
+    vec![load.force_n, fx, fy, fz, load.pressure_kpa, gauge]
+}
+
 /// Frames rendered and written per parallel batch.
 const BATCH: usize = 64;
 
@@ -279,14 +293,13 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
         let (img, rings) =
             visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, (a.references + k) as u64))
                 .map_err(|e| anyhow::anyhow!("frame {k}: {e}"))?;
-        let [fx, fy, fz] = load.components_n();
-        let gauge = PressureGauge::SEED001.reading_kpa(
-            &press.drift,
-            cfg.pressure_kpa,
+        let labels = cone_labels(
+            &cfg,
+            &press,
+            &load,
             t0 + k as f64 / a.fps,
             frame_seed(a.seed ^ GAUGE_SEED, k as u64),
         );
-        let labels = vec![load.force_n, fx, fy, fz, load.pressure_kpa, gauge];
         let truth = rings
             .iter()
             .map(|r| (r.x_px, r.y_px, r.area_px, r.fully_in_view))

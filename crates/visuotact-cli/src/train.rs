@@ -82,11 +82,14 @@ impl ExtraInputs {
     }
 
     fn readings_table(&self) -> anyhow::Result<Option<KeyedTable>> {
-        self.readings
-            .as_ref()
-            .map(|p| KeyedTable::read(p, &[]).map_err(anyhow::Error::msg))
-            .transpose()
+        read_readings(self.readings.as_deref())
     }
+}
+
+/// A readings table keyed by `frame` (every column numeric), when one is given.
+pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedTable>> {
+    path.map(|p| KeyedTable::read(p, &[]).map_err(anyhow::Error::msg))
+        .transpose()
 }
 
 impl DataArgs {
@@ -325,40 +328,22 @@ pub(crate) fn fit_model(
         ..TrainConfig::TRAINLM
     };
     let out = visuotact_nn::mlp::train(&mut net, &xs, &ts, &cfg, progress);
-    // MSE per target in target units: scaled MSE × (span / 2)².
-    let unit_mse = |ids: &[usize]| -> Vec<f64> {
-        (0..spec.targets.len())
-            .map(|j| {
-                let s: f64 = ids
-                    .iter()
-                    .map(|&i| (net.forward(&xs[i])[j] - ts[i][j]).powi(2))
-                    .sum();
-                let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
-                s / ids.len().max(1) as f64 * half * half
-            })
-            .collect()
-    };
-    let mse = [
-        unit_mse(&out.subsets[0]),
-        unit_mse(&out.subsets[1]),
-        unit_mse(&out.subsets[2]),
-    ];
-    // R is unchanged by mapminmax (a linear map per target): computed on the scaled values.
-    let subset_r = |ids: &[usize]| -> Vec<f64> {
+    // Per subset and target, from one forward pass per sample: the MSE in target units (scaled
+    // MSE × (span / 2)²) and R (unchanged by mapminmax, a linear map per target).
+    let figures = |ids: &[usize]| -> (Vec<f64>, Vec<f64>) {
         let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
         (0..spec.targets.len())
             .map(|j| {
                 let e: Vec<f64> = est.iter().map(|v| v[j]).collect();
                 let t: Vec<f64> = ids.iter().map(|&i| ts[i][j]).collect();
-                target_errors("", &e, &t).r
+                let f = target_errors("", &e, &t);
+                let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
+                (f.mse * half * half, f.r)
             })
-            .collect()
+            .unzip()
     };
-    let r = [
-        subset_r(&out.subsets[0]),
-        subset_r(&out.subsets[1]),
-        subset_r(&out.subsets[2]),
-    ];
+    let [(mse0, r0), (mse1, r1), (mse2, r2)] = out.subsets.each_ref().map(|ids| figures(ids));
+    let (mse, r) = ([mse0, mse1, mse2], [r0, r1, r2]);
     let stop = if out.validation_stop {
         "validation".to_string()
     } else {
@@ -494,6 +479,13 @@ pub(crate) struct PredictArgs {
 }
 
 /// The per-marker feature set that produces `columns` (`m000_dx_px`, `m000_decc`, …).
+/// The refusal of a model input that frames cannot give.
+pub(crate) fn non_marker_input(c: &str) -> anyhow::Error {
+    anyhow::anyhow!(
+        "the model needs the input `{c}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)"
+    )
+}
+
 pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
     let mut kinds: Vec<&str> = Vec::new();
     for c in columns {
@@ -502,9 +494,7 @@ pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
             Some("dy_px") => "y",
             Some("darea_px") => "area",
             Some("decc") => "ecc",
-            _ => bail!(
-                "the model needs the input `{c}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)"
-            ),
+            _ => return Err(non_marker_input(c)),
         };
         if !kinds.contains(&kind) {
             kinds.push(kind);
@@ -569,11 +559,7 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
         ),
         (None, None) => bail!("give --features TABLE, or --sensor SENSOR FRAMES..."),
     };
-    let readings = a
-        .readings
-        .as_ref()
-        .map(|p| KeyedTable::read(p, &[]).map_err(anyhow::Error::msg))
-        .transpose()?;
+    let readings = read_readings(a.readings.as_deref())?;
     let sources = InputSources::new(
         &model.feature_columns,
         &f,

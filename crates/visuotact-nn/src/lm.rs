@@ -24,7 +24,7 @@ use faer::{Accum, Mat, MatMut};
 
 /// The lower triangle of `JJᵀ` (dual) or `JᵀJ` into `out`: a symmetric product computes half
 /// the entries, and the Cholesky factorisation reads only that half.
-fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) {
+pub(crate) fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) {
     let par = faer::get_global_parallelism();
     let (lhs, rhs) = if dual {
         (jac.as_ref(), jac.transpose())
@@ -344,11 +344,6 @@ pub fn minimize<P: Problem>(
     // The dense Jacobian, allocated only if the problem gives no structured one.
     let mut dense: Option<Mat<f64>> = None;
     let dual = m < n;
-    // The Gram matrix and the solver's buffers: allocated once, reused by every iteration and
-    // μ trial.
-    let k = if dual { m } else { n };
-    let mut gram = Mat::<f64>::zeros(k, k);
-    let mut solver = DampedSolver::new(k);
     problem.residuals(&p, &mut r);
     let mut evaluations = 1;
     let mut cost = sum_sq(&r);
@@ -369,6 +364,11 @@ pub fn minimize<P: Problem>(
     if !cost.is_finite() {
         return outcome(p, cost, 0, evaluations, mu, StopReason::NonFinite);
     }
+    // The Gram matrix and the solver's buffers, once the settings and the start are known to be
+    // usable: allocated once, reused by every iteration and μ trial.
+    let k = if dual { m } else { n };
+    let mut gram = Mat::<f64>::zeros(k, k);
+    let mut solver = DampedSolver::new(k);
     for iteration in 0..cfg.max_iterations {
         if cost == 0.0 {
             return outcome(

@@ -8,7 +8,7 @@
 
 use std::sync::Arc;
 
-use faer::linalg::matmul::{self, triangular};
+use faer::linalg::matmul;
 use faer::{Accum, Mat, MatMut};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -197,17 +197,7 @@ struct LayerJacobian {
 /// The lower triangle of `A Aᵀ`.
 fn gram_rows_lower(a: &Mat<f64>) -> Mat<f64> {
     let mut g = Mat::<f64>::zeros(a.nrows(), a.nrows());
-    triangular::matmul(
-        g.as_mut(),
-        triangular::BlockStructure::TriangularLower,
-        Accum::Replace,
-        a.as_ref(),
-        triangular::BlockStructure::Rectangular,
-        a.transpose(),
-        triangular::BlockStructure::Rectangular,
-        1.0,
-        faer::get_global_parallelism(),
-    );
+    crate::lm::gram_lower_into(a, true, g.as_mut());
     g
 }
 
