@@ -13,10 +13,10 @@ use visuotact_nn::model::Model;
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
-use visuotact_vision::calibration::{calibrate, SensorCalibration};
+use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
 use visuotact_vision::detect::{Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
-use visuotact_vision::grid::Layout;
+use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 
 use crate::simulate::{frame_seed, GAUGE_SEED};
@@ -117,9 +117,12 @@ fn iats(a: &Args) -> anyhow::Result<()> {
     };
     let (cal, _) = calibrate(
         ids.iter().map(String::as_str).zip(rest.iter()),
-        det,
-        Layout::Grid,
-        FeatureSet::IATS,
+        &CalibrationConfig {
+            detector: det,
+            layout: LayoutChoice::Auto,
+            features: FeatureSet::IATS,
+            ..Default::default()
+        },
     )?;
     let mut grid = protocol::iats_grid();
     if a.quick {
@@ -262,9 +265,12 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     };
     let (cal, _) = calibrate(
         ids.iter().map(String::as_str).zip(rest.iter()),
-        det,
-        Layout::Rings,
-        FeatureSet::CONE,
+        &CalibrationConfig {
+            detector: det,
+            layout: LayoutChoice::Only(Layout::Rings),
+            features: FeatureSet::CONE,
+            ..Default::default()
+        },
     )
     .context("cone calibration")?;
     // Two presses: one to train on, one (another direction) to test.

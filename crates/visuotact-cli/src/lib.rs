@@ -24,6 +24,7 @@ mod replay;
 mod run;
 mod simulate;
 mod sweep;
+pub mod trackcheck;
 mod train;
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.
@@ -48,8 +49,12 @@ enum Command {
     Bench(bench::Args),
     /// Render marker-grid test frames with exact truth (rest frames and touches).
     Pattern(pattern::Args),
-    /// Simulate a sensor (iats or cone) through a protocol → a session folder with truth.
+    /// Simulate a sensor (iats, cone, or the zoo: tactip, gelsight, dots) through a protocol →
+    /// a session folder with truth.
     Simulate(simulate::Args),
+    /// Track simulated sensors (presets or drawn variants) in memory and compare every marker
+    /// with the simulator's truth: lost visible markers, wrong identities, displacement error.
+    CheckTracking(trackcheck::Args),
     /// Train a network (Levenberg–Marquardt) from features and labels → model.json.
     Train(train::TrainArgs),
     /// Train many hidden sizes × repeats on every core → sweep.csv, best model, plot.
@@ -105,6 +110,7 @@ where
         Command::Bench(a) => bench::run(&a),
         Command::Pattern(a) => pattern::run(&a),
         Command::Simulate(a) => simulate::run(&a),
+        Command::CheckTracking(a) => trackcheck::run(&a),
         Command::Train(a) => train::train(&a),
         Command::Sweep(a) => sweep::run(&a),
         Command::Predict(a) => train::predict(&a),

@@ -9,20 +9,28 @@ use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_io::force::{ForceLayout, ForceSample};
 use visuotact_io::frames::write_png;
-use visuotact_io::session::SessionWriter;
+use visuotact_io::session::{SessionWriter, TruthRow};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
+use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// Which sensor: iats (seed 000's areal touch sensor) or cone (seed 001's inflatable link).
-    #[arg(long, value_parser = ["iats", "cone"])]
+    /// Which sensor: iats (seed 000's areal touch sensor), cone (seed 001's inflatable link), or
+    /// one of the zoo: tactip (hemispherical tip, hexagonal pins), gelsight (dark-dot grid on a
+    /// bright gel), dots (random dot pattern).
+    #[arg(long, value_parser = ["iats", "cone", "tactip", "gelsight", "dots"])]
     sensor: String,
-    /// iats: grid, random, shear, line; cone: press, press-rotate.
+    /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random,
+    /// shear.
     #[arg(long)]
     protocol: String,
+    /// iats and zoo sensors: draw the sensor's parameters (pitch, marker size, colours, skin,
+    /// camera…) from their ranges with this seed; 0 is the preset. `--config` overrides on top.
+    #[arg(long, default_value_t = 0)]
+    variant: u64,
     /// Random seed: the same seed writes the same bytes.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -55,23 +63,36 @@ pub(crate) struct Args {
     #[arg(long, default_value = "timestamp_s,fx,fy,fz,tx,ty,tz")]
     force_layout: String,
     /// JSON file with the sensor model's settings (any subset of the fields of the `config`
-    /// object in a session.json; the rest keep the seed's preset), to match your own sensor.
+    /// object in a session.json; the rest keep the preset or `--variant`'s draw), to match your
+    /// own sensor.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
 }
 
-/// The sensor model: the seed preset, overridden by `--config` when given.
-fn sensor_config<T: serde::de::DeserializeOwned + Default>(a: &Args) -> anyhow::Result<T> {
-    match &a.config {
-        None => Ok(T::default()),
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("{}: cannot read", p.display()))?;
-            serde_json::from_str(&text).map_err(|e| {
-                anyhow::anyhow!("{}: not a {} sensor model: {e}", p.display(), a.sensor)
-            })
+/// The sensor model: `base` (the preset or a variant), with the fields of `--config` over it.
+fn sensor_config<T: serde::de::DeserializeOwned + serde::Serialize>(
+    a: &Args,
+    base: T,
+) -> anyhow::Result<T> {
+    let Some(p) = &a.config else {
+        return Ok(base);
+    };
+    let text =
+        std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+    let bad = |e: serde_json::Error| {
+        anyhow::anyhow!("{}: not a {} sensor model: {e}", p.display(), a.sensor)
+    };
+    let over: serde_json::Value = serde_json::from_str(&text).map_err(bad)?;
+    let serde_json::Value::Object(over) = over else {
+        bail!("{}: expected a JSON object of settings", p.display());
+    };
+    let mut merged = serde_json::to_value(base)?;
+    if let serde_json::Value::Object(m) = &mut merged {
+        for (k, v) in over {
+            m.insert(k, v);
         }
     }
+    serde_json::from_value(merged).map_err(bad)
 }
 
 /// Per-frame noise seed: SplitMix64 of the session seed and the frame number.
@@ -115,7 +136,7 @@ const BATCH: usize = 64;
 
 struct Rendered {
     labels: Vec<f64>,
-    truth: Vec<(f64, f64, f64, bool)>,
+    truth: Vec<TruthRow>,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -123,9 +144,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         bail!("--fps must be a positive frame rate, got {}", a.fps);
     }
     let t_start = Instant::now();
+    if a.variant != 0 && a.sensor == "cone" {
+        bail!("--variant applies to iats and the zoo sensors (tactip, gelsight, dots)");
+    }
     let n_frames = match a.sensor.as_str() {
         "iats" => simulate_iats(a)?,
-        _ => simulate_cone(a)?,
+        "cone" => simulate_cone(a)?,
+        zoo => simulate_zoo(a, ZooKind::from_name(zoo).context("unknown sensor")?)?,
     };
     eprintln!(
         "wrote {} reference and {n_frames} frames to {} in {:.1} s",
@@ -183,11 +208,11 @@ fn write_references(
 }
 
 fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
-    let cfg: IatsConfig = sensor_config(a)?;
+    let cfg: IatsConfig = sensor_config(a, IatsConfig::variant(a.variant))?;
     cfg.validate()
         .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
     let touches: Vec<Touch> = match a.protocol.as_str() {
-        "grid" => protocol::iats_grid(),
+        "grid" => protocol::iats_grid_for(&cfg),
         "random" => protocol::iats_random(&cfg, a.touches, a.seed),
         "shear" => protocol::iats_shear(&cfg, a.touches, a.seed),
         "line" => protocol::iats_line(),
@@ -224,7 +249,13 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
         }
         let truth = truth
             .iter()
-            .map(|m| (m.x_px, m.y_px, m.area_px, m.fully_in_view))
+            .map(|m| TruthRow {
+                x_px: m.x_px,
+                y_px: m.y_px,
+                area_px: m.area_px,
+                fully_in_view: m.fully_in_view,
+                visible: m.visible,
+            })
             .collect();
         Ok((img, Rendered { labels, truth }))
     })?;
@@ -232,6 +263,71 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
         "sensor": "iats",
         "protocol": a.protocol,
         "seed": a.seed,
+        "variant": a.variant,
+        "fps": a.fps,
+        "reference_frames": a.references,
+        "frames": touches.len(),
+        "labels": cols,
+        "config": cfg,
+        "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),
+    }))?;
+    Ok(touches.len())
+}
+
+fn simulate_zoo(a: &Args, kind: ZooKind) -> anyhow::Result<usize> {
+    let cfg: ZooConfig = sensor_config(a, ZooConfig::variant(kind, a.variant))?;
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
+    let touches: Vec<ZooTouch> = match a.protocol.as_str() {
+        "grid" => protocol::zoo_grid(&cfg),
+        "random" => protocol::zoo_random(&cfg, a.touches, a.seed),
+        "shear" => protocol::zoo_shear(&cfg, a.touches, a.seed),
+        other => bail!(
+            "--protocol {other:?} is not a {} protocol: expected grid, random or shear",
+            kind.name()
+        ),
+    };
+    for (k, t) in touches.iter().enumerate() {
+        t.validate(&cfg)
+            .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
+    }
+    let shear = a.protocol == "shear";
+    let mut cols = vec!["x_mm", "y_mm", "depth_mm"];
+    if shear {
+        cols.extend(["shear_x_mm", "shear_y_mm", "twist_deg"]);
+    }
+    let mut w = SessionWriter::create(&a.output, &cols, true, false)?;
+    let rest = ZooTouch::default();
+    write_references(&mut w, a.references, a.fps, |k| {
+        Ok(zoo::render(&cfg, &rest, frame_seed(a.seed, k as u64))
+            .map_err(anyhow::Error::msg)?
+            .0)
+    })?;
+    write_frames(&mut w, touches.len(), a.references, a.fps, |k| {
+        let t = &touches[k];
+        let (img, truth) = zoo::render(&cfg, t, frame_seed(a.seed, (a.references + k) as u64))
+            .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
+        let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
+        if shear {
+            labels.extend([t.shear_x_mm, t.shear_y_mm, t.twist_deg]);
+        }
+        let truth = truth
+            .iter()
+            .map(|m| TruthRow {
+                x_px: m.x_px,
+                y_px: m.y_px,
+                area_px: m.area_px,
+                fully_in_view: m.in_view,
+                visible: m.visible,
+            })
+            .collect();
+        Ok((img, Rendered { labels, truth }))
+    })?;
+    w.finish(serde_json::json!({
+        "sensor": kind.name(),
+        "protocol": a.protocol,
+        "seed": a.seed,
+        "variant": a.variant,
         "fps": a.fps,
         "reference_frames": a.references,
         "frames": touches.len(),
@@ -243,7 +339,7 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
 }
 
 fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
-    let cfg: ConeConfig = sensor_config(a)?;
+    let cfg: ConeConfig = sensor_config(a, ConeConfig::default())?;
     cfg.validate()
         .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
     let press = ConePress {
@@ -302,7 +398,13 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
         );
         let truth = rings
             .iter()
-            .map(|r| (r.x_px, r.y_px, r.area_px, r.fully_in_view))
+            .map(|r| TruthRow {
+                x_px: r.x_px,
+                y_px: r.y_px,
+                area_px: r.area_px,
+                fully_in_view: r.fully_in_view,
+                visible: r.fully_in_view,
+            })
             .collect();
         Ok((img, Rendered { labels, truth }))
     })?;

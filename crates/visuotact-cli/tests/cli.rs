@@ -50,7 +50,7 @@ fn setup(name: &str, touches: usize) -> (PathBuf, PathBuf) {
     let o = vt(&["calibrate", s(&d.join("rest")), "-o", s(&sensor)]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("calibrated 117 markers (9 rows × 13 columns"),
+        stderr(&o).contains("calibrated 117 markers (grid: 9 rows × 13 columns"),
         "{}",
         stderr(&o)
     );
@@ -231,7 +231,7 @@ fn video_input_is_decoded_by_ffmpeg() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("calibrated 80 markers (8 rows × 10 columns"),
+        stderr(&o).contains("calibrated 80 markers (grid: 8 rows × 10 columns"),
         "{}",
         stderr(&o)
     );

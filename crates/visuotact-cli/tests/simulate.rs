@@ -147,7 +147,7 @@ fn iats_session_calibrates_extracts_and_matches_truth() {
         .all(|r| r["depth_mm"].parse::<f64>().unwrap() >= 1.0));
     let (sensor, out, err) = calibrate_and_extract(&d, &[]);
     assert!(
-        err.contains("calibrated 117 markers (9 rows × 13 columns"),
+        err.contains("calibrated 117 markers (grid: 9 rows × 13 columns"),
         "{err}"
     );
     let (checked, mean, worst) = compare_with_truth(&d, &sensor, &out, false);
@@ -446,7 +446,7 @@ fn a_config_file_matches_the_simulator_to_another_sensor() {
         s(&d.join("s.json")),
     ]));
     assert!(
-        err.contains("calibrated 48 markers (6 rows × 8 columns"),
+        err.contains("calibrated 48 markers (grid: 6 rows × 8 columns"),
         "{err}"
     );
     std::fs::write(&cfg, r#"{"colz": 8}"#).unwrap();

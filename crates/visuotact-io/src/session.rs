@@ -7,7 +7,7 @@
 //!   frames/           the frames (PNG)
 //!   frames.csv        frame,index,timestamp_s,kind   (kind: reference | touch)
 //!   labels.csv        frame,<targets with units>     (x_mm,y_mm,depth_mm… or force_n,fx_n…)
-//!   truth.csv         frame,marker,x_px,y_px,area_px,fully_in_view  (simulator only)
+//!   truth.csv         frame,marker,x_px,y_px,area_px,fully_in_view,visible  (simulator only)
 //!   force.csv         timestamp_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm (when a force sensor ran)
 //! ```
 //!
@@ -25,6 +25,21 @@ use crate::table::format_number;
 pub const SESSION_FORMAT: &str = "visuotact-session";
 /// Current session format version.
 pub const SESSION_VERSION: u32 = 1;
+
+/// One simulated marker's truth in one frame (a row of `truth.csv`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TruthRow {
+    /// Exact centroid column of the shape drawn, pixels.
+    pub x_px: f64,
+    /// Exact centroid row, pixels.
+    pub y_px: f64,
+    /// Exact area, pixels.
+    pub area_px: f64,
+    /// Wholly inside the image (and the sensor's circular view, if any).
+    pub fully_in_view: bool,
+    /// In view and clear of every other marker: a blob of its own that tracking must find.
+    pub visible: bool,
+}
 
 /// Writes one session folder.
 pub struct SessionWriter {
@@ -70,7 +85,7 @@ impl SessionWriter {
         writeln!(labels, "frame,{}", label_columns.join(","))?;
         let truth = if with_truth {
             let mut t = create(&dir.join("truth.csv"))?;
-            writeln!(t, "frame,marker,x_px,y_px,area_px,fully_in_view")?;
+            writeln!(t, "frame,marker,x_px,y_px,area_px,fully_in_view,visible")?;
             Some(t)
         } else {
             None
@@ -120,14 +135,14 @@ impl SessionWriter {
     }
 
     /// Records a frame already written to [`SessionWriter::frame_path`], with its labels and
-    /// (simulator) per-marker truth `(x_px, y_px, area_px, fully_in_view)`.
+    /// (simulator) per-marker truth.
     pub fn add_frame(
         &mut self,
         name: &str,
         index: usize,
         timestamp_s: f64,
         labels: &[f64],
-        truth: &[(f64, f64, f64, bool)],
+        truth: &[TruthRow],
     ) -> std::io::Result<()> {
         assert_eq!(
             labels.len(),
@@ -142,8 +157,16 @@ impl SessionWriter {
         let cells: Vec<String> = labels.iter().map(|v| format_number(*v)).collect();
         writeln!(self.labels, "{name},{}", cells.join(","))?;
         if let Some(t) = self.truth.as_mut() {
-            for (k, (x, y, a, inside)) in truth.iter().enumerate() {
-                writeln!(t, "{name},{k},{x:.6},{y:.6},{a:.4},{}", u8::from(*inside))?;
+            for (k, r) in truth.iter().enumerate() {
+                writeln!(
+                    t,
+                    "{name},{k},{:.6},{:.6},{:.4},{},{}",
+                    r.x_px,
+                    r.y_px,
+                    r.area_px,
+                    u8::from(r.fully_in_view),
+                    u8::from(r.visible)
+                )?;
             }
             t.flush()?;
         }

@@ -18,14 +18,14 @@
 //!   the pinhole camera with radial distortion and filled as a polygon, whose exact area and
 //!   centroid are the truth.
 
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use visuotact_image::RgbImage;
 
 use crate::camera::Camera;
 use crate::pattern::Look;
-use crate::render::{ring_area_centroid, Canvas, ConvexPolygon};
+use crate::render::{crowded, ring_area_centroid, Canvas, ConvexPolygon};
 
 /// Every physical and optical parameter of the IATS simulator.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -76,6 +76,56 @@ impl IatsConfig {
         look: Look::GREEN_ON_DARK,
         blur_px: 0.6,
     };
+
+    /// A membrane sensor like seed 000's with every parameter drawn from a range by `seed`
+    /// (seed 0: [`IatsConfig::SEED000`]), uniform: 8–14 columns × 6–10 rows spanning at most
+    /// 62 × 46 mm (pitches 3.5–6 mm, row pitch 0.8–1.2 × column pitch), marker radius 0.2–0.35
+    /// pitch, frame margin 3–8 mm, tip radius 3–8 mm, presses to 4–5.5 mm, in-plane coupling
+    /// 0.3–1, camera 36–42 mm away with k1 −0.12…−0.04, markers pale (40–90 grey levels above
+    /// the fabric) or bright in a random colour on fabric 15–60, noise σ 2–5, vignetting
+    /// 0.1–0.35, blur 0.4–1 px.
+    pub fn variant(seed: u64) -> Self {
+        let mut c = Self::SEED000;
+        if seed == 0 {
+            return c;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x1A75_0000);
+        let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
+        c.cols = u(8.0, 14.99).floor() as usize;
+        c.rows = u(6.0, 10.99).floor() as usize;
+        let px = u(3.5, 6.0).min(62.0 / (c.cols - 1) as f64);
+        let py = (px * u(0.8, 1.2)).min(46.0 / (c.rows - 1) as f64);
+        c.span_x_mm = px * (c.cols - 1) as f64;
+        c.span_y_mm = py * (c.rows - 1) as f64;
+        c.marker_radius_mm = u(0.2, 0.35) * px.min(py);
+        c.frame_margin_mm = u(3.0, 8.0);
+        c.tip_radius_mm = u(3.0, 8.0);
+        c.max_depth_mm = u(4.0, 5.5);
+        c.stretch_coupling = u(0.3, 1.0);
+        c.camera_distance_mm = u(36.0, 42.0);
+        c.camera.k1 = u(-0.12, -0.04);
+        let fabric = u(15.0, 60.0) as f32;
+        let tint = [u(0.8, 1.2) as f32, u(0.8, 1.2) as f32, u(0.8, 1.2) as f32];
+        let marker = if u(0.0, 1.0) < 0.5 {
+            // Pale: little contrast over the fabric, in the green channel too.
+            let lift = u(40.0, 90.0) as f32;
+            tint.map(|t| t * (fabric + lift))
+        } else {
+            [
+                u(40.0, 120.0) as f32,
+                u(150.0, 240.0) as f32,
+                u(40.0, 140.0) as f32,
+            ]
+        };
+        c.look = Look {
+            background: tint.map(|t| t * fabric),
+            marker,
+            noise_sigma: u(2.0, 5.0) as f32,
+            vignetting: u(0.1, 0.35) as f32,
+        };
+        c.blur_px = u(0.4, 1.0);
+        c
+    }
 
     /// Column pitch, mm.
     pub fn pitch_x_mm(&self) -> f64 {
@@ -283,6 +333,8 @@ pub struct IatsMarker {
     pub area_px: f64,
     /// Whether the whole marker lies inside the image with a pixel to spare.
     pub fully_in_view: bool,
+    /// In view and clear of every other marker by `2 px + 2 × blur`: a blob of its own.
+    pub visible: bool,
 }
 
 /// Boundary points of a marker per polygon.
@@ -333,9 +385,18 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
                     y_px,
                     area_px,
                     fully_in_view,
+                    visible: fully_in_view,
                 },
             ));
         }
+    }
+    let shapes: Vec<(Option<&ConvexPolygon>, (f64, f64))> = out
+        .iter()
+        .map(|(p, m)| (p.as_ref(), (m.x_px, m.y_px)))
+        .collect();
+    let crowded = crowded(&shapes, 2.0 + 2.0 * cfg.blur_px);
+    for ((_, m), c) in out.iter_mut().zip(crowded) {
+        m.visible = m.fully_in_view && !c;
     }
     out
 }
@@ -536,6 +597,19 @@ mod tests {
             },
         ] {
             assert!(render(&c, &t, 0).is_err(), "{t:?}");
+        }
+    }
+
+    #[test]
+    fn variants_are_valid_and_in_view() {
+        for seed in 0..20 {
+            let c = IatsConfig::variant(seed);
+            c.validate().unwrap();
+            let rest = markers(&c, &Touch::default());
+            assert!(
+                rest.iter().all(|(_, m)| m.fully_in_view),
+                "variant {seed}: {c:?}"
+            );
         }
     }
 

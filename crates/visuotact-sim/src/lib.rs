@@ -16,3 +16,4 @@ pub mod jr3;
 pub mod pattern;
 pub mod protocol;
 pub mod render;
+pub mod zoo;

@@ -175,19 +175,35 @@ pub fn render_markers(
 /// Colours a coverage canvas (0 background, 1 marker) with the look's colours, vignetting,
 /// Gaussian noise and 8-bit rounding. The noise sequence is fixed by `seed`.
 pub fn frame_from_coverage(cov: &Canvas, look: &Look, seed: u64) -> RgbImage {
-    let (width, height) = (cov.width, cov.height);
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0f32, look.noise_sigma.max(0.0))
-        .unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
-    let (cx, cy) = (width as f32 / 2.0, height as f32 / 2.0);
+    let (cx, cy) = (cov.width as f32 / 2.0, cov.height as f32 / 2.0);
     let rmax2 = cx * cx + cy * cy;
-    RgbImage::from_fn(width, height, |x, y| {
-        let c = cov.data[y * width + x];
+    frame_from_coverage_lit(cov, look.noise_sigma, seed, |x, y| {
         let r2 = ((x as f32 - cx).powi(2) + (y as f32 - cy).powi(2)) / rmax2;
         let light = 1.0 - look.vignetting * r2;
+        (look.background, look.marker, light)
+    })
+}
+
+/// Colours a coverage canvas with per-pixel colours: `colours(x, y)` gives the background and
+/// marker colours there and the light falling on them; the pixel is their blend by coverage
+/// times the light, plus Gaussian noise of `noise_sigma` grey levels (sequence fixed by
+/// `seed`), rounded to 8 bits.
+pub fn frame_from_coverage_lit(
+    cov: &Canvas,
+    noise_sigma: f32,
+    seed: u64,
+    colours: impl Fn(usize, usize) -> ([f32; 3], [f32; 3], f32),
+) -> RgbImage {
+    let width = cov.width;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0f32, noise_sigma.max(0.0))
+        .unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
+    RgbImage::from_fn(width, cov.height, |x, y| {
+        let c = cov.data[y * width + x];
+        let (bg, mk, light) = colours(x, y);
         let mut px = [0u8; 3];
-        for (o, (bg, mk)) in px.iter_mut().zip(look.background.iter().zip(&look.marker)) {
-            let v = (bg * (1.0 - c) + mk * c) * light + noise.sample(&mut rng);
+        for (o, (b, m)) in px.iter_mut().zip(bg.iter().zip(&mk)) {
+            let v = (b * (1.0 - c) + m * c) * light + noise.sample(&mut rng);
             *o = v.round().clamp(0.0, 255.0) as u8;
         }
         px

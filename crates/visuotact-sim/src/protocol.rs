@@ -7,18 +7,27 @@ use rand_distr::Distribution;
 
 use crate::cone::{ConeConfig, ConeLoad};
 use crate::iats::{IatsConfig, Touch};
+use crate::zoo::{Surface, ZooConfig, ZooTouch};
 
 /// Seed 000's grid: x in 4 mm steps × 16, y in 3 mm steps × 16, at depths 1..=5 mm
 /// (1 280 touches), depth-major then rows then columns.
 pub fn iats_grid() -> Vec<Touch> {
+    iats_grid_for(&IatsConfig::SEED000)
+}
+
+/// Seed 000's grid scaled to a sensor's marker area: 16 × 16 contacts from the first to the
+/// last marker row and column (seed 000: 4 mm and 3 mm steps), at depths 1..=5 mm (capped at
+/// the sensor's deepest press).
+pub fn iats_grid_for(cfg: &IatsConfig) -> Vec<Touch> {
     let mut out = Vec::with_capacity(1280);
+    let (sx, sy) = (cfg.span_x_mm / 15.0, cfg.span_y_mm / 15.0);
     for depth in 1..=5 {
         for iy in 0..16 {
             for ix in 0..16 {
                 out.push(Touch {
-                    x_mm: 4.0 * f64::from(ix),
-                    y_mm: 3.0 * f64::from(iy),
-                    depth_mm: f64::from(depth),
+                    x_mm: sx * f64::from(ix),
+                    y_mm: sy * f64::from(iy),
+                    depth_mm: f64::from(depth).min(cfg.max_depth_mm),
                     ..Touch::default()
                 });
             }
@@ -64,6 +73,82 @@ pub fn iats_shear(cfg: &IatsConfig, n: usize, seed: u64) -> Vec<Touch> {
             let drag = pitch * rng.random_range(0.0..=1.0);
             t.shear_x_mm = drag * ang.cos();
             t.shear_y_mm = drag * ang.sin();
+            t
+        })
+        .collect()
+}
+
+/// A zoo sensor's grid: contacts on a 7 × 7 lattice over the marker field (a 9 × 9 one cut to
+/// the disc on a dome) at depths 0.2, 0.4 … 1.0 of the skin's limit, depth-major.
+pub fn zoo_grid(cfg: &ZooConfig) -> Vec<ZooTouch> {
+    let (half_w, half_h) = match cfg.surface {
+        Surface::Flat => (0.5 * cfg.field_width_mm, 0.5 * cfg.field_height_mm),
+        Surface::Dome => (0.5 * cfg.field_width_mm, 0.5 * cfg.field_width_mm),
+    };
+    let n = match cfg.surface {
+        Surface::Flat => 7,
+        Surface::Dome => 9,
+    };
+    let mut out = Vec::new();
+    for k in 1..=5 {
+        for iy in 0..n {
+            for ix in 0..n {
+                let f = |i: usize| 2.0 * i as f64 / (n - 1) as f64 - 1.0;
+                let (x, y) = (f(ix) * half_w, f(iy) * half_h);
+                if cfg.field_contains(x, y) {
+                    out.push(ZooTouch {
+                        x_mm: x,
+                        y_mm: y,
+                        depth_mm: 0.2 * f64::from(k) * cfg.max_depth_mm,
+                        ..ZooTouch::default()
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `n` touches uniform over a zoo sensor's marker field, depth uniform from 5 % of the skin's
+/// limit to the limit.
+pub fn zoo_random(cfg: &ZooConfig, n: usize, seed: u64) -> Vec<ZooTouch> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x200);
+    let half_w = 0.5 * cfg.field_width_mm;
+    let half_h = match cfg.surface {
+        Surface::Flat => 0.5 * cfg.field_height_mm,
+        Surface::Dome => half_w,
+    };
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let (x, y) = (
+            rng.random_range(-half_w..=half_w),
+            rng.random_range(-half_h..=half_h),
+        );
+        let depth = rng.random_range(0.05..=1.0) * cfg.max_depth_mm;
+        if cfg.field_contains(x, y) {
+            out.push(ZooTouch {
+                x_mm: x,
+                y_mm: y,
+                depth_mm: depth,
+                ..ZooTouch::default()
+            });
+        }
+    }
+    out
+}
+
+/// Random zoo touches that also drag the skin by up to one marker pitch in a random direction
+/// and twist it by up to ±10°.
+pub fn zoo_shear(cfg: &ZooConfig, n: usize, seed: u64) -> Vec<ZooTouch> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EA5_0200);
+    zoo_random(cfg, n, seed)
+        .into_iter()
+        .map(|mut t| {
+            let ang = rng.random_range(0.0..std::f64::consts::TAU);
+            let drag = cfg.pitch_mm * rng.random_range(0.0..=1.0);
+            t.shear_x_mm = drag * ang.cos();
+            t.shear_y_mm = drag * ang.sin();
+            t.twist_deg = rng.random_range(-10.0..=10.0);
             t
         })
         .collect()
@@ -213,6 +298,23 @@ mod tests {
         );
         let cfg = IatsConfig::SEED000;
         assert!(g.iter().all(|t| t.validate(&cfg).is_ok()));
+    }
+
+    #[test]
+    fn zoo_touches_are_valid_and_seeded() {
+        for kind in crate::zoo::ZooKind::ALL {
+            for v in 0..4 {
+                let cfg = ZooConfig::variant(kind, v);
+                let a = zoo_shear(&cfg, 40, 3);
+                assert_eq!(a, zoo_shear(&cfg, 40, 3));
+                assert_ne!(a, zoo_shear(&cfg, 40, 4));
+                let g = zoo_grid(&cfg);
+                assert!(g.len() >= 5 * 25, "{} touches", g.len());
+                for t in a.iter().chain(&g) {
+                    t.validate(&cfg).unwrap();
+                }
+            }
+        }
     }
 
     #[test]

@@ -208,6 +208,44 @@ impl ConvexPolygon {
         range
     }
 
+    /// The hull's vertices.
+    pub fn vertices(&self) -> &[(f64, f64)] {
+        &self.vertices
+    }
+
+    /// Whether the point lies inside (or on) the polygon.
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        self.edges.iter().all(|&(a, b, c)| a * x + b * y + c >= 0.0)
+    }
+
+    /// The smallest distance between this polygon and `other` (0 when they overlap).
+    pub fn gap_to(&self, other: &ConvexPolygon) -> f64 {
+        let inside = self.vertices.iter().any(|&(x, y)| other.contains(x, y))
+            || other.vertices.iter().any(|&(x, y)| self.contains(x, y));
+        if inside {
+            return 0.0;
+        }
+        let seg = |p: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+            let l2 = dx * dx + dy * dy;
+            let t = if l2 > 0.0 {
+                (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
+        };
+        let one_way = |from: &ConvexPolygon, to: &ConvexPolygon| {
+            let n = to.vertices.len();
+            from.vertices
+                .iter()
+                .flat_map(|&p| (0..n).map(move |i| (p, i)))
+                .map(|(p, i)| seg(p, to.vertices[i], to.vertices[(i + 1) % n]))
+                .fold(f64::INFINITY, f64::min)
+        };
+        one_way(self, other).min(one_way(other, self))
+    }
+
     /// Axis-aligned bounds `(x0, y0, x1, y1)`.
     pub fn bounds(&self) -> (f64, f64, f64, f64) {
         self.vertices.iter().fold(
@@ -220,6 +258,47 @@ impl ConvexPolygon {
             |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
         )
     }
+}
+
+/// Which shapes come within `clear` pixels of another: `shapes` are polygons (or `None`, never
+/// crowded) with their centroids. Neighbours are found by a sweep along x; exact gaps only for
+/// pairs whose bounding circles are that close.
+pub fn crowded(shapes: &[(Option<&ConvexPolygon>, (f64, f64))], clear: f64) -> Vec<bool> {
+    let reach: Vec<f64> = shapes
+        .iter()
+        .map(|(p, c)| {
+            p.map_or(0.0, |p| {
+                p.vertices
+                    .iter()
+                    .map(|&(x, y)| (x - c.0).hypot(y - c.1))
+                    .fold(0.0, f64::max)
+            })
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..shapes.len())
+        .filter(|&i| shapes[i].0.is_some())
+        .collect();
+    order.sort_by(|&a, &b| shapes[a].1 .0.total_cmp(&shapes[b].1 .0));
+    let max_reach = reach.iter().copied().fold(0.0, f64::max);
+    let mut out = vec![false; shapes.len()];
+    for (k, &i) in order.iter().enumerate() {
+        for &j in &order[k + 1..] {
+            let (ci, cj) = (shapes[i].1, shapes[j].1);
+            if cj.0 - ci.0 > 2.0 * max_reach + clear {
+                break;
+            }
+            if (ci.0 - cj.0).hypot(ci.1 - cj.1) - reach[i] - reach[j] > clear {
+                continue;
+            }
+            if let (Some(pi), Some(pj)) = (shapes[i].0, shapes[j].0) {
+                if pi.gap_to(pj) < clear {
+                    out[i] = true;
+                    out[j] = true;
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Andrew's monotone chain: hull vertices counter-clockwise (in x-right, y-down pixels,

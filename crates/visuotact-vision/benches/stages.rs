@@ -6,10 +6,10 @@ use std::hint::black_box;
 use visuotact_image::GrayImage;
 use visuotact_sim::pattern::{render_grid, GridPattern, Press};
 use visuotact_vision::blobs::{blobs_from_gray_into, BlobScratch, Connectivity, Level, Region};
-use visuotact_vision::calibration::{calibrate, track_reference};
+use visuotact_vision::calibration::{calibrate, track_reference, CalibrationConfig};
 use visuotact_vision::detect::{Detector, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
-use visuotact_vision::grid::Layout;
+use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::preprocess::{
     gray_from_rgb_into, histogram, morphology_in_place, otsu_level, Channel, MorphScratch,
     PreprocessConfig,
@@ -36,9 +36,12 @@ fn stages(c: &mut Criterion) {
     };
     let (cal, _) = calibrate(
         [("rest", &rest)],
-        det_cfg.clone(),
-        Layout::Grid,
-        FeatureSet::IATS,
+        &CalibrationConfig {
+            detector: det_cfg.clone(),
+            layout: LayoutChoice::Auto,
+            features: FeatureSet::IATS,
+            ..Default::default()
+        },
     )
     .unwrap();
 

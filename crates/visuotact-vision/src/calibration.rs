@@ -1,10 +1,18 @@
-//! The sensor calibration: a no-contact reference built from still frames, markers numbered in
-//! grid order, and every setting needed to measure later frames the same way. Saved as JSON.
+//! The sensor calibration: a no-contact reference built from still frames, markers numbered by
+//! their layout ([`crate::layout`]), and every setting needed to measure later frames the same
+//! way. Saved as JSON.
 //!
 //! The reference image is the per-pixel mean of N still frames in the chosen channel (seed 001's
 //! Calibration Data Model), on which markers are detected once; each still frame is then
 //! tracked against it to measure each marker's jitter (RMS, pixels), the noise floor of the
 //! displacement features.
+//!
+//! A data set with no contact-free frame (every frame pressed) gets its reference from its
+//! lightest frames instead ([`lightest_frames`]): every frame's markers are tracked against a
+//! provisional reference, each marker's median position over all frames estimates where it
+//! rests (touches at different places leave any one marker alone in most frames), and the N
+//! frames closest to that estimate (RMS over the markers) are the ones averaged. The sensor
+//! file says so ([`ReferenceInfo`]), with how far those frames still were from the estimate.
 
 use serde::{Deserialize, Serialize};
 use visuotact_image::{GrayImage, RgbImage};
@@ -12,23 +20,25 @@ use visuotact_image::{GrayImage, RgbImage};
 use crate::blobs::{Blob, MomentConvention};
 use crate::detect::{Detector, DetectorConfig};
 use crate::features::FeatureSet;
-use crate::grid::{lattice_from_points, GridError, Layout};
+use crate::layout::{annuli_share_centres, number_markers, Layout, LayoutChoice, LayoutError};
 use crate::preprocess::gray_from_rgb_into;
 use crate::track::{track, TrackConfig, TrackReference};
 
 /// Identifies sensor files.
 pub const SENSOR_FORMAT: &str = "visuotact-sensor";
-/// Current sensor file version.
-pub const SENSOR_VERSION: u32 = 1;
+/// Current sensor file version (2: layouts beyond grid and rings, marker neighbours, reference
+/// provenance; version 1 files read as grids or rings with neighbours rebuilt).
+pub const SENSOR_VERSION: u32 = 2;
 
 /// One marker of the no-contact reference.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceMarker {
-    /// Marker number in grid order (0-based); feature columns are named `m{id:03}_…`.
+    /// Marker number in the layout's order (0-based); feature columns are named `m{id:03}_…`.
     pub id: u32,
-    /// Grid row (0 = top).
+    /// Row in the layout (grid and hex: lattice row, 0 = top; dot rings: ring, 0 = centre).
     pub row: u32,
-    /// Grid column (0 = left).
+    /// Column in the layout (grid: lattice column; hex: half-pitch steps; dot rings: position
+    /// in the ring).
     pub col: u32,
     /// Centroid column in pixels.
     pub x_px: f64,
@@ -47,6 +57,51 @@ pub struct ReferenceMarker {
     /// RMS displacement over the calibration frames, pixels (0 with one frame; `None` when the
     /// marker was never matched in a single calibration frame).
     pub jitter_px: Option<f64>,
+    /// Ids of the marker's neighbours in the layout (lattice steps, or the markers within 1.5 ×
+    /// its nearest distance), nearest first.
+    #[serde(default)]
+    pub neighbours: Vec<u32>,
+}
+
+/// How the reference was taken.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceInfo {
+    /// `still` (the mean of frames given as contact-free) or `lightest` (the lightest frames of
+    /// a data set with no contact-free frame).
+    pub method: String,
+    /// Frames the lightest ones were chosen from (0 for still frames).
+    pub frames_considered: usize,
+    /// RMS distance of the chosen frames' markers from their estimated rest positions, pixels
+    /// (`lightest` only): what contact the reference still holds.
+    pub residual_px: Option<f64>,
+    /// Largest single marker's distance from its estimated rest position, pixels (`lightest`).
+    pub residual_max_px: Option<f64>,
+    /// The reference was taken under contact: displacement features are relative to a lightly
+    /// pressed skin, not to the skin at rest.
+    pub under_contact: bool,
+}
+
+impl ReferenceInfo {
+    /// A reference from frames given as contact-free.
+    pub fn still() -> Self {
+        Self {
+            method: "still".to_string(),
+            ..Self::default()
+        }
+    }
+}
+
+/// What calibration builds from the frames.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct CalibrationConfig {
+    /// Preprocessing and blob filter.
+    pub detector: DetectorConfig,
+    /// Marker layout: recognised, or one that must fit.
+    pub layout: LayoutChoice,
+    /// Default feature set for `extract`.
+    pub features: FeatureSet,
+    /// Tracker settings saved in the sensor file.
+    pub track: TrackConfig,
 }
 
 /// Everything `extract` needs to turn frames of this sensor into features.
@@ -72,11 +127,15 @@ pub struct SensorCalibration {
     pub features: FeatureSet,
     /// Ids of the frames averaged into the reference.
     pub reference_frames: Vec<String>,
-    /// Grid rows spanned by the markers (1 for rings).
+    /// How the reference was taken (still frames unless said otherwise).
+    #[serde(default = "ReferenceInfo::still")]
+    pub reference: ReferenceInfo,
+    /// Rows spanned by the markers (grid, hex: lattice rows; dot rings: rings; 1 for annuli).
     pub grid_rows: u32,
-    /// Grid columns spanned.
+    /// Columns spanned (hex: half-pitch steps; dot rings: most dots in a ring).
     pub grid_cols: u32,
-    /// Typical spacing between neighbouring markers in pixels.
+    /// Median distance between nearest neighbouring markers in pixels (annuli: the smallest
+    /// gap between ring radii).
     pub pitch_px: f64,
     /// The reference markers in grid order.
     pub markers: Vec<ReferenceMarker>,
@@ -113,9 +172,12 @@ pub enum CalibrationError {
         /// Blobs before filtering.
         raw: usize,
     },
-    /// Grid recovery failed.
+    /// Numbering failed, or the requested layout does not fit.
     #[error("could not number the markers: {0}")]
-    Grid(#[from] GridError),
+    Layout(#[from] LayoutError),
+    /// No frame qualifies as one of the lightest.
+    #[error("{0}")]
+    Lightest(String),
 }
 
 /// What calibration saw, for the user.
@@ -127,6 +189,8 @@ pub struct CalibrationReport {
     pub candidate_blobs: usize,
     /// Blobs left out because they are not on the marker lattice.
     pub off_grid: Vec<(f64, f64)>,
+    /// The layout recognised or used.
+    pub layout: Layout,
     /// Per calibration frame, the markers not found in it.
     pub missing_per_frame: Vec<(String, usize)>,
     /// Global threshold level used on the reference, if global.
@@ -136,13 +200,12 @@ pub struct CalibrationReport {
 /// Builds a calibration from still frames `(id, image)`.
 pub fn calibrate<'a, I>(
     frames: I,
-    detector: DetectorConfig,
-    layout: Layout,
-    features: FeatureSet,
+    cfg: &CalibrationConfig,
 ) -> Result<(SensorCalibration, CalibrationReport), CalibrationError>
 where
     I: IntoIterator<Item = (&'a str, &'a RgbImage)>,
 {
+    let detector = cfg.detector.clone();
     let frames: Vec<(&str, &RgbImage)> = frames.into_iter().collect();
     let Some(&(_, first)) = frames.first() else {
         return Err(CalibrationError::NoFrames);
@@ -208,60 +271,50 @@ where
         level: detection.level,
         ..Default::default()
     };
-    let (ordered, rows, cols, pitch): (Vec<(Blob, u32, u32)>, u32, u32, f64) = match layout {
-        Layout::Rings => {
-            let mut b = blobs.clone();
-            b.sort_by(|a, c| {
-                a.shape(convention)
-                    .major_axis_px
-                    .total_cmp(&c.shape(convention).major_axis_px)
-            });
-            let pitch = if b.len() > 1 {
-                let mut gaps: Vec<f64> = b
-                    .windows(2)
-                    .map(|p| {
-                        0.5 * (p[1].shape(convention).major_axis_px
-                            - p[0].shape(convention).major_axis_px)
-                    })
-                    .collect();
-                gaps.sort_by(f64::total_cmp);
-                gaps[0].max(1.0)
-            } else {
-                b[0].shape(convention).major_axis_px.max(1.0)
-            };
-            let n = b.len() as u32;
-            (
-                b.into_iter()
-                    .enumerate()
-                    .map(|(k, bl)| (bl, 0, k as u32))
-                    .collect(),
-                1,
-                n,
-                pitch,
-            )
-        }
-        Layout::Grid => {
+    let annuli = annuli_share_centres(&blobs);
+    let rings = match cfg.layout {
+        LayoutChoice::Auto => annuli,
+        LayoutChoice::Only(Layout::Rings) if !annuli => {
             let pts: Vec<(f64, f64)> = blobs.iter().map(|b| (b.x_px, b.y_px)).collect();
-            let lat = lattice_from_points(&pts)?;
-            report.off_grid = lat.left_out.iter().map(|&i| pts[i]).collect();
-            let ordered = lat
+            let seen =
+                number_markers(&pts, LayoutChoice::Auto).map_or(Layout::Irregular, |n| n.layout);
+            return Err(LayoutError::DoesNotFit {
+                layout: Layout::Rings,
+                why: format!("no two of the {} blobs share a centre", blobs.len()),
+                seen,
+            }
+            .into());
+        }
+        LayoutChoice::Only(l) => l == Layout::Rings,
+    };
+    let numbered = if rings {
+        rings_order(&blobs, convention)
+    } else {
+        let pts: Vec<(f64, f64)> = blobs.iter().map(|b| (b.x_px, b.y_px)).collect();
+        let num = number_markers(&pts, cfg.layout)?;
+        report.off_grid = num.left_out.iter().map(|&i| pts[i]).collect();
+        Ordered {
+            layout: num.layout,
+            blobs: num
                 .order
                 .iter()
-                .zip(&lat.row_col)
+                .zip(&num.row_col)
                 .map(|(&i, &(r, c))| (blobs[i], r, c))
-                .collect();
-            (
-                ordered,
-                lat.rows,
-                lat.cols,
-                0.5 * (lat.pitch_x_px + lat.pitch_y_px),
-            )
+                .collect(),
+            rows: num.rows,
+            cols: num.cols,
+            pitch_px: num.pitch_px,
+            neighbours: num.neighbours,
         }
     };
-    let mut markers: Vec<ReferenceMarker> = ordered
+    report.layout = numbered.layout;
+    let (layout, pitch) = (numbered.layout, numbered.pitch_px);
+    let mut markers: Vec<ReferenceMarker> = numbered
+        .blobs
         .iter()
+        .zip(&numbered.neighbours)
         .enumerate()
-        .map(|(k, (b, r, c))| {
+        .map(|(k, ((b, r, c), nb))| {
             let s = b.shape(convention);
             ReferenceMarker {
                 id: k as u32,
@@ -275,6 +328,7 @@ where
                 minor_axis_px: s.minor_axis_px,
                 touches_border: b.touches_border,
                 jitter_px: None,
+                neighbours: nb.clone(),
             }
         })
         .collect();
@@ -286,11 +340,12 @@ where
         detector,
         layout,
         moment_convention: convention,
-        track: TrackConfig::DEFAULT,
-        features,
+        track: cfg.track,
+        features: cfg.features,
         reference_frames: frames.iter().map(|(id, _)| id.to_string()).collect(),
-        grid_rows: rows,
-        grid_cols: cols,
+        reference: ReferenceInfo::still(),
+        grid_rows: numbered.rows,
+        grid_cols: numbered.cols,
         pitch_px: pitch,
         markers: Vec::new(),
     };
@@ -322,6 +377,52 @@ where
     }
     cal.markers = markers;
     Ok((cal, report))
+}
+
+/// Reference blobs in numbering order with their `(row, col)`, and the layout's figures.
+struct Ordered {
+    layout: Layout,
+    blobs: Vec<(Blob, u32, u32)>,
+    rows: u32,
+    cols: u32,
+    pitch_px: f64,
+    neighbours: Vec<Vec<u32>>,
+}
+
+/// Concentric annuli, smallest first; the pitch is the smallest gap between ring radii and each
+/// annulus neighbours the next smaller and larger one.
+fn rings_order(blobs: &[Blob], convention: MomentConvention) -> Ordered {
+    let mut b = blobs.to_vec();
+    let major = |x: &Blob| x.shape(convention).major_axis_px;
+    b.sort_by(|a, c| major(a).total_cmp(&major(c)));
+    let pitch_px = if b.len() > 1 {
+        b.windows(2)
+            .map(|p| 0.5 * (major(&p[1]) - major(&p[0])))
+            .fold(f64::INFINITY, f64::min)
+            .max(1.0)
+    } else {
+        major(&b[0]).max(1.0)
+    };
+    let n = b.len() as u32;
+    Ordered {
+        layout: Layout::Rings,
+        neighbours: (0..n)
+            .map(|k| {
+                [k.checked_sub(1), (k + 1 < n).then_some(k + 1)]
+                    .into_iter()
+                    .flatten()
+                    .collect()
+            })
+            .collect(),
+        blobs: b
+            .into_iter()
+            .enumerate()
+            .map(|(k, bl)| (bl, 0, k as u32))
+            .collect(),
+        rows: 1,
+        cols: n,
+        pitch_px,
+    }
 }
 
 /// The tracker's view of a set of reference markers.
@@ -374,5 +475,199 @@ impl SensorCalibration {
     /// The JSON text of the file.
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+}
+
+/// The lightest frames of a data set, for a reference when no frame is free of contact.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightestSelection {
+    /// Ids of the chosen frames, lightest first.
+    pub chosen: Vec<String>,
+    /// Each chosen frame's RMS marker distance from the rest estimate, pixels.
+    pub deformation_px: Vec<f64>,
+    /// Frames looked at.
+    pub considered: usize,
+    /// Frames in which at least 90 % of the markers were tracked (the candidates).
+    pub usable: usize,
+    /// Median deformation over the usable frames, pixels.
+    pub median_deformation_px: f64,
+    /// RMS over the markers of the chosen frames' mean position's distance from the rest
+    /// estimate, pixels: the contact the reference still holds.
+    pub residual_px: f64,
+    /// The largest single marker's such distance, pixels.
+    pub residual_max_px: f64,
+}
+
+impl LightestSelection {
+    /// The provenance a reference from these frames carries: under contact when some marker is
+    /// over a quarter pixel from its rest estimate (more than tracking noise).
+    pub fn reference_info(&self) -> ReferenceInfo {
+        ReferenceInfo {
+            method: "lightest".to_string(),
+            frames_considered: self.considered,
+            residual_px: Some(self.residual_px),
+            residual_max_px: Some(self.residual_max_px),
+            under_contact: self.residual_max_px > 0.25,
+        }
+    }
+}
+
+/// Finds the lightest frames of a data set in one pass over its frames (only their blobs are
+/// kept): [`LightestFinder::add`] every frame, then [`LightestFinder::choose`].
+#[derive(Debug)]
+pub struct LightestFinder {
+    detector: Detector,
+    track: TrackConfig,
+    frames: Vec<(String, Vec<Blob>)>,
+    size: Option<(usize, usize)>,
+}
+
+impl LightestFinder {
+    /// A finder detecting markers as `cfg` says.
+    pub fn new(cfg: &CalibrationConfig) -> Result<Self, CalibrationError> {
+        Ok(Self {
+            detector: Detector::new(cfg.detector.clone()).map_err(CalibrationError::Config)?,
+            track: cfg.track,
+            frames: Vec::new(),
+            size: None,
+        })
+    }
+
+    /// Detects the markers of one frame and keeps them.
+    pub fn add(&mut self, id: &str, img: &RgbImage) -> Result<(), CalibrationError> {
+        let (w, h) = *self.size.get_or_insert((img.width(), img.height()));
+        if (img.width(), img.height()) != (w, h) {
+            return Err(CalibrationError::SizeMismatch {
+                frame: id.to_string(),
+                expected_w: w,
+                expected_h: h,
+                got_w: img.width(),
+                got_h: img.height(),
+            });
+        }
+        let mut blobs = Vec::new();
+        self.detector.detect_into(img, &mut blobs);
+        self.frames.push((id.to_string(), blobs));
+        Ok(())
+    }
+
+    /// Chooses the `n` lightest frames: every frame is tracked against a provisional reference
+    /// (the frame with the most markers, short of the 10 % with the most blobs), each marker's
+    /// median position over all frames is its rest estimate, and the frames whose markers lie
+    /// closest to it (RMS) are chosen.
+    pub fn choose(&self, n: usize) -> Result<LightestSelection, CalibrationError> {
+        let fail = |m: String| Err(CalibrationError::Lightest(m));
+        if n == 0 {
+            return fail("choose at least 1 frame".to_string());
+        }
+        if self.frames.len() < n {
+            return fail(format!(
+                "{} frames given, {n} asked for: the lightest frames must be a subset",
+                self.frames.len()
+            ));
+        }
+        let mut counts: Vec<usize> = self.frames.iter().map(|f| f.1.len()).collect();
+        counts.sort_unstable();
+        let cap = counts[(counts.len() * 9 / 10).min(counts.len() - 1)];
+        let boot = (0..self.frames.len())
+            .filter(|&k| self.frames[k].1.len() <= cap)
+            .max_by_key(|&k| (self.frames[k].1.len(), usize::MAX - k))
+            .unwrap_or(0);
+        let boot_blobs = &self.frames[boot].1;
+        if boot_blobs.len() < 2 {
+            return fail(format!(
+                "frame {}: {} markers found; cannot build a reference",
+                self.frames[boot].0,
+                boot_blobs.len()
+            ));
+        }
+        let reference = TrackReference::new(
+            boot_blobs.iter().map(|b| (b.x_px, b.y_px)).collect(),
+            boot_blobs.iter().map(|b| f64::from(b.area_px)).collect(),
+        );
+        let m = boot_blobs.len();
+        let tracked: Vec<Vec<Option<(f64, f64)>>> = self
+            .frames
+            .iter()
+            .map(|(_, blobs)| {
+                track(&reference, blobs, &self.track)
+                    .assignment
+                    .iter()
+                    .map(|a| a.map(|j| (blobs[j].x_px, blobs[j].y_px)))
+                    .collect()
+            })
+            .collect();
+        let rest: Vec<Option<(f64, f64)>> = (0..m)
+            .map(|i| {
+                let mut xs: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.0)).collect();
+                let mut ys: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.1)).collect();
+                (!xs.is_empty()).then(|| (median_of(&mut xs), median_of(&mut ys)))
+            })
+            .collect();
+        let mut scored: Vec<(f64, usize)> = tracked
+            .iter()
+            .enumerate()
+            .filter_map(|(k, t)| {
+                let (mut sq, mut c) = (0.0, 0usize);
+                for (p, r) in t.iter().zip(&rest) {
+                    if let (Some(p), Some(r)) = (p, r) {
+                        sq += (p.0 - r.0).powi(2) + (p.1 - r.1).powi(2);
+                        c += 1;
+                    }
+                }
+                (10 * c >= 9 * m).then(|| ((sq / c as f64).sqrt(), k))
+            })
+            .collect();
+        let usable = scored.len();
+        if usable < n {
+            return fail(format!(
+                "only {usable} of {} frames have 90 % of the {m} markers tracked; {n} needed",
+                self.frames.len()
+            ));
+        }
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut all: Vec<f64> = scored.iter().map(|s| s.0).collect();
+        let median_deformation_px = median_of(&mut all);
+        let chosen = &scored[..n];
+        // The chosen frames' mean position per marker against the rest estimate.
+        let (mut sq, mut c, mut worst) = (0.0, 0usize, 0.0f64);
+        for (i, r) in rest.iter().enumerate() {
+            let Some(r) = r else { continue };
+            let ps: Vec<(f64, f64)> = chosen.iter().filter_map(|&(_, k)| tracked[k][i]).collect();
+            if ps.is_empty() {
+                continue;
+            }
+            let k = ps.len() as f64;
+            let mx = ps.iter().map(|p| p.0).sum::<f64>() / k;
+            let my = ps.iter().map(|p| p.1).sum::<f64>() / k;
+            let d2 = (mx - r.0).powi(2) + (my - r.1).powi(2);
+            sq += d2;
+            c += 1;
+            worst = worst.max(d2.sqrt());
+        }
+        Ok(LightestSelection {
+            chosen: chosen
+                .iter()
+                .map(|&(_, k)| self.frames[k].0.clone())
+                .collect(),
+            deformation_px: chosen.iter().map(|&(d, _)| d).collect(),
+            considered: self.frames.len(),
+            usable,
+            median_deformation_px,
+            residual_px: if c > 0 { (sq / c as f64).sqrt() } else { 0.0 },
+            residual_max_px: worst,
+        })
+    }
+}
+
+fn median_of(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }

@@ -1,26 +1,40 @@
-//! Matching reference markers to the blobs of a frame, frame by frame and order-free.
+//! Matching reference markers to the blobs of a frame: every frame on its own (order-free), or
+//! starting from the last frame's positions (video).
 //!
-//! Every frame is matched to the reference on its own (datasets of touches in random order need
-//! that), in two steps:
+//! Each frame is matched in four steps:
 //! 1. **Registration.** Every marker votes for the displacement of its nearest blob in a 2-D
 //!    histogram; the densest cell, refined by the mean of its votes, is the overall motion (the
 //!    still majority of a skin clamped at its frame, or a whole-sensor shift under half a pitch).
-//! 2. **One-to-one assignment by region growing.** Markers whose blob is unambiguous after the
-//!    overall motion (close, mutual nearest, no rival) are matched first. Then each unmatched
-//!    marker next to matched ones is predicted from its matched neighbours' displacements (the
-//!    skin moves smoothly) and takes the nearest free blob near that prediction, if no rival is
-//!    nearly as close. A drag that moves markers under the tip by a whole pitch is followed from
-//!    the still markers around it inwards; no marker is ever given a blob just because it is
-//!    the nearest one to its rest position.
+//!    With a temporal prior the last frame's positions take its place.
+//! 2. **Seeds.** Markers whose blob is unambiguous after the overall motion (close, mutual
+//!    nearest, no rival) are matched; only the largest set of seeds whose displacements agree
+//!    with their seeded neighbours is kept (seeds elsewhere may have taken a neighbour's blob
+//!    where the skin moved far).
+//! 3. **Growth from a local motion model.** The unmatched marker with the most matched
+//!    neighbours is predicted from a weighted least-squares *affine* fit of their displacements
+//!    (translation plus a 2 × 2 gradient, ridge-damped towards a pure translation when the
+//!    neighbours are few or on one side): expansion under a round tip, compression, rotation and
+//!    shear are all affine to first order, where the mean of the neighbours' motion is wrong
+//!    exactly under the tip. The marker takes the nearest free blob within a gate of
+//!    `gate_pitches` × its own spacing (scaled by the fit's local magnification) if no rival is
+//!    nearly as close; its neighbours' support grows and they are tried next.
+//! 4. **Verification.** A matched marker whose blob is far from what its matched neighbours
+//!    predict (over `verify_pitches` × its spacing) is released and grown again once: a
+//!    marker that took its neighbour's blob is corrected by the markers around it.
 //!
+//! No marker is ever given a blob just because it is the nearest one to its rest position.
 //! Markers left without a blob are reported as [`MarkerStatus::Lost`], [`MarkerStatus::Merged`]
 //! (their prediction falls on a blob already taken that is much bigger than one marker) or
-//! [`MarkerStatus::Ambiguous`] (two free blobs equally plausible). Their feature cells stay
-//! empty; other markers' columns never shift.
+//! [`MarkerStatus::Ambiguous`] (two free blobs equally plausible); their feature cells stay
+//! empty and other markers' columns never shift.
+
+use std::collections::BinaryHeap;
 
 use serde::{Deserialize, Serialize};
 
+use crate::assign::{assign_min_cost, Candidates};
 use crate::blobs::Blob;
+use crate::layout::k_nearest_all;
 
 /// What happened to one reference marker in one frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -37,6 +51,14 @@ pub enum MarkerStatus {
 }
 
 impl MarkerStatus {
+    /// Every status.
+    pub const ALL: [MarkerStatus; 4] = [
+        MarkerStatus::Ok,
+        MarkerStatus::Lost,
+        MarkerStatus::Merged,
+        MarkerStatus::Ambiguous,
+    ];
+
     /// Name used in tables.
     pub fn name(self) -> &'static str {
         match self {
@@ -48,27 +70,31 @@ impl MarkerStatus {
     }
 }
 
-/// Tracker tuning, in units of the marker pitch.
+/// Tracker tuning, in units of each marker's spacing to its nearest neighbour.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct TrackConfig {
-    /// Largest displacement considered, in pitches.
+    /// Largest overall motion the registration considers, in pitches.
     pub search_pitches: f64,
-    /// Gate around a prediction within which a blob may be taken, in pitches.
+    /// Gate around a prediction within which a blob may be taken, in spacings.
     pub gate_pitches: f64,
     /// A rival blob closer than `ambiguity_ratio ×` the best distance makes a match ambiguous.
     pub ambiguity_ratio: f64,
-    /// A taken blob at least this many times the marker's reference area counts as merged.
+    /// A taken blob at least this many times the marker's expected area counts as merged.
     pub merged_area_ratio: f64,
+    /// A matched marker farther than this from its neighbours' prediction, in spacings, is
+    /// released and grown again.
+    pub verify_pitches: f64,
 }
 
 impl TrackConfig {
-    /// Defaults that follow drags up to one pitch.
+    /// Defaults that follow drags up to one pitch and presses to the skin's limit.
     pub const DEFAULT: Self = Self {
         search_pitches: 1.5,
         gate_pitches: 0.4,
         ambiguity_ratio: 1.25,
         merged_area_ratio: 1.6,
+        verify_pitches: 0.35,
     };
 }
 
@@ -85,9 +111,13 @@ pub struct TrackReference {
     pub positions: Vec<(f64, f64)>,
     /// Reference areas in pixels.
     pub areas_px: Vec<f64>,
-    /// Neighbours of each marker in the reference (indices), nearest first.
+    /// Neighbours of each marker (indices): its 12 nearest within 2.5 × its spacing, plus every
+    /// marker that counts it among theirs (the relation is symmetric).
     pub neighbours: Vec<Vec<usize>>,
-    /// Typical spacing between neighbours in pixels.
+    /// Each marker's distance to its nearest neighbour, pixels (the local pitch: a dome's or a
+    /// wide-angle lens's pitch varies across the image).
+    pub spacing_px: Vec<f64>,
+    /// Median spacing, pixels.
     pub pitch_px: f64,
     /// For concentric rings, each ring's major axis in pixels: rings share a centre, so they
     /// are matched by size near the reference centre instead of by position.
@@ -95,43 +125,53 @@ pub struct TrackReference {
 }
 
 impl TrackReference {
-    /// Builds the neighbour lists (the 8 nearest within 2 pitches) from positions and areas.
+    /// Builds neighbourhoods and spacings from positions and areas.
     pub fn new(positions: Vec<(f64, f64)>, areas_px: Vec<f64>) -> Self {
         let n = positions.len();
-        let mut neighbours = Vec::with_capacity(n);
-        let mut nn = Vec::with_capacity(n);
-        for i in 0..n {
-            let mut d: Vec<(usize, f64)> = (0..n)
-                .filter(|&j| j != i)
-                .map(|j| (j, dist(positions[i], positions[j])))
-                .collect();
-            d.sort_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some(&(_, d0)) = d.first() {
-                nn.push(d0);
-            }
-            neighbours.push(d);
-        }
-        nn.sort_by(f64::total_cmp);
-        let pitch_px = if nn.is_empty() {
+        let knn = if n > 1 {
+            k_nearest_all(&positions, 12.min(n - 1))
+        } else {
+            vec![Vec::new(); n]
+        };
+        let spacing: Vec<f64> = knn
+            .iter()
+            .map(|v| v.first().map_or(f64::NAN, |x| x.1))
+            .collect();
+        let mut sorted: Vec<f64> = spacing.iter().copied().filter(|s| s.is_finite()).collect();
+        sorted.sort_by(f64::total_cmp);
+        let pitch_px = if sorted.is_empty() {
             // One marker: use its size as the scale.
             areas_px.first().map_or(10.0, |a| 2.0 * a.sqrt())
         } else {
-            nn[nn.len() / 2]
+            sorted[sorted.len() / 2]
         };
-        let neighbours = neighbours
-            .into_iter()
-            .map(|d| {
-                d.into_iter()
-                    .take(8)
-                    .filter(|&(_, dd)| dd < 2.0 * pitch_px)
-                    .map(|(j, _)| j)
+        let spacing_px: Vec<f64> = spacing
+            .iter()
+            .map(|s| if s.is_finite() { *s } else { pitch_px })
+            .collect();
+        let mut neighbours: Vec<Vec<usize>> = knn
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                v.iter()
+                    .filter(|&&(_, d)| d < 2.5 * spacing_px[i])
+                    .map(|&(j, _)| j)
                     .collect()
             })
             .collect();
+        for i in 0..n {
+            for k in 0..neighbours[i].len() {
+                let j = neighbours[i][k];
+                if !neighbours[j].contains(&i) {
+                    neighbours[j].push(i);
+                }
+            }
+        }
         Self {
             positions,
             areas_px,
             neighbours,
+            spacing_px,
             pitch_px,
             ring_sizes_px: None,
         }
@@ -396,152 +436,411 @@ fn track_rings(reference: &TrackReference, sizes: &[f64], blobs: &[Blob]) -> Tra
     }
 }
 
-/// Matches every reference marker to at most one blob of the frame.
+/// A local affine motion model around one marker.
+#[derive(Clone, Copy, Debug)]
+struct LocalMotion {
+    /// Predicted displacement of the marker.
+    disp: (f64, f64),
+    /// Local magnification `sqrt(|det(I + G)|)`, clamped to 0.5..2.
+    scale: f64,
+}
+
+/// Weighted least-squares affine fit of the displacements `disp` of the matched neighbours of
+/// `i` (`anchors` their positions before the motion), ridge-damped towards a translation.
+fn local_motion(
+    i: usize,
+    reference: &TrackReference,
+    anchors: &[(f64, f64)],
+    matched: &[bool],
+    disp: &[(f64, f64)],
+) -> Option<LocalMotion> {
+    let s = reference.spacing_px[i];
+    let ai = anchors[i];
+    // Normal equations for [t, g1, g2] per axis: Σ w [1 o][1 o]ᵀ + diag(0, λ, λ).
+    let (mut m00, mut m01, mut m02, mut m11, mut m12, mut m22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut bx0, mut bx1, mut bx2) = (0.0, 0.0, 0.0);
+    let (mut by0, mut by1, mut by2) = (0.0, 0.0, 0.0);
+    let mut count = 0;
+    for &k in &reference.neighbours[i] {
+        if !matched[k] {
+            continue;
+        }
+        let o = (anchors[k].0 - ai.0, anchors[k].1 - ai.1);
+        let w = 1.0 / (o.0 * o.0 + o.1 * o.1 + 0.25 * s * s);
+        let u = disp[k];
+        m00 += w;
+        m01 += w * o.0;
+        m02 += w * o.1;
+        m11 += w * o.0 * o.0;
+        m12 += w * o.0 * o.1;
+        m22 += w * o.1 * o.1;
+        bx0 += w * u.0;
+        bx1 += w * u.0 * o.0;
+        bx2 += w * u.0 * o.1;
+        by0 += w * u.1;
+        by1 += w * u.1 * o.0;
+        by2 += w * u.1 * o.1;
+        count += 1;
+    }
+    if count == 0 {
+        return None;
+    }
+    // Ridge: a third of a typical neighbour's leverage.
+    let lambda = 0.3 * m00 * s * s;
+    m11 += lambda;
+    m22 += lambda;
+    // Solve the symmetric 3 × 3 system by cofactors.
+    let c00 = m11 * m22 - m12 * m12;
+    let c01 = m02 * m12 - m01 * m22;
+    let c02 = m01 * m12 - m02 * m11;
+    let c11 = m00 * m22 - m02 * m02;
+    let c12 = m01 * m02 - m00 * m12;
+    let c22 = m00 * m11 - m01 * m01;
+    let det = m00 * c00 + m01 * c01 + m02 * c02;
+    if !(det.abs() > 1e-300) {
+        return None;
+    }
+    let solve = |b0: f64, b1: f64, b2: f64| {
+        (
+            (c00 * b0 + c01 * b1 + c02 * b2) / det,
+            (c01 * b0 + c11 * b1 + c12 * b2) / det,
+            (c02 * b0 + c12 * b1 + c22 * b2) / det,
+        )
+    };
+    let (tx, gxx, gxy) = solve(bx0, bx1, bx2);
+    let (ty, gyx, gyy) = solve(by0, by1, by2);
+    let jac = (1.0 + gxx) * (1.0 + gyy) - gxy * gyx;
+    Some(LocalMotion {
+        disp: (tx, ty),
+        scale: jac.abs().sqrt().clamp(0.5, 2.0),
+    })
+}
+
+/// The working state of one frame's matching.
+struct Matching<'a> {
+    reference: &'a TrackReference,
+    blobs: &'a [Blob],
+    index: BlobIndex,
+    cfg: &'a TrackConfig,
+    /// Where each marker was before the motion being followed (reference or prior).
+    anchors: Vec<(f64, f64)>,
+    assignment: Vec<Option<usize>>,
+    disp: Vec<(f64, f64)>,
+    taken: Vec<bool>,
+}
+
+impl Matching<'_> {
+    fn matched(&self) -> Vec<bool> {
+        self.assignment.iter().map(Option::is_some).collect()
+    }
+
+    fn take(&mut self, i: usize, j: usize) {
+        self.assignment[i] = Some(j);
+        self.taken[j] = true;
+        let a = self.anchors[i];
+        self.disp[i] = (self.blobs[j].x_px - a.0, self.blobs[j].y_px - a.1);
+    }
+
+    fn release(&mut self, i: usize) {
+        if let Some(j) = self.assignment[i].take() {
+            self.taken[j] = false;
+        }
+    }
+
+    fn support(&self, i: usize) -> usize {
+        self.reference.neighbours[i]
+            .iter()
+            .filter(|&&k| self.assignment[k].is_some())
+            .count()
+    }
+
+    /// Where `i` should be according to its matched neighbours, and the local magnification.
+    fn predict(&self, i: usize, matched: &[bool]) -> Option<((f64, f64), f64)> {
+        local_motion(i, self.reference, &self.anchors, matched, &self.disp).map(|m| {
+            let a = self.anchors[i];
+            ((a.0 + m.disp.0, a.1 + m.disp.1), m.scale)
+        })
+    }
+
+    /// Seeds: markers with an unambiguous, mutually nearest blob near `predicted`.
+    fn seed(&mut self, predicted: &[(f64, f64)]) {
+        let n = predicted.len();
+        let blobs = self.blobs;
+        for i in 0..n {
+            let s = self.reference.spacing_px[i];
+            let gate = self.cfg.gate_pitches * s;
+            let (best, second) = nearest_two(predicted[i], &self.index, &self.taken, 0.5 * gate);
+            let Some((j, d)) = best else { continue };
+            if second < self.cfg.ambiguity_ratio * 2.0 * d.max(0.05 * s) {
+                continue;
+            }
+            // Mutual: no other marker's prediction is closer to this blob.
+            let bj = (blobs[j].x_px, blobs[j].y_px);
+            let mutual = self.reference.neighbours[i]
+                .iter()
+                .all(|&k| dist(predicted[k], bj) > d);
+            if mutual {
+                self.take(i, j);
+            }
+        }
+        // Keep the largest set of seeds whose displacements agree with their seeded neighbours.
+        let mut component = vec![usize::MAX; n];
+        let mut sizes = Vec::new();
+        for s0 in 0..n {
+            if self.assignment[s0].is_none() || component[s0] != usize::MAX {
+                continue;
+            }
+            let c = sizes.len();
+            let mut stack = vec![s0];
+            component[s0] = c;
+            let mut size = 0;
+            while let Some(i) = stack.pop() {
+                size += 1;
+                for &k in &self.reference.neighbours[i] {
+                    if self.assignment[k].is_some()
+                        && component[k] == usize::MAX
+                        && dist(self.disp[i], self.disp[k])
+                            < 0.25 * self.reference.spacing_px[i].min(self.reference.spacing_px[k])
+                    {
+                        component[k] = c;
+                        stack.push(k);
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        if let Some(keep) = (0..sizes.len()).max_by_key(|&c| (sizes[c], usize::MAX - c)) {
+            for i in 0..n {
+                if self.assignment[i].is_some() && component[i] != keep {
+                    self.release(i);
+                }
+            }
+        }
+    }
+
+    /// Grows the matched set from matched markers into their neighbours, most supported first.
+    fn grow(&mut self) {
+        let n = self.assignment.len();
+        let mut failed_at: Vec<Option<usize>> = vec![None; n];
+        let mut heap: BinaryHeap<(usize, std::cmp::Reverse<usize>)> = (0..n)
+            .filter(|&i| self.assignment[i].is_none())
+            .map(|i| (self.support(i), std::cmp::Reverse(i)))
+            .filter(|&(c, _)| c > 0)
+            .collect();
+        let mut matched = self.matched();
+        while let Some((support, std::cmp::Reverse(i))) = heap.pop() {
+            if self.assignment[i].is_some()
+                || support != self.support(i)
+                || failed_at[i].is_some_and(|f| support <= f)
+            {
+                continue;
+            }
+            let Some((pred, scale)) = self.predict(i, &matched) else {
+                continue;
+            };
+            let s = self.reference.spacing_px[i];
+            let gate = self.cfg.gate_pitches * s * scale.clamp(0.7, 1.6);
+            let (best, second) = nearest_two(pred, &self.index, &self.taken, gate);
+            match best {
+                Some((j, d)) if second >= self.cfg.ambiguity_ratio * d.max(0.05 * s) => {
+                    self.take(i, j);
+                    matched[i] = true;
+                    for &k in &self.reference.neighbours[i] {
+                        if self.assignment[k].is_none() {
+                            heap.push((self.support(k), std::cmp::Reverse(k)));
+                        }
+                    }
+                }
+                _ => failed_at[i] = Some(support),
+            }
+        }
+    }
+
+    /// Whether some unmatched marker has a free blob within `reach` spacings of where its
+    /// neighbours (or the overall motion) put it: a hole the greedy growth may have left by
+    /// giving its blob to a neighbour.
+    fn has_holes(&self, predicted: &[(f64, f64)], reach: f64) -> bool {
+        let matched = self.matched();
+        (0..self.assignment.len()).any(|i| {
+            if self.assignment[i].is_some() {
+                return false;
+            }
+            let p = self.predict(i, &matched).map_or(predicted[i], |x| x.0);
+            let mut free = false;
+            self.index
+                .near(p, reach * self.reference.spacing_px[i], |j, _| {
+                    free |= !self.taken[j];
+                });
+            free
+        })
+    }
+
+    /// Total squared residual (in spacings) of the matched markers against their neighbours'
+    /// prediction, plus `lost_cost` per unmatched marker: lower is a smoother, fuller match.
+    fn energy(&self, lost_cost: f64) -> f64 {
+        let matched = self.matched();
+        (0..self.assignment.len())
+            .map(|i| match self.assignment[i] {
+                None => lost_cost,
+                Some(j) => self.predict(i, &matched).map_or(0.0, |(p, _)| {
+                    let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+                    (dist(b, p) / self.reference.spacing_px[i]).powi(2)
+                }),
+            })
+            .sum()
+    }
+
+    /// Re-matches every marker at once by minimum total squared distance to its prediction
+    /// (one-to-one, each marker free to stay unmatched at the cost of its gate): first from the
+    /// overall motion alone with a gate of `search_pitches`, then from the local affine motion
+    /// of the previous round's matches with a gate of one spacing, until nothing changes.
+    fn reassign(&mut self, predicted: &[(f64, f64)]) {
+        let n = self.assignment.len();
+        let mut cands = Candidates::default();
+        let mut preds: Vec<((f64, f64), f64)> = predicted.iter().map(|&p| (p, 1.0)).collect();
+        for round in 0..4 {
+            let reach = if round == 0 {
+                self.cfg.search_pitches.max(1.0) + 0.3
+            } else {
+                1.0
+            };
+            cands.clear();
+            for i in 0..n {
+                let s = self.reference.spacing_px[i];
+                let ((px, py), scale) = preds[i];
+                let r = reach * s * scale.clamp(0.7, 1.6);
+                let expected = self.reference.areas_px[i] * scale * scale;
+                cands.begin_row();
+                let blobs = self.blobs;
+                self.index.near((px, py), r, |j, d2| {
+                    let a = f64::from(blobs[j].area_px);
+                    if a >= 0.2 * expected && a <= 5.0 * expected {
+                        cands.push_edge(j, d2 / (s * s));
+                    }
+                });
+                cands.end_row((r / s).powi(2));
+            }
+            let a = assign_min_cost(&cands, self.blobs.len());
+            let changed = (0..n).any(|i| a.columns[i] != self.assignment[i]);
+            for i in 0..n {
+                self.release(i);
+            }
+            for (i, col) in a.columns.iter().enumerate() {
+                if let Some(j) = *col {
+                    self.take(i, j);
+                }
+            }
+            if round > 0 && !changed {
+                break;
+            }
+            let matched = self.matched();
+            for (i, p) in preds.iter_mut().enumerate() {
+                if let Some(q) = self.predict(i, &matched) {
+                    *p = q;
+                }
+            }
+        }
+    }
+
+    /// Releases matched markers whose blob disagrees with their neighbours' prediction; returns
+    /// how many were released.
+    fn verify(&mut self) -> usize {
+        let n = self.assignment.len();
+        let matched = self.matched();
+        let mut bad = Vec::new();
+        for i in 0..n {
+            let Some(j) = self.assignment[i] else {
+                continue;
+            };
+            if self.support(i) < 3 {
+                continue;
+            }
+            let Some((pred, scale)) = self.predict(i, &matched) else {
+                continue;
+            };
+            let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+            if dist(b, pred) > self.cfg.verify_pitches * self.reference.spacing_px[i] * scale {
+                bad.push(i);
+            }
+        }
+        for &i in &bad {
+            self.release(i);
+        }
+        bad.len()
+    }
+}
+
+/// Matches every reference marker to at most one blob of the frame, each frame on its own.
 pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> TrackResult {
+    track_from(reference, blobs, cfg, None)
+}
+
+/// Matches every reference marker to at most one blob of the frame, starting from `prior`, each
+/// marker's position in an earlier frame of the same video (`None` for markers it did not
+/// have); without a prior, from the reference after the registration's overall motion.
+pub fn track_from(
+    reference: &TrackReference,
+    blobs: &[Blob],
+    cfg: &TrackConfig,
+    prior: Option<&[Option<(f64, f64)>]>,
+) -> TrackResult {
     if let Some(sizes) = &reference.ring_sizes_px {
         return track_rings(reference, sizes, blobs);
     }
     let n = reference.positions.len();
-    let p = reference.pitch_px;
-    let gate = cfg.gate_pitches * p;
-    let index = BlobIndex::new(blobs, p.max(1.0));
-    let shift = register(reference, &index, cfg);
-    let mut assignment: Vec<Option<usize>> = vec![None; n];
-    let mut disp: Vec<(f64, f64)> = vec![(0.0, 0.0); n];
-    let mut taken = vec![false; blobs.len()];
-
-    // Seeds: unambiguous, mutual nearest after the overall motion, within half the gate.
-    let predicted: Vec<(f64, f64)> = reference
-        .positions
+    let index = BlobIndex::new(blobs, reference.pitch_px.max(1.0));
+    let (anchors, shift) = match prior {
+        Some(p) if p.len() == n => {
+            let a: Vec<(f64, f64)> = (0..n)
+                .map(|i| p[i].unwrap_or(reference.positions[i]))
+                .collect();
+            (a, (0.0, 0.0))
+        }
+        _ => (
+            reference.positions.clone(),
+            register(reference, &index, cfg),
+        ),
+    };
+    let mut m = Matching {
+        reference,
+        blobs,
+        index,
+        cfg,
+        anchors,
+        assignment: vec![None; n],
+        disp: vec![(0.0, 0.0); n],
+        taken: vec![false; blobs.len()],
+    };
+    let predicted: Vec<(f64, f64)> = m
+        .anchors
         .iter()
         .map(|&(x, y)| (x + shift.0, y + shift.1))
         .collect();
-    for i in 0..n {
-        let (best, second) = nearest_two(predicted[i], &index, &taken, 0.5 * gate);
-        let Some((j, d)) = best else { continue };
-        if second < cfg.ambiguity_ratio * 2.0 * d.max(0.05 * p) {
-            continue;
-        }
-        // Mutual: no other marker's prediction is closer to this blob.
-        let bj = (blobs[j].x_px, blobs[j].y_px);
-        let mutual = reference.neighbours[i]
-            .iter()
-            .all(|&k| dist(predicted[k], bj) > d);
-        if mutual {
-            assignment[i] = Some(j);
-            taken[j] = true;
-            disp[i] = (
-                bj.0 - reference.positions[i].0,
-                bj.1 - reference.positions[i].1,
-            );
-        }
+    m.seed(&predicted);
+    m.grow();
+    if m.verify() > 0 {
+        m.grow();
     }
-    // Keep the largest set of seeds whose displacements agree with their seeded neighbours (a
-    // smooth field); seeds elsewhere may have taken a neighbour's blob in a drag zone, so they
-    // are released and re-grown from the consistent set.
-    let mut component = vec![usize::MAX; n];
-    let mut sizes = Vec::new();
-    for s0 in 0..n {
-        if assignment[s0].is_none() || component[s0] != usize::MAX {
-            continue;
-        }
-        let c = sizes.len();
-        let mut stack = vec![s0];
-        component[s0] = c;
-        let mut size = 0;
-        while let Some(i) = stack.pop() {
-            size += 1;
-            for &k in &reference.neighbours[i] {
-                if assignment[k].is_some()
-                    && component[k] == usize::MAX
-                    && dist(disp[i], disp[k]) < 0.25 * p
-                {
-                    component[k] = c;
-                    stack.push(k);
-                }
-            }
-        }
-        sizes.push(size);
-    }
-    if let Some(keep) = (0..sizes.len()).max_by_key(|&c| (sizes[c], usize::MAX - c)) {
-        for i in 0..n {
-            if let Some(j) = assignment[i] {
-                if component[i] != keep {
-                    assignment[i] = None;
-                    taken[j] = false;
-                }
-            }
-        }
-    }
-    // Region growing from matched markers.
-    // Support (matched neighbours) at which the growth last failed for each marker (nothing
-    // free, or rivals, near the prediction); it is tried again once more neighbours are matched.
-    let mut failed_at: Vec<Option<usize>> = vec![None; n];
-    loop {
-        // Candidates: unmatched markers with matched neighbours, most support first.
-        let mut cands: Vec<(usize, usize)> = (0..n)
-            .filter(|&i| assignment[i].is_none())
-            .map(|i| {
-                (
-                    i,
-                    reference.neighbours[i]
-                        .iter()
-                        .filter(|&&k| assignment[k].is_some())
-                        .count(),
-                )
-            })
-            .filter(|&(i, c)| c > 0 && failed_at[i].is_none_or(|f| c > f))
-            .collect();
-        if cands.is_empty() {
-            break;
-        }
-        cands.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
-        let mut progress = false;
-        let top = cands[0].1;
-        for &(i, support) in cands.iter().take_while(|&&(_, c)| c == top) {
-            // Inverse-distance weighted displacement of matched neighbours.
-            let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
-            for &k in &reference.neighbours[i] {
-                if assignment[k].is_some() {
-                    let w = 1.0 / dist(reference.positions[i], reference.positions[k]).max(1e-6);
-                    sx += w * disp[k].0;
-                    sy += w * disp[k].1;
-                    sw += w;
-                }
-            }
-            let pred = (
-                reference.positions[i].0 + sx / sw,
-                reference.positions[i].1 + sy / sw,
-            );
-            let (best, second) = nearest_two(pred, &index, &taken, gate);
-            match best {
-                Some((j, d)) if second >= cfg.ambiguity_ratio * d.max(0.05 * p) => {
-                    assignment[i] = Some(j);
-                    taken[j] = true;
-                    disp[i] = (
-                        blobs[j].x_px - reference.positions[i].0,
-                        blobs[j].y_px - reference.positions[i].1,
-                    );
-                    progress = true;
-                }
-                _ => {
-                    failed_at[i] = Some(support);
-                    progress = true;
-                }
-            }
-        }
-        if !progress {
-            break;
+    // Holes next to free blobs: the growth may have followed a lattice-shifted path (a region
+    // dragged by about a pitch). Match everything at once instead and keep the better result.
+    if m.has_holes(&predicted, 1.5) {
+        let lost_cost = 1.0;
+        let before = (m.assignment.clone(), m.disp.clone(), m.taken.clone());
+        let e_before = m.energy(lost_cost);
+        m.reassign(&predicted);
+        if m.energy(lost_cost) >= e_before {
+            (m.assignment, m.disp, m.taken) = before;
         }
     }
     // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
     for i in 0..n {
-        if assignment[i].is_none() && failed_at[i].is_none() {
-            let (best, second) = nearest_two(predicted[i], &index, &taken, gate);
+        if m.assignment[i].is_none() && m.support(i) == 0 {
+            let s = reference.spacing_px[i];
+            let (best, second) =
+                nearest_two(predicted[i], &m.index, &m.taken, cfg.gate_pitches * s);
             if let Some((j, d)) = best {
-                if second >= cfg.ambiguity_ratio * d.max(0.05 * p) {
-                    assignment[i] = Some(j);
-                    taken[j] = true;
+                if second >= cfg.ambiguity_ratio * d.max(0.05 * s) {
+                    m.take(i, j);
                 }
             }
         }
@@ -549,28 +848,17 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
     let mut status = vec![MarkerStatus::Ok; n];
     let mut merged_blob = vec![false; blobs.len()];
+    let matched = m.matched();
     for i in 0..n {
-        if assignment[i].is_some() {
+        if m.assignment[i].is_some() {
             continue;
         }
-        let (sx, sy, sw) = reference.neighbours[i]
-            .iter()
-            .filter(|&&k| assignment[k].is_some())
-            .fold((0.0, 0.0, 0.0), |acc, &k| {
-                (acc.0 + disp[k].0, acc.1 + disp[k].1, acc.2 + 1.0)
-            });
-        let pred = if sw > 0.0 {
-            (
-                reference.positions[i].0 + sx / sw,
-                reference.positions[i].1 + sy / sw,
-            )
-        } else {
-            predicted[i]
-        };
+        let (pred, scale) = m.predict(i, &matched).unwrap_or((predicted[i], 1.0));
+        let expected_area = reference.areas_px[i] * scale * scale;
         // A blob covering the prediction and much larger than this marker: merged (with the
         // marker that took it, or with a neighbour that is also left without a blob).
         let merged_with = blobs.iter().enumerate().find(|(_, b)| {
-            f64::from(b.area_px) >= cfg.merged_area_ratio * reference.areas_px[i]
+            f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area
                 && pred.0 >= f64::from(b.bbox.x0) - 0.5
                 && pred.0 <= f64::from(b.bbox.x1) - 0.5
                 && pred.1 >= f64::from(b.bbox.y0) - 0.5
@@ -578,28 +866,30 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
         });
         status[i] = if let Some((j, _)) = merged_with {
             // The owner of that blob is merged too: its centroid is no longer its own.
-            if let Some(owner) = assignment.iter().position(|a| *a == Some(j)) {
+            if let Some(owner) = m.assignment.iter().position(|a| *a == Some(j)) {
                 status[owner] = MarkerStatus::Merged;
             }
             merged_blob[j] = true;
             MarkerStatus::Merged
         } else {
-            let (best, second) = nearest_two(pred, &index, &taken, gate);
+            let s = reference.spacing_px[i];
+            let (best, second) = nearest_two(pred, &m.index, &m.taken, cfg.gate_pitches * s);
             match best {
-                Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * p) => {
+                Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * s) => {
                     MarkerStatus::Ambiguous
                 }
                 _ => MarkerStatus::Lost,
             }
         };
     }
+    let mut assignment = m.assignment;
     for i in 0..n {
         if status[i] != MarkerStatus::Ok {
             assignment[i] = None;
         }
     }
     let spurious = (0..blobs.len())
-        .filter(|&j| !taken[j] && !merged_blob[j])
+        .filter(|&j| !m.taken[j] && !merged_blob[j])
         .count();
     TrackResult {
         assignment,

@@ -13,10 +13,10 @@
 use std::path::PathBuf;
 
 use visuotact_io::frames::FrameStream;
-use visuotact_vision::calibration::calibrate;
+use visuotact_vision::calibration::{calibrate, CalibrationConfig};
 use visuotact_vision::detect::{BlobFilter, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
-use visuotact_vision::grid::Layout;
+use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::{PreprocessConfig, Threshold};
 use visuotact_vision::track::MarkerStatus;
 
@@ -49,11 +49,15 @@ fn gelsight_mini_tracks_all_80_markers() {
     };
     let (cal, _) = calibrate(
         frames[..10].iter().map(|f| (f.id.as_str(), &f.image)),
-        det,
-        Layout::Grid,
-        FeatureSet::IATS,
+        &CalibrationConfig {
+            detector: det,
+            layout: LayoutChoice::Auto,
+            features: FeatureSet::IATS,
+            ..Default::default()
+        },
     )
     .unwrap();
+    assert_eq!(cal.layout, Layout::Grid);
     assert_eq!(cal.markers.len(), 80);
     assert_eq!((cal.grid_rows, cal.grid_cols), (8, 10));
     let pitch = cal.pitch_px;
@@ -135,7 +139,17 @@ fn ninedtact_grid_of_63_dots_in_grid_order() {
         filter: BlobFilter::DEFAULT,
         ..Default::default()
     };
-    let (cal, _) = calibrate([("sample.png", &img)], det, Layout::Grid, FeatureSet::IATS).unwrap();
+    let (cal, _) = calibrate(
+        [("sample.png", &img)],
+        &CalibrationConfig {
+            detector: det,
+            layout: LayoutChoice::Auto,
+            features: FeatureSet::IATS,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(cal.layout, Layout::Grid);
     assert_eq!(cal.markers.len(), 63);
     assert_eq!((cal.grid_rows, cal.grid_cols), (7, 9));
     for (k, m) in cal.markers.iter().enumerate() {

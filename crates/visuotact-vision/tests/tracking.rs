@@ -3,10 +3,10 @@
 //! within 0.3 px of its own true position), lost markers are reported without shifting others.
 
 use visuotact_sim::pattern::{render_grid, GridPattern, MarkerTruth, Press};
-use visuotact_vision::calibration::{calibrate, SensorCalibration};
+use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
 use visuotact_vision::detect::DetectorConfig;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
-use visuotact_vision::grid::Layout;
+use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 use visuotact_vision::track::MarkerStatus;
 
@@ -21,11 +21,15 @@ fn calibrated(pattern: &GridPattern) -> SensorCalibration {
     };
     let (cal, report) = calibrate(
         ids.iter().map(String::as_str).zip(frames.iter()),
-        det,
-        Layout::Grid,
-        FeatureSet::ALL,
+        &CalibrationConfig {
+            detector: det,
+            layout: LayoutChoice::Auto,
+            features: FeatureSet::ALL,
+            ..Default::default()
+        },
     )
     .unwrap();
+    assert_eq!(cal.layout, Layout::Grid);
     assert!(
         report.missing_per_frame.is_empty(),
         "{:?}",

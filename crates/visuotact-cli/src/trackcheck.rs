@@ -1,0 +1,465 @@
+//! `visuotact check-tracking`: how well the marker pipeline follows a simulated sensor, against
+//! the simulator's exact per-marker truth.
+//!
+//! For a sensor (`iats` or a zoo family, preset or drawn variant) and a protocol, frames are
+//! rendered in memory, the sensor is calibrated from rest frames with the layout recognised,
+//! and every touch frame is tracked on its own. Each calibrated marker is paired with the
+//! simulator's marker nearest to it at rest; then per frame and marker:
+//! - a marker the simulator calls *visible* (wholly in view and a blob of its own) that the
+//!   tracker does not report `ok` is **lost**;
+//! - a marker reported `ok` whose measured position is nearer another marker's true position
+//!   than its own, or off its own by over half its spacing, has a **wrong identity**;
+//! - the **displacement error** is `|(measured − reference) − (true − true at rest)|` over the
+//!   visible markers reported `ok`.
+
+use anyhow::{bail, Context};
+use rayon::prelude::*;
+use visuotact_image::RgbImage;
+use visuotact_sim::iats::{IatsConfig, Touch};
+use visuotact_sim::protocol;
+use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
+use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
+use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use visuotact_vision::layout::{Layout, LayoutChoice};
+use visuotact_vision::preprocess::PreprocessConfig;
+use visuotact_vision::track::MarkerStatus;
+
+/// A simulated sensor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SimSensor {
+    /// Seed 000's membrane (or a variant).
+    Iats(IatsConfig),
+    /// A zoo sensor.
+    Zoo(ZooConfig),
+}
+
+impl SimSensor {
+    /// The sensor called `name` (`iats`, `tactip`, `gelsight`, `dots`), variant `variant`
+    /// (0: the preset).
+    pub fn named(name: &str, variant: u64) -> anyhow::Result<Self> {
+        if name == "iats" {
+            return Ok(Self::Iats(IatsConfig::variant(variant)));
+        }
+        ZooKind::from_name(name)
+            .map(|k| Self::Zoo(ZooConfig::variant(k, variant)))
+            .with_context(|| {
+                format!("unknown sensor {name:?}: expected iats, tactip, gelsight or dots")
+            })
+    }
+
+    /// Whether the markers are brighter than the skin around them.
+    fn bright_markers(&self) -> bool {
+        let look = match self {
+            SimSensor::Iats(c) => c.look,
+            SimSensor::Zoo(c) => c.look,
+        };
+        let luma = |c: [f32; 3]| 0.2989 * c[0] + 0.5870 * c[1] + 0.1140 * c[2];
+        luma(look.marker) > luma(look.background)
+    }
+
+    /// The detector a user would pick for it: the iats preset (green channel, Otsu) for bright
+    /// markers, the dark-markers preset (inverted luma, adaptive) for dark ones, with
+    /// grey-weighted centroids when asked.
+    pub fn detector(&self, centroid: Centroid) -> DetectorConfig {
+        DetectorConfig {
+            preprocess: if self.bright_markers() {
+                PreprocessConfig::IATS
+            } else {
+                PreprocessConfig::DARK_MARKERS
+            },
+            filter: BlobFilter::DEFAULT,
+            centroid,
+        }
+    }
+}
+
+/// One check.
+#[derive(Clone, Debug)]
+pub struct CheckConfig {
+    /// The sensor.
+    pub sensor: SimSensor,
+    /// `grid`, `random` or `shear`.
+    pub protocol: String,
+    /// Touches for `random` and `shear`.
+    pub touches: usize,
+    /// Seed of the touches and the noise.
+    pub seed: u64,
+    /// Rest frames averaged into the reference.
+    pub references: usize,
+    /// How markers are detected.
+    pub detector: DetectorConfig,
+    /// The layout calibration uses.
+    pub layout: LayoutChoice,
+}
+
+/// What a check measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CheckReport {
+    /// Markers the simulator draws.
+    pub sim_markers: usize,
+    /// Markers calibrated.
+    pub calibrated: usize,
+    /// Simulated markers visible at rest that calibration did not number.
+    pub uncalibrated: usize,
+    /// The layout recognised.
+    pub layout: Option<Layout>,
+    /// Median marker spacing, pixels.
+    pub pitch_px: f64,
+    /// Touch frames tracked.
+    pub frames: usize,
+    /// (frame, marker) pairs where the marker is visible.
+    pub visible: usize,
+    /// Visible markers not reported `ok`.
+    pub lost: usize,
+    /// Markers reported `ok` with another marker's blob.
+    pub wrong: usize,
+    /// Markers reported `ok` although not visible (cut by the border, touching a neighbour).
+    pub ok_not_visible: usize,
+    /// Mean displacement error over visible markers reported `ok`, pixels.
+    pub err_mean_px: f64,
+    /// 99th percentile of it, pixels.
+    pub err_p99_px: f64,
+    /// Largest, pixels.
+    pub err_max_px: f64,
+    /// The first few problems, for the record: `frame k: marker m lost (depth d)`.
+    pub examples: Vec<String>,
+}
+
+type Truth = Vec<(f64, f64, f64, bool)>;
+
+/// A touch of either kind, with its depth for the record.
+enum AnyTouch {
+    Iats(Touch),
+    Zoo(ZooTouch),
+}
+
+impl AnyTouch {
+    fn depth_mm(&self) -> f64 {
+        match self {
+            AnyTouch::Iats(t) => t.depth_mm,
+            AnyTouch::Zoo(t) => t.depth_mm,
+        }
+    }
+}
+
+fn touches(c: &CheckConfig) -> anyhow::Result<Vec<AnyTouch>> {
+    Ok(match (&c.sensor, c.protocol.as_str()) {
+        (SimSensor::Iats(s), "grid") => protocol::iats_grid_for(s)
+            .into_iter()
+            .map(AnyTouch::Iats)
+            .collect(),
+        (SimSensor::Iats(s), "random") => protocol::iats_random(s, c.touches, c.seed)
+            .into_iter()
+            .map(AnyTouch::Iats)
+            .collect(),
+        (SimSensor::Iats(s), "shear") => protocol::iats_shear(s, c.touches, c.seed)
+            .into_iter()
+            .map(AnyTouch::Iats)
+            .collect(),
+        (SimSensor::Zoo(s), "grid") => protocol::zoo_grid(s)
+            .into_iter()
+            .map(AnyTouch::Zoo)
+            .collect(),
+        (SimSensor::Zoo(s), "random") => protocol::zoo_random(s, c.touches, c.seed)
+            .into_iter()
+            .map(AnyTouch::Zoo)
+            .collect(),
+        (SimSensor::Zoo(s), "shear") => protocol::zoo_shear(s, c.touches, c.seed)
+            .into_iter()
+            .map(AnyTouch::Zoo)
+            .collect(),
+        (_, other) => bail!("--protocol {other:?}: expected grid, random or shear"),
+    })
+}
+
+fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> anyhow::Result<(RgbImage, Truth)> {
+    match (sensor, touch) {
+        (SimSensor::Iats(c), AnyTouch::Iats(t)) => {
+            let (img, truth) =
+                visuotact_sim::iats::render(c, t, seed).map_err(anyhow::Error::msg)?;
+            Ok((
+                img,
+                truth
+                    .iter()
+                    .map(|m| (m.x_px, m.y_px, m.area_px, m.visible))
+                    .collect(),
+            ))
+        }
+        (SimSensor::Zoo(c), AnyTouch::Zoo(t)) => {
+            let (img, truth) = zoo::render(c, t, seed).map_err(anyhow::Error::msg)?;
+            Ok((
+                img,
+                truth
+                    .iter()
+                    .map(|m| (m.x_px, m.y_px, m.area_px, m.visible))
+                    .collect(),
+            ))
+        }
+        _ => bail!("touch of another sensor"),
+    }
+}
+
+fn rest(sensor: &SimSensor) -> AnyTouch {
+    match sensor {
+        SimSensor::Iats(_) => AnyTouch::Iats(Touch::default()),
+        SimSensor::Zoo(_) => AnyTouch::Zoo(ZooTouch::default()),
+    }
+}
+
+/// Calibrates on rendered rest frames and tracks every touch frame against the truth.
+pub fn check(c: &CheckConfig) -> anyhow::Result<CheckReport> {
+    let seed_of = |k: u64| crate::simulate::frame_seed(c.seed, k);
+    let refs: Vec<(RgbImage, Truth)> = (0..c.references.max(1) as u64)
+        .into_par_iter()
+        .map(|k| render(&c.sensor, &rest(&c.sensor), seed_of(k)))
+        .collect::<anyhow::Result<_>>()?;
+    let ids: Vec<String> = (0..refs.len()).map(|k| format!("ref{k}")).collect();
+    let (cal, _) = calibrate(
+        ids.iter()
+            .map(String::as_str)
+            .zip(refs.iter().map(|r| &r.0)),
+        &CalibrationConfig {
+            detector: c.detector.clone(),
+            layout: c.layout,
+            features: FeatureSet::ALL,
+            ..Default::default()
+        },
+    )?;
+    let rest_truth = &refs[0].1;
+    let pairing = pair(&cal, rest_truth);
+    let mut report = CheckReport {
+        sim_markers: rest_truth.len(),
+        calibrated: cal.markers.len(),
+        layout: Some(cal.layout),
+        pitch_px: cal.pitch_px,
+        ..Default::default()
+    };
+    let mut taken = vec![false; rest_truth.len()];
+    for t in pairing.iter().flatten() {
+        taken[*t] = true;
+    }
+    report.uncalibrated = rest_truth
+        .iter()
+        .zip(&taken)
+        .filter(|(t, k)| t.3 && !**k)
+        .count();
+    let touches = touches(c)?;
+    report.frames = touches.len();
+    let first = c.references.max(1) as u64;
+    // Frames in parallel batches, each thread with its own extractor.
+    let per_frame: Vec<FrameCheck> = touches
+        .par_iter()
+        .enumerate()
+        .map_init(
+            || FeatureExtractor::new(cal.clone(), FeatureSet::ALL),
+            |ex, (k, t)| -> anyhow::Result<FrameCheck> {
+                let ex = ex.as_mut().map_err(|e| anyhow::anyhow!("{e}"))?;
+                let (img, truth) = render(&c.sensor, t, seed_of(first + k as u64))?;
+                let f = ex.extract(&img)?;
+                Ok(frame_check(
+                    &cal,
+                    &pairing,
+                    rest_truth,
+                    &truth,
+                    &f,
+                    k,
+                    t.depth_mm(),
+                ))
+            },
+        )
+        .collect::<anyhow::Result<_>>()?;
+    let mut errs: Vec<f64> = Vec::new();
+    for fc in per_frame {
+        report.visible += fc.visible;
+        report.lost += fc.lost;
+        report.wrong += fc.wrong;
+        report.ok_not_visible += fc.ok_not_visible;
+        errs.extend(fc.errs);
+        for e in fc.examples {
+            if report.examples.len() < 10 {
+                report.examples.push(e);
+            }
+        }
+    }
+    errs.sort_by(f64::total_cmp);
+    if !errs.is_empty() {
+        report.err_mean_px = errs.iter().sum::<f64>() / errs.len() as f64;
+        report.err_p99_px = errs[((errs.len() - 1) as f64 * 0.99).round() as usize];
+        report.err_max_px = *errs.last().unwrap_or(&0.0);
+    }
+    Ok(report)
+}
+
+/// Per calibrated marker, the simulated marker nearest to it at rest (within half its
+/// spacing), if any.
+fn pair(cal: &SensorCalibration, rest: &Truth) -> Vec<Option<usize>> {
+    cal.markers
+        .iter()
+        .map(|m| {
+            rest.iter()
+                .enumerate()
+                .filter(|(_, t)| t.0.is_finite())
+                .map(|(j, t)| (j, (t.0 - m.x_px).hypot(t.1 - m.y_px)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .filter(|&(_, d)| d < 0.5 * cal.pitch_px)
+                .map(|(j, _)| j)
+        })
+        .collect()
+}
+
+#[derive(Default)]
+struct FrameCheck {
+    visible: usize,
+    lost: usize,
+    wrong: usize,
+    ok_not_visible: usize,
+    errs: Vec<f64>,
+    examples: Vec<String>,
+}
+
+fn frame_check(
+    cal: &SensorCalibration,
+    pairing: &[Option<usize>],
+    rest: &Truth,
+    now: &Truth,
+    f: &FrameFeatures,
+    k: usize,
+    depth_mm: f64,
+) -> FrameCheck {
+    let mut out = FrameCheck::default();
+    let per = FeatureSet::ALL.per_marker();
+    for (i, (m, t)) in cal.markers.iter().zip(pairing).enumerate() {
+        let Some(t) = *t else { continue };
+        let visible = now[t].3;
+        let ok = f.status[i] == MarkerStatus::Ok;
+        if visible {
+            out.visible += 1;
+        }
+        if !ok {
+            if visible {
+                out.lost += 1;
+                out.examples.push(format!(
+                    "frame {k} (depth {depth_mm:.2} mm): marker {i} {} though visible",
+                    f.status[i].name()
+                ));
+            }
+            continue;
+        }
+        let (dx, dy) = (f.values[per * i], f.values[per * i + 1]);
+        let (x, y) = (m.x_px + dx, m.y_px + dy);
+        let own = (x - now[t].0).hypot(y - now[t].1);
+        let nearer = now
+            .iter()
+            .enumerate()
+            .any(|(j, o)| j != t && (x - o.0).hypot(y - o.1) < own);
+        if nearer || own > 0.5 * cal.pitch_px {
+            out.wrong += 1;
+            out.examples.push(format!(
+                "frame {k} (depth {depth_mm:.2} mm): marker {i} measured at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
+                now[t].0, now[t].1
+            ));
+            continue;
+        }
+        if !visible {
+            out.ok_not_visible += 1;
+            continue;
+        }
+        let (tx, ty) = (now[t].0 - rest[t].0, now[t].1 - rest[t].1);
+        out.errs.push((dx - tx).hypot(dy - ty));
+    }
+    out
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// iats, tactip, gelsight or dots.
+    #[arg(long, default_value = "tactip")]
+    sensor: String,
+    /// Sensor variants: a number or a range `A..B` (inclusive; 0 is the preset).
+    #[arg(long, default_value = "0")]
+    variants: String,
+    /// grid, random or shear.
+    #[arg(long, default_value = "shear")]
+    protocol: String,
+    /// Touches for random and shear.
+    #[arg(long, default_value_t = 200)]
+    touches: usize,
+    /// Seed of the touches and noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Rest frames averaged into the reference.
+    #[arg(long, default_value_t = 10)]
+    references: usize,
+    /// binary or weighted centroids.
+    #[arg(long, default_value = "binary", value_parser = ["binary", "weighted"])]
+    centroid: String,
+    /// Print the first problems found.
+    #[arg(long)]
+    verbose: bool,
+}
+
+/// Parses `N` or `A..B` (inclusive).
+pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
+    let bad = || anyhow::anyhow!("{s:?}: expected a number or a range A..B");
+    if let Some((a, b)) = s.split_once("..") {
+        let (a, b): (u64, u64) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?);
+        if a > b {
+            return Err(bad());
+        }
+        Ok((a..=b).collect())
+    } else {
+        Ok(vec![s.parse().map_err(|_| bad())?])
+    }
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let centroid = if a.centroid == "weighted" {
+        Centroid::Weighted
+    } else {
+        Centroid::Binary
+    };
+    println!(
+        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px"
+    );
+    let (mut lost, mut wrong) = (0, 0);
+    for v in parse_range(&a.variants)? {
+        let sensor = SimSensor::named(&a.sensor, v)?;
+        let cfg = CheckConfig {
+            sensor,
+            protocol: a.protocol.clone(),
+            touches: a.touches,
+            seed: a.seed,
+            references: a.references,
+            detector: sensor.detector(centroid),
+            layout: LayoutChoice::Auto,
+        };
+        let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
+        println!(
+            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}",
+            a.sensor,
+            r.layout.map_or("-", Layout::name),
+            r.sim_markers,
+            r.calibrated,
+            r.uncalibrated,
+            r.frames,
+            r.visible,
+            r.lost,
+            r.wrong,
+            r.err_mean_px,
+            r.err_p99_px,
+            r.err_max_px
+        );
+        if a.verbose {
+            for e in &r.examples {
+                println!("  {e}");
+            }
+        }
+        lost += r.lost + r.uncalibrated;
+        wrong += r.wrong;
+    }
+    if lost + wrong > 0 {
+        eprintln!("{lost} visible marker-frames lost or uncalibrated, {wrong} wrong identities");
+    }
+    Ok(())
+}
