@@ -22,7 +22,7 @@ use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibrat
 use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
 use visuotact_vision::layout::{Layout, LayoutChoice};
-use visuotact_vision::preprocess::PreprocessConfig;
+use visuotact_vision::preprocess::{CircleMask, PreprocessConfig};
 use visuotact_vision::track::MarkerStatus;
 
 /// A simulated sensor.
@@ -61,13 +61,23 @@ impl SimSensor {
     /// The detector a user would pick for it: the iats preset (green channel, Otsu) for bright
     /// markers, the dark-markers preset (inverted luma, adaptive) for dark ones, with
     /// grey-weighted centroids when asked.
+    /// A circular view (a TacTip's rim) is masked at its edge, as `--circle`
+    /// does, so markers cut by the rim count as cut by the border.
     pub fn detector(&self, centroid: Centroid) -> DetectorConfig {
+        let mut preprocess = if self.bright_markers() {
+            PreprocessConfig::IATS
+        } else {
+            PreprocessConfig::DARK_MARKERS
+        };
+        if let SimSensor::Zoo(c) = self {
+            preprocess.circle = c.aperture_px().map(|((cx, cy), r)| CircleMask {
+                cx_px: cx,
+                cy_px: cy,
+                radius_px: r,
+            });
+        }
         DetectorConfig {
-            preprocess: if self.bright_markers() {
-                PreprocessConfig::IATS
-            } else {
-                PreprocessConfig::DARK_MARKERS
-            },
+            preprocess,
             filter: BlobFilter::DEFAULT,
             centroid,
         }
@@ -366,7 +376,13 @@ fn frame_check(
             continue;
         }
         let (tx, ty) = (now[t].0 - rest[t].0, now[t].1 - rest[t].1);
-        out.errs.push((dx - tx).hypot(dy - ty));
+        let e = (dx - tx).hypot(dy - ty);
+        if e > 0.25 * cal.pitch_px.min(4.0) {
+            out.examples.push(format!(
+                "frame {k} (depth {depth_mm:.2} mm): marker {i} off by {e:.2} px"
+            ));
+        }
+        out.errs.push(e);
     }
     out
 }
@@ -391,9 +407,12 @@ pub(crate) struct Args {
     /// Rest frames averaged into the reference.
     #[arg(long, default_value_t = 10)]
     references: usize,
-    /// binary or weighted centroids.
-    #[arg(long, default_value = "binary", value_parser = ["binary", "weighted"])]
+    /// Centroids: weighted (by grey level above the threshold, calibrate's default) or binary.
+    #[arg(long, default_value = "weighted", value_parser = ["binary", "weighted"])]
     centroid: String,
+    /// Binarise the zoo sensor's output (black and white frames, as published TacTip data).
+    #[arg(long)]
+    binarise: bool,
     /// Print the first problems found.
     #[arg(long)]
     verbose: bool,
@@ -424,7 +443,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     );
     let (mut lost, mut wrong) = (0, 0);
     for v in parse_range(&a.variants)? {
-        let sensor = SimSensor::named(&a.sensor, v)?;
+        let mut sensor = SimSensor::named(&a.sensor, v)?;
+        if a.binarise {
+            match &mut sensor {
+                SimSensor::Zoo(c) => c.binarise = true,
+                SimSensor::Iats(_) => bail!("--binarise applies to the zoo sensors"),
+            }
+        }
         let cfg = CheckConfig {
             sensor,
             protocol: a.protocol.clone(),

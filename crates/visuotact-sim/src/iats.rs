@@ -333,7 +333,8 @@ pub struct IatsMarker {
     pub area_px: f64,
     /// Whether the whole marker lies inside the image with a pixel to spare.
     pub fully_in_view: bool,
-    /// In view and clear of every other marker by `2 px + 2 × blur`: a blob of its own.
+    /// In view, clear of every other marker by `2 px + 2 × blur`, and not squeezed to a sliver
+    /// (its minor axis at least 2.5 px and 35 % of its rest value): a blob of its own.
     pub visible: bool,
 }
 
@@ -358,17 +359,25 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
     for row in 0..cfg.rows {
         for col in 0..cfg.cols {
             let (mx, my) = (col as f64 * px, row as f64 * py);
-            let verts: Vec<(f64, f64)> = (0..MARKER_VERTICES)
-                .filter_map(|k| {
-                    let t = k as f64 / MARKER_VERTICES as f64 * std::f64::consts::TAU;
-                    let (x, y) = (
-                        mx + cfg.marker_radius_mm * t.cos(),
-                        my + cfg.marker_radius_mm * t.sin(),
-                    );
-                    cam.px_from_mm(camera_point(cfg, touch, x, y))
-                })
-                .collect();
-            let poly = ConvexPolygon::new(verts);
+            let outline = |t: &Touch| {
+                let verts: Vec<(f64, f64)> = (0..MARKER_VERTICES)
+                    .filter_map(|k| {
+                        let a = k as f64 / MARKER_VERTICES as f64 * std::f64::consts::TAU;
+                        let (x, y) = (
+                            mx + cfg.marker_radius_mm * a.cos(),
+                            my + cfg.marker_radius_mm * a.sin(),
+                        );
+                        cam.px_from_mm(camera_point(cfg, t, x, y))
+                    })
+                    .collect();
+                ConvexPolygon::new(verts)
+            };
+            let poly = outline(touch);
+            // Squeezed to a sliver by the fabric's strain: no longer a blob.
+            let rest_minor = outline(&Touch::default()).map_or(0.0, |p| p.minor_axis());
+            let collapsed = poly
+                .as_ref()
+                .is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5));
             let (area_px, (x_px, y_px)) = poly
                 .as_ref()
                 .map_or((0.0, (f64::NAN, f64::NAN)), |p| ring_area_centroid(p, None));
@@ -385,7 +394,7 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
                     y_px,
                     area_px,
                     fully_in_view,
-                    visible: fully_in_view,
+                    visible: fully_in_view && !collapsed,
                 },
             ));
         }
@@ -396,7 +405,7 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
         .collect();
     let crowded = crowded(&shapes, 2.0 + 2.0 * cfg.blur_px);
     for ((_, m), c) in out.iter_mut().zip(crowded) {
-        m.visible = m.fully_in_view && !c;
+        m.visible &= !c;
     }
     out
 }

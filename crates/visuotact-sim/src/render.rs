@@ -208,6 +208,36 @@ impl ConvexPolygon {
         range
     }
 
+    /// The minor axis of the ellipse with the polygon's second moments, `4·sqrt(λ_min)` (as the
+    /// vision pipeline measures blobs): how wide the shape is at its narrowest.
+    pub fn minor_axis(&self) -> f64 {
+        let v = &self.vertices;
+        let n = v.len();
+        let (mut a, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for i in 0..n {
+            let (x0, y0) = v[i];
+            let (x1, y1) = v[(i + 1) % n];
+            let c = x0 * y1 - x1 * y0;
+            a += c;
+            sx += (x0 + x1) * c;
+            sy += (y0 + y1) * c;
+            sxx += (x0 * x0 + x0 * x1 + x1 * x1) * c;
+            syy += (y0 * y0 + y0 * y1 + y1 * y1) * c;
+            sxy += (x0 * y1 + 2.0 * x0 * y0 + 2.0 * x1 * y1 + x1 * y0) * c;
+        }
+        a *= 0.5;
+        if a.abs() < 1e-300 {
+            return 0.0;
+        }
+        let (cx, cy) = (sx / (6.0 * a), sy / (6.0 * a));
+        let mu20 = sxx / (12.0 * a) - cx * cx;
+        let mu02 = syy / (12.0 * a) - cy * cy;
+        let mu11 = sxy / (24.0 * a) - cx * cy;
+        let half = 0.5 * (mu20 + mu02);
+        let root = (0.25 * (mu20 - mu02).powi(2) + mu11 * mu11).sqrt();
+        4.0 * (half - root).max(0.0).sqrt()
+    }
+
     /// The hull's vertices.
     pub fn vertices(&self) -> &[(f64, f64)] {
         &self.vertices
@@ -550,6 +580,26 @@ mod tests {
         let (a, (cx, cy)) = poly.area_centroid();
         assert!((s - a).abs() < 0.01 * a, "coverage {s} vs area {a}");
         assert!((sx / s - cx).abs() < 0.01 && (sy / s - cy).abs() < 0.01);
+    }
+
+    #[test]
+    fn minor_axis_of_an_ellipse_and_a_rectangle() {
+        // An ellipse with semi-axes 6 and 2, rotated 30°: minor axis 4 (as 4·sqrt(b²/4)).
+        let (s, c) = 30f64.to_radians().sin_cos();
+        let e = ConvexPolygon::new(
+            (0..720)
+                .map(|i| {
+                    let t = i as f64 / 720.0 * std::f64::consts::TAU;
+                    let (x, y) = (6.0 * t.cos(), 2.0 * t.sin());
+                    (10.0 + c * x - s * y, 20.0 + s * x + c * y)
+                })
+                .collect(),
+        )
+        .unwrap();
+        assert!((e.minor_axis() - 4.0).abs() < 1e-3, "{}", e.minor_axis());
+        // A 10 × 3 rectangle: variance 3²/12 across, minor axis 4·sqrt(0.75).
+        let r = ConvexPolygon::new(vec![(0.0, 0.0), (10.0, 0.0), (10.0, 3.0), (0.0, 3.0)]).unwrap();
+        assert!((r.minor_axis() - 4.0 * 0.75f64.sqrt()).abs() < 1e-12);
     }
 
     #[test]

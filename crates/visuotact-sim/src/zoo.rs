@@ -294,7 +294,10 @@ impl ZooConfig {
     /// | camera distance | dome + 5–12 mm | 12–20 mm | 25–40 mm |
     /// | k1 (barrel) | −0.15…−0.03 | −0.1…0 | −0.1…0 |
     /// | image | 640×480, rim at 0.42–0.49 height | 320×240, field fills 75–92 % | 640×480, fills 75–92 % |
-    /// | look | white-ish pins on near-black, binarised half the time | dark dots on a tinted bright gel, gradient ±0.2, shading 0.3–0.8 | bright or dark dots (half each) |
+    /// | look | white-ish pins on near-black | dark dots on a tinted bright gel, gradient ±0.2, shading 0.3–0.8 | bright or dark dots (half each) |
+    ///
+    /// Binarised output (`binarise`, as published TacTip data sets) is a setting of its own, not
+    /// drawn: it changes what any centroid can measure (pixel digitisation).
     /// | noise σ, vignetting, blur | 1–5, 0.05–0.4, 0.3–1 px | 1–4, 0.1–0.3, 0.4–1 px | 1–5, 0.05–0.3, 0.3–1 px |
     pub fn variant(kind: ZooKind, seed: u64) -> Self {
         let mut c = kind.preset();
@@ -334,7 +337,6 @@ impl ZooConfig {
                     noise_sigma: u(1.0, 5.0) as f32,
                     vignetting: u(0.05, 0.4) as f32,
                 };
-                c.binarise = u(0.0, 1.0) < 0.5;
                 c.blur_px = u(0.3, 1.0);
                 c.fit_dome_in_view(rim);
             }
@@ -809,9 +811,10 @@ pub struct ZooMarker {
     pub y_px: f64,
     /// Projected area, pixels.
     pub area_px: f64,
-    /// Wholly inside the image (and the circular view) with a pixel to spare.
+    /// Wholly inside the image with a pixel to spare (and the circular view with three).
     pub in_view: bool,
-    /// In view and clear of every other marker by `2 px + 2 × blur`: a blob of its own.
+    /// In view, clear of every other marker by `2 px + 2 × blur`, and not squeezed to a sliver
+    /// (its minor axis at least 2.5 px and 35 % of its rest value): a blob of its own.
     pub visible: bool,
 }
 
@@ -827,18 +830,26 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
         .rest_positions_mm()
         .into_iter()
         .map(|(mx, my)| {
-            let verts: Vec<(f64, f64)> = (0..MARKER_VERTICES)
-                .filter_map(|k| {
-                    let t = k as f64 / MARKER_VERTICES as f64 * std::f64::consts::TAU;
-                    let p = camera_point(cfg, touch, mx + rm * t.cos(), my + rm * t.sin());
-                    cam.px_from_mm(p)
-                })
-                .collect();
-            let poly = if verts.len() == MARKER_VERTICES {
-                ConvexPolygon::new(verts)
-            } else {
-                None
+            let outline = |t: &ZooTouch| {
+                let verts: Vec<(f64, f64)> = (0..MARKER_VERTICES)
+                    .filter_map(|k| {
+                        let a = k as f64 / MARKER_VERTICES as f64 * std::f64::consts::TAU;
+                        let p = camera_point(cfg, t, mx + rm * a.cos(), my + rm * a.sin());
+                        cam.px_from_mm(p)
+                    })
+                    .collect();
+                if verts.len() == MARKER_VERTICES {
+                    ConvexPolygon::new(verts)
+                } else {
+                    None
+                }
             };
+            let poly = outline(touch);
+            // Squeezed to a sliver by the skin's strain: no longer a blob.
+            let rest_minor = outline(&ZooTouch::default()).map_or(0.0, |p| p.minor_axis());
+            let collapsed = poly
+                .as_ref()
+                .is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5));
             let (area_px, (x_px, y_px)) = poly
                 .as_ref()
                 .map_or((0.0, (f64::NAN, f64::NAN)), |p| ring_area_centroid(p, None));
@@ -852,7 +863,7 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
                     && aperture.is_none_or(|((cx, cy), r)| {
                         p.vertices()
                             .iter()
-                            .all(|&(x, y)| (x - cx).hypot(y - cy) < r - 1.5)
+                            .all(|&(x, y)| (x - cx).hypot(y - cy) < r - 3.0)
                     })
             });
             (
@@ -863,7 +874,7 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
                     y_px,
                     area_px,
                     in_view,
-                    visible: in_view,
+                    visible: in_view && !collapsed,
                 },
             )
         })
@@ -875,7 +886,7 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
         .collect();
     let crowded = crowded(&shapes, 2.0 + 2.0 * cfg.blur_px);
     for ((_, m), c) in out.iter_mut().zip(crowded) {
-        m.visible = m.in_view && !c;
+        m.visible &= !c;
     }
     out
 }
@@ -905,33 +916,39 @@ pub fn render(
     let look = &cfg.look;
     let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
     let rmax2 = cx * cx + cy * cy;
+    // LED vignetting and uneven lighting.
+    let light_at = |x: usize, y: usize| {
+        let (fx, fy) = (x as f32 - cx, y as f32 - cy);
+        ((1.0 - look.vignetting * (fx * fx + fy * fy) / rmax2)
+            * (1.0 + cfg.light_gradient[0] * fx / cx + cfg.light_gradient[1] * fy / cy))
+            .max(0.0)
+    };
     let mut img = frame_from_coverage_lit(&cov, look.noise_sigma, seed, |x, y| {
         if let Some(((ax, ay), ar)) = aperture {
             if (x as f64 - ax).hypot(y as f64 - ay) > ar {
                 return ([0.0; 3], [0.0; 3], 1.0);
             }
         }
-        let (fx, fy) = (x as f32 - cx, y as f32 - cy);
-        let r2 = (fx * fx + fy * fy) / rmax2;
-        let light = (1.0 - look.vignetting * r2)
-            * (1.0 + cfg.light_gradient[0] * fx / cx + cfg.light_gradient[1] * fy / cy);
         let mut bg = look.background;
         if let Some(s) = shade.as_ref().and_then(|m| m.at(x, y)) {
             for (b, k) in bg.iter_mut().zip(s) {
                 *b *= k;
             }
         }
-        (bg, look.marker, light.max(0.0))
+        (bg, look.marker, light_at(x, y))
     });
     if cfg.binarise {
-        let luma = |c: &[f32; 3]| 0.2989 * c[0] + 0.5870 * c[1] + 0.1140 * c[2];
-        let mid = 0.5 * (luma(&look.background) + luma(&look.marker));
-        let bright_markers = luma(&look.marker) > luma(&look.background);
-        for px in img.as_mut_slice().chunks_exact_mut(3) {
-            let v = luma(&[f32::from(px[0]), f32::from(px[1]), f32::from(px[2])]);
-            let on = (v > mid) == bright_markers;
-            let out = if on == bright_markers { 255 } else { 0 };
-            px.fill(out);
+        // As a data set's adaptive binarisation does: halfway between the background and the
+        // markers as lit at each pixel.
+        let luma = |c: [f32; 3]| 0.2989 * c[0] + 0.5870 * c[1] + 0.1140 * c[2];
+        let mid = 0.5 * (luma(look.background) + luma(look.marker));
+        for (k, px) in img.as_mut_slice().chunks_exact_mut(3).enumerate() {
+            let v = luma([f32::from(px[0]), f32::from(px[1]), f32::from(px[2])]);
+            px.fill(if v > mid * light_at(k % w, k / w) {
+                255
+            } else {
+                0
+            });
         }
     }
     Ok((img, ms.into_iter().map(|(_, m)| m).collect()))
@@ -1069,7 +1086,10 @@ mod tests {
             .collect();
         nn.sort_by(f64::total_cmp);
         let median = nn[nn.len() / 2];
-        assert!((17.0..=24.0).contains(&median), "median pitch {median:.1} px");
+        assert!(
+            (17.0..=24.0).contains(&median),
+            "median pitch {median:.1} px"
+        );
     }
 
     #[test]

@@ -180,6 +180,8 @@ struct Acc {
     y0: u32,
     x1: u32,
     y1: u32,
+    /// A pixel of the blob neighbours a pixel outside the circular mask.
+    edge: bool,
 }
 
 impl Acc {
@@ -221,6 +223,7 @@ impl Acc {
         self.y0 = self.y0.min(o.y0);
         self.x1 = self.x1.max(o.x1);
         self.y1 = self.y1.max(o.y1);
+        self.edge |= o.edge;
     }
 
     fn blob(&self, rect: (u32, u32, u32, u32)) -> Blob {
@@ -246,7 +249,11 @@ impl Acc {
                 x1: self.x1,
                 y1: self.y1,
             },
-            touches_border: self.x0 == rx0 || self.y0 == ry0 || self.x1 == rx1 || self.y1 == ry1,
+            touches_border: self.edge
+                || self.x0 == rx0
+                || self.y0 == ry0
+                || self.x1 == rx1
+                || self.y1 == ry1,
         }
     }
 }
@@ -401,24 +408,36 @@ fn label_pass(
         Connectivity::Eight => 1u32,
         Connectivity::Four => 0u32,
     };
-    for y in ry0..ry1 {
-        // Columns inside the circular mask on this row.
+    // Columns `[xa, xb)` inside the region on row `y` (empty when the circle misses it).
+    let chord = |y: usize| -> (usize, usize) {
         let (mut xa, mut xb) = (rx0, rx1);
         if let Some(c) = region.circle {
             let dy = y as f64 - c.cy_px;
             let r2 = c.radius_px * c.radius_px - dy * dy;
             if r2 < 0.0 {
-                s.prev.clear();
-                continue;
+                return (rx0, rx0);
             }
             let half = r2.sqrt();
             xa = xa.max((c.cx_px - half).ceil().max(0.0) as usize);
             xb = xb.min(((c.cx_px + half).floor() + 1.0).max(0.0) as usize);
-            if xb <= xa {
-                s.prev.clear();
-                continue;
-            }
         }
+        (xa, xb.max(xa))
+    };
+    for y in ry0..ry1 {
+        let (xa, xb) = chord(y);
+        if xb <= xa {
+            s.prev.clear();
+            continue;
+        }
+        // With a circular mask, a run whose end or 8-neighbours in the rows above and below
+        // fall outside the chords touches the mask's edge.
+        let (above, below) = match region.circle {
+            Some(_) => (
+                (y > ry0).then(|| chord(y - 1)),
+                (y + 1 < ry1).then(|| chord(y + 1)),
+            ),
+            None => (None, None),
+        };
         let row = &img.row(y)[rx0..rx1];
         match level {
             Level::Scalar(t) => crate::kernels::above_bits(row, t, &mut s.bits),
@@ -502,7 +521,18 @@ fn label_pass(
                 }
             }
             r.label = label;
-            s.acc[label as usize].add_run(yy, r.x0 + rx0 as u32, r.x1 + rx0 as u32, &s.sq);
+            let (a, b) = (r.x0 as usize + rx0, r.x1 as usize + rx0);
+            let acc = &mut s.acc[label as usize];
+            acc.add_run(yy, a as u32, b as u32, &s.sq);
+            if region.circle.is_some() {
+                let outside = |c: Option<(usize, usize)>| {
+                    c.is_some_and(|(ca, cb)| cb <= ca || a < ca + 1 || b + 2 > cb)
+                };
+                acc.edge |= (a == xa && xa > rx0)
+                    || (b + 1 == xb && xb < rx1)
+                    || outside(above)
+                    || outside(below);
+            }
             if weighted {
                 let (a, b) = (r.x0 as usize, r.x1 as usize);
                 let (mut sw, mut swx) = (0.0f64, 0.0f64);
@@ -719,5 +749,17 @@ mod tests {
             out[0].area_px, 5,
             "a radius-1 disc keeps the centre and its 4 neighbours"
         );
+        // Cut by the circle: it touches the border of the processed region.
+        assert!(out[0].touches_border);
+        let region = Region {
+            roi: None,
+            circle: Some(CircleMask {
+                cx_px: 9.0,
+                cy_px: 3.0,
+                radius_px: 20.0,
+            }),
+        };
+        let out = blobs_in(&img, region);
+        assert!(out.iter().all(|b| !b.touches_border), "{out:?}");
     }
 }

@@ -104,6 +104,8 @@ pub struct Detector {
     open3: Open3Scratch,
     /// Histogram of the preprocessed image, when the streaming path computed it.
     hist: Option<[u32; 256]>,
+    /// Blobs of the last frame dropped only because they touch the border.
+    cut: Vec<Blob>,
 }
 
 impl Detector {
@@ -126,12 +128,20 @@ impl Detector {
             centroids: Vec::new(),
             open3: Open3Scratch::default(),
             hist: None,
+            cut: Vec::new(),
         })
     }
 
     /// The configuration.
     pub fn config(&self) -> &DetectorConfig {
         &self.cfg
+    }
+
+    /// The blobs of the last frame that passed the area filter but were dropped because they
+    /// touch the border (markers cut by the edge of the image or region; empty with
+    /// `keep_border`). Tracking uses them to tell a marker that left the view from one lost.
+    pub fn last_cut(&self) -> &[Blob] {
+        &self.cut
     }
 
     /// The preprocessed single-channel image of the last frame.
@@ -235,6 +245,13 @@ impl Detector {
         }
         out.clear();
         out.extend(self.all.iter().filter(|b| self.cfg.filter.keeps(b)));
+        let f = &self.cfg.filter;
+        self.cut.clear();
+        self.cut.extend(
+            self.all
+                .iter()
+                .filter(|b| !f.keep_border && b.touches_border && b.area_px <= f.max_area_px),
+        );
         Detection {
             level,
             raw_count: self.all.len(),

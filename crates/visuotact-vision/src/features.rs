@@ -11,7 +11,7 @@ use visuotact_image::RgbImage;
 use crate::blobs::Blob;
 use crate::calibration::{track_reference, SensorCalibration};
 use crate::detect::Detector;
-use crate::track::{track, MarkerStatus, TrackReference, TrackResult};
+use crate::track::{track_with, MarkerStatus, TrackHints, TrackReference, TrackResult};
 
 /// Which per-marker features to output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -155,6 +155,8 @@ pub struct FeatureExtractor {
     detector: Detector,
     reference: TrackReference,
     blobs: Vec<Blob>,
+    /// How many blobs at the end of `blobs` are markers cut by the border.
+    cut: usize,
     last_track: TrackResult,
 }
 
@@ -169,6 +171,7 @@ impl FeatureExtractor {
             detector,
             reference,
             blobs: Vec::new(),
+            cut: 0,
             last_track: TrackResult::default(),
         })
     }
@@ -189,9 +192,10 @@ impl FeatureExtractor {
             .column_names(self.cal.markers.iter().map(|m| m.id))
     }
 
-    /// The blobs of the last frame.
+    /// The blobs of the last frame (those the filter kept; blob indices of
+    /// [`FeatureExtractor::last_track`] point into them).
     pub fn last_blobs(&self) -> &[Blob] {
-        &self.blobs
+        &self.blobs[..self.blobs.len() - self.cut]
     }
 
     /// The tracking result of the last frame.
@@ -214,7 +218,18 @@ impl FeatureExtractor {
             });
         }
         self.detector.detect_into(rgb, &mut self.blobs);
-        self.last_track = track(&self.reference, &self.blobs, &self.cal.track);
+        // Markers cut by the border go after the measurable blobs: they explain an absence.
+        self.cut = self.detector.last_cut().len();
+        self.blobs.extend_from_slice(self.detector.last_cut());
+        self.last_track = track_with(
+            &self.reference,
+            &self.blobs,
+            &self.cal.track,
+            TrackHints {
+                cut: self.cut,
+                prior: None,
+            },
+        );
         let t = &self.last_track;
         out.values.clear();
         out.status.clear();

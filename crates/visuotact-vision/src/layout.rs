@@ -270,10 +270,7 @@ pub fn annuli_share_centres(blobs: &[Blob]) -> bool {
 
 /// Lattice directions found among the neighbour links: unit vectors with their weight relative
 /// to the strongest, strongest first.
-fn lattice_directions(
-    points: &[(f64, f64)],
-    nbrs: &[Vec<(usize, f64)>],
-) -> Vec<((f64, f64), f64)> {
+fn lattice_directions(points: &[(f64, f64)], nbrs: &[Vec<(usize, f64)>]) -> Vec<((f64, f64), f64)> {
     // Histogram of link directions folded to 0..180°, one-degree bins, each of the six
     // nearest links weighted by (nearest distance / length)².
     let mut hist = [0.0f64; 180];

@@ -85,6 +85,9 @@ pub struct TrackConfig {
     /// A matched marker farther than this from its neighbours' prediction, in spacings, is
     /// released and grown again.
     pub verify_pitches: f64,
+    /// Reach of the all-at-once reassignment around the overall motion, in spacings (the
+    /// largest local displacement it can follow: a drag of a pitch plus the press).
+    pub reassign_pitches: f64,
 }
 
 impl TrackConfig {
@@ -95,6 +98,7 @@ impl TrackConfig {
         ambiguity_ratio: 1.25,
         merged_area_ratio: 1.6,
         verify_pitches: 0.35,
+        reassign_pitches: 2.2,
     };
 }
 
@@ -436,6 +440,10 @@ fn track_rings(reference: &TrackReference, sizes: &[f64], blobs: &[Blob]) -> Tra
     }
 }
 
+/// Cost of a marker left without a blob in the first reassignment round, in squared spacings:
+/// more than a chain of shifts within reach, so every marker that has a blob gets one.
+const FIRST_ROUND_LOST_COST: f64 = 100.0;
+
 /// A local affine motion model around one marker.
 #[derive(Clone, Copy, Debug)]
 struct LocalMotion {
@@ -656,25 +664,6 @@ impl Matching<'_> {
         }
     }
 
-    /// Whether some unmatched marker has a free blob within `reach` spacings of where its
-    /// neighbours (or the overall motion) put it: a hole the greedy growth may have left by
-    /// giving its blob to a neighbour.
-    fn has_holes(&self, predicted: &[(f64, f64)], reach: f64) -> bool {
-        let matched = self.matched();
-        (0..self.assignment.len()).any(|i| {
-            if self.assignment[i].is_some() {
-                return false;
-            }
-            let p = self.predict(i, &matched).map_or(predicted[i], |x| x.0);
-            let mut free = false;
-            self.index
-                .near(p, reach * self.reference.spacing_px[i], |j, _| {
-                    free |= !self.taken[j];
-                });
-            free
-        })
-    }
-
     /// Total squared residual (in spacings) of the matched markers against their neighbours'
     /// prediction, plus `lost_cost` per unmatched marker: lower is a smoother, fuller match.
     fn energy(&self, lost_cost: f64) -> f64 {
@@ -691,16 +680,17 @@ impl Matching<'_> {
     }
 
     /// Re-matches every marker at once by minimum total squared distance to its prediction
-    /// (one-to-one, each marker free to stay unmatched at the cost of its gate): first from the
-    /// overall motion alone with a gate of `search_pitches`, then from the local affine motion
-    /// of the previous round's matches with a gate of one spacing, until nothing changes.
+    /// (one-to-one; quadratic costs prefer many small shifts to one long jump): first from the
+    /// overall motion alone within `reassign_pitches`, a marker left without a blob costing
+    /// more than any shift within reach; then from the local affine motion of the previous
+    /// round's matches with a gate of one spacing (beyond it, no blob), until nothing changes.
     fn reassign(&mut self, predicted: &[(f64, f64)]) {
         let n = self.assignment.len();
         let mut cands = Candidates::default();
         let mut preds: Vec<((f64, f64), f64)> = predicted.iter().map(|&p| (p, 1.0)).collect();
         for round in 0..4 {
             let reach = if round == 0 {
-                self.cfg.search_pitches.max(1.0) + 0.3
+                self.cfg.reassign_pitches
             } else {
                 1.0
             };
@@ -714,11 +704,18 @@ impl Matching<'_> {
                 let blobs = self.blobs;
                 self.index.near((px, py), r, |j, d2| {
                     let a = f64::from(blobs[j].area_px);
-                    if a >= 0.2 * expected && a <= 5.0 * expected {
+                    let lo = if blobs[j].touches_border { 0.0 } else { 0.2 };
+                    if a >= lo * expected && a <= 5.0 * expected {
                         cands.push_edge(j, d2 / (s * s));
                     }
                 });
-                cands.end_row((r / s).powi(2));
+                // First round: every marker should have a blob (a hole costs more than any
+                // chain of shifts within reach); later rounds: a blob beyond the gate is none.
+                cands.end_row(if round == 0 {
+                    FIRST_ROUND_LOST_COST
+                } else {
+                    (r / s).powi(2)
+                });
             }
             let a = assign_min_cost(&cands, self.blobs.len());
             let changed = (0..n).any(|i| a.columns[i] != self.assignment[i]);
@@ -770,23 +767,36 @@ impl Matching<'_> {
     }
 }
 
-/// Matches every reference marker to at most one blob of the frame, each frame on its own.
-pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> TrackResult {
-    track_from(reference, blobs, cfg, None)
+/// What the tracker may use besides the blobs.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TrackHints<'a> {
+    /// The last `cut` blobs are markers cut by the image border (dropped by the blob filter):
+    /// a marker that takes one left the view and is reported lost, never measured.
+    pub cut: usize,
+    /// Each marker's position in an earlier frame of the same video (`None` for markers it did
+    /// not have): tracking starts from there instead of from the reference.
+    pub prior: Option<&'a [Option<(f64, f64)>]>,
 }
 
-/// Matches every reference marker to at most one blob of the frame, starting from `prior`, each
-/// marker's position in an earlier frame of the same video (`None` for markers it did not
-/// have); without a prior, from the reference after the registration's overall motion.
-pub fn track_from(
+/// Matches every reference marker to at most one blob of the frame, each frame on its own.
+pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> TrackResult {
+    track_with(reference, blobs, cfg, TrackHints::default())
+}
+
+/// Matches every reference marker to at most one blob of the frame, with `hints`: markers cut
+/// by the border, and a temporal prior (without one, tracking starts from the reference after
+/// the registration's overall motion).
+pub fn track_with(
     reference: &TrackReference,
     blobs: &[Blob],
     cfg: &TrackConfig,
-    prior: Option<&[Option<(f64, f64)>]>,
+    hints: TrackHints<'_>,
 ) -> TrackResult {
+    let usable = blobs.len() - hints.cut.min(blobs.len());
     if let Some(sizes) = &reference.ring_sizes_px {
-        return track_rings(reference, sizes, blobs);
+        return track_rings(reference, sizes, &blobs[..usable]);
     }
+    let prior = hints.prior;
     let n = reference.positions.len();
     let index = BlobIndex::new(blobs, reference.pitch_px.max(1.0));
     let (anchors, shift) = match prior {
@@ -823,12 +833,20 @@ pub fn track_from(
     }
     // Holes next to free blobs: the growth may have followed a lattice-shifted path (a region
     // dragged by about a pitch). Match everything at once instead and keep the better result.
-    if m.has_holes(&predicted, 1.5) {
+    // A marker without a blob, or a blob without a marker: the growth may have followed a
+    // lattice-shifted path (a region dragged by about a pitch leaves a hole at one end and a
+    // spare blob at the other). Match everything at once instead; keep whichever result
+    // matches more markers (then the smoother one).
+    if m.assignment.iter().any(Option::is_none) || m.taken.iter().any(|t| !t) {
         let lost_cost = 1.0;
         let before = (m.assignment.clone(), m.disp.clone(), m.taken.clone());
-        let e_before = m.energy(lost_cost);
+        let found = |m: &Matching<'_>| m.assignment.iter().filter(|a| a.is_some()).count();
+        let (found_before, e_before) = (found(&m), m.energy(lost_cost));
         m.reassign(&predicted);
-        if m.energy(lost_cost) >= e_before {
+        let found_after = found(&m);
+        let better = found_after > found_before
+            || (found_after == found_before && m.energy(lost_cost) < e_before);
+        if !better {
             (m.assignment, m.disp, m.taken) = before;
         }
     }
@@ -884,11 +902,15 @@ pub fn track_from(
     }
     let mut assignment = m.assignment;
     for i in 0..n {
+        // A marker that took a blob cut by the border has left the view.
+        if assignment[i].is_some_and(|j| j >= usable) {
+            status[i] = MarkerStatus::Lost;
+        }
         if status[i] != MarkerStatus::Ok {
             assignment[i] = None;
         }
     }
-    let spurious = (0..blobs.len())
+    let spurious = (0..usable)
         .filter(|&j| !m.taken[j] && !merged_blob[j])
         .count();
     TrackResult {
