@@ -179,7 +179,8 @@ pub(crate) fn list_devices() -> Vec<(String, String)> {
             (format!("/dev/{}", e.file_name().to_string_lossy()), name)
         })
         .collect();
-    out.sort();
+    // /dev/video2 before /dev/video10.
+    out.sort_by(|a, b| visuotact_io::frames::natural_cmp(&a.0, &b.0));
     out
 }
 

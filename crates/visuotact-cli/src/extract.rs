@@ -22,13 +22,18 @@ pub(crate) struct Args {
     /// Features per marker: a list of x, y, area, ecc (default: the sensor file's).
     #[arg(long)]
     features: Option<String>,
+    /// Frames are in order (a video, frames in time order): start each frame's tracking from the last one's
+    /// marker positions (the reference stays the fallback).
+    #[arg(long)]
+    temporal: bool,
     /// Table format: csv or jsonl.
     #[arg(long, default_value = "csv", value_parser = ["csv", "jsonl"])]
     format: String,
     /// Frame rate for image sequences (timestamps), frames per second.
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
-    /// Print at most this many per-frame warnings (a summary always follows).
+    /// Print at most this many per-frame warnings, one short line each (0: none); the summary
+    /// always comes last.
     #[arg(long, default_value_t = 20)]
     max_warnings: usize,
 }
@@ -62,6 +67,32 @@ pub(crate) fn feature_row_into(
     row.extend_from_slice(&f.values);
 }
 
+/// A short account of the markers not found in a frame: counts by status, then the first few
+/// marker ids (`2 lost, 1 merged: m012 m013 m025`; `… +7` when there are more).
+pub(crate) fn missing_summary(f: &FrameFeatures) -> String {
+    const SHOWN: usize = 4;
+    let counts: Vec<String> = MarkerStatus::ALL
+        .iter()
+        .filter(|&&s| s != MarkerStatus::Ok)
+        .filter_map(|&s| {
+            let n = f.status.iter().filter(|&&x| x == s).count();
+            (n > 0).then(|| format!("{n} {}", s.name()))
+        })
+        .collect();
+    let ids: Vec<usize> = f
+        .status
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| **s != MarkerStatus::Ok)
+        .map(|(i, _)| i)
+        .collect();
+    let mut shown: Vec<String> = ids.iter().take(SHOWN).map(|i| format!("m{i:03}")).collect();
+    if ids.len() > SHOWN {
+        shown.push(format!("… +{}", ids.len() - SHOWN));
+    }
+    format!("{}: {}", counts.join(", "), shown.join(" "))
+}
+
 pub(crate) fn flags_of(f: &FrameFeatures) -> String {
     f.status
         .iter()
@@ -86,6 +117,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     };
     let n_markers = cal.markers.len();
     let mut ex = FeatureExtractor::new(cal, features).map_err(anyhow::Error::msg)?;
+    ex.set_temporal_prior(a.temporal);
     let stream = FrameStream::open(&a.frames, a.fps)?;
     let format = TableFormat::from_name(&a.format).unwrap_or_default();
     let mut columns: Vec<String> = LEAD_COLUMNS.iter().map(|s| s.to_string()).collect();
@@ -127,9 +159,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             };
             warn(
                 format!(
-                    "frame {}: {missing} of {n_markers} markers not found{what}: {}",
+                    "frame {}: {missing} of {n_markers} markers not found{what} ({})",
                     frame.id,
-                    flags_of(&f)
+                    missing_summary(&f)
                 ),
                 &mut warned,
             );
@@ -139,13 +171,16 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             .with_context(|| format!("{}: write failed", a.output.display()))?;
         written += 1;
     }
-    if warned > a.max_warnings {
+    if warned > a.max_warnings && a.max_warnings > 0 {
         eprintln!("… {} more warnings not shown", warned - a.max_warnings);
     }
     eprintln!(
         "extracted {written} frames ({} features each), skipped {skipped}; {incomplete} frames with missing markers ({lost_total} marker-frames)",
         features.per_marker() * n_markers
     );
+    if let Some(note) = crate::reference_note(&ex.calibration().reference) {
+        eprintln!("note: {note}");
+    }
     if written == 0 {
         bail!("no frame could be processed");
     }

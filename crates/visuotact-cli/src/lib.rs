@@ -150,6 +150,20 @@ pub(crate) fn load_sensor(
         .map_err(anyhow::Error::msg)
 }
 
+/// A sentence for the user when a sensor's reference was taken under contact (its health
+/// flag), `None` otherwise.
+pub(crate) fn reference_note(r: &visuotact_vision::calibration::ReferenceInfo) -> Option<String> {
+    r.under_contact.then(|| {
+        format!(
+            "the sensor's reference was taken under contact ({} of {} frames chosen as the lightest, {:.2} px RMS from rest, {:.2} px at worst): displacements are relative to a lightly pressed skin",
+            r.method,
+            r.frames_considered,
+            r.residual_px.unwrap_or(f64::NAN),
+            r.residual_max_px.unwrap_or(f64::NAN)
+        )
+    })
+}
+
 /// Writes `text` to `path` through a temporary file and a rename, so a failure never leaves a
 /// half-written file over a good one.
 pub(crate) fn write_atomically(path: &std::path::Path, text: &str) -> anyhow::Result<()> {

@@ -114,6 +114,11 @@ impl Estimator {
         self.ex.calibration()
     }
 
+    /// Starts each frame's tracking from the last frame's marker positions (frames in order).
+    pub(crate) fn set_temporal_prior(&mut self, on: bool) {
+        self.ex.set_temporal_prior(on);
+    }
+
     /// The feature set in use.
     pub(crate) fn feature_set(&self) -> visuotact_vision::features::FeatureSet {
         self.ex.feature_set()

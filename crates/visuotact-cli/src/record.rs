@@ -61,6 +61,10 @@ pub(crate) struct Args {
     /// Sensor file: also write each frame's features (features.csv).
     #[arg(long)]
     sensor: Option<PathBuf>,
+    /// Frames are in order (video, camera): start each frame's tracking from the last one's
+    /// marker positions (the reference stays the fallback).
+    #[arg(long)]
+    temporal: bool,
     /// Model: also estimate live (estimates.csv); uses the model's calibration without --sensor.
     #[arg(long)]
     model: Option<PathBuf>,
@@ -338,7 +342,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .map(crate::train::load_model)
         .transpose()?;
     let mut est = if a.sensor.is_some() || model.is_some() {
-        Some(Estimator::new(a.sensor.as_deref(), model)?)
+        let mut e = Estimator::new(a.sensor.as_deref(), model)?;
+        e.set_temporal_prior(a.temporal);
+        Some(e)
     } else {
         None
     };

@@ -19,6 +19,10 @@ pub(crate) struct Args {
     /// Sensor file (default: the calibration stored in the model).
     #[arg(long)]
     sensor: Option<PathBuf>,
+    /// Frames are in order (video, camera): start each frame's tracking from the last one's
+    /// marker positions (the reference stays the fallback).
+    #[arg(long)]
+    temporal: bool,
     /// A session folder (its frames/, in frames.csv order), or videos / images / folders.
     #[arg(required = true)]
     input: Vec<PathBuf>,
@@ -63,6 +67,7 @@ impl Readings {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let model = crate::train::load_model(&a.model)?;
     let mut est = Estimator::with_extra_inputs(a.sensor.as_deref(), Some(model))?;
+    est.set_temporal_prior(a.temporal);
     let session =
         (a.input.len() == 1 && a.input[0].join("frames.csv").is_file()).then(|| a.input[0].clone());
     let extra = est.extra_inputs().to_vec();

@@ -35,6 +35,10 @@ pub(crate) struct Args {
     /// Sensor file (default: the calibration stored in the first model).
     #[arg(long)]
     sensor: Option<PathBuf>,
+    /// Frames are in order (video, camera): start each frame's tracking from the last one's
+    /// marker positions (the reference stays the fallback).
+    #[arg(long)]
+    temporal: bool,
     /// sim:iats, sim:cone, video:FILE, frames:DIR (or a path), camera:/dev/videoN.
     #[arg(long)]
     source: String,
@@ -192,6 +196,10 @@ pub(crate) struct Health {
     pub ambiguous: usize,
     /// Markers whose no-contact baseline moved away from the calibration.
     pub drifting: usize,
+    /// The sensor's reference was taken under contact (`calibrate --reference lightest:N`
+    /// on a data set with no contact-free frame): displacements are relative to a lightly
+    /// pressed skin.
+    pub reference_under_contact: bool,
 }
 
 /// One estimate, as sent on every output.
@@ -245,7 +253,8 @@ pub(crate) struct LiveEstimator {
 
 impl LiveEstimator {
     pub(crate) fn new(a: &Args, models: Vec<Model>) -> anyhow::Result<Self> {
-        let est = Estimator::new(a.sensor.as_deref(), models.first().cloned())?;
+        let mut est = Estimator::new(a.sensor.as_deref(), models.first().cloned())?;
+        est.set_temporal_prior(a.temporal);
         let names = est.feature_columns();
         let cols = models
             .iter()
@@ -319,13 +328,17 @@ impl LiveEstimator {
         img: &RgbImage,
         markers: Option<&mut Vec<MarkerView>>,
     ) -> anyhow::Result<(bool, f64, Vec<TargetEstimate>, Health)> {
+        let under_contact = self.est.calibration().reference.under_contact;
         // Features only: the ensemble below predicts on the re-zeroed ones.
         let f = self.est.features(img)?;
         // Re-zeroed features.
         self.zeroed.clear();
         self.zeroed
             .extend(f.values.iter().zip(&self.baseline).map(|(v, b)| v - b));
-        let mut health = Health::default();
+        let mut health = Health {
+            reference_under_contact: under_contact,
+            ..Health::default()
+        };
         let mut max_disp = 0.0f64;
         let mut moved = 0usize;
         for (m, st) in f.status.iter().enumerate() {

@@ -2,7 +2,8 @@
 //!
 //! - Image files: PNG, JPEG, PPM/PGM/PNM (decoded by the `image` crate; grey images become RGB
 //!   with equal channels). A frame's id is its file name.
-//! - Folders: every image file inside, sorted by name; a folder with none is an error.
+//! - Folders: every image file inside, in natural order (`image_2` before `image_10`, see
+//!   [`natural_cmp`]); a folder with none is an error.
 //! - Videos (`.avi .mp4 .mkv .mov .webm .m4v .mpg .mpeg`): decoded by the `ffmpeg` program to
 //!   raw RGB; size and rate from `ffprobe`. A frame's id is its 0-based index (prefixed with the
 //!   file name when several inputs are given).
@@ -75,7 +76,7 @@ pub enum Input {
     Video(PathBuf),
 }
 
-/// Expands files and folders into a list of inputs (folders sorted by name).
+/// Expands files and folders into a list of inputs (folders in natural order).
 pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
     if paths.is_empty() {
         return Err(FrameError::NoInputs);
@@ -98,7 +99,7 @@ pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
             if files.is_empty() {
                 return Err(FrameError::EmptyFolder(p.clone()));
             }
-            files.sort();
+            files.sort_by(|a, b| natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()));
             out.extend(files.into_iter().map(Input::Image));
         } else {
             let e = ext_of(p);
@@ -112,6 +113,54 @@ pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
         }
     }
     Ok(out)
+}
+
+/// Natural order of names: runs of digits compare by their value (`image_2` < `image_10`,
+/// `frame_007` = `frame_7` by value, then the shorter run first), everything else by
+/// character; names equal that way fall back to plain byte order.
+///
+/// ```
+/// use visuotact_io::frames::natural_cmp;
+/// let mut v = vec!["image_10.png", "image_2.png", "image_1.png", "image_100.png"];
+/// v.sort_by(|a, b| natural_cmp(a, b));
+/// assert_eq!(v, ["image_1.png", "image_2.png", "image_10.png", "image_100.png"]);
+/// ```
+pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    let (ab, bb) = (a.as_bytes(), b.as_bytes());
+    let (mut i, mut j) = (0, 0);
+    while i < ab.len() && j < bb.len() {
+        if ab[i].is_ascii_digit() && bb[j].is_ascii_digit() {
+            let (si, sj) = (i, j);
+            while i < ab.len() && ab[i].is_ascii_digit() {
+                i += 1;
+            }
+            while j < bb.len() && bb[j].is_ascii_digit() {
+                j += 1;
+            }
+            // Compare the values: strip leading zeros, then longer is larger, then digits.
+            let da = &ab[si..i];
+            let db = &bb[sj..j];
+            let ta = &da[da.iter().position(|&c| c != b'0').unwrap_or(da.len())..];
+            let tb = &db[db.iter().position(|&c| c != b'0').unwrap_or(db.len())..];
+            let ord = ta
+                .len()
+                .cmp(&tb.len())
+                .then_with(|| ta.cmp(tb))
+                .then_with(|| da.len().cmp(&db.len()));
+            if ord != Ordering::Equal {
+                return ord;
+            }
+        } else {
+            let ord = ab[i].cmp(&bb[j]);
+            if ord != Ordering::Equal {
+                return ord;
+            }
+            i += 1;
+            j += 1;
+        }
+    }
+    (ab.len() - i).cmp(&(bb.len() - j)).then_with(|| a.cmp(b))
 }
 
 /// Decodes one image file into RGB.
@@ -473,5 +522,55 @@ impl Iterator for FrameStream {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod natural_order_tests {
+    use super::*;
+    use std::cmp::Ordering;
+
+    #[test]
+    fn digits_compare_by_value() {
+        assert_eq!(natural_cmp("a2", "a10"), Ordering::Less);
+        assert_eq!(natural_cmp("a10", "a2"), Ordering::Greater);
+        assert_eq!(natural_cmp("a007", "a7"), Ordering::Greater);
+        assert_eq!(natural_cmp("a7b", "a7"), Ordering::Greater);
+        assert_eq!(natural_cmp("x", "x"), Ordering::Equal);
+        assert_eq!(natural_cmp("frame_9_b", "frame_10_a"), Ordering::Less);
+        assert_eq!(
+            natural_cmp("99999999999999999999999", "100000000000000000000000"),
+            Ordering::Less
+        );
+    }
+
+    #[test]
+    fn folders_list_in_natural_order() {
+        let dir = std::env::temp_dir().join(format!("vt-natural-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for k in [1, 10, 100, 2, 20, 3] {
+            std::fs::write(dir.join(format!("image_{k}.png")), b"").unwrap();
+        }
+        let got: Vec<String> = expand_inputs(std::slice::from_ref(&dir))
+            .unwrap()
+            .into_iter()
+            .map(|i| match i {
+                Input::Image(p) | Input::Video(p) => {
+                    p.file_name().unwrap().to_string_lossy().into_owned()
+                }
+            })
+            .collect();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(
+            got,
+            [
+                "image_1.png",
+                "image_2.png",
+                "image_3.png",
+                "image_10.png",
+                "image_20.png",
+                "image_100.png"
+            ]
+        );
     }
 }

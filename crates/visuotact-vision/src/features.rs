@@ -158,6 +158,10 @@ pub struct FeatureExtractor {
     /// How many blobs at the end of `blobs` are markers cut by the border.
     cut: usize,
     last_track: TrackResult,
+    /// Start each frame from the last one's marker positions.
+    temporal: bool,
+    /// The last frame's marker positions (temporal prior).
+    prior: Vec<Option<(f64, f64)>>,
 }
 
 impl FeatureExtractor {
@@ -173,7 +177,19 @@ impl FeatureExtractor {
             blobs: Vec::new(),
             cut: 0,
             last_track: TrackResult::default(),
+            temporal: false,
+            prior: Vec::new(),
         })
+    }
+
+    /// For frames in order (video, live camera): start each frame's tracking from the last
+    /// frame's marker positions, which follows motions of more than a pitch built up over
+    /// several frames. A frame where that leaves markers unmatched is tracked from the
+    /// reference as well and the result with more markers kept. Off by default (frames in any
+    /// order); turning it on or off forgets the last frame.
+    pub fn set_temporal_prior(&mut self, on: bool) {
+        self.temporal = on;
+        self.prior.clear();
     }
 
     /// The calibration.
@@ -221,15 +237,43 @@ impl FeatureExtractor {
         // Markers cut by the border go after the measurable blobs: they explain an absence.
         self.cut = self.detector.last_cut().len();
         self.blobs.extend_from_slice(self.detector.last_cut());
-        self.last_track = track_with(
-            &self.reference,
-            &self.blobs,
-            &self.cal.track,
-            TrackHints {
-                cut: self.cut,
-                prior: None,
-            },
-        );
+        let from_reference = TrackHints {
+            cut: self.cut,
+            prior: None,
+        };
+        self.last_track = if self.temporal && self.prior.iter().any(Option::is_some) {
+            let t = track_with(
+                &self.reference,
+                &self.blobs,
+                &self.cal.track,
+                TrackHints {
+                    cut: self.cut,
+                    prior: Some(&self.prior),
+                },
+            );
+            if t.found() < t.status.len() {
+                let r = track_with(&self.reference, &self.blobs, &self.cal.track, from_reference);
+                if r.found() > t.found() {
+                    r
+                } else {
+                    t
+                }
+            } else {
+                t
+            }
+        } else {
+            track_with(&self.reference, &self.blobs, &self.cal.track, from_reference)
+        };
+        if self.temporal {
+            let blobs = &self.blobs;
+            self.prior.clear();
+            self.prior.extend(
+                self.last_track
+                    .assignment
+                    .iter()
+                    .map(|a| a.map(|j| (blobs[j].x_px, blobs[j].y_px))),
+            );
+        }
         let t = &self.last_track;
         out.values.clear();
         out.status.clear();
