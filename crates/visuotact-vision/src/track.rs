@@ -702,19 +702,29 @@ impl Matching<'_> {
                 let expected = self.reference.areas_px[i] * scale * scale;
                 cands.begin_row();
                 let blobs = self.blobs;
+                let held = self.assignment[i];
                 self.index.near((px, py), r, |j, d2| {
                     let a = f64::from(blobs[j].area_px);
                     let lo = if blobs[j].touches_border { 0.0 } else { 0.2 };
-                    if a >= lo * expected && a <= 5.0 * expected {
+                    if held != Some(j) && a >= lo * expected && a <= 5.0 * expected {
                         cands.push_edge(j, d2 / (s * s));
                     }
                 });
+                // Later rounds refine: a marker keeps the blob it holds (whatever the distance)
+                // unless another marker takes it, and never drops it for nothing.
+                let keep = held.map(|j| {
+                    let b = (blobs[j].x_px, blobs[j].y_px);
+                    (dist(b, (px, py)) / s).powi(2)
+                });
+                if let Some((j, c)) = held.zip(keep) {
+                    cands.push_edge(j, c);
+                }
                 // First round: every marker should have a blob (a hole costs more than any
                 // chain of shifts within reach); later rounds: a blob beyond the gate is none.
                 cands.end_row(if round == 0 {
                     FIRST_ROUND_LOST_COST
                 } else {
-                    (r / s).powi(2)
+                    (r / s).powi(2).max(keep.map_or(0.0, |c| 1.01 * c))
                 });
             }
             let a = assign_min_cost(&cands, self.blobs.len());
@@ -875,12 +885,20 @@ pub fn track_with(
         let expected_area = reference.areas_px[i] * scale * scale;
         // A blob covering the prediction and much larger than this marker: merged (with the
         // marker that took it, or with a neighbour that is also left without a blob).
-        let merged_with = blobs.iter().enumerate().find(|(_, b)| {
-            f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area
-                && pred.0 >= f64::from(b.bbox.x0) - 0.5
-                && pred.0 <= f64::from(b.bbox.x1) - 0.5
-                && pred.1 >= f64::from(b.bbox.y0) - 0.5
-                && pred.1 <= f64::from(b.bbox.y1) - 0.5
+        // The prediction may miss a merged blob's box by a little: the pair's centroid sits
+        // between the two markers.
+        let margin = 0.3 * reference.spacing_px[i] - 0.5;
+        let merged_with = blobs[..usable].iter().enumerate().find(|&(j, b)| {
+            let owner_area = m
+                .assignment
+                .iter()
+                .position(|a| *a == Some(j))
+                .map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
+            f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area.min(owner_area)
+                && pred.0 >= f64::from(b.bbox.x0) - margin
+                && pred.0 <= f64::from(b.bbox.x1) + margin - 1.0
+                && pred.1 >= f64::from(b.bbox.y0) - margin
+                && pred.1 <= f64::from(b.bbox.y1) + margin - 1.0
         });
         status[i] = if let Some((j, _)) = merged_with {
             // The owner of that blob is merged too: its centroid is no longer its own.
