@@ -48,7 +48,9 @@ const COLUMNS: [&str; 15] = [
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // The pixel-mean centroid of OpenCV, scikit-image and MATLAB regionprops by default.
-    let (cfg, _) = a.detector.config(visuotact_vision::detect::Centroid::Binary)?;
+    let (cfg, _) = a
+        .detector
+        .config(visuotact_vision::detect::Centroid::Binary)?;
     let mut det = Detector::new(cfg).map_err(anyhow::Error::msg)?;
     let conv = if a.moments == "matlab" {
         MomentConvention::Matlab

@@ -339,6 +339,15 @@ fn frame_check(
 ) -> FrameCheck {
     let mut out = FrameCheck::default();
     let per = FeatureSet::ALL.per_marker();
+    // The largest true displacement of a visible marker, in pitches (for the record).
+    let max_disp = cal
+        .markers
+        .iter()
+        .zip(pairing)
+        .filter_map(|(_, t)| *t)
+        .filter(|&t| now[t].3)
+        .map(|t| (now[t].0 - rest[t].0).hypot(now[t].1 - rest[t].1) / cal.pitch_px)
+        .fold(0.0, f64::max);
     for (i, (m, t)) in cal.markers.iter().zip(pairing).enumerate() {
         let Some(t) = *t else { continue };
         let visible = now[t].3;
@@ -350,7 +359,7 @@ fn frame_check(
             if visible {
                 out.lost += 1;
                 out.examples.push(format!(
-                    "frame {k} (depth {depth_mm:.2} mm): marker {i} {} though visible",
+                    "frame {k} (depth {depth_mm:.2} mm, motion up to {max_disp:.2} pitch): marker {i} {} though visible",
                     f.status[i].name()
                 ));
             }
@@ -366,7 +375,7 @@ fn frame_check(
         if nearer || own > 0.5 * cal.pitch_px {
             out.wrong += 1;
             out.examples.push(format!(
-                "frame {k} (depth {depth_mm:.2} mm): marker {i} measured at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
+                "frame {k} (depth {depth_mm:.2} mm, motion up to {max_disp:.2} pitch): marker {i} measured at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
                 now[t].0, now[t].1
             ));
             continue;

@@ -252,7 +252,12 @@ impl FeatureExtractor {
                 },
             );
             if t.found() < t.status.len() {
-                let r = track_with(&self.reference, &self.blobs, &self.cal.track, from_reference);
+                let r = track_with(
+                    &self.reference,
+                    &self.blobs,
+                    &self.cal.track,
+                    from_reference,
+                );
                 if r.found() > t.found() {
                     r
                 } else {
@@ -262,7 +267,12 @@ impl FeatureExtractor {
                 t
             }
         } else {
-            track_with(&self.reference, &self.blobs, &self.cal.track, from_reference)
+            track_with(
+                &self.reference,
+                &self.blobs,
+                &self.cal.track,
+                from_reference,
+            )
         };
         if self.temporal {
             let blobs = &self.blobs;

@@ -327,6 +327,9 @@ fn lattice_directions(points: &[(f64, f64)], nbrs: &[Vec<(usize, f64)>]) -> Vec<
         .collect()
 }
 
+/// A lattice step and the pixel offset it spans.
+type StepOffset = ((i64, i64), (f64, f64));
+
 /// A 2 × 2 basis: the two lattice step vectors as columns.
 #[derive(Clone, Copy, Debug)]
 struct Basis {
@@ -356,7 +359,7 @@ impl Basis {
 
     /// Least-squares basis from (lattice step, pixel offset) pairs; `None` when the steps do
     /// not span the plane.
-    fn fit(pairs: &[((i64, i64), (f64, f64))]) -> Option<Self> {
+    fn fit(pairs: &[StepOffset]) -> Option<Self> {
         // Solve B · S = P in the least-squares sense: B = (P Sᵀ)(S Sᵀ)⁻¹.
         let (mut s11, mut s12, mut s22) = (0.0, 0.0, 0.0);
         let (mut p11, mut p12, mut p21, mut p22) = (0.0, 0.0, 0.0, 0.0);
@@ -693,7 +696,7 @@ pub fn number_markers(
     let nbrs = k_nearest_all(points, 12.min(n - 1));
     let mut nn: Vec<f64> = nbrs.iter().map(|v| v[0].1).collect();
     let pitch = median(&mut nn);
-    if !(pitch > 1e-9) {
+    if pitch.is_nan() || pitch <= 1e-9 {
         return Err(LayoutError::NoSpacing);
     }
     let lattice =

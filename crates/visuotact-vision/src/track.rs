@@ -505,7 +505,7 @@ fn local_motion(
     let c12 = m01 * m02 - m00 * m12;
     let c22 = m00 * m11 - m01 * m01;
     let det = m00 * c00 + m01 * c01 + m02 * c02;
-    if !(det.abs() > 1e-300) {
+    if det.is_nan() || det.abs() <= 1e-300 {
         return None;
     }
     let solve = |b0: f64, b1: f64, b2: f64| {
@@ -618,8 +618,8 @@ impl Matching<'_> {
             sizes.push(size);
         }
         if let Some(keep) = (0..sizes.len()).max_by_key(|&c| (sizes[c], usize::MAX - c)) {
-            for i in 0..n {
-                if self.assignment[i].is_some() && component[i] != keep {
+            for (i, &c) in component.iter().enumerate() {
+                if c != keep && self.assignment[i].is_some() {
                     self.release(i);
                 }
             }
@@ -695,9 +695,8 @@ impl Matching<'_> {
                 1.0
             };
             cands.clear();
-            for i in 0..n {
+            for (i, &((px, py), scale)) in preds.iter().enumerate() {
                 let s = self.reference.spacing_px[i];
-                let ((px, py), scale) = preds[i];
                 let r = reach * s * scale.clamp(0.7, 1.6);
                 let expected = self.reference.areas_px[i] * scale * scale;
                 cands.begin_row();
@@ -746,6 +745,171 @@ impl Matching<'_> {
                     *p = q;
                 }
             }
+        }
+    }
+
+    /// Squared residual of marker `i`'s blob against its matched neighbours' prediction, in
+    /// spacings, capped at 2 (one wrong marker cannot dominate), 0 when it cannot be predicted.
+    fn residual_sq(&self, i: usize, matched: &[bool]) -> f64 {
+        let Some(j) = self.assignment[i] else {
+            return 0.0;
+        };
+        self.predict(i, matched).map_or(0.0, |(p, _)| {
+            let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+            (dist(b, p) / self.reference.spacing_px[i]).powi(2).min(2.0)
+        })
+    }
+
+    /// Sum of [`Matching::residual_sq`] over `set`, plus `lost_cost` per unmatched marker in it.
+    fn local_energy(&self, set: &[usize], lost_cost: f64) -> f64 {
+        let matched = self.matched();
+        set.iter()
+            .map(|&i| {
+                if self.assignment[i].is_some() {
+                    self.residual_sq(i, &matched)
+                } else {
+                    lost_cost
+                }
+            })
+            .sum()
+    }
+
+    /// The neighbour of `k` whose reference offset is nearest `dir` (a lattice step), if it is
+    /// within a third of a spacing of it.
+    fn step_from(&self, k: usize, dir: (f64, f64)) -> Option<usize> {
+        let xk = self.reference.positions[k];
+        let want = (xk.0 + dir.0, xk.1 + dir.1);
+        self.reference.neighbours[k]
+            .iter()
+            .copied()
+            .map(|q| (q, dist(self.reference.positions[q], want)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|&(_, d)| d < self.reference.spacing_px[k] / 3.0)
+            .map(|(q, _)| q)
+    }
+
+    /// Slides chains of assignments into holes: a marker without a blob inside the matched
+    /// region takes its neighbour's blob, that neighbour the next one's along the same lattice
+    /// step, and so on (up to six), the last taking a free blob near where its neighbours put
+    /// it. A chain is applied when it lowers the energy (residuals around it, and one marker
+    /// fewer without a blob); repeated while one helps. This undoes a shift by one lattice step
+    /// that the matching followed into a region dragged or pushed by about a pitch.
+    fn slide_chains(&mut self, lost_cost: f64) {
+        let n = self.assignment.len();
+        for _ in 0..16 {
+            let matched = self.matched();
+            let holes: Vec<usize> = (0..n)
+                .filter(|&i| {
+                    !matched[i]
+                        && self.reference.neighbours[i]
+                            .iter()
+                            .filter(|&&k| matched[k])
+                            .count()
+                            >= 3
+                })
+                .collect();
+            let mut best: Option<(f64, Vec<usize>, Option<usize>)> = None;
+            for &h in &holes {
+                // The hole itself takes a free blob near where its neighbours put it.
+                if let Some((de, end)) = self.try_chain(&[h], lost_cost) {
+                    if end.is_some() && de < -1e-9 && best.as_ref().is_none_or(|b| de < b.0) {
+                        best = Some((de, vec![h], end));
+                    }
+                }
+                for &k1 in &self.reference.neighbours[h] {
+                    if !matched[k1] {
+                        continue;
+                    }
+                    let xh = self.reference.positions[h];
+                    let xk = self.reference.positions[k1];
+                    let dir = (xk.0 - xh.0, xk.1 - xh.1);
+                    if dir.0.hypot(dir.1) > 1.3 * self.reference.spacing_px[h] {
+                        continue;
+                    }
+                    let mut path = vec![h, k1];
+                    while path.len() <= 6 {
+                        // The chain ends at its last marker: it takes a free blob or none.
+                        let last = path[path.len() - 1];
+                        if let Some((de, end)) = self.try_chain(&path, lost_cost) {
+                            if end.is_some() && de < -1e-9 && best.as_ref().is_none_or(|b| de < b.0)
+                            {
+                                best = Some((de, path.clone(), end));
+                            }
+                        }
+                        match self.step_from(last, dir) {
+                            Some(q) if matched[q] && !path.contains(&q) => path.push(q),
+                            _ => break,
+                        }
+                    }
+                }
+            }
+            let Some((_, path, end)) = best else { break };
+            self.apply_chain(&path, end);
+        }
+    }
+
+    /// The energy change of sliding `path` (see [`Matching::slide_chains`]) and the free blob
+    /// its last marker would take.
+    fn try_chain(&mut self, path: &[usize], lost_cost: f64) -> Option<(f64, Option<usize>)> {
+        let mut area: Vec<usize> = path.to_vec();
+        for &i in path {
+            area.extend(self.reference.neighbours[i].iter().copied());
+        }
+        area.sort_unstable();
+        area.dedup();
+        let before = self.local_energy(&area, lost_cost);
+        let saved: Vec<(usize, Option<usize>, (f64, f64))> = path
+            .iter()
+            .map(|&i| (i, self.assignment[i], self.disp[i]))
+            .collect();
+        // Shift: each takes the next one's blob; the last is released for now.
+        let blobs_of: Vec<Option<usize>> = path.iter().map(|&i| self.assignment[i]).collect();
+        for &i in path {
+            self.release(i);
+        }
+        for w in 0..path.len() - 1 {
+            if let Some(j) = blobs_of[w + 1] {
+                self.take(path[w], j);
+            }
+        }
+        // The last marker: the nearest free blob to its new prediction, within a spacing.
+        let last = path[path.len() - 1];
+        let matched = self.matched();
+        let end = self.predict(last, &matched).and_then(|(p, scale)| {
+            let gate = self.reference.spacing_px[last] * scale.clamp(0.7, 1.6);
+            nearest_two(p, &self.index, &self.taken, gate)
+                .0
+                .map(|(j, _)| j)
+        });
+        if let Some(j) = end {
+            self.take(last, j);
+        }
+        let after = self.local_energy(&area, lost_cost);
+        // Restore.
+        for &i in path {
+            self.release(i);
+        }
+        for (i, a, d) in saved {
+            if let Some(j) = a {
+                self.take(i, j);
+            }
+            self.disp[i] = d;
+        }
+        Some((after - before, end))
+    }
+
+    fn apply_chain(&mut self, path: &[usize], end: Option<usize>) {
+        let blobs_of: Vec<Option<usize>> = path.iter().map(|&i| self.assignment[i]).collect();
+        for &i in path {
+            self.release(i);
+        }
+        for w in 0..path.len() - 1 {
+            if let Some(j) = blobs_of[w + 1] {
+                self.take(path[w], j);
+            }
+        }
+        if let Some(j) = end {
+            self.take(path[path.len() - 1], j);
         }
     }
 
@@ -860,12 +1024,12 @@ pub fn track_with(
             (m.assignment, m.disp, m.taken) = before;
         }
     }
+    m.slide_chains(1.0);
     // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
-    for i in 0..n {
+    for (i, &p) in predicted.iter().enumerate() {
         if m.assignment[i].is_none() && m.support(i) == 0 {
             let s = reference.spacing_px[i];
-            let (best, second) =
-                nearest_two(predicted[i], &m.index, &m.taken, cfg.gate_pitches * s);
+            let (best, second) = nearest_two(p, &m.index, &m.taken, cfg.gate_pitches * s);
             if let Some((j, d)) = best {
                 if second >= cfg.ambiguity_ratio * d.max(0.05 * s) {
                     m.take(i, j);
