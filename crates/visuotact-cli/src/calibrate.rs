@@ -90,9 +90,10 @@ pub(crate) struct DetectorArgs {
     /// Keep blobs touching the image border (markers cut by the frame).
     #[arg(long)]
     keep_border: bool,
-    /// Blob centroid: binary (pixel mean, as OpenCV; `blobs`' default) or weighted (by grey
-    /// level above the threshold; `calibrate`'s default).
-    #[arg(long, value_parser = ["binary", "weighted"])]
+    /// Blob centroid: binary (pixel mean, as OpenCV; `blobs`' default), weighted (by grey level
+    /// above the threshold) or grey (grey-level centroid of the marker and its edge over a
+    /// fitted background; `calibrate`'s default).
+    #[arg(long, value_parser = ["binary", "weighted", "grey"])]
     centroid: Option<String>,
     /// Pixel connectivity: 8 or 4.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(4..=8))]
@@ -226,6 +227,7 @@ impl DetectorArgs {
         };
         let centroid = match self.centroid.as_deref() {
             Some("weighted") => Centroid::Weighted,
+            Some("grey") => Centroid::Grey,
             Some(_) => Centroid::Binary,
             None => default_centroid,
         };
@@ -257,9 +259,9 @@ fn reference_source(s: &str) -> anyhow::Result<ReferenceSource> {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    // Grey-weighted centroids: pixels that noise flips across the level barely count (3–5×
-    // less displacement error on the sensor zoo; thin rings 5–8× less jitter).
-    let (detector, preset_features) = a.detector.config(Centroid::Weighted)?;
+    // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
+    // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
+    let (detector, preset_features) = a.detector.config(Centroid::Grey)?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,

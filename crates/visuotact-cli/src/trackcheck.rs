@@ -101,7 +101,13 @@ pub struct CheckConfig {
     pub detector: DetectorConfig,
     /// The layout calibration uses.
     pub layout: LayoutChoice,
+    /// Frames where some visible marker moves farther than this, in pitches, are also counted
+    /// apart (`beyond_*`): order-free tracking is specified up to this motion.
+    pub motion_limit_pitches: f64,
 }
+
+/// The motion up to which order-free tracking must keep every visible marker, in pitches.
+pub const MOTION_LIMIT_PITCHES: f64 = 1.5;
 
 /// What a check measured.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -134,6 +140,14 @@ pub struct CheckReport {
     pub err_max_px: f64,
     /// The first few problems, for the record: `frame k: marker m lost (depth d)`.
     pub examples: Vec<String>,
+    /// The largest motion of a visible marker in any frame, pitches.
+    pub max_motion_pitches: f64,
+    /// Frames with a visible marker moving beyond `motion_limit_pitches`.
+    pub beyond_frames: usize,
+    /// Of `lost`, those in such frames.
+    pub beyond_lost: usize,
+    /// Of `wrong`, those in such frames.
+    pub beyond_wrong: usize,
 }
 
 type Truth = Vec<(f64, f64, f64, bool)>;
@@ -281,6 +295,12 @@ pub fn check(c: &CheckConfig) -> anyhow::Result<CheckReport> {
         .collect::<anyhow::Result<_>>()?;
     let mut errs: Vec<f64> = Vec::new();
     for fc in per_frame {
+        report.max_motion_pitches = report.max_motion_pitches.max(fc.max_motion);
+        if fc.max_motion > c.motion_limit_pitches {
+            report.beyond_frames += 1;
+            report.beyond_lost += fc.lost;
+            report.beyond_wrong += fc.wrong;
+        }
         report.visible += fc.visible;
         report.lost += fc.lost;
         report.wrong += fc.wrong;
@@ -320,6 +340,7 @@ fn pair(cal: &SensorCalibration, rest: &Truth) -> Vec<Option<usize>> {
 
 #[derive(Default)]
 struct FrameCheck {
+    max_motion: f64,
     visible: usize,
     lost: usize,
     wrong: usize,
@@ -339,7 +360,7 @@ fn frame_check(
 ) -> FrameCheck {
     let mut out = FrameCheck::default();
     let per = FeatureSet::ALL.per_marker();
-    // The largest true displacement of a visible marker, in pitches (for the record).
+    // The largest true displacement of a visible marker, in pitches.
     let max_disp = cal
         .markers
         .iter()
@@ -348,6 +369,7 @@ fn frame_check(
         .filter(|&t| now[t].3)
         .map(|t| (now[t].0 - rest[t].0).hypot(now[t].1 - rest[t].1) / cal.pitch_px)
         .fold(0.0, f64::max);
+    out.max_motion = max_disp;
     for (i, (m, t)) in cal.markers.iter().zip(pairing).enumerate() {
         let Some(t) = *t else { continue };
         let visible = now[t].3;
@@ -416,8 +438,8 @@ pub(crate) struct Args {
     /// Rest frames averaged into the reference.
     #[arg(long, default_value_t = 10)]
     references: usize,
-    /// Centroids: weighted (by grey level above the threshold, calibrate's default) or binary.
-    #[arg(long, default_value = "weighted", value_parser = ["binary", "weighted"])]
+    /// Centroids: grey (calibrate's default), weighted or binary.
+    #[arg(long, default_value = "grey", value_parser = ["binary", "weighted", "grey"])]
     centroid: String,
     /// Binarise the zoo sensor's output (black and white frames, as published TacTip data).
     #[arg(long)]
@@ -442,13 +464,13 @@ pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let centroid = if a.centroid == "weighted" {
-        Centroid::Weighted
-    } else {
-        Centroid::Binary
+    let centroid = match a.centroid.as_str() {
+        "grey" => Centroid::Grey,
+        "weighted" => Centroid::Weighted,
+        _ => Centroid::Binary,
     };
     println!(
-        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px"
+        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong"
     );
     let (mut lost, mut wrong) = (0, 0);
     for v in parse_range(&a.variants)? {
@@ -467,10 +489,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             references: a.references,
             detector: sensor.detector(centroid),
             layout: LayoutChoice::Auto,
+            motion_limit_pitches: MOTION_LIMIT_PITCHES,
         };
         let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
         println!(
-            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}",
+            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}",
             a.sensor,
             r.layout.map_or("-", Layout::name),
             r.sim_markers,
@@ -482,7 +505,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             r.wrong,
             r.err_mean_px,
             r.err_p99_px,
-            r.err_max_px
+            r.err_max_px,
+            r.max_motion_pitches,
+            r.beyond_frames,
+            r.beyond_lost,
+            r.beyond_wrong
         );
         if a.verbose {
             for e in &r.examples {

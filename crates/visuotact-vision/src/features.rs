@@ -11,7 +11,7 @@ use visuotact_image::RgbImage;
 use crate::blobs::Blob;
 use crate::calibration::{track_reference, SensorCalibration};
 use crate::detect::Detector;
-use crate::track::{track_with, MarkerStatus, TrackHints, TrackReference, TrackResult};
+use crate::track::{track_with, MarkerStatus, TrackHints, TrackReference, TrackResult, View};
 
 /// Which per-marker features to output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -192,6 +192,28 @@ impl FeatureExtractor {
         self.prior.clear();
     }
 
+    /// Where markers can be seen: the image, or its region of interest, cut to the circular
+    /// mask if there is one.
+    pub fn view(&self) -> View {
+        let p = &self.cal.detector.preprocess;
+        let (w, h) = (self.cal.image_width as f64, self.cal.image_height as f64);
+        let (x0, y0, x1, y1) = p.roi.map_or((0.0, 0.0, w, h), |r| {
+            (
+                r.x as f64,
+                r.y as f64,
+                ((r.x + r.width) as f64).min(w),
+                ((r.y + r.height) as f64).min(h),
+            )
+        });
+        View {
+            x0: x0 - 0.5,
+            y0: y0 - 0.5,
+            x1: x1 - 0.5,
+            y1: y1 - 0.5,
+            circle: p.circle.map(|c| ((c.cx_px, c.cy_px), c.radius_px)),
+        }
+    }
+
     /// The calibration.
     pub fn calibration(&self) -> &SensorCalibration {
         &self.cal
@@ -237,9 +259,11 @@ impl FeatureExtractor {
         // Markers cut by the border go after the measurable blobs: they explain an absence.
         self.cut = self.detector.last_cut().len();
         self.blobs.extend_from_slice(self.detector.last_cut());
+        let view = Some(self.view());
         let from_reference = TrackHints {
             cut: self.cut,
             prior: None,
+            view,
         };
         self.last_track = if self.temporal && self.prior.iter().any(Option::is_some) {
             let t = track_with(
@@ -249,6 +273,7 @@ impl FeatureExtractor {
                 TrackHints {
                     cut: self.cut,
                     prior: Some(&self.prior),
+                    view,
                 },
             );
             if t.found() < t.status.len() {

@@ -232,6 +232,22 @@ pub fn gray_from_rgb_into(src: &RgbImage, channel: Channel, invert: bool, dst: &
     );
 }
 
+/// One channel of a short run of interleaved RGB `s` into `d` (same formulas as
+/// [`gray_from_rgb_into`], per pixel: for small windows).
+pub fn channel_of_rgb(s: &[u8], channel: Channel, invert: bool, d: &mut [u8]) {
+    for (o, p) in d.iter_mut().zip(s.chunks_exact(3)) {
+        let (r, g, b) = (u32::from(p[0]), u32::from(p[1]), u32::from(p[2]));
+        let v = match channel {
+            Channel::Red => r,
+            Channel::Green => g,
+            Channel::Blue => b,
+            Channel::Luma601 => (2989 * r + 5870 * g + 1140 * b + 5000) / 10000,
+            Channel::Mean => (2 * (r + g + b) + 3) / 6,
+        } as u8;
+        *o = if invert { 255 - v } else { v };
+    }
+}
+
 /// One channel of interleaved RGB `s` into `d` (any length: whole images or single rows);
 /// `planes` is scratch for the luma conversion.
 fn channel_from_rgb(s: &[u8], channel: Channel, invert: bool, d: &mut [u8], planes: &mut Vec<u8>) {
@@ -612,6 +628,37 @@ pub fn adaptive_levels_into(src: &GrayImage, window_px: usize, offset: f64, out:
                 cols_in -= 1;
             }
             orow[x] = acc as f32 / (cols_in * rows_in) as f32 - off;
+        }
+    }
+}
+
+#[cfg(test)]
+mod channel_tests {
+    use super::*;
+
+    #[test]
+    fn per_pixel_channels_equal_the_image_conversion() {
+        let img = RgbImage::from_fn(37, 5, |x, y| {
+            [
+                (x * 7 + y * 3) as u8,
+                (x * 13 + 200) as u8,
+                (y * 50 + x) as u8,
+            ]
+        });
+        for channel in Channel::ALL {
+            for invert in [false, true] {
+                let whole = gray_from_rgb(&img, channel, invert);
+                for y in 0..5 {
+                    let mut row = vec![0u8; 30];
+                    channel_of_rgb(
+                        &img.as_slice()[(y * 37 + 4) * 3..(y * 37 + 34) * 3],
+                        channel,
+                        invert,
+                        &mut row,
+                    );
+                    assert_eq!(&row[..], &whole.row(y)[4..34], "{channel:?} {invert}");
+                }
+            }
         }
     }
 }

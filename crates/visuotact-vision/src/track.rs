@@ -532,6 +532,7 @@ struct Matching<'a> {
     cfg: &'a TrackConfig,
     /// Where each marker was before the motion being followed (reference or prior).
     anchors: Vec<(f64, f64)>,
+    view: Option<View>,
     assignment: Vec<Option<usize>>,
     disp: Vec<(f64, f64)>,
     taken: Vec<bool>,
@@ -811,7 +812,7 @@ impl Matching<'_> {
             let mut best: Option<(f64, Vec<usize>, Option<usize>)> = None;
             for &h in &holes {
                 // The hole itself takes a free blob near where its neighbours put it.
-                if let Some((de, end)) = self.try_chain(&[h], lost_cost) {
+                if let Some((de, end, _)) = self.try_chain(&[h], lost_cost) {
                     if end.is_some() && de < -1e-9 && best.as_ref().is_none_or(|b| de < b.0) {
                         best = Some((de, vec![h], end));
                     }
@@ -830,8 +831,10 @@ impl Matching<'_> {
                     while path.len() <= 6 {
                         // The chain ends at its last marker: it takes a free blob or none.
                         let last = path[path.len() - 1];
-                        if let Some((de, end)) = self.try_chain(&path, lost_cost) {
-                            if end.is_some() && de < -1e-9 && best.as_ref().is_none_or(|b| de < b.0)
+                        if let Some((de, end, out)) = self.try_chain(&path, lost_cost) {
+                            if (end.is_some() || out)
+                                && de < -1e-9
+                                && best.as_ref().is_none_or(|b| de < b.0)
                             {
                                 best = Some((de, path.clone(), end));
                             }
@@ -848,9 +851,9 @@ impl Matching<'_> {
         }
     }
 
-    /// The energy change of sliding `path` (see [`Matching::slide_chains`]) and the free blob
-    /// its last marker would take.
-    fn try_chain(&mut self, path: &[usize], lost_cost: f64) -> Option<(f64, Option<usize>)> {
+    /// The energy change of sliding `path` (see [`Matching::slide_chains`]), the free blob its
+    /// last marker would take, and whether that marker, left without one, would be out of view.
+    fn try_chain(&mut self, path: &[usize], lost_cost: f64) -> Option<(f64, Option<usize>, bool)> {
         let mut area: Vec<usize> = path.to_vec();
         for &i in path {
             area.extend(self.reference.neighbours[i].iter().copied());
@@ -858,6 +861,18 @@ impl Matching<'_> {
         area.sort_unstable();
         area.dedup();
         let before = self.local_energy(&area, lost_cost);
+        // Where the field put the last marker before the slide (as a position): a chain may
+        // only push a marker out of view that the field already puts near the view's edge.
+        let last = path[path.len() - 1];
+        let near_edge = {
+            let matched = self.matched();
+            let here = self.assignment[last]
+                .map(|j| (self.blobs[j].x_px, self.blobs[j].y_px))
+                .or_else(|| self.predict(last, &matched).map(|p| p.0));
+            self.view
+                .zip(here)
+                .is_some_and(|(v, p)| v.depth_px(p) < 0.85 * self.reference.spacing_px[last])
+        };
         let saved: Vec<(usize, Option<usize>, (f64, f64))> = path
             .iter()
             .map(|&i| (i, self.assignment[i], self.disp[i]))
@@ -873,14 +888,29 @@ impl Matching<'_> {
             }
         }
         // The last marker: the nearest free blob to its new prediction, within a spacing.
-        let last = path[path.len() - 1];
         let matched = self.matched();
-        let end = self.predict(last, &matched).and_then(|(p, scale)| {
+        let predicted_last = self.predict(last, &matched);
+        let end = predicted_last.and_then(|(p, scale)| {
             let gate = self.reference.spacing_px[last] * scale.clamp(0.7, 1.6);
             nearest_two(p, &self.index, &self.taken, gate)
                 .0
                 .map(|(j, _)| j)
         });
+        // Out of view: cut by the view's edge or beyond it, where its neighbours put it or
+        // where the chain carries it (moved as the marker before it in the chain).
+        let radius = (self.reference.areas_px[last] / std::f64::consts::PI).sqrt();
+        let carried = (path.len() >= 2).then(|| {
+            let d = self.disp[path[path.len() - 2]];
+            let a = self.anchors[last];
+            (a.0 + d.0, a.1 + d.1)
+        });
+        let out = near_edge
+            && self.view.is_some_and(|v| {
+                predicted_last
+                    .into_iter()
+                    .chain(carried.map(|p| (p, 1.0)))
+                    .any(|(p, scale)| v.depth_px(p) < radius * scale)
+            });
         if let Some(j) = end {
             self.take(last, j);
         }
@@ -895,7 +925,14 @@ impl Matching<'_> {
             }
             self.disp[i] = d;
         }
-        Some((after - before, end))
+        // A hole moved out of the view is explained: it counts half (the slide must still
+        // leave the field about as smooth).
+        let explained = if end.is_none() && out {
+            0.5 * lost_cost
+        } else {
+            0.0
+        };
+        Some((after - before - explained, end, out))
     }
 
     fn apply_chain(&mut self, path: &[usize], end: Option<usize>) {
@@ -941,6 +978,36 @@ impl Matching<'_> {
     }
 }
 
+/// The part of the image where markers can be seen: a rectangle (the image or its region of
+/// interest), optionally cut to a circle (a circular view).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// Left edge, pixels (pixel centres at integers: the first column spans −0.5..0.5).
+    pub x0: f64,
+    /// Top edge, pixels.
+    pub y0: f64,
+    /// Right edge, pixels.
+    pub x1: f64,
+    /// Bottom edge, pixels.
+    pub y1: f64,
+    /// Centre and radius of the circular view, pixels.
+    pub circle: Option<((f64, f64), f64)>,
+}
+
+impl View {
+    /// How far `p` lies inside the view (distance to its nearest edge; negative outside).
+    pub fn depth_px(&self, p: (f64, f64)) -> f64 {
+        let mut d = (p.0 - self.x0)
+            .min(self.x1 - p.0)
+            .min(p.1 - self.y0)
+            .min(self.y1 - p.1);
+        if let Some((c, r)) = self.circle {
+            d = d.min(r - dist(p, c));
+        }
+        d
+    }
+}
+
 /// What the tracker may use besides the blobs.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TrackHints<'a> {
@@ -950,6 +1017,9 @@ pub struct TrackHints<'a> {
     /// Each marker's position in an earlier frame of the same video (`None` for markers it did
     /// not have): tracking starts from there instead of from the reference.
     pub prior: Option<&'a [Option<(f64, f64)>]>,
+    /// Where markers can be seen: a marker whose neighbours put it outside has left the view,
+    /// which explains its having no blob.
+    pub view: Option<View>,
 }
 
 /// Matches every reference marker to at most one blob of the frame, each frame on its own.
@@ -991,6 +1061,7 @@ pub fn track_with(
         index,
         cfg,
         anchors,
+        view: hints.view,
         assignment: vec![None; n],
         disp: vec![(0.0, 0.0); n],
         taken: vec![false; blobs.len()],
@@ -1025,6 +1096,7 @@ pub fn track_with(
         }
     }
     m.slide_chains(1.0);
+
     // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
     for (i, &p) in predicted.iter().enumerate() {
         if m.assignment[i].is_none() && m.support(i) == 0 {
