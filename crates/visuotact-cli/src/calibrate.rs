@@ -261,7 +261,13 @@ fn reference_source(s: &str) -> anyhow::Result<ReferenceSource> {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
-    let (detector, preset_features) = a.detector.config(Centroid::Grey)?;
+    // Thin annuli (the cone preset) are steadiest with the grey-weighted centroid.
+    let default_centroid = if a.detector.preset == "cone" {
+        Centroid::Weighted
+    } else {
+        Centroid::Grey
+    };
+    let (detector, preset_features) = a.detector.config(default_centroid)?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,

@@ -73,7 +73,8 @@ pub enum Centroid {
     /// the pixels 2–3 px outside the blob's box (robustly: outliers such as a neighbour's edge
     /// dropped). The partly covered edge pixels that any threshold cuts off carry the sub-pixel
     /// position: 2–4× less displacement error than `Weighted` on the sensor zoo. Blobs touching
-    /// the border (or within 3 px of it) keep `Weighted`.
+    /// the border (or within 3 px of it) and hollow ones (annuli: under half their box) keep
+    /// `Weighted`.
     Grey,
 }
 
@@ -279,7 +280,9 @@ impl Detector {
 fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<f32>) {
     let (width, height) = (gray.width(), gray.height());
     for b in blobs.iter_mut() {
-        if b.touches_border {
+        // Annuli and other hollow shapes (under half their box) keep the weighted centroid.
+        let box_area = (b.bbox.x1 - b.bbox.x0) * (b.bbox.y1 - b.bbox.y0);
+        if b.touches_border || 2 * b.area_px < box_area {
             continue;
         }
         // Window: the box grown by 3 px; background ring: its outer 1-px frame.
