@@ -111,8 +111,10 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         .collect::<Result<_, _>>()
         .map_err(anyhow::Error::msg)?;
     let ids: Vec<String> = (0..rest.len()).map(|k| format!("ref{k}")).collect();
+    // As `calibrate` does by default: grey-level centroids.
     let det = DetectorConfig {
         preprocess: PreprocessConfig::IATS,
+        centroid: Centroid::Grey,
         ..Default::default()
     };
     let (cal, _) = calibrate(

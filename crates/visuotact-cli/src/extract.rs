@@ -153,13 +153,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             incomplete += 1;
             lost_total += missing;
             let what = if missing * 2 >= n_markers {
-                " (half or more of the markers: is the skin in view?)"
+                "; half or more: is the skin in view?"
             } else {
                 ""
             };
             warn(
                 format!(
-                    "frame {}: {missing} of {n_markers} markers not found{what} ({})",
+                    "frame {}: {missing} of {n_markers} markers not found ({}){what}",
                     frame.id,
                     missing_summary(&f)
                 ),

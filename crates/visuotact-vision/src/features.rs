@@ -184,9 +184,9 @@ impl FeatureExtractor {
 
     /// For frames in order (video, live camera): start each frame's tracking from the last
     /// frame's marker positions, which follows motions of more than a pitch built up over
-    /// several frames. A frame where that leaves markers unmatched is tracked from the
-    /// reference as well and the result with more markers kept. Off by default (frames in any
-    /// order); turning it on or off forgets the last frame.
+    /// several frames. A frame where that loses track (far fewer markers than the last frame
+    /// had) is tracked from the reference as well and that result kept if it finds clearly
+    /// more. Off by default (frames in any order); turning it on or off forgets the last frame.
     pub fn set_temporal_prior(&mut self, on: bool) {
         self.temporal = on;
         self.prior.clear();
@@ -276,14 +276,17 @@ impl FeatureExtractor {
                     view,
                 },
             );
-            if t.found() < t.status.len() {
+            // The prior lost track (far fewer markers than the last frame had): start again
+            // from the reference, and keep that if it finds clearly more.
+            let had = self.prior.iter().filter(|p| p.is_some()).count();
+            if t.found() + 3 + had / 20 < had {
                 let r = track_with(
                     &self.reference,
                     &self.blobs,
                     &self.cal.track,
                     from_reference,
                 );
-                if r.found() > t.found() {
+                if r.found() > t.found() + 2 {
                     r
                 } else {
                     t

@@ -1045,8 +1045,28 @@ pub fn track_with(
     let index = BlobIndex::new(blobs, reference.pitch_px.max(1.0));
     let (anchors, shift) = match prior {
         Some(p) if p.len() == n => {
+            // A marker the last frame did not have starts where its neighbours' motion since
+            // the reference puts it.
             let a: Vec<(f64, f64)> = (0..n)
-                .map(|i| p[i].unwrap_or(reference.positions[i]))
+                .map(|i| {
+                    let r = reference.positions[i];
+                    p[i].unwrap_or_else(|| {
+                        let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
+                        for &j in &reference.neighbours[i] {
+                            if let Some(q) = p[j] {
+                                let rj = reference.positions[j];
+                                sx += q.0 - rj.0;
+                                sy += q.1 - rj.1;
+                                k += 1.0;
+                            }
+                        }
+                        if k > 0.0 {
+                            (r.0 + sx / k, r.1 + sy / k)
+                        } else {
+                            r
+                        }
+                    })
+                })
                 .collect();
             (a, (0.0, 0.0))
         }

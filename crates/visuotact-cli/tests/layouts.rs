@@ -1,0 +1,400 @@
+//! Marker layouts recognised on rendered sensors (and refused when forced on the wrong one),
+//! the sensor file's layout and neighbours, references from the lightest frames of a data set
+//! with no contact-free frame, the temporal prior, and compact warnings — through the
+//! `visuotact` binary as a user runs it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use visuotact_sim::zoo::{self, Arrangement, ZooConfig, ZooTouch};
+
+fn vt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn ok(o: Output) -> String {
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    e
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn fresh_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("vt-layouts-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// `simulate --sensor NAME --protocol random` with a few touches; extra args appended.
+fn simulate(dir: &Path, sensor: &str, extra: &[&str]) -> PathBuf {
+    let out = dir.join(sensor);
+    let mut args = vec![
+        "simulate",
+        "--sensor",
+        sensor,
+        "--protocol",
+        "random",
+        "--touches",
+        "30",
+        "--references",
+        "5",
+        "-o",
+        s(&out),
+    ];
+    args.extend_from_slice(extra);
+    ok(vt(&args));
+    out
+}
+
+fn sensor_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn layouts_are_recognised_on_rendered_sensors_and_forced_ones_refused() {
+    let d = fresh_dir("recognise");
+    for (sensor, preset, layout, extra) in [
+        ("tactip", "iats", "hex", vec![]),
+        ("gelsight", "dark-markers", "grid", vec![]),
+        ("dots", "iats", "irregular", vec![]),
+        ("iats", "iats", "grid", vec![]),
+    ] {
+        let session = simulate(&d, sensor, &extra);
+        let out = d.join(format!("{sensor}.json"));
+        let err = ok(vt(&[
+            "calibrate",
+            s(&session.join("reference")),
+            "--preset",
+            preset,
+            "-o",
+            s(&out),
+        ]));
+        assert!(err.contains(&format!("({layout}:")), "{sensor}: {err}");
+        let cal = sensor_json(&out);
+        assert_eq!(cal["layout"], layout, "{sensor}");
+        assert_eq!(cal["version"], 2);
+        // Every marker lists its neighbours; on a lattice, interior ones have them all.
+        let markers = cal["markers"].as_array().unwrap();
+        let degrees: Vec<usize> = markers
+            .iter()
+            .map(|m| m["neighbours"].as_array().unwrap().len())
+            .collect();
+        let full = match layout {
+            "hex" => 6,
+            "grid" => 4,
+            _ => 1,
+        };
+        assert!(
+            degrees.iter().filter(|&&k| k >= full).count() * 2 > markers.len(),
+            "{sensor}: {degrees:?}"
+        );
+        // Neighbours are mutual.
+        for (i, m) in markers.iter().enumerate() {
+            for n in m["neighbours"].as_array().unwrap() {
+                let j = n.as_u64().unwrap() as usize;
+                let back = markers[j]["neighbours"].as_array().unwrap();
+                if layout != "irregular" {
+                    assert!(
+                        back.iter().any(|b| b.as_u64() == Some(i as u64)),
+                        "{sensor}"
+                    );
+                }
+            }
+        }
+    }
+    // The wrong layout forced is refused with what the markers look like.
+    let tactip = d.join("tactip/reference");
+    let o = vt(&[
+        "calibrate",
+        s(&tactip),
+        "--layout",
+        "grid",
+        "-o",
+        s(&d.join("x.json")),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("layout grid does not fit") && e.contains("hexagonal"),
+        "{e}"
+    );
+    let o = vt(&[
+        "calibrate",
+        s(&tactip),
+        "--layout",
+        "rings",
+        "-o",
+        s(&d.join("x.json")),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("no two of the") && e.contains("share a centre"),
+        "{e}"
+    );
+    let dots = d.join("dots/reference");
+    let o = vt(&[
+        "calibrate",
+        s(&dots),
+        "--layout",
+        "hex",
+        "-o",
+        s(&d.join("x.json")),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("irregular"), "{}", stderr(&o));
+    // The cone's annuli are recognised without --layout.
+    let cone = d.join("cone");
+    ok(vt(&[
+        "simulate",
+        "--sensor",
+        "cone",
+        "--protocol",
+        "press",
+        "--duration-s",
+        "0.2",
+        "--references",
+        "3",
+        "-o",
+        s(&cone),
+    ]));
+    let out = d.join("cone.json");
+    let err = ok(vt(&[
+        "calibrate",
+        s(&cone.join("reference")),
+        "--preset",
+        "cone",
+        "-o",
+        s(&out),
+    ]));
+    assert_eq!(sensor_json(&out)["layout"], "rings", "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn rings_of_dots_are_numbered_in_polar_order() {
+    let d = fresh_dir("dotrings");
+    let cfg = ZooConfig {
+        arrangement: Arrangement::DotRings,
+        ..ZooConfig::DOTS
+    };
+    let cfg_path = d.join("rings.json");
+    std::fs::write(&cfg_path, serde_json::to_string(&cfg).unwrap()).unwrap();
+    let session = simulate(&d, "dots", &["--config", s(&cfg_path)]);
+    let out = d.join("s.json");
+    ok(vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "-o",
+        s(&out),
+    ]));
+    let cal = sensor_json(&out);
+    assert_eq!(cal["layout"], "dot-rings");
+    let markers = cal["markers"].as_array().unwrap();
+    let (truth, _) = {
+        let ms = zoo::markers(&cfg, &ZooTouch::default());
+        (ms.len(), ())
+    };
+    assert_eq!(markers.len(), truth);
+    // Marker 0 is the centre dot (ring 0); rings grow outwards.
+    assert_eq!(markers[0]["row"], 0);
+    let radius = |m: &serde_json::Value| {
+        let (x0, y0) = (
+            markers[0]["x_px"].as_f64().unwrap(),
+            markers[0]["y_px"].as_f64().unwrap(),
+        );
+        (m["x_px"].as_f64().unwrap() - x0).hypot(m["y_px"].as_f64().unwrap() - y0)
+    };
+    for w in markers.windows(2) {
+        let (r0, r1) = (w[0]["row"].as_u64().unwrap(), w[1]["row"].as_u64().unwrap());
+        assert!(r1 == r0 || r1 == r0 + 1);
+        if r1 > r0 {
+            assert!(radius(&w[1]) > radius(&w[0]));
+        }
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_reference_from_the_lightest_frames_of_a_pressed_data_set() {
+    let d = fresh_dir("lightest");
+    // Every touch frame pressed (5–100 % of the skin's limit); no reference frames used.
+    let session = simulate(&d, "tactip", &[]);
+    let out = d.join("light.json");
+    let err = ok(vt(&[
+        "calibrate",
+        s(&session.join("frames")),
+        "--reference",
+        "lightest:3",
+        "-o",
+        s(&out),
+    ]));
+    assert!(
+        err.contains("reference from the 3 lightest of 30 frames"),
+        "{err}"
+    );
+    let cal = sensor_json(&out);
+    assert_eq!(cal["reference"]["method"], "lightest");
+    assert_eq!(cal["reference"]["frames_considered"], 30);
+    assert_eq!(cal["reference_frames"].as_array().unwrap().len(), 3);
+    // The chosen frames are among the lightest presses by the simulator's labels.
+    let labels = std::fs::read_to_string(session.join("labels.csv")).unwrap();
+    let mut depths: Vec<(f64, String)> = labels
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (c[3].parse().unwrap(), c[0].to_string())
+        })
+        .collect();
+    depths.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let lightest: Vec<&str> = depths[..8].iter().map(|x| x.1.as_str()).collect();
+    for f in cal["reference_frames"].as_array().unwrap() {
+        let name = f.as_str().unwrap().rsplit('/').next().unwrap();
+        assert!(
+            lightest.contains(&name),
+            "{name} is not among the 8 lightest {lightest:?}"
+        );
+    }
+    // The reference's markers lie close to the rest positions of a true still reference.
+    let still = d.join("still.json");
+    ok(vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "-o",
+        s(&still),
+    ]));
+    let (a, b) = (sensor_json(&out), sensor_json(&still));
+    let (ma, mb) = (
+        a["markers"].as_array().unwrap(),
+        b["markers"].as_array().unwrap(),
+    );
+    assert_eq!(ma.len(), mb.len());
+    let mut far = 0;
+    for m in ma {
+        let (x, y) = (m["x_px"].as_f64().unwrap(), m["y_px"].as_f64().unwrap());
+        let nearest = mb
+            .iter()
+            .map(|n| (n["x_px"].as_f64().unwrap() - x).hypot(n["y_px"].as_f64().unwrap() - y))
+            .fold(f64::INFINITY, f64::min);
+        far += usize::from(nearest > 1.0);
+    }
+    assert!(
+        far * 20 < ma.len(),
+        "{far} of {} markers over 1 px from rest",
+        ma.len()
+    );
+    // Extraction with it says the reference was taken under contact when it was.
+    if a["reference"]["under_contact"] == true {
+        let o = vt(&[
+            "extract",
+            "--sensor",
+            s(&out),
+            s(&session.join("frames")),
+            "-o",
+            s(&d.join("f.csv")),
+            "--max-warnings",
+            "0",
+        ]);
+        assert!(stderr(&o).contains("taken under contact"), "{}", stderr(&o));
+    }
+    // Bad requests are refused.
+    for bad in ["lightest:0", "lightest:x", "darkest:3"] {
+        let o = vt(&[
+            "calibrate",
+            s(&session.join("frames")),
+            "--reference",
+            bad,
+            "-o",
+            s(&d.join("x.json")),
+        ]);
+        assert!(
+            !o.status.success() && stderr(&o).contains("--reference"),
+            "{bad}"
+        );
+    }
+    let o = vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "--reference",
+        "lightest:9",
+        "-o",
+        s(&d.join("x.json")),
+    ]);
+    assert!(
+        stderr(&o).contains("5 frames given, 9 asked for"),
+        "{}",
+        stderr(&o)
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn warnings_are_one_short_line_per_frame_and_max_zero_is_silent() {
+    let d = fresh_dir("warnings");
+    let session = simulate(&d, "gelsight", &[]);
+    let sensor = d.join("g.json");
+    ok(vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "--preset",
+        "dark-markers",
+        "-o",
+        s(&sensor),
+    ]));
+    // Hide half of a frame so that markers are missing.
+    let frame = session.join("frames/frame_000000.png");
+    let mut img = image::open(&frame).unwrap().into_rgb8();
+    let bg = *img.get_pixel(160, 5);
+    for y in 0..120 {
+        for x in 0..320 {
+            img.put_pixel(x, y, bg);
+        }
+    }
+    img.save(&frame).unwrap();
+    let run = |max: &str| {
+        ok(vt(&[
+            "extract",
+            "--sensor",
+            s(&sensor),
+            s(&session.join("frames")),
+            "-o",
+            s(&d.join("f.csv")),
+            "--max-warnings",
+            max,
+        ]))
+    };
+    let err = run("5");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning:")).collect();
+    assert!(!warnings.is_empty(), "{err}");
+    for w in &warnings {
+        assert!(w.len() < 160, "long warning: {w}");
+    }
+    assert!(
+        warnings[0].contains(" lost") && warnings[0].contains(": m0"),
+        "{}",
+        warnings[0]
+    );
+    assert!(
+        err.lines().last().unwrap().starts_with("extracted"),
+        "{err}"
+    );
+    let err = run("0");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(
+        err.lines().last().unwrap().starts_with("extracted"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
