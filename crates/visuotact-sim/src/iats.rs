@@ -25,7 +25,7 @@ use visuotact_image::RgbImage;
 
 use crate::camera::Camera;
 use crate::pattern::Look;
-use crate::render::{crowded, ring_area_centroid, Canvas, ConvexPolygon};
+use crate::render::{clear_crowded, ring_area_centroid, squeezed, Canvas, ConvexPolygon};
 
 /// Every physical and optical parameter of the IATS simulator.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -373,11 +373,7 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
                 ConvexPolygon::new(verts)
             };
             let poly = outline(touch);
-            // Squeezed to a sliver by the fabric's strain: no longer a blob.
-            let rest_minor = outline(&Touch::default()).map_or(0.0, |p| p.minor_axis());
-            let collapsed = poly
-                .as_ref()
-                .is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5));
+            let collapsed = squeezed(poly.as_ref(), outline(&Touch::default()).as_ref());
             let (area_px, (x_px, y_px)) = poly
                 .as_ref()
                 .map_or((0.0, (f64::NAN, f64::NAN)), |p| ring_area_centroid(p, None));
@@ -403,9 +399,10 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
         .iter()
         .map(|(p, m)| (p.as_ref(), (m.x_px, m.y_px)))
         .collect();
-    let crowded = crowded(&shapes, 2.0 + 2.0 * cfg.blur_px);
-    for ((_, m), c) in out.iter_mut().zip(crowded) {
-        m.visible &= !c;
+    let mut visible: Vec<bool> = out.iter().map(|(_, m)| m.visible).collect();
+    clear_crowded(&shapes, 2.0 + 2.0 * cfg.blur_px, &mut visible);
+    for ((_, m), v) in out.iter_mut().zip(visible) {
+        m.visible = v;
     }
     out
 }

@@ -25,8 +25,8 @@ pub fn iats_grid_for(cfg: &IatsConfig) -> Vec<Touch> {
         for iy in 0..16 {
             for ix in 0..16 {
                 out.push(Touch {
-                    x_mm: sx * f64::from(ix),
-                    y_mm: sy * f64::from(iy),
+                    x_mm: (sx * f64::from(ix)).min(cfg.span_x_mm),
+                    y_mm: (sy * f64::from(iy)).min(cfg.span_y_mm),
                     depth_mm: f64::from(depth).min(cfg.max_depth_mm),
                     ..Touch::default()
                 });
@@ -298,6 +298,16 @@ mod tests {
         );
         let cfg = IatsConfig::SEED000;
         assert!(g.iter().all(|t| t.validate(&cfg).is_ok()));
+    }
+
+    #[test]
+    fn scaled_grids_stay_on_the_marker_area() {
+        for v in 0..30 {
+            let cfg = IatsConfig::variant(v);
+            for t in iats_grid_for(&cfg) {
+                t.validate(&cfg).unwrap();
+            }
+        }
     }
 
     #[test]

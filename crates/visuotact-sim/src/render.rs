@@ -331,6 +331,21 @@ pub fn crowded(shapes: &[(Option<&ConvexPolygon>, (f64, f64))], clear: f64) -> V
     out
 }
 
+/// Whether a marker's outline has been squeezed to a sliver by the skin's strain (its minor axis
+/// under 2.5 px or 35 % of its rest value `rest`): no longer a blob of its own.
+pub fn squeezed(outline: Option<&ConvexPolygon>, rest: Option<&ConvexPolygon>) -> bool {
+    let rest_minor = rest.map_or(0.0, ConvexPolygon::minor_axis);
+    outline.is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5))
+}
+
+/// Clears `visible` for every shape within `clear` pixels of another (`shapes`: outlines with
+/// their centroids): touching markers make one blob.
+pub fn clear_crowded(shapes: &[(Option<&ConvexPolygon>, (f64, f64))], clear: f64, visible: &mut [bool]) {
+    for (v, c) in visible.iter_mut().zip(crowded(shapes, clear)) {
+        *v &= !c;
+    }
+}
+
 /// Andrew's monotone chain: hull vertices counter-clockwise (in x-right, y-down pixels,
 /// clockwise on screen), collinear points dropped.
 fn convex_hull(mut p: Vec<(f64, f64)>) -> Vec<(f64, f64)> {

@@ -44,7 +44,7 @@ use visuotact_image::RgbImage;
 
 use crate::camera::Camera;
 use crate::pattern::{frame_from_coverage_lit, Look};
-use crate::render::{crowded, ring_area_centroid, Canvas, ConvexPolygon};
+use crate::render::{clear_crowded, ring_area_centroid, squeezed, Canvas, ConvexPolygon};
 
 /// The zoo's sensor families.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -845,11 +845,7 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
                 }
             };
             let poly = outline(touch);
-            // Squeezed to a sliver by the skin's strain: no longer a blob.
-            let rest_minor = outline(&ZooTouch::default()).map_or(0.0, |p| p.minor_axis());
-            let collapsed = poly
-                .as_ref()
-                .is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5));
+            let collapsed = squeezed(poly.as_ref(), outline(&ZooTouch::default()).as_ref());
             let (area_px, (x_px, y_px)) = poly
                 .as_ref()
                 .map_or((0.0, (f64::NAN, f64::NAN)), |p| ring_area_centroid(p, None));
@@ -884,9 +880,10 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
         .iter()
         .map(|(p, m)| (p.as_ref(), (m.x_px, m.y_px)))
         .collect();
-    let crowded = crowded(&shapes, 2.0 + 2.0 * cfg.blur_px);
-    for ((_, m), c) in out.iter_mut().zip(crowded) {
-        m.visible &= !c;
+    let mut visible: Vec<bool> = out.iter().map(|(_, m)| m.visible).collect();
+    clear_crowded(&shapes, 2.0 + 2.0 * cfg.blur_px, &mut visible);
+    for ((_, m), v) in out.iter_mut().zip(visible) {
+        m.visible = v;
     }
     out
 }
