@@ -340,7 +340,11 @@ pub fn squeezed(outline: Option<&ConvexPolygon>, rest: Option<&ConvexPolygon>) -
 
 /// Clears `visible` for every shape within `clear` pixels of another (`shapes`: outlines with
 /// their centroids): touching markers make one blob.
-pub fn clear_crowded(shapes: &[(Option<&ConvexPolygon>, (f64, f64))], clear: f64, visible: &mut [bool]) {
+pub fn clear_crowded(
+    shapes: &[(Option<&ConvexPolygon>, (f64, f64))],
+    clear: f64,
+    visible: &mut [bool],
+) {
     for (v, c) in visible.iter_mut().zip(crowded(shapes, clear)) {
         *v &= !c;
     }
