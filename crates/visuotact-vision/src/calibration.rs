@@ -8,7 +8,7 @@
 //! displacement features.
 //!
 //! A data set with no contact-free frame (every frame pressed) gets its reference from its
-//! lightest frames instead ([`lightest_frames`]): every frame's markers are tracked against a
+//! lightest frames instead ([`LightestFinder`]): every frame's markers are tracked against a
 //! provisional reference, each marker's median position over all frames estimates where it
 //! rests (touches at different places leave any one marker alone in most frames), and the N
 //! frames closest to that estimate (RMS over the markers) are the ones averaged. The sensor
