@@ -395,15 +395,12 @@ pub fn markers(cfg: &IatsConfig, touch: &Touch) -> Vec<(Option<ConvexPolygon>, I
             ));
         }
     }
-    let shapes: Vec<(Option<&ConvexPolygon>, (f64, f64))> = out
-        .iter()
-        .map(|(p, m)| (p.as_ref(), (m.x_px, m.y_px)))
-        .collect();
-    let mut visible: Vec<bool> = out.iter().map(|(_, m)| m.visible).collect();
-    clear_crowded(&shapes, 2.0 + 2.0 * cfg.blur_px, &mut visible);
-    for ((_, m), v) in out.iter_mut().zip(visible) {
-        m.visible = v;
-    }
+    clear_crowded(
+        &mut out,
+        2.0 + 2.0 * cfg.blur_px,
+        |m| (m.x_px, m.y_px),
+        |m| &mut m.visible,
+    );
     out
 }
 

@@ -338,15 +338,22 @@ pub fn squeezed(outline: Option<&ConvexPolygon>, rest: Option<&ConvexPolygon>) -
     outline.is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5))
 }
 
-/// Clears `visible` for every shape within `clear` pixels of another (`shapes`: outlines with
-/// their centroids): touching markers make one blob.
-pub fn clear_crowded(
-    shapes: &[(Option<&ConvexPolygon>, (f64, f64))],
+/// Clears the visibility of every marker within `clear` pixels of another (touching markers
+/// make one blob): `markers` are outlines with their truth, `centroid` and `visible` reach into
+/// the truth.
+pub fn clear_crowded<M>(
+    markers: &mut [(Option<ConvexPolygon>, M)],
     clear: f64,
-    visible: &mut [bool],
+    centroid: impl Fn(&M) -> (f64, f64),
+    visible: impl Fn(&mut M) -> &mut bool,
 ) {
-    for (v, c) in visible.iter_mut().zip(crowded(shapes, clear)) {
-        *v &= !c;
+    let shapes: Vec<(Option<&ConvexPolygon>, (f64, f64))> = markers
+        .iter()
+        .map(|(p, m)| (p.as_ref(), centroid(m)))
+        .collect();
+    let crowded = crowded(&shapes, clear);
+    for ((_, m), c) in markers.iter_mut().zip(crowded) {
+        *visible(m) &= !c;
     }
 }
 
