@@ -168,32 +168,27 @@ impl AnyTouch {
 }
 
 fn touches(c: &CheckConfig) -> anyhow::Result<Vec<AnyTouch>> {
-    Ok(match (&c.sensor, c.protocol.as_str()) {
-        (SimSensor::Iats(s), "grid") => protocol::iats_grid_for(s)
-            .into_iter()
-            .map(AnyTouch::Iats)
-            .collect(),
-        (SimSensor::Iats(s), "random") => protocol::iats_random(s, c.touches, c.seed)
-            .into_iter()
-            .map(AnyTouch::Iats)
-            .collect(),
-        (SimSensor::Iats(s), "shear") => protocol::iats_shear(s, c.touches, c.seed)
-            .into_iter()
-            .map(AnyTouch::Iats)
-            .collect(),
-        (SimSensor::Zoo(s), "grid") => protocol::zoo_grid(s)
-            .into_iter()
-            .map(AnyTouch::Zoo)
-            .collect(),
-        (SimSensor::Zoo(s), "random") => protocol::zoo_random(s, c.touches, c.seed)
-            .into_iter()
-            .map(AnyTouch::Zoo)
-            .collect(),
-        (SimSensor::Zoo(s), "shear") => protocol::zoo_shear(s, c.touches, c.seed)
-            .into_iter()
-            .map(AnyTouch::Zoo)
-            .collect(),
-        (_, other) => bail!("--protocol {other:?}: expected grid, random or shear"),
+    let bad = |p: &str| anyhow::anyhow!("--protocol {p:?}: expected grid, random or shear");
+    let (n, seed) = (c.touches, c.seed);
+    Ok(match &c.sensor {
+        SimSensor::Iats(s) => match c.protocol.as_str() {
+            "grid" => protocol::iats_grid_for(s),
+            "random" => protocol::iats_random(s, n, seed),
+            "shear" => protocol::iats_shear(s, n, seed),
+            other => return Err(bad(other)),
+        }
+        .into_iter()
+        .map(AnyTouch::Iats)
+        .collect(),
+        SimSensor::Zoo(s) => match c.protocol.as_str() {
+            "grid" => protocol::zoo_grid(s),
+            "random" => protocol::zoo_random(s, n, seed),
+            "shear" => protocol::zoo_shear(s, n, seed),
+            other => return Err(bad(other)),
+        }
+        .into_iter()
+        .map(AnyTouch::Zoo)
+        .collect(),
     })
 }
 

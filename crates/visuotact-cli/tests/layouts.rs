@@ -4,36 +4,15 @@
 //! `visuotact` binary as a user runs it.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use visuotact_sim::zoo::{self, Arrangement, ZooConfig, ZooTouch};
 
-fn vt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::*;
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn ok(o: Output) -> String {
-    let e = stderr(&o);
-    assert!(o.status.success(), "{e}");
-    e
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn fresh_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("vt-layouts-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// `simulate --sensor NAME --protocol random` with a few touches; extra args appended.
@@ -53,7 +32,7 @@ fn simulate(dir: &Path, sensor: &str, extra: &[&str]) -> PathBuf {
         s(&out),
     ];
     args.extend_from_slice(extra);
-    ok(vt(&args));
+    ok(&vt(&args));
     out
 }
 
@@ -72,7 +51,7 @@ fn layouts_are_recognised_on_rendered_sensors_and_forced_ones_refused() {
     ] {
         let session = simulate(&d, sensor, &extra);
         let out = d.join(format!("{sensor}.json"));
-        let err = ok(vt(&[
+        let err = ok(&vt(&[
             "calibrate",
             s(&session.join("reference")),
             "--preset",
@@ -156,7 +135,7 @@ fn layouts_are_recognised_on_rendered_sensors_and_forced_ones_refused() {
     assert!(stderr(&o).contains("irregular"), "{}", stderr(&o));
     // The cone's annuli are recognised without --layout.
     let cone = d.join("cone");
-    ok(vt(&[
+    ok(&vt(&[
         "simulate",
         "--sensor",
         "cone",
@@ -170,7 +149,7 @@ fn layouts_are_recognised_on_rendered_sensors_and_forced_ones_refused() {
         s(&cone),
     ]));
     let out = d.join("cone.json");
-    let err = ok(vt(&[
+    let err = ok(&vt(&[
         "calibrate",
         s(&cone.join("reference")),
         "--preset",
@@ -193,7 +172,7 @@ fn rings_of_dots_are_numbered_in_polar_order() {
     std::fs::write(&cfg_path, serde_json::to_string(&cfg).unwrap()).unwrap();
     let session = simulate(&d, "dots", &["--config", s(&cfg_path)]);
     let out = d.join("s.json");
-    ok(vt(&[
+    ok(&vt(&[
         "calibrate",
         s(&session.join("reference")),
         "-o",
@@ -232,7 +211,7 @@ fn a_reference_from_the_lightest_frames_of_a_pressed_data_set() {
     // Every touch frame pressed (5–100 % of the skin's limit); no reference frames used.
     let session = simulate(&d, "tactip", &[]);
     let out = d.join("light.json");
-    let err = ok(vt(&[
+    let err = ok(&vt(&[
         "calibrate",
         s(&session.join("frames")),
         "--reference",
@@ -269,7 +248,7 @@ fn a_reference_from_the_lightest_frames_of_a_pressed_data_set() {
     }
     // The reference's markers lie close to the rest positions of a true still reference.
     let still = d.join("still.json");
-    ok(vt(&[
+    ok(&vt(&[
         "calibrate",
         s(&session.join("reference")),
         "-o",
@@ -345,7 +324,7 @@ fn warnings_are_one_short_line_per_frame_and_max_zero_is_silent() {
     let d = fresh_dir("warnings");
     let session = simulate(&d, "gelsight", &[]);
     let sensor = d.join("g.json");
-    ok(vt(&[
+    ok(&vt(&[
         "calibrate",
         s(&session.join("reference")),
         "--preset",
@@ -364,7 +343,7 @@ fn warnings_are_one_short_line_per_frame_and_max_zero_is_silent() {
     }
     img.save(&frame).unwrap();
     let run = |max: &str| {
-        ok(vt(&[
+        ok(&vt(&[
             "extract",
             "--sensor",
             s(&sensor),

@@ -20,7 +20,9 @@ use visuotact_image::{GrayImage, RgbImage};
 use crate::blobs::{Blob, MomentConvention};
 use crate::detect::{Detector, DetectorConfig};
 use crate::features::FeatureSet;
-use crate::layout::{annuli_share_centres, number_markers, Layout, LayoutChoice, LayoutError};
+use crate::layout::{
+    annuli_share_centres, median, number_markers, Layout, LayoutChoice, LayoutError,
+};
 use crate::preprocess::gray_from_rgb_into;
 use crate::track::{track, TrackConfig, TrackReference};
 
@@ -216,15 +218,7 @@ where
     let mut sum = vec![0u32; w * h];
     let mut gray = GrayImage::new(0, 0);
     for &(id, img) in &frames {
-        if (img.width(), img.height()) != (w, h) {
-            return Err(CalibrationError::SizeMismatch {
-                frame: id.to_string(),
-                expected_w: w,
-                expected_h: h,
-                got_w: img.width(),
-                got_h: img.height(),
-            });
-        }
+        same_size(id, img, (w, h))?;
         gray_from_rgb_into(
             img,
             detector.preprocess.channel,
@@ -377,6 +371,20 @@ where
     }
     cal.markers = markers;
     Ok((cal, report))
+}
+
+/// Refuses a frame of another size than the first.
+fn same_size(id: &str, img: &RgbImage, (w, h): (usize, usize)) -> Result<(), CalibrationError> {
+    if (img.width(), img.height()) == (w, h) {
+        return Ok(());
+    }
+    Err(CalibrationError::SizeMismatch {
+        frame: id.to_string(),
+        expected_w: w,
+        expected_h: h,
+        got_w: img.width(),
+        got_h: img.height(),
+    })
 }
 
 /// Reference blobs in numbering order with their `(row, col)`, and the layout's figures.
@@ -536,15 +544,7 @@ impl LightestFinder {
     /// Detects the markers of one frame and keeps them.
     pub fn add(&mut self, id: &str, img: &RgbImage) -> Result<(), CalibrationError> {
         let (w, h) = *self.size.get_or_insert((img.width(), img.height()));
-        if (img.width(), img.height()) != (w, h) {
-            return Err(CalibrationError::SizeMismatch {
-                frame: id.to_string(),
-                expected_w: w,
-                expected_h: h,
-                got_w: img.width(),
-                got_h: img.height(),
-            });
-        }
+        same_size(id, img, (w, h))?;
         let mut blobs = Vec::new();
         self.detector.detect_into(img, &mut blobs);
         self.frames.push((id.to_string(), blobs));
@@ -601,7 +601,7 @@ impl LightestFinder {
             .map(|i| {
                 let mut xs: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.0)).collect();
                 let mut ys: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.1)).collect();
-                (!xs.is_empty()).then(|| (median_of(&mut xs), median_of(&mut ys)))
+                (!xs.is_empty()).then(|| (median(&mut xs), median(&mut ys)))
             })
             .collect();
         let mut scored: Vec<(f64, usize)> = tracked
@@ -627,7 +627,7 @@ impl LightestFinder {
         }
         scored.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut all: Vec<f64> = scored.iter().map(|s| s.0).collect();
-        let median_deformation_px = median_of(&mut all);
+        let median_deformation_px = median(&mut all);
         let chosen = &scored[..n];
         // The chosen frames' mean position per marker against the rest estimate.
         let (mut sq, mut c, mut worst) = (0.0, 0usize, 0.0f64);
@@ -657,17 +657,5 @@ impl LightestFinder {
             residual_px: if c > 0 { (sq / c as f64).sqrt() } else { 0.0 },
             residual_max_px: worst,
         })
-    }
-}
-
-fn median_of(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }

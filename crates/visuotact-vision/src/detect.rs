@@ -314,21 +314,21 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<f32>) {
             let keep = |v: f32, x: f32, y: f32| {
                 cut.is_none_or(|(m, sx, sy, c)| (v - m - sx * x - sy * y).abs() <= c)
             };
-            let side = |vals: &[f32], pos: &dyn Fn(usize) -> (f32, f32)| -> Option<f32> {
+            // The mean of one side: values at (x, y) + i·(dx, dy).
+            let side = |vals: &[f32], (x, y): (f32, f32), (dx, dy): (f32, f32)| -> Option<f32> {
                 let (mut s, mut n) = (0.0f32, 0.0f32);
                 for (i, &v) in vals.iter().enumerate() {
-                    let (x, y) = pos(i);
-                    if keep(v, x, y) {
+                    if keep(v, x + i as f32 * dx, y + i as f32 * dy) {
                         s += v;
                         n += 1.0;
                     }
                 }
                 (n > 0.0).then(|| s / n)
             };
-            let t = side(top, &|i| (i as f32 - xm, -ym))?;
-            let bo = side(bottom, &|i| (i as f32 - xm, ym))?;
-            let l = side(left, &|i| (-xm, (i + 1) as f32 - ym))?;
-            let r = side(right, &|i| (xm, (i + 1) as f32 - ym))?;
+            let t = side(top, (-xm, -ym), (1.0, 0.0))?;
+            let bo = side(bottom, (-xm, ym), (1.0, 0.0))?;
+            let l = side(left, (-xm, 1.0 - ym), (0.0, 1.0))?;
+            let r = side(right, (xm, 1.0 - ym), (0.0, 1.0))?;
             Some((
                 0.25 * (t + bo + l + r),
                 (r - l) / (2.0 * xm),

@@ -147,6 +147,27 @@ pub struct FrameSizeError {
     pub got_h: usize,
 }
 
+/// The view of a calibration: the image or its region of interest, and its circular mask.
+fn view_of(cal: &SensorCalibration) -> View {
+    let p = &cal.detector.preprocess;
+    let (w, h) = (cal.image_width as f64, cal.image_height as f64);
+    let (x0, y0, x1, y1) = p.roi.map_or((0.0, 0.0, w, h), |r| {
+        (
+            r.x as f64,
+            r.y as f64,
+            ((r.x + r.width) as f64).min(w),
+            ((r.y + r.height) as f64).min(h),
+        )
+    });
+    View {
+        x0: x0 - 0.5,
+        y0: y0 - 0.5,
+        x1: x1 - 0.5,
+        y1: y1 - 0.5,
+        circle: p.circle.map(|c| ((c.cx_px, c.cy_px), c.radius_px)),
+    }
+}
+
 /// Frame → feature vector for one calibrated sensor, with reusable buffers.
 #[derive(Clone, Debug)]
 pub struct FeatureExtractor {
@@ -162,6 +183,8 @@ pub struct FeatureExtractor {
     temporal: bool,
     /// The last frame's marker positions (temporal prior).
     prior: Vec<Option<(f64, f64)>>,
+    /// Where markers can be seen (fixed by the calibration).
+    view: View,
 }
 
 impl FeatureExtractor {
@@ -169,6 +192,7 @@ impl FeatureExtractor {
     pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, String> {
         let detector = Detector::new(cal.detector.clone())?;
         let reference = track_reference(&cal.markers, cal.pitch_px, cal.layout);
+        let view = view_of(&cal);
         Ok(Self {
             cal,
             features,
@@ -179,6 +203,7 @@ impl FeatureExtractor {
             last_track: TrackResult::default(),
             temporal: false,
             prior: Vec::new(),
+            view,
         })
     }
 
@@ -195,23 +220,7 @@ impl FeatureExtractor {
     /// Where markers can be seen: the image, or its region of interest, cut to the circular
     /// mask if there is one.
     pub fn view(&self) -> View {
-        let p = &self.cal.detector.preprocess;
-        let (w, h) = (self.cal.image_width as f64, self.cal.image_height as f64);
-        let (x0, y0, x1, y1) = p.roi.map_or((0.0, 0.0, w, h), |r| {
-            (
-                r.x as f64,
-                r.y as f64,
-                ((r.x + r.width) as f64).min(w),
-                ((r.y + r.height) as f64).min(h),
-            )
-        });
-        View {
-            x0: x0 - 0.5,
-            y0: y0 - 0.5,
-            x1: x1 - 0.5,
-            y1: y1 - 0.5,
-            circle: p.circle.map(|c| ((c.cx_px, c.cy_px), c.radius_px)),
-        }
+        self.view
     }
 
     /// The calibration.
@@ -259,7 +268,7 @@ impl FeatureExtractor {
         // Markers cut by the border go after the measurable blobs: they explain an absence.
         self.cut = self.detector.last_cut().len();
         self.blobs.extend_from_slice(self.detector.last_cut());
-        let view = Some(self.view());
+        let view = Some(self.view);
         let from_reference = TrackHints {
             cut: self.cut,
             prior: None,

@@ -218,7 +218,8 @@ pub(crate) fn k_nearest_all(points: &[(f64, f64)], k: usize) -> Vec<Vec<(usize, 
     out
 }
 
-fn median(v: &mut [f64]) -> f64 {
+/// The median of `v` (sorted in place; NaN when empty).
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {

@@ -672,12 +672,17 @@ impl Matching<'_> {
         (0..self.assignment.len())
             .map(|i| match self.assignment[i] {
                 None => lost_cost,
-                Some(j) => self.predict(i, &matched).map_or(0.0, |(p, _)| {
-                    let b = (self.blobs[j].x_px, self.blobs[j].y_px);
-                    (dist(b, p) / self.reference.spacing_px[i]).powi(2)
-                }),
+                Some(_) => self.residual(i, &matched).map_or(0.0, |r| r * r),
             })
             .sum()
+    }
+
+    /// Distance of marker `i`'s blob from its matched neighbours' prediction, in spacings.
+    fn residual(&self, i: usize, matched: &[bool]) -> Option<f64> {
+        let j = self.assignment[i]?;
+        let (p, _) = self.predict(i, matched)?;
+        let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+        Some(dist(b, p) / self.reference.spacing_px[i])
     }
 
     /// Re-matches every marker at once by minimum total squared distance to its prediction
@@ -752,13 +757,7 @@ impl Matching<'_> {
     /// Squared residual of marker `i`'s blob against its matched neighbours' prediction, in
     /// spacings, capped at 2 (one wrong marker cannot dominate), 0 when it cannot be predicted.
     fn residual_sq(&self, i: usize, matched: &[bool]) -> f64 {
-        let Some(j) = self.assignment[i] else {
-            return 0.0;
-        };
-        self.predict(i, matched).map_or(0.0, |(p, _)| {
-            let b = (self.blobs[j].x_px, self.blobs[j].y_px);
-            (dist(b, p) / self.reference.spacing_px[i]).powi(2).min(2.0)
-        })
+        self.residual(i, matched).map_or(0.0, |r| (r * r).min(2.0))
     }
 
     /// Sum of [`Matching::residual_sq`] over `set`, plus `lost_cost` per unmatched marker in it.
@@ -877,16 +876,7 @@ impl Matching<'_> {
             .iter()
             .map(|&i| (i, self.assignment[i], self.disp[i]))
             .collect();
-        // Shift: each takes the next one's blob; the last is released for now.
-        let blobs_of: Vec<Option<usize>> = path.iter().map(|&i| self.assignment[i]).collect();
-        for &i in path {
-            self.release(i);
-        }
-        for w in 0..path.len() - 1 {
-            if let Some(j) = blobs_of[w + 1] {
-                self.take(path[w], j);
-            }
-        }
+        self.shift_chain(path);
         // The last marker: the nearest free blob to its new prediction, within a spacing.
         let matched = self.matched();
         let predicted_last = self.predict(last, &matched);
@@ -935,16 +925,22 @@ impl Matching<'_> {
         Some((after - before - explained, end, out))
     }
 
-    fn apply_chain(&mut self, path: &[usize], end: Option<usize>) {
+    /// Each marker of `path` takes the blob the next one holds; the last is left without one.
+    fn shift_chain(&mut self, path: &[usize]) {
         let blobs_of: Vec<Option<usize>> = path.iter().map(|&i| self.assignment[i]).collect();
         for &i in path {
             self.release(i);
         }
-        for w in 0..path.len() - 1 {
-            if let Some(j) = blobs_of[w + 1] {
-                self.take(path[w], j);
+        for (&i, next) in path.iter().zip(&blobs_of[1..]) {
+            if let Some(j) = *next {
+                self.take(i, j);
             }
         }
+    }
+
+    /// Slides `path` and gives its last marker `end`.
+    fn apply_chain(&mut self, path: &[usize], end: Option<usize>) {
+        self.shift_chain(path);
         if let Some(j) = end {
             self.take(path[path.len() - 1], j);
         }
@@ -1096,8 +1092,6 @@ pub fn track_with(
     if m.verify() > 0 {
         m.grow();
     }
-    // Holes next to free blobs: the growth may have followed a lattice-shifted path (a region
-    // dragged by about a pitch). Match everything at once instead and keep the better result.
     // A marker without a blob, or a blob without a marker: the growth may have followed a
     // lattice-shifted path (a region dragged by about a pitch leaves a hole at one end and a
     // spare blob at the other). Match everything at once instead; keep whichever result
@@ -1133,6 +1127,13 @@ pub fn track_with(
     let mut status = vec![MarkerStatus::Ok; n];
     let mut merged_blob = vec![false; blobs.len()];
     let matched = m.matched();
+    // The marker holding each blob.
+    let mut owner: Vec<Option<usize>> = vec![None; blobs.len()];
+    for (i, a) in m.assignment.iter().enumerate() {
+        if let Some(j) = *a {
+            owner[j] = Some(i);
+        }
+    }
     for i in 0..n {
         if m.assignment[i].is_some() {
             continue;
@@ -1145,11 +1146,8 @@ pub fn track_with(
         // between the two markers.
         let margin = 0.3 * reference.spacing_px[i] - 0.5;
         let merged_with = blobs[..usable].iter().enumerate().find(|&(j, b)| {
-            let owner_area = m
-                .assignment
-                .iter()
-                .position(|a| *a == Some(j))
-                .map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
+            let owner_area =
+                owner[j].map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
             f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area.min(owner_area)
                 && pred.0 >= f64::from(b.bbox.x0) - margin
                 && pred.0 <= f64::from(b.bbox.x1) + margin - 1.0
@@ -1158,8 +1156,8 @@ pub fn track_with(
         });
         status[i] = if let Some((j, _)) = merged_with {
             // The owner of that blob is merged too: its centroid is no longer its own.
-            if let Some(owner) = m.assignment.iter().position(|a| *a == Some(j)) {
-                status[owner] = MarkerStatus::Merged;
+            if let Some(k) = owner[j] {
+                status[k] = MarkerStatus::Merged;
             }
             merged_blob[j] = true;
             MarkerStatus::Merged
