@@ -104,6 +104,66 @@ impl PartialOrd for Entry {
     }
 }
 
+/// Dijkstra state of one augmentation, reset between rows by visiting only what it touched.
+struct Search {
+    dist: Vec<f64>,
+    from: Vec<usize>,
+    done: Vec<bool>,
+    touched: Vec<usize>,
+    finalized: Vec<usize>,
+    heap: BinaryHeap<Entry>,
+}
+
+impl Search {
+    fn new(nodes: usize) -> Self {
+        Self {
+            dist: vec![f64::INFINITY; nodes],
+            from: vec![usize::MAX; nodes],
+            done: vec![false; nodes],
+            touched: Vec::new(),
+            finalized: Vec::new(),
+            heap: BinaryHeap::new(),
+        }
+    }
+
+    /// Offers every node of row `i`'s edges a path through `i` of length `base` plus the
+    /// reduced edge cost.
+    fn relax(
+        &mut self,
+        edges: impl Iterator<Item = (usize, f64)>,
+        i: usize,
+        base: f64,
+        u: &[f64],
+        v: &[f64],
+    ) {
+        for (j, cost) in edges {
+            if self.done[j] {
+                continue;
+            }
+            let d = base + (cost - u[i] - v[j]).max(0.0);
+            if d < self.dist[j] {
+                if self.dist[j].is_infinite() {
+                    self.touched.push(j);
+                }
+                self.dist[j] = d;
+                self.from[j] = i;
+                self.heap.push(Entry(d, j));
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        for &t in &self.touched {
+            self.dist[t] = f64::INFINITY;
+            self.from[t] = usize::MAX;
+            self.done[t] = false;
+        }
+        self.touched.clear();
+        self.finalized.clear();
+        self.heap.clear();
+    }
+}
+
 /// The assignment of minimum total cost of the rows of `c` to `columns` columns.
 ///
 /// Nodes on the column side are the `columns` real columns followed by one private "stay
@@ -116,12 +176,7 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
     let mut v = vec![0.0f64; nodes];
     let mut owner: Vec<Option<usize>> = vec![None; nodes];
     let mut matched: Vec<usize> = vec![usize::MAX; n];
-    let mut dist = vec![f64::INFINITY; nodes];
-    let mut from = vec![usize::MAX; nodes];
-    let mut done = vec![false; nodes];
-    let mut touched: Vec<usize> = Vec::new();
-    let mut finalized: Vec<usize> = Vec::new();
-    let mut heap = BinaryHeap::new();
+    let mut s = Search::new(nodes);
     // Rows' edges including the private node: (node, cost).
     let edges = |i: usize| {
         c.row(i)
@@ -130,76 +185,31 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
             .chain(std::iter::once((columns + i, c.unassigned[i])))
     };
     for r in 0..n {
-        heap.clear();
-        let relax = |i: usize,
-                     base: f64,
-                     dist: &mut [f64],
-                     from: &mut [usize],
-                     done: &[bool],
-                     touched: &mut Vec<usize>,
-                     heap: &mut BinaryHeap<Entry>,
-                     u: &[f64],
-                     v: &[f64]| {
-            for (j, cost) in edges(i) {
-                if done[j] {
-                    continue;
-                }
-                let d = base + (cost - u[i] - v[j]).max(0.0);
-                if d < dist[j] {
-                    if dist[j].is_infinite() {
-                        touched.push(j);
-                    }
-                    dist[j] = d;
-                    from[j] = i;
-                    heap.push(Entry(d, j));
-                }
-            }
-        };
-        relax(
-            r,
-            0.0,
-            &mut dist,
-            &mut from,
-            &done,
-            &mut touched,
-            &mut heap,
-            &u,
-            &v,
-        );
+        s.relax(edges(r), r, 0.0, &u, &v);
         let mut sink = usize::MAX;
-        while let Some(Entry(d, j)) = heap.pop() {
-            if done[j] || d > dist[j] {
+        while let Some(Entry(d, j)) = s.heap.pop() {
+            if s.done[j] || d > s.dist[j] {
                 continue;
             }
-            done[j] = true;
-            finalized.push(j);
+            s.done[j] = true;
+            s.finalized.push(j);
             match owner[j] {
                 None => {
                     sink = j;
                     break;
                 }
-                Some(k) => relax(
-                    k,
-                    d,
-                    &mut dist,
-                    &mut from,
-                    &done,
-                    &mut touched,
-                    &mut heap,
-                    &u,
-                    &v,
-                ),
+                Some(k) => s.relax(edges(k), k, d, &u, &v),
             }
         }
         // The private node is always reachable, so a sink exists.
-        let big = dist[sink];
+        let big = s.dist[sink];
         // Potentials: nodes finalised before the sink move by how much shorter their path was.
         u[r] += big;
-        for &j in &finalized {
+        for &j in &s.finalized {
             if j == sink {
                 continue;
             }
-            let delta = big - dist[j];
+            let delta = big - s.dist[j];
             v[j] -= delta;
             if let Some(k) = owner[j] {
                 u[k] += delta;
@@ -208,7 +218,7 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
         // Augment along the path back to r.
         let mut j = sink;
         loop {
-            let i = from[j];
+            let i = s.from[j];
             let prev = matched[i];
             owner[j] = Some(i);
             matched[i] = j;
@@ -217,13 +227,7 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
             }
             j = prev;
         }
-        for &t in &touched {
-            dist[t] = f64::INFINITY;
-            from[t] = usize::MAX;
-            done[t] = false;
-        }
-        touched.clear();
-        finalized.clear();
+        s.reset();
     }
     let mut cost = 0.0;
     let columns_of: Vec<Option<usize>> = (0..n)
