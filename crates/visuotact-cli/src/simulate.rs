@@ -207,19 +207,61 @@ fn write_references(
     Ok(())
 }
 
+/// What a touch protocol's simulator gives [`write_touch_session`]: the sensor's name and
+/// model, the label columns, the touch count and its two renderers.
+struct TouchSession<'a, C, R, F> {
+    sensor: &'a str,
+    config: &'a C,
+    cols: Vec<&'a str>,
+    touches: usize,
+    /// The rest frame for a noise seed.
+    reference: R,
+    /// Touch `k`'s frame, labels and truth for a noise seed.
+    frame: F,
+}
+
+/// Writes a touch session (references, frames, truth and the manifest) and returns its frame
+/// count.
+fn write_touch_session<C, R, F>(a: &Args, s: TouchSession<'_, C, R, F>) -> anyhow::Result<usize>
+where
+    C: serde::Serialize,
+    R: Fn(u64) -> anyhow::Result<RgbImage> + Sync,
+    F: Fn(usize, u64) -> anyhow::Result<(RgbImage, Rendered)> + Sync,
+{
+    let mut w = SessionWriter::create(&a.output, &s.cols, true, false)?;
+    write_references(&mut w, a.references, a.fps, |k| {
+        (s.reference)(frame_seed(a.seed, k as u64))
+    })?;
+    write_frames(&mut w, s.touches, a.references, a.fps, |k| {
+        (s.frame)(k, frame_seed(a.seed, (a.references + k) as u64))
+            .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))
+    })?;
+    w.finish(serde_json::json!({
+        "sensor": s.sensor,
+        "protocol": a.protocol,
+        "seed": a.seed,
+        "variant": a.variant,
+        "fps": a.fps,
+        "reference_frames": a.references,
+        "frames": s.touches,
+        "labels": s.cols,
+        "config": s.config,
+        "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),
+    }))?;
+    Ok(s.touches)
+}
+
 fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
     let cfg: IatsConfig = sensor_config(a, IatsConfig::variant(a.variant))?;
     cfg.validate()
         .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
-    let touches: Vec<Touch> = match a.protocol.as_str() {
-        "grid" => protocol::iats_grid_for(&cfg),
-        "random" => protocol::iats_random(&cfg, a.touches, a.seed),
-        "shear" => protocol::iats_shear(&cfg, a.touches, a.seed),
-        "line" => protocol::iats_line(),
-        other => bail!(
-            "--protocol {other:?} is not an iats protocol: expected grid, random, shear or line"
-        ),
-    };
+    let touches = protocol::iats_named(&cfg, &a.protocol, a.touches, a.seed).ok_or_else(|| {
+        anyhow::anyhow!(
+            "--protocol {:?} is not an iats protocol: expected {}",
+            a.protocol,
+            protocol::names_listed(&protocol::IATS_PROTOCOLS)
+        )
+    })?;
     for (k, t) in touches.iter().enumerate() {
         t.validate(&cfg)
             .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
@@ -229,64 +271,55 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
     if shear {
         cols.extend(["shear_x_mm", "shear_y_mm"]);
     }
-    let mut w = SessionWriter::create(&a.output, &cols, true, false)?;
     let rest = Touch::default();
-    write_references(&mut w, a.references, a.fps, |k| {
-        Ok(
-            visuotact_sim::iats::render(&cfg, &rest, frame_seed(a.seed, k as u64))
-                .map_err(anyhow::Error::msg)?
-                .0,
-        )
-    })?;
-    write_frames(&mut w, touches.len(), a.references, a.fps, |k| {
-        let t = &touches[k];
-        let (img, truth) =
-            visuotact_sim::iats::render(&cfg, t, frame_seed(a.seed, (a.references + k) as u64))
-                .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
-        let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
-        if shear {
-            labels.extend([t.shear_x_mm, t.shear_y_mm]);
-        }
-        let truth = truth
-            .iter()
-            .map(|m| TruthRow {
-                x_px: m.x_px,
-                y_px: m.y_px,
-                area_px: m.area_px,
-                fully_in_view: m.fully_in_view,
-                visible: m.visible,
-            })
-            .collect();
-        Ok((img, Rendered { labels, truth }))
-    })?;
-    w.finish(serde_json::json!({
-        "sensor": "iats",
-        "protocol": a.protocol,
-        "seed": a.seed,
-        "variant": a.variant,
-        "fps": a.fps,
-        "reference_frames": a.references,
-        "frames": touches.len(),
-        "labels": cols,
-        "config": cfg,
-        "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),
-    }))?;
-    Ok(touches.len())
+    write_touch_session(
+        a,
+        TouchSession {
+            sensor: "iats",
+            config: &cfg,
+            cols,
+            touches: touches.len(),
+            reference: |seed| {
+                Ok(visuotact_sim::iats::render(&cfg, &rest, seed)
+                    .map_err(anyhow::Error::msg)?
+                    .0)
+            },
+            frame: |k, seed| {
+                let t = &touches[k];
+                let (img, truth) =
+                    visuotact_sim::iats::render(&cfg, t, seed).map_err(anyhow::Error::msg)?;
+                let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
+                if shear {
+                    labels.extend([t.shear_x_mm, t.shear_y_mm]);
+                }
+                let truth = truth
+                    .iter()
+                    .map(|m| TruthRow {
+                        x_px: m.x_px,
+                        y_px: m.y_px,
+                        area_px: m.area_px,
+                        fully_in_view: m.fully_in_view,
+                        visible: m.visible,
+                    })
+                    .collect();
+                Ok((img, Rendered { labels, truth }))
+            },
+        },
+    )
 }
 
 fn simulate_zoo(a: &Args, kind: ZooKind) -> anyhow::Result<usize> {
     let cfg: ZooConfig = sensor_config(a, ZooConfig::variant(kind, a.variant))?;
     cfg.validate()
         .map_err(|e| anyhow::anyhow!("sensor model: {e}"))?;
-    let touches: Vec<ZooTouch> = match a.protocol.as_str() {
-        "grid" => protocol::zoo_grid(&cfg),
-        "random" => protocol::zoo_random(&cfg, a.touches, a.seed),
-        "shear" => protocol::zoo_shear(&cfg, a.touches, a.seed),
-        other => bail!(
-            "--protocol {other:?} is not a {} protocol: expected grid, random or shear",
-            kind.name()
-        ),
-    };
+    let touches = protocol::zoo_named(&cfg, &a.protocol, a.touches, a.seed).ok_or_else(|| {
+        anyhow::anyhow!(
+            "--protocol {:?} is not a {} protocol: expected {}",
+            a.protocol,
+            kind.name(),
+            protocol::names_listed(&protocol::ZOO_PROTOCOLS)
+        )
+    })?;
     for (k, t) in touches.iter().enumerate() {
         t.validate(&cfg)
             .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
@@ -296,46 +329,40 @@ fn simulate_zoo(a: &Args, kind: ZooKind) -> anyhow::Result<usize> {
     if shear {
         cols.extend(["shear_x_mm", "shear_y_mm", "twist_deg"]);
     }
-    let mut w = SessionWriter::create(&a.output, &cols, true, false)?;
     let rest = ZooTouch::default();
-    write_references(&mut w, a.references, a.fps, |k| {
-        Ok(zoo::render(&cfg, &rest, frame_seed(a.seed, k as u64))
-            .map_err(anyhow::Error::msg)?
-            .0)
-    })?;
-    write_frames(&mut w, touches.len(), a.references, a.fps, |k| {
-        let t = &touches[k];
-        let (img, truth) = zoo::render(&cfg, t, frame_seed(a.seed, (a.references + k) as u64))
-            .map_err(|e| anyhow::anyhow!("touch {k}: {e}"))?;
-        let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
-        if shear {
-            labels.extend([t.shear_x_mm, t.shear_y_mm, t.twist_deg]);
-        }
-        let truth = truth
-            .iter()
-            .map(|m| TruthRow {
-                x_px: m.x_px,
-                y_px: m.y_px,
-                area_px: m.area_px,
-                fully_in_view: m.in_view,
-                visible: m.visible,
-            })
-            .collect();
-        Ok((img, Rendered { labels, truth }))
-    })?;
-    w.finish(serde_json::json!({
-        "sensor": kind.name(),
-        "protocol": a.protocol,
-        "seed": a.seed,
-        "variant": a.variant,
-        "fps": a.fps,
-        "reference_frames": a.references,
-        "frames": touches.len(),
-        "labels": cols,
-        "config": cfg,
-        "generator": format!("visuotact {}", env!("CARGO_PKG_VERSION")),
-    }))?;
-    Ok(touches.len())
+    write_touch_session(
+        a,
+        TouchSession {
+            sensor: kind.name(),
+            config: &cfg,
+            cols,
+            touches: touches.len(),
+            reference: |seed| {
+                Ok(zoo::render(&cfg, &rest, seed)
+                    .map_err(anyhow::Error::msg)?
+                    .0)
+            },
+            frame: |k, seed| {
+                let t = &touches[k];
+                let (img, truth) = zoo::render(&cfg, t, seed).map_err(anyhow::Error::msg)?;
+                let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
+                if shear {
+                    labels.extend([t.shear_x_mm, t.shear_y_mm, t.twist_deg]);
+                }
+                let truth = truth
+                    .iter()
+                    .map(|m| TruthRow {
+                        x_px: m.x_px,
+                        y_px: m.y_px,
+                        area_px: m.area_px,
+                        fully_in_view: m.in_view,
+                        visible: m.visible,
+                    })
+                    .collect();
+                Ok((img, Rendered { labels, truth }))
+            },
+        },
+    )
 }
 
 fn simulate_cone(a: &Args) -> anyhow::Result<usize> {

@@ -168,27 +168,24 @@ impl AnyTouch {
 }
 
 fn touches(c: &CheckConfig) -> anyhow::Result<Vec<AnyTouch>> {
-    let bad = |p: &str| anyhow::anyhow!("--protocol {p:?}: expected grid, random or shear");
-    let (n, seed) = (c.touches, c.seed);
-    Ok(match &c.sensor {
-        SimSensor::Iats(s) => match c.protocol.as_str() {
-            "grid" => protocol::iats_grid_for(s),
-            "random" => protocol::iats_random(s, n, seed),
-            "shear" => protocol::iats_shear(s, n, seed),
-            other => return Err(bad(other)),
-        }
-        .into_iter()
-        .map(AnyTouch::Iats)
-        .collect(),
-        SimSensor::Zoo(s) => match c.protocol.as_str() {
-            "grid" => protocol::zoo_grid(s),
-            "random" => protocol::zoo_random(s, n, seed),
-            "shear" => protocol::zoo_shear(s, n, seed),
-            other => return Err(bad(other)),
-        }
-        .into_iter()
-        .map(AnyTouch::Zoo)
-        .collect(),
+    let (name, n, seed) = (c.protocol.as_str(), c.touches, c.seed);
+    let (touches, known): (Option<Vec<AnyTouch>>, &[&str]) = match &c.sensor {
+        SimSensor::Iats(s) => (
+            protocol::iats_named(s, name, n, seed)
+                .map(|t| t.into_iter().map(AnyTouch::Iats).collect()),
+            &protocol::IATS_PROTOCOLS,
+        ),
+        SimSensor::Zoo(s) => (
+            protocol::zoo_named(s, name, n, seed)
+                .map(|t| t.into_iter().map(AnyTouch::Zoo).collect()),
+            &protocol::ZOO_PROTOCOLS,
+        ),
+    };
+    touches.ok_or_else(|| {
+        anyhow::anyhow!(
+            "--protocol {name:?}: expected {}",
+            protocol::names_listed(known)
+        )
     })
 }
 

@@ -78,6 +78,44 @@ pub fn iats_shear(cfg: &IatsConfig, n: usize, seed: u64) -> Vec<Touch> {
         .collect()
 }
 
+/// The names [`iats_named`] knows, in the order a user reads them.
+pub const IATS_PROTOCOLS: [&str; 4] = ["grid", "random", "shear", "line"];
+
+/// An iats protocol by name: `grid` ([`iats_grid_for`]), `random`, `shear` (`n` touches from
+/// `seed`) or `line`; `None` for any other name.
+pub fn iats_named(cfg: &IatsConfig, name: &str, n: usize, seed: u64) -> Option<Vec<Touch>> {
+    match name {
+        "grid" => Some(iats_grid_for(cfg)),
+        "random" => Some(iats_random(cfg, n, seed)),
+        "shear" => Some(iats_shear(cfg, n, seed)),
+        "line" => Some(iats_line()),
+        _ => None,
+    }
+}
+
+/// The names [`zoo_named`] knows.
+pub const ZOO_PROTOCOLS: [&str; 3] = ["grid", "random", "shear"];
+
+/// A zoo protocol by name: `grid`, `random` or `shear` (`n` touches from `seed`); `None` for
+/// any other name.
+pub fn zoo_named(cfg: &ZooConfig, name: &str, n: usize, seed: u64) -> Option<Vec<ZooTouch>> {
+    match name {
+        "grid" => Some(zoo_grid(cfg)),
+        "random" => Some(zoo_random(cfg, n, seed)),
+        "shear" => Some(zoo_shear(cfg, n, seed)),
+        _ => None,
+    }
+}
+
+/// `a, b or c` from a list of names, for error messages.
+pub fn names_listed(names: &[&str]) -> String {
+    match names {
+        [] => String::new(),
+        [one] => (*one).to_string(),
+        [rest @ .., last] => format!("{} or {last}", rest.join(", ")),
+    }
+}
+
 /// A zoo sensor's grid: contacts on a 7 × 7 lattice over the marker field (a 9 × 9 one cut to
 /// the disc on a dome) at depths 0.2, 0.4 … 1.0 of the skin's limit, depth-major.
 pub fn zoo_grid(cfg: &ZooConfig) -> Vec<ZooTouch> {
@@ -325,6 +363,33 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn protocols_by_name_are_the_named_functions() {
+        let cfg = IatsConfig::SEED000;
+        assert_eq!(iats_named(&cfg, "grid", 9, 1), Some(iats_grid_for(&cfg)));
+        assert_eq!(
+            iats_named(&cfg, "random", 9, 1),
+            Some(iats_random(&cfg, 9, 1))
+        );
+        assert_eq!(
+            iats_named(&cfg, "shear", 9, 1),
+            Some(iats_shear(&cfg, 9, 1))
+        );
+        assert_eq!(iats_named(&cfg, "line", 9, 1), Some(iats_line()));
+        assert_eq!(iats_named(&cfg, "press", 9, 1), None);
+        let zoo = ZooConfig::variant(crate::zoo::ZooKind::ALL[0], 0);
+        assert_eq!(zoo_named(&zoo, "grid", 9, 1), Some(zoo_grid(&zoo)));
+        assert_eq!(
+            zoo_named(&zoo, "random", 9, 1),
+            Some(zoo_random(&zoo, 9, 1))
+        );
+        assert_eq!(zoo_named(&zoo, "shear", 9, 1), Some(zoo_shear(&zoo, 9, 1)));
+        assert_eq!(zoo_named(&zoo, "line", 9, 1), None);
+        assert_eq!(names_listed(&ZOO_PROTOCOLS), "grid, random or shear");
+        assert_eq!(names_listed(&["a"]), "a");
+        assert_eq!(names_listed(&[]), "");
     }
 
     #[test]
