@@ -193,18 +193,58 @@ fn write_references(
     w: &mut SessionWriter,
     n: usize,
     fps: f64,
-    render: impl Fn(usize) -> anyhow::Result<RgbImage> + Sync,
+    render: impl Fn(usize) -> anyhow::Result<(RgbImage, Vec<TruthRow>)> + Sync,
 ) -> anyhow::Result<()> {
-    let imgs: Vec<RgbImage> = (0..n)
+    let imgs: Vec<(RgbImage, Vec<TruthRow>)> = (0..n)
         .into_par_iter()
         .map(&render)
         .collect::<anyhow::Result<_>>()?;
-    for (k, img) in imgs.iter().enumerate() {
+    for (k, (img, truth)) in imgs.iter().enumerate() {
         let name = format!("ref_{k:04}.png");
         write_png(&w.reference_path(&name), img)?;
-        w.add_reference(&name, k, k as f64 / fps)?;
+        w.add_reference(&name, k, k as f64 / fps, truth)?;
     }
     Ok(())
+}
+
+fn iats_truth(markers: &[visuotact_sim::iats::IatsMarker]) -> Vec<TruthRow> {
+    markers
+        .iter()
+        .map(|m| TruthRow {
+            x_px: m.x_px,
+            y_px: m.y_px,
+            area_px: m.area_px,
+            fully_in_view: m.fully_in_view,
+            visible: m.visible,
+        })
+        .collect()
+}
+
+fn zoo_truth(markers: &[zoo::ZooMarker]) -> Vec<TruthRow> {
+    markers
+        .iter()
+        .map(|m| TruthRow {
+            x_px: m.x_px,
+            y_px: m.y_px,
+            area_px: m.area_px,
+            fully_in_view: m.in_view,
+            visible: m.visible,
+        })
+        .collect()
+}
+
+/// Rings are visible whenever they are wholly in view (they never crowd one another).
+fn cone_truth(rings: &[visuotact_sim::cone::RingTruth]) -> Vec<TruthRow> {
+    rings
+        .iter()
+        .map(|r| TruthRow {
+            x_px: r.x_px,
+            y_px: r.y_px,
+            area_px: r.area_px,
+            fully_in_view: r.fully_in_view,
+            visible: r.fully_in_view,
+        })
+        .collect()
 }
 
 /// What a touch protocol's simulator gives [`write_touch_session`]: the sensor's name and
@@ -214,7 +254,7 @@ struct TouchSession<'a, C, R, F> {
     config: &'a C,
     cols: Vec<&'a str>,
     touches: usize,
-    /// The rest frame for a noise seed.
+    /// The rest frame and truth for a noise seed.
     reference: R,
     /// Touch `k`'s frame, labels and truth for a noise seed.
     frame: F,
@@ -225,7 +265,7 @@ struct TouchSession<'a, C, R, F> {
 fn write_touch_session<C, R, F>(a: &Args, s: TouchSession<'_, C, R, F>) -> anyhow::Result<usize>
 where
     C: serde::Serialize,
-    R: Fn(u64) -> anyhow::Result<RgbImage> + Sync,
+    R: Fn(u64) -> anyhow::Result<(RgbImage, Vec<TruthRow>)> + Sync,
     F: Fn(usize, u64) -> anyhow::Result<(RgbImage, Rendered)> + Sync,
 {
     let mut w = SessionWriter::create(&a.output, &s.cols, true, false)?;
@@ -280,9 +320,9 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
             cols,
             touches: touches.len(),
             reference: |seed| {
-                Ok(visuotact_sim::iats::render(&cfg, &rest, seed)
-                    .map_err(anyhow::Error::msg)?
-                    .0)
+                let (img, truth) =
+                    visuotact_sim::iats::render(&cfg, &rest, seed).map_err(anyhow::Error::msg)?;
+                Ok((img, iats_truth(&truth)))
             },
             frame: |k, seed| {
                 let t = &touches[k];
@@ -292,16 +332,7 @@ fn simulate_iats(a: &Args) -> anyhow::Result<usize> {
                 if shear {
                     labels.extend([t.shear_x_mm, t.shear_y_mm]);
                 }
-                let truth = truth
-                    .iter()
-                    .map(|m| TruthRow {
-                        x_px: m.x_px,
-                        y_px: m.y_px,
-                        area_px: m.area_px,
-                        fully_in_view: m.fully_in_view,
-                        visible: m.visible,
-                    })
-                    .collect();
+                let truth = iats_truth(&truth);
                 Ok((img, Rendered { labels, truth }))
             },
         },
@@ -338,9 +369,8 @@ fn simulate_zoo(a: &Args, kind: ZooKind) -> anyhow::Result<usize> {
             cols,
             touches: touches.len(),
             reference: |seed| {
-                Ok(zoo::render(&cfg, &rest, seed)
-                    .map_err(anyhow::Error::msg)?
-                    .0)
+                let (img, truth) = zoo::render(&cfg, &rest, seed).map_err(anyhow::Error::msg)?;
+                Ok((img, zoo_truth(&truth)))
             },
             frame: |k, seed| {
                 let t = &touches[k];
@@ -349,16 +379,7 @@ fn simulate_zoo(a: &Args, kind: ZooKind) -> anyhow::Result<usize> {
                 if shear {
                     labels.extend([t.shear_x_mm, t.shear_y_mm, t.twist_deg]);
                 }
-                let truth = truth
-                    .iter()
-                    .map(|m| TruthRow {
-                        x_px: m.x_px,
-                        y_px: m.y_px,
-                        area_px: m.area_px,
-                        fully_in_view: m.in_view,
-                        visible: m.visible,
-                    })
-                    .collect();
+                let truth = zoo_truth(&truth);
                 Ok((img, Rendered { labels, truth }))
             },
         },
@@ -405,11 +426,9 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
     write_references(&mut w, a.references, a.fps, |k| {
         let t = k as f64 / a.fps;
         let load = ConeLoad::none(press.drift.at(cfg.pressure_kpa, t));
-        Ok(
-            visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, k as u64))
-                .map_err(anyhow::Error::msg)?
-                .0,
-        )
+        let (img, rings) = visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, k as u64))
+            .map_err(anyhow::Error::msg)?;
+        Ok((img, cone_truth(&rings)))
     })?;
     write_frames(&mut w, n, a.references, a.fps, |k| {
         let load = press.load_at(&cfg, k as f64 / a.fps, t0);
@@ -423,16 +442,7 @@ fn simulate_cone(a: &Args) -> anyhow::Result<usize> {
             t0 + k as f64 / a.fps,
             frame_seed(a.seed ^ GAUGE_SEED, k as u64),
         );
-        let truth = rings
-            .iter()
-            .map(|r| TruthRow {
-                x_px: r.x_px,
-                y_px: r.y_px,
-                area_px: r.area_px,
-                fully_in_view: r.fully_in_view,
-                visible: r.fully_in_view,
-            })
-            .collect();
+        let truth = cone_truth(&rings);
         Ok((img, Rendered { labels, truth }))
     })?;
     // The force stream covers the references and the press, at the sensor's own rate.

@@ -142,6 +142,16 @@ fn iats_session_calibrates_extracts_and_matches_truth() {
     }
     let labels = rows(&d.join("labels.csv"));
     assert_eq!(labels.len(), 6);
+    // Every reference frame has the rest truth of all 117 markers, all of them visible.
+    let truth = rows(&d.join("truth.csv"));
+    for k in 0..4 {
+        let rest: Vec<_> = truth
+            .iter()
+            .filter(|t| t["frame"] == format!("ref_{k:04}.png"))
+            .collect();
+        assert_eq!(rest.len(), 117, "ref_{k:04}.png");
+        assert!(rest.iter().all(|t| t["visible"] == "1"));
+    }
     assert!(labels
         .iter()
         .all(|r| r["depth_mm"].parse::<f64>().unwrap() >= 1.0));

@@ -7,7 +7,8 @@
 //!   frames/           the frames (PNG)
 //!   frames.csv        frame,index,timestamp_s,kind   (kind: reference | touch)
 //!   labels.csv        frame,<targets with units>     (x_mm,y_mm,depth_mm… or force_n,fx_n…)
-//!   truth.csv         frame,marker,x_px,y_px,area_px,fully_in_view,visible  (simulator only)
+//!   truth.csv         frame,marker,x_px,y_px,area_px,fully_in_view,visible  (simulator only;
+//!                     reference frames too)
 //!   force.csv         timestamp_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm (when a force sensor ran)
 //! ```
 //!
@@ -119,19 +120,40 @@ impl SessionWriter {
         self.dir.join("frames").join(name)
     }
 
-    /// Records a reference frame already written to [`SessionWriter::reference_path`].
+    /// Records a reference frame already written to [`SessionWriter::reference_path`], with
+    /// (simulator) per-marker truth: the rest positions.
     pub fn add_reference(
         &mut self,
         name: &str,
         index: usize,
         timestamp_s: f64,
+        truth: &[TruthRow],
     ) -> std::io::Result<()> {
         writeln!(
             self.frames,
             "{name},{index},{},reference",
             format_number(timestamp_s)
         )?;
+        self.write_truth(name, truth)?;
         self.frames.flush()
+    }
+
+    fn write_truth(&mut self, name: &str, truth: &[TruthRow]) -> std::io::Result<()> {
+        if let Some(t) = self.truth.as_mut() {
+            for (k, r) in truth.iter().enumerate() {
+                writeln!(
+                    t,
+                    "{name},{k},{:.6},{:.6},{:.4},{},{}",
+                    r.x_px,
+                    r.y_px,
+                    r.area_px,
+                    u8::from(r.fully_in_view),
+                    u8::from(r.visible)
+                )?;
+            }
+            t.flush()?;
+        }
+        Ok(())
     }
 
     /// Records a frame already written to [`SessionWriter::frame_path`], with its labels and
@@ -156,20 +178,7 @@ impl SessionWriter {
         )?;
         let cells: Vec<String> = labels.iter().map(|v| format_number(*v)).collect();
         writeln!(self.labels, "{name},{}", cells.join(","))?;
-        if let Some(t) = self.truth.as_mut() {
-            for (k, r) in truth.iter().enumerate() {
-                writeln!(
-                    t,
-                    "{name},{k},{:.6},{:.6},{:.4},{},{}",
-                    r.x_px,
-                    r.y_px,
-                    r.area_px,
-                    u8::from(r.fully_in_view),
-                    u8::from(r.visible)
-                )?;
-            }
-            t.flush()?;
-        }
+        self.write_truth(name, truth)?;
         self.frames.flush()?;
         self.labels.flush()
     }
