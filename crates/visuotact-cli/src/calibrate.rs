@@ -3,13 +3,16 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
+use visuotact_image::RgbImage;
 use visuotact_io::frames::FrameStream;
 use visuotact_vision::blobs::Connectivity;
 use visuotact_vision::calibration::{calibrate, CalibrationConfig, LightestFinder};
 use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::{Layout, LayoutChoice};
-use visuotact_vision::preprocess::{Channel, CircleMask, PreprocessConfig, Roi, Threshold};
+use visuotact_vision::preprocess::{
+    marker_polarity, Channel, CircleMask, Polarity, PreprocessConfig, Roi, Threshold,
+};
 use visuotact_vision::track::TrackConfig;
 
 #[derive(clap::Args, Debug)]
@@ -44,9 +47,10 @@ pub(crate) struct Args {
 /// Preprocessing and blob-filter options shared by commands that detect markers.
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct DetectorArgs {
-    /// Starting settings: iats (green, open, Otsu), cone (luma, open, fixed 0.25),
-    /// dark-markers (luma, inverted, open, adaptive).
-    #[arg(long, default_value = "iats", value_parser = ["iats", "cone", "dark-markers"])]
+    /// Starting settings: auto (iats for markers brighter than the skin, dark-markers for
+    /// darker ones, told from the first frame), iats (green, open, Otsu), cone (luma, open,
+    /// fixed 0.25), dark-markers (luma, inverted, open, adaptive).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "iats", "cone", "dark-markers"])]
     preset: String,
     /// Channel: green, luma601, mean, red, blue.
     #[arg(long)]
@@ -115,8 +119,23 @@ fn numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
 }
 
 impl DetectorArgs {
+    /// The preset `--preset auto` stands for with `first` as the first frame (`iats` without
+    /// one), and a line saying so when it is not `iats`.
+    pub(crate) fn resolve_preset(&mut self, first: Option<&RgbImage>) -> Option<String> {
+        if self.preset != "auto" {
+            return None;
+        }
+        let dark = first.is_some_and(|f| marker_polarity(f) == Polarity::Dark);
+        self.preset = if dark { "dark-markers" } else { "iats" }.to_string();
+        dark.then(|| {
+            "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
+                .to_string()
+        })
+    }
+
     /// The detector configuration these options describe; `default_centroid` when
-    /// `--centroid` is not given.
+    /// `--centroid` is not given. `--preset auto` reads as `iats` unless
+    /// [`DetectorArgs::resolve_preset`] was called first.
     pub(crate) fn config(
         &self,
         default_centroid: Centroid,
@@ -258,6 +277,17 @@ fn reference_source(s: &str) -> anyhow::Result<ReferenceSource> {
     }
 }
 
+fn open_frames(a: &Args) -> anyhow::Result<FrameStream> {
+    let mut stream = FrameStream::open(&a.frames, 25.0)?;
+    if let Some(n) = a.first {
+        if n == 0 {
+            bail!("--first must be at least 1");
+        }
+        stream = stream.take_first(n);
+    }
+    Ok(stream)
+}
+
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
@@ -267,7 +297,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     } else {
         Centroid::Grey
     };
-    let (detector, preset_features) = a.detector.config(default_centroid)?;
+    // Options are checked before any frame is read; frames that cannot be read are reported
+    // where they are read below.
+    a.detector.config(default_centroid)?;
+    let mut detector_args = a.detector.clone();
+    let first = open_frames(a)
+        .ok()
+        .and_then(|mut s| s.next())
+        .and_then(Result::ok);
+    if let Some(note) = detector_args.resolve_preset(first.as_ref().map(|f| &f.image)) {
+        eprintln!("{note}");
+    }
+    let (detector, preset_features) = detector_args.config(default_centroid)?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
@@ -280,16 +321,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         features,
         track: TrackConfig::DEFAULT,
     };
-    let open = || -> anyhow::Result<FrameStream> {
-        let mut stream = FrameStream::open(&a.frames, 25.0)?;
-        if let Some(n) = a.first {
-            if n == 0 {
-                bail!("--first must be at least 1");
-            }
-            stream = stream.take_first(n);
-        }
-        Ok(stream)
-    };
+    let open = || open_frames(a);
     let (frames, selection) = match source {
         ReferenceSource::Still => {
             let mut frames = Vec::new();

@@ -43,23 +43,27 @@ fn sensor_json(path: &Path) -> serde_json::Value {
 #[test]
 fn layouts_are_recognised_on_rendered_sensors_and_forced_ones_refused() {
     let d = fresh_dir("recognise");
-    for (sensor, preset, layout, extra) in [
-        ("tactip", "iats", "hex", vec![]),
-        ("gelsight", "dark-markers", "grid", vec![]),
-        ("dots", "iats", "irregular", vec![]),
-        ("iats", "iats", "grid", vec![]),
+    // No preset given: the markers' polarity picks it (dark dots: dark-markers).
+    for (sensor, dark, layout, extra) in [
+        ("tactip", false, "hex", vec![]),
+        ("gelsight", true, "grid", vec![]),
+        ("dots", false, "irregular", vec![]),
+        ("iats", false, "grid", vec![]),
     ] {
         let session = simulate(&d, sensor, &extra);
         let out = d.join(format!("{sensor}.json"));
         let err = ok(&vt(&[
             "calibrate",
             s(&session.join("reference")),
-            "--preset",
-            preset,
             "-o",
             s(&out),
         ]));
         assert!(err.contains(&format!("({layout}:")), "{sensor}: {err}");
+        assert_eq!(
+            err.contains("markers darker than the skin: preset dark-markers"),
+            dark,
+            "{sensor}: {err}"
+        );
         let cal = sensor_json(&out);
         assert_eq!(cal["layout"], layout, "{sensor}");
         assert_eq!(cal["version"], 2);

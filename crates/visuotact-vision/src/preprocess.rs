@@ -632,6 +632,66 @@ pub fn adaptive_levels_into(src: &GrayImage, window_px: usize, offset: f64, out:
     }
 }
 
+/// Which way markers differ from the skin around them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Polarity {
+    /// Brighter than the skin (painted pins and dots under light, seed 000, TacTip).
+    Bright,
+    /// Darker than the skin (printed dots on a lit gel: GelSight, 9DTact).
+    Dark,
+}
+
+/// The polarity of the markers in `img`, for choosing a detector on a sensor never seen.
+///
+/// Markers are small against the skin, so on the luma channel minus its local mean (a window of
+/// an eighth of the shorter image side, which also takes out uneven light) the markers make the
+/// longer tail: bright markers the upper one, dark markers the lower one. The 0.5 % and 99.5 %
+/// quantiles of that residual are compared; a flat image reads [`Polarity::Bright`].
+///
+/// ```
+/// use visuotact_image::RgbImage;
+/// use visuotact_vision::preprocess::{marker_polarity, Polarity};
+/// // Dark dots every 16 px on a bright gel lit from the left.
+/// let gel = RgbImage::from_fn(96, 64, |x, y| {
+///     let dot = (x % 16) as i32 - 8;
+///     let dot = dot * dot + ((y % 16) as i32 - 8).pow(2) <= 9;
+///     let v = if dot { 30 } else { 150 + (x / 2) as u8 };
+///     [v, v, v]
+/// });
+/// assert_eq!(marker_polarity(&gel), Polarity::Dark);
+/// ```
+pub fn marker_polarity(img: &RgbImage) -> Polarity {
+    let gray = gray_from_rgb(img, Channel::Luma601, false);
+    let window = (gray.width().min(gray.height()) / 8) | 1;
+    let mut mean = Vec::new();
+    adaptive_levels_into(&gray, window.max(3), 0.0, &mut mean);
+    // Residuals rounded into 511 bins: −255..=255.
+    let mut hist = [0u32; 511];
+    for (&v, &m) in gray.as_slice().iter().zip(&mean) {
+        let r = (f32::from(v) - m).round().clamp(-255.0, 255.0) as i32;
+        hist[(r + 255) as usize] += 1;
+    }
+    let total: u64 = hist.iter().map(|&c| u64::from(c)).sum();
+    let tail = (total / 200).max(1);
+    let quantile = |bins: &mut dyn Iterator<Item = usize>| -> i32 {
+        let mut seen = 0u64;
+        for b in bins {
+            seen += u64::from(hist[b]);
+            if seen >= tail {
+                return b as i32 - 255;
+            }
+        }
+        0
+    };
+    let low = quantile(&mut (0..511));
+    let high = quantile(&mut (0..511).rev());
+    if -low > high {
+        Polarity::Dark
+    } else {
+        Polarity::Bright
+    }
+}
+
 #[cfg(test)]
 mod channel_tests {
     use super::*;
@@ -666,6 +726,31 @@ mod channel_tests {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn dots(bright: bool, gradient: bool) -> RgbImage {
+        RgbImage::from_fn(160, 120, |x, y| {
+            let (dx, dy) = ((x % 20) as i32 - 10, (y % 20) as i32 - 10);
+            let on = dx * dx + dy * dy <= 20;
+            let base = if gradient { (x / 4) as u8 } else { 0 };
+            let v = match (bright, on) {
+                (true, true) => 220,
+                (true, false) => 25 + base,
+                (false, true) => 35,
+                (false, false) => 140 + base,
+            };
+            [v, v.saturating_add(5), v]
+        })
+    }
+
+    #[test]
+    fn polarity_follows_the_markers_not_the_light() {
+        for gradient in [false, true] {
+            assert_eq!(marker_polarity(&dots(true, gradient)), Polarity::Bright);
+            assert_eq!(marker_polarity(&dots(false, gradient)), Polarity::Dark);
+        }
+        let flat = RgbImage::from_fn(40, 30, |_, _| [90, 90, 90]);
+        assert_eq!(marker_polarity(&flat), Polarity::Bright);
+    }
 
     #[test]
     fn streaming_open3_equals_separate_passes() {
