@@ -194,6 +194,8 @@ pub(crate) struct Health {
     pub lost: usize,
     pub merged: usize,
     pub ambiguous: usize,
+    /// Markers split from a merged pair: a position, no area.
+    pub split: usize,
     /// Markers whose no-contact baseline moved away from the calibration.
     pub drifting: usize,
     /// The sensor's reference was taken under contact (`calibrate --reference lightest:N`
@@ -347,6 +349,7 @@ impl LiveEstimator {
                 MarkerStatus::Lost => health.lost += 1,
                 MarkerStatus::Merged => health.merged += 1,
                 MarkerStatus::Ambiguous => health.ambiguous += 1,
+                MarkerStatus::Split => health.split += 1,
             }
             if let Some((ix, iy)) = self.xy[m] {
                 let (dx, dy) = (self.zeroed[ix], self.zeroed[iy]);
@@ -377,7 +380,7 @@ impl LiveEstimator {
                     y,
                     dx: if dx.is_finite() { dx as f32 } else { 0.0 },
                     dy: if dy.is_finite() { dy as f32 } else { 0.0 },
-                    ok: f.status[m] == MarkerStatus::Ok,
+                    ok: f.status[m].has_position(),
                 });
             }
         }

@@ -23,7 +23,6 @@ use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::{CircleMask, PreprocessConfig};
-use visuotact_vision::track::MarkerStatus;
 
 /// A simulated sensor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -365,7 +364,7 @@ fn frame_check(
     for (i, (m, t)) in cal.markers.iter().zip(pairing).enumerate() {
         let Some(t) = *t else { continue };
         let visible = now[t].3;
-        let ok = f.status[i] == MarkerStatus::Ok;
+        let ok = f.status[i].has_position();
         if visible {
             out.visible += 1;
         }

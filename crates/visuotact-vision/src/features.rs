@@ -3,7 +3,9 @@
 //! Columns come marker by marker in grid order, each marker's in the order `dx_px`, `dy_px`,
 //! `darea_px`, `decc` (those selected): seed 000 uses area, x, y of 117 markers (351 inputs);
 //! seed 001 x, y and eccentricity of the annuli. A marker that is not matched in a frame has
-//! NaN in its cells (written empty in tables) and a status; other columns never move.
+//! NaN in its cells (written empty in tables) and a status; other columns never move. A marker
+//! split from a merged pair ([`MarkerStatus::Split`]) has its displacement and NaN area and
+//! eccentricity.
 
 use serde::{Deserialize, Serialize};
 use visuotact_image::RgbImage;
@@ -314,31 +316,31 @@ impl FeatureExtractor {
         if self.temporal {
             let blobs = &self.blobs;
             self.prior.clear();
-            self.prior.extend(
-                self.last_track
-                    .assignment
-                    .iter()
-                    .map(|a| a.map(|j| (blobs[j].x_px, blobs[j].y_px))),
-            );
+            let t = &self.last_track;
+            self.prior
+                .extend((0..t.status.len()).map(|i| t.position_px(i, blobs)));
         }
         let t = &self.last_track;
         out.values.clear();
         out.status.clear();
         let conv = self.cal.moment_convention;
-        for (m, (a, st)) in self
+        for (i, (m, (a, st))) in self
             .cal
             .markers
             .iter()
             .zip(t.assignment.iter().zip(&t.status))
+            .enumerate()
         {
             out.status.push(*st);
             let b = a.map(|j| &self.blobs[j]);
+            // A split marker has a position but no blob of its own.
+            let p = t.position_px(i, &self.blobs);
             let f = &self.features;
             if f.dx {
-                out.values.push(b.map_or(f64::NAN, |b| b.x_px - m.x_px));
+                out.values.push(p.map_or(f64::NAN, |p| p.0 - m.x_px));
             }
             if f.dy {
-                out.values.push(b.map_or(f64::NAN, |b| b.y_px - m.y_px));
+                out.values.push(p.map_or(f64::NAN, |p| p.1 - m.y_px));
             }
             if f.area {
                 out.values

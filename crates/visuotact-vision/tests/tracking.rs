@@ -2,7 +2,9 @@
 //! markers by up to a full pitch: every marker keeps its identity (its measured position stays
 //! within 0.3 px of its own true position), lost markers are reported without shifting others.
 
-use visuotact_sim::pattern::{render_grid, GridPattern, MarkerTruth, Press};
+use visuotact_sim::pattern::{
+    grid_markers, render_grid, render_markers, GridPattern, MarkerTruth, Press,
+};
 use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
 use visuotact_vision::detect::DetectorConfig;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
@@ -170,13 +172,14 @@ fn merged_markers_are_flagged() {
     let pattern = GridPattern::IATS;
     let cal = calibrated(&pattern);
     let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
-    // Paint a bridge between markers 60 and 61 (row 4, columns 8 and 9) in marker colour.
+    // Paint a broad bridge between markers 60 and 61 (row 4, columns 8 and 9) in marker
+    // colour: one blob of over 1.4 times the pair's area, which no split explains.
     let (mut img, _) = render_grid(&pattern, None, 9);
     let (a, b) = (&cal.markers[60], &cal.markers[61]);
     let fg = img.get(a.x_px as usize, a.y_px as usize);
     let w = img.width();
     let y0 = a.y_px as usize;
-    for y in y0 - 3..=y0 + 3 {
+    for y in y0 - 8..=y0 + 8 {
         for x in a.x_px as usize..=b.x_px as usize {
             let i = (y * w + x) * 3;
             img.as_mut_slice()[i..i + 3].copy_from_slice(&fg);
@@ -190,6 +193,46 @@ fn merged_markers_are_flagged() {
     // Every other marker is unaffected.
     for k in (0..117).filter(|k| *k != 60 && *k != 61) {
         assert_eq!(f.status[k], MarkerStatus::Ok);
+    }
+}
+
+#[test]
+fn a_merged_pair_is_split_by_its_moments() {
+    let pattern = GridPattern::IATS;
+    let cal = calibrated(&pattern);
+    let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
+    // Markers 60 and 61 pushed together until they touch (the gap closes within the blur),
+    // and a pair in a column (markers 30 and 43) overlapping by a pixel.
+    for (p, q, gap_px) in [(60, 61, 0.0), (30, 43, -1.0)] {
+        let mut markers = grid_markers(&pattern, None);
+        let (mp, mq) = (markers[p].ellipse, markers[q].ellipse);
+        let (mx, my) = (0.5 * (mp.cx_px + mq.cx_px), 0.5 * (mp.cy_px + mq.cy_px));
+        let (ux, uy) = (mq.cx_px - mp.cx_px, mq.cy_px - mp.cy_px);
+        let len = ux.hypot(uy);
+        let half = pattern.radius_px + 0.5 * gap_px;
+        for (k, sign) in [(p, -1.0), (q, 1.0)] {
+            markers[k].ellipse.cx_px = mx + sign * half * ux / len;
+            markers[k].ellipse.cy_px = my + sign * half * uy / len;
+        }
+        let shapes: Vec<_> = markers.iter().map(|m| (m.ellipse, None)).collect();
+        let img = render_markers(pattern.width, pattern.height, &shapes, &pattern.look, 9);
+        let f = ex.extract(&img).unwrap();
+        for k in [p, q] {
+            assert_eq!(f.status[k], MarkerStatus::Split, "marker {k}");
+            let (x, y) = (
+                cal.markers[k].x_px + f.values[4 * k],
+                cal.markers[k].y_px + f.values[4 * k + 1],
+            );
+            let (tx, ty) = (markers[k].ellipse.cx_px, markers[k].ellipse.cy_px);
+            let e = (x - tx).hypot(y - ty);
+            assert!(e < 0.6, "marker {k}: ({x:.2}, {y:.2}) vs ({tx:.2}, {ty:.2})");
+            // Position only: no area or eccentricity of its own.
+            assert!(f.values[4 * k + 2].is_nan() && f.values[4 * k + 3].is_nan());
+        }
+        assert_eq!(f.found, 117);
+        for k in (0..117).filter(|k| *k != p && *k != q) {
+            assert_eq!(f.status[k], MarkerStatus::Ok);
+        }
     }
 }
 
