@@ -48,16 +48,16 @@ pub(crate) fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) 
 /// Cholesky in place in a buffer reused by every call; when Cholesky fails (the matrix is not
 /// positive definite in floating point) it falls back, as MATLAB's backslash does, to LU with
 /// partial pivoting on the whole symmetric matrix.
-struct DampedSolver {
+pub(crate) struct DampedSolver {
     factor: Mat<f64>,
     scratch: MemBuffer,
     par: faer::Par,
     /// Systems solved by the LU fallback.
-    fallbacks: usize,
+    pub(crate) fallbacks: usize,
 }
 
 impl DampedSolver {
-    fn new(k: usize) -> Self {
+    pub(crate) fn new(k: usize) -> Self {
         let par = faer::get_global_parallelism();
         Self {
             factor: Mat::<f64>::zeros(k, k),
@@ -72,7 +72,13 @@ impl DampedSolver {
     }
 
     /// `y` with `(G + μ·diag(d)) y = b`; `None` when neither factorisation gives finite numbers.
-    fn solve(&mut self, gram: &Mat<f64>, mu: f64, d: &[f64], b: &[f64]) -> Option<Vec<f64>> {
+    pub(crate) fn solve(
+        &mut self,
+        gram: &Mat<f64>,
+        mu: f64,
+        d: &[f64],
+        b: &[f64],
+    ) -> Option<Vec<f64>> {
         let k = gram.nrows();
         self.factor.copy_from(gram);
         for (i, di) in d.iter().enumerate() {
@@ -110,6 +116,38 @@ impl DampedSolver {
     }
 }
 
+impl DampedSolver {
+    /// `tr((G + shift·I)⁻¹)` for a symmetric `G` given by its lower triangle, from its Cholesky
+    /// factor `L` as `‖L⁻¹‖²_F`; `None` when the shifted matrix is not positive definite.
+    pub(crate) fn trace_inverse(&mut self, gram: &Mat<f64>, shift: f64) -> Option<f64> {
+        let k = gram.nrows();
+        self.factor.copy_from(gram);
+        for i in 0..k {
+            self.factor[(i, i)] += shift;
+        }
+        llt::factor::cholesky_in_place(
+            self.factor.as_mut(),
+            Default::default(),
+            self.par,
+            MemStack::new(&mut self.scratch),
+            Default::default(),
+        )
+        .ok()?;
+        let mut inv = Mat::<f64>::identity(k, k);
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+            self.factor.as_ref(),
+            inv.as_mut(),
+            self.par,
+        );
+        let mut sum = 0.0;
+        for j in 0..k {
+            // L⁻¹ is lower triangular: column j starts at row j.
+            sum += inv.col_as_slice(j)[j..].iter().map(|v| v * v).sum::<f64>();
+        }
+        sum.is_finite().then_some(sum)
+    }
+}
+
 /// A least-squares problem: residuals and their Jacobian at a parameter vector.
 pub trait Problem {
     /// Number of parameters.
@@ -137,18 +175,37 @@ pub trait DualJacobian {
     fn gram_lower_into(&self, out: MatMut<'_, f64>);
     /// `Jᵀv` into `out` (length n_params) for `v` of length n_residuals.
     fn transpose_times(&self, v: &[f64], out: &mut [f64]);
+    /// `Jv` into `out` (length n_residuals) for `v` of length n_params (the regularised dual
+    /// system of [`crate::br`] needs it).
+    fn times(&self, v: &[f64], out: &mut [f64]);
 }
 
 /// `J` as the solver holds it in one iteration.
-enum Jacobian<'a> {
+pub(crate) enum Jacobian<'a> {
     Dense(&'a Mat<f64>),
     /// The structured form and the number of parameters.
     Structured(&'a dyn DualJacobian, usize),
 }
 
 impl Jacobian<'_> {
+    /// `Jv`.
+    pub(crate) fn times(&self, v: &[f64], m: usize) -> Vec<f64> {
+        match *self {
+            Jacobian::Dense(jac) => {
+                let vm = Mat::<f64>::from_fn(v.len(), 1, |i, _| v[i]);
+                let g = jac * &vm;
+                (0..g.nrows()).map(|i| g[(i, 0)]).collect()
+            }
+            Jacobian::Structured(sj, _) => {
+                let mut out = vec![0.0; m];
+                sj.times(v, &mut out);
+                out
+            }
+        }
+    }
+
     /// `Jᵀv`.
-    fn transpose_times(&self, v: &[f64]) -> Vec<f64> {
+    pub(crate) fn transpose_times(&self, v: &[f64]) -> Vec<f64> {
         match *self {
             Jacobian::Dense(jac) => {
                 let vm = Mat::<f64>::from_fn(v.len(), 1, |i, _| v[i]);
@@ -164,7 +221,7 @@ impl Jacobian<'_> {
     }
 
     /// The lower triangle of `JJᵀ` (dual) or `JᵀJ` into `out`.
-    fn gram_lower_into(&self, dual: bool, out: MatMut<'_, f64>) {
+    pub(crate) fn gram_lower_into(&self, dual: bool, out: MatMut<'_, f64>) {
         match *self {
             Jacobian::Dense(jac) => gram_lower_into(jac, dual, out),
             Jacobian::Structured(sj, _) => sj.gram_lower_into(out),
@@ -324,7 +381,7 @@ pub struct LmOutcome {
     pub lu_fallbacks: usize,
 }
 
-fn sum_sq(r: &[f64]) -> f64 {
+pub(crate) fn sum_sq(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
 

@@ -1,0 +1,376 @@
+//! Bayesian regularisation: Levenberg–Marquardt on `β·E_D + α·E_W` with α and β re-estimated
+//! every epoch (MATLAB `trainbr`; MacKay 1992, in the Gauss–Newton approximation of Foresee &
+//! Hagan 1997).
+//!
+//! `E_D = ‖r(p)‖²` is the sum of squared errors and `E_W = ‖p‖²` the sum of squared weights.
+//! With `λ = α/β` each epoch takes the LM step of `E_D + λ·E_W`:
+//! `(JᵀJ + (λ + μ) I) δ = −(Jᵀr + λp)`, through the dual system
+//! `δ = −(g − Jᵀ (JJᵀ + cI)⁻¹ J g) / c` (`g = Jᵀr + λp`, `c = λ + μ`) when there are fewer
+//! residuals than parameters. After an accepted step the evidence framework re-estimates
+//! `γ = Σ λᵢ/(λᵢ + λ)` over the eigenvalues `λᵢ` of `JᵀJ` — the effective number of parameters,
+//! computed as `k − λ·tr((G + λI)⁻¹)` on the smaller Gram matrix `G` of size `k` — then
+//! `α = γ / (2 E_W)` and `β = (N − γ) / (2 E_D)` for `N` residuals. No validation split is
+//! needed: the weight penalty is what keeps the network from fitting the noise.
+//!
+//! The start follows MATLAB: `γ = n`, `α = γ / (2 E_W)`, `β = (N − γ) / (2 E_D)` (1 when that is
+//! not positive). Damping is μ·I whatever [`LmConfig::damping`] says.
+
+use faer::Mat;
+
+use crate::lm::{
+    sum_sq, Control, DampedSolver, Jacobian, LmConfig, LmOutcome, Problem, StopReason,
+};
+
+/// The regularisation state after an epoch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Evidence {
+    /// Weight on the sum of squared weights.
+    pub alpha: f64,
+    /// Weight on the sum of squared errors.
+    pub beta: f64,
+    /// Effective number of parameters γ (at most the parameter count).
+    pub gamma: f64,
+    /// Sum of squared errors `E_D`.
+    pub sse: f64,
+    /// Sum of squared weights `E_W`.
+    pub ssw: f64,
+}
+
+/// What the callback sees after each epoch.
+#[derive(Clone, Copy, Debug)]
+pub struct BrProgress<'a> {
+    /// Epochs done.
+    pub iteration: usize,
+    /// α, β, γ and the two sums.
+    pub evidence: Evidence,
+    /// Current μ.
+    pub mu: f64,
+    /// ‖Jᵀr + λp‖ at the start of the epoch.
+    pub gradient_norm: f64,
+    /// Current parameters.
+    pub params: &'a [f64],
+}
+
+/// The result of a run: the solver's outcome (`cost` is `E_D`) and the final evidence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BrOutcome {
+    /// Parameters, E_D, iterations, μ and why it stopped.
+    pub lm: LmOutcome,
+    /// α, β, γ at the end.
+    pub evidence: Evidence,
+}
+
+/// `MATLAB trainbr`'s μ schedule: μ = 0.005, ×0.1 / ×10, μ_max 1e10, 1000 epochs.
+pub const TRAINBR: LmConfig = LmConfig {
+    mu: 0.005,
+    ..LmConfig::TRAINLM
+};
+
+/// The gradient of `½(E_D + λE_W)`: `Jᵀr + λp`.
+fn regularised_gradient(jac: &Jacobian<'_>, r: &[f64], p: &[f64], lambda: f64) -> Vec<f64> {
+    let mut g = jac.transpose_times(r);
+    for (gi, pi) in g.iter_mut().zip(p) {
+        *gi += lambda * pi;
+    }
+    g
+}
+
+/// Minimises `β‖r(p)‖² + α‖p‖²` from `p0` with α and β re-estimated each epoch, calling
+/// `callback` after every epoch.
+pub fn minimize_br<P: Problem>(
+    problem: &mut P,
+    p0: &[f64],
+    cfg: &LmConfig,
+    mut callback: impl FnMut(&BrProgress<'_>) -> Control,
+) -> BrOutcome {
+    let (n, m) = (problem.n_params(), problem.n_residuals());
+    assert_eq!(p0.len(), n, "starting point must have n_params entries");
+    let mut p = p0.to_vec();
+    let mut r = vec![0.0; m];
+    let mut r_new = vec![0.0; m];
+    let mut p_new = vec![0.0; n];
+    let mut dense: Option<Mat<f64>> = None;
+    let dual = m < n;
+    problem.residuals(&p, &mut r);
+    let mut evaluations = 1;
+    let (mut sse, mut ssw) = (sum_sq(&r), sum_sq(&p));
+    let mut mu = cfg.mu;
+    // MATLAB's start: every parameter counted as effective.
+    let mut gamma = n as f64;
+    let mut alpha = if ssw > 0.0 { gamma / (2.0 * ssw) } else { 1.0 };
+    let mut beta = (m as f64 - gamma) / (2.0 * sse);
+    if !(beta.is_finite() && beta > 0.0) {
+        beta = 1.0;
+    }
+    let mut fallbacks = 0;
+    let finish =
+        |p: Vec<f64>, iterations, evaluations, mu, reason, fallbacks, evidence: Evidence| {
+            BrOutcome {
+                lm: LmOutcome {
+                    params: p,
+                    cost: evidence.sse,
+                    iterations,
+                    evaluations,
+                    mu,
+                    reason,
+                    lu_fallbacks: fallbacks,
+                },
+                evidence,
+            }
+        };
+    let evidence = |alpha, beta, gamma, sse, ssw| Evidence {
+        alpha,
+        beta,
+        gamma,
+        sse,
+        ssw,
+    };
+    if cfg.validate().is_err() {
+        let e = evidence(alpha, beta, gamma, sse, ssw);
+        return finish(p, 0, evaluations, mu, StopReason::InvalidConfig, 0, e);
+    }
+    if !(sse.is_finite() && ssw.is_finite()) {
+        let e = evidence(alpha, beta, gamma, sse, ssw);
+        return finish(p, 0, evaluations, mu, StopReason::NonFinite, 0, e);
+    }
+    let k = if dual { m } else { n };
+    let mut gram = Mat::<f64>::zeros(k, k);
+    let mut solver = DampedSolver::new(k);
+    let ones = vec![1.0; k];
+    for iteration in 0..cfg.max_iterations {
+        let lambda = alpha / beta;
+        let cost = sse + lambda * ssw;
+        if cost == 0.0 {
+            let e = evidence(alpha, beta, gamma, sse, ssw);
+            return finish(
+                p,
+                iteration,
+                evaluations,
+                mu,
+                StopReason::ZeroResidual,
+                fallbacks,
+                e,
+            );
+        }
+        let structured = if dual {
+            problem.dual_jacobian(&p)
+        } else {
+            None
+        };
+        let jac = match &structured {
+            Some(sj) => Jacobian::Structured(sj.as_ref(), n),
+            None => {
+                let jac = dense.get_or_insert_with(|| Mat::<f64>::zeros(m, n));
+                problem.jacobian(&p, jac);
+                Jacobian::Dense(jac)
+            }
+        };
+        let g = regularised_gradient(&jac, &r, &p, lambda);
+        let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let e = evidence(alpha, beta, gamma, sse, ssw);
+        if !gnorm.is_finite() {
+            return finish(
+                p,
+                iteration,
+                evaluations,
+                mu,
+                StopReason::NonFinite,
+                fallbacks,
+                e,
+            );
+        }
+        if gnorm < cfg.min_grad {
+            return finish(
+                p,
+                iteration,
+                evaluations,
+                mu,
+                StopReason::MinGradient,
+                fallbacks,
+                e,
+            );
+        }
+        jac.gram_lower_into(dual, gram.as_mut());
+        let jg = if dual { jac.times(&g, m) } else { Vec::new() };
+        let mut accepted = false;
+        while mu <= cfg.mu_max {
+            let c = lambda + mu;
+            let step: Option<Vec<f64>> = if dual {
+                solver.solve(&gram, c, &ones, &jg).map(|y| {
+                    let jty = jac.transpose_times(&y);
+                    g.iter().zip(&jty).map(|(gi, ti)| -(gi - ti) / c).collect()
+                })
+            } else {
+                solver
+                    .solve(&gram, c, &ones, &g)
+                    .map(|y| y.iter().map(|v| -v).collect())
+            };
+            fallbacks = solver.fallbacks;
+            let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
+                mu *= cfg.mu_inc;
+                continue;
+            };
+            for i in 0..n {
+                p_new[i] = p[i] + step[i];
+            }
+            problem.residuals(&p_new, &mut r_new);
+            evaluations += 1;
+            let (sse_new, ssw_new) = (sum_sq(&r_new), sum_sq(&p_new));
+            let c_new = sse_new + lambda * ssw_new;
+            if c_new.is_finite() && c_new < cost {
+                std::mem::swap(&mut p, &mut p_new);
+                std::mem::swap(&mut r, &mut r_new);
+                (sse, ssw) = (sse_new, ssw_new);
+                mu = (mu * cfg.mu_dec).max(1e-300);
+                accepted = true;
+                break;
+            }
+            mu *= cfg.mu_inc;
+        }
+        if !accepted {
+            let e = evidence(alpha, beta, gamma, sse, ssw);
+            return finish(
+                p,
+                iteration + 1,
+                evaluations,
+                mu,
+                StopReason::MuMax,
+                fallbacks,
+                e,
+            );
+        }
+        // The evidence with this epoch's Gauss–Newton Hessian (as trainbr does).
+        if let Some(tr) = solver.trace_inverse(&gram, lambda) {
+            let g_new = (k as f64 - lambda * tr).clamp(0.0, n.min(m) as f64);
+            // Keep β finite: some residual degrees of freedom always remain.
+            let g_new = g_new.min(m as f64 - 1e-3);
+            if ssw > 0.0 && sse > 0.0 && g_new > 0.0 {
+                gamma = g_new;
+                alpha = gamma / (2.0 * ssw);
+                beta = (m as f64 - gamma) / (2.0 * sse);
+            }
+        }
+        let progress = BrProgress {
+            iteration: iteration + 1,
+            evidence: evidence(alpha, beta, gamma, sse, ssw),
+            mu,
+            gradient_norm: gnorm,
+            params: &p,
+        };
+        if callback(&progress) == Control::Stop {
+            let e = progress.evidence;
+            return finish(
+                p,
+                iteration + 1,
+                evaluations,
+                mu,
+                StopReason::Callback,
+                fallbacks,
+                e,
+            );
+        }
+    }
+    let e = evidence(alpha, beta, gamma, sse, ssw);
+    finish(
+        p,
+        cfg.max_iterations,
+        evaluations,
+        mu,
+        StopReason::MaxIterations,
+        fallbacks,
+        e,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lm::Problem;
+
+    /// r(p) = sin-model residuals: nonlinear, so the gradient test means something.
+    struct Curve {
+        x: Vec<f64>,
+        y: Vec<f64>,
+    }
+
+    impl Problem for Curve {
+        fn n_params(&self) -> usize {
+            3
+        }
+        fn n_residuals(&self) -> usize {
+            self.x.len()
+        }
+        fn residuals(&mut self, p: &[f64], out: &mut [f64]) {
+            for (o, (x, y)) in out.iter_mut().zip(self.x.iter().zip(&self.y)) {
+                *o = p[0] * (p[1] * x).sin() + p[2] - y;
+            }
+        }
+        fn jacobian(&mut self, p: &[f64], jac: &mut Mat<f64>) {
+            for (i, x) in self.x.iter().enumerate() {
+                jac[(i, 0)] = (p[1] * x).sin();
+                jac[(i, 1)] = p[0] * x * (p[1] * x).cos();
+                jac[(i, 2)] = 1.0;
+            }
+        }
+    }
+
+    #[test]
+    fn the_step_direction_is_the_regularised_gradient_by_finite_differences() {
+        let mut c = Curve {
+            x: (0..9).map(|i| f64::from(i) * 0.4).collect(),
+            y: (0..9).map(|i| (f64::from(i) * 0.5).cos()).collect(),
+        };
+        let p = [0.8, 1.3, -0.2];
+        let lambda = 0.37;
+        let mut r = vec![0.0; 9];
+        c.residuals(&p, &mut r);
+        let mut jac = Mat::<f64>::zeros(9, 3);
+        c.jacobian(&p, &mut jac);
+        let g = regularised_gradient(&Jacobian::Dense(&jac), &r, &p, lambda);
+        // g = ½ ∇(E_D + λ E_W) by central differences.
+        let mut f = |q: &[f64]| -> f64 {
+            let mut rr = vec![0.0; 9];
+            c.residuals(q, &mut rr);
+            sum_sq(&rr) + lambda * sum_sq(q)
+        };
+        let h = 1e-6;
+        for j in 0..3 {
+            let (mut a, mut b) = (p, p);
+            a[j] += h;
+            b[j] -= h;
+            let fd = 0.5 * (f(&a) - f(&b)) / (2.0 * h);
+            assert!((g[j] - fd).abs() < 1e-7, "∂/∂p{j}: {} vs {fd}", g[j]);
+        }
+    }
+
+    #[test]
+    fn the_dual_step_equals_the_primal_one() {
+        // Fewer residuals than parameters through a dense Jacobian of 3 × 5: the dual formula
+        // must give the primal step (JᵀJ + cI)⁻¹ g.
+        let jac = Mat::<f64>::from_fn(3, 5, |i, j| ((i * 5 + j * 3) % 7) as f64 - 3.0);
+        let g: Vec<f64> = (0..5).map(|j| (j as f64).sin()).collect();
+        let c = 0.7;
+        let jm = Jacobian::Dense(&jac);
+        let mut gram_d = Mat::<f64>::zeros(3, 3);
+        jm.gram_lower_into(true, gram_d.as_mut());
+        let mut gram_p = Mat::<f64>::zeros(5, 5);
+        jm.gram_lower_into(false, gram_p.as_mut());
+        let jg = jm.times(&g, 3);
+        let y = DampedSolver::new(3)
+            .solve(&gram_d, c, &[1.0; 3], &jg)
+            .unwrap();
+        let jty = jm.transpose_times(&y);
+        let dual: Vec<f64> = g.iter().zip(&jty).map(|(a, b)| (a - b) / c).collect();
+        let primal = DampedSolver::new(5)
+            .solve(&gram_p, c, &[1.0; 5], &g)
+            .unwrap();
+        for (a, b) in dual.iter().zip(&primal) {
+            assert!((a - b).abs() < 1e-12, "{dual:?} vs {primal:?}");
+        }
+        // γ by the trace on either Gram matrix: the same nonzero eigenvalues.
+        let lam = 0.3;
+        let tr_d = DampedSolver::new(3).trace_inverse(&gram_d, lam).unwrap();
+        let tr_p = DampedSolver::new(5).trace_inverse(&gram_p, lam).unwrap();
+        assert!(((3.0 - lam * tr_d) - (5.0 - lam * tr_p)).abs() < 1e-12);
+    }
+}
