@@ -68,7 +68,7 @@ fn fit(
     targets: &[&str],
     hidden: &[usize],
     seed: u64,
-) -> (Model, usize, f64) {
+) -> anyhow::Result<(Model, usize, f64)> {
     let feature_columns: Vec<String> = (0..x[0].len()).map(|i| format!("f{i}")).collect();
     let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
     let spec = FitSpec {
@@ -77,12 +77,15 @@ fn fit(
         hidden,
         seed,
         max_epochs: 1000,
+        algorithm: visuotact_nn::mlp::Algorithm::Trainlm,
+        hold_out: false,
+        components: None,
         sensor: None,
     };
     let t0 = Instant::now();
-    let model = fit_model(x, t, spec, |_, _, _| Control::Continue);
+    let model = fit_model(x, t, spec, |_, _, _| Control::Continue)?;
     let epochs = model.training.epochs;
-    (model, epochs, t0.elapsed().as_secs_f64())
+    Ok((model, epochs, t0.elapsed().as_secs_f64()))
 }
 
 fn row(e: &TargetErrors) -> String {
@@ -154,7 +157,7 @@ fn iats(a: &Args) -> anyhow::Result<()> {
     );
     // Seed 000's architecture: five hidden layers of 20.
     let hidden = [20; 5];
-    let (model, epochs, secs) = fit(&x, &t, &["x_mm", "y_mm", "depth_mm"], &hidden, a.seed);
+    let (model, epochs, secs) = fit(&x, &t, &["x_mm", "y_mm", "depth_mm"], &hidden, a.seed)?;
     let predict = |f: &[f64]| model.predict(f);
     println!("trained 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt: {epochs} epochs in {secs:.1} s (seed 000: 13 h 20 min)");
 
@@ -331,7 +334,7 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     };
     let (x, t) = rows(&ftr);
     let (xg, tg) = rows(&gtr);
-    let (model, epochs, secs) = fit(&x, &t, &["force_n"], &[20], a.seed);
+    let (model, epochs, secs) = fit(&x, &t, &["force_n"], &[20], a.seed)?;
     println!(
         "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {epochs} epochs in {secs:.2} s",
         cal.markers.len(),
@@ -357,8 +360,8 @@ fn cone(a: &Args) -> anyhow::Result<()> {
             .flat_map(|h| (0..repeats).map(move |r| (h, r)))
             .collect::<Vec<_>>()
             .into_par_iter()
-            .map(|(h, r)| (fit(x, t, &["force_n"], &[h], a.seed + 7919 * r).0, h))
-            .collect();
+            .map(|(h, r)| fit(x, t, &["force_n"], &[h], a.seed + 7919 * r).map(|f| (f.0, h)))
+            .collect::<anyhow::Result<_>>()?;
         let (best, h) = runs
             .into_iter()
             .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))

@@ -34,6 +34,8 @@ pub(crate) struct Args {
     /// Most epochs per training.
     #[arg(long, default_value_t = 1000)]
     max_epochs: usize,
+    #[command(flatten)]
+    algorithm: crate::train::AlgorithmArg,
     /// Also keep the N best networks (by validation MSE) as ensemble/model_K.json, for
     /// `run --model …` several times (mean ± standard deviation).
     #[arg(long, value_name = "N", default_value_t = 0)]
@@ -110,13 +112,16 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 hidden: &archs[k],
                 seed: a.seed.wrapping_add(1000 * r as u64 + k as u64),
                 max_epochs: a.max_epochs,
+                algorithm: a.algorithm.algorithm(),
+                hold_out: true,
+                components: None,
                 sensor: None,
             };
             let m = fit_model(&x, &t, spec, |_, _, _| Control::Continue);
             bar.inc(1);
-            (k, m)
+            m.map(|m| (k, m))
         })
-        .collect();
+        .collect::<anyhow::Result<_>>()?;
     bar.finish_and_clear();
     // Performance: mean over targets of the test MSE (validation MSE picks the best model).
     let perf = |m: &Model, subset: usize| mean_of(&m.training.mse[subset]);

@@ -8,8 +8,9 @@ use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 use visuotact_nn::lm::{Control, LmConfig};
 use visuotact_nn::metrics::target_errors;
-use visuotact_nn::mlp::{MinMax, Mlp, TrainConfig};
+use visuotact_nn::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
 use visuotact_nn::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
+use visuotact_nn::pca::Projection;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 #[derive(clap::Args, Debug)]
@@ -28,9 +29,31 @@ pub(crate) struct TrainArgs {
     /// Most epochs (trainlm: 1000).
     #[arg(long, default_value_t = 1000)]
     max_epochs: usize,
+    #[command(flatten)]
+    algorithm: AlgorithmArg,
+    /// Feed the network the K leading principal components of the scaled inputs instead of
+    /// the inputs themselves (kept in the model file).
+    #[arg(long, value_name = "K")]
+    components: Option<usize>,
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
     sensor: Option<PathBuf>,
+}
+
+/// The training objective, shared by `train` and `sweep`.
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct AlgorithmArg {
+    /// trainlm (LM on the squared errors, 70/15/15 split, stopped by the validation subset) or
+    /// trainbr (Bayesian regularisation: LM on errors plus weights, every sample trains, no
+    /// validation subset).
+    #[arg(long = "algorithm", default_value = "trainlm", value_parser = ["trainlm", "trainbr"])]
+    pub(crate) name: String,
+}
+
+impl AlgorithmArg {
+    pub(crate) fn algorithm(&self) -> Algorithm {
+        Algorithm::from_name(&self.name).unwrap_or_default()
+    }
 }
 
 /// The training data: features, labels, which targets, what to do with incomplete frames.
@@ -301,6 +324,13 @@ pub(crate) struct FitSpec<'a> {
     pub(crate) hidden: &'a [usize],
     pub(crate) seed: u64,
     pub(crate) max_epochs: usize,
+    pub(crate) algorithm: Algorithm,
+    /// Keep trainlm's validation and test subsets with trainbr too (a sweep compares
+    /// networks on them); otherwise trainbr trains on every sample.
+    pub(crate) hold_out: bool,
+    /// Feed the network this many principal components of the scaled inputs (`None`: the
+    /// inputs themselves).
+    pub(crate) components: Option<usize>,
     pub(crate) sensor: Option<serde_json::Value>,
 }
 
@@ -310,27 +340,52 @@ pub(crate) fn fit_model(
     t: &[Vec<f64>],
     spec: FitSpec<'_>,
     progress: impl FnMut(usize, f64, f64) -> Control,
-) -> Model {
+) -> anyhow::Result<Model> {
     let input_scaling = MinMax::fit(x);
     let target_scaling = MinMax::fit(t);
     let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
+    let projection = spec
+        .components
+        .map(|k| Projection::fit(&xs, k))
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--components: {e}"))?;
+    let xs: Vec<Vec<f64>> = match &projection {
+        Some(p) => xs.iter().map(|r| p.apply(r)).collect(),
+        None => xs,
+    };
     let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
-    let mut sizes = vec![spec.feature_columns.len()];
+    let mut sizes = vec![projection
+        .as_ref()
+        .map_or(spec.feature_columns.len(), Projection::outputs)];
     sizes.extend(spec.hidden);
     sizes.push(spec.targets.len());
     let mut net = Mlp::nguyen_widrow(&sizes, spec.seed);
+    let base = match spec.algorithm {
+        Algorithm::Trainlm => TrainConfig::TRAINLM,
+        Algorithm::Trainbr => TrainConfig::TRAINBR,
+    };
     let cfg = TrainConfig {
         lm: LmConfig {
             max_iterations: spec.max_epochs,
-            ..LmConfig::TRAINLM
+            ..base.lm
         },
         seed: spec.seed,
-        ..TrainConfig::TRAINLM
+        split: if spec.hold_out {
+            TrainConfig::TRAINLM.split
+        } else {
+            base.split
+        },
+        ..base
     };
     let out = visuotact_nn::mlp::train(&mut net, &xs, &ts, &cfg, progress);
     // Per subset and target, from one forward pass per sample: the MSE in target units (scaled
     // MSE × (span / 2)²) and R (unchanged by mapminmax, a linear map per target).
+    // An empty subset (trainbr trains on every sample) has no figures: empty lists, never
+    // NaN (JSON has no NaN).
     let figures = |ids: &[usize]| -> (Vec<f64>, Vec<f64>) {
+        if ids.is_empty() {
+            return (Vec::new(), Vec::new());
+        }
         let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
         (0..spec.targets.len())
             .map(|j| {
@@ -349,11 +404,12 @@ pub(crate) fn fit_model(
     } else {
         format!("{:?}", out.lm.reason)
     };
-    Model {
+    Ok(Model {
         format: MODEL_FORMAT.to_string(),
         version: MODEL_VERSION,
         net,
         input_scaling,
+        projection,
         target_scaling,
         feature_columns: spec.feature_columns.to_vec(),
         target_columns: spec.targets.to_vec(),
@@ -369,9 +425,11 @@ pub(crate) fn fit_model(
             mse,
             r,
             seed: spec.seed,
+            algorithm: spec.algorithm.name().to_string(),
+            evidence: out.evidence,
         },
         sensor: spec.sensor,
-    }
+    })
 }
 
 pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
@@ -427,6 +485,9 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         hidden: &hidden,
         seed: a.seed,
         max_epochs: a.max_epochs,
+        algorithm: a.algorithm.algorithm(),
+        hold_out: false,
+        components: a.components,
         sensor,
     };
     let model = fit_model(&x, &t, spec, |epoch, train_mse, val_mse| {
@@ -436,20 +497,44 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
             );
         }
         Control::Continue
-    });
+    })?;
     crate::write_atomically(&a.output, &model.to_json())?;
     let tr = &model.training;
     eprintln!(
-        "trained in {:.2} s: {} epochs (best {}), stopped by {}",
+        "trained ({}) in {:.2} s: {} epochs (best {}), stopped by {}",
+        tr.algorithm,
         t0.elapsed().as_secs_f64(),
         tr.epochs,
         tr.best_epoch,
         tr.stop
     );
+    if let Some(e) = &tr.evidence {
+        eprintln!(
+            "  effective parameters γ {:.1} of {} (α {:.3e}, β {:.3e})",
+            e.gamma,
+            model.net.params.len(),
+            e.alpha,
+            e.beta
+        );
+    }
+    let cell = |v: &[f64], j: usize, r: bool| {
+        v.get(j).map_or("–".to_string(), |x| {
+            if r {
+                format!("{x:.5}")
+            } else {
+                format!("{x:.4e}")
+            }
+        })
+    };
     for (j, name) in targets.iter().enumerate() {
         eprintln!(
-            "  {name}: mse train {:.4e}, validation {:.4e}, test {:.4e}; R train {:.5}, validation {:.5}, test {:.5}",
-            tr.mse[0][j], tr.mse[1][j], tr.mse[2][j], tr.r[0][j], tr.r[1][j], tr.r[2][j]
+            "  {name}: mse train {}, validation {}, test {}; R train {}, validation {}, test {}",
+            cell(&tr.mse[0], j, false),
+            cell(&tr.mse[1], j, false),
+            cell(&tr.mse[2], j, false),
+            cell(&tr.r[0], j, true),
+            cell(&tr.r[1], j, true),
+            cell(&tr.r[2], j, true)
         );
     }
     eprintln!("wrote {}", a.output.display());

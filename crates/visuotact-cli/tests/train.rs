@@ -212,6 +212,59 @@ fn train_predict_eval_and_bad_tables() {
 }
 
 #[test]
+fn trainbr_on_principal_components() {
+    let d = session("trainbr");
+    let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("br.json"));
+    let err = ok(&train(
+        &f,
+        &l,
+        &m,
+        &[
+            "--hidden",
+            "8",
+            "--algorithm",
+            "trainbr",
+            "--components",
+            "3",
+        ],
+    ));
+    assert!(err.contains("trained (trainbr)"), "{err}");
+    assert!(err.contains("effective parameters γ"), "{err}");
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+    assert_eq!(model["training"]["algorithm"], "trainbr");
+    // Every frame trains: no validation or test figures, and no NaN written as null.
+    assert_eq!(model["training"]["samples"][1], 0);
+    assert!(model["training"]["mse"][1].as_array().unwrap().is_empty());
+    let gamma = model["training"]["evidence"]["gamma"].as_f64().unwrap();
+    let weights = model["net"]["params"].as_array().unwrap().len();
+    assert_eq!(weights, 8 * 4 + 9, "3 components → 8 → 1");
+    assert!(
+        gamma > 1.0 && gamma < weights as f64,
+        "γ {gamma} of {weights}"
+    );
+    let proj = &model["projection"];
+    assert_eq!(proj["components"].as_array().unwrap().len(), 3);
+    let explained = proj["explained"].as_f64().unwrap();
+    assert!(explained > 0.8 && explained <= 1.0, "{proj}");
+    // The model reads the 6 raw features and predicts as well as trainlm does here.
+    let p = d.join("p.csv");
+    ok(&predict(&m, s(&p), &["--features", s(&f)]));
+    let o = eval(&p, &l, &["--json"]);
+    ok(&o);
+    let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = &ev["targets"][0];
+    assert_eq!(t["n"], 150);
+    assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
+    // Asking for more components than inputs is refused with the reason.
+    let err = fails(&train(&f, &l, &d.join("bad.json"), &["--components", "9"]));
+    assert!(
+        err.contains("--components: asked for 9 components of 6 inputs"),
+        "{err}"
+    );
+}
+
+#[test]
 fn gauge_reading_as_an_extra_input() {
     let d = session("train-gauge");
     let (f, l, m) = (d.join("f.csv"), d.join("labels.csv"), d.join("model.json"));

@@ -22,7 +22,7 @@ use crate::lm::{
 };
 
 /// The regularisation state after an epoch.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Evidence {
     /// Weight on the sum of squared weights.
     pub alpha: f64,

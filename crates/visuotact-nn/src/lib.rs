@@ -12,3 +12,4 @@ pub mod metrics;
 pub mod mlp;
 pub mod model;
 pub mod nist;
+pub mod pca;

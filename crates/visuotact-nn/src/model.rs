@@ -31,6 +31,16 @@ pub struct TrainingSummary {
     pub r: [Vec<f64>; 3],
     /// Seed of the split and the initial weights.
     pub seed: u64,
+    /// `trainlm` or `trainbr` (models written before it was kept: `trainlm`).
+    #[serde(default = "trainlm_name")]
+    pub algorithm: String,
+    /// trainbr's final α, β and effective number of parameters γ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub evidence: Option<crate::br::Evidence>,
+}
+
+fn trainlm_name() -> String {
+    "trainlm".to_string()
 }
 
 /// A trained model.
@@ -44,6 +54,10 @@ pub struct Model {
     pub net: Mlp,
     /// Input scaling (mapminmax over the training inputs).
     pub input_scaling: MinMax,
+    /// Principal-component projection of the scaled inputs, when training reduced them: the
+    /// network then reads its scores.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub projection: Option<crate::pca::Projection>,
     /// Target scaling.
     pub target_scaling: MinMax,
     /// Feature columns, in input order.
@@ -60,6 +74,10 @@ impl Model {
     /// Estimates targets (original units) from one row of features (original units).
     pub fn predict(&self, features: &[f64]) -> Vec<f64> {
         let x = self.input_scaling.apply(features);
+        let x = match &self.projection {
+            Some(p) => p.apply(&x),
+            None => x,
+        };
         self.target_scaling.invert(&self.net.forward(&x))
     }
 
@@ -80,11 +98,25 @@ impl Model {
             ));
         }
         let s = &m.net.sizes;
+        let net_inputs = match &m.projection {
+            Some(p) => {
+                if p.inputs() != m.feature_columns.len()
+                    || p.components.iter().any(|c| c.len() != p.inputs())
+                    || p.score_scaling.min.len() != p.outputs()
+                {
+                    return Err(format!(
+                        "{source}: inconsistent model (the projection and the feature columns disagree)"
+                    ));
+                }
+                p.outputs()
+            }
+            None => m.feature_columns.len(),
+        };
         if s.len() < 2
-            || s[0] != m.feature_columns.len()
+            || s[0] != net_inputs
             || s[s.len() - 1] != m.target_columns.len()
             || m.net.params.len() != Mlp::n_params_for(s)
-            || m.input_scaling.min.len() != s[0]
+            || m.input_scaling.min.len() != m.feature_columns.len()
             || m.target_scaling.min.len() != s[s.len() - 1]
         {
             return Err(format!(

@@ -225,7 +225,10 @@ fn a_merged_pair_is_split_by_its_moments() {
             );
             let (tx, ty) = (markers[k].ellipse.cx_px, markers[k].ellipse.cy_px);
             let e = (x - tx).hypot(y - ty);
-            assert!(e < 0.6, "marker {k}: ({x:.2}, {y:.2}) vs ({tx:.2}, {ty:.2})");
+            assert!(
+                e < 0.6,
+                "marker {k}: ({x:.2}, {y:.2}) vs ({tx:.2}, {ty:.2})"
+            );
             // Position only: no area or eccentricity of its own.
             assert!(f.values[4 * k + 2].is_nan() && f.values[4 * k + 3].is_nan());
         }

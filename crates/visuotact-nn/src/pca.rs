@@ -1,0 +1,186 @@
+//! Input reduction: a principal-component projection of the (scaled) inputs, kept in the model
+//! file.
+//!
+//! A marker sensor's displacement field is smooth, so hundreds of per-marker features carry a
+//! few dozen independent numbers; a network fed the leading components has far fewer weights to
+//! fit from a few hundred touches. The components are the eigenvectors of the inputs' sample
+//! covariance with the largest eigenvalues (faer's self-adjoint eigendecomposition), signs fixed
+//! so that each component's largest entry is positive; the scores are mapped to [−1, 1]
+//! (`mapminmax`) for the network.
+
+use faer::{Mat, Side};
+use serde::{Deserialize, Serialize};
+
+use crate::mlp::MinMax;
+
+/// Scaled inputs → leading principal-component scores in [−1, 1].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Projection {
+    /// Mean of each input over the training samples.
+    pub mean: Vec<f64>,
+    /// The components, one row per component (unit length), largest variance first.
+    pub components: Vec<Vec<f64>>,
+    /// Fraction of the inputs' total variance the components hold.
+    pub explained: f64,
+    /// Score scaling (mapminmax over the training scores).
+    pub score_scaling: MinMax,
+}
+
+impl Projection {
+    /// The `k` leading components of `rows` (samples × inputs); an error when there are too
+    /// few samples or inputs, or the eigendecomposition fails.
+    pub fn fit(rows: &[Vec<f64>], k: usize) -> Result<Self, String> {
+        let (n, f) = (rows.len(), rows.first().map_or(0, Vec::len));
+        if n < 2 || f == 0 {
+            return Err(format!(
+                "principal components need at least 2 samples of 1 input, got {n} of {f}"
+            ));
+        }
+        if k == 0 || k > f.min(n) {
+            return Err(format!(
+                "asked for {k} components of {f} inputs and {n} samples: at most {}",
+                f.min(n)
+            ));
+        }
+        let (mean, values, vectors) = eigen(rows)?;
+        let total: f64 = values.iter().map(|v| v.max(0.0)).sum();
+        let components: Vec<Vec<f64>> = (0..k)
+            .map(|c| {
+                let mut v = vectors[c].clone();
+                let big = v
+                    .iter()
+                    .fold(0.0f64, |m, x| if x.abs() > m.abs() { *x } else { m });
+                if big < 0.0 {
+                    v.iter_mut().for_each(|x| *x = -*x);
+                }
+                v
+            })
+            .collect();
+        let explained = if total > 0.0 {
+            values[..k].iter().map(|v| v.max(0.0)).sum::<f64>() / total
+        } else {
+            1.0
+        };
+        let raw = Self {
+            mean,
+            components,
+            explained,
+            score_scaling: MinMax {
+                min: vec![-1.0; k],
+                max: vec![1.0; k],
+            },
+        };
+        let scores: Vec<Vec<f64>> = rows.iter().map(|r| raw.scores(r)).collect();
+        Ok(Self {
+            score_scaling: MinMax::fit(&scores),
+            ..raw
+        })
+    }
+
+    /// Fractions of the total variance of `rows` along each principal component, largest
+    /// first.
+    pub fn variance_fractions(rows: &[Vec<f64>]) -> Result<Vec<f64>, String> {
+        let (_, values, _) = eigen(rows)?;
+        let total: f64 = values.iter().map(|v| v.max(0.0)).sum();
+        Ok(values
+            .iter()
+            .map(|v| if total > 0.0 { v.max(0.0) / total } else { 0.0 })
+            .collect())
+    }
+
+    /// Number of inputs it reads.
+    pub fn inputs(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// Number of scores it gives.
+    pub fn outputs(&self) -> usize {
+        self.components.len()
+    }
+
+    fn scores(&self, row: &[f64]) -> Vec<f64> {
+        self.components
+            .iter()
+            .map(|c| {
+                c.iter()
+                    .zip(row.iter().zip(&self.mean))
+                    .map(|(w, (x, m))| w * (x - m))
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// The network inputs for one row of scaled inputs.
+    pub fn apply(&self, row: &[f64]) -> Vec<f64> {
+        self.score_scaling.apply(&self.scores(row))
+    }
+}
+
+/// Mean, eigenvalues (largest first) and eigenvectors of the sample covariance of `rows`.
+type Eigen = (Vec<f64>, Vec<f64>, Vec<Vec<f64>>);
+
+fn eigen(rows: &[Vec<f64>]) -> Result<Eigen, String> {
+    let (n, f) = (rows.len(), rows.first().map_or(0, Vec::len));
+    if n < 2 || f == 0 {
+        return Err(format!(
+            "principal components need at least 2 samples of 1 input, got {n} of {f}"
+        ));
+    }
+    let mean: Vec<f64> = (0..f)
+        .map(|j| rows.iter().map(|r| r[j]).sum::<f64>() / n as f64)
+        .collect();
+    let xc = Mat::<f64>::from_fn(n, f, |i, j| rows[i][j] - mean[j]);
+    let cov = xc.transpose() * &xc * (1.0 / (n - 1) as f64);
+    let evd = cov
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| format!("principal components: eigendecomposition failed ({e:?})"))?;
+    let (s, u) = (evd.S(), evd.U());
+    // faer sorts eigenvalues in nondecreasing order: take them from the end.
+    let values: Vec<f64> = (0..f).rev().map(|i| s[i]).collect();
+    let vectors: Vec<Vec<f64>> = (0..f)
+        .rev()
+        .map(|c| (0..f).map(|r| u[(r, c)]).collect())
+        .collect();
+    Ok((mean, values, vectors))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_on_a_line_have_one_component() {
+        // Inputs (t, 2t, −t) + tiny noise: one component holds all the variance.
+        let rows: Vec<Vec<f64>> = (0..20)
+            .map(|i| {
+                let t = f64::from(i) / 10.0 - 1.0;
+                let e = 1e-6 * f64::from(i % 3);
+                vec![t + e, 2.0 * t, -t]
+            })
+            .collect();
+        let p = Projection::fit(&rows, 1).unwrap();
+        assert!(p.explained > 0.999_999, "{}", p.explained);
+        let c = &p.components[0];
+        let want = [1.0, 2.0, -1.0].map(|v: f64| v / 6f64.sqrt());
+        for (a, b) in c.iter().zip(want) {
+            assert!((a - b).abs() < 1e-5, "{c:?}");
+        }
+        // Scores span [−1, 1] over the training rows and follow t.
+        let s: Vec<f64> = rows.iter().map(|r| p.apply(r)[0]).collect();
+        assert!(
+            (s[0] + 1.0).abs() < 1e-9 && (s[19] - 1.0).abs() < 1e-9,
+            "{s:?}"
+        );
+        let f = Projection::variance_fractions(&rows).unwrap();
+        assert!(f[0] > 0.999_999 && f[1] < 1e-6);
+    }
+
+    #[test]
+    fn impossible_requests_are_errors() {
+        let rows = vec![vec![1.0, 2.0], vec![2.0, 1.0], vec![0.0, 0.5]];
+        assert!(Projection::fit(&rows, 0).is_err());
+        assert!(Projection::fit(&rows, 3).is_err());
+        assert!(Projection::fit(&rows[..1], 1).is_err());
+        assert_eq!(Projection::fit(&rows, 2).unwrap().outputs(), 2);
+    }
+}
