@@ -164,7 +164,15 @@ impl Estimator {
                     Input::Feature(i) => self.features.values[i],
                     Input::Extra(j) => extra.get(j).copied().unwrap_or(f64::NAN),
                 }));
-                (!self.x.iter().any(|v| v.is_nan())).then(|| m.predict(&self.x))
+                // Lost markers filled (models on principal components); a missing extra
+                // input or too many lost markers: no estimate.
+                let extra_missing = cols
+                    .iter()
+                    .zip(&self.x)
+                    .any(|(c, v)| matches!(c, Input::Extra(_)) && v.is_nan());
+                (!extra_missing)
+                    .then(|| m.estimate(&self.x).ok().map(|e| e.values))
+                    .flatten()
             }
             None => None,
         };

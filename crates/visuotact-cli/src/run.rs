@@ -196,6 +196,8 @@ pub(crate) struct Health {
     pub ambiguous: usize,
     /// Markers split from a merged pair: a position, no area.
     pub split: usize,
+    /// Inputs the model filled this frame (lost markers, from the markers found).
+    pub filled: usize,
     /// Markers whose no-contact baseline moved away from the calibration.
     pub drifting: usize,
     /// The sensor's reference was taken under contact (`calibrate --reference lightest:N`
@@ -405,10 +407,18 @@ impl LiveEstimator {
         for (m, cols) in self.ensemble.iter().zip(&self.cols) {
             x.clear();
             x.extend(cols.iter().map(|&c| self.zeroed[c]));
-            if x.iter().any(|v| !v.is_finite()) {
+            // Lost markers are filled by models on principal components; otherwise (or with
+            // too many lost) no estimate this frame.
+            if x.iter().any(|v| v.is_infinite()) {
                 return Ok((true, max_disp, Vec::new(), health));
             }
-            self.outputs = m.predict(&x);
+            match m.estimate(&x) {
+                Ok(e) => {
+                    health.filled = health.filled.max(e.filled);
+                    self.outputs = e.values;
+                }
+                Err(_) => return Ok((true, max_disp, Vec::new(), health)),
+            }
             for (k, v) in self.outputs.iter().enumerate() {
                 sums[k] += v;
                 sq[k] += v * v;

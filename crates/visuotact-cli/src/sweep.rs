@@ -88,9 +88,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             t,
             feature_columns,
         },
-    ) = a.data.load()?;
+    ) = a
+        .data
+        .load(|n| matches!(a.algorithm.components(n), Ok(Some(_))))?;
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
+    let components = a.algorithm.components(feature_columns.len())?;
     let jobs: Vec<(usize, usize)> = (0..archs.len())
         .flat_map(|k| (0..a.repeats).map(move |r| (k, r)))
         .collect();
@@ -114,7 +117,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 max_epochs: a.max_epochs,
                 algorithm: a.algorithm.algorithm(),
                 hold_out: true,
-                components: None,
+                components,
                 sensor: None,
             };
             let m = fit_model(&x, &t, spec, |_, _, _| Control::Continue);

@@ -31,28 +31,45 @@ pub(crate) struct TrainArgs {
     max_epochs: usize,
     #[command(flatten)]
     algorithm: AlgorithmArg,
-    /// Feed the network the K leading principal components of the scaled inputs instead of
-    /// the inputs themselves (kept in the model file).
-    #[arg(long, value_name = "K")]
-    components: Option<usize>,
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
     sensor: Option<PathBuf>,
 }
 
-/// The training objective, shared by `train` and `sweep`.
+/// The training objective and input reduction, shared by `train` and `sweep`.
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct AlgorithmArg {
-    /// trainlm (LM on the squared errors, 70/15/15 split, stopped by the validation subset) or
-    /// trainbr (Bayesian regularisation: LM on errors plus weights, every sample trains, no
-    /// validation subset).
-    #[arg(long = "algorithm", default_value = "trainlm", value_parser = ["trainlm", "trainbr"])]
+    /// trainbr (the default: Bayesian regularisation, LM on errors plus weights, every sample
+    /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
+    /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
+    /// 70/15/15 split, stopped by the validation subset).
+    #[arg(long = "algorithm", default_value = "trainbr", value_parser = ["trainlm", "trainbr"])]
     pub(crate) name: String,
+    /// Feed the network the K leading principal components of the scaled inputs (kept in the
+    /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),
+    /// 0 (the inputs themselves) or K.
+    #[arg(long, value_name = "auto|K", default_value = "auto")]
+    pub(crate) components: String,
 }
+
+/// Components `auto` keeps for sensors with many inputs.
+const AUTO_COMPONENTS: usize = 10;
 
 impl AlgorithmArg {
     pub(crate) fn algorithm(&self) -> Algorithm {
         Algorithm::from_name(&self.name).unwrap_or_default()
+    }
+
+    /// The number of components for `inputs` inputs (`None`: no projection).
+    pub(crate) fn components(&self, inputs: usize) -> anyhow::Result<Option<usize>> {
+        match self.components.as_str() {
+            "auto" => Ok((inputs > 2 * AUTO_COMPONENTS).then_some(AUTO_COMPONENTS)),
+            k => match k.parse::<usize>() {
+                Ok(0) => Ok(None),
+                Ok(k) => Ok(Some(k)),
+                Err(_) => bail!("--components {k:?}: expected auto, 0 or a number of components"),
+            },
+        }
     }
 }
 
@@ -70,7 +87,8 @@ pub(crate) struct DataArgs {
     pub(crate) targets: String,
     #[command(flatten)]
     pub(crate) extra: ExtraInputs,
-    /// Leave out frames with missing feature cells (lost markers) instead of failing.
+    /// Leave out frames with missing feature cells (lost markers) instead of filling them
+    /// (models on principal components fill them from the markers found; others fail).
     #[arg(long)]
     pub(crate) drop_incomplete: bool,
 }
@@ -116,15 +134,23 @@ pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedT
 }
 
 impl DataArgs {
-    /// The target names and the joined table.
-    pub(crate) fn load(&self) -> anyhow::Result<(Vec<String>, Joined)> {
+    /// The target names and the joined table; frames with missing inputs are kept (to be
+    /// filled) when `fills(number of inputs)` says the model will fill them.
+    pub(crate) fn load(
+        &self,
+        fills: impl Fn(usize) -> bool,
+    ) -> anyhow::Result<(Vec<String>, Joined)> {
         let targets = parse_targets(&self.targets)?;
         let j = joined(
             &self.features,
             &self.labels,
             &targets,
             &self.extra,
-            self.drop_incomplete,
+            if self.drop_incomplete {
+                Incomplete::Drop
+            } else {
+                Incomplete::FillIf(&fills)
+            },
         )?;
         Ok((targets, j))
     }
@@ -212,13 +238,22 @@ impl<'a> InputSources<'a> {
     }
 }
 
+/// What to do with frames that miss inputs.
+pub(crate) enum Incomplete<'a> {
+    /// Leave them out.
+    Drop,
+    /// Keep them (the model fills them) when this holds for the number of inputs, unless over
+    /// a quarter of a frame's inputs are missing (left out); otherwise fail.
+    FillIf(&'a dyn Fn(usize) -> bool),
+}
+
 /// Joins features (and extra inputs) and labels on `frame`.
 pub(crate) fn joined(
     features: &Path,
     labels: &Path,
     targets: &[String],
     extra: &ExtraInputs,
-    drop_incomplete: bool,
+    incomplete: Incomplete<'_>,
 ) -> anyhow::Result<Joined> {
     let f = KeyedTable::read(features, &["flags"]).map_err(anyhow::Error::msg)?;
     let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
@@ -256,8 +291,12 @@ pub(crate) fn joined(
         })
         .collect::<anyhow::Result<_>>()?;
     let by_key = l.rows_by_key();
+    let fill = match incomplete {
+        Incomplete::Drop => false,
+        Incomplete::FillIf(f) => f(names.len()),
+    };
     let (mut x, mut t) = (Vec::new(), Vec::new());
-    let (mut unlabelled, mut dropped) = (0, 0);
+    let (mut unlabelled, mut dropped, mut filled_frames, mut filled_cells) = (0, 0, 0, 0);
     let mut xi = Vec::with_capacity(names.len());
     for (r, key) in f.keys.iter().enumerate() {
         let Some(&li) = by_key.get(key.as_str()) else {
@@ -265,8 +304,18 @@ pub(crate) fn joined(
             continue;
         };
         sources.row_into(r, &mut xi);
-        if let Some(c) = xi.iter().position(|v| v.is_nan()) {
-            if drop_incomplete {
+        let missing = xi.iter().filter(|v| v.is_nan()).count();
+        let fillable = fill
+            && missing as f64 <= visuotact_nn::model::MAX_MISSING_FRACTION * xi.len() as f64
+            && xi
+                .iter()
+                .zip(&names)
+                .all(|(v, n)| !v.is_nan() || is_marker_column(n));
+        if missing > 0 && fillable {
+            filled_frames += 1;
+            filled_cells += missing;
+        } else if let Some(c) = xi.iter().position(|v| v.is_nan()) {
+            if matches!(incomplete, Incomplete::Drop) || fill {
                 dropped += 1;
                 continue;
             }
@@ -301,6 +350,11 @@ pub(crate) fn joined(
     }
     if dropped > 0 {
         eprintln!("warning: {dropped} frames with missing inputs were left out");
+    }
+    if filled_frames > 0 {
+        eprintln!(
+            "{filled_frames} frames with lost markers kept: {filled_cells} inputs filled from the markers found"
+        );
     }
     if x.len() < 10 {
         bail!(
@@ -344,13 +398,26 @@ pub(crate) fn fit_model(
     let input_scaling = MinMax::fit(x);
     let target_scaling = MinMax::fit(t);
     let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
+    // The components from the complete frames; frames with lost markers get the scores that
+    // fit the markers found.
+    let complete: Vec<Vec<f64>> = xs
+        .iter()
+        .filter(|r| r.iter().all(|v| !v.is_nan()))
+        .cloned()
+        .collect();
     let projection = spec
         .components
-        .map(|k| Projection::fit(&xs, k))
+        .map(|k| Projection::fit(&complete, k))
         .transpose()
         .map_err(|e| anyhow::anyhow!("--components: {e}"))?;
     let xs: Vec<Vec<f64>> = match &projection {
-        Some(p) => xs.iter().map(|r| p.apply(r)).collect(),
+        Some(p) => xs
+            .iter()
+            .map(|r| {
+                p.apply_partial(r)
+                    .context("a frame has fewer inputs left than components")
+            })
+            .collect::<anyhow::Result<_>>()?,
         None => xs,
     };
     let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
@@ -465,17 +532,25 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
             t,
             feature_columns,
         },
-    ) = a.data.load()?;
+    ) = a
+        .data
+        .load(|n| matches!(a.algorithm.components(n), Ok(Some(_))))?;
+    let components = a.algorithm.components(feature_columns.len())?;
+    let net_inputs = components.unwrap_or(feature_columns.len());
     eprintln!(
-        "training {} → {} → {} ({} weights) on {} frames",
+        "training {}{} → {} → {} ({} weights, {}) on {} frames",
         feature_columns.len(),
+        components.map_or(String::new(), |k| format!(
+            " inputs as {k} principal components"
+        )),
         hidden
             .iter()
             .map(usize::to_string)
             .collect::<Vec<_>>()
             .join(" → "),
         targets.len(),
-        Mlp::n_params_for(&[&[feature_columns.len()][..], &hidden, &[targets.len()]].concat()),
+        Mlp::n_params_for(&[&[net_inputs][..], &hidden, &[targets.len()]].concat()),
+        a.algorithm.name,
         x.len()
     );
     let t0 = std::time::Instant::now();
@@ -487,14 +562,18 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         max_epochs: a.max_epochs,
         algorithm: a.algorithm.algorithm(),
         hold_out: false,
-        components: a.components,
+        components,
         sensor,
     };
     let model = fit_model(&x, &t, spec, |epoch, train_mse, val_mse| {
         if epoch % 10 == 0 {
-            eprintln!(
-                "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
-            );
+            if val_mse.is_nan() {
+                eprintln!("epoch {epoch}: mse train {train_mse:.3e} (scaled)");
+            } else {
+                eprintln!(
+                    "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
+                );
+            }
         }
         Control::Continue
     })?;
@@ -656,24 +735,44 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
         ),
     )?;
     let mut out = TableWriter::create(&a.output, TableFormat::Csv, model.target_columns.clone())?;
-    let (mut written, mut missing) = (0, 0);
+    let (mut written, mut missing, mut filled) = (0, 0, 0);
     let mut x = Vec::with_capacity(model.feature_columns.len());
     for (r, key) in f.keys.iter().enumerate() {
         sources.row_into(r, &mut x);
-        if x.iter().any(|v| v.is_nan()) {
-            // A lost marker or a missing reading: no estimate rather than a wrong one.
-            out.write_row(
-                key,
-                &vec![f64::NAN; model.target_columns.len()],
-                "missing features",
-            )?;
-            missing += 1;
-            continue;
+        // Lost markers are filled by a model on principal components; a missing reading, too
+        // many lost markers or a model without components: no estimate rather than a wrong one.
+        let reading_missing = x
+            .iter()
+            .zip(&model.feature_columns)
+            .any(|(v, c)| v.is_nan() && !is_marker_column(c));
+        match model.estimate(&x) {
+            Ok(e) if !reading_missing => {
+                let note = if e.filled > 0 {
+                    filled += 1;
+                    format!("filled {} inputs", e.filled)
+                } else {
+                    String::new()
+                };
+                out.write_row(key, &e.values, &note)?;
+                written += 1;
+            }
+            Ok(_) | Err(_) => {
+                let why = if reading_missing {
+                    "missing reading".to_string()
+                } else {
+                    model.estimate(&x).err().unwrap_or_default()
+                };
+                out.write_row(key, &vec![f64::NAN; model.target_columns.len()], &why)?;
+                missing += 1;
+            }
         }
-        out.write_row(key, &model.predict(&x), "")?;
-        written += 1;
     }
-    eprintln!("{written} estimates, {missing} frames without (missing inputs)");
+    let filled_note = if filled > 0 {
+        format!(" ({filled} with lost markers filled)")
+    } else {
+        String::new()
+    };
+    eprintln!("{written} estimates{filled_note}, {missing} frames without");
     Ok(())
 }
 

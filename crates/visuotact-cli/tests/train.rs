@@ -87,9 +87,19 @@ fn train_predict_eval_and_bad_tables() {
         &f,
         &l,
         &m,
-        &["--hidden", "10", "--sensor", s(&d.join("s.json"))],
+        &[
+            "--hidden",
+            "10",
+            "--algorithm",
+            "trainlm",
+            "--sensor",
+            s(&d.join("s.json")),
+        ],
     ));
-    assert!(err.contains("training 6 → 10 → 1"), "{err}");
+    assert!(
+        err.contains("training 6 → 10 → 1 (81 weights, trainlm)"),
+        "{err}"
+    );
     assert!(err.contains("R train 0.99"), "{err}");
     let model: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
@@ -264,6 +274,142 @@ fn trainbr_on_principal_components() {
     );
 }
 
+/// Blanks every cell of the listed markers in the given data rows of a feature CSV.
+fn blank_markers(src: &Path, dst: &Path, rows: std::ops::Range<usize>, markers: &[usize]) {
+    let text = std::fs::read_to_string(src).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let cols: Vec<usize> = header
+        .iter()
+        .enumerate()
+        .filter(|(_, h)| markers.iter().any(|m| h.starts_with(&format!("m{m:03}_"))))
+        .map(|(i, _)| i)
+        .collect();
+    for line in &mut lines[1 + rows.start..1 + rows.end] {
+        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+        for &c in &cols {
+            cells[c].clear();
+        }
+        *line = cells.join(",");
+    }
+    std::fs::write(dst, lines.join("\n") + "\n").unwrap();
+}
+
+#[test]
+fn lost_markers_are_filled_from_the_markers_found() {
+    let d = fresh_dir("filling").join("session");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "120",
+        "--seed",
+        "5",
+        "-o",
+        s(&d),
+    ]));
+    ok(&vt(&[
+        "calibrate",
+        s(&d.join("reference")),
+        "-o",
+        s(&d.join("s.json")),
+    ]));
+    let f = d.join("f.csv");
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&d.join("s.json")),
+        s(&d.join("frames")),
+        "-o",
+        s(&f),
+    ]));
+    // Frames 0–19 lose markers 10 and 50 (3 cells each); frame 20 loses 40 markers.
+    let lost = d.join("lost.csv");
+    blank_markers(&f, &lost, 0..20, &[10, 50]);
+    let half = d.join("half.csv");
+    blank_markers(&lost, &half, 20..21, &(0..40).collect::<Vec<_>>());
+    let l = d.join("labels.csv");
+    let args = |feat: &Path, model: &Path| -> Vec<String> {
+        [
+            "train",
+            "--features",
+            s(feat),
+            "--labels",
+            s(&l),
+            "--targets",
+            "x_mm,y_mm,depth_mm",
+            "--hidden",
+            "10",
+            "-o",
+            s(model),
+        ]
+        .map(str::to_string)
+        .to_vec()
+    };
+    let m = d.join("m.json");
+    let a = args(&lost, &m);
+    let err = ok(&vt(&a.iter().map(String::as_str).collect::<Vec<_>>()));
+    assert!(
+        err.contains("351 inputs as 10 principal components → 10 → 3"),
+        "{err}"
+    );
+    // 20 frames lose 6 cells each, besides what the tracker itself could not find.
+    let count = |text: &str, after: &str| -> usize {
+        let at = text
+            .find(after)
+            .unwrap_or_else(|| panic!("{after:?} in {text}"));
+        let before = text[..at].split_whitespace().last().unwrap();
+        before.trim_start_matches('(').parse().unwrap()
+    };
+    assert!(count(&err, "frames with lost markers kept") >= 20, "{err}");
+    let cells = err
+        .split("kept: ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap();
+    assert!(cells.parse::<usize>().unwrap() >= 120, "{err}");
+    // Every frame but the one missing 40 markers is estimated; the filled ones say so and
+    // stay close to the estimates from their complete rows.
+    let (pc, pl) = (d.join("pc.csv"), d.join("pl.csv"));
+    ok(&predict(&m, s(&pc), &["--features", s(&f)]));
+    let err = ok(&predict(&m, s(&pl), &["--features", s(&half)]));
+    assert!(err.contains("119 estimates ("), "{err}");
+    assert!(count(&err, "with lost markers filled") >= 19, "{err}");
+    assert!(err.contains("1 frames without"), "{err}");
+    let rows = |p: &Path| -> Vec<Vec<String>> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect()
+    };
+    let (complete, filled) = (rows(&pc), rows(&pl));
+    for k in 0..19 {
+        assert!(filled[k][4].starts_with("filled "), "{:?}", filled[k]);
+        let v = |r: &[String], j: usize| r[j].parse::<f64>().unwrap();
+        let dd =
+            (v(&filled[k], 1) - v(&complete[k], 1)).hypot(v(&filled[k], 2) - v(&complete[k], 2));
+        assert!(dd < 0.5, "frame {k}: contact moved {dd} mm by the filling");
+    }
+    assert!(
+        filled[20][4].contains("120 of 351 inputs missing (over a quarter)"),
+        "{:?}",
+        filled[20]
+    );
+    assert!(filled[20][1].is_empty());
+    // Without components nothing fills them: the frame is named.
+    let mut a = args(&lost, &d.join("raw.json"));
+    a.extend(["--components".to_string(), "0".to_string()]);
+    let err = fails(&vt(&a.iter().map(String::as_str).collect::<Vec<_>>()));
+    assert!(err.contains("line 2, frame frame_000000.png"), "{err}");
+}
+
 #[test]
 fn gauge_reading_as_an_extra_input() {
     let d = session("train-gauge");
@@ -338,7 +484,7 @@ fn gauge_reading_as_an_extra_input() {
     assert!(err.contains("149 estimates, 1 frames without"), "{err}");
     let pred = std::fs::read_to_string(&p).unwrap();
     let row = pred.lines().find(|r| r.starts_with(&frame)).unwrap();
-    assert!(row.ends_with("missing features"), "{row}");
+    assert!(row.ends_with("missing reading"), "{row}");
 
     // With every reading: the estimates are close to the truth.
     let o = predict(&m, s(&p), &["--features", s(&f), "--readings", s(&l)]);

@@ -43,6 +43,18 @@ fn trainlm_name() -> String {
     "trainlm".to_string()
 }
 
+/// Over this fraction of missing inputs a frame gets no estimate.
+pub const MAX_MISSING_FRACTION: f64 = 0.25;
+
+/// An estimate and how many of its inputs were filled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// Targets in their units.
+    pub values: Vec<f64>,
+    /// Inputs that were missing and filled.
+    pub filled: usize,
+}
+
 /// A trained model.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Model {
@@ -79,6 +91,39 @@ impl Model {
             None => x,
         };
         self.target_scaling.invert(&self.net.forward(&x))
+    }
+
+    /// Estimates targets from a row that may have missing (NaN) inputs — lost markers. A model
+    /// with a principal-component projection fills them: the scores are fitted to the inputs
+    /// present ([`crate::pca::Projection::apply_partial`]). Refused, with the reason, when over
+    /// [`MAX_MISSING_FRACTION`] of the inputs are missing or the model has no projection.
+    pub fn estimate(&self, features: &[f64]) -> Result<Estimate, String> {
+        let missing = features.iter().filter(|v| v.is_nan()).count();
+        if missing == 0 {
+            return Ok(Estimate {
+                values: self.predict(features),
+                filled: 0,
+            });
+        }
+        if missing as f64 > MAX_MISSING_FRACTION * features.len() as f64 {
+            return Err(format!(
+                "{missing} of {} inputs missing (over a quarter): too few markers found",
+                features.len()
+            ));
+        }
+        let Some(p) = &self.projection else {
+            return Err(format!(
+                "{missing} inputs missing and the model has no principal components to fill them (train with --components)"
+            ));
+        };
+        let x = self.input_scaling.apply(features);
+        let z = p
+            .apply_partial(&x)
+            .ok_or_else(|| format!("{missing} inputs missing: too few left to fill them"))?;
+        Ok(Estimate {
+            values: self.target_scaling.invert(&self.net.forward(&z)),
+            filled: missing,
+        })
     }
 
     /// Parses a model file's text; `source` names it in errors.

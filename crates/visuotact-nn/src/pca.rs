@@ -8,6 +8,7 @@
 //! so that each component's largest entry is positive; the scores are mapped to [−1, 1]
 //! (`mapminmax`) for the network.
 
+use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
 
@@ -114,6 +115,40 @@ impl Projection {
     pub fn apply(&self, row: &[f64]) -> Vec<f64> {
         self.score_scaling.apply(&self.scores(row))
     }
+
+    /// The network inputs for a row with missing (NaN) inputs: the scores whose reconstruction
+    /// fits the inputs present best in the least-squares sense (a smooth displacement field
+    /// spreads every component over many markers, so a few lost ones barely change them).
+    /// Equal to [`Projection::apply`] on a complete row; `None` when fewer inputs are present
+    /// than components.
+    pub fn apply_partial(&self, row: &[f64]) -> Option<Vec<f64>> {
+        let present: Vec<usize> = (0..row.len()).filter(|&i| !row[i].is_nan()).collect();
+        if present.len() == row.len() {
+            return Some(self.apply(row));
+        }
+        let k = self.outputs();
+        if present.len() < k {
+            return None;
+        }
+        // Normal equations (W_o W_oᵀ) z = W_o (x_o − μ_o) over the present inputs o.
+        let gram = Mat::<f64>::from_fn(k, k, |a, b| {
+            present
+                .iter()
+                .map(|&i| self.components[a][i] * self.components[b][i])
+                .sum()
+        });
+        let rhs = Mat::<f64>::from_fn(k, 1, |a, _| {
+            present
+                .iter()
+                .map(|&i| self.components[a][i] * (row[i] - self.mean[i]))
+                .sum()
+        });
+        let z = gram.partial_piv_lu().solve(&rhs);
+        let z: Vec<f64> = (0..k).map(|a| z[(a, 0)]).collect();
+        z.iter()
+            .all(|v| v.is_finite())
+            .then(|| self.score_scaling.apply(&z))
+    }
 }
 
 /// Mean, eigenvalues (largest first) and eigenvectors of the sample covariance of `rows`.
@@ -173,6 +208,34 @@ mod tests {
         );
         let f = Projection::variance_fractions(&rows).unwrap();
         assert!(f[0] > 0.999_999 && f[1] < 1e-6);
+    }
+
+    #[test]
+    fn a_missing_input_is_recovered_from_the_others() {
+        // A smooth field: 12 inputs driven by 2 latent numbers; one input lost.
+        let rows: Vec<Vec<f64>> = (0..40)
+            .map(|s| {
+                let (a, b) = ((f64::from(s) * 0.37).sin(), (f64::from(s) * 0.23).cos());
+                (0..12)
+                    .map(|i| a * (f64::from(i) * 0.5).cos() + b * (f64::from(i) * 0.3).sin())
+                    .collect()
+            })
+            .collect();
+        let p = Projection::fit(&rows, 2).unwrap();
+        for r in &rows[..5] {
+            let mut lost = r.clone();
+            lost[4] = f64::NAN;
+            lost[9] = f64::NAN;
+            let (full, part) = (p.apply(r), p.apply_partial(&lost).unwrap());
+            for (a, b) in full.iter().zip(&part) {
+                assert!((a - b).abs() < 1e-9, "{full:?} vs {part:?}");
+            }
+        }
+        assert_eq!(p.apply_partial(&rows[0]).unwrap(), p.apply(&rows[0]));
+        // Fewer inputs present than components: nothing to solve.
+        let mut almost = vec![f64::NAN; 12];
+        almost[0] = 1.0;
+        assert!(p.apply_partial(&almost).is_none());
     }
 
     #[test]
