@@ -76,6 +76,25 @@ fn mean_of(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
+/// Mean over targets of a subset's MSE in mapminmax space (each target's MSE over its half
+/// range squared): every target counts alike whatever its unit.
+fn scaled_mse(m: &Model, subset: usize) -> f64 {
+    let ts = &m.target_scaling;
+    let v: Vec<f64> = m.training.mse[subset]
+        .iter()
+        .enumerate()
+        .map(|(j, e)| {
+            let half = 0.5 * (ts.max[j] - ts.min[j]);
+            if half > 0.0 {
+                e / (half * half)
+            } else {
+                *e
+            }
+        })
+        .collect();
+    mean_of(&v)
+}
+
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let archs = architectures(&a.hidden)?;
     if a.repeats == 0 {
@@ -126,9 +145,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<_>>()?;
     bar.finish_and_clear();
-    // Performance: mean over targets of the test MSE (validation MSE picks the best model).
+    // Performance in units: the mean over targets of the MSE in each target's own units (a
+    // target in degrees drowns one in millimetres) — reported. Selection: the same on scaled
+    // targets (mapminmax space, each target's MSE over its half range squared), so every
+    // target counts alike.
     let perf = |m: &Model, subset: usize| mean_of(&m.training.mse[subset]);
-    let mut rows = String::from("hidden,repeats,mean_test_mse,best_test_mse,mean_validation_mse,best_validation_mse,mean_epochs\n");
+    let scaled = scaled_mse;
+    let mut rows = String::from("hidden,repeats,mean_test_mse,best_test_mse,mean_validation_mse,best_validation_mse,mean_epochs,mean_test_mse_scaled,best_test_mse_scaled,mean_validation_mse_scaled,best_validation_mse_scaled\n");
     let mut points = Vec::new();
     for (k, arch) in archs.iter().enumerate() {
         let ms: Vec<&Model> = results
@@ -138,6 +161,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             .collect();
         let test: Vec<f64> = ms.iter().map(|m| perf(m, 2)).collect();
         let val: Vec<f64> = ms.iter().map(|m| perf(m, 1)).collect();
+        let test_s: Vec<f64> = ms.iter().map(|m| scaled(m, 2)).collect();
+        let val_s: Vec<f64> = ms.iter().map(|m| scaled(m, 1)).collect();
         let epochs: Vec<f64> = ms.iter().map(|m| m.training.epochs as f64).collect();
         let name = arch
             .iter()
@@ -146,13 +171,17 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             .join("x");
         let best = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
         rows.push_str(&format!(
-            "{name},{},{},{},{},{},{}\n",
+            "{name},{},{},{},{},{},{},{},{},{},{}\n",
             ms.len(),
             mean_of(&test),
             best(&test),
             mean_of(&val),
             best(&val),
-            mean_of(&epochs)
+            mean_of(&epochs),
+            mean_of(&test_s),
+            best(&test_s),
+            mean_of(&val_s),
+            best(&val_s)
         ));
         points.push((
             arch.iter().sum::<usize>() as f64,
@@ -163,12 +192,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     crate::write_atomically(&a.output.join("sweep.csv"), &rows)?;
     let (_, best_model) = results
         .iter()
-        .min_by(|p, q| perf(&p.1, 1).total_cmp(&perf(&q.1, 1)))
+        .min_by(|p, q| scaled(&p.1, 1).total_cmp(&scaled(&q.1, 1)))
         .context("no training ran")?;
     crate::write_atomically(&a.output.join("best_model.json"), &best_model.to_json())?;
     if a.keep > 0 {
         let mut ranked: Vec<&Model> = results.iter().map(|r| &r.1).collect();
-        ranked.sort_by(|p, q| perf(p, 1).total_cmp(&perf(q, 1)));
+        ranked.sort_by(|p, q| scaled(p, 1).total_cmp(&scaled(q, 1)));
         for (k, m) in ranked.iter().take(a.keep).enumerate() {
             let p = a
                 .output
@@ -191,10 +220,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     )
     .context("performance plot")?;
     eprintln!(
-        "{} trainings of {} architectures in {:.1} s; best: hidden {:?}, validation MSE {:.4e}, test MSE {:.4e}",
+        "{} trainings of {} architectures in {:.1} s; best (by scaled validation MSE {:.4e}): hidden {:?}, validation MSE {:.4e}, test MSE {:.4e} (target units)",
         results.len(),
         archs.len(),
         t0.elapsed().as_secs_f64(),
+        scaled(best_model, 1),
         &best_model.net.sizes[1..best_model.net.sizes.len() - 1],
         perf(best_model, 1),
         perf(best_model, 2)
@@ -325,5 +355,55 @@ mod tests {
                 && architectures("4..2").is_err()
                 && architectures("a").is_err()
         );
+    }
+}
+
+#[cfg(test)]
+mod selection_tests {
+    use super::*;
+    use visuotact_nn::mlp::{MinMax, Mlp};
+    use visuotact_nn::model::TrainingSummary;
+
+    fn model(val_mse: [f64; 2]) -> Model {
+        Model {
+            format: visuotact_nn::model::MODEL_FORMAT.to_string(),
+            version: visuotact_nn::model::MODEL_VERSION,
+            net: Mlp::nguyen_widrow(&[1, 1, 2], 1),
+            input_scaling: MinMax {
+                min: vec![0.0],
+                max: vec![1.0],
+            },
+            projection: None,
+            // Target 0 spans 0..1000 (say mN), target 1 spans 0..1 (say mm).
+            target_scaling: MinMax {
+                min: vec![0.0, 0.0],
+                max: vec![1000.0, 1.0],
+            },
+            feature_columns: vec!["f".into()],
+            target_columns: vec!["a".into(), "b".into()],
+            training: TrainingSummary {
+                epochs: 1,
+                best_epoch: 1,
+                stop: String::new(),
+                samples: [1, 1, 1],
+                mse: [vec![], val_mse.to_vec(), vec![]],
+                r: [vec![], vec![], vec![]],
+                seed: 1,
+                algorithm: "trainlm".into(),
+                evidence: None,
+            },
+            sensor: None,
+        }
+    }
+
+    #[test]
+    fn selection_weighs_every_target_alike_whatever_its_unit() {
+        // A: 1 % of range off on the big target, 63 % on the small one; B: 10 % and 6 %.
+        let (a, b) = (model([100.0, 0.1]), model([10_000.0, 0.001]));
+        // In target units A looks 100× better: the big target's unit drowns the other.
+        assert!(mean_of(&a.training.mse[1]) < mean_of(&b.training.mse[1]));
+        // Scaled, B is better on the whole: (0.04 + 0.004) / 2 against (0.0004 + 0.4) / 2.
+        assert!((scaled_mse(&b, 1) - 0.022).abs() < 1e-12);
+        assert!((scaled_mse(&a, 1) - 0.2002).abs() < 1e-12);
     }
 }
