@@ -80,6 +80,7 @@ fn fit(
         algorithm: visuotact_nn::mlp::Algorithm::Trainlm,
         hold_out: false,
         components: None,
+        ensemble: 1,
         sensor: None,
     };
     let t0 = Instant::now();

@@ -102,10 +102,18 @@ impl Estimator {
     }
 
     /// The model's target columns (empty without a model).
+    /// The estimate's columns: the targets, then for an ensemble each target's spread
+    /// (`<target>_std`, the standard deviation over its networks).
     pub(crate) fn target_columns(&self) -> Vec<String> {
         self.model
             .as_ref()
-            .map(|(m, _)| m.target_columns.clone())
+            .map(|(m, _)| {
+                let mut c = m.target_columns.clone();
+                if !m.members.is_empty() {
+                    c.extend(m.target_columns.iter().map(|t| format!("{t}_std")));
+                }
+                c
+            })
             .unwrap_or_default()
     }
 
@@ -171,7 +179,13 @@ impl Estimator {
                     .zip(&self.x)
                     .any(|(c, v)| matches!(c, Input::Extra(_)) && v.is_nan());
                 (!extra_missing)
-                    .then(|| m.estimate(&self.x).ok().map(|e| e.values))
+                    .then(|| {
+                        m.estimate(&self.x).ok().map(|e| {
+                            let mut v = e.values;
+                            v.extend(e.spread);
+                            v
+                        })
+                    })
                     .flatten()
             }
             None => None,

@@ -665,11 +665,26 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if !(a.fps.is_finite() && a.fps > 0.0) {
         bail!("--fps must be a positive frame rate");
     }
-    let models = a
+    // A model file holding an ensemble counts as its networks (the spread is over all).
+    let models: Vec<Model> = a
         .model
         .iter()
         .map(|p| crate::train::load_model(p))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect::<anyhow::Result<Vec<_>>>()?
+        .into_iter()
+        .flat_map(|m| {
+            let mut each = vec![Model {
+                members: Vec::new(),
+                ..m.clone()
+            }];
+            each.extend(m.members.iter().map(|n| Model {
+                net: n.clone(),
+                members: Vec::new(),
+                ..m.clone()
+            }));
+            each
+        })
+        .collect();
     let mut live = LiveEstimator::new(a, models)?;
     let stop = Arc::new(AtomicBool::new(false));
     {

@@ -137,6 +137,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 algorithm: a.algorithm.algorithm(),
                 hold_out: true,
                 components,
+                ensemble: 1,
                 sensor: None,
             };
             let m = fit_model(&x, &t, spec, |_, _, _| Control::Continue);
@@ -369,6 +370,7 @@ mod selection_tests {
             format: visuotact_nn::model::MODEL_FORMAT.to_string(),
             version: visuotact_nn::model::MODEL_VERSION,
             net: Mlp::nguyen_widrow(&[1, 1, 2], 1),
+            members: Vec::new(),
             input_scaling: MinMax {
                 min: vec![0.0],
                 max: vec![1.0],

@@ -47,6 +47,9 @@ fn iats_model(d: &Path) -> PathBuf {
         "x_mm,y_mm,depth_mm",
         "--hidden",
         "8",
+        // One network per file: the test below makes its own ensemble of two equal ones.
+        "--ensemble",
+        "1",
         "--drop-incomplete",
         "--sensor",
         s(&d.join("sensor.json")),

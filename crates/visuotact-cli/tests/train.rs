@@ -258,8 +258,22 @@ fn trainbr_on_principal_components() {
     let explained = proj["explained"].as_f64().unwrap();
     assert!(explained > 0.8 && explained <= 1.0, "{proj}");
     // The model reads the 6 raw features and predicts as well as trainlm does here.
+    // An ensemble of 5 by default: 4 further networks, and the spread in the predictions.
+    assert_eq!(model["members"].as_array().unwrap().len(), 4);
     let p = d.join("p.csv");
     ok(&predict(&m, s(&p), &["--features", s(&f)]));
+    let text = std::fs::read_to_string(&p).unwrap();
+    assert!(
+        text.starts_with("frame,force_n,force_n_std,flags"),
+        "{text}"
+    );
+    let spreads: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .map(|r| r.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert!(spreads.iter().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(spreads.iter().any(|v| *v > 0.0));
     let o = eval(&p, &l, &["--json"]);
     ok(&o);
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -391,14 +405,21 @@ fn lost_markers_are_filled_from_the_markers_found() {
     };
     let (complete, filled) = (rows(&pc), rows(&pl));
     for k in 0..19 {
-        assert!(filled[k][4].starts_with("filled "), "{:?}", filled[k]);
+        assert!(
+            filled[k].last().unwrap().starts_with("filled "),
+            "{:?}",
+            filled[k]
+        );
         let v = |r: &[String], j: usize| r[j].parse::<f64>().unwrap();
         let dd =
             (v(&filled[k], 1) - v(&complete[k], 1)).hypot(v(&filled[k], 2) - v(&complete[k], 2));
         assert!(dd < 0.5, "frame {k}: contact moved {dd} mm by the filling");
     }
     assert!(
-        filled[20][4].contains("120 of 351 inputs missing (over a quarter)"),
+        filled[20]
+            .last()
+            .unwrap()
+            .contains("of 351 inputs missing (over a quarter)"),
         "{:?}",
         filled[20]
     );

@@ -49,8 +49,10 @@ pub const MAX_MISSING_FRACTION: f64 = 0.25;
 /// An estimate and how many of its inputs were filled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Estimate {
-    /// Targets in their units.
+    /// Targets in their units (the ensemble's mean).
     pub values: Vec<f64>,
+    /// Standard deviation over the ensemble per target (empty for one network).
+    pub spread: Vec<f64>,
     /// Inputs that were missing and filled.
     pub filled: usize,
 }
@@ -64,6 +66,10 @@ pub struct Model {
     pub version: u32,
     /// The network.
     pub net: Mlp,
+    /// Further networks of an ensemble (other seeds and splits; same scaling, projection,
+    /// columns): estimates are the mean over all, with their standard deviation.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub members: Vec<Mlp>,
     /// Input scaling (mapminmax over the training inputs).
     pub input_scaling: MinMax,
     /// Principal-component projection of the scaled inputs, when training reduced them: the
@@ -83,14 +89,45 @@ pub struct Model {
 }
 
 impl Model {
-    /// Estimates targets (original units) from one row of features (original units).
+    /// Estimates targets (original units) from one row of features (original units): the
+    /// ensemble's mean.
     pub fn predict(&self, features: &[f64]) -> Vec<f64> {
         let x = self.input_scaling.apply(features);
         let x = match &self.projection {
             Some(p) => p.apply(&x),
             None => x,
         };
-        self.target_scaling.invert(&self.net.forward(&x))
+        self.outputs_of(&x).0
+    }
+
+    /// Every network of the model, the first one first.
+    pub fn networks(&self) -> impl Iterator<Item = &Mlp> {
+        std::iter::once(&self.net).chain(&self.members)
+    }
+
+    /// Mean and standard deviation (empty for one network) over the networks, in target
+    /// units, for network inputs `x`.
+    fn outputs_of(&self, x: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let outs: Vec<Vec<f64>> = self
+            .networks()
+            .map(|n| self.target_scaling.invert(&n.forward(x)))
+            .collect();
+        let k = outs.len() as f64;
+        let width = outs[0].len();
+        let mean: Vec<f64> = (0..width)
+            .map(|j| outs.iter().map(|o| o[j]).sum::<f64>() / k)
+            .collect();
+        let std = if outs.len() > 1 {
+            (0..width)
+                .map(|j| {
+                    let v = outs.iter().map(|o| (o[j] - mean[j]).powi(2)).sum::<f64>() / (k - 1.0);
+                    v.sqrt()
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        (mean, std)
     }
 
     /// Estimates targets from a row that may have missing (NaN) inputs — lost markers. A model
@@ -100,8 +137,15 @@ impl Model {
     pub fn estimate(&self, features: &[f64]) -> Result<Estimate, String> {
         let missing = features.iter().filter(|v| v.is_nan()).count();
         if missing == 0 {
+            let x = self.input_scaling.apply(features);
+            let x = match &self.projection {
+                Some(p) => p.apply(&x),
+                None => x,
+            };
+            let (values, spread) = self.outputs_of(&x);
             return Ok(Estimate {
-                values: self.predict(features),
+                values,
+                spread,
                 filled: 0,
             });
         }
@@ -120,8 +164,10 @@ impl Model {
         let z = p
             .apply_partial(&x)
             .ok_or_else(|| format!("{missing} inputs missing: too few left to fill them"))?;
+        let (values, spread) = self.outputs_of(&z);
         Ok(Estimate {
-            values: self.target_scaling.invert(&self.net.forward(&z)),
+            values,
+            spread,
             filled: missing,
         })
     }
@@ -161,6 +207,9 @@ impl Model {
             || s[0] != net_inputs
             || s[s.len() - 1] != m.target_columns.len()
             || m.net.params.len() != Mlp::n_params_for(s)
+            || m.members
+                .iter()
+                .any(|n| n.sizes != *s || n.params.len() != m.net.params.len())
             || m.input_scaling.min.len() != m.feature_columns.len()
             || m.target_scaling.min.len() != s[s.len() - 1]
         {
