@@ -18,7 +18,8 @@
 use faer::Mat;
 
 use crate::lm::{
-    sum_sq, Control, DampedSolver, Jacobian, LmConfig, LmOutcome, Problem, StopReason,
+    jacobian_at, sum_sq, Control, DampedSolver, Jacobian, LmConfig, LmOutcome, Problem, Start,
+    StopReason,
 };
 
 /// The regularisation state after an epoch.
@@ -83,15 +84,16 @@ pub fn minimize_br<P: Problem>(
     cfg: &LmConfig,
     mut callback: impl FnMut(&BrProgress<'_>) -> Control,
 ) -> BrOutcome {
-    let (n, m) = (problem.n_params(), problem.n_residuals());
-    assert_eq!(p0.len(), n, "starting point must have n_params entries");
-    let mut p = p0.to_vec();
-    let mut r = vec![0.0; m];
-    let mut r_new = vec![0.0; m];
-    let mut p_new = vec![0.0; n];
+    let Start {
+        n,
+        m,
+        dual,
+        mut p,
+        mut r,
+        mut p_new,
+        mut r_new,
+    } = Start::at(problem, p0);
     let mut dense: Option<Mat<f64>> = None;
-    let dual = m < n;
-    problem.residuals(&p, &mut r);
     let mut evaluations = 1;
     let (mut sse, mut ssw) = (sum_sq(&r), sum_sq(&p));
     let mut mu = cfg.mu;
@@ -157,14 +159,7 @@ pub fn minimize_br<P: Problem>(
         } else {
             None
         };
-        let jac = match &structured {
-            Some(sj) => Jacobian::Structured(sj.as_ref(), n),
-            None => {
-                let jac = dense.get_or_insert_with(|| Mat::<f64>::zeros(m, n));
-                problem.jacobian(&p, jac);
-                Jacobian::Dense(jac)
-            }
-        };
+        let jac = jacobian_at(problem, &p, &structured, &mut dense);
         let g = regularised_gradient(&jac, &r, &p, lambda);
         let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
         let e = evidence(alpha, beta, gamma, sse, ssw);

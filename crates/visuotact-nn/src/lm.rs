@@ -385,6 +385,57 @@ pub(crate) fn sum_sq(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
 
+/// A run's sizes and working vectors: the point and its residuals (evaluated once), and the
+/// trial copies each step fills.
+pub(crate) struct Start {
+    pub(crate) n: usize,
+    pub(crate) m: usize,
+    /// Fewer residuals than parameters: the dual system.
+    pub(crate) dual: bool,
+    pub(crate) p: Vec<f64>,
+    pub(crate) r: Vec<f64>,
+    pub(crate) p_new: Vec<f64>,
+    pub(crate) r_new: Vec<f64>,
+}
+
+impl Start {
+    pub(crate) fn at<P: Problem>(problem: &mut P, p0: &[f64]) -> Self {
+        let (n, m) = (problem.n_params(), problem.n_residuals());
+        assert_eq!(p0.len(), n, "starting point must have n_params entries");
+        let p = p0.to_vec();
+        let mut r = vec![0.0; m];
+        problem.residuals(&p, &mut r);
+        Self {
+            n,
+            m,
+            dual: m < n,
+            p,
+            r,
+            p_new: vec![0.0; n],
+            r_new: vec![0.0; m],
+        }
+    }
+}
+
+/// The Jacobian at `p`: the problem's structured form when it gave one (the dual system),
+/// otherwise the dense matrix, made in `dense` on first use and reused.
+pub(crate) fn jacobian_at<'a, P: Problem>(
+    problem: &mut P,
+    p: &[f64],
+    structured: &'a Option<Box<dyn DualJacobian>>,
+    dense: &'a mut Option<Mat<f64>>,
+) -> Jacobian<'a> {
+    let (n, m) = (problem.n_params(), problem.n_residuals());
+    match structured {
+        Some(sj) => Jacobian::Structured(sj.as_ref(), n),
+        None => {
+            let jac = dense.get_or_insert_with(|| Mat::<f64>::zeros(m, n));
+            problem.jacobian(p, jac);
+            Jacobian::Dense(jac)
+        }
+    }
+}
+
 /// Minimises `‖r(p)‖²` from `p0`, calling `callback` after every iteration.
 pub fn minimize<P: Problem>(
     problem: &mut P,
@@ -392,16 +443,17 @@ pub fn minimize<P: Problem>(
     cfg: &LmConfig,
     mut callback: impl FnMut(&Progress<'_>) -> Control,
 ) -> LmOutcome {
-    let (n, m) = (problem.n_params(), problem.n_residuals());
-    assert_eq!(p0.len(), n, "starting point must have n_params entries");
-    let mut p = p0.to_vec();
-    let mut r = vec![0.0; m];
-    let mut r_new = vec![0.0; m];
-    let mut p_new = vec![0.0; n];
+    let Start {
+        n,
+        m,
+        dual,
+        mut p,
+        mut r,
+        mut p_new,
+        mut r_new,
+    } = Start::at(problem, p0);
     // The dense Jacobian, allocated only if the problem gives no structured one.
     let mut dense: Option<Mat<f64>> = None;
-    let dual = m < n;
-    problem.residuals(&p, &mut r);
     let mut evaluations = 1;
     let mut cost = sum_sq(&r);
     let mut mu = cfg.mu;
@@ -442,14 +494,7 @@ pub fn minimize<P: Problem>(
         } else {
             None
         };
-        let jac = match &structured {
-            Some(sj) => Jacobian::Structured(sj.as_ref(), n),
-            None => {
-                let jac = dense.get_or_insert_with(|| Mat::<f64>::zeros(m, n));
-                problem.jacobian(&p, jac);
-                Jacobian::Dense(jac)
-            }
-        };
+        let jac = jacobian_at(problem, &p, &structured, &mut dense);
         let g = jac.transpose_times(&r);
         let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
         if !gnorm.is_finite() {
