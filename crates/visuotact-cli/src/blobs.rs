@@ -48,18 +48,15 @@ const COLUMNS: [&str; 15] = [
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // The pixel-mean centroid of OpenCV, scikit-image and MATLAB regionprops by default.
-    // Options are checked before any frame is read.
-    a.detector
-        .config(visuotact_vision::detect::Centroid::Binary)?;
-    let mut detector_args = a.detector.clone();
-    let first = FrameStream::open(&a.frames, 25.0)
-        .ok()
-        .and_then(|mut s| s.next())
-        .and_then(Result::ok);
-    if let Some(note) = detector_args.resolve_preset(first.as_ref().map(|f| &f.image)) {
-        eprintln!("{note}");
-    }
-    let (cfg, _) = detector_args.config(visuotact_vision::detect::Centroid::Binary)?;
+    let (cfg, _) =
+        a.detector
+            .config_for_frames(visuotact_vision::detect::Centroid::Binary, || {
+                FrameStream::open(&a.frames, 25.0)
+                    .ok()?
+                    .next()?
+                    .ok()
+                    .map(|f| f.image)
+            })?;
     let mut det = Detector::new(cfg).map_err(anyhow::Error::msg)?;
     let conv = if a.moments == "matlab" {
         MomentConvention::Matlab

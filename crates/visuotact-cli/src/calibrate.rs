@@ -119,23 +119,36 @@ fn numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
 }
 
 impl DetectorArgs {
-    /// The preset `--preset auto` stands for with `first` as the first frame (`iats` without
-    /// one), and a line saying so when it is not `iats`.
-    pub(crate) fn resolve_preset(&mut self, first: Option<&RgbImage>) -> Option<String> {
+    /// The detector configuration for frames whose first one `first` reads: as
+    /// [`DetectorArgs::config`], with `--preset auto` resolved from the markers' polarity in
+    /// that frame (`dark-markers` for markers darker than the skin, saying so; `iats`
+    /// otherwise, or without a readable frame). The options are checked, and the frame read,
+    /// only when needed: an explicit preset never reads it.
+    pub(crate) fn config_for_frames(
+        &self,
+        default_centroid: Centroid,
+        first: impl FnOnce() -> Option<RgbImage>,
+    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
+        let checked = self.config(default_centroid)?;
         if self.preset != "auto" {
-            return None;
+            return Ok(checked);
         }
-        let dark = first.is_some_and(|f| marker_polarity(f) == Polarity::Dark);
-        self.preset = if dark { "dark-markers" } else { "iats" }.to_string();
-        dark.then(|| {
+        if !first().is_some_and(|f| marker_polarity(&f) == Polarity::Dark) {
+            return Ok(checked);
+        }
+        eprintln!(
             "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
-                .to_string()
-        })
+        );
+        Self {
+            preset: "dark-markers".to_string(),
+            ..self.clone()
+        }
+        .config(default_centroid)
     }
 
     /// The detector configuration these options describe; `default_centroid` when
-    /// `--centroid` is not given. `--preset auto` reads as `iats` unless
-    /// [`DetectorArgs::resolve_preset`] was called first.
+    /// `--centroid` is not given. `--preset auto` reads as `iats` here
+    /// ([`DetectorArgs::config_for_frames`] resolves it).
     pub(crate) fn config(
         &self,
         default_centroid: Centroid,
@@ -297,18 +310,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     } else {
         Centroid::Grey
     };
-    // Options are checked before any frame is read; frames that cannot be read are reported
-    // where they are read below.
-    a.detector.config(default_centroid)?;
-    let mut detector_args = a.detector.clone();
-    let first = open_frames(a)
-        .ok()
-        .and_then(|mut s| s.next())
-        .and_then(Result::ok);
-    if let Some(note) = detector_args.resolve_preset(first.as_ref().map(|f| &f.image)) {
-        eprintln!("{note}");
-    }
-    let (detector, preset_features) = detector_args.config(default_centroid)?;
+    // Frames that cannot be read are reported where they are read below.
+    let (detector, preset_features) = a.detector.config_for_frames(default_centroid, || {
+        open_frames(a).ok()?.next()?.ok().map(|f| f.image)
+    })?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,

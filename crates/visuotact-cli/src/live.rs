@@ -101,19 +101,12 @@ impl Estimator {
         &self.extra_inputs
     }
 
-    /// The model's target columns (empty without a model).
-    /// The estimate's columns: the targets, then for an ensemble each target's spread
-    /// (`<target>_std`, the standard deviation over its networks).
+    /// The estimate's columns (empty without a model): the targets, then for an ensemble each
+    /// target's spread (`<target>_std`, the standard deviation over its networks).
     pub(crate) fn target_columns(&self) -> Vec<String> {
         self.model
             .as_ref()
-            .map(|(m, _)| {
-                let mut c = m.target_columns.clone();
-                if !m.members.is_empty() {
-                    c.extend(m.target_columns.iter().map(|t| format!("{t}_std")));
-                }
-                c
-            })
+            .map(|(m, _)| m.estimate_columns())
             .unwrap_or_default()
     }
 
@@ -172,21 +165,9 @@ impl Estimator {
                     Input::Feature(i) => self.features.values[i],
                     Input::Extra(j) => extra.get(j).copied().unwrap_or(f64::NAN),
                 }));
-                // Lost markers filled (models on principal components); a missing extra
-                // input or too many lost markers: no estimate.
-                let extra_missing = cols
-                    .iter()
-                    .zip(&self.x)
-                    .any(|(c, v)| matches!(c, Input::Extra(_)) && v.is_nan());
-                (!extra_missing)
-                    .then(|| {
-                        m.estimate(&self.x).ok().map(|e| {
-                            let mut v = e.values;
-                            v.extend(e.spread);
-                            v
-                        })
-                    })
-                    .flatten()
+                // Lost markers filled (models on principal components); a missing reading or
+                // too many lost markers: no estimate.
+                m.estimate(&self.x).ok().map(|e| e.into_row())
             }
             None => None,
         };

@@ -252,7 +252,6 @@ pub(crate) struct LiveEstimator {
     contact_markers: usize,
     rezero_rate: f64,
     zeroed: Vec<f64>,
-    outputs: Vec<f64>,
 }
 
 impl LiveEstimator {
@@ -306,7 +305,6 @@ impl LiveEstimator {
             contact_markers: a.contact_markers.max(1),
             rezero_rate: a.rezero_rate,
             zeroed: Vec::new(),
-            outputs: Vec::new(),
         })
     }
 
@@ -404,6 +402,7 @@ impl LiveEstimator {
         let mut sums = vec![0.0; names.len()];
         let mut sq = vec![0.0; names.len()];
         let mut x = Vec::with_capacity(self.cols[0].len());
+        let mut networks = 0usize;
         for (m, cols) in self.ensemble.iter().zip(&self.cols) {
             x.clear();
             x.extend(cols.iter().map(|&c| self.zeroed[c]));
@@ -412,19 +411,21 @@ impl LiveEstimator {
             if x.iter().any(|v| v.is_infinite()) {
                 return Ok((true, max_disp, Vec::new(), health));
             }
-            match m.estimate(&x) {
-                Ok(e) => {
-                    health.filled = health.filled.max(e.filled);
-                    self.outputs = e.values;
+            // Every network of every model file counts in the ensemble; each file scales and
+            // projects its inputs once for all its networks.
+            let Ok((outs, filled)) = m.estimate_each(&x) else {
+                return Ok((true, max_disp, Vec::new(), health));
+            };
+            health.filled = health.filled.max(filled);
+            for o in &outs {
+                for (k, v) in o.iter().enumerate() {
+                    sums[k] += v;
+                    sq[k] += v * v;
                 }
-                Err(_) => return Ok((true, max_disp, Vec::new(), health)),
             }
-            for (k, v) in self.outputs.iter().enumerate() {
-                sums[k] += v;
-                sq[k] += v * v;
-            }
+            networks += outs.len();
         }
-        let n = self.ensemble.len() as f64;
+        let n = networks as f64;
         let targets = names
             .iter()
             .enumerate()
@@ -433,7 +434,7 @@ impl LiveEstimator {
                 TargetEstimate {
                     name: name.clone(),
                     value: mean,
-                    std: (self.ensemble.len() > 1)
+                    std: (networks > 1)
                         .then(|| ((sq[k] / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt()),
                 }
             })
@@ -666,25 +667,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         bail!("--fps must be a positive frame rate");
     }
     // A model file holding an ensemble counts as its networks (the spread is over all).
-    let models: Vec<Model> = a
+    let models = a
         .model
         .iter()
         .map(|p| crate::train::load_model(p))
-        .collect::<anyhow::Result<Vec<_>>>()?
-        .into_iter()
-        .flat_map(|m| {
-            let mut each = vec![Model {
-                members: Vec::new(),
-                ..m.clone()
-            }];
-            each.extend(m.members.iter().map(|n| Model {
-                net: n.clone(),
-                members: Vec::new(),
-                ..m.clone()
-            }));
-            each
-        })
-        .collect();
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let mut live = LiveEstimator::new(a, models)?;
     let stop = Arc::new(AtomicBool::new(false));
     {

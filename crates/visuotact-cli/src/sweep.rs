@@ -151,7 +151,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // targets (mapminmax space, each target's MSE over its half range squared), so every
     // target counts alike.
     let perf = |m: &Model, subset: usize| mean_of(&m.training.mse[subset]);
-    let scaled = scaled_mse;
     let mut rows = String::from("hidden,repeats,mean_test_mse,best_test_mse,mean_validation_mse,best_validation_mse,mean_epochs,mean_test_mse_scaled,best_test_mse_scaled,mean_validation_mse_scaled,best_validation_mse_scaled\n");
     let mut points = Vec::new();
     for (k, arch) in archs.iter().enumerate() {
@@ -162,8 +161,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             .collect();
         let test: Vec<f64> = ms.iter().map(|m| perf(m, 2)).collect();
         let val: Vec<f64> = ms.iter().map(|m| perf(m, 1)).collect();
-        let test_s: Vec<f64> = ms.iter().map(|m| scaled(m, 2)).collect();
-        let val_s: Vec<f64> = ms.iter().map(|m| scaled(m, 1)).collect();
+        let test_s: Vec<f64> = ms.iter().map(|m| scaled_mse(m, 2)).collect();
+        let val_s: Vec<f64> = ms.iter().map(|m| scaled_mse(m, 1)).collect();
         let epochs: Vec<f64> = ms.iter().map(|m| m.training.epochs as f64).collect();
         let name = arch
             .iter()
@@ -193,12 +192,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     crate::write_atomically(&a.output.join("sweep.csv"), &rows)?;
     let (_, best_model) = results
         .iter()
-        .min_by(|p, q| scaled(&p.1, 1).total_cmp(&scaled(&q.1, 1)))
+        .min_by(|p, q| scaled_mse(&p.1, 1).total_cmp(&scaled_mse(&q.1, 1)))
         .context("no training ran")?;
     crate::write_atomically(&a.output.join("best_model.json"), &best_model.to_json())?;
     if a.keep > 0 {
         let mut ranked: Vec<&Model> = results.iter().map(|r| &r.1).collect();
-        ranked.sort_by(|p, q| scaled(p, 1).total_cmp(&scaled(q, 1)));
+        ranked.sort_by(|p, q| scaled_mse(p, 1).total_cmp(&scaled_mse(q, 1)));
         for (k, m) in ranked.iter().take(a.keep).enumerate() {
             let p = a
                 .output
@@ -225,7 +224,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         results.len(),
         archs.len(),
         t0.elapsed().as_secs_f64(),
-        scaled(best_model, 1),
+        scaled_mse(best_model, 1),
         &best_model.net.sizes[1..best_model.net.sizes.len() - 1],
         perf(best_model, 1),
         perf(best_model, 2)

@@ -10,7 +10,8 @@ use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 use visuotact_nn::lm::{Control, LmConfig};
 use visuotact_nn::metrics::target_errors;
 use visuotact_nn::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
-use visuotact_nn::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
+pub(crate) use visuotact_nn::model::is_marker_column;
+use visuotact_nn::model::{unfillable, Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 use visuotact_nn::pca::Projection;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
@@ -163,12 +164,6 @@ impl DataArgs {
     }
 }
 
-/// Is this a per-marker feature column (`m017_dx_px`)?
-pub(crate) fn is_marker_column(c: &str) -> bool {
-    let b = c.as_bytes();
-    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
-}
-
 fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T>> {
     s.split(',')
         .map(|p| {
@@ -312,13 +307,7 @@ pub(crate) fn joined(
         };
         sources.row_into(r, &mut xi);
         let missing = xi.iter().filter(|v| v.is_nan()).count();
-        let fillable = fill
-            && missing as f64 <= visuotact_nn::model::MAX_MISSING_FRACTION * xi.len() as f64
-            && xi
-                .iter()
-                .zip(&names)
-                .all(|(v, n)| !v.is_nan() || is_marker_column(n));
-        if missing > 0 && fillable {
+        if missing > 0 && fill && unfillable(&names, &xi).is_none() {
             filled_frames += 1;
             filled_cells += missing;
         } else if let Some(c) = xi.iter().position(|v| v.is_nan()) {
@@ -409,14 +398,16 @@ pub(crate) fn fit_model(
     let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
     // The components from the complete frames; frames with lost markers get the scores that
     // fit the markers found.
-    let complete: Vec<Vec<f64>> = xs
-        .iter()
-        .filter(|r| r.iter().all(|v| !v.is_nan()))
-        .cloned()
-        .collect();
     let projection = spec
         .components
-        .map(|k| Projection::fit(&complete, k))
+        .map(|k| {
+            let complete: Vec<Vec<f64>> = xs
+                .iter()
+                .filter(|r| r.iter().all(|v| !v.is_nan()))
+                .cloned()
+                .collect();
+            Projection::fit(&complete, k)
+        })
         .transpose()
         .map_err(|e| anyhow::anyhow!("--components: {e}"))?;
     let xs: Vec<Vec<f64>> = match &projection {
@@ -757,11 +748,7 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
         ),
     )?;
     // An ensemble also writes each target's spread (standard deviation over its networks).
-    let spread = !model.members.is_empty();
-    let mut columns = model.target_columns.clone();
-    if spread {
-        columns.extend(model.target_columns.iter().map(|c| format!("{c}_std")));
-    }
+    let columns = model.estimate_columns();
     let width = columns.len();
     let mut out = TableWriter::create(&a.output, TableFormat::Csv, columns)?;
     let (mut written, mut missing, mut filled) = (0, 0, 0);
@@ -769,32 +756,20 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
     for (r, key) in f.keys.iter().enumerate() {
         sources.row_into(r, &mut x);
         // Lost markers are filled by a model on principal components; a missing reading, too
-        // many lost markers or a model without components: no estimate rather than a wrong one.
-        let reading_missing = x
-            .iter()
-            .zip(&model.feature_columns)
-            .any(|(v, c)| v.is_nan() && !is_marker_column(c));
+        // many lost markers or a model without components: no estimate rather than a wrong one,
+        // and the reason in the flags.
         match model.estimate(&x) {
-            Ok(e) if !reading_missing => {
+            Ok(e) => {
                 let note = if e.filled > 0 {
                     filled += 1;
                     format!("filled {} inputs", e.filled)
                 } else {
                     String::new()
                 };
-                let mut row = e.values;
-                if spread {
-                    row.extend(e.spread);
-                }
-                out.write_row(key, &row, &note)?;
+                out.write_row(key, &e.into_row(), &note)?;
                 written += 1;
             }
-            Ok(_) | Err(_) => {
-                let why = if reading_missing {
-                    "missing reading".to_string()
-                } else {
-                    model.estimate(&x).err().unwrap_or_default()
-                };
+            Err(why) => {
                 out.write_row(key, &vec![f64::NAN; width], &why)?;
                 missing += 1;
             }

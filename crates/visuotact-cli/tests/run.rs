@@ -11,32 +11,7 @@ use common::*;
 
 /// A small IATS model: 150 random touches, 351 → 8 → 3.
 fn iats_model(d: &Path) -> PathBuf {
-    let sess = d.join("sess");
-    ok(&vt(&[
-        "simulate",
-        "--sensor",
-        "iats",
-        "--protocol",
-        "random",
-        "--touches",
-        "150",
-        "-o",
-        s(&sess),
-    ]));
-    ok(&vt(&[
-        "calibrate",
-        s(&sess.join("reference")),
-        "-o",
-        s(&d.join("sensor.json")),
-    ]));
-    ok(&vt(&[
-        "extract",
-        "--sensor",
-        s(&d.join("sensor.json")),
-        s(&sess.join("frames")),
-        "-o",
-        s(&d.join("f.csv")),
-    ]));
+    let (sess, _, _) = iats_features(d, "150", "1");
     ok(&vt(&[
         "train",
         "--features",

@@ -311,35 +311,7 @@ fn blank_markers(src: &Path, dst: &Path, rows: std::ops::Range<usize>, markers: 
 
 #[test]
 fn lost_markers_are_filled_from_the_markers_found() {
-    let d = fresh_dir("filling").join("session");
-    ok(&vt(&[
-        "simulate",
-        "--sensor",
-        "iats",
-        "--protocol",
-        "random",
-        "--touches",
-        "120",
-        "--seed",
-        "5",
-        "-o",
-        s(&d),
-    ]));
-    ok(&vt(&[
-        "calibrate",
-        s(&d.join("reference")),
-        "-o",
-        s(&d.join("s.json")),
-    ]));
-    let f = d.join("f.csv");
-    ok(&vt(&[
-        "extract",
-        "--sensor",
-        s(&d.join("s.json")),
-        s(&d.join("frames")),
-        "-o",
-        s(&f),
-    ]));
+    let (d, _, f) = iats_features(&fresh_dir("filling"), "120", "5");
     // Frames 0–19 lose markers 10 and 50 (3 cells each); frame 20 loses 40 markers.
     let lost = d.join("lost.csv");
     blank_markers(&f, &lost, 0..20, &[10, 50]);

@@ -105,176 +105,126 @@ pub fn minimize_br<P: Problem>(
         beta = 1.0;
     }
     let mut fallbacks = 0;
-    let finish =
-        |p: Vec<f64>, iterations, evaluations, mu, reason, fallbacks, evidence: Evidence| {
-            BrOutcome {
-                lm: LmOutcome {
-                    params: p,
-                    cost: evidence.sse,
-                    iterations,
-                    evaluations,
-                    mu,
-                    reason,
-                    lu_fallbacks: fallbacks,
-                },
-                evidence,
+    // Every exit gives why and after how many epochs; the outcome is built once below.
+    let (reason, iterations) = 'run: {
+        if cfg.validate().is_err() {
+            break 'run (StopReason::InvalidConfig, 0);
+        }
+        if !(sse.is_finite() && ssw.is_finite()) {
+            break 'run (StopReason::NonFinite, 0);
+        }
+        let k = if dual { m } else { n };
+        let mut gram = Mat::<f64>::zeros(k, k);
+        let mut solver = DampedSolver::new(k);
+        let ones = vec![1.0; k];
+        for iteration in 0..cfg.max_iterations {
+            let lambda = alpha / beta;
+            let cost = sse + lambda * ssw;
+            if cost == 0.0 {
+                break 'run (StopReason::ZeroResidual, iteration);
             }
-        };
-    let evidence = |alpha, beta, gamma, sse, ssw| Evidence {
-        alpha,
-        beta,
-        gamma,
-        sse,
-        ssw,
-    };
-    if cfg.validate().is_err() {
-        let e = evidence(alpha, beta, gamma, sse, ssw);
-        return finish(p, 0, evaluations, mu, StopReason::InvalidConfig, 0, e);
-    }
-    if !(sse.is_finite() && ssw.is_finite()) {
-        let e = evidence(alpha, beta, gamma, sse, ssw);
-        return finish(p, 0, evaluations, mu, StopReason::NonFinite, 0, e);
-    }
-    let k = if dual { m } else { n };
-    let mut gram = Mat::<f64>::zeros(k, k);
-    let mut solver = DampedSolver::new(k);
-    let ones = vec![1.0; k];
-    for iteration in 0..cfg.max_iterations {
-        let lambda = alpha / beta;
-        let cost = sse + lambda * ssw;
-        if cost == 0.0 {
-            let e = evidence(alpha, beta, gamma, sse, ssw);
-            return finish(
-                p,
-                iteration,
-                evaluations,
-                mu,
-                StopReason::ZeroResidual,
-                fallbacks,
-                e,
-            );
-        }
-        let structured = if dual {
-            problem.dual_jacobian(&p)
-        } else {
-            None
-        };
-        let jac = jacobian_at(problem, &p, &structured, &mut dense);
-        let g = regularised_gradient(&jac, &r, &p, lambda);
-        let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let e = evidence(alpha, beta, gamma, sse, ssw);
-        if !gnorm.is_finite() {
-            return finish(
-                p,
-                iteration,
-                evaluations,
-                mu,
-                StopReason::NonFinite,
-                fallbacks,
-                e,
-            );
-        }
-        if gnorm < cfg.min_grad {
-            return finish(
-                p,
-                iteration,
-                evaluations,
-                mu,
-                StopReason::MinGradient,
-                fallbacks,
-                e,
-            );
-        }
-        jac.gram_lower_into(dual, gram.as_mut());
-        let jg = if dual { jac.times(&g, m) } else { Vec::new() };
-        let mut accepted = false;
-        while mu <= cfg.mu_max {
-            let c = lambda + mu;
-            let step: Option<Vec<f64>> = if dual {
-                solver.solve(&gram, c, &ones, &jg).map(|y| {
-                    let jty = jac.transpose_times(&y);
-                    g.iter().zip(&jty).map(|(gi, ti)| -(gi - ti) / c).collect()
-                })
+            let structured = if dual {
+                problem.dual_jacobian(&p)
             } else {
-                solver
-                    .solve(&gram, c, &ones, &g)
-                    .map(|y| y.iter().map(|v| -v).collect())
+                None
             };
-            fallbacks = solver.fallbacks;
-            let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
+            let jac = jacobian_at(problem, &p, &structured, &mut dense);
+            let g = regularised_gradient(&jac, &r, &p, lambda);
+            let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if !gnorm.is_finite() {
+                break 'run (StopReason::NonFinite, iteration);
+            }
+            if gnorm < cfg.min_grad {
+                break 'run (StopReason::MinGradient, iteration);
+            }
+            jac.gram_lower_into(dual, gram.as_mut());
+            let jg = if dual { jac.times(&g, m) } else { Vec::new() };
+            let mut accepted = false;
+            while mu <= cfg.mu_max {
+                let c = lambda + mu;
+                let step: Option<Vec<f64>> = if dual {
+                    solver.solve(&gram, c, &ones, &jg).map(|y| {
+                        let jty = jac.transpose_times(&y);
+                        g.iter().zip(&jty).map(|(gi, ti)| -(gi - ti) / c).collect()
+                    })
+                } else {
+                    solver
+                        .solve(&gram, c, &ones, &g)
+                        .map(|y| y.iter().map(|v| -v).collect())
+                };
+                fallbacks = solver.fallbacks;
+                let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
+                    mu *= cfg.mu_inc;
+                    continue;
+                };
+                for i in 0..n {
+                    p_new[i] = p[i] + step[i];
+                }
+                problem.residuals(&p_new, &mut r_new);
+                evaluations += 1;
+                let (sse_new, ssw_new) = (sum_sq(&r_new), sum_sq(&p_new));
+                let c_new = sse_new + lambda * ssw_new;
+                if c_new.is_finite() && c_new < cost {
+                    std::mem::swap(&mut p, &mut p_new);
+                    std::mem::swap(&mut r, &mut r_new);
+                    (sse, ssw) = (sse_new, ssw_new);
+                    mu = (mu * cfg.mu_dec).max(1e-300);
+                    accepted = true;
+                    break;
+                }
                 mu *= cfg.mu_inc;
-                continue;
+            }
+            if !accepted {
+                break 'run (StopReason::MuMax, iteration + 1);
+            }
+            // The evidence with this epoch's Gauss–Newton Hessian (as trainbr does).
+            if let Some(tr) = solver.trace_inverse(&gram, lambda) {
+                let g_new = (k as f64 - lambda * tr).clamp(0.0, n.min(m) as f64);
+                // Keep β finite: some residual degrees of freedom always remain.
+                let g_new = g_new.min(m as f64 - 1e-3);
+                if ssw > 0.0 && sse > 0.0 && g_new > 0.0 {
+                    gamma = g_new;
+                    alpha = gamma / (2.0 * ssw);
+                    beta = (m as f64 - gamma) / (2.0 * sse);
+                }
+            }
+            let progress = BrProgress {
+                iteration: iteration + 1,
+                evidence: Evidence {
+                    alpha,
+                    beta,
+                    gamma,
+                    sse,
+                    ssw,
+                },
+                mu,
+                gradient_norm: gnorm,
+                params: &p,
             };
-            for i in 0..n {
-                p_new[i] = p[i] + step[i];
-            }
-            problem.residuals(&p_new, &mut r_new);
-            evaluations += 1;
-            let (sse_new, ssw_new) = (sum_sq(&r_new), sum_sq(&p_new));
-            let c_new = sse_new + lambda * ssw_new;
-            if c_new.is_finite() && c_new < cost {
-                std::mem::swap(&mut p, &mut p_new);
-                std::mem::swap(&mut r, &mut r_new);
-                (sse, ssw) = (sse_new, ssw_new);
-                mu = (mu * cfg.mu_dec).max(1e-300);
-                accepted = true;
-                break;
-            }
-            mu *= cfg.mu_inc;
-        }
-        if !accepted {
-            let e = evidence(alpha, beta, gamma, sse, ssw);
-            return finish(
-                p,
-                iteration + 1,
-                evaluations,
-                mu,
-                StopReason::MuMax,
-                fallbacks,
-                e,
-            );
-        }
-        // The evidence with this epoch's Gauss–Newton Hessian (as trainbr does).
-        if let Some(tr) = solver.trace_inverse(&gram, lambda) {
-            let g_new = (k as f64 - lambda * tr).clamp(0.0, n.min(m) as f64);
-            // Keep β finite: some residual degrees of freedom always remain.
-            let g_new = g_new.min(m as f64 - 1e-3);
-            if ssw > 0.0 && sse > 0.0 && g_new > 0.0 {
-                gamma = g_new;
-                alpha = gamma / (2.0 * ssw);
-                beta = (m as f64 - gamma) / (2.0 * sse);
+            if callback(&progress) == Control::Stop {
+                break 'run (StopReason::Callback, iteration + 1);
             }
         }
-        let progress = BrProgress {
-            iteration: iteration + 1,
-            evidence: evidence(alpha, beta, gamma, sse, ssw),
+        (StopReason::MaxIterations, cfg.max_iterations)
+    };
+    BrOutcome {
+        lm: LmOutcome {
+            params: p,
+            cost: sse,
+            iterations,
+            evaluations,
             mu,
-            gradient_norm: gnorm,
-            params: &p,
-        };
-        if callback(&progress) == Control::Stop {
-            let e = progress.evidence;
-            return finish(
-                p,
-                iteration + 1,
-                evaluations,
-                mu,
-                StopReason::Callback,
-                fallbacks,
-                e,
-            );
-        }
+            reason,
+            lu_fallbacks: fallbacks,
+        },
+        evidence: Evidence {
+            alpha,
+            beta,
+            gamma,
+            sse,
+            ssw,
+        },
     }
-    let e = evidence(alpha, beta, gamma, sse, ssw);
-    finish(
-        p,
-        cfg.max_iterations,
-        evaluations,
-        mu,
-        StopReason::MaxIterations,
-        fallbacks,
-        e,
-    )
 }
 
 #[cfg(test)]

@@ -54,6 +54,8 @@ pub(crate) struct DampedSolver {
     par: faer::Par,
     /// Systems solved by the LU fallback.
     pub(crate) fallbacks: usize,
+    /// `L⁻¹` for [`DampedSolver::trace_inverse`], made on first use and reused.
+    inverse: Option<Mat<f64>>,
 }
 
 impl DampedSolver {
@@ -68,6 +70,7 @@ impl DampedSolver {
             )),
             par,
             fallbacks: 0,
+            inverse: None,
         }
     }
 
@@ -114,9 +117,7 @@ impl DampedSolver {
         let y: Vec<f64> = (0..k).map(|i| y[(i, 0)]).collect();
         y.iter().all(|v| v.is_finite()).then_some(y)
     }
-}
 
-impl DampedSolver {
     /// `tr((G + shift·I)⁻¹)` for a symmetric `G` given by its lower triangle, from its Cholesky
     /// factor `L` as `‖L⁻¹‖²_F`; `None` when the shifted matrix is not positive definite.
     pub(crate) fn trace_inverse(&mut self, gram: &Mat<f64>, shift: f64) -> Option<f64> {
@@ -133,7 +134,11 @@ impl DampedSolver {
             Default::default(),
         )
         .ok()?;
-        let mut inv = Mat::<f64>::identity(k, k);
+        let inv = self.inverse.get_or_insert_with(|| Mat::<f64>::zeros(k, k));
+        inv.fill(0.0);
+        for i in 0..k {
+            inv[(i, i)] = 1.0;
+        }
         faer::linalg::triangular_solve::solve_lower_triangular_in_place(
             self.factor.as_ref(),
             inv.as_mut(),

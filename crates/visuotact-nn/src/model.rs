@@ -88,16 +88,48 @@ pub struct Model {
     pub sensor: Option<serde_json::Value>,
 }
 
+/// Whether a feature column is a marker's (`m017_dx_px`): a lost marker can be filled from the
+/// markers found, another input (a gauge's reading) cannot.
+pub fn is_marker_column(c: &str) -> bool {
+    let b = c.as_bytes();
+    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
+}
+
+/// Why a row of `columns` with missing (NaN) inputs cannot be filled — a missing input that is
+/// not a marker's, or over [`MAX_MISSING_FRACTION`] of the inputs missing — or `None` when it
+/// can (or nothing is missing). Training and estimation apply the same rule.
+pub fn unfillable(columns: &[String], row: &[f64]) -> Option<String> {
+    if let Some((c, _)) = columns
+        .iter()
+        .zip(row)
+        .find(|(c, v)| v.is_nan() && !is_marker_column(c))
+    {
+        return Some(format!("`{c}`: missing reading"));
+    }
+    let missing = row.iter().filter(|v| v.is_nan()).count();
+    (missing as f64 > MAX_MISSING_FRACTION * row.len() as f64).then(|| {
+        format!(
+            "{missing} of {} inputs missing (over a quarter): too few markers found",
+            row.len()
+        )
+    })
+}
+
+impl Estimate {
+    /// The values, then the spread (the columns of [`Model::estimate_columns`]).
+    pub fn into_row(self) -> Vec<f64> {
+        let mut row = self.values;
+        row.extend(self.spread);
+        row
+    }
+}
+
 impl Model {
     /// Estimates targets (original units) from one row of features (original units): the
-    /// ensemble's mean.
+    /// ensemble's mean, lost markers filled as [`Model::estimate`] does; NaN when it refuses.
     pub fn predict(&self, features: &[f64]) -> Vec<f64> {
-        let x = self.input_scaling.apply(features);
-        let x = match &self.projection {
-            Some(p) => p.apply(&x),
-            None => x,
-        };
-        self.outputs_of(&x).0
+        self.estimate(features)
+            .map_or_else(|_| vec![f64::NAN; self.target_columns.len()], |e| e.values)
     }
 
     /// Every network of the model, the first one first.
@@ -105,70 +137,70 @@ impl Model {
         std::iter::once(&self.net).chain(&self.members)
     }
 
-    /// Mean and standard deviation (empty for one network) over the networks, in target
-    /// units, for network inputs `x`.
-    fn outputs_of(&self, x: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let outs: Vec<Vec<f64>> = self
+    /// The columns of [`Estimate::into_row`]: the targets, then for an ensemble each target's
+    /// spread (`<target>_std`).
+    pub fn estimate_columns(&self) -> Vec<String> {
+        let mut c = self.target_columns.clone();
+        if !self.members.is_empty() {
+            c.extend(self.target_columns.iter().map(|t| format!("{t}_std")));
+        }
+        c
+    }
+
+    /// Every network's estimate (target units) from a row that may have missing (NaN) inputs,
+    /// and how many were filled. The inputs are scaled and projected once for all networks. A
+    /// model with a principal-component projection fills lost markers: the scores are fitted
+    /// to the inputs present ([`crate::pca::Projection::apply_partial`]). Refused, with the
+    /// reason, when [`unfillable`] says so or the model has no projection.
+    pub fn estimate_each(&self, features: &[f64]) -> Result<(Vec<Vec<f64>>, usize), String> {
+        let missing = features.iter().filter(|v| v.is_nan()).count();
+        if missing > 0 {
+            if let Some(why) = unfillable(&self.feature_columns, features) {
+                return Err(why);
+            }
+            if self.projection.is_none() {
+                return Err(format!(
+                    "{missing} inputs missing and the model has no principal components to fill them (train with --components)"
+                ));
+            }
+        }
+        let x = self.input_scaling.apply(features);
+        let z = match &self.projection {
+            Some(p) => p
+                .apply_partial(&x)
+                .ok_or_else(|| format!("{missing} inputs missing: too few left to fill them"))?,
+            None => x,
+        };
+        let outs = self
             .networks()
-            .map(|n| self.target_scaling.invert(&n.forward(x)))
+            .map(|n| self.target_scaling.invert(&n.forward(&z)))
             .collect();
+        Ok((outs, missing))
+    }
+
+    /// The ensemble's mean and standard deviation (empty for one network) from a row that may
+    /// miss inputs, as [`Model::estimate_each`].
+    pub fn estimate(&self, features: &[f64]) -> Result<Estimate, String> {
+        let (outs, filled) = self.estimate_each(features)?;
         let k = outs.len() as f64;
         let width = outs[0].len();
-        let mean: Vec<f64> = (0..width)
+        let values: Vec<f64> = (0..width)
             .map(|j| outs.iter().map(|o| o[j]).sum::<f64>() / k)
             .collect();
-        let std = if outs.len() > 1 {
+        let spread = if outs.len() > 1 {
             (0..width)
                 .map(|j| {
-                    let v = outs.iter().map(|o| (o[j] - mean[j]).powi(2)).sum::<f64>() / (k - 1.0);
-                    v.sqrt()
+                    let v = outs.iter().map(|o| (o[j] - values[j]).powi(2)).sum::<f64>();
+                    (v / (k - 1.0)).sqrt()
                 })
                 .collect()
         } else {
             Vec::new()
         };
-        (mean, std)
-    }
-
-    /// Estimates targets from a row that may have missing (NaN) inputs — lost markers. A model
-    /// with a principal-component projection fills them: the scores are fitted to the inputs
-    /// present ([`crate::pca::Projection::apply_partial`]). Refused, with the reason, when over
-    /// [`MAX_MISSING_FRACTION`] of the inputs are missing or the model has no projection.
-    pub fn estimate(&self, features: &[f64]) -> Result<Estimate, String> {
-        let missing = features.iter().filter(|v| v.is_nan()).count();
-        if missing == 0 {
-            let x = self.input_scaling.apply(features);
-            let x = match &self.projection {
-                Some(p) => p.apply(&x),
-                None => x,
-            };
-            let (values, spread) = self.outputs_of(&x);
-            return Ok(Estimate {
-                values,
-                spread,
-                filled: 0,
-            });
-        }
-        if missing as f64 > MAX_MISSING_FRACTION * features.len() as f64 {
-            return Err(format!(
-                "{missing} of {} inputs missing (over a quarter): too few markers found",
-                features.len()
-            ));
-        }
-        let Some(p) = &self.projection else {
-            return Err(format!(
-                "{missing} inputs missing and the model has no principal components to fill them (train with --components)"
-            ));
-        };
-        let x = self.input_scaling.apply(features);
-        let z = p
-            .apply_partial(&x)
-            .ok_or_else(|| format!("{missing} inputs missing: too few left to fill them"))?;
-        let (values, spread) = self.outputs_of(&z);
         Ok(Estimate {
             values,
             spread,
-            filled: missing,
+            filled,
         })
     }
 

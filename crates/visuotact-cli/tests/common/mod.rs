@@ -42,3 +42,42 @@ pub fn fresh_dir(name: &str) -> PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+/// Seed 000's simulated membrane under `touches` random touches (session seed `seed`) in
+/// `dir/session`, calibrated into `dir/sensor.json` and extracted into `dir/f.csv`, all with
+/// the defaults; returns (session, sensor file, feature table).
+pub fn iats_features(dir: &Path, touches: &str, seed: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let (session, sensor, features) = (
+        dir.join("session"),
+        dir.join("sensor.json"),
+        dir.join("f.csv"),
+    );
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        touches,
+        "--seed",
+        seed,
+        "-o",
+        s(&session),
+    ]));
+    ok(&vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "-o",
+        s(&sensor),
+    ]));
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&session.join("frames")),
+        "-o",
+        s(&features),
+    ]));
+    (session, sensor, features)
+}
