@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""Marker tracking on the real GelSight Mini videos, visuotact beside the OpenCV peer.
+
+There is no ground truth for real frames; the reference is the vendor tracker's own per-frame
+positions (`marker_locations_N.csv`: frame, row, col, Ox, Oy, Cx, Cy in pixels, frame 1
+being the video's first frame). Each tracker's markers are paired with the vendor's markers
+nearest at the first frame (within half the pitch); per frame and paired marker the tracker
+either reports a position or not, and a reported one is compared with the vendor's.
+
+- visuotact: `calibrate VIDEO --first 5 --keep-border` and `extract` with its defaults (the
+  driver, scripts/peers-tracking-real, runs them); a marker is reported when its cells are filled;
+- peer NN: the OpenCV peer's blobs (../shared/peers/opencv_pipeline.py `process` on the inverted
+  frame: dark markers) of the first frame are the markers, each taking the nearest blob within
+  half a pitch in every frame (scripts/peers_tracking.py's rule).
+
+Usage: peers_tracking_real.py SHARED_PEERS VIDEO MARKERS_CSV SENSOR_JSON FEATURES_CSV
+Prints one Markdown row per tracker.
+"""
+import csv
+import json
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from peers_tracking import pitch_of, read_rows  # noqa: E402
+
+
+def vendor_positions(path):
+    frames = {}
+    for line in open(path):
+        f, row, col, _ox, _oy, cx, cy = (float(v) for v in line.split(","))
+        f, row, col = int(f), int(row), int(col)
+        frames.setdefault(f - 1, {})[(row, col)] = (cx, cy)
+    keys = sorted(frames[0])
+    return keys, {f: np.array([d.get(k, (np.nan, np.nan)) for k in keys], float)
+                  for f, d in frames.items()}
+
+
+def score(name, ref_xy, tracks, keys, vendor):
+    pitch = pitch_of(vendor[0])
+    d = np.hypot(ref_xy[:, None, 0] - vendor[0][None, :, 0], ref_xy[:, None, 1] - vendor[0][None, :, 1])
+    near = d.argmin(axis=0)
+    paired = d[near, np.arange(len(keys))] < 0.5 * pitch
+    seen = reported = 0
+    dist = []
+    for f, v in vendor.items():
+        if f not in tracks:
+            continue
+        for j in np.flatnonzero(paired):
+            if np.isnan(v[j, 0]):
+                continue
+            seen += 1
+            p = tracks[f][near[j]]
+            if np.isnan(p[0]):
+                continue
+            reported += 1
+            dist.append(np.hypot(*(p - v[j])))
+    dist = np.array(dist)
+    return (f"| {name} | {int(paired.sum())}/{len(keys)} | {seen} | {reported} ({100 * reported / max(seen, 1):.1f} %) "
+            f"| {dist.mean():.2f} | {np.percentile(dist, 95):.2f} | {int((dist > 3).sum())} |")
+
+
+def main():
+    peers, video, markers, sensor, features = sys.argv[1:6]
+    sys.path.insert(0, peers)
+    import cv2
+    import opencv_pipeline as op
+    cv2.setNumThreads(1)
+    keys, vendor = vendor_positions(markers)
+    # visuotact: positions are the sensor file's markers plus the displacements.
+    cal = json.load(open(sensor))
+    ref = np.array([(m["x_px"], m["y_px"]) for m in cal["markers"]])
+    vt = {}
+    for r in read_rows(features):
+        f = int(r["frame"].split("#")[-1])
+        p = np.full((len(ref), 2), np.nan)
+        for k in range(len(ref)):
+            dx, dy = r.get(f"m{k:03d}_dx_px", ""), r.get(f"m{k:03d}_dy_px", "")
+            if dx != "" and dy != "":
+                p[k] = ref[k] + (float(dx), float(dy))
+        vt[f] = p
+    # The peer: blobs of every frame, nearest-blob tracking from the first frame's blobs.
+    cap = cv2.VideoCapture(video)
+    blobs = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        _, stats, cents, _ = op.process(255 - img, "tactile")
+        blobs.append(cents[stats[:, 4] >= 5])
+    peer_ref = blobs[0]
+    pitch = pitch_of(peer_ref)
+    peer = {}
+    for f, b in enumerate(blobs):
+        d = np.hypot(peer_ref[:, None, 0] - b[None, :, 0], peer_ref[:, None, 1] - b[None, :, 1])
+        j = d.argmin(axis=1)
+        ok = d[np.arange(len(peer_ref)), j] < 0.5 * pitch
+        p = np.full((len(peer_ref), 2), np.nan)
+        p[ok] = b[j[ok]]
+        peer[f] = p
+    print(score(f"visuotact ({os.path.basename(video)})", ref, vt, keys, vendor))
+    print(score(f"peer NN ({os.path.basename(video)})", peer_ref, peer, keys, vendor))
+
+
+if __name__ == "__main__":
+    main()
