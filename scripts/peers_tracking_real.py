@@ -14,6 +14,11 @@ either reports a position or not, and a reported one is compared with the vendor
   half a pitch in every frame (scripts/peers_tracking.py's rule).
 
 Usage: peers_tracking_real.py SHARED_PEERS VIDEO MARKERS_CSV SENSOR_JSON FEATURES_CSV
+The vendor's positions are not truth: in some frames of video 5 they repeat the previous
+frame's exactly while the gel moves (its tracker held stale positions), and the videos carry
+that tracker's drawing (red arrows, dark in luma, across the markers). The last three columns
+count those frames and score without them.
+
 Prints one Markdown row per tracker.
 """
 import csv
@@ -38,6 +43,15 @@ def vendor_positions(path):
                   for f, d in frames.items()}
 
 
+def frozen_frames(vendor):
+    """Frames where the vendor's positions repeat the previous frame's exactly while the gel is
+    displaced (over 1 px from the first frame): its tracker held stale positions there."""
+    fs = sorted(vendor)
+    return {b for a, b in zip(fs, fs[1:])
+            if np.nanmax(np.abs(vendor[b] - vendor[a])) == 0
+            and np.nanmax(np.abs(vendor[b] - vendor[fs[0]])) > 1}
+
+
 def score(name, ref_xy, tracks, keys, vendor):
     pitch = pitch_of(vendor[0])
     d = np.hypot(ref_xy[:, None, 0] - vendor[0][None, :, 0], ref_xy[:, None, 1] - vendor[0][None, :, 1])
@@ -45,6 +59,8 @@ def score(name, ref_xy, tracks, keys, vendor):
     paired = d[near, np.arange(len(keys))] < 0.5 * pitch
     seen = reported = 0
     dist = []
+    live = []
+    frozen = frozen_frames(vendor)
     for f, v in vendor.items():
         if f not in tracks:
             continue
@@ -57,9 +73,13 @@ def score(name, ref_xy, tracks, keys, vendor):
                 continue
             reported += 1
             dist.append(np.hypot(*(p - v[j])))
+            if f not in frozen:
+                live.append(dist[-1])
     dist = np.array(dist)
+    live = np.array(live)
     return (f"| {name} | {int(paired.sum())}/{len(keys)} | {seen} | {reported} ({100 * reported / max(seen, 1):.1f} %) "
-            f"| {dist.mean():.2f} | {np.percentile(dist, 95):.2f} | {int((dist > 3).sum())} |")
+            f"| {dist.mean():.2f} | {np.percentile(dist, 95):.2f} | {int((dist > 3).sum())} "
+            f"| {len(frozen)} | {live.mean():.2f} | {int((live > 10).sum())} |")
 
 
 def main():

@@ -535,16 +535,14 @@ fn label_pass(
             }
             if weighted {
                 let (a, b) = (r.x0 as usize, r.x1 as usize);
-                let (mut sw, mut swx) = (0.0f64, 0.0f64);
-                for (i, &v) in row[a..=b].iter().enumerate() {
-                    let t = match level {
-                        Level::Scalar(t) => f32::from(t),
-                        Level::PerPixel(l) => l[y * w + rx0 + a + i],
-                    };
-                    let wt = f64::from(f32::from(v) - t).max(0.0);
-                    sw += wt;
-                    swx += wt * (rx0 + a + i) as f64;
-                }
+                // Every pixel of a run exceeds its level, so the weights v − t are positive.
+                let (sw, swx) = match level {
+                    Level::Scalar(t) => run_weights_scalar(&row[a..=b], t, (rx0 + a) as f64),
+                    Level::PerPixel(l) => {
+                        let at = y * w + rx0;
+                        run_weights_levels(&row[a..=b], &l[at + a..=at + b], (rx0 + a) as f64)
+                    }
+                };
                 let acc = &mut s.wacc[label as usize];
                 acc[0] += sw;
                 acc[1] += swx;
@@ -583,6 +581,39 @@ fn label_pass(
             out.push(b);
         }
     }
+}
+
+/// `(Σ (v − t), Σ (v − t)·x)` over one run of pixels `v > t` starting at column `x0`: exact
+/// integer sums of `v` and `v·i` (`i` the offset in the run), combined once.
+fn run_weights_scalar(run: &[u8], t: u8, x0: f64) -> (f64, f64) {
+    let (mut sv, mut svi) = (0u64, 0u64);
+    // Blocks of 4 096 keep the per-block sums within u32 (255 · 4 096² / 2 < 2³²).
+    for (k, block) in run.chunks(4096).enumerate() {
+        let (mut bv, mut bvi) = (0u32, 0u32);
+        for (i, &v) in block.iter().enumerate() {
+            bv += u32::from(v);
+            bvi += u32::from(v) * i as u32;
+        }
+        sv += u64::from(bv);
+        svi += u64::from(bvi) + u64::from(bv) * (4096 * k) as u64;
+    }
+    let n = run.len() as f64;
+    let (t, sv, svi) = (f64::from(t), sv as f64, svi as f64);
+    let sw = sv - n * t;
+    // Σ (v − t)·(x0 + i) = x0·Σ(v − t) + Σ v·i − t·Σ i.
+    let sum_i = n * (n - 1.0) / 2.0;
+    (sw, x0 * sw + svi - t * sum_i)
+}
+
+/// [`run_weights_scalar`] with a level per pixel (`levels[i]` for `run[i]`).
+fn run_weights_levels(run: &[u8], levels: &[f32], x0: f64) -> (f64, f64) {
+    let (mut sw, mut swi) = (0.0f64, 0.0f64);
+    for (i, (&v, &t)) in run.iter().zip(levels).enumerate() {
+        let wt = f64::from((f32::from(v) - t).max(0.0));
+        sw += wt;
+        swi += wt * i as f64;
+    }
+    (sw, x0 * sw + swi)
 }
 
 /// Allocating form of [`blobs_from_gray_into`] on the whole image.
@@ -677,6 +708,28 @@ pub fn blobs_reference(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn run_weights_equal_the_pixel_sums() {
+        // Runs longer than one 4 096-pixel block included.
+        for len in [1usize, 5, 64, 4095, 4096, 4097, 9000] {
+            let run: Vec<u8> = (0..len).map(|i| 101 + (i * 37 % 155) as u8).collect();
+            let x0 = 17.0;
+            let (mut sw, mut swx) = (0.0f64, 0.0f64);
+            for (i, &v) in run.iter().enumerate() {
+                let w = f64::from(v) - 100.0;
+                sw += w;
+                swx += w * (x0 + i as f64);
+            }
+            let (a, b) = super::run_weights_scalar(&run, 100, x0);
+            assert_eq!(a, sw, "len {len}");
+            assert!((b - swx).abs() <= 1e-9 * swx, "len {len}: {b} vs {swx}");
+            let levels = vec![100.0f32; len];
+            let (c, d) = super::run_weights_levels(&run, &levels, x0);
+            assert_eq!(c, sw, "len {len}");
+            assert!((d - swx).abs() <= 1e-9 * swx, "len {len}: {d} vs {swx}");
+        }
+    }
 
     fn blobs_in(img: &GrayImage, region: Region) -> Vec<Blob> {
         let mut out = Vec::new();

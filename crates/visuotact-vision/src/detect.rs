@@ -114,8 +114,8 @@ pub struct Detector {
     hist: Option<[u32; 256]>,
     /// Blobs of the last frame dropped only because they touch the border.
     cut: Vec<Blob>,
-    /// Background ring values for the grey-level centroid.
-    ring: Vec<f32>,
+    /// Background ring columns for the grey-level centroid.
+    ring: Vec<u8>,
 }
 
 impl Detector {
@@ -275,9 +275,94 @@ impl Detector {
     }
 }
 
+/// The background ring of a grey-level centroid window: its four sides in window-centred
+/// coordinates (`top` at `y = −ym`, `bottom` at `ym`, both from `x = −xm`; `left` at
+/// `x = −xm`, `right` at `xm`, both from `y = 1 − ym`).
+struct RingSides<'a> {
+    top: &'a [u8],
+    bottom: &'a [u8],
+    left: &'a [u8],
+    right: &'a [u8],
+    xm: f32,
+    ym: f32,
+}
+
+/// One side's values and where the plane's level along it starts and how it steps.
+type Side<'a> = (&'a [u8], f32, f32);
+
+impl RingSides<'_> {
+    /// Background plane `v = mid + sx·x + sy·y`: the mean level and the slopes from the means
+    /// of opposite sides. Ring pixels over 3 RMS (at least 1.5 grey levels) from it, such as a
+    /// neighbour's edge, are dropped and the plane taken again; `None` when a side is empty.
+    fn plane(&self) -> Option<(f32, f32, f32)> {
+        let mean = |v: &[u8]| -> Option<f32> {
+            let sum: u32 = v.iter().map(|&x| u32::from(x)).sum();
+            (!v.is_empty()).then(|| sum as f32 / v.len() as f32)
+        };
+        let first = self.plane_of_means([
+            mean(self.top)?,
+            mean(self.bottom)?,
+            mean(self.left)?,
+            mean(self.right)?,
+        ]);
+        let sides = self.sides(first);
+        // Residuals against the plane: RMS and the worst.
+        let (mut sq, mut worst, mut n) = (0.0f32, 0.0f32, 0usize);
+        for &(vals, start, step) in &sides {
+            for (i, &v) in vals.iter().enumerate() {
+                let r = (f32::from(v) - start - step * i as f32).abs();
+                sq += r * r;
+                worst = worst.max(r);
+            }
+            n += vals.len();
+        }
+        let cut = 3.0 * (sq / n as f32).sqrt().max(0.5);
+        if worst <= cut {
+            return Some(first);
+        }
+        let kept_mean = |&(vals, start, step): &Side<'_>| -> Option<f32> {
+            let (mut sum, mut k) = (0.0f32, 0.0f32);
+            for (i, &v) in vals.iter().enumerate() {
+                let v = f32::from(v);
+                if (v - start - step * i as f32).abs() <= cut {
+                    sum += v;
+                    k += 1.0;
+                }
+            }
+            (k > 0.0).then(|| sum / k)
+        };
+        Some(self.plane_of_means([
+            kept_mean(&sides[0])?,
+            kept_mean(&sides[1])?,
+            kept_mean(&sides[2])?,
+            kept_mean(&sides[3])?,
+        ]))
+    }
+
+    /// The plane from the means of the top, bottom, left and right sides.
+    fn plane_of_means(&self, [t, bo, l, r]: [f32; 4]) -> (f32, f32, f32) {
+        (
+            0.25 * (t + bo + l + r),
+            (r - l) / (2.0 * self.xm),
+            (bo - t) / (2.0 * self.ym),
+        )
+    }
+
+    /// Each side with the plane's level at its first pixel and its step per pixel.
+    fn sides(&self, (mid, sx, sy): (f32, f32, f32)) -> [Side<'_>; 4] {
+        let (xm, ym) = (self.xm, self.ym);
+        [
+            (self.top, mid - sx * xm - sy * ym, sx),
+            (self.bottom, mid - sx * xm + sy * ym, sx),
+            (self.left, mid - sx * xm + sy * (1.0 - ym), sy),
+            (self.right, mid + sx * xm + sy * (1.0 - ym), sy),
+        ]
+    }
+}
+
 /// Replaces each blob's centroid by its grey-level centroid ([`Centroid::Grey`]) measured on
 /// `gray`; `ring` is scratch.
-fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<f32>) {
+fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
     let (width, height) = (gray.width(), gray.height());
     for b in blobs.iter_mut() {
         // Annuli and other hollow shapes (under half their box) keep the weighted centroid.
@@ -300,67 +385,19 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<f32>) {
         // The ring: top row, bottom row, left column, right column (between the rows).
         let (xm, ym) = (0.5 * (nw - 1) as f32, 0.5 * (nh - 1) as f32);
         ring.clear();
-        ring.extend(gray.row(y0)[x0..x1].iter().map(|&v| f32::from(v)));
-        ring.extend(gray.row(y1 - 1)[x0..x1].iter().map(|&v| f32::from(v)));
-        ring.extend((y0 + 1..y1 - 1).map(|y| f32::from(gray.row(y)[x0])));
-        ring.extend((y0 + 1..y1 - 1).map(|y| f32::from(gray.row(y)[x1 - 1])));
-        let (top, rest) = ring.split_at(nw);
-        let (bottom, rest) = rest.split_at(nw);
-        let (left, right) = rest.split_at(nh - 2);
-        // Background plane v = mid + sx·x + sy·y (window-centred coordinates): the mean level
-        // and the slopes from the means of opposite sides. Ring pixels over 3 RMS from it (a
-        // neighbour's edge) are dropped and the plane taken again.
-        let plane = |cut: Option<(f32, f32, f32, f32)>| -> Option<(f32, f32, f32)> {
-            let keep = |v: f32, x: f32, y: f32| {
-                cut.is_none_or(|(m, sx, sy, c)| (v - m - sx * x - sy * y).abs() <= c)
-            };
-            // The mean of one side: values at (x, y) + i·(dx, dy).
-            let side = |vals: &[f32], (x, y): (f32, f32), (dx, dy): (f32, f32)| -> Option<f32> {
-                let (mut s, mut n) = (0.0f32, 0.0f32);
-                for (i, &v) in vals.iter().enumerate() {
-                    if keep(v, x + i as f32 * dx, y + i as f32 * dy) {
-                        s += v;
-                        n += 1.0;
-                    }
-                }
-                (n > 0.0).then(|| s / n)
-            };
-            let t = side(top, (-xm, -ym), (1.0, 0.0))?;
-            let bo = side(bottom, (-xm, ym), (1.0, 0.0))?;
-            let l = side(left, (-xm, 1.0 - ym), (0.0, 1.0))?;
-            let r = side(right, (xm, 1.0 - ym), (0.0, 1.0))?;
-            Some((
-                0.25 * (t + bo + l + r),
-                (r - l) / (2.0 * xm),
-                (bo - t) / (2.0 * ym),
-            ))
+        ring.extend((y0 + 1..y1 - 1).map(|y| gray.row(y)[x0]));
+        ring.extend((y0 + 1..y1 - 1).map(|y| gray.row(y)[x1 - 1]));
+        let (left, right) = ring.split_at(nh - 2);
+        let sides = RingSides {
+            top: &gray.row(y0)[x0..x1],
+            bottom: &gray.row(y1 - 1)[x0..x1],
+            left,
+            right,
+            xm,
+            ym,
         };
-        let Some((mid, sxp, syp)) = plane(None) else {
+        let Some((mid, sxp, syp)) = sides.plane() else {
             continue;
-        };
-        // Residuals of the ring against the plane: RMS and the worst.
-        let (mut sq, mut worst) = (0.0f32, 0.0f32);
-        let mut add = |v: f32, x: f32, y: f32| {
-            let r = (v - mid - sxp * x - syp * y).abs();
-            sq += r * r;
-            worst = worst.max(r);
-        };
-        for (i, (&t, &bo)) in top.iter().zip(bottom).enumerate() {
-            add(t, i as f32 - xm, -ym);
-            add(bo, i as f32 - xm, ym);
-        }
-        for (i, (&l, &r)) in left.iter().zip(right).enumerate() {
-            add(l, -xm, (i + 1) as f32 - ym);
-            add(r, xm, (i + 1) as f32 - ym);
-        }
-        let cut = 3.0 * (sq / ring.len() as f32).sqrt().max(0.5);
-        let (mid, sxp, syp) = if worst > cut {
-            match plane(Some((mid, sxp, syp, cut))) {
-                Some(p) => p,
-                None => continue,
-            }
-        } else {
-            (mid, sxp, syp)
         };
         // Weights inside the blob's moment ellipse (semi-axes 2·sqrt(λ)) grown by one pixel,
         // q(dx, dy) ≤ 1 for its quadratic form q; coordinates relative to the centroid.
@@ -384,51 +421,22 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<f32>) {
         let (mut sw, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
         for y in by0 - 1..by1 + 1 {
             let dy = (y as f64 - cy) as f32;
-            let (bq, cq) = (2.0 * q12 * dy, q22 * dy * dy - 1.0);
-            let base = p0 + syp * dy;
-            let weight = |v: u8, dx: f32| -> f32 {
-                let inside = (q11 * dx + bq) * dx + cq <= 0.0;
-                let w = (f32::from(v) - base - sxp * dx).max(0.0);
-                if inside {
-                    w
-                } else {
-                    0.0
-                }
-            };
-            // Four independent accumulators (registers, not memory) per sum.
-            let (mut w0, mut w1, mut w2, mut w3) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-            let (mut x0s, mut x1s, mut x2s, mut x3s) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-            let row = &gray.row(y)[xa..xb];
-            let quads = row.chunks_exact(4);
-            let tail = quads.remainder();
-            let mut dx = dx0;
-            for q in quads {
-                let (a, b, c, d) = (
-                    weight(q[0], dx),
-                    weight(q[1], dx + 1.0),
-                    weight(q[2], dx + 2.0),
-                    weight(q[3], dx + 3.0),
-                );
-                w0 += a;
-                w1 += b;
-                w2 += c;
-                w3 += d;
-                x0s += a * dx;
-                x1s += b * (dx + 1.0);
-                x2s += c * (dx + 2.0);
-                x3s += d * (dx + 3.0);
-                dx += 4.0;
-            }
-            for &v in tail {
-                let a = weight(v, dx);
-                w0 += a;
-                x0s += a * dx;
-                dx += 1.0;
-            }
-            let rw = (w0 + w1) + (w2 + w3);
-            sw += f64::from(rw);
-            sx += f64::from((x0s + x1s) + (x2s + x3s));
-            sy += f64::from(rw) * f64::from(dy);
+            let mut sums = [0.0f32; 2];
+            crate::kernels::ellipse_row_sums(
+                &gray.row(y)[xa..xb],
+                crate::kernels::RowEllipse {
+                    dx0,
+                    q11,
+                    bq: 2.0 * q12 * dy,
+                    cq: q22 * dy * dy - 1.0,
+                    base: p0 + syp * dy,
+                    slope: sxp,
+                },
+                &mut sums,
+            );
+            sw += f64::from(sums[0]);
+            sx += f64::from(sums[1]);
+            sy += f64::from(sums[0]) * f64::from(dy);
         }
         if sw > 0.0 {
             (b.x_px, b.y_px) = (cx + sx / sw, cy + sy / sw);

@@ -273,6 +273,61 @@ dispatch! {
     }
 }
 
+/// The ellipse and background plane of one row for [`ellipse_row_sums`]: a pixel at offset
+/// `dx` from the centroid is inside when `(q11·dx + bq)·dx + cq ≤ 0`, and weighs
+/// `max(v − base − slope·dx, 0)`.
+#[derive(Clone, Copy, Debug)]
+pub struct RowEllipse {
+    /// `dx` of the row's first pixel.
+    pub dx0: f32,
+    /// Quadratic coefficient of the ellipse test.
+    pub q11: f32,
+    /// Linear coefficient of the ellipse test (this row's `2·q12·dy`).
+    pub bq: f32,
+    /// Constant of the ellipse test (this row's `q22·dy² − 1`).
+    pub cq: f32,
+    /// Background level at `dx = 0`.
+    pub base: f32,
+    /// Background slope along the row.
+    pub slope: f32,
+}
+
+dispatch! {
+    /// Sums of the weights and of weight × dx over one row of a grey-level centroid window:
+    /// `out = [Σ w, Σ w·dx]` (eight lanes, then a scalar tail).
+    pub fn ellipse_row_sums(row: &[u8], e: RowEllipse, out: &mut [f32; 2]) {
+        const LANE: [f32; 8] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
+        let weight = |v: u8, dx: f32| -> f32 {
+            let w = (f32::from(v) - e.base - e.slope * dx).max(0.0);
+            if (e.q11 * dx + e.bq) * dx + e.cq <= 0.0 {
+                w
+            } else {
+                0.0
+            }
+        };
+        let (mut sw, mut sx) = ([0.0f32; 8], [0.0f32; 8]);
+        let mut eights = row.chunks_exact(8);
+        let mut start = e.dx0;
+        for c in &mut eights {
+            for i in 0..8 {
+                let dx = start + LANE[i];
+                let w = weight(c[i], dx);
+                sw[i] += w;
+                sx[i] += w * dx;
+            }
+            start += 8.0;
+        }
+        for (i, &v) in eights.remainder().iter().enumerate() {
+            let dx = start + LANE[i];
+            let w = weight(v, dx);
+            sw[i] += w;
+            sx[i] += w * dx;
+        }
+        let sum = |a: [f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+        *out = [sum(sw), sum(sx)];
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -310,6 +365,41 @@ mod tests {
                 r[i],
                 g[i],
                 b[i]
+            );
+        }
+    }
+
+    #[test]
+    fn ellipse_row_sums_match_scalar() {
+        let row: Vec<u8> = (0..29).map(|i| ((i * 53 + 7) % 256) as u8).collect();
+        for n in [0, 1, 7, 8, 9, 16, 23, 29] {
+            let e = RowEllipse {
+                dx0: -11.5,
+                q11: 0.01,
+                bq: 0.02,
+                cq: -0.9,
+                base: 60.0,
+                slope: 0.7,
+            };
+            let (mut sw, mut sx) = (0.0f64, 0.0f64);
+            for (i, &v) in row[..n].iter().enumerate() {
+                let dx = f64::from(e.dx0) + i as f64;
+                let q = (f64::from(e.q11) * dx + f64::from(e.bq)) * dx + f64::from(e.cq);
+                let w = (f64::from(v) - f64::from(e.base) - f64::from(e.slope) * dx).max(0.0);
+                if q <= 0.0 {
+                    sw += w;
+                    sx += w * dx;
+                }
+            }
+            let mut out = [0.0f32; 2];
+            ellipse_row_sums(&row[..n], e, &mut out);
+            assert!(
+                (f64::from(out[0]) - sw).abs() <= 1e-4 * sw.max(1.0),
+                "n {n}: {out:?} vs {sw}"
+            );
+            assert!(
+                (f64::from(out[1]) - sx).abs() <= 1e-4 * sx.abs().max(10.0),
+                "n {n}: {out:?} vs {sx}"
             );
         }
     }

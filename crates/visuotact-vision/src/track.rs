@@ -1128,7 +1128,13 @@ pub fn track_with(
         let found_after = found(&m);
         let better = found_after > found_before
             || (found_after == found_before && m.energy(lost_cost) < e_before);
-        if !better {
+        if better {
+            // The reassignment fills holes from afar: a marker it gave a blob its neighbours
+            // do not agree with (a piece of a neighbour's blob) is released and grown again.
+            if m.verify() > 0 {
+                m.grow();
+            }
+        } else {
             (m.assignment, m.disp, m.taken) = before;
         }
     }
