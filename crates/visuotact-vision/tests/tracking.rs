@@ -264,3 +264,44 @@ fn spurious_blobs_are_counted_not_assigned() {
         );
     }
 }
+
+#[test]
+fn a_hidden_marker_does_not_take_a_stray_blob_from_afar() {
+    // One inner marker is painted over and a marker-sized blob of the same look appears in the
+    // gap 1.5 pitches away, halfway between four others: the all-at-once reassignment reaches
+    // that far to fill holes, but a blob its neighbours do not put there is not that marker.
+    let pattern = GridPattern::IATS;
+    let cal = calibrated(&pattern);
+    let mut ex = FeatureExtractor::new(cal, FeatureSet::ALL).unwrap();
+    let (mut img, truth) = render_grid(&pattern, None, 13);
+    let k = truth.iter().position(|t| t.row == 4 && t.col == 5).unwrap();
+    let right = truth.iter().position(|t| t.row == 4 && t.col == 6).unwrap();
+    let below = truth.iter().position(|t| t.row == 5 && t.col == 5).unwrap();
+    let (cx, cy) = (truth[k].ellipse.cx_px, truth[k].ellipse.cy_px);
+    let px = truth[right].ellipse.cx_px - cx;
+    let py = truth[below].ellipse.cy_px - cy;
+    let half = (0.4 * px.min(py)) as i64;
+    let (sx, sy) = ((cx + 1.5 * px) as i64, (cy + 0.5 * py) as i64);
+    let (w, bg) = (img.width() as i64, img.get(2, 2));
+    let data = img.as_mut_slice();
+    for dy in -half..=half {
+        for dx in -half..=half {
+            let from = (((cy as i64 + dy) * w + cx as i64 + dx) * 3) as usize;
+            let to = (((sy + dy) * w + sx + dx) * 3) as usize;
+            let marker: [u8; 3] = data[from..from + 3].try_into().unwrap();
+            data[to..to + 3].copy_from_slice(&marker);
+            data[from..from + 3].copy_from_slice(&bg);
+        }
+    }
+    let f = ex.extract(&img).unwrap();
+    assert_eq!(f.status[k], MarkerStatus::Lost, "the hidden marker");
+    assert_eq!(f.found, 116);
+    assert_eq!(f.spurious, 1);
+    for j in (0..117).filter(|&j| j != k) {
+        assert_eq!(f.status[j], MarkerStatus::Ok, "marker {j}");
+        assert!(
+            f.values[4 * j].abs() < 0.5 && f.values[4 * j + 1].abs() < 0.5,
+            "marker {j} moved"
+        );
+    }
+}
