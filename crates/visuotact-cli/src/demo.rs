@@ -15,7 +15,7 @@ use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
 use visuotact_vision::detect::{Centroid, DetectorConfig};
-use visuotact_vision::features::{FeatureExtractor, FeatureSet};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 
@@ -54,7 +54,9 @@ fn features_of(
         .into_par_iter()
         .map_with(ex, |ex, k| {
             let img = render(k)?;
-            let f = ex.extract(&img)?;
+            let mut f = ex.extract(&img)?;
+            // The papers' inputs: the markers' features, without the field summary.
+            f.values.truncate(f.values.len() - FIELD_COLUMNS.len());
             Ok(f.values.iter().all(|v| v.is_finite()).then_some(f.values))
         })
         .collect()
@@ -80,6 +82,7 @@ fn fit(
         algorithm: visuotact_nn::mlp::Algorithm::Trainlm,
         hold_out: false,
         components: None,
+        passthrough: 0,
         ensemble: 1,
         sensor: None,
     };

@@ -7,7 +7,7 @@ use anyhow::{bail, Context};
 use visuotact_image::RgbImage;
 use visuotact_nn::model::Model;
 use visuotact_vision::calibration::SensorCalibration;
-use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
+use visuotact_vision::features::{is_field_column, FeatureExtractor, FrameFeatures};
 
 /// Where one of the model's inputs comes from.
 #[derive(Clone, Copy, Debug)]
@@ -60,7 +60,7 @@ impl Estimator {
         let (markers, extra_inputs): (Vec<String>, Vec<String>) = model
             .iter()
             .flat_map(|m| m.feature_columns.iter().cloned())
-            .partition(|c| crate::train::is_marker_column(c));
+            .partition(|c| crate::train::is_marker_column(c) || is_field_column(c));
         let set = match &model {
             Some(_) => crate::train::feature_set_of(&markers)?,
             None => cal.features,

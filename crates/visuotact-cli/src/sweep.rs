@@ -100,19 +100,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if a.repeats == 0 {
         bail!("--repeats must be at least 1");
     }
-    let (
-        targets,
-        Joined {
-            x,
-            t,
-            feature_columns,
-        },
-    ) = a
-        .data
-        .load(|n| matches!(a.algorithm.components(n), Ok(Some(_))))?;
+    let (targets, data) = a.data.load(a.algorithm.field(), |n| {
+        matches!(a.algorithm.components(n), Ok(Some(_)))
+    })?;
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
-    let components = a.algorithm.components(feature_columns.len())?;
+    let components = a.algorithm.components(data.marker_inputs())?;
+    let Joined {
+        x,
+        t,
+        feature_columns,
+        passthrough,
+    } = data;
     let jobs: Vec<(usize, usize)> = (0..archs.len())
         .flat_map(|k| (0..a.repeats).map(move |r| (k, r)))
         .collect();
@@ -137,6 +136,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 algorithm: a.algorithm.algorithm(),
                 hold_out: true,
                 components,
+                passthrough,
                 ensemble: 1,
                 sensor: None,
             };
@@ -375,6 +375,7 @@ mod selection_tests {
                 max: vec![1.0],
             },
             projection: None,
+            passthrough: 0,
             // Target 0 spans 0..1000 (say mN), target 1 spans 0..1 (say mm).
             target_scaling: MinMax {
                 min: vec![0.0, 0.0],

@@ -13,7 +13,7 @@ use visuotact_nn::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
 pub(crate) use visuotact_nn::model::is_marker_column;
 use visuotact_nn::model::{unfillable, Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 use visuotact_nn::pca::Projection;
-use visuotact_vision::features::{FeatureExtractor, FeatureSet};
+use visuotact_vision::features::{is_field_column, FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct TrainArgs {
@@ -58,6 +58,28 @@ pub(crate) struct AlgorithmArg {
     /// 0 (the inputs themselves) or K.
     #[arg(long, value_name = "auto|K", default_value = "auto")]
     pub(crate) components: String,
+    /// The field-summary columns of the feature table (`field_rms_px` … `field_spread_px`:
+    /// how much the markers moved and where) as inputs: auto (the default: beside the
+    /// markers' features when there are over 20 of them; on 280 simulated touches of four
+    /// sensors it cut the contact error 2.4–5.8× and the depth error 2.4–3.8×,
+    /// docs/benchmarks.md), yes, only (instead of the markers' features), or no. Tables
+    /// extracted before they existed have none.
+    #[arg(long, value_name = "auto|yes|only|no", default_value = "auto", value_parser = ["auto", "yes", "only", "no"])]
+    pub(crate) field: String,
+}
+
+/// Which inputs a network reads: the markers' features, the field summary, or both.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum FieldInputs {
+    /// `Yes` when there are over 20 markers' features (as many as components `auto` keeps
+    /// twice over), else `No`.
+    Auto,
+    /// The markers' features only.
+    No,
+    /// The markers' features, then the field summary.
+    Yes,
+    /// The field summary only.
+    Only,
 }
 
 /// Components `auto` keeps for sensors with many inputs.
@@ -68,9 +90,20 @@ impl AlgorithmArg {
         Algorithm::from_name(&self.name).unwrap_or_default()
     }
 
-    /// The number of components for `inputs` inputs (`None`: no projection).
+    /// Whether the field summary is an input.
+    pub(crate) fn field(&self) -> FieldInputs {
+        match self.field.as_str() {
+            "only" => FieldInputs::Only,
+            "no" => FieldInputs::No,
+            "yes" => FieldInputs::Yes,
+            _ => FieldInputs::Auto,
+        }
+    }
+
+    /// The number of components for `inputs` marker inputs (`None`: no projection).
     pub(crate) fn components(&self, inputs: usize) -> anyhow::Result<Option<usize>> {
         match self.components.as_str() {
+            _ if inputs == 0 => Ok(None),
             "auto" => Ok((inputs > 2 * AUTO_COMPONENTS).then_some(AUTO_COMPONENTS)),
             k => match k.parse::<usize>() {
                 Ok(0) => Ok(None),
@@ -146,6 +179,7 @@ impl DataArgs {
     /// filled) when `fills(number of inputs)` says the model will fill them.
     pub(crate) fn load(
         &self,
+        field: FieldInputs,
         fills: impl Fn(usize) -> bool,
     ) -> anyhow::Result<(Vec<String>, Joined)> {
         let targets = parse_targets(&self.targets)?;
@@ -154,6 +188,7 @@ impl DataArgs {
             &self.labels,
             &targets,
             &self.extra,
+            field,
             if self.drop_incomplete {
                 Incomplete::Drop
             } else {
@@ -180,8 +215,18 @@ pub(crate) struct Joined {
     pub(crate) x: Vec<Vec<f64>>,
     /// Target rows.
     pub(crate) t: Vec<Vec<f64>>,
-    /// Names of the input columns.
+    /// Names of the input columns: the markers' features, then the field summary and the
+    /// extra inputs.
     pub(crate) feature_columns: Vec<String>,
+    /// How many of the columns, at the end, are not markers' features.
+    pub(crate) passthrough: usize,
+}
+
+impl Joined {
+    /// How many of the columns are markers' features.
+    pub(crate) fn marker_inputs(&self) -> usize {
+        self.feature_columns.len() - self.passthrough
+    }
 }
 
 /// Where the model's inputs come from: the feature table's columns, then the readings table's.
@@ -255,6 +300,7 @@ pub(crate) fn joined(
     labels: &Path,
     targets: &[String],
     extra: &ExtraInputs,
+    field: FieldInputs,
     incomplete: Incomplete<'_>,
 ) -> anyhow::Result<Joined> {
     let f = KeyedTable::read(features, &["flags"]).map_err(anyhow::Error::msg)?;
@@ -272,7 +318,36 @@ pub(crate) fn joined(
             features.display()
         );
     }
+    let has_field = FIELD_COLUMNS.iter().all(|c| f.column(c).is_some());
+    let field = match field {
+        FieldInputs::Auto if names.len() > 2 * AUTO_COMPONENTS => FieldInputs::Yes,
+        FieldInputs::Auto => FieldInputs::No,
+        other => other,
+    };
+    match field {
+        FieldInputs::No => {}
+        _ if !has_field => {
+            if field == FieldInputs::Only {
+                bail!(
+                    "{}: no field-summary columns (field_rms_px …): extract the frames again, or train with --field no",
+                    features.display()
+                );
+            }
+            eprintln!(
+                "note: {} has no field-summary columns (extracted by an older visuotact): the markers' features only",
+                features.display()
+            );
+        }
+        FieldInputs::Yes | FieldInputs::Auto => {
+            names.extend(FIELD_COLUMNS.iter().map(|c| (*c).to_string()))
+        }
+        FieldInputs::Only => {
+            names.clear();
+            names.extend(FIELD_COLUMNS.iter().map(|c| (*c).to_string()));
+        }
+    }
     names.extend(extra.names()?);
+    let marker_inputs = names.iter().filter(|c| is_marker_column(c)).count();
     let sources = InputSources::new(
         &names,
         &f,
@@ -295,7 +370,7 @@ pub(crate) fn joined(
     let by_key = l.rows_by_key();
     let fill = match incomplete {
         Incomplete::Drop => false,
-        Incomplete::FillIf(f) => f(names.len()),
+        Incomplete::FillIf(f) => f(marker_inputs),
     };
     let (mut x, mut t) = (Vec::new(), Vec::new());
     let (mut unlabelled, mut dropped, mut filled_frames, mut filled_cells) = (0, 0, 0, 0);
@@ -363,6 +438,7 @@ pub(crate) fn joined(
     Ok(Joined {
         x,
         t,
+        passthrough: names.len() - marker_inputs,
         feature_columns: names,
     })
 }
@@ -378,9 +454,12 @@ pub(crate) struct FitSpec<'a> {
     /// Keep trainlm's validation and test subsets with trainbr too (a sweep compares
     /// networks on them); otherwise trainbr trains on every sample.
     pub(crate) hold_out: bool,
-    /// Feed the network this many principal components of the scaled inputs (`None`: the
-    /// inputs themselves).
+    /// Feed the network this many principal components of the scaled markers' features
+    /// (`None`: the inputs themselves).
     pub(crate) components: Option<usize>,
+    /// How many trailing feature columns are not markers' features (the field summary, extra
+    /// inputs): they bypass the projection.
+    pub(crate) passthrough: usize,
     /// Networks in the model (1: one; more: an ensemble on other seeds and splits).
     pub(crate) ensemble: usize,
     pub(crate) sensor: Option<serde_json::Value>,
@@ -398,13 +477,14 @@ pub(crate) fn fit_model(
     let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
     // The components from the complete frames; frames with lost markers get the scores that
     // fit the markers found.
+    let projected = spec.feature_columns.len() - spec.passthrough;
     let projection = spec
         .components
         .map(|k| {
             let complete: Vec<Vec<f64>> = xs
                 .iter()
                 .filter(|r| r.iter().all(|v| !v.is_nan()))
-                .cloned()
+                .map(|r| r[..projected].to_vec())
                 .collect();
             Projection::fit(&complete, k)
         })
@@ -414,16 +494,19 @@ pub(crate) fn fit_model(
         Some(p) => xs
             .iter()
             .map(|r| {
-                p.apply_partial(r)
-                    .context("a frame has fewer inputs left than components")
+                let mut z = p
+                    .apply_partial(&r[..projected])
+                    .context("a frame has fewer inputs left than components")?;
+                z.extend_from_slice(&r[projected..]);
+                Ok(z)
             })
             .collect::<anyhow::Result<_>>()?,
         None => xs,
     };
     let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
-    let mut sizes = vec![projection
-        .as_ref()
-        .map_or(spec.feature_columns.len(), Projection::outputs)];
+    let mut sizes = vec![projection.as_ref().map_or(spec.feature_columns.len(), |p| {
+        p.outputs() + spec.passthrough
+    })];
     sizes.extend(spec.hidden);
     sizes.push(spec.targets.len());
     let mut net = Mlp::nguyen_widrow(&sizes, spec.seed);
@@ -488,6 +571,11 @@ pub(crate) fn fit_model(
         net,
         members,
         input_scaling,
+        passthrough: if projection.is_some() {
+            spec.passthrough
+        } else {
+            0
+        },
         projection,
         target_scaling,
         feature_columns: spec.feature_columns.to_vec(),
@@ -537,23 +625,28 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
         None => None,
     };
-    let (
-        targets,
-        Joined {
-            x,
-            t,
-            feature_columns,
-        },
-    ) = a
-        .data
-        .load(|n| matches!(a.algorithm.components(n), Ok(Some(_))))?;
-    let components = a.algorithm.components(feature_columns.len())?;
-    let net_inputs = components.unwrap_or(feature_columns.len());
+    let (targets, data) = a.data.load(a.algorithm.field(), |n| {
+        matches!(a.algorithm.components(n), Ok(Some(_)))
+    })?;
+    let components = a.algorithm.components(data.marker_inputs())?;
+    let Joined {
+        x,
+        t,
+        feature_columns,
+        passthrough,
+    } = data;
+    let net_inputs = components.map_or(feature_columns.len(), |k| k + passthrough);
     eprintln!(
         "training {}{} → {} → {} ({} weights, {}) on {} frames",
         feature_columns.len(),
         components.map_or(String::new(), |k| format!(
-            " inputs as {k} principal components"
+            " inputs (the markers' {} as {k} principal components{})",
+            feature_columns.len() - passthrough,
+            if passthrough > 0 {
+                format!(", {passthrough} more as they are")
+            } else {
+                String::new()
+            }
         )),
         hidden
             .iter()
@@ -575,6 +668,7 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         algorithm: a.algorithm.algorithm(),
         hold_out: false,
         components,
+        passthrough,
         ensemble: a.ensemble,
         sensor,
     };
@@ -655,7 +749,6 @@ pub(crate) struct PredictArgs {
     output: PathBuf,
 }
 
-/// The per-marker feature set that produces `columns` (`m000_dx_px`, `m000_decc`, …).
 /// The refusal of a model input that frames cannot give.
 pub(crate) fn non_marker_input(c: &str) -> anyhow::Error {
     anyhow::anyhow!(
@@ -663,9 +756,12 @@ pub(crate) fn non_marker_input(c: &str) -> anyhow::Error {
     )
 }
 
+/// The per-marker feature set that produces `columns` (`m000_dx_px`, `m000_decc`, …; the
+/// field summary comes with any).
 pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
     let mut kinds: Vec<&str> = Vec::new();
-    for c in columns {
+    // The field summary comes with every feature set.
+    for c in columns.iter().filter(|c| !is_field_column(c)) {
         let kind = match c.get(5..) {
             Some("dx_px") => "x",
             Some("dy_px") => "y",
@@ -676,6 +772,10 @@ pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
         if !kinds.contains(&kind) {
             kinds.push(kind);
         }
+    }
+    if kinds.is_empty() {
+        // A model on the field summary alone: the displacements give it.
+        kinds.extend(["x", "y"]);
     }
     FeatureSet::parse(&kinds.join(",")).map_err(anyhow::Error::msg)
 }

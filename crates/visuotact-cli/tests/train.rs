@@ -310,6 +310,160 @@ fn blank_markers(src: &Path, dst: &Path, rows: std::ops::Range<usize>, markers: 
 }
 
 #[test]
+fn the_field_summary_passes_by_the_projection() {
+    let (d, sensor, f) = iats_features(&fresh_dir("field"), "60", "7");
+    let l = d.join("labels.csv");
+    let header = std::fs::read_to_string(&f).unwrap();
+    let header = header.lines().next().unwrap();
+    assert!(
+        header.ends_with(
+            "field_rms_px,field_max_px,field_top_px,field_cx_px,field_cy_px,field_spread_px,flags"
+        ),
+        "{header}"
+    );
+    let t = [
+        "--targets",
+        "x_mm,y_mm,depth_mm",
+        "--hidden",
+        "6",
+        "--ensemble",
+        "1",
+    ];
+    let model = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    // Default (over 20 markers' features): the markers' 351 as 10 components, the 6 field
+    // columns beside them as they are.
+    let m = d.join("m.json");
+    let err = ok(&vt(&[
+        &["train", "--features", s(&f), "--labels", s(&l), "-o", s(&m)][..],
+        &t[..],
+    ]
+    .concat()));
+    assert!(
+        err.contains(
+            "357 inputs (the markers' 351 as 10 principal components, 6 more as they are) → 6 → 3"
+        ),
+        "{err}"
+    );
+    let mv = model(&m);
+    assert_eq!(mv["passthrough"], 6);
+    assert_eq!(mv["net"]["sizes"][0], 16);
+    assert_eq!(mv["feature_columns"][351], "field_rms_px");
+    assert_eq!(mv["projection"]["mean"].as_array().unwrap().len(), 351);
+    // --field no: the markers' features alone; --field only: the summary alone.
+    let no = d.join("no.json");
+    ok(&vt(&[
+        &[
+            "train",
+            "--features",
+            s(&f),
+            "--labels",
+            s(&l),
+            "-o",
+            s(&no),
+            "--field",
+            "no",
+        ][..],
+        &t[..],
+    ]
+    .concat()));
+    assert_eq!(model(&no)["net"]["sizes"][0], 10);
+    assert!(model(&no).get("passthrough").is_none());
+    let only = d.join("only.json");
+    ok(&vt(&[
+        &[
+            "train",
+            "--features",
+            s(&f),
+            "--labels",
+            s(&l),
+            "-o",
+            s(&only),
+            "--field",
+            "only",
+        ][..],
+        &t[..],
+    ]
+    .concat()));
+    let ov = model(&only);
+    assert_eq!(ov["net"]["sizes"][0], 6);
+    assert_eq!(ov["feature_columns"].as_array().unwrap().len(), 6);
+    // Each model estimates from the table and from the frames alike.
+    for mm in [&m, &only] {
+        let (pt, pf) = (d.join("pt.csv"), d.join("pf.csv"));
+        ok(&predict(mm, s(&pt), &["--features", s(&f)]));
+        ok(&predict(
+            mm,
+            s(&pf),
+            &["--sensor", s(&sensor), s(&d.join("frames"))],
+        ));
+        let (a, b) = (
+            std::fs::read_to_string(&pt).unwrap(),
+            std::fs::read_to_string(&pf).unwrap(),
+        );
+        assert_eq!(a.lines().count(), 61);
+        for (ra, rb) in a.lines().zip(b.lines()).skip(1) {
+            let va: Vec<&str> = ra.split(',').collect();
+            let vb: Vec<&str> = rb.split(',').collect();
+            for j in 1..4 {
+                let (x, y): (f64, f64) = (va[j].parse().unwrap(), vb[j].parse().unwrap());
+                assert!((x - y).abs() < 1e-6, "{ra} / {rb}");
+            }
+        }
+    }
+    // A table without the field columns (an older extraction): the markers' features, said.
+    let old = d.join("old.csv");
+    let text = std::fs::read_to_string(&f).unwrap();
+    let cut: String = text
+        .lines()
+        .map(|line| {
+            let c: Vec<&str> = line.split(',').collect();
+            let n = c.len();
+            [&c[..n - 7], &c[n - 1..]].concat().join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(&old, cut).unwrap();
+    let err = ok(&vt(&[
+        &[
+            "train",
+            "--features",
+            s(&old),
+            "--labels",
+            s(&l),
+            "-o",
+            s(&d.join("o.json")),
+        ][..],
+        &t[..],
+    ]
+    .concat()));
+    assert!(err.contains("has no field-summary columns"), "{err}");
+    assert!(
+        err.contains("351 inputs (the markers' 351 as 10 principal components) → 6 → 3"),
+        "{err}"
+    );
+    let err = fails(&vt(&[
+        &[
+            "train",
+            "--features",
+            s(&old),
+            "--labels",
+            s(&l),
+            "-o",
+            s(&d.join("o.json")),
+            "--field",
+            "only",
+        ][..],
+        &t[..],
+    ]
+    .concat()));
+    assert!(
+        err.contains("no field-summary columns (field_rms_px …)"),
+        "{err}"
+    );
+}
+
+#[test]
 fn lost_markers_are_filled_from_the_markers_found() {
     let (d, _, f) = iats_features(&fresh_dir("filling"), "120", "5");
     // Frames 0–19 lose markers 10 and 50 (3 cells each); frame 20 loses 40 markers.
@@ -339,7 +493,9 @@ fn lost_markers_are_filled_from_the_markers_found() {
     let a = args(&lost, &m);
     let err = ok(&vt(&a.iter().map(String::as_str).collect::<Vec<_>>()));
     assert!(
-        err.contains("351 inputs as 10 principal components → 10 → 3"),
+        err.contains(
+            "357 inputs (the markers' 351 as 10 principal components, 6 more as they are) → 10 → 3"
+        ),
         "{err}"
     );
     // 20 frames lose 6 cells each, besides what the tracker itself could not find.
@@ -391,7 +547,7 @@ fn lost_markers_are_filled_from_the_markers_found() {
         filled[20]
             .last()
             .unwrap()
-            .contains("of 351 inputs missing (over a quarter)"),
+            .contains("of 357 inputs missing (over a quarter)"),
         "{:?}",
         filled[20]
     );

@@ -39,6 +39,10 @@ pub struct TrainingSummary {
     pub evidence: Option<crate::br::Evidence>,
 }
 
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
 fn trainlm_name() -> String {
     "trainlm".to_string()
 }
@@ -76,6 +80,11 @@ pub struct Model {
     /// network then reads its scores.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub projection: Option<crate::pca::Projection>,
+    /// How many trailing feature columns bypass the projection (the field summary, a gauge's
+    /// reading): the network reads the scores, then these scaled inputs. 0 in models written
+    /// before it was kept (the projection read every input).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub passthrough: usize,
     /// Target scaling.
     pub target_scaling: MinMax,
     /// Feature columns, in input order.
@@ -166,9 +175,14 @@ impl Model {
         }
         let x = self.input_scaling.apply(features);
         let z = match &self.projection {
-            Some(p) => p
-                .apply_partial(&x)
-                .ok_or_else(|| format!("{missing} inputs missing: too few left to fill them"))?,
+            Some(p) => {
+                let projected = x.len() - self.passthrough.min(x.len());
+                let mut z = p.apply_partial(&x[..projected]).ok_or_else(|| {
+                    format!("{missing} inputs missing: too few left to fill them")
+                })?;
+                z.extend_from_slice(&x[projected..]);
+                z
+            }
             None => x,
         };
         let outs = self
@@ -221,9 +235,16 @@ impl Model {
             ));
         }
         let s = &m.net.sizes;
+        if m.passthrough > m.feature_columns.len() {
+            return Err(format!(
+                "{source}: inconsistent model ({} pass-through inputs of {} columns)",
+                m.passthrough,
+                m.feature_columns.len()
+            ));
+        }
         let net_inputs = match &m.projection {
             Some(p) => {
-                if p.inputs() != m.feature_columns.len()
+                if p.inputs() + m.passthrough != m.feature_columns.len()
                     || p.components.iter().any(|c| c.len() != p.inputs())
                     || p.score_scaling.min.len() != p.outputs()
                 {
@@ -231,7 +252,7 @@ impl Model {
                         "{source}: inconsistent model (the projection and the feature columns disagree)"
                     ));
                 }
-                p.outputs()
+                p.outputs() + m.passthrough
             }
             None => m.feature_columns.len(),
         };

@@ -120,10 +120,120 @@ impl Default for FeatureSet {
     }
 }
 
+/// The field-summary columns that follow the markers' columns, in the order of
+/// [`FieldSummary::values`].
+pub const FIELD_COLUMNS: [&str; 6] = [
+    "field_rms_px",
+    "field_max_px",
+    "field_top_px",
+    "field_cx_px",
+    "field_cy_px",
+    "field_spread_px",
+];
+
+/// Whether a column is one of the [`FIELD_COLUMNS`].
+pub fn is_field_column(c: &str) -> bool {
+    FIELD_COLUMNS.contains(&c)
+}
+
+/// How many of the largest displacements [`FieldSummary::top_px`] averages.
+pub const FIELD_TOP: usize = 5;
+
+/// Weight every marker keeps in the field's centroid, as a displacement in pixels (about the
+/// tracking noise): with the skin at rest the centroid is the markers' mean position, and it
+/// moves smoothly towards a touch as the displacements grow.
+pub const FIELD_FLOOR_PX: f64 = 0.1;
+
+/// A summary of the displacement field of the markers found in one frame, in pixels. With
+/// `m_i` the displacement length of marker `i` and its weight `w_i = m_i² + f²`
+/// (`f` = [`FIELD_FLOOR_PX`]): the RMS and the largest `m_i`, the mean of the
+/// [`FIELD_TOP`] largest, the weighted centroid of the markers' rest positions (where the skin
+/// moves: the touch) and the weighted RMS distance of the markers from it (how wide the
+/// moving patch is).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FieldSummary {
+    /// RMS displacement length over the markers found.
+    pub rms_px: f64,
+    /// Largest displacement length.
+    pub max_px: f64,
+    /// Mean of the [`FIELD_TOP`] largest displacement lengths (all of them when fewer).
+    pub top_px: f64,
+    /// Weighted centroid of the rest positions, x.
+    pub cx_px: f64,
+    /// Weighted centroid of the rest positions, y.
+    pub cy_px: f64,
+    /// Weighted RMS distance of the rest positions from the centroid.
+    pub spread_px: f64,
+}
+
+impl FieldSummary {
+    /// The summary of markers at rest positions `rest` displaced by `disp` (`None`: not
+    /// found); `None` when no marker was found.
+    ///
+    /// ```
+    /// use visuotact_vision::features::FieldSummary;
+    /// // Two markers 10 px apart; only the right one moves, by 3 px.
+    /// let s = FieldSummary::of([((0.0, 0.0), Some((0.0, 0.0))), ((10.0, 0.0), Some((3.0, 4.0)))])
+    ///     .unwrap();
+    /// assert_eq!((s.max_px, s.top_px), (5.0, 2.5));
+    /// assert!((s.cx_px - 10.0 * 25.01 / 25.02).abs() < 1e-12);
+    /// ```
+    pub fn of(markers: impl IntoIterator<Item = ((f64, f64), Option<(f64, f64)>)>) -> Option<Self> {
+        let floor = FIELD_FLOOR_PX * FIELD_FLOOR_PX;
+        let (mut n, mut sq, mut max) = (0usize, 0.0f64, 0.0f64);
+        let (mut sw, mut sx, mut sy, mut sxx) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut top = [0.0f64; FIELD_TOP];
+        for ((x, y), d) in markers {
+            let Some((dx, dy)) = d else { continue };
+            let m2 = dx * dx + dy * dy;
+            n += 1;
+            sq += m2;
+            let m = m2.sqrt();
+            max = max.max(m);
+            // Keep the largest FIELD_TOP lengths, smallest first.
+            if m > top[0] {
+                top[0] = m;
+                top.sort_unstable_by(f64::total_cmp);
+            }
+            let w = m2 + floor;
+            sw += w;
+            sx += w * x;
+            sy += w * y;
+            sxx += w * (x * x + y * y);
+        }
+        if n == 0 {
+            return None;
+        }
+        let (cx, cy) = (sx / sw, sy / sw);
+        let k = n.min(FIELD_TOP);
+        Some(Self {
+            rms_px: (sq / n as f64).sqrt(),
+            max_px: max,
+            top_px: top[FIELD_TOP - k..].iter().sum::<f64>() / k as f64,
+            cx_px: cx,
+            cy_px: cy,
+            spread_px: (sxx / sw - cx * cx - cy * cy).max(0.0).sqrt(),
+        })
+    }
+
+    /// The values in the order of [`FIELD_COLUMNS`].
+    pub fn values(&self) -> [f64; 6] {
+        [
+            self.rms_px,
+            self.max_px,
+            self.top_px,
+            self.cx_px,
+            self.cy_px,
+            self.spread_px,
+        ]
+    }
+}
+
 /// Features of one frame.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameFeatures {
-    /// Values in column order; NaN where the marker was not matched.
+    /// Values in column order: the markers' (NaN where a marker was not matched), then the
+    /// [`FIELD_COLUMNS`] (NaN when no marker was found).
     pub values: Vec<f64>,
     /// Per-marker tracking status.
     pub status: Vec<MarkerStatus>,
@@ -235,10 +345,13 @@ impl FeatureExtractor {
         self.features
     }
 
-    /// Output column names.
+    /// Output column names: the markers' features, then the [`FIELD_COLUMNS`].
     pub fn column_names(&self) -> Vec<String> {
-        self.features
-            .column_names(self.cal.markers.iter().map(|m| m.id))
+        let mut names = self
+            .features
+            .column_names(self.cal.markers.iter().map(|m| m.id));
+        names.extend(FIELD_COLUMNS.iter().map(|c| (*c).to_string()));
+        names
     }
 
     /// The blobs of the last frame (those the filter kept; blob indices of
@@ -351,6 +464,15 @@ impl FeatureExtractor {
                     .push(b.map_or(f64::NAN, |b| b.shape(conv).eccentricity - m.eccentricity));
             }
         }
+        let blobs = &self.blobs;
+        let field = FieldSummary::of(self.cal.markers.iter().enumerate().map(|(i, m)| {
+            let d = t
+                .position_px(i, blobs)
+                .map(|p| (p.0 - m.x_px, p.1 - m.y_px));
+            ((m.x_px, m.y_px), d)
+        }));
+        out.values
+            .extend(field.map_or([f64::NAN; 6], |f| f.values()));
         out.found = t.found();
         out.spurious = t.spurious;
         out.shift_px = t.shift_px;
@@ -362,5 +484,66 @@ impl FeatureExtractor {
         let mut out = FrameFeatures::default();
         self.extract_into(rgb, &mut out)?;
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{FieldSummary, FIELD_TOP};
+
+    /// A marker's rest position and its displacement (`None`: lost).
+    type Marker = ((f64, f64), Option<(f64, f64)>);
+
+    /// Markers on a circle of radius `r` about (cx, cy), each displaced radially outwards by
+    /// `push` px: the closed form is known whatever the floor weight.
+    fn ring(n: usize, (cx, cy): (f64, f64), r: f64, push: f64) -> Vec<Marker> {
+        (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                let (s, c) = a.sin_cos();
+                ((cx + r * c, cy + r * s), Some((push * c, push * s)))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_radial_ring_is_centred_on_its_centre() {
+        let s = FieldSummary::of(ring(12, (40.0, -7.5), 9.0, 1.5)).unwrap();
+        assert!((s.cx_px - 40.0).abs() < 1e-12 && (s.cy_px + 7.5).abs() < 1e-12);
+        assert!((s.spread_px - 9.0).abs() < 1e-9, "{s:?}");
+        for v in [s.rms_px, s.max_px, s.top_px] {
+            assert!((v - 1.5).abs() < 1e-12, "{s:?}");
+        }
+    }
+
+    #[test]
+    fn the_centroid_follows_the_moving_markers() {
+        // A still ring about the origin and a moving one about (100, 0): the centroid lies
+        // between them in the ratio of their weights (push² + floor² against floor²).
+        let mut m = ring(8, (0.0, 0.0), 5.0, 0.0);
+        m.extend(ring(8, (100.0, 0.0), 5.0, 2.0));
+        let s = FieldSummary::of(m).unwrap();
+        let (w0, w1) = (0.01, 4.0 + 0.01);
+        assert!((s.cx_px - 100.0 * w1 / (w0 + w1)).abs() < 1e-9, "{s:?}");
+        assert!(s.cy_px.abs() < 1e-12);
+        assert!((s.rms_px - 2.0f64.sqrt()).abs() < 1e-12);
+        assert!((s.top_px - 2.0).abs() < 1e-12 && (s.max_px - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn lost_markers_are_left_out_and_none_found_is_none() {
+        let mut m = ring(6, (0.0, 0.0), 3.0, 1.0);
+        m[0].1 = None;
+        m[1].1 = Some((0.0, 4.0));
+        let s = FieldSummary::of(m.clone()).unwrap();
+        // Five found: lengths 4, 1, 1, 1, 1.
+        assert!((s.rms_px - (20.0f64 / 5.0).sqrt()).abs() < 1e-12);
+        assert_eq!(s.max_px, 4.0);
+        assert!((s.top_px - 8.0 / FIELD_TOP as f64).abs() < 1e-12);
+        for x in &mut m {
+            x.1 = None;
+        }
+        assert_eq!(FieldSummary::of(m), None);
+        assert_eq!(FieldSummary::of(Vec::new()), None);
     }
 }
