@@ -66,10 +66,13 @@ fn readme_main_job_pattern_calibrate_extract() {
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(header.len(), 1 + 6 + 117 * 3 + 1);
+    // frame, 6 leading columns, 117 markers × 3, the 6 field-summary columns, flags.
+    assert_eq!(header.len(), 1 + 6 + 117 * 3 + 6 + 1);
     assert_eq!(&header[..3], &["frame", "timestamp_s", "n_found"]);
     assert_eq!(header[7], "m000_dx_px");
-    assert_eq!(header[header.len() - 2], "m116_darea_px");
+    assert_eq!(header[header.len() - 8], "m116_darea_px");
+    assert_eq!(header[header.len() - 7], "field_rms_px");
+    assert_eq!(header[header.len() - 2], "field_spread_px");
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 6);
     for (i, r) in rows.iter().enumerate() {

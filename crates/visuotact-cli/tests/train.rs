@@ -329,17 +329,25 @@ fn the_field_summary_passes_by_the_projection() {
         "--ensemble",
         "1",
     ];
+    let tr = |feat: &Path, out: &Path, extra: &[&str]| -> Output {
+        let head = [
+            "train",
+            "--features",
+            s(feat),
+            "--labels",
+            s(&l),
+            "-o",
+            s(out),
+        ];
+        vt(&[&head[..], &t[..], extra].concat())
+    };
     let model = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
     // Default (over 20 markers' features): the markers' 351 as 10 components, the 6 field
     // columns beside them as they are.
     let m = d.join("m.json");
-    let err = ok(&vt(&[
-        &["train", "--features", s(&f), "--labels", s(&l), "-o", s(&m)][..],
-        &t[..],
-    ]
-    .concat()));
+    let err = ok(&tr(&f, &m, &[]));
     assert!(
         err.contains(
             "357 inputs (the markers' 351 as 10 principal components, 6 more as they are) → 6 → 3"
@@ -353,39 +361,11 @@ fn the_field_summary_passes_by_the_projection() {
     assert_eq!(mv["projection"]["mean"].as_array().unwrap().len(), 351);
     // --field no: the markers' features alone; --field only: the summary alone.
     let no = d.join("no.json");
-    ok(&vt(&[
-        &[
-            "train",
-            "--features",
-            s(&f),
-            "--labels",
-            s(&l),
-            "-o",
-            s(&no),
-            "--field",
-            "no",
-        ][..],
-        &t[..],
-    ]
-    .concat()));
+    ok(&tr(&f, &no, &["--field", "no"]));
     assert_eq!(model(&no)["net"]["sizes"][0], 10);
     assert!(model(&no).get("passthrough").is_none());
     let only = d.join("only.json");
-    ok(&vt(&[
-        &[
-            "train",
-            "--features",
-            s(&f),
-            "--labels",
-            s(&l),
-            "-o",
-            s(&only),
-            "--field",
-            "only",
-        ][..],
-        &t[..],
-    ]
-    .concat()));
+    ok(&tr(&f, &only, &["--field", "only"]));
     let ov = model(&only);
     assert_eq!(ov["net"]["sizes"][0], 6);
     assert_eq!(ov["feature_columns"].as_array().unwrap().len(), 6);
@@ -424,39 +404,13 @@ fn the_field_summary_passes_by_the_projection() {
         })
         .collect();
     std::fs::write(&old, cut).unwrap();
-    let err = ok(&vt(&[
-        &[
-            "train",
-            "--features",
-            s(&old),
-            "--labels",
-            s(&l),
-            "-o",
-            s(&d.join("o.json")),
-        ][..],
-        &t[..],
-    ]
-    .concat()));
+    let err = ok(&tr(&old, &d.join("o.json"), &[]));
     assert!(err.contains("has no field-summary columns"), "{err}");
     assert!(
         err.contains("351 inputs (the markers' 351 as 10 principal components) → 6 → 3"),
         "{err}"
     );
-    let err = fails(&vt(&[
-        &[
-            "train",
-            "--features",
-            s(&old),
-            "--labels",
-            s(&l),
-            "-o",
-            s(&d.join("o.json")),
-            "--field",
-            "only",
-        ][..],
-        &t[..],
-    ]
-    .concat()));
+    let err = fails(&tr(&old, &d.join("o.json"), &["--field", "only"]));
     assert!(
         err.contains("no field-summary columns (field_rms_px …)"),
         "{err}"
