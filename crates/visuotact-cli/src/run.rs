@@ -22,6 +22,7 @@ use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::frames::FrameStream;
 use visuotact_nn::model::Model;
+use visuotact_vision::features::{FieldSummary, FIELD_COLUMNS};
 use visuotact_vision::track::MarkerStatus;
 
 use crate::live::Estimator;
@@ -238,6 +239,8 @@ pub(crate) struct MarkerView {
 
 /// The per-frame estimator state: baseline, contact rule, ensemble.
 pub(crate) struct LiveEstimator {
+    /// The markers' rest positions (the field summary's centroid).
+    rest_px: Vec<(f64, f64)>,
     est: Estimator,
     ensemble: Vec<Model>,
     cols: Vec<Vec<usize>>,
@@ -292,7 +295,9 @@ impl LiveEstimator {
             .iter()
             .map(|m| m.jitter_px.unwrap_or(0.0))
             .collect();
+        let rest_px = cal.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
         Ok(Self {
+            rest_px,
             baseline: vec![0.0; names.len()],
             est,
             ensemble: models,
@@ -317,11 +322,17 @@ impl LiveEstimator {
 
     /// Sets the baseline to the current frame's features (the re-zero button).
     pub(crate) fn rezero_now(&mut self) {
-        for (b, z) in self.baseline.iter_mut().zip(&self.zeroed) {
+        let n = self.marker_values();
+        for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
             if z.is_finite() {
                 *b += z;
             }
         }
+    }
+
+    /// How many feature values are the markers' (the field summary follows them).
+    fn marker_values(&self) -> usize {
+        self.baseline.len().saturating_sub(FIELD_COLUMNS.len())
     }
 
     /// Processes one frame; `markers` gets the drawing data when asked for.
@@ -337,6 +348,18 @@ impl LiveEstimator {
         self.zeroed.clear();
         self.zeroed
             .extend(f.values.iter().zip(&self.baseline).map(|(v, b)| v - b));
+        // The field summary of the re-zeroed displacements (the baseline never moves it).
+        let n = self.baseline.len().saturating_sub(FIELD_COLUMNS.len());
+        if self.zeroed.len() == n + FIELD_COLUMNS.len() && self.xy.iter().all(Option::is_some) {
+            let zeroed = &self.zeroed;
+            let field = FieldSummary::of(self.rest_px.iter().zip(&self.xy).map(|(&p, xy)| {
+                let d = xy
+                    .map(|(ix, iy)| (zeroed[ix], zeroed[iy]))
+                    .filter(|d| d.0.is_finite() && d.1.is_finite());
+                (p, d)
+            }));
+            self.zeroed[n..].copy_from_slice(&field.map_or([f64::NAN; 6], |f| f.values()));
+        }
         let mut health = Health {
             reference_under_contact: under_contact,
             ..Health::default()
@@ -387,7 +410,8 @@ impl LiveEstimator {
         // No contact: follow the rest position (automatic re-zeroing), report no targets.
         if !contact {
             if self.rezero_rate > 0.0 {
-                for (b, z) in self.baseline.iter_mut().zip(&self.zeroed) {
+                let n = self.marker_values();
+                for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
                     if z.is_finite() {
                         *b += self.rezero_rate * z;
                     }
