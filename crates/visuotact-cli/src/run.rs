@@ -349,6 +349,7 @@ impl LiveEstimator {
         self.zeroed
             .extend(f.values.iter().zip(&self.baseline).map(|(v, b)| v - b));
         // The field summary of the re-zeroed displacements (the baseline never moves it).
+        // (`f` still borrows the estimator: the count is taken from the baseline directly.)
         let n = self.baseline.len().saturating_sub(FIELD_COLUMNS.len());
         if self.zeroed.len() == n + FIELD_COLUMNS.len() && self.xy.iter().all(Option::is_some) {
             let zeroed = &self.zeroed;
