@@ -1,6 +1,9 @@
 //! `visuotact demo`: both source documents' experiments end to end on the simulator —
 //! simulate, calibrate, extract, train (Levenberg–Marquardt), evaluate — printed beside the
-//! papers' numbers. Frames stay in memory; nothing is written.
+//! papers' numbers. Frames stay in memory; nothing is written. Each experiment trains the
+//! paper's own network (trainlm, the paper's inputs) and visuotact's default (what `visuotact
+//! train` builds with no options: trainbr, the field summary beside the markers' principal
+//! components on wide sensors, an ensemble whose spread is printed).
 
 use std::time::Instant;
 
@@ -9,18 +12,21 @@ use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::{target_errors, TargetErrors};
+use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::Model;
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
 use visuotact_vision::detect::{Centroid, DetectorConfig};
-use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
+use visuotact_vision::features::{is_field_column, FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 
 use crate::simulate::{frame_seed, GAUGE_SEED};
-use crate::train::{fit_model, FitSpec};
+use crate::train::{
+    auto_components, fit_model, FitSpec, DEFAULT_ALGORITHM, DEFAULT_ENSEMBLE, DEFAULT_HIDDEN,
+};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -42,54 +48,86 @@ const TABLE3: [([f64; 3], [f64; 3]); 6] = [
     ([32.0, 24.0, 3.0], [32.8, 22.4, 3.08]),
 ];
 
-/// Features of frames rendered by `render(k)`, in parallel; `None` where markers were lost.
+/// Features of frames rendered by `render(k)`, in parallel: the markers' features (NaN where
+/// a marker was lost), then the field summary.
 fn features_of(
     cal: &SensorCalibration,
     set: FeatureSet,
     n: usize,
     render: impl Fn(usize) -> anyhow::Result<RgbImage> + Sync,
-) -> anyhow::Result<Vec<Option<Vec<f64>>>> {
+) -> anyhow::Result<Vec<Vec<f64>>> {
     let ex = FeatureExtractor::new(cal.clone(), set).map_err(anyhow::Error::msg)?;
     (0..n)
         .into_par_iter()
-        .map_with(ex, |ex, k| {
-            let img = render(k)?;
-            let mut f = ex.extract(&img)?;
-            // The papers' inputs: the markers' features, without the field summary.
-            f.values.truncate(f.values.len() - FIELD_COLUMNS.len());
-            Ok(f.values.iter().all(|v| v.is_finite()).then_some(f.values))
-        })
+        .map_with(ex, |ex, k| Ok(ex.extract(&render(k)?)?.values))
         .collect()
 }
 
-/// Trains on rows with features (the same path as `visuotact train`); returns the model
-/// (which predicts in target units), its epochs and the training time in seconds.
+/// The papers' inputs: the markers' features without the field summary, where every marker
+/// was found.
+fn complete_markers(f: &[f64]) -> Option<Vec<f64>> {
+    let markers = &f[..f.len() - FIELD_COLUMNS.len()];
+    markers
+        .iter()
+        .all(|v| v.is_finite())
+        .then(|| markers.to_vec())
+}
+
+/// How a demo network is trained: the papers' way (trainlm, every input, one network) or as
+/// `visuotact train` does with no options.
+#[derive(Clone, Copy)]
+enum Training {
+    Paper,
+    Default,
+}
+
+/// Trains on `x` (the same path as `visuotact train`); returns the model (which predicts in
+/// target units) and the training time in seconds. `columns` names the inputs; with
+/// [`Training::Default`] the markers' columns come first, then the field summary.
 fn fit(
     x: &[Vec<f64>],
     t: &[Vec<f64>],
+    columns: &[String],
     targets: &[&str],
     hidden: &[usize],
+    how: Training,
     seed: u64,
-) -> anyhow::Result<(Model, usize, f64)> {
-    let feature_columns: Vec<String> = (0..x[0].len()).map(|i| format!("f{i}")).collect();
+) -> anyhow::Result<(Model, f64)> {
     let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
-    let spec = FitSpec {
-        feature_columns: &feature_columns,
+    let paper = FitSpec {
+        feature_columns: columns,
         targets: &targets,
         hidden,
         seed,
         max_epochs: 1000,
-        algorithm: visuotact_nn::mlp::Algorithm::Trainlm,
+        algorithm: Algorithm::Trainlm,
         hold_out: false,
         components: None,
         passthrough: 0,
         ensemble: 1,
         sensor: None,
     };
+    let spec = match how {
+        Training::Paper => paper,
+        Training::Default => {
+            let marker_inputs = columns.iter().filter(|c| !is_field_column(c)).count();
+            FitSpec {
+                algorithm: DEFAULT_ALGORITHM,
+                components: auto_components(marker_inputs),
+                passthrough: columns.len() - marker_inputs,
+                ensemble: DEFAULT_ENSEMBLE,
+                ..paper
+            }
+        }
+    };
     let t0 = Instant::now();
     let model = fit_model(x, t, spec, |_, _, _| Control::Continue)?;
-    let epochs = model.training.epochs;
-    Ok((model, epochs, t0.elapsed().as_secs_f64()))
+    Ok((model, t0.elapsed().as_secs_f64()))
+}
+
+/// Mean over frames of the ensemble's standard deviation per target.
+fn mean_spread(spreads: &[Vec<f64>], j: usize) -> f64 {
+    spreads.iter().map(|s| s[j]).sum::<f64>() / spreads.len().max(1) as f64
 }
 
 fn row(e: &TargetErrors) -> String {
@@ -145,13 +183,20 @@ fn iats(a: &Args) -> anyhow::Result<()> {
     let train_f = features_of(&cal, FeatureSet::IATS, grid.len(), |k| {
         render(&grid[k], 100 + k as u64)
     })?;
-    let (mut x, mut t) = (Vec::new(), Vec::new());
-    for (f, touch) in train_f.iter().zip(&grid) {
-        if let Some(f) = f {
-            x.push(f.clone());
-            t.push(vec![touch.x_mm, touch.y_mm, touch.depth_mm]);
-        }
-    }
+    let truth = |t: &Touch| vec![t.x_mm, t.y_mm, t.depth_mm];
+    // Seed 000's inputs: frames with every marker found; visuotact's: every frame, lost markers
+    // filled from their neighbours, with the field summary.
+    let (x, t): (Vec<_>, Vec<_>) = train_f
+        .iter()
+        .zip(&grid)
+        .filter_map(|(f, touch)| Some((complete_markers(f)?, truth(touch))))
+        .unzip();
+    let (xd, td): (Vec<_>, Vec<_>) = train_f
+        .iter()
+        .zip(&grid)
+        .filter(|(f, _)| f.iter().any(|v| v.is_finite()))
+        .map(|(f, touch)| (f.clone(), truth(touch)))
+        .unzip();
     println!(
         "calibrated {} markers; grid protocol: {} touches, {} with every marker found ({:.1} s)",
         cal.markers.len(),
@@ -159,11 +204,47 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         x.len(),
         t0.elapsed().as_secs_f64()
     );
-    // Seed 000's architecture: five hidden layers of 20.
+    let columns = FeatureExtractor::new(cal.clone(), FeatureSet::IATS)
+        .map_err(anyhow::Error::msg)?
+        .column_names();
+    let targets = ["x_mm", "y_mm", "depth_mm"];
+    // Seed 000's architecture and trainer: five hidden layers of 20, trainlm.
+    let marker_columns = &columns[..columns.len() - FIELD_COLUMNS.len()];
     let hidden = [20; 5];
-    let (model, epochs, secs) = fit(&x, &t, &["x_mm", "y_mm", "depth_mm"], &hidden, a.seed)?;
-    let predict = |f: &[f64]| model.predict(f);
-    println!("trained 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt: {epochs} epochs in {secs:.1} s (seed 000: 13 h 20 min)");
+    let (paper, secs) = fit(
+        &x,
+        &t,
+        marker_columns,
+        &targets,
+        &hidden,
+        Training::Paper,
+        a.seed,
+    )?;
+    println!(
+        "seed 000's network: 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt (trainlm): {} epochs in {secs:.1} s (seed 000: 13 h 20 min)",
+        paper.training.epochs
+    );
+    let default_hidden: Vec<usize> = crate::train::parse_list(DEFAULT_HIDDEN, "hidden")?;
+    let (model, secs) = fit(
+        &xd,
+        &td,
+        &columns,
+        &targets,
+        &default_hidden,
+        Training::Default,
+        a.seed,
+    )?;
+    println!(
+        "visuotact's default (`visuotact train` with no options): {} of {} frames, the markers' {} features as {} principal components + the {} field-summary values → {} → 3, {} ({} networks) in {secs:.1} s",
+        xd.len(),
+        grid.len(),
+        marker_columns.len(),
+        model.projection.as_ref().map_or(0, |p| p.outputs()),
+        model.passthrough,
+        DEFAULT_HIDDEN,
+        model.training.algorithm,
+        model.networks().count()
+    );
 
     // Table 3: six touches anywhere.
     let t3: Vec<Touch> = TABLE3
@@ -179,27 +260,33 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         render(&t3[k], 50_000 + k as u64)
     })?;
     println!(
-        "\nTable 3 layout: actual | visuotact estimate | error || paper's estimate | paper's error"
+        "\nTable 3 layout, visuotact's default: actual | estimate ± spread of its networks | error || paper's estimate | paper's error"
     );
     for (k, ((actual, paper), f)) in TABLE3.iter().zip(&f3).enumerate() {
-        let Some(f) = f else {
-            println!("{}  markers lost", k + 1);
-            continue;
+        let e = match model.estimate(f) {
+            Ok(e) => e,
+            Err(why) => {
+                println!("{}  no estimate: {why}", k + 1);
+                continue;
+            }
         };
-        let e = predict(f);
-        let d = (e[0] - actual[0]).hypot(e[1] - actual[1]);
+        let (v, sd) = (&e.values, &e.spread);
+        let d = (v[0] - actual[0]).hypot(v[1] - actual[1]);
         let pd = (paper[0] - actual[0]).hypot(paper[1] - actual[1]);
         println!(
-            "{}  X {:>4} Y {:>4} Depth {} | X {:6.2} Y {:6.2} Depth {:5.2} | D {:4.2} mm, depth {:4.2} mm || X {:5.2} Y {:5.2} Depth {:4.2} | D {:4.2} mm, depth {:4.2} mm",
+            "{}  X {:>4} Y {:>4} Depth {} | X {:6.2} ± {:.2} Y {:6.2} ± {:.2} Depth {:5.2} ± {:.2} | D {:4.2} mm, depth {:4.2} mm || X {:5.2} Y {:5.2} Depth {:4.2} | D {:4.2} mm, depth {:4.2} mm",
             k + 1,
             actual[0],
             actual[1],
             actual[2],
-            e[0],
-            e[1],
-            e[2],
+            v[0],
+            sd[0],
+            v[1],
+            sd[1],
+            v[2],
+            sd[2],
             d,
-            (e[2] - actual[2]).abs(),
+            (v[2] - actual[2]).abs(),
             paper[0],
             paper[1],
             paper[2],
@@ -215,38 +302,65 @@ fn iats(a: &Args) -> anyhow::Result<()> {
     })?;
     let mut est: [Vec<f64>; 3] = Default::default();
     let mut tru: [Vec<f64>; 3] = Default::default();
-    let mut dist = Vec::new();
+    let (mut dist, mut spreads) = (Vec::new(), Vec::new());
+    let mut paper_est = Vec::new();
     for (f, touch) in ft.iter().zip(&test) {
-        let Some(f) = f else { continue };
-        let e = predict(f);
-        let truth = [touch.x_mm, touch.y_mm, touch.depth_mm];
+        let truth = truth(touch);
+        if let Some(m) = complete_markers(f) {
+            paper_est.push((paper.predict(&m), truth.clone()));
+        }
+        let Ok(e) = model.estimate(f) else { continue };
         for j in 0..3 {
-            est[j].push(e[j]);
+            est[j].push(e.values[j]);
             tru[j].push(truth[j]);
         }
-        dist.push((e[0] - truth[0]).hypot(e[1] - truth[1]));
+        dist.push((e.values[0] - truth[0]).hypot(e.values[1] - truth[1]));
+        spreads.push(e.spread);
     }
-    let names = ["x_mm", "y_mm", "depth_mm"];
     let errs: Vec<TargetErrors> = (0..3)
-        .map(|j| target_errors(names[j], &est[j], &tru[j]))
+        .map(|j| target_errors(targets[j], &est[j], &tru[j]))
         .collect();
-    println!("\n{} random touches (not in training):", dist.len());
     println!(
-        "  X:     {}   | paper: mean 1.84 mm, accuracy 86.7 %",
-        row(&errs[0])
+        "\n{} random touches (not in training), {} estimated by visuotact's default (mean ± its networks' mean spread):",
+        test.len(),
+        dist.len()
     );
-    println!(
-        "  Y:     {}   | paper: mean 0.9 mm, accuracy 96.5 %",
-        row(&errs[1])
-    );
-    println!(
-        "  depth: {}   | paper: mean 0.2 mm, accuracy 94.9 %",
-        row(&errs[2])
-    );
-    let dmean = dist.iter().sum::<f64>() / dist.len().max(1) as f64;
-    let dmax = dist.iter().fold(0.0f64, |m, v| m.max(*v));
+    for (j, (name, paper_figures)) in [
+        ("X:    ", "mean 1.84 mm, accuracy 86.7 %"),
+        ("Y:    ", "mean 0.9 mm, accuracy 96.5 %"),
+        ("depth:", "mean 0.2 mm, accuracy 94.9 %"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        println!(
+            "  {name} {} (± {:.3})   | paper: {paper_figures}",
+            row(&errs[j]),
+            mean_spread(&spreads, j)
+        );
+    }
+    let (dmean, dmax) = mean_max(&dist);
     println!("  D:     mean {dmean:.3} mm, max {dmax:.3} mm   | paper: up to 3.24 mm (Table 2)");
+    let paper_d: Vec<f64> = paper_est
+        .iter()
+        .map(|(e, t)| (e[0] - t[0]).hypot(e[1] - t[1]))
+        .collect();
+    let paper_depth: Vec<f64> = paper_est.iter().map(|(e, t)| (e[2] - t[2]).abs()).collect();
+    let (pd_mean, pd_max) = mean_max(&paper_d);
+    println!(
+        "  seed 000's network on the {} of them with every marker found: D mean {pd_mean:.3} mm, max {pd_max:.3} mm, depth mean {:.3} mm",
+        paper_est.len(),
+        mean_max(&paper_depth).0
+    );
     Ok(())
+}
+
+/// Mean and largest value (0 and 0 for none).
+fn mean_max(v: &[f64]) -> (f64, f64) {
+    (
+        v.iter().sum::<f64>() / v.len().max(1) as f64,
+        v.iter().fold(0.0f64, |m, x| m.max(*x)),
+    )
 }
 
 fn cone(a: &Args) -> anyhow::Result<()> {
@@ -295,12 +409,21 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     };
     let train_loads = loads(0.0, 0.0);
     let test_loads = loads(0.0, duration + 5.0);
-    let ftr = features_of(&cal, FeatureSet::CONE, n, |k| {
+    let rings = |feats: Vec<Vec<f64>>| -> Vec<Option<Vec<f64>>> {
+        feats.iter().map(|f| complete_markers(f)).collect()
+    };
+    let ftr = rings(features_of(&cal, FeatureSet::CONE, n, |k| {
         render(&train_loads[k], 210_000 + k as u64)
-    })?;
-    let fte = features_of(&cal, FeatureSet::CONE, n, |k| {
+    })?);
+    let fte = rings(features_of(&cal, FeatureSet::CONE, n, |k| {
         render(&test_loads[k], 220_000 + k as u64)
-    })?;
+    })?);
+    let mut columns = FeatureExtractor::new(cal.clone(), FeatureSet::CONE)
+        .map_err(anyhow::Error::msg)?
+        .column_names();
+    columns.truncate(columns.len() - FIELD_COLUMNS.len());
+    let mut gauge_columns = columns.clone();
+    gauge_columns.push("gauge_kpa".to_string());
     // The link's pressure gauge, read with every frame: an input the paper did not use.
     let gauge = |loads: &[ConeLoad], t0: f64, base: u64| -> Vec<f64> {
         (0..loads.len())
@@ -338,12 +461,33 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     };
     let (x, t) = rows(&ftr);
     let (xg, tg) = rows(&gtr);
-    let (model, epochs, secs) = fit(&x, &t, &["force_n"], &[20], a.seed)?;
+    let force = ["force_n"];
+    let (model, secs) = fit(&x, &t, &columns, &force, &[20], Training::Paper, a.seed)?;
     println!(
-        "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {epochs} epochs in {secs:.2} s",
+        "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {} epochs in {secs:.2} s",
         cal.markers.len(),
-        x.len()
+        x.len(),
+        model.training.epochs
     );
+    let default_hidden: Vec<usize> = crate::train::parse_list(DEFAULT_HIDDEN, "hidden")?;
+    let (default, _) = fit(
+        &x,
+        &t,
+        &columns,
+        &force,
+        &default_hidden,
+        Training::Default,
+        a.seed,
+    )?;
+    let (default_g, _) = fit(
+        &xg,
+        &tg,
+        &gauge_columns,
+        &force,
+        &default_hidden,
+        Training::Default,
+        a.seed,
+    )?;
     let errors_on = |model: &Model, feats: &[Option<Vec<f64>>], loads: &[ConeLoad]| {
         let (mut est, mut tru) = (Vec::new(), Vec::new());
         for (f, l) in feats.iter().zip(loads) {
@@ -358,13 +502,27 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     // Seed 001's own protocol: 1..40 neurons × repeats, the best net kept (lowest test MSE),
     // then run by the Neural Network Testing Model over the recorded press.
     let repeats: u64 = if a.quick { 2 } else { 5 };
-    let best_of_sweep = |x: &[Vec<f64>], t: &[Vec<f64>]| -> anyhow::Result<(Model, usize, f64)> {
+    let best_of_sweep = |x: &[Vec<f64>],
+                         t: &[Vec<f64>],
+                         columns: &[String]|
+     -> anyhow::Result<(Model, usize, f64)> {
         let t_sweep = Instant::now();
         let runs: Vec<(Model, usize)> = (1..=40usize)
             .flat_map(|h| (0..repeats).map(move |r| (h, r)))
             .collect::<Vec<_>>()
             .into_par_iter()
-            .map(|(h, r)| fit(x, t, &["force_n"], &[h], a.seed + 7919 * r).map(|f| (f.0, h)))
+            .map(|(h, r)| {
+                fit(
+                    x,
+                    t,
+                    columns,
+                    &force,
+                    &[h],
+                    Training::Paper,
+                    a.seed + 7919 * r,
+                )
+                .map(|f| (f.0, h))
+            })
             .collect::<anyhow::Result<_>>()?;
         let (best, h) = runs
             .into_iter()
@@ -372,8 +530,8 @@ fn cone(a: &Args) -> anyhow::Result<()> {
             .context("no training ran")?;
         Ok((best, h, t_sweep.elapsed().as_secs_f64()))
     };
-    let (best, best_h, sweep_s) = best_of_sweep(&x, &t)?;
-    let (best_g, best_gh, sweep_gs) = best_of_sweep(&xg, &tg)?;
+    let (best, best_h, sweep_s) = best_of_sweep(&x, &t, &columns)?;
+    let (best_g, best_gh, sweep_gs) = best_of_sweep(&xg, &tg, &gauge_columns)?;
     for (inputs, n_in, (m, h, secs)) in [
         ("rings", 6, (&best, best_h, sweep_s)),
         ("rings + gauge", 7, (&best_g, best_gh, sweep_gs)),
@@ -402,6 +560,16 @@ fn cone(a: &Args) -> anyhow::Result<()> {
         "rings",
         &unseen,
     );
+    let default_row = format!(
+        "visuotact's default ({} × {}), later press",
+        default.training.algorithm,
+        default.networks().count()
+    );
+    line(
+        &default_row,
+        "rings",
+        &errors_on(&default, &fte, &test_loads),
+    );
     line(
         own,
         "rings + gauge",
@@ -411,6 +579,11 @@ fn cone(a: &Args) -> anyhow::Result<()> {
         later,
         "rings + gauge",
         &errors_on(&best_g, &gte, &test_loads),
+    );
+    line(
+        &default_row,
+        "rings + gauge",
+        &errors_on(&default_g, &gte, &test_loads),
     );
     println!(
         "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2}",

@@ -20,7 +20,7 @@ pub(crate) struct TrainArgs {
     #[command(flatten)]
     data: DataArgs,
     /// Hidden layer sizes, comma-separated (e.g. 20 or 20,20).
-    #[arg(long, default_value = "20")]
+    #[arg(long, default_value = DEFAULT_HIDDEN)]
     hidden: String,
     /// Model file to write.
     #[arg(short, long)]
@@ -37,7 +37,7 @@ pub(crate) struct TrainArgs {
     /// their mean, with the standard deviation as the spread (`predict` writes `<target>_std`,
     /// `run` and its dashboard show it). 5 by default: on 280 simulated touches of four sensors
     /// it cut the contact error by 7–35 % against one network (docs/benchmarks.md).
-    #[arg(long, value_name = "K", default_value_t = 5)]
+    #[arg(long, value_name = "K", default_value_t = DEFAULT_ENSEMBLE)]
     ensemble: usize,
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
@@ -51,7 +51,7 @@ pub(crate) struct AlgorithmArg {
     /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
     /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
     /// 70/15/15 split, stopped by the validation subset).
-    #[arg(long = "algorithm", default_value = "trainbr", value_parser = ["trainlm", "trainbr"])]
+    #[arg(long = "algorithm", default_value = DEFAULT_ALGORITHM.name(), value_parser = ["trainlm", "trainbr"])]
     pub(crate) name: String,
     /// Feed the network the K leading principal components of the scaled inputs (kept in the
     /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),
@@ -85,6 +85,25 @@ pub(crate) enum FieldInputs {
 /// Components `auto` keeps for sensors with many inputs.
 const AUTO_COMPONENTS: usize = 10;
 
+/// `train`'s hidden layers when not told otherwise.
+pub(crate) const DEFAULT_HIDDEN: &str = "20";
+/// `train`'s networks per model when not told otherwise.
+pub(crate) const DEFAULT_ENSEMBLE: usize = 5;
+/// `train`'s objective when not told otherwise.
+pub(crate) const DEFAULT_ALGORITHM: Algorithm = Algorithm::Trainbr;
+
+/// The components `--components auto` keeps for `inputs` marker inputs (`None`: the inputs
+/// themselves): a projection only when there are over twice as many inputs.
+pub(crate) fn auto_components(inputs: usize) -> Option<usize> {
+    (inputs > 2 * AUTO_COMPONENTS).then_some(AUTO_COMPONENTS)
+}
+
+/// Whether `--field auto` feeds the field summary for `inputs` marker inputs: when they are
+/// projected, i.e. the same threshold as [`auto_components`].
+pub(crate) fn auto_field(inputs: usize) -> bool {
+    auto_components(inputs).is_some()
+}
+
 impl AlgorithmArg {
     pub(crate) fn algorithm(&self) -> Algorithm {
         Algorithm::from_name(&self.name).unwrap_or_default()
@@ -104,7 +123,7 @@ impl AlgorithmArg {
     pub(crate) fn components(&self, inputs: usize) -> anyhow::Result<Option<usize>> {
         match self.components.as_str() {
             _ if inputs == 0 => Ok(None),
-            "auto" => Ok((inputs > 2 * AUTO_COMPONENTS).then_some(AUTO_COMPONENTS)),
+            "auto" => Ok(auto_components(inputs)),
             k => match k.parse::<usize>() {
                 Ok(0) => Ok(None),
                 Ok(k) => Ok(Some(k)),
@@ -199,7 +218,7 @@ impl DataArgs {
     }
 }
 
-fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T>> {
+pub(crate) fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T>> {
     s.split(',')
         .map(|p| {
             p.trim()
@@ -320,7 +339,7 @@ pub(crate) fn joined(
     }
     let has_field = FIELD_COLUMNS.iter().all(|c| f.column(c).is_some());
     let field = match field {
-        FieldInputs::Auto if names.len() > 2 * AUTO_COMPONENTS => FieldInputs::Yes,
+        FieldInputs::Auto if auto_field(names.len()) => FieldInputs::Yes,
         FieldInputs::Auto => FieldInputs::No,
         other => other,
     };

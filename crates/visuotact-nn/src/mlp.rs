@@ -360,7 +360,7 @@ pub enum Algorithm {
 
 impl Algorithm {
     /// Name on the command line and in model files.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Algorithm::Trainlm => "trainlm",
             Algorithm::Trainbr => "trainbr",
