@@ -12,21 +12,19 @@ use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::{target_errors, TargetErrors};
-use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::Model;
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
 use visuotact_vision::detect::{Centroid, DetectorConfig};
-use visuotact_vision::features::{is_field_column, FeatureExtractor, FeatureSet, FIELD_COLUMNS};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 
 use crate::simulate::{frame_seed, GAUGE_SEED};
-use crate::train::{
-    auto_components, fit_model, FitSpec, DEFAULT_ALGORITHM, DEFAULT_ENSEMBLE, DEFAULT_HIDDEN,
-};
+use visuotact_nn::fit::{fit, FitConfig, FitData};
+use visuotact_nn::model::is_marker_column;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -73,56 +71,43 @@ fn complete_markers(f: &[f64]) -> Option<Vec<f64>> {
         .then(|| markers.to_vec())
 }
 
-/// How a demo network is trained: the papers' way (trainlm, every input, one network) or as
-/// `visuotact train` does with no options.
-#[derive(Clone, Copy)]
-enum Training {
-    Paper,
-    Default,
-}
-
 /// Trains on `x` (the same path as `visuotact train`); returns the model (which predicts in
-/// target units) and the training time in seconds. `columns` names the inputs; with
-/// [`Training::Default`] the markers' columns come first, then the field summary.
-fn fit(
+/// target units) and the training time in seconds. `columns` names the inputs, the markers'
+/// features first.
+fn train(
     x: &[Vec<f64>],
     t: &[Vec<f64>],
     columns: &[String],
     targets: &[&str],
-    hidden: &[usize],
-    how: Training,
-    seed: u64,
+    cfg: &FitConfig,
 ) -> anyhow::Result<(Model, f64)> {
     let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
-    let paper = FitSpec {
+    let data = FitData {
+        x,
+        t,
         feature_columns: columns,
         targets: &targets,
-        hidden,
-        seed,
-        max_epochs: 1000,
-        algorithm: Algorithm::Trainlm,
-        hold_out: false,
-        components: None,
-        passthrough: 0,
-        ensemble: 1,
-        sensor: None,
-    };
-    let spec = match how {
-        Training::Paper => paper,
-        Training::Default => {
-            let marker_inputs = columns.iter().filter(|c| !is_field_column(c)).count();
-            FitSpec {
-                algorithm: DEFAULT_ALGORITHM,
-                components: auto_components(marker_inputs),
-                passthrough: columns.len() - marker_inputs,
-                ensemble: DEFAULT_ENSEMBLE,
-                ..paper
-            }
-        }
     };
     let t0 = Instant::now();
-    let model = fit_model(x, t, spec, |_, _, _| Control::Continue)?;
+    let model = fit(&data, cfg, |_, _, _| Control::Continue)?;
     Ok((model, t0.elapsed().as_secs_f64()))
+}
+
+/// `visuotact train`'s defaults for `columns` (markers' features first, then the rest).
+fn default_config(columns: &[String], seed: u64) -> FitConfig {
+    let markers = columns.iter().filter(|c| is_marker_column(c)).count();
+    FitConfig {
+        seed,
+        ..FitConfig::auto(markers, columns.len() - markers)
+    }
+}
+
+/// The papers' way with `hidden` layers.
+fn paper_config(hidden: &[usize], seed: u64) -> FitConfig {
+    FitConfig {
+        seed,
+        ..FitConfig::paper(hidden)
+    }
 }
 
 /// Mean over frames of the ensemble's standard deviation per target.
@@ -211,29 +196,19 @@ fn iats(a: &Args) -> anyhow::Result<()> {
     // Seed 000's architecture and trainer: five hidden layers of 20, trainlm.
     let marker_columns = &columns[..columns.len() - FIELD_COLUMNS.len()];
     let hidden = [20; 5];
-    let (paper, secs) = fit(
+    let (paper, secs) = train(
         &x,
         &t,
         marker_columns,
         &targets,
-        &hidden,
-        Training::Paper,
-        a.seed,
+        &paper_config(&hidden, a.seed),
     )?;
     println!(
         "seed 000's network: 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt (trainlm): {} epochs in {secs:.1} s (seed 000: 13 h 20 min)",
         paper.training.epochs
     );
-    let default_hidden: Vec<usize> = crate::train::parse_list(DEFAULT_HIDDEN, "hidden")?;
-    let (model, secs) = fit(
-        &xd,
-        &td,
-        &columns,
-        &targets,
-        &default_hidden,
-        Training::Default,
-        a.seed,
-    )?;
+    let default = default_config(&columns, a.seed);
+    let (model, secs) = train(&xd, &td, &columns, &targets, &default)?;
     println!(
         "visuotact's default (`visuotact train` with no options): {} of {} frames, the markers' {} features as {} principal components + the {} field-summary values → {} → 3, {} ({} networks) in {secs:.1} s",
         xd.len(),
@@ -241,7 +216,12 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         marker_columns.len(),
         model.projection.as_ref().map_or(0, |p| p.outputs()),
         model.passthrough,
-        DEFAULT_HIDDEN,
+        default
+            .hidden
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" → "),
         model.training.algorithm,
         model.networks().count()
     );
@@ -462,32 +442,16 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     let (x, t) = rows(&ftr);
     let (xg, tg) = rows(&gtr);
     let force = ["force_n"];
-    let (model, secs) = fit(&x, &t, &columns, &force, &[20], Training::Paper, a.seed)?;
+    let (model, secs) = train(&x, &t, &columns, &force, &paper_config(&[20], a.seed))?;
     println!(
         "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {} epochs in {secs:.2} s",
         cal.markers.len(),
         x.len(),
         model.training.epochs
     );
-    let default_hidden: Vec<usize> = crate::train::parse_list(DEFAULT_HIDDEN, "hidden")?;
-    let (default, _) = fit(
-        &x,
-        &t,
-        &columns,
-        &force,
-        &default_hidden,
-        Training::Default,
-        a.seed,
-    )?;
-    let (default_g, _) = fit(
-        &xg,
-        &tg,
-        &gauge_columns,
-        &force,
-        &default_hidden,
-        Training::Default,
-        a.seed,
-    )?;
+    let (default, _) = train(&x, &t, &columns, &force, &default_config(&columns, a.seed))?;
+    let default_g_config = default_config(&gauge_columns, a.seed);
+    let (default_g, _) = train(&xg, &tg, &gauge_columns, &force, &default_g_config)?;
     let errors_on = |model: &Model, feats: &[Option<Vec<f64>>], loads: &[ConeLoad]| {
         let (mut est, mut tru) = (Vec::new(), Vec::new());
         for (f, l) in feats.iter().zip(loads) {
@@ -512,14 +476,12 @@ fn cone(a: &Args) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .into_par_iter()
             .map(|(h, r)| {
-                fit(
+                train(
                     x,
                     t,
                     columns,
                     &force,
-                    &[h],
-                    Training::Paper,
-                    a.seed + 7919 * r,
+                    &paper_config(&[h], a.seed + 7919 * r),
                 )
                 .map(|f| (f.0, h))
             })

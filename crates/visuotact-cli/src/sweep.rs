@@ -13,7 +13,8 @@ use rayon::prelude::*;
 use visuotact_nn::lm::Control;
 use visuotact_nn::model::Model;
 
-use crate::train::{fit_model, DataArgs, FitSpec, Joined};
+use crate::train::{DataArgs, Joined};
+use visuotact_nn::fit::{fit, FitConfig, FitData};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -127,10 +128,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let results: Vec<(usize, Model)> = jobs
         .par_iter()
         .map(|&(k, r)| {
-            let spec = FitSpec {
-                feature_columns: &feature_columns,
-                targets: &targets,
-                hidden: &archs[k],
+            let cfg = FitConfig {
+                hidden: archs[k].clone(),
                 seed: a.seed.wrapping_add(1000 * r as u64 + k as u64),
                 max_epochs: a.max_epochs,
                 algorithm: a.algorithm.algorithm(),
@@ -138,13 +137,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 components,
                 passthrough,
                 ensemble: 1,
-                sensor: None,
             };
-            let m = fit_model(&x, &t, spec, |_, _, _| Control::Continue);
+            let data = FitData {
+                x: &x,
+                t: &t,
+                feature_columns: &feature_columns,
+                targets: &targets,
+            };
+            let m = fit(&data, &cfg, |_, _, _| Control::Continue);
             bar.inc(1);
             m.map(|m| (k, m))
         })
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<Result<_, _>>()?;
     bar.finish_and_clear();
     // Performance in units: the mean over targets of the MSE in each target's own units (a
     // target in degrees drowns one in millimetres) — reported. Selection: the same on scaled

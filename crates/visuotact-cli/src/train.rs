@@ -4,15 +4,14 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use rayon::prelude::*;
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
-use visuotact_nn::lm::{Control, LmConfig};
+use visuotact_nn::fit::{auto_components, auto_field, fit, FitConfig, FitData};
+use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::target_errors;
-use visuotact_nn::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
+use visuotact_nn::mlp::{Algorithm, Mlp};
 pub(crate) use visuotact_nn::model::is_marker_column;
-use visuotact_nn::model::{unfillable, Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
-use visuotact_nn::pca::Projection;
+use visuotact_nn::model::{unfillable, Model};
 use visuotact_vision::features::{is_field_column, FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 
 #[derive(clap::Args, Debug)]
@@ -37,7 +36,7 @@ pub(crate) struct TrainArgs {
     /// their mean, with the standard deviation as the spread (`predict` writes `<target>_std`,
     /// `run` and its dashboard show it). 5 by default: on 280 simulated touches of four sensors
     /// it cut the contact error by 7–35 % against one network (docs/benchmarks.md).
-    #[arg(long, value_name = "K", default_value_t = DEFAULT_ENSEMBLE)]
+    #[arg(long, value_name = "K", default_value_t = FitConfig::default().ensemble)]
     ensemble: usize,
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
@@ -51,7 +50,7 @@ pub(crate) struct AlgorithmArg {
     /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
     /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
     /// 70/15/15 split, stopped by the validation subset).
-    #[arg(long = "algorithm", default_value = DEFAULT_ALGORITHM.name(), value_parser = ["trainlm", "trainbr"])]
+    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = ["trainlm", "trainbr"])]
     pub(crate) name: String,
     /// Feed the network the K leading principal components of the scaled inputs (kept in the
     /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),
@@ -82,27 +81,8 @@ pub(crate) enum FieldInputs {
     Only,
 }
 
-/// Components `auto` keeps for sensors with many inputs.
-const AUTO_COMPONENTS: usize = 10;
-
-/// `train`'s hidden layers when not told otherwise.
+/// `train`'s hidden layers when not told otherwise ([`FitConfig::default`]'s, as text).
 pub(crate) const DEFAULT_HIDDEN: &str = "20";
-/// `train`'s networks per model when not told otherwise.
-pub(crate) const DEFAULT_ENSEMBLE: usize = 5;
-/// `train`'s objective when not told otherwise.
-pub(crate) const DEFAULT_ALGORITHM: Algorithm = Algorithm::Trainbr;
-
-/// The components `--components auto` keeps for `inputs` marker inputs (`None`: the inputs
-/// themselves): a projection only when there are over twice as many inputs.
-pub(crate) fn auto_components(inputs: usize) -> Option<usize> {
-    (inputs > 2 * AUTO_COMPONENTS).then_some(AUTO_COMPONENTS)
-}
-
-/// Whether `--field auto` feeds the field summary for `inputs` marker inputs: when they are
-/// projected, i.e. the same threshold as [`auto_components`].
-pub(crate) fn auto_field(inputs: usize) -> bool {
-    auto_components(inputs).is_some()
-}
 
 impl AlgorithmArg {
     pub(crate) fn algorithm(&self) -> Algorithm {
@@ -462,162 +442,6 @@ pub(crate) fn joined(
     })
 }
 
-/// Everything one training needs besides the data.
-pub(crate) struct FitSpec<'a> {
-    pub(crate) feature_columns: &'a [String],
-    pub(crate) targets: &'a [String],
-    pub(crate) hidden: &'a [usize],
-    pub(crate) seed: u64,
-    pub(crate) max_epochs: usize,
-    pub(crate) algorithm: Algorithm,
-    /// Keep trainlm's validation and test subsets with trainbr too (a sweep compares
-    /// networks on them); otherwise trainbr trains on every sample.
-    pub(crate) hold_out: bool,
-    /// Feed the network this many principal components of the scaled markers' features
-    /// (`None`: the inputs themselves).
-    pub(crate) components: Option<usize>,
-    /// How many trailing feature columns are not markers' features (the field summary, extra
-    /// inputs): they bypass the projection.
-    pub(crate) passthrough: usize,
-    /// Networks in the model (1: one; more: an ensemble on other seeds and splits).
-    pub(crate) ensemble: usize,
-    pub(crate) sensor: Option<serde_json::Value>,
-}
-
-/// Scales, initialises and trains one network; the model keeps the best-validation weights.
-pub(crate) fn fit_model(
-    x: &[Vec<f64>],
-    t: &[Vec<f64>],
-    spec: FitSpec<'_>,
-    progress: impl FnMut(usize, f64, f64) -> Control,
-) -> anyhow::Result<Model> {
-    let input_scaling = MinMax::fit(x);
-    let target_scaling = MinMax::fit(t);
-    let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
-    // The components from the complete frames; frames with lost markers get the scores that
-    // fit the markers found.
-    let projected = spec.feature_columns.len() - spec.passthrough;
-    let projection = spec
-        .components
-        .map(|k| {
-            let complete: Vec<Vec<f64>> = xs
-                .iter()
-                .filter(|r| r.iter().all(|v| !v.is_nan()))
-                .map(|r| r[..projected].to_vec())
-                .collect();
-            Projection::fit(&complete, k)
-        })
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("--components: {e}"))?;
-    let xs: Vec<Vec<f64>> = match &projection {
-        Some(p) => xs
-            .iter()
-            .map(|r| {
-                let mut z = p
-                    .apply_partial(&r[..projected])
-                    .context("a frame has fewer inputs left than components")?;
-                z.extend_from_slice(&r[projected..]);
-                Ok(z)
-            })
-            .collect::<anyhow::Result<_>>()?,
-        None => xs,
-    };
-    let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
-    let mut sizes = vec![projection.as_ref().map_or(spec.feature_columns.len(), |p| {
-        p.outputs() + spec.passthrough
-    })];
-    sizes.extend(spec.hidden);
-    sizes.push(spec.targets.len());
-    let mut net = Mlp::nguyen_widrow(&sizes, spec.seed);
-    let base = match spec.algorithm {
-        Algorithm::Trainlm => TrainConfig::TRAINLM,
-        Algorithm::Trainbr => TrainConfig::TRAINBR,
-    };
-    let cfg = TrainConfig {
-        lm: LmConfig {
-            max_iterations: spec.max_epochs,
-            ..base.lm
-        },
-        seed: spec.seed,
-        split: if spec.hold_out {
-            TrainConfig::TRAINLM.split
-        } else {
-            base.split
-        },
-        ..base
-    };
-    let out = visuotact_nn::mlp::train(&mut net, &xs, &ts, &cfg, progress);
-    // Further members of an ensemble: other initial weights and splits, in parallel.
-    let members: Vec<Mlp> = (1..spec.ensemble.max(1))
-        .into_par_iter()
-        .map(|i| {
-            let seed = spec.seed.wrapping_add(7919 * i as u64);
-            let mut member = Mlp::nguyen_widrow(&sizes, seed);
-            let cfg = TrainConfig { seed, ..cfg };
-            visuotact_nn::mlp::train(&mut member, &xs, &ts, &cfg, |_, _, _| Control::Continue);
-            member
-        })
-        .collect();
-    // Per subset and target, from one forward pass per sample: the MSE in target units (scaled
-    // MSE × (span / 2)²) and R (unchanged by mapminmax, a linear map per target).
-    // An empty subset (trainbr trains on every sample) has no figures: empty lists, never
-    // NaN (JSON has no NaN).
-    let figures = |ids: &[usize]| -> (Vec<f64>, Vec<f64>) {
-        if ids.is_empty() {
-            return (Vec::new(), Vec::new());
-        }
-        let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
-        (0..spec.targets.len())
-            .map(|j| {
-                let e: Vec<f64> = est.iter().map(|v| v[j]).collect();
-                let t: Vec<f64> = ids.iter().map(|&i| ts[i][j]).collect();
-                let f = target_errors("", &e, &t);
-                let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
-                (f.mse * half * half, f.r)
-            })
-            .unzip()
-    };
-    let [(mse0, r0), (mse1, r1), (mse2, r2)] = out.subsets.each_ref().map(|ids| figures(ids));
-    let (mse, r) = ([mse0, mse1, mse2], [r0, r1, r2]);
-    let stop = if out.validation_stop {
-        "validation".to_string()
-    } else {
-        format!("{:?}", out.lm.reason)
-    };
-    Ok(Model {
-        format: MODEL_FORMAT.to_string(),
-        version: MODEL_VERSION,
-        net,
-        members,
-        input_scaling,
-        passthrough: if projection.is_some() {
-            spec.passthrough
-        } else {
-            0
-        },
-        projection,
-        target_scaling,
-        feature_columns: spec.feature_columns.to_vec(),
-        target_columns: spec.targets.to_vec(),
-        training: TrainingSummary {
-            epochs: out.lm.iterations,
-            best_epoch: out.best_epoch,
-            stop,
-            samples: [
-                out.subsets[0].len(),
-                out.subsets[1].len(),
-                out.subsets[2].len(),
-            ],
-            mse,
-            r,
-            seed: spec.seed,
-            algorithm: spec.algorithm.name().to_string(),
-            evidence: out.evidence,
-        },
-        sensor: spec.sensor,
-    })
-}
-
 pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
     column_names(s, "targets")
 }
@@ -678,10 +502,8 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         x.len()
     );
     let t0 = std::time::Instant::now();
-    let spec = FitSpec {
-        feature_columns: &feature_columns,
-        targets: &targets,
-        hidden: &hidden,
+    let cfg = FitConfig {
+        hidden,
         seed: a.seed,
         max_epochs: a.max_epochs,
         algorithm: a.algorithm.algorithm(),
@@ -689,9 +511,14 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         components,
         passthrough,
         ensemble: a.ensemble,
-        sensor,
     };
-    let model = fit_model(&x, &t, spec, |epoch, train_mse, val_mse| {
+    let data = FitData {
+        x: &x,
+        t: &t,
+        feature_columns: &feature_columns,
+        targets: &targets,
+    };
+    let mut model = fit(&data, &cfg, |epoch, train_mse, val_mse| {
         if epoch % 10 == 0 {
             if val_mse.is_nan() {
                 eprintln!("epoch {epoch}: mse train {train_mse:.3e} (scaled)");
@@ -703,6 +530,7 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         }
         Control::Continue
     })?;
+    model.sensor = sensor;
     crate::write_atomically(&a.output, &model.to_json())?;
     let tr = &model.training;
     eprintln!(
@@ -1194,4 +1022,15 @@ pub(crate) fn evaluate(
         100.0 * visuotact_nn::metrics::MPE_FLOOR_FRACTION
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_hidden_layers_are_the_librarys() {
+        let parsed: Vec<usize> = parse_list(DEFAULT_HIDDEN, "hidden").unwrap();
+        assert_eq!(parsed, FitConfig::default().hidden);
+    }
 }

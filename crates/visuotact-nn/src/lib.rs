@@ -7,6 +7,7 @@
 
 pub mod br;
 pub mod dual;
+pub mod fit;
 pub mod lm;
 pub mod metrics;
 pub mod mlp;

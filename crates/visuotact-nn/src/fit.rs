@@ -1,0 +1,472 @@
+//! A model from a table of inputs and targets: scaling, the optional projection of the
+//! markers' features, one network or an ensemble, trained by [`crate::mlp::train`].
+//!
+//! This is what `visuotact train` and `sweep` run, reachable without the command line:
+//!
+//! ```
+//! use visuotact_nn::fit::{fit, FitConfig, FitData};
+//! use visuotact_nn::lm::Control;
+//!
+//! // y = 2·a − b on 40 samples; one small network by trainlm.
+//! let x: Vec<Vec<f64>> = (0..40).map(|i| vec![(i % 7) as f64, (i % 5) as f64]).collect();
+//! let t: Vec<Vec<f64>> = x.iter().map(|r| vec![2.0 * r[0] - r[1]]).collect();
+//! let columns = ["a".to_string(), "b".to_string()];
+//! let targets = ["y".to_string()];
+//! let data = FitData { x: &x, t: &t, feature_columns: &columns, targets: &targets };
+//! let cfg = FitConfig { hidden: vec![3], ensemble: 1, ..FitConfig::default() };
+//! let model = fit(&data, &cfg, |_, _, _| Control::Continue).unwrap();
+//! assert!((model.predict(&[3.0, 1.0])[0] - 5.0).abs() < 0.05);
+//! ```
+
+use rayon::prelude::*;
+
+use crate::lm::{Control, LmConfig};
+use crate::metrics::target_errors;
+use crate::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
+use crate::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
+use crate::pca::Projection;
+
+/// Components `auto` keeps for sensors with many inputs.
+pub const AUTO_COMPONENTS: usize = 10;
+
+/// The components `auto` keeps for `inputs` marker inputs (`None`: the inputs themselves):
+/// a projection only when there are over twice as many inputs as components.
+pub fn auto_components(inputs: usize) -> Option<usize> {
+    (inputs > 2 * AUTO_COMPONENTS).then_some(AUTO_COMPONENTS)
+}
+
+/// Whether the field summary goes in beside the markers' features by default: when those are
+/// projected, i.e. the same threshold as [`auto_components`].
+pub fn auto_field(inputs: usize) -> bool {
+    auto_components(inputs).is_some()
+}
+
+/// How a model is trained. [`Default`] is visuotact's default (what `visuotact train` does
+/// with no options); [`FitConfig::paper`] is the source documents' way.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitConfig {
+    /// Hidden layer sizes.
+    pub hidden: Vec<usize>,
+    /// Seed of the split and the initial weights (members of an ensemble add multiples of a
+    /// prime to it).
+    pub seed: u64,
+    /// Most epochs.
+    pub max_epochs: usize,
+    /// The objective.
+    pub algorithm: Algorithm,
+    /// Keep trainlm's validation and test subsets with trainbr too (a sweep compares networks
+    /// on them); otherwise trainbr trains on every sample.
+    pub hold_out: bool,
+    /// Feed the network this many principal components of the scaled markers' features
+    /// (`None`: the inputs themselves).
+    pub components: Option<usize>,
+    /// How many trailing input columns are not markers' features (the field summary, extra
+    /// inputs such as a gauge): they bypass the projection.
+    pub passthrough: usize,
+    /// Networks in the model (1: one; more: an ensemble on other seeds and splits, estimates
+    /// their mean with the standard deviation as the spread).
+    pub ensemble: usize,
+}
+
+impl Default for FitConfig {
+    /// trainbr, one hidden layer of 20, 5 networks, every input as it is: on 280 simulated
+    /// touches of four sensors it generalised best (docs/benchmarks.md).
+    fn default() -> Self {
+        Self {
+            hidden: vec![20],
+            seed: 1,
+            max_epochs: 1000,
+            algorithm: Algorithm::Trainbr,
+            hold_out: false,
+            components: None,
+            passthrough: 0,
+            ensemble: 5,
+        }
+    }
+}
+
+impl FitConfig {
+    /// The default for `marker_inputs` markers' features followed by `passthrough` other
+    /// inputs: the markers' features projected by [`auto_components`].
+    pub fn auto(marker_inputs: usize, passthrough: usize) -> Self {
+        Self {
+            components: auto_components(marker_inputs),
+            passthrough,
+            ..Self::default()
+        }
+    }
+
+    /// The source documents' way: trainlm (70/15/15 split, validation stop), every input,
+    /// one network with these hidden layers.
+    pub fn paper(hidden: &[usize]) -> Self {
+        Self {
+            hidden: hidden.to_vec(),
+            algorithm: Algorithm::Trainlm,
+            ensemble: 1,
+            ..Self::default()
+        }
+    }
+}
+
+/// The training table: one row of inputs and one of targets per sample, and their names
+/// (kept in the model file).
+#[derive(Clone, Copy, Debug)]
+pub struct FitData<'a> {
+    /// Inputs per sample; NaN for a marker's feature that was lost (filled from the others
+    /// when the markers' features are projected).
+    pub x: &'a [Vec<f64>],
+    /// Targets per sample, in their units.
+    pub t: &'a [Vec<f64>],
+    /// Names of the inputs (markers' features first, then the pass-through columns).
+    pub feature_columns: &'a [String],
+    /// Names of the targets.
+    pub targets: &'a [String],
+}
+
+/// Why no model was trained.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FitError {
+    /// No samples, or no inputs or targets.
+    #[error("nothing to train on: {samples} samples, {inputs} inputs, {targets} targets")]
+    Empty {
+        /// Samples given.
+        samples: usize,
+        /// Input columns named.
+        inputs: usize,
+        /// Target columns named.
+        targets: usize,
+    },
+    /// A row's width differs from its column names.
+    #[error("sample {row}: {got} {what}, expected {expected}")]
+    Width {
+        /// Which sample (from 0).
+        row: usize,
+        /// `inputs` or `targets`.
+        what: &'static str,
+        /// Values in the row.
+        got: usize,
+        /// Columns named.
+        expected: usize,
+    },
+    /// A target is not a finite number, or an input is infinite or missing where it cannot be
+    /// filled.
+    #[error("sample {row}, column `{column}`: {value} ({why})")]
+    NotFinite {
+        /// Which sample (from 0).
+        row: usize,
+        /// The column's name.
+        column: String,
+        /// The value.
+        value: f64,
+        /// What is allowed there.
+        why: &'static str,
+    },
+    /// The hidden layers or the ensemble size are zero, or the pass-through count exceeds the
+    /// inputs.
+    #[error("invalid configuration: {0}")]
+    Config(String),
+    /// The principal components could not be taken.
+    #[error("principal components: {0}")]
+    Projection(String),
+}
+
+impl FitData<'_> {
+    /// Checks shapes and values against `cfg`.
+    fn validate(&self, cfg: &FitConfig) -> Result<(), FitError> {
+        let (inputs, targets) = (self.feature_columns.len(), self.targets.len());
+        if self.x.is_empty() || inputs == 0 || targets == 0 || self.t.len() != self.x.len() {
+            return Err(FitError::Empty {
+                samples: self.x.len().min(self.t.len()),
+                inputs,
+                targets,
+            });
+        }
+        if cfg.hidden.is_empty() || cfg.hidden.contains(&0) {
+            return Err(FitError::Config(format!(
+                "hidden layers {:?}: need one or more positive sizes",
+                cfg.hidden
+            )));
+        }
+        if cfg.passthrough > inputs {
+            return Err(FitError::Config(format!(
+                "{} pass-through inputs of {inputs}",
+                cfg.passthrough
+            )));
+        }
+        let projected = inputs - cfg.passthrough;
+        for (row, (x, t)) in self.x.iter().zip(self.t).enumerate() {
+            for (what, got, expected) in
+                [("inputs", x.len(), inputs), ("targets", t.len(), targets)]
+            {
+                if got != expected {
+                    return Err(FitError::Width {
+                        row,
+                        what,
+                        got,
+                        expected,
+                    });
+                }
+            }
+            let bad_input = x.iter().enumerate().find(|&(j, v)| {
+                v.is_infinite() || (v.is_nan() && (cfg.components.is_none() || j >= projected))
+            });
+            if let Some((j, &value)) = bad_input {
+                return Err(FitError::NotFinite {
+                    row,
+                    column: self.feature_columns[j].clone(),
+                    value,
+                    why: if cfg.components.is_some() && j < projected {
+                        "inputs must be finite; a missing marker's feature may be NaN"
+                    } else {
+                        "inputs that are not projected must be finite"
+                    },
+                });
+            }
+            if let Some((j, &value)) = t.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err(FitError::NotFinite {
+                    row,
+                    column: self.targets[j].clone(),
+                    value,
+                    why: "targets must be finite",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Scales, projects, initialises and trains the model's networks; the first network reports
+/// the training figures and takes `progress` (epoch, training MSE, validation MSE — NaN
+/// without a validation subset; returning [`Control::Stop`] stops it). Non-convergence is in
+/// the model's [`TrainingSummary::stop`], not an error.
+pub fn fit(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    progress: impl FnMut(usize, f64, f64) -> Control,
+) -> Result<Model, FitError> {
+    data.validate(cfg)?;
+    let (x, t) = (data.x, data.t);
+    let input_scaling = MinMax::fit(x);
+    let target_scaling = MinMax::fit(t);
+    let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
+    // The components from the complete samples; samples with lost markers get the scores that
+    // fit the markers found.
+    let projected = data.feature_columns.len() - cfg.passthrough;
+    let projection = cfg
+        .components
+        .map(|k| {
+            let complete: Vec<Vec<f64>> = xs
+                .iter()
+                .filter(|r| r.iter().all(|v| !v.is_nan()))
+                .map(|r| r[..projected].to_vec())
+                .collect();
+            Projection::fit(&complete, k)
+        })
+        .transpose()
+        .map_err(FitError::Projection)?;
+    let xs: Vec<Vec<f64>> = match &projection {
+        Some(p) => xs
+            .iter()
+            .enumerate()
+            .map(|(row, r)| {
+                let mut z = p.apply_partial(&r[..projected]).ok_or_else(|| {
+                    FitError::Projection(format!(
+                        "sample {row} has fewer inputs left than components"
+                    ))
+                })?;
+                z.extend_from_slice(&r[projected..]);
+                Ok(z)
+            })
+            .collect::<Result<_, FitError>>()?,
+        None => xs,
+    };
+    let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
+    let mut sizes = vec![projection.as_ref().map_or(data.feature_columns.len(), |p| {
+        p.outputs() + cfg.passthrough
+    })];
+    sizes.extend(&cfg.hidden);
+    sizes.push(data.targets.len());
+    let base = match cfg.algorithm {
+        Algorithm::Trainlm => TrainConfig::TRAINLM,
+        Algorithm::Trainbr => TrainConfig::TRAINBR,
+    };
+    let train_cfg = TrainConfig {
+        lm: LmConfig {
+            max_iterations: cfg.max_epochs,
+            ..base.lm
+        },
+        seed: cfg.seed,
+        split: if cfg.hold_out {
+            TrainConfig::TRAINLM.split
+        } else {
+            base.split
+        },
+        ..base
+    };
+    let mut net = Mlp::nguyen_widrow(&sizes, cfg.seed);
+    let out = crate::mlp::train(&mut net, &xs, &ts, &train_cfg, progress);
+    // Further members of an ensemble: other initial weights and splits, in parallel.
+    let members: Vec<Mlp> = (1..cfg.ensemble.max(1))
+        .into_par_iter()
+        .map(|i| {
+            let seed = cfg.seed.wrapping_add(7919 * i as u64);
+            let mut member = Mlp::nguyen_widrow(&sizes, seed);
+            let member_cfg = TrainConfig { seed, ..train_cfg };
+            crate::mlp::train(&mut member, &xs, &ts, &member_cfg, |_, _, _| {
+                Control::Continue
+            });
+            member
+        })
+        .collect();
+    // Per subset and target, from one forward pass per sample: the MSE in target units (scaled
+    // MSE × (span / 2)²) and R (unchanged by mapminmax, a linear map per target).
+    // An empty subset (trainbr trains on every sample) has no figures: empty lists, never
+    // NaN (JSON has no NaN).
+    let figures = |ids: &[usize]| -> (Vec<f64>, Vec<f64>) {
+        if ids.is_empty() {
+            return (Vec::new(), Vec::new());
+        }
+        let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
+        (0..data.targets.len())
+            .map(|j| {
+                let e: Vec<f64> = est.iter().map(|v| v[j]).collect();
+                let t: Vec<f64> = ids.iter().map(|&i| ts[i][j]).collect();
+                let f = target_errors("", &e, &t);
+                let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
+                (f.mse * half * half, f.r)
+            })
+            .unzip()
+    };
+    let [(mse0, r0), (mse1, r1), (mse2, r2)] = out.subsets.each_ref().map(|ids| figures(ids));
+    let stop = if out.validation_stop {
+        "validation".to_string()
+    } else {
+        format!("{:?}", out.lm.reason)
+    };
+    Ok(Model {
+        format: MODEL_FORMAT.to_string(),
+        version: MODEL_VERSION,
+        net,
+        members,
+        input_scaling,
+        passthrough: if projection.is_some() {
+            cfg.passthrough
+        } else {
+            0
+        },
+        projection,
+        target_scaling,
+        feature_columns: data.feature_columns.to_vec(),
+        target_columns: data.targets.to_vec(),
+        training: TrainingSummary {
+            epochs: out.lm.iterations,
+            best_epoch: out.best_epoch,
+            stop,
+            samples: out.subsets.each_ref().map(Vec::len),
+            mse: [mse0, mse1, mse2],
+            r: [r0, r1, r2],
+            seed: cfg.seed,
+            algorithm: cfg.algorithm.name().to_string(),
+            evidence: out.evidence,
+        },
+        sensor: None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(prefix: &str, n: usize) -> Vec<String> {
+        (0..n).map(|i| format!("{prefix}{i}")).collect()
+    }
+
+    #[test]
+    fn bad_tables_are_refused_with_the_sample_and_column() {
+        let x = vec![vec![0.0, 1.0], vec![1.0, f64::INFINITY]];
+        let t = vec![vec![0.0], vec![1.0]];
+        let (cols, targets) = (names("m", 2), names("y", 1));
+        let data = FitData {
+            x: &x,
+            t: &t,
+            feature_columns: &cols,
+            targets: &targets,
+        };
+        let err = fit(&data, &FitConfig::default(), |_, _, _| Control::Continue).unwrap_err();
+        assert!(
+            matches!(&err, FitError::NotFinite { row: 1, column, .. } if column == "m1"),
+            "{err}"
+        );
+        let t_nan = vec![vec![0.0], vec![f64::NAN]];
+        let x_ok = vec![vec![0.0, 1.0], vec![1.0, 0.0]];
+        let data = FitData {
+            x: &x_ok,
+            t: &t_nan,
+            ..data
+        };
+        let err = fit(&data, &FitConfig::default(), |_, _, _| Control::Continue).unwrap_err();
+        assert!(err.to_string().contains("targets must be finite"), "{err}");
+        let short = vec![vec![0.0], vec![1.0, 0.0]];
+        let data = FitData {
+            x: &short,
+            t: &t,
+            ..data
+        };
+        let err = fit(&data, &FitConfig::default(), |_, _, _| Control::Continue).unwrap_err();
+        assert_eq!(
+            err,
+            FitError::Width {
+                row: 0,
+                what: "inputs",
+                got: 1,
+                expected: 2
+            }
+        );
+        let bad = FitConfig {
+            hidden: vec![],
+            ..FitConfig::default()
+        };
+        let data = FitData { x: &x_ok, ..data };
+        assert!(matches!(
+            fit(&data, &bad, |_, _, _| Control::Continue),
+            Err(FitError::Config(_))
+        ));
+    }
+
+    #[test]
+    fn an_ensemble_is_deterministic_and_its_members_differ() {
+        let x: Vec<Vec<f64>> = (0..60)
+            .map(|i| vec![(i % 6) as f64, (i % 10) as f64 * 0.3])
+            .collect();
+        let t: Vec<Vec<f64>> = x.iter().map(|r| vec![(r[0] * r[1]).sin()]).collect();
+        let (cols, targets) = (names("m", 2), names("y", 1));
+        let data = FitData {
+            x: &x,
+            t: &t,
+            feature_columns: &cols,
+            targets: &targets,
+        };
+        let cfg = FitConfig {
+            hidden: vec![4],
+            ensemble: 3,
+            max_epochs: 50,
+            ..FitConfig::default()
+        };
+        let a = fit(&data, &cfg, |_, _, _| Control::Continue).unwrap();
+        let b = fit(&data, &cfg, |_, _, _| Control::Continue).unwrap();
+        assert_eq!(a.to_json(), b.to_json());
+        assert_eq!(a.networks().count(), 3);
+        assert_ne!(a.members[0], a.members[1]);
+        assert_eq!(a.training.algorithm, "trainbr");
+    }
+
+    #[test]
+    fn the_auto_rule_projects_wide_tables_only() {
+        assert_eq!(auto_components(20), None);
+        assert_eq!(auto_components(21), Some(AUTO_COMPONENTS));
+        assert!(!auto_field(6) && auto_field(351));
+        let cfg = FitConfig::auto(351, 6);
+        assert_eq!((cfg.components, cfg.passthrough), (Some(10), 6));
+        assert_eq!(FitConfig::paper(&[20]).algorithm, Algorithm::Trainlm);
+    }
+}
