@@ -6,12 +6,12 @@ use anyhow::{bail, Context};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::FrameStream;
 use visuotact_vision::blobs::Connectivity;
-use visuotact_vision::calibration::{calibrate, CalibrationConfig, LightestFinder};
+use visuotact_vision::calibration::{calibrate, CalibrationConfig, LightestFinder, Preset};
 use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::{
-    marker_polarity, Channel, CircleMask, Polarity, PreprocessConfig, Roi, Threshold,
+    marker_polarity, Channel, CircleMask, Polarity, Roi, Threshold,
 };
 use visuotact_vision::track::TrackConfig;
 
@@ -153,11 +153,11 @@ impl DetectorArgs {
         &self,
         default_centroid: Centroid,
     ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
-        let (mut p, features) = match self.preset.as_str() {
-            "cone" => (PreprocessConfig::CONE, FeatureSet::CONE),
-            "dark-markers" => (PreprocessConfig::DARK_MARKERS, FeatureSet::IATS),
-            _ => (PreprocessConfig::IATS, FeatureSet::IATS),
-        };
+        // `auto` (resolved by the caller) reads as `iats`.
+        let base = Preset::from_name(&self.preset)
+            .unwrap_or(Preset::Iats)
+            .config();
+        let (mut p, features) = (base.detector.preprocess, base.features);
         if let Some(c) = &self.channel {
             p.channel = Channel::from_name(c).with_context(|| {
                 format!(
@@ -305,11 +305,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
     // Thin annuli (the cone preset) are steadiest with the grey-weighted centroid.
-    let default_centroid = if a.detector.preset == "cone" {
-        Centroid::Weighted
-    } else {
-        Centroid::Grey
-    };
+    let default_centroid = Preset::from_name(&a.detector.preset)
+        .map_or(Centroid::Grey, |p| p.config().detector.centroid);
     // Frames that cannot be read are reported where they are read below.
     let (detector, preset_features) = a.detector.config_for_frames(default_centroid, || {
         open_frames(a).ok()?.next()?.ok().map(|f| f.image)

@@ -28,7 +28,6 @@ use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::protocol::{self, ConePress};
 
 use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
-use crate::live::Estimator;
 use crate::simulate::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
 
 #[derive(clap::Args, Debug)]
@@ -342,7 +341,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .map(crate::train::load_model)
         .transpose()?;
     let mut est = if a.sensor.is_some() || model.is_some() {
-        let mut e = Estimator::new(a.sensor.as_deref(), model)?;
+        let mut e = crate::live::estimator(a.sensor.as_deref(), model)?;
         e.set_temporal_prior(a.temporal);
         Some(e)
     } else {

@@ -9,8 +9,6 @@ use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 
-use crate::live::Estimator;
-
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
     /// Model from `train` or `sweep`.
@@ -66,7 +64,7 @@ impl Readings {
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let model = crate::train::load_model(&a.model)?;
-    let mut est = Estimator::with_extra_inputs(a.sensor.as_deref(), Some(model))?;
+    let mut est = crate::live::estimator_with_extra_inputs(a.sensor.as_deref(), Some(model))?;
     est.set_temporal_prior(a.temporal);
     let session =
         (a.input.len() == 1 && a.input[0].join("frames.csv").is_file()).then(|| a.input[0].clone());

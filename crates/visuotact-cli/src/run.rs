@@ -259,7 +259,7 @@ pub(crate) struct LiveEstimator {
 
 impl LiveEstimator {
     pub(crate) fn new(a: &Args, models: Vec<Model>) -> anyhow::Result<Self> {
-        let mut est = Estimator::new(a.sensor.as_deref(), models.first().cloned())?;
+        let mut est = crate::live::estimator(a.sensor.as_deref(), models.first().cloned())?;
         est.set_temporal_prior(a.temporal);
         let names = est.feature_columns();
         let cols = models

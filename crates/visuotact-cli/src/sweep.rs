@@ -144,7 +144,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 feature_columns: &feature_columns,
                 targets: &targets,
             };
-            let m = fit(&data, &cfg, |_, _, _| Control::Continue);
+            let m = fit(&data, &cfg, |_, _, _| Control::Continue).map_err(crate::train::fit_error);
             bar.inc(1);
             m.map(|m| (k, m))
         })

@@ -6,13 +6,13 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
-use visuotact_nn::fit::{auto_components, auto_field, fit, FitConfig, FitData};
+use visuotact_nn::fit::{auto_components, auto_field, fit, FitConfig, FitData, FitError};
 use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::target_errors;
 use visuotact_nn::mlp::{Algorithm, Mlp};
 pub(crate) use visuotact_nn::model::is_marker_column;
 use visuotact_nn::model::{unfillable, Model};
-use visuotact_vision::features::{is_field_column, FeatureExtractor, FeatureSet, FIELD_COLUMNS};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct TrainArgs {
@@ -529,7 +529,8 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
             }
         }
         Control::Continue
-    })?;
+    })
+    .map_err(fit_error)?;
     model.sensor = sensor;
     crate::write_atomically(&a.output, &model.to_json())?;
     let tr = &model.training;
@@ -596,35 +597,17 @@ pub(crate) struct PredictArgs {
     output: PathBuf,
 }
 
-/// The refusal of a model input that frames cannot give.
-pub(crate) fn non_marker_input(c: &str) -> anyhow::Error {
-    anyhow::anyhow!(
-        "the model needs the input `{c}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)"
-    )
+/// A training error in the command line's words (the projection is `--components`).
+pub(crate) fn fit_error(e: FitError) -> anyhow::Error {
+    match e {
+        FitError::Projection(m) => anyhow::anyhow!("--components: {m}"),
+        e => e.into(),
+    }
 }
 
-/// The per-marker feature set that produces `columns` (`m000_dx_px`, `m000_decc`, …; the
-/// field summary comes with any).
+/// The feature set a model's input columns need ([`visuotact_pipeline::feature_set_of`]).
 pub(crate) fn feature_set_of(columns: &[String]) -> anyhow::Result<FeatureSet> {
-    let mut kinds: Vec<&str> = Vec::new();
-    // The field summary comes with every feature set.
-    for c in columns.iter().filter(|c| !is_field_column(c)) {
-        let kind = match c.get(5..) {
-            Some("dx_px") => "x",
-            Some("dy_px") => "y",
-            Some("darea_px") => "area",
-            Some("decc") => "ecc",
-            _ => return Err(non_marker_input(c)),
-        };
-        if !kinds.contains(&kind) {
-            kinds.push(kind);
-        }
-    }
-    if kinds.is_empty() {
-        // A model on the field summary alone: the displacements give it.
-        kinds.extend(["x", "y"]);
-    }
-    FeatureSet::parse(&kinds.join(",")).map_err(anyhow::Error::msg)
+    Ok(visuotact_pipeline::feature_set_of(columns)?)
 }
 
 /// Features of frames extracted with a sensor file, as a keyed table.

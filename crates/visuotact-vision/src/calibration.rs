@@ -106,6 +106,74 @@ pub struct CalibrationConfig {
     pub track: TrackConfig,
 }
 
+/// Named starting points for a sensor's calibration: preprocessing, centroid, feature set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Preset {
+    /// Bright markers on a darker skin (seed 000's green markers, TacTip pins): the green
+    /// channel, a 3 × 3 opening, Otsu's level, grey-level centroids, features `x,y,area`.
+    Iats,
+    /// Seed 001's cone: BT.601 luma, fixed level 0.25, grey-weighted centroids (steadiest on
+    /// thin annuli), features `x,y,area,ecc`.
+    Cone,
+    /// Dark markers on a bright, unevenly lit gel (GelSight, 9DTact): inverted luma, an
+    /// adaptive level, grey-level centroids, features `x,y,area`.
+    DarkMarkers,
+}
+
+impl Preset {
+    /// Every preset, in the order `--preset` lists them.
+    pub const ALL: [Preset; 3] = [Preset::Iats, Preset::Cone, Preset::DarkMarkers];
+
+    /// Name on the command line and in Python.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Iats => "iats",
+            Preset::Cone => "cone",
+            Preset::DarkMarkers => "dark-markers",
+        }
+    }
+
+    /// The preset called `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// `auto`: [`Preset::DarkMarkers`] when the markers in `frame` are darker than the skin,
+    /// else [`Preset::Iats`].
+    pub fn for_frame(frame: &RgbImage) -> Self {
+        match crate::preprocess::marker_polarity(frame) {
+            crate::preprocess::Polarity::Dark => Preset::DarkMarkers,
+            _ => Preset::Iats,
+        }
+    }
+
+    /// The calibration settings: this preset's detector and features, the layout recognised
+    /// automatically, the default tracker.
+    pub fn config(self) -> CalibrationConfig {
+        use crate::detect::Centroid;
+        use crate::preprocess::PreprocessConfig;
+        let (preprocess, centroid, features) = match self {
+            Preset::Iats => (PreprocessConfig::IATS, Centroid::Grey, FeatureSet::IATS),
+            Preset::Cone => (PreprocessConfig::CONE, Centroid::Weighted, FeatureSet::CONE),
+            Preset::DarkMarkers => (
+                PreprocessConfig::DARK_MARKERS,
+                Centroid::Grey,
+                FeatureSet::IATS,
+            ),
+        };
+        CalibrationConfig {
+            detector: DetectorConfig {
+                preprocess,
+                centroid,
+                ..DetectorConfig::default()
+            },
+            layout: LayoutChoice::Auto,
+            features,
+            track: TrackConfig::DEFAULT,
+        }
+    }
+}
+
 /// Everything `extract` needs to turn frames of this sensor into features.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SensorCalibration {

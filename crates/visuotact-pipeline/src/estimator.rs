@@ -1,0 +1,297 @@
+//! The per-frame step: frame → markers' features and field summary → the model's estimate.
+//!
+//! `record --model`, `replay`, `predict --sensor`, `run` and the Python package all call this
+//! one estimator, so the same frame gives the same numbers in each. Buffers are kept between
+//! frames: after the first frame, [`Estimator::process_with`] does not allocate for the
+//! features.
+
+use visuotact_image::RgbImage;
+use visuotact_nn::model::{is_marker_column, Estimate, Model};
+use visuotact_vision::calibration::SensorCalibration;
+use visuotact_vision::features::{
+    is_field_column, FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError,
+};
+
+/// Why an estimator could not be built or a frame not processed.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PipelineError {
+    /// Neither a sensor calibration nor a model holding one was given.
+    #[error("the model holds no sensor calibration: give the sensor file")]
+    NoSensor,
+    /// The model's stored sensor calibration does not read.
+    #[error("the model's sensor: {0}")]
+    ModelSensor(String),
+    /// The model needs an input frames cannot give.
+    #[error("the model needs the input `{column}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)")]
+    NotAMarkerInput {
+        /// The input's column name.
+        column: String,
+    },
+    /// The model names a feature the sensor does not have.
+    #[error(
+        "the sensor has no feature `{column}`: the model was trained with another sensor file"
+    )]
+    UnknownFeature {
+        /// The feature's column name.
+        column: String,
+    },
+    /// The feature extractor refused the calibration or feature set.
+    #[error("features: {0}")]
+    Features(String),
+    /// A frame's size differs from the calibration's.
+    #[error(transparent)]
+    FrameSize(#[from] FrameSizeError),
+}
+
+/// The feature set a model's input columns need (the field summary comes with every set; a
+/// model on the field summary alone needs the displacements, `x,y`).
+pub fn feature_set_of(columns: &[String]) -> Result<FeatureSet, PipelineError> {
+    let mut kinds: Vec<&str> = Vec::new();
+    for c in columns.iter().filter(|c| !is_field_column(c)) {
+        let kind = match c.get(5..) {
+            Some("dx_px") if is_marker_column(c) => "x",
+            Some("dy_px") if is_marker_column(c) => "y",
+            Some("darea_px") if is_marker_column(c) => "area",
+            Some("decc") if is_marker_column(c) => "ecc",
+            _ => {
+                return Err(PipelineError::NotAMarkerInput { column: c.clone() });
+            }
+        };
+        if !kinds.contains(&kind) {
+            kinds.push(kind);
+        }
+    }
+    if kinds.is_empty() {
+        kinds.extend(["x", "y"]);
+    }
+    FeatureSet::parse(&kinds.join(",")).map_err(PipelineError::Features)
+}
+
+/// Where one of the model's inputs comes from.
+#[derive(Clone, Copy, Debug)]
+enum Input {
+    /// This position of the frame's feature vector.
+    Feature(usize),
+    /// This position of the extra inputs given with the frame.
+    Extra(usize),
+}
+
+/// Per-frame estimator with reusable buffers.
+pub struct Estimator {
+    ex: FeatureExtractor,
+    model: Option<(Model, Vec<Input>)>,
+    /// The model's inputs that are not marker features (given with each frame), in order.
+    extra_inputs: Vec<String>,
+    features: FrameFeatures,
+    x: Vec<f64>,
+    n_markers: usize,
+}
+
+impl Estimator {
+    /// Features from `sensor` (or, when `None`, the calibration stored in the model), and
+    /// estimates when a model is given. The feature set is the model's, else the sensor's.
+    /// A model with inputs besides the marker features is refused: frames alone cannot give
+    /// them (see [`Estimator::with_extra_inputs`]).
+    pub fn new(
+        sensor: Option<SensorCalibration>,
+        model: Option<Model>,
+    ) -> Result<Self, PipelineError> {
+        let est = Self::with_extra_inputs(sensor, model)?;
+        match est.extra_inputs.first() {
+            Some(c) => Err(PipelineError::NotAMarkerInput { column: c.clone() }),
+            None => Ok(est),
+        }
+    }
+
+    /// As [`Estimator::new`], also for a model with inputs besides the marker features; their
+    /// values come with each frame to [`Estimator::process_with`], in the order of
+    /// [`Estimator::extra_inputs`].
+    pub fn with_extra_inputs(
+        sensor: Option<SensorCalibration>,
+        model: Option<Model>,
+    ) -> Result<Self, PipelineError> {
+        let cal = match (sensor, &model) {
+            (Some(c), _) => c,
+            (None, Some(m)) => match &m.sensor {
+                Some(v) => SensorCalibration::from_json(&v.to_string(), "the model's sensor")
+                    .map_err(PipelineError::ModelSensor)?,
+                None => return Err(PipelineError::NoSensor),
+            },
+            (None, None) => return Err(PipelineError::NoSensor),
+        };
+        let (markers, extra_inputs): (Vec<String>, Vec<String>) = model
+            .iter()
+            .flat_map(|m| m.feature_columns.iter().cloned())
+            .partition(|c| is_marker_column(c) || is_field_column(c));
+        let set = match &model {
+            Some(_) => feature_set_of(&markers)?,
+            None => cal.features,
+        };
+        let n_markers = cal.markers.len();
+        let ex = FeatureExtractor::new(cal, set).map_err(PipelineError::Features)?;
+        let model = match model {
+            Some(m) => {
+                let names = ex.column_names();
+                let cols = m
+                    .feature_columns
+                    .iter()
+                    .map(|c| match extra_inputs.iter().position(|e| e == c) {
+                        Some(j) => Ok(Input::Extra(j)),
+                        None => feature_index(&names, c).map(Input::Feature),
+                    })
+                    .collect::<Result<_, _>>()?;
+                Some((m, cols))
+            }
+            None => None,
+        };
+        Ok(Self {
+            ex,
+            model,
+            extra_inputs,
+            features: FrameFeatures::default(),
+            x: Vec::new(),
+            n_markers,
+        })
+    }
+
+    /// Feature column names, in extraction order.
+    pub fn feature_columns(&self) -> Vec<String> {
+        self.ex.column_names()
+    }
+
+    /// The model's inputs that come with each frame rather than from it.
+    pub fn extra_inputs(&self) -> &[String] {
+        &self.extra_inputs
+    }
+
+    /// The estimate's columns (empty without a model): the targets, then for an ensemble each
+    /// target's spread (`<target>_std`, the standard deviation over its networks).
+    pub fn target_columns(&self) -> Vec<String> {
+        self.model
+            .as_ref()
+            .map(|(m, _)| m.estimate_columns())
+            .unwrap_or_default()
+    }
+
+    /// The model, if any.
+    pub fn model(&self) -> Option<&Model> {
+        self.model.as_ref().map(|(m, _)| m)
+    }
+
+    /// The sensor calibration in use.
+    pub fn calibration(&self) -> &SensorCalibration {
+        self.ex.calibration()
+    }
+
+    /// Starts each frame's tracking from the last frame's marker positions (frames in order).
+    pub fn set_temporal_prior(&mut self, on: bool) {
+        self.ex.set_temporal_prior(on);
+    }
+
+    /// The feature set in use.
+    pub fn feature_set(&self) -> FeatureSet {
+        self.ex.feature_set()
+    }
+
+    /// Markers in the calibration.
+    pub fn n_markers(&self) -> usize {
+        self.n_markers
+    }
+
+    /// Where each of `m`'s inputs sits in this estimator's feature vector.
+    pub fn columns_of(&self, m: &Model) -> Result<Vec<usize>, PipelineError> {
+        let names = self.ex.column_names();
+        m.feature_columns
+            .iter()
+            .map(|c| feature_index(&names, c))
+            .collect()
+    }
+
+    /// One frame's features only (no estimate).
+    pub fn features(&mut self, img: &RgbImage) -> Result<&FrameFeatures, PipelineError> {
+        self.ex.extract_into(img, &mut self.features)?;
+        Ok(&self.features)
+    }
+
+    /// Processes one frame: its features, and the estimate as a row (targets, then spreads;
+    /// `None` without a model or when the model cannot estimate it — no estimate rather than
+    /// a wrong one).
+    pub fn process(
+        &mut self,
+        img: &RgbImage,
+    ) -> Result<(&FrameFeatures, Option<Vec<f64>>), PipelineError> {
+        self.process_with(img, &[])
+    }
+
+    /// As [`Estimator::process`], with the values of the model's extra inputs for this frame
+    /// (in the order of [`Estimator::extra_inputs`]); a missing or NaN value gives no estimate.
+    pub fn process_with(
+        &mut self,
+        img: &RgbImage,
+        extra: &[f64],
+    ) -> Result<(&FrameFeatures, Option<Vec<f64>>), PipelineError> {
+        let (f, e) = self.estimate_with(img, extra)?;
+        Ok((f, e.ok().map(Estimate::into_row)))
+    }
+
+    /// As [`Estimator::process_with`], the estimate whole (values, spread, inputs filled) or
+    /// why there is none.
+    pub fn estimate_with(
+        &mut self,
+        img: &RgbImage,
+        extra: &[f64],
+    ) -> Result<(&FrameFeatures, Result<Estimate, String>), PipelineError> {
+        self.ex.extract_into(img, &mut self.features)?;
+        let est = match &self.model {
+            Some((m, cols)) => {
+                self.x.clear();
+                self.x.extend(cols.iter().map(|&c| match c {
+                    Input::Feature(i) => self.features.values[i],
+                    Input::Extra(j) => extra.get(j).copied().unwrap_or(f64::NAN),
+                }));
+                // Lost markers filled (models on principal components); a missing reading or
+                // too many lost markers: no estimate.
+                m.estimate(&self.x)
+            }
+            None => Err("no model".to_string()),
+        };
+        Ok((&self.features, est))
+    }
+}
+
+/// Where feature `c` sits among `names`.
+fn feature_index(names: &[String], c: &str) -> Result<usize, PipelineError> {
+    names
+        .iter()
+        .position(|n| n == c)
+        .ok_or_else(|| PipelineError::UnknownFeature {
+            column: c.to_string(),
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cols(names: &[&str]) -> Vec<String> {
+        names.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn the_feature_set_follows_the_models_columns() {
+        let set = feature_set_of(&cols(&["m000_dx_px", "m000_dy_px", "field_rms_px"])).unwrap();
+        assert_eq!(set, FeatureSet::parse("x,y").unwrap());
+        let set = feature_set_of(&cols(&["m001_darea_px", "m001_dx_px"])).unwrap();
+        assert_eq!(set, FeatureSet::parse("area,x").unwrap());
+        assert_eq!(
+            feature_set_of(&cols(&["field_top_px"])).unwrap(),
+            FeatureSet::parse("x,y").unwrap()
+        );
+        assert_eq!(
+            feature_set_of(&cols(&["m000_dx_px", "gauge_kpa"])),
+            Err(PipelineError::NotAMarkerInput {
+                column: "gauge_kpa".into()
+            })
+        );
+    }
+}

@@ -1,0 +1,29 @@
+//! Frame → estimate, the layer every visuotact front end shares: the command line, the Python
+//! package and live runners call [`Estimator`] rather than composing the vision and network
+//! crates themselves, so the same frame gives the same numbers everywhere. No command-line or
+//! server dependencies.
+//!
+//! ```
+//! use visuotact_pipeline::Estimator;
+//! use visuotact_sim::iats::{render, IatsConfig, Touch};
+//! use visuotact_vision::calibration::{calibrate, Preset};
+//!
+//! // Calibrate on two simulated contact-free frames of seed 000's sensor, then read a press.
+//! let cfg = IatsConfig::SEED000;
+//! let rest: Vec<_> = (0..2).map(|k| render(&cfg, &Touch::default(), k).unwrap().0).collect();
+//! let (sensor, _) =
+//!     calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
+//! let mut est = Estimator::new(Some(sensor), None).unwrap();
+//! let press = Touch { x_mm: 30.0, y_mm: 22.0, depth_mm: 3.0, ..Touch::default() };
+//! let frame = render(&cfg, &press, 7).unwrap().0;
+//! let columns = est.feature_columns();
+//! let f = est.features(&frame).unwrap();
+//! assert_eq!(f.found, 117);
+//! // The field summary (the last columns) says the skin moved.
+//! let rms = f.values[columns.iter().position(|c| c == "field_rms_px").unwrap()];
+//! assert!(rms > 0.5);
+//! ```
+
+pub mod estimator;
+
+pub use estimator::{feature_set_of, Estimator, PipelineError};
