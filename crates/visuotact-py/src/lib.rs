@@ -1,0 +1,653 @@
+//! visuotact for Python: the library's calibration, per-frame estimator, training and filters
+//! behind a small numpy API (`import visuotact`). Frames are `(H, W, 3)` or `(H, W)` `uint8`
+//! arrays or image paths; features, labels and estimates are `float64` arrays. Errors are
+//! `visuotact.VisuotactError` with the library's message. The GIL is released while frames
+//! are processed and networks trained. Type stubs: `visuotact.pyi`.
+#![allow(
+    unsafe_code,
+    reason = "pyo3's macros expand to the C-API glue; this crate writes no unsafe code itself"
+)]
+
+use std::path::PathBuf;
+
+use numpy::{
+    IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
+    PyUntypedArrayMethods,
+};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyString};
+use visuotact_image::RgbImage;
+use visuotact_io::frames::{read_image, FrameStream};
+use visuotact_nn::fit::{auto_field, fit, FitConfig, FitData};
+use visuotact_nn::lm::Control;
+use visuotact_nn::mlp::Algorithm;
+use visuotact_nn::model::{is_marker_column, Model as NnModel};
+use visuotact_pipeline::Estimator;
+use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
+use visuotact_vision::features::{is_field_column, FrameFeatures};
+use visuotact_vision::layout::LayoutChoice;
+
+create_exception!(
+    visuotact,
+    VisuotactError,
+    PyException,
+    "An error from visuotact; the message names the file, frame or column and what was expected."
+);
+
+/// A visuotact error as a Python exception.
+fn error(e: impl std::fmt::Display) -> PyErr {
+    VisuotactError::new_err(e.to_string())
+}
+
+/// An image from a numpy array (`(H, W, 3)` or `(H, W)` uint8) or a path.
+fn rgb_from(frame: &Bound<'_, PyAny>) -> PyResult<RgbImage> {
+    if frame.is_instance_of::<PyString>() || frame.hasattr("__fspath__")? {
+        let path: PathBuf = frame.extract()?;
+        return read_image(&path).map_err(error);
+    }
+    let a: PyReadonlyArrayDyn<'_, u8> = frame.extract().map_err(|_| {
+        error("a frame must be a uint8 numpy array of shape (H, W, 3) or (H, W), or an image path")
+    })?;
+    let shape = a.shape().to_vec();
+    let data: Vec<u8> = match a.as_slice() {
+        Ok(s) => s.to_vec(),
+        Err(_) => a.as_array().iter().copied().collect(),
+    };
+    match shape[..] {
+        [h, w, 3] => RgbImage::from_vec(w, h, data).map_err(error),
+        [h, w] => {
+            RgbImage::from_vec(w, h, data.iter().flat_map(|&v| [v, v, v]).collect()).map_err(error)
+        }
+        _ => Err(error(format!(
+            "a frame must have shape (H, W, 3) or (H, W), got {shape:?}"
+        ))),
+    }
+}
+
+/// A frame as a `(H, W, 3)` uint8 array.
+fn array_from_rgb<'py>(py: Python<'py>, img: RgbImage) -> PyResult<Bound<'py, PyAny>> {
+    let (w, h) = (img.width(), img.height());
+    Ok(img
+        .into_vec()
+        .into_pyarray(py)
+        .reshape([h, w, 3])?
+        .into_any())
+}
+
+/// The rows of a 2-D float array.
+fn rows_of(a: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
+    a.as_array().outer_iter().map(|r| r.to_vec()).collect()
+}
+
+/// A sensor calibration: where the markers are at rest, how to find them, their layout.
+#[pyclass(module = "visuotact")]
+struct Sensor {
+    est: Estimator,
+}
+
+impl Sensor {
+    fn from_calibration(cal: SensorCalibration) -> PyResult<Self> {
+        Ok(Self {
+            est: Estimator::new(Some(cal), None).map_err(error)?,
+        })
+    }
+}
+
+#[pymethods]
+impl Sensor {
+    /// Calibrates from contact-free frames (arrays or paths). `preset`: "auto" (from the
+    /// markers' polarity in the first frame), "iats", "cone" or "dark-markers"; `layout`:
+    /// "auto", "grid", "hex", "rings" or "irregular".
+    #[staticmethod]
+    #[pyo3(signature = (frames, preset = "auto", layout = "auto"))]
+    fn calibrate(
+        py: Python<'_>,
+        frames: Vec<Bound<'_, PyAny>>,
+        preset: &str,
+        layout: &str,
+    ) -> PyResult<Self> {
+        let images: Vec<RgbImage> = frames.iter().map(rgb_from).collect::<PyResult<_>>()?;
+        // Ids as `visuotact calibrate` writes them: the file name, or the position.
+        let ids: Vec<String> = frames
+            .iter()
+            .enumerate()
+            .map(|(k, f)| {
+                f.extract::<PathBuf>()
+                    .ok()
+                    .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                    .unwrap_or_else(|| format!("frame {k}"))
+            })
+            .collect();
+        let first = images
+            .first()
+            .ok_or_else(|| error("calibration needs at least one frame"))?;
+        let preset = match preset {
+            "auto" => Preset::for_frame(first),
+            name => Preset::from_name(name).ok_or_else(|| {
+                error(format!(
+                    "preset {name:?}: expected auto, {}",
+                    Preset::ALL.map(Preset::name).join(", ")
+                ))
+            })?,
+        };
+        let cfg = visuotact_vision::calibration::CalibrationConfig {
+            layout: LayoutChoice::parse(layout).map_err(error)?,
+            ..preset.config()
+        };
+        let (cal, _) = py
+            .detach(|| calibrate(ids.iter().map(String::as_str).zip(images.iter()), &cfg))
+            .map_err(error)?;
+        Self::from_calibration(cal)
+    }
+
+    /// Reads a sensor file written by `visuotact calibrate` or [`Sensor.save`].
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| error(format!("{}: cannot read sensor file: {e}", path.display())))?;
+        Self::from_calibration(
+            SensorCalibration::from_json(&text, &path.display().to_string()).map_err(error)?,
+        )
+    }
+
+    /// Writes the sensor file.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        std::fs::write(&path, self.est.calibration().to_json())
+            .map_err(|e| error(format!("{}: cannot write: {e}", path.display())))
+    }
+
+    /// The sensor file's JSON text.
+    fn to_json(&self) -> String {
+        self.est.calibration().to_json()
+    }
+
+    /// Markers in the calibration.
+    #[getter]
+    fn n_markers(&self) -> usize {
+        self.est.n_markers()
+    }
+
+    /// Names of the feature values `extract` gives: per marker (`m017_dx_px`, …), then the
+    /// field summary (`field_rms_px`, …).
+    #[getter]
+    fn feature_columns(&self) -> Vec<String> {
+        self.est.feature_columns()
+    }
+
+    /// The features of one frame (array or path), against the calibration's reference.
+    fn extract(&mut self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<Features> {
+        let img = rgb_from(frame)?;
+        let est = &mut self.est;
+        let f = py.detach(|| est.features(&img).cloned()).map_err(error)?;
+        Ok(Features::new(f, self.est.feature_columns()))
+    }
+
+    fn __repr__(&self) -> String {
+        let c = self.est.calibration();
+        format!(
+            "Sensor({} markers, {}, {}×{} px)",
+            self.est.n_markers(),
+            c.layout.name(),
+            c.image_width,
+            c.image_height
+        )
+    }
+}
+
+/// One frame's features: the row `extract` writes, and per-marker arrays.
+#[pyclass(module = "visuotact")]
+struct Features {
+    f: FrameFeatures,
+    columns: Vec<String>,
+}
+
+impl Features {
+    fn new(f: FrameFeatures, columns: Vec<String>) -> Self {
+        Self { f, columns }
+    }
+
+    /// Per-marker values of the column ending in `suffix` (NaN where absent or lost).
+    fn per_marker<'py>(&self, py: Python<'py>, suffix: &str) -> Bound<'py, PyArray1<f64>> {
+        let n = self.f.status.len();
+        let mut v = vec![f64::NAN; n];
+        for (c, x) in self.columns.iter().zip(&self.f.values) {
+            if let Some(id) = c
+                .strip_suffix(suffix)
+                .and_then(|p| p.strip_prefix('m'))
+                .and_then(|p| p.strip_suffix('_'))
+                .and_then(|p| p.parse::<usize>().ok())
+            {
+                if id < n {
+                    v[id] = *x;
+                }
+            }
+        }
+        v.into_pyarray(py)
+    }
+}
+
+#[pymethods]
+impl Features {
+    /// The feature row (the columns of `columns`), NaN where a marker was lost.
+    #[getter]
+    fn values<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.f.values.clone().into_pyarray(py)
+    }
+
+    /// Names of `values`.
+    #[getter]
+    fn columns(&self) -> Vec<String> {
+        self.columns.clone()
+    }
+
+    /// Displacement along x per marker, pixels.
+    #[getter]
+    fn dx<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.per_marker(py, "dx_px")
+    }
+
+    /// Displacement along y per marker, pixels.
+    #[getter]
+    fn dy<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.per_marker(py, "dy_px")
+    }
+
+    /// Area change per marker, pixels (NaN when the feature set has no area).
+    #[getter]
+    fn darea<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.per_marker(py, "darea_px")
+    }
+
+    /// Tracking status per marker: "ok", "lost", "merged", "ambiguous" or "split".
+    #[getter]
+    fn status(&self) -> Vec<&'static str> {
+        self.f.status.iter().map(|s| s.name()).collect()
+    }
+
+    /// Markers matched in this frame.
+    #[getter]
+    fn found(&self) -> usize {
+        self.f.found
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Features({} of {} markers found, {} values)",
+            self.f.found,
+            self.f.status.len(),
+            self.f.values.len()
+        )
+    }
+}
+
+/// A trained model: one network or an ensemble, with its input scaling and projection.
+#[pyclass(module = "visuotact")]
+struct Model {
+    m: NnModel,
+}
+
+/// Which feature columns a training reads: `field` as `visuotact train --field`.
+fn training_columns(columns: &[String], field: &str) -> PyResult<Vec<usize>> {
+    let markers = columns.iter().filter(|c| is_marker_column(c)).count();
+    let use_field = match field {
+        "auto" => auto_field(markers),
+        "yes" | "only" => true,
+        "no" => false,
+        other => {
+            return Err(error(format!(
+                "field {other:?}: expected auto, yes, only or no"
+            )))
+        }
+    };
+    let keep = |c: &String| {
+        if is_field_column(c) {
+            use_field
+        } else if is_marker_column(c) {
+            field != "only"
+        } else {
+            true
+        }
+    };
+    let picked: Vec<usize> = (0..columns.len()).filter(|&i| keep(&columns[i])).collect();
+    // The markers' features first: the projection reads them, the rest pass by it.
+    let first_other = picked.iter().position(|&i| !is_marker_column(&columns[i]));
+    if let Some(k) = first_other {
+        if let Some(&late) = picked[k..].iter().find(|&&i| is_marker_column(&columns[i])) {
+            return Err(error(format!(
+                "column `{}` is a marker's feature after other inputs: put the markers' columns first",
+                columns[late]
+            )));
+        }
+    }
+    Ok(picked)
+}
+
+#[pymethods]
+impl Model {
+    /// Trains on a feature table (`features`: samples × columns, NaN for lost markers) and
+    /// labels (samples × targets), with `visuotact train`'s defaults: trainbr, one hidden
+    /// layer of 20, 5 networks, the field summary and 10 principal components of the markers'
+    /// features on wide sensors. `components`: "auto", 0 (none) or a count.
+    #[staticmethod]
+    #[pyo3(signature = (features, labels, columns, targets, hidden = None, algorithm = "trainbr", components = "auto".to_string(), field = "auto", ensemble = 5, seed = 1, max_epochs = 1000, sensor = None))]
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "Python keyword arguments, each with a default"
+    )]
+    fn train(
+        py: Python<'_>,
+        features: PyReadonlyArray2<'_, f64>,
+        labels: PyReadonlyArray2<'_, f64>,
+        columns: Vec<String>,
+        targets: Vec<String>,
+        hidden: Option<Vec<usize>>,
+        algorithm: &str,
+        components: String,
+        field: &str,
+        ensemble: usize,
+        seed: u64,
+        max_epochs: usize,
+        sensor: Option<&Sensor>,
+    ) -> PyResult<Self> {
+        if features.shape()[1] != columns.len() || labels.shape()[1] != targets.len() {
+            return Err(error(format!(
+                "features have {} columns for {} names, labels {} for {} targets",
+                features.shape()[1],
+                columns.len(),
+                labels.shape()[1],
+                targets.len()
+            )));
+        }
+        let picked = training_columns(&columns, field)?;
+        let names: Vec<String> = picked.iter().map(|&i| columns[i].clone()).collect();
+        let x: Vec<Vec<f64>> = rows_of(&features)
+            .into_iter()
+            .map(|r| picked.iter().map(|&i| r[i]).collect())
+            .collect();
+        let t = rows_of(&labels);
+        let markers = names.iter().filter(|c| is_marker_column(c)).count();
+        let auto = FitConfig::auto(markers, names.len() - markers);
+        let cfg = FitConfig {
+            hidden: hidden.unwrap_or(auto.hidden.clone()),
+            algorithm: Algorithm::from_name(algorithm).ok_or_else(|| {
+                error(format!(
+                    "algorithm {algorithm:?}: expected trainlm or trainbr"
+                ))
+            })?,
+            components: match components.as_str() {
+                "auto" => auto.components,
+                k => match k.parse::<usize>() {
+                    Ok(0) => None,
+                    Ok(k) => Some(k),
+                    Err(_) => {
+                        return Err(error(format!(
+                            "components {k:?}: expected auto, 0 or a number of components"
+                        )))
+                    }
+                },
+            },
+            ensemble,
+            seed,
+            max_epochs,
+            ..auto
+        };
+        let data = FitData {
+            x: &x,
+            t: &t,
+            feature_columns: &names,
+            targets: &targets,
+        };
+        let mut m = py
+            .detach(|| fit(&data, &cfg, |_, _, _| Control::Continue))
+            .map_err(error)?;
+        if let Some(s) = sensor {
+            m.sensor = Some(
+                serde_json::from_str(&s.est.calibration().to_json())
+                    .map_err(|e| error(format!("the sensor: {e}")))?,
+            );
+        }
+        Ok(Self { m })
+    }
+
+    /// Reads a model file written by `visuotact train` or [`Model.save`].
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| error(format!("{}: cannot read model: {e}", path.display())))?;
+        Ok(Self {
+            m: NnModel::from_json(&text, &path.display().to_string()).map_err(error)?,
+        })
+    }
+
+    /// Writes the model file.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        std::fs::write(&path, self.m.to_json())
+            .map_err(|e| error(format!("{}: cannot write: {e}", path.display())))
+    }
+
+    /// The model file's JSON text.
+    fn to_json(&self) -> String {
+        self.m.to_json()
+    }
+
+    /// The input columns, in order.
+    #[getter]
+    fn columns(&self) -> Vec<String> {
+        self.m.feature_columns.clone()
+    }
+
+    /// The target columns.
+    #[getter]
+    fn targets(&self) -> Vec<String> {
+        self.m.target_columns.clone()
+    }
+
+    /// Estimates for rows of the model's inputs (`columns` order; one row or samples × inputs;
+    /// NaN for a lost marker's features, filled from the others): a dict of arrays, each
+    /// target's mean, `<target>_std` (the ensemble's spread, 0 for one network) and `filled`
+    /// (inputs filled per row). Rows that cannot be estimated (too many lost markers) are NaN.
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        features: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let rows: Vec<Vec<f64>> = if let Ok(a) = features.extract::<PyReadonlyArray2<'_, f64>>() {
+            rows_of(&a)
+        } else {
+            let a: PyReadonlyArray1<'_, f64> = features
+                .extract()
+                .map_err(|_| error("features must be a float64 array of 1 or 2 dimensions"))?;
+            vec![a.as_array().to_vec()]
+        };
+        let width = self.m.feature_columns.len();
+        if let Some(r) = rows.iter().find(|r| r.len() != width) {
+            return Err(error(format!(
+                "a row has {} values, the model reads {width} ({}…)",
+                r.len(),
+                self.m.feature_columns.first().cloned().unwrap_or_default()
+            )));
+        }
+        let m = &self.m;
+        let k = m.target_columns.len();
+        let (values, spread, filled) = py.detach(|| {
+            let mut values = vec![f64::NAN; rows.len() * k];
+            let mut spread = vec![f64::NAN; rows.len() * k];
+            let mut filled = vec![-1i64; rows.len()];
+            for (i, r) in rows.iter().enumerate() {
+                if let Ok(e) = m.estimate(r) {
+                    values[i * k..(i + 1) * k].copy_from_slice(&e.values);
+                    let s = if e.spread.is_empty() {
+                        vec![0.0; k]
+                    } else {
+                        e.spread
+                    };
+                    spread[i * k..(i + 1) * k].copy_from_slice(&s);
+                    filled[i] = e.filled as i64;
+                }
+            }
+            (values, spread, filled)
+        });
+        let out = PyDict::new(py);
+        for (j, t) in m.target_columns.iter().enumerate() {
+            let col = |v: &[f64]| -> Vec<f64> { (0..rows.len()).map(|i| v[i * k + j]).collect() };
+            out.set_item(t, col(&values).into_pyarray(py))?;
+            out.set_item(format!("{t}_std"), col(&spread).into_pyarray(py))?;
+        }
+        out.set_item("filled", filled.into_pyarray(py))?;
+        Ok(out)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Model({} inputs → {}, {} network(s), {})",
+            self.m.feature_columns.len(),
+            self.m.target_columns.join(", "),
+            self.m.networks().count(),
+            self.m.training.algorithm
+        )
+    }
+}
+
+/// Estimates frame by frame from a source: yields dicts with `frame`, `index`,
+/// `timestamp_s`, `found` and `estimate` (a dict of target → value, with `<target>_std` for
+/// an ensemble; `None`, with `why`, when the frame has none).
+#[pyclass(module = "visuotact", unsendable)]
+struct Live {
+    stream: FrameStream,
+    est: Estimator,
+}
+
+#[pymethods]
+impl Live {
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(item) = self.stream.next() else {
+            return Ok(None);
+        };
+        let frame = item.map_err(error)?;
+        let targets = self.est.target_columns();
+        let (found, estimate) = {
+            let (f, e) = self
+                .est
+                .estimate_with(&frame.image, &[])
+                .map_err(|e| error(format!("frame {}: {e}", frame.id)))?;
+            (f.found, e)
+        };
+        let d = PyDict::new(py);
+        d.set_item("frame", &frame.id)?;
+        d.set_item("index", frame.index)?;
+        d.set_item("timestamp_s", frame.timestamp_s)?;
+        d.set_item("found", found)?;
+        match estimate {
+            Ok(e) => {
+                let est = PyDict::new(py);
+                for (t, v) in targets.iter().zip(e.into_row()) {
+                    est.set_item(t, v)?;
+                }
+                d.set_item("estimate", est)?;
+                d.set_item("why", py.None())?;
+            }
+            Err(why) => {
+                d.set_item("estimate", py.None())?;
+                d.set_item("why", why)?;
+            }
+        }
+        Ok(Some(d))
+    }
+}
+
+/// Frames from `source` (an image, a folder of images in natural order, a video, or a list
+/// of them) through `model` (with `sensor`, or the calibration stored in the model): an
+/// iterator of estimate dicts. Without a model it yields features counts only.
+#[pyfunction]
+#[pyo3(signature = (source, model = None, sensor = None, fps = 25.0, temporal = false))]
+fn live(
+    source: &Bound<'_, PyAny>,
+    model: Option<&Model>,
+    sensor: Option<&Sensor>,
+    fps: f64,
+    temporal: bool,
+) -> PyResult<Live> {
+    let paths: Vec<PathBuf> = match source.extract::<PathBuf>() {
+        Ok(p) => vec![p],
+        Err(_) => source.extract()?,
+    };
+    let stream = FrameStream::open(&paths, fps).map_err(error)?;
+    let cal = sensor.map(|s| s.est.calibration().clone());
+    let mut est = Estimator::new(cal, model.map(|m| m.m.clone())).map_err(error)?;
+    est.set_temporal_prior(temporal);
+    Ok(Live { stream, est })
+}
+
+/// Zero-phase filtering, equal to `scipy.signal.filtfilt(b, a, x)` (odd padding of
+/// `3·max(len(a), len(b))` samples).
+#[pyfunction]
+fn filtfilt<'py>(
+    py: Python<'py>,
+    b: PyReadonlyArray1<'py, f64>,
+    a: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (b, a, x) = (
+        b.as_array().to_vec(),
+        a.as_array().to_vec(),
+        x.as_array().to_vec(),
+    );
+    let y = py
+        .detach(|| {
+            visuotact_signal::fir::filtfilt(
+                &b,
+                &a,
+                &x,
+                &visuotact_signal::fir::FiltFiltOptions::default(),
+            )
+        })
+        .map_err(error)?;
+    Ok(y.into_pyarray(py))
+}
+
+/// One simulated frame of seed 000's touch sensor (`variant` 0: the preset; others draw its
+/// parameters) pressed at (`x_mm`, `y_mm`) by `depth_mm` (0: no contact), with its noise
+/// from `seed`: a `(H, W, 3)` uint8 array.
+#[pyfunction]
+#[pyo3(signature = (x_mm = 0.0, y_mm = 0.0, depth_mm = 0.0, seed = 1))]
+fn simulate<'py>(
+    py: Python<'py>,
+    x_mm: f64,
+    y_mm: f64,
+    depth_mm: f64,
+    seed: u64,
+) -> PyResult<Bound<'py, PyAny>> {
+    use visuotact_sim::iats::{render, IatsConfig, Touch};
+    let touch = Touch {
+        x_mm,
+        y_mm,
+        depth_mm,
+        ..Touch::default()
+    };
+    let img = py
+        .detach(|| render(&IatsConfig::SEED000, &touch, seed))
+        .map_err(error)?
+        .0;
+    array_from_rgb(py, img)
+}
+
+/// The module.
+#[pymodule]
+fn visuotact(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("VisuotactError", m.py().get_type::<VisuotactError>())?;
+    m.add_class::<Sensor>()?;
+    m.add_class::<Features>()?;
+    m.add_class::<Model>()?;
+    m.add_class::<Live>()?;
+    m.add_function(wrap_pyfunction!(live, m)?)?;
+    m.add_function(wrap_pyfunction!(filtfilt, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
