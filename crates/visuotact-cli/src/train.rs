@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
-use visuotact_nn::fit::{auto_components, auto_field, fit, FitConfig, FitData, FitError};
+use visuotact_nn::fit::{components_from_name, fit, FieldInputs, FitConfig, FitData, FitError};
 use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::target_errors;
 use visuotact_nn::mlp::{Algorithm, Mlp};
@@ -67,20 +67,6 @@ pub(crate) struct AlgorithmArg {
     pub(crate) field: String,
 }
 
-/// Which inputs a network reads: the markers' features, the field summary, or both.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum FieldInputs {
-    /// `Yes` when there are over 20 markers' features (as many as components `auto` keeps
-    /// twice over), else `No`.
-    Auto,
-    /// The markers' features only.
-    No,
-    /// The markers' features, then the field summary.
-    Yes,
-    /// The field summary only.
-    Only,
-}
-
 /// `train`'s hidden layers when not told otherwise ([`FitConfig::default`]'s, as text).
 pub(crate) const DEFAULT_HIDDEN: &str = "20";
 
@@ -91,25 +77,13 @@ impl AlgorithmArg {
 
     /// Whether the field summary is an input.
     pub(crate) fn field(&self) -> FieldInputs {
-        match self.field.as_str() {
-            "only" => FieldInputs::Only,
-            "no" => FieldInputs::No,
-            "yes" => FieldInputs::Yes,
-            _ => FieldInputs::Auto,
-        }
+        FieldInputs::from_name(&self.field).unwrap_or(FieldInputs::Auto)
     }
 
     /// The number of components for `inputs` marker inputs (`None`: no projection).
     pub(crate) fn components(&self, inputs: usize) -> anyhow::Result<Option<usize>> {
-        match self.components.as_str() {
-            _ if inputs == 0 => Ok(None),
-            "auto" => Ok(auto_components(inputs)),
-            k => match k.parse::<usize>() {
-                Ok(0) => Ok(None),
-                Ok(k) => Ok(Some(k)),
-                Err(_) => bail!("--components {k:?}: expected auto, 0 or a number of components"),
-            },
-        }
+        components_from_name(&self.components, inputs)
+            .map_err(|e| anyhow::anyhow!("--components {e}"))
     }
 }
 
@@ -318,11 +292,7 @@ pub(crate) fn joined(
         );
     }
     let has_field = FIELD_COLUMNS.iter().all(|c| f.column(c).is_some());
-    let field = match field {
-        FieldInputs::Auto if auto_field(names.len()) => FieldInputs::Yes,
-        FieldInputs::Auto => FieldInputs::No,
-        other => other,
-    };
+    let field = field.resolve(names.len());
     match field {
         FieldInputs::No => {}
         _ if !has_field => {

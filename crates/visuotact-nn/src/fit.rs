@@ -41,6 +41,56 @@ pub fn auto_field(inputs: usize) -> bool {
     auto_components(inputs).is_some()
 }
 
+/// Which inputs a network reads: the markers' features, the field summary, or both
+/// (`visuotact train --field`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldInputs {
+    /// `Yes` when [`auto_field`] says so for the markers' features, else `No`.
+    Auto,
+    /// The markers' features only.
+    No,
+    /// The markers' features, then the field summary.
+    Yes,
+    /// The field summary only.
+    Only,
+}
+
+impl FieldInputs {
+    /// The choice called `name` (`auto`, `no`, `yes`, `only`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "auto" => Some(Self::Auto),
+            "no" => Some(Self::No),
+            "yes" => Some(Self::Yes),
+            "only" => Some(Self::Only),
+            _ => None,
+        }
+    }
+
+    /// `Auto` decided for `marker_inputs` markers' features; the others as they are.
+    pub fn resolve(self, marker_inputs: usize) -> Self {
+        match self {
+            Self::Auto if auto_field(marker_inputs) => Self::Yes,
+            Self::Auto => Self::No,
+            other => other,
+        }
+    }
+}
+
+/// The principal components for `marker_inputs` markers' features from a choice written as
+/// `auto` ([`auto_components`]), `0` (none) or a count; an error names what was expected.
+pub fn components_from_name(name: &str, marker_inputs: usize) -> Result<Option<usize>, String> {
+    match name {
+        _ if marker_inputs == 0 => Ok(None),
+        "auto" => Ok(auto_components(marker_inputs)),
+        k => match k.parse::<usize>() {
+            Ok(0) => Ok(None),
+            Ok(k) => Ok(Some(k)),
+            Err(_) => Err(format!("{k:?}: expected auto, 0 or a number of components")),
+        },
+    }
+}
+
 /// How a model is trained. [`Default`] is visuotact's default (what `visuotact train` does
 /// with no options); [`FitConfig::paper`] is the source documents' way.
 #[derive(Clone, Debug, PartialEq)]
@@ -468,5 +518,17 @@ mod tests {
         let cfg = FitConfig::auto(351, 6);
         assert_eq!((cfg.components, cfg.passthrough), (Some(10), 6));
         assert_eq!(FitConfig::paper(&[20]).algorithm, Algorithm::Trainlm);
+        assert_eq!(FieldInputs::Auto.resolve(351), FieldInputs::Yes);
+        assert_eq!(FieldInputs::Auto.resolve(6), FieldInputs::No);
+        assert_eq!(
+            FieldInputs::from_name("only").unwrap().resolve(6),
+            FieldInputs::Only
+        );
+        assert_eq!(components_from_name("auto", 351), Ok(Some(10)));
+        assert_eq!(components_from_name("0", 351), Ok(None));
+        assert_eq!(components_from_name("4", 0), Ok(None));
+        assert!(components_from_name("x", 351)
+            .unwrap_err()
+            .contains("expected auto"));
     }
 }

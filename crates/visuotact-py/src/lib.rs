@@ -9,6 +9,7 @@
 )]
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use numpy::{
     IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
@@ -20,7 +21,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::{read_image, FrameStream};
-use visuotact_nn::fit::{auto_field, fit, FitConfig, FitData};
+use visuotact_nn::fit::{components_from_name, fit, FieldInputs, FitConfig, FitData};
 use visuotact_nn::lm::Control;
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
@@ -85,12 +86,16 @@ fn rows_of(a: &PyReadonlyArray2<'_, f64>) -> Vec<Vec<f64>> {
 #[pyclass(module = "visuotact")]
 struct Sensor {
     est: Estimator,
+    /// The feature columns, shared with every [`Features`] (named once, not per frame).
+    columns: Arc<[String]>,
 }
 
 impl Sensor {
     fn from_calibration(cal: SensorCalibration) -> PyResult<Self> {
+        let est = Estimator::new(Some(cal), None).map_err(error)?;
         Ok(Self {
-            est: Estimator::new(Some(cal), None).map_err(error)?,
+            columns: est.feature_columns().into(),
+            est,
         })
     }
 }
@@ -173,7 +178,7 @@ impl Sensor {
     /// field summary (`field_rms_px`, …).
     #[getter]
     fn feature_columns(&self) -> Vec<String> {
-        self.est.feature_columns()
+        self.columns.to_vec()
     }
 
     /// The features of one frame (array or path), against the calibration's reference.
@@ -181,7 +186,10 @@ impl Sensor {
         let img = rgb_from(frame)?;
         let est = &mut self.est;
         let f = py.detach(|| est.features(&img).cloned()).map_err(error)?;
-        Ok(Features::new(f, self.est.feature_columns()))
+        Ok(Features {
+            f,
+            columns: Arc::clone(&self.columns),
+        })
     }
 
     fn __repr__(&self) -> String {
@@ -200,14 +208,10 @@ impl Sensor {
 #[pyclass(module = "visuotact")]
 struct Features {
     f: FrameFeatures,
-    columns: Vec<String>,
+    columns: Arc<[String]>,
 }
 
 impl Features {
-    fn new(f: FrameFeatures, columns: Vec<String>) -> Self {
-        Self { f, columns }
-    }
-
     /// Per-marker values of the column ending in `suffix` (NaN where absent or lost).
     fn per_marker<'py>(&self, py: Python<'py>, suffix: &str) -> Bound<'py, PyArray1<f64>> {
         let n = self.f.status.len();
@@ -239,7 +243,7 @@ impl Features {
     /// Names of `values`.
     #[getter]
     fn columns(&self) -> Vec<String> {
-        self.columns.clone()
+        self.columns.to_vec()
     }
 
     /// Displacement along x per marker, pixels.
@@ -290,22 +294,14 @@ struct Model {
 
 /// Which feature columns a training reads: `field` as `visuotact train --field`.
 fn training_columns(columns: &[String], field: &str) -> PyResult<Vec<usize>> {
-    let markers = columns.iter().filter(|c| is_marker_column(c)).count();
-    let use_field = match field {
-        "auto" => auto_field(markers),
-        "yes" | "only" => true,
-        "no" => false,
-        other => {
-            return Err(error(format!(
-                "field {other:?}: expected auto, yes, only or no"
-            )))
-        }
-    };
+    let field = FieldInputs::from_name(field)
+        .ok_or_else(|| error(format!("field {field:?}: expected auto, yes, only or no")))?
+        .resolve(columns.iter().filter(|c| is_marker_column(c)).count());
     let keep = |c: &String| {
         if is_field_column(c) {
-            use_field
+            field != FieldInputs::No
         } else if is_marker_column(c) {
-            field != "only"
+            field != FieldInputs::Only
         } else {
             true
         }
@@ -376,18 +372,8 @@ impl Model {
                     "algorithm {algorithm:?}: expected trainlm or trainbr"
                 ))
             })?,
-            components: match components.as_str() {
-                "auto" => auto.components,
-                k => match k.parse::<usize>() {
-                    Ok(0) => None,
-                    Ok(k) => Some(k),
-                    Err(_) => {
-                        return Err(error(format!(
-                            "components {k:?}: expected auto, 0 or a number of components"
-                        )))
-                    }
-                },
-            },
+            components: components_from_name(&components, markers)
+                .map_err(|e| error(format!("components {e}")))?,
             ensemble,
             seed,
             max_epochs,
@@ -517,6 +503,8 @@ impl Model {
 struct Live {
     stream: FrameStream,
     est: Estimator,
+    /// The estimate's columns (targets, then spreads).
+    targets: Vec<String>,
 }
 
 #[pymethods]
@@ -530,7 +518,6 @@ impl Live {
             return Ok(None);
         };
         let frame = item.map_err(error)?;
-        let targets = self.est.target_columns();
         let (found, estimate) = {
             let (f, e) = self
                 .est
@@ -546,7 +533,7 @@ impl Live {
         match estimate {
             Ok(e) => {
                 let est = PyDict::new(py);
-                for (t, v) in targets.iter().zip(e.into_row()) {
+                for (t, v) in self.targets.iter().zip(e.into_row()) {
                     est.set_item(t, v)?;
                 }
                 d.set_item("estimate", est)?;
@@ -581,7 +568,11 @@ fn live(
     let cal = sensor.map(|s| s.est.calibration().clone());
     let mut est = Estimator::new(cal, model.map(|m| m.m.clone())).map_err(error)?;
     est.set_temporal_prior(temporal);
-    Ok(Live { stream, est })
+    Ok(Live {
+        stream,
+        targets: est.target_columns(),
+        est,
+    })
 }
 
 /// Zero-phase filtering, equal to `scipy.signal.filtfilt(b, a, x)` (odd padding of
