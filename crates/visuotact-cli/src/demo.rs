@@ -23,7 +23,10 @@ use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 
 use crate::simulate::{frame_seed, GAUGE_SEED};
-use visuotact_nn::fit::{fit, FitConfig, FitData};
+use visuotact_nn::fit::{
+    candidate_inputs, column_kinds, fit_choosing, FieldInputs, FitConfig, FitData, InputSet,
+    SELECTION_FOLDS,
+};
 use visuotact_nn::model::is_marker_column;
 
 #[derive(clap::Args, Debug)]
@@ -80,6 +83,7 @@ fn train(
     columns: &[String],
     targets: &[&str],
     cfg: &FitConfig,
+    sets: &[InputSet],
 ) -> anyhow::Result<(Model, f64)> {
     let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
     let data = FitData {
@@ -89,16 +93,44 @@ fn train(
         targets: &targets,
     };
     let t0 = Instant::now();
-    let model = fit(&data, cfg, |_, _, _| Control::Continue)?;
+    let model = fit_choosing(&data, cfg, sets, SELECTION_FOLDS, |_, _, _| {
+        Control::Continue
+    })?;
     Ok((model, t0.elapsed().as_secs_f64()))
 }
 
-/// `visuotact train`'s defaults for `columns` (markers' features first, then the rest).
-fn default_config(columns: &[String], seed: u64) -> FitConfig {
+/// `visuotact train`'s defaults for `columns` (markers' features first, then the rest): the
+/// configuration and the input sets it chooses between.
+fn default_config(columns: &[String], seed: u64) -> (FitConfig, Vec<InputSet>) {
     let markers = columns.iter().filter(|c| is_marker_column(c)).count();
-    FitConfig {
+    let cfg = FitConfig {
         seed,
         ..FitConfig::auto(markers, columns.len() - markers)
+    };
+    let sets = candidate_inputs(
+        &column_kinds(columns, &FIELD_COLUMNS),
+        cfg.components,
+        FieldInputs::Auto,
+    );
+    (cfg, sets)
+}
+
+/// The inputs `model` was trained on, in words: the input set chosen, with the
+/// cross-validated error of each set compared.
+fn inputs_of(model: &Model, sets: &[InputSet]) -> String {
+    match model.training.selection.iter().find(|s| s.chosen) {
+        Some(chosen) => format!(
+            "{} (chosen by {SELECTION_FOLDS}-fold cross-validation; held-out error / variance {})",
+            chosen.inputs,
+            model
+                .training
+                .selection
+                .iter()
+                .map(|s| format!("{:.4}", s.error))
+                .collect::<Vec<_>>()
+                .join(" vs ")
+        ),
+        None => sets.first().map_or(String::new(), |s| s.name.clone()),
     }
 }
 
@@ -202,20 +234,19 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         marker_columns,
         &targets,
         &paper_config(&hidden, a.seed),
+        &[],
     )?;
     println!(
         "seed 000's network: 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt (trainlm): {} epochs in {secs:.1} s (seed 000: 13 h 20 min)",
         paper.training.epochs
     );
-    let default = default_config(&columns, a.seed);
-    let (model, secs) = train(&xd, &td, &columns, &targets, &default)?;
+    let (default, sets) = default_config(&columns, a.seed);
+    let (model, secs) = train(&xd, &td, &columns, &targets, &default, &sets)?;
     println!(
-        "visuotact's default (`visuotact train` with no options): {} of {} frames, the markers' {} features as {} principal components + the {} field-summary values → {} → 3, {} ({} networks) in {secs:.1} s",
+        "visuotact's default (`visuotact train` with no options): {} of {} frames, {} → {} → 3, {} ({} networks) in {secs:.1} s",
         xd.len(),
         grid.len(),
-        marker_columns.len(),
-        model.projection.as_ref().map_or(0, |p| p.outputs()),
-        model.passthrough,
+        inputs_of(&model, &sets),
         default
             .hidden
             .iter()
@@ -442,16 +473,17 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     let (x, t) = rows(&ftr);
     let (xg, tg) = rows(&gtr);
     let force = ["force_n"];
-    let (model, secs) = train(&x, &t, &columns, &force, &paper_config(&[20], a.seed))?;
+    let (model, secs) = train(&x, &t, &columns, &force, &paper_config(&[20], a.seed), &[])?;
     println!(
         "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {} epochs in {secs:.2} s",
         cal.markers.len(),
         x.len(),
         model.training.epochs
     );
-    let (default, _) = train(&x, &t, &columns, &force, &default_config(&columns, a.seed))?;
-    let default_g_config = default_config(&gauge_columns, a.seed);
-    let (default_g, _) = train(&xg, &tg, &gauge_columns, &force, &default_g_config)?;
+    let (default_config_rings, sets) = default_config(&columns, a.seed);
+    let (default, _) = train(&x, &t, &columns, &force, &default_config_rings, &sets)?;
+    let (default_g_config, sets_g) = default_config(&gauge_columns, a.seed);
+    let (default_g, _) = train(&xg, &tg, &gauge_columns, &force, &default_g_config, &sets_g)?;
     let errors_on = |model: &Model, feats: &[Option<Vec<f64>>], loads: &[ConeLoad]| {
         let (mut est, mut tru) = (Vec::new(), Vec::new());
         for (f, l) in feats.iter().zip(loads) {
@@ -482,6 +514,7 @@ fn cone(a: &Args) -> anyhow::Result<()> {
                     columns,
                     &force,
                     &paper_config(&[h], a.seed + 7919 * r),
+                    &[],
                 )
                 .map(|f| (f.0, h))
             })

@@ -397,6 +397,7 @@ mod selection_tests {
                 seed: 1,
                 algorithm: "trainlm".into(),
                 evidence: None,
+                selection: Vec::new(),
             },
             sensor: None,
         }

@@ -6,7 +6,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
-use visuotact_nn::fit::{components_from_name, fit, FieldInputs, FitConfig, FitData, FitError};
+use visuotact_nn::fit::{
+    candidate_inputs, choose_inputs, column_kinds, components_from_name, fit_set, FieldInputs,
+    FitConfig, FitData, FitError, InputSet, SELECTION_FOLDS,
+};
 use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::target_errors;
 use visuotact_nn::mlp::{Algorithm, Mlp};
@@ -448,28 +451,10 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         feature_columns,
         passthrough,
     } = data;
-    let net_inputs = components.map_or(feature_columns.len(), |k| k + passthrough);
-    eprintln!(
-        "training {}{} → {} → {} ({} weights, {}) on {} frames",
-        feature_columns.len(),
-        components.map_or(String::new(), |k| format!(
-            " inputs (the markers' {} as {k} principal components{})",
-            feature_columns.len() - passthrough,
-            if passthrough > 0 {
-                format!(", {passthrough} more as they are")
-            } else {
-                String::new()
-            }
-        )),
-        hidden
-            .iter()
-            .map(usize::to_string)
-            .collect::<Vec<_>>()
-            .join(" → "),
-        targets.len(),
-        Mlp::n_params_for(&[&[net_inputs][..], &hidden, &[targets.len()]].concat()),
-        a.algorithm.name,
-        x.len()
+    let sets = candidate_inputs(
+        &column_kinds(&feature_columns, &FIELD_COLUMNS),
+        components,
+        a.algorithm.field(),
     );
     let t0 = std::time::Instant::now();
     let cfg = FitConfig {
@@ -488,7 +473,55 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         feature_columns: &feature_columns,
         targets: &targets,
     };
-    let mut model = fit(&data, &cfg, |epoch, train_mse, val_mse| {
+    if sets.len() > 1 {
+        eprintln!(
+            "choosing the inputs by {SELECTION_FOLDS}-fold cross-validation (one network per fold): {}",
+            sets.iter()
+                .map(|s| s.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" or ")
+        );
+    }
+    let (best, selection) =
+        choose_inputs(&data, &cfg, &sets, SELECTION_FOLDS).map_err(fit_error)?;
+    for score in &selection {
+        eprintln!(
+            "  {} {}: held-out error / variance {:.4} (per target {})",
+            if score.chosen { "chose" } else { "     " },
+            score.inputs,
+            score.error,
+            score
+                .normalised_mse
+                .iter()
+                .map(|e| format!("{e:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let set = &sets[best];
+    eprintln!(
+        "training {} → {} → {} ({} weights, {}) on {} frames",
+        inputs_in_words(set),
+        cfg.hidden
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" → "),
+        targets.len(),
+        Mlp::n_params_for(
+            &[
+                &[set
+                    .components
+                    .map_or(set.columns.len(), |k| k + set.passthrough)][..],
+                &cfg.hidden,
+                &[targets.len()]
+            ]
+            .concat()
+        ),
+        a.algorithm.name,
+        x.len()
+    );
+    let mut model = fit_set(&data, set, &cfg, |epoch, train_mse, val_mse| {
         if epoch % 10 == 0 {
             if val_mse.is_nan() {
                 eprintln!("epoch {epoch}: mse train {train_mse:.3e} (scaled)");
@@ -501,6 +534,7 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         Control::Continue
     })
     .map_err(fit_error)?;
+    model.training.selection = selection;
     model.sensor = sensor;
     crate::write_atomically(&a.output, &model.to_json())?;
     let tr = &model.training;
@@ -568,6 +602,23 @@ pub(crate) struct PredictArgs {
 }
 
 /// A training error in the command line's words (the projection is `--components`).
+/// How many inputs `set` reads and how they reach the network, in words.
+fn inputs_in_words(set: &InputSet) -> String {
+    let n = set.columns.len();
+    match set.components {
+        None => n.to_string(),
+        Some(k) => format!(
+            "{n} inputs (the markers' {} as {k} principal components{})",
+            n - set.passthrough,
+            if set.passthrough > 0 {
+                format!(", {} more as they are", set.passthrough)
+            } else {
+                String::new()
+            }
+        ),
+    }
+}
+
 pub(crate) fn fit_error(e: FitError) -> anyhow::Error {
     match e {
         FitError::Projection(m) => anyhow::anyhow!("--components: {m}"),

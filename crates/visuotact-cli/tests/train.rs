@@ -344,10 +344,37 @@ fn the_field_summary_passes_by_the_projection() {
     let model = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
-    // Default (over 20 markers' features): the markers' 351 as 10 components, the 6 field
-    // columns beside them as they are.
+    // Default (over 20 markers' features): the field summary with the markers' features, or
+    // alone, whichever cross-validation prefers; the scores are in the model file.
+    let chosen = d.join("chosen.json");
+    let err = ok(&tr(&f, &chosen, &[]));
+    assert!(
+        err.contains("choosing the inputs by 5-fold cross-validation"),
+        "{err}"
+    );
+    let selection = model(&chosen)["training"]["selection"].clone();
+    let scores = selection.as_array().unwrap();
+    assert_eq!(scores.len(), 2, "{selection}");
+    let picked: Vec<usize> = (0..2)
+        .filter(|&i| scores[i]["chosen"].as_bool().unwrap())
+        .collect();
+    assert_eq!(picked.len(), 1, "{selection}");
+    let (won, lost) = (&scores[picked[0]], &scores[1 - picked[0]]);
+    assert!(
+        won["error"].as_f64() <= lost["error"].as_f64(),
+        "{selection}"
+    );
+    assert!(
+        err.contains(&format!("chose {}", won["inputs"].as_str().unwrap())),
+        "{err}"
+    );
+    let width = model(&chosen)["feature_columns"].as_array().unwrap().len();
+    assert_eq!(width, if picked[0] == 0 { 357 } else { 6 }, "{selection}");
+    // --field yes: the markers' 351 as 10 components, the 6 field columns beside them as
+    // they are.
     let m = d.join("m.json");
-    let err = ok(&tr(&f, &m, &[]));
+    let err = ok(&tr(&f, &m, &["--field", "yes"]));
+    assert!(!err.contains("cross-validation"), "{err}");
     assert!(
         err.contains(
             "357 inputs (the markers' 351 as 10 principal components, 6 more as they are) → 6 → 3"
@@ -392,6 +419,11 @@ fn the_field_summary_passes_by_the_projection() {
             }
         }
     }
+    assert!(model(&only)
+        .get("training")
+        .unwrap()
+        .get("selection")
+        .is_none());
     // A table without the field columns (an older extraction): the markers' features, said.
     let old = d.join("old.csv");
     let text = std::fs::read_to_string(&f).unwrap();
@@ -437,6 +469,8 @@ fn lost_markers_are_filled_from_the_markers_found() {
             "x_mm,y_mm,depth_mm",
             "--hidden",
             "10",
+            "--field",
+            "yes",
             "-o",
             s(model),
         ]

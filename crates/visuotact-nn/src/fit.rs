@@ -91,6 +91,132 @@ pub fn components_from_name(name: &str, marker_inputs: usize) -> Result<Option<u
     }
 }
 
+/// What a column of a training table is, for choosing a network's inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColumnKind {
+    /// A marker's feature (`m017_dx_px`): projected, filled when lost.
+    Marker,
+    /// A field-summary value (`field_rms_px`): passes by the projection.
+    Field,
+    /// Another input (a gauge's reading): passes by the projection, kept by every input set.
+    Other,
+}
+
+/// The kind of each of `columns`, `field_columns` naming the field summary's.
+pub fn column_kinds(columns: &[String], field_columns: &[&str]) -> Vec<ColumnKind> {
+    columns
+        .iter()
+        .map(|c| {
+            if crate::model::is_marker_column(c) {
+                ColumnKind::Marker
+            } else if field_columns.contains(&c.as_str()) {
+                ColumnKind::Field
+            } else {
+                ColumnKind::Other
+            }
+        })
+        .collect()
+}
+
+/// A set of a table's columns to train on, with how its markers' features are projected.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputSet {
+    /// What it reads, in words (`10 principal components + field summary`).
+    pub name: String,
+    /// The table's columns it reads, markers' features first.
+    pub columns: Vec<usize>,
+    /// Principal components of its markers' features (`None`: them as they are).
+    pub components: Option<usize>,
+    /// How many of its trailing columns pass by the projection.
+    pub passthrough: usize,
+}
+
+impl InputSet {
+    /// Every column of a table whose columns are `kinds` (markers' features first), the
+    /// markers' features projected to `components` when there are any.
+    pub fn all(kinds: &[ColumnKind], components: Option<usize>) -> Self {
+        Self::keeping(kinds, components, |_| true)
+    }
+
+    /// The columns of `kinds` for which `keep` holds, markers' features first.
+    fn keeping(
+        kinds: &[ColumnKind],
+        components: Option<usize>,
+        keep: impl Fn(ColumnKind) -> bool,
+    ) -> Self {
+        let of = |want: &dyn Fn(ColumnKind) -> bool| -> Vec<usize> {
+            (0..kinds.len())
+                .filter(|&i| keep(kinds[i]) && want(kinds[i]))
+                .collect()
+        };
+        let markers = of(&|k| k == ColumnKind::Marker);
+        let field = of(&|k| k == ColumnKind::Field);
+        let other = of(&|k| k == ColumnKind::Other);
+        let components = components.filter(|_| !markers.is_empty());
+        let mut parts = Vec::new();
+        if !markers.is_empty() {
+            parts.push(match components {
+                Some(k) => format!(
+                    "{k} principal components of {} markers' features",
+                    markers.len()
+                ),
+                None => format!("{} markers' features", markers.len()),
+            });
+        }
+        if !field.is_empty() {
+            parts.push("the field summary".to_string());
+        }
+        if !other.is_empty() {
+            parts.push(format!("{} other inputs", other.len()));
+        }
+        let passthrough = field.len() + other.len();
+        Self {
+            name: parts.join(" + "),
+            columns: [markers, field, other].concat(),
+            components,
+            passthrough,
+        }
+    }
+}
+
+/// The input sets training compares for a table whose columns are `kinds` after the
+/// `field` choice picked them: with [`FieldInputs::Auto`], the field summary and markers'
+/// features enough for [`auto_field`], the two (projected by `components`) against the field summary alone —
+/// which generalises better depends on the sensor (on a dense dot pattern the field summary
+/// alone halved the contact error; on the others the markers' features cut it further,
+/// docs/benchmarks.md). Otherwise every column, one set.
+pub fn candidate_inputs(
+    kinds: &[ColumnKind],
+    components: Option<usize>,
+    field: FieldInputs,
+) -> Vec<InputSet> {
+    let all = InputSet::all(kinds, components);
+    let markers = kinds.iter().filter(|&&k| k == ColumnKind::Marker).count();
+    if field == FieldInputs::Auto && auto_field(markers) && kinds.contains(&ColumnKind::Field) {
+        let without_markers = InputSet::keeping(kinds, None, |k| k != ColumnKind::Marker);
+        vec![all, without_markers]
+    } else {
+        vec![all]
+    }
+}
+
+/// Folds of the cross-validation that chooses between input sets.
+pub const SELECTION_FOLDS: usize = 5;
+
+/// An input set's cross-validated error (kept in the model file).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct InputScore {
+    /// The input set, in words.
+    pub inputs: String,
+    /// Per target, the held-out squared error over the target's variance (0: perfect, 1: no
+    /// better than the mean), over every sample held out once.
+    pub normalised_mse: Vec<f64>,
+    /// Their mean over targets: what the choice minimises (units do not weigh in).
+    pub error: f64,
+    /// Whether this set was chosen.
+    pub chosen: bool,
+}
+
 /// How a model is trained. [`Default`] is visuotact's default (what `visuotact train` does
 /// with no options); [`FitConfig::paper`] is the source documents' way.
 #[derive(Clone, Debug, PartialEq)]
@@ -418,9 +544,170 @@ pub fn fit(
             seed: cfg.seed,
             algorithm: cfg.algorithm.name().to_string(),
             evidence: out.evidence,
+            selection: Vec::new(),
         },
         sensor: None,
     })
+}
+
+/// Trains on every sample of `data`, reading the columns of `set` (`cfg` otherwise).
+pub fn fit_set(
+    data: &FitData<'_>,
+    set: &InputSet,
+    cfg: &FitConfig,
+    progress: impl FnMut(usize, f64, f64) -> Control,
+) -> Result<Model, FitError> {
+    let everyone: Vec<usize> = (0..data.x.len()).collect();
+    fit_rows(data, set, &everyone, cfg, progress)
+}
+
+/// Trains on the samples `rows` of `data`, reading the columns of `set` (`cfg` otherwise).
+fn fit_rows(
+    data: &FitData<'_>,
+    set: &InputSet,
+    rows: &[usize],
+    cfg: &FitConfig,
+    progress: impl FnMut(usize, f64, f64) -> Control,
+) -> Result<Model, FitError> {
+    let x: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|&i| set.columns.iter().map(|&c| data.x[i][c]).collect())
+        .collect();
+    let t: Vec<Vec<f64>> = rows.iter().map(|&i| data.t[i].clone()).collect();
+    let names: Vec<String> = set
+        .columns
+        .iter()
+        .map(|&c| data.feature_columns[c].clone())
+        .collect();
+    let sub = FitData {
+        x: &x,
+        t: &t,
+        feature_columns: &names,
+        targets: data.targets,
+    };
+    let set_cfg = FitConfig {
+        components: set.components,
+        passthrough: set.passthrough,
+        ..cfg.clone()
+    };
+    fit(&sub, &set_cfg, progress)
+}
+
+/// Which of `sets` to train on: the one whose `folds`-fold cross-validated error is lowest
+/// (one network per fold, `cfg` otherwise), with every set's score. One set (or too few
+/// samples for the folds): the first, with no scores.
+pub fn choose_inputs(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    sets: &[InputSet],
+    folds: usize,
+) -> Result<(usize, Vec<InputScore>), FitError> {
+    if sets.len() <= 1 || folds < 2 || data.x.len() < 2 * folds {
+        return Ok((0, Vec::new()));
+    }
+    let mut scores = cross_validated(data, cfg, sets, folds)?;
+    let best = (0..sets.len())
+        .min_by(|&a, &b| scores[a].error.total_cmp(&scores[b].error))
+        .unwrap_or(0);
+    scores[best].chosen = true;
+    Ok((best, scores))
+}
+
+/// [`choose_inputs`], then [`fit_set`] on the set chosen; the model's
+/// [`TrainingSummary::selection`] keeps every set's score. No sets: every column as `cfg`
+/// says. `progress` follows the final training.
+pub fn fit_choosing(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    sets: &[InputSet],
+    folds: usize,
+    progress: impl FnMut(usize, f64, f64) -> Control,
+) -> Result<Model, FitError> {
+    if sets.is_empty() {
+        return fit(data, cfg, progress);
+    }
+    let (best, scores) = choose_inputs(data, cfg, sets, folds)?;
+    let mut model = fit_set(data, &sets[best], cfg, progress)?;
+    model.training.selection = scores;
+    Ok(model)
+}
+
+/// Every set's `folds`-fold cross-validated error: fold k holds out the samples whose place in
+/// a seeded shuffle is k modulo `folds`; every set sees the same folds and initial weights.
+fn cross_validated(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    sets: &[InputSet],
+    folds: usize,
+) -> Result<Vec<InputScore>, FitError> {
+    let n = data.x.len();
+    let [order, _, _] = crate::mlp::random_split(n, [1.0, 0.0, 0.0], cfg.seed ^ 0xF01D);
+    let mut fold_of = vec![0; n];
+    for (place, &i) in order.iter().enumerate() {
+        fold_of[i] = place % folds;
+    }
+    let fold_cfg = FitConfig {
+        ensemble: 1,
+        ..cfg.clone()
+    };
+    let jobs: Vec<(usize, usize)> = (0..sets.len())
+        .flat_map(|s| (0..folds).map(move |k| (s, k)))
+        .collect();
+    // Per job, each held-out sample's squared errors per target.
+    let errors: Vec<Vec<Vec<f64>>> = jobs
+        .par_iter()
+        .map(|&(s, k)| {
+            let train: Vec<usize> = (0..n).filter(|&i| fold_of[i] != k).collect();
+            let model = fit_rows(data, &sets[s], &train, &fold_cfg, |_, _, _| {
+                Control::Continue
+            })?;
+            (0..n)
+                .filter(|&i| fold_of[i] == k)
+                .map(|i| {
+                    let row: Vec<f64> = sets[s].columns.iter().map(|&c| data.x[i][c]).collect();
+                    let e = model.estimate(&row).map_err(|why| {
+                        FitError::Projection(format!("held-out sample {i}: {why}"))
+                    })?;
+                    Ok(e.values
+                        .iter()
+                        .zip(&data.t[i])
+                        .map(|(e, t)| (e - t).powi(2))
+                        .collect())
+                })
+                .collect::<Result<_, FitError>>()
+        })
+        .collect::<Result<_, FitError>>()?;
+    let targets = data.targets.len();
+    let variance: Vec<f64> = (0..targets)
+        .map(|j| {
+            let mean = data.t.iter().map(|r| r[j]).sum::<f64>() / n as f64;
+            data.t.iter().map(|r| (r[j] - mean).powi(2)).sum::<f64>() / n as f64
+        })
+        .collect();
+    Ok(sets
+        .iter()
+        .enumerate()
+        .map(|(s, set)| {
+            let held: Vec<&Vec<f64>> = jobs
+                .iter()
+                .zip(&errors)
+                .filter(|((js, _), _)| *js == s)
+                .flat_map(|(_, e)| e)
+                .collect();
+            let normalised_mse: Vec<f64> = (0..targets)
+                .map(|j| {
+                    let mse = held.iter().map(|e| e[j]).sum::<f64>() / held.len().max(1) as f64;
+                    mse / variance[j].max(f64::MIN_POSITIVE)
+                })
+                .collect();
+            InputScore {
+                inputs: set.name.clone(),
+                error: normalised_mse.iter().sum::<f64>() / targets as f64,
+                normalised_mse,
+                chosen: false,
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]
@@ -530,5 +817,111 @@ mod tests {
         assert!(components_from_name("x", 351)
             .unwrap_err()
             .contains("expected auto"));
+    }
+
+    #[test]
+    fn auto_compares_markers_and_field_against_the_field_alone_on_wide_tables() {
+        use ColumnKind::{Field, Marker, Other};
+        let wide = [vec![Marker; 30], vec![Field; 6], vec![Other]].concat();
+        let sets = candidate_inputs(&wide, Some(10), FieldInputs::Auto);
+        assert_eq!(sets.len(), 2);
+        assert_eq!(sets[0].columns, (0..37).collect::<Vec<_>>());
+        assert_eq!((sets[0].components, sets[0].passthrough), (Some(10), 7));
+        assert_eq!(sets[1].columns, (30..37).collect::<Vec<_>>());
+        assert_eq!((sets[1].components, sets[1].passthrough), (None, 7));
+        assert_eq!(sets[1].name, "the field summary + 1 other inputs");
+        // Told what to read, or too few markers for the field summary by default: one set.
+        assert_eq!(candidate_inputs(&wide, Some(10), FieldInputs::Yes).len(), 1);
+        let narrow = [vec![Marker; 6], vec![Field; 6]].concat();
+        assert_eq!(candidate_inputs(&narrow, None, FieldInputs::Auto).len(), 1);
+        // Markers' features always come first, whatever the table's order.
+        let mixed = [Other, Marker, Field, Marker];
+        assert_eq!(InputSet::all(&mixed, None).columns, vec![1, 3, 2, 0]);
+        let names: Vec<String> = ["m000_dx_px", "field_rms_px", "gauge_kpa"]
+            .map(String::from)
+            .to_vec();
+        assert_eq!(
+            column_kinds(&names, &["field_rms_px"]),
+            vec![Marker, Field, Other]
+        );
+    }
+
+    type Signal = dyn Fn(&[f64]) -> f64;
+
+    /// A table of 24 "markers' features" (two latent values seen with noise) and 3 "field"
+    /// columns (independent) where the target is a smooth function of the columns `signal`
+    /// picks, with noise; seeded.
+    fn table(signal: &Signal) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<String>) {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        // The markers move together: two latent values, seen by each with its own weights.
+        let x: Vec<Vec<f64>> = (0..80)
+            .map(|_| {
+                let (a, b): (f64, f64) = (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+                let mut r: Vec<f64> = (0..24)
+                    .map(|j| a * (j as f64).cos() + b * (j as f64).sin())
+                    .map(|v| v + 0.05 * rng.random_range(-1.0..1.0))
+                    .collect();
+                r.extend((0..3).map(|_| rng.random_range(-1.0..1.0)));
+                r
+            })
+            .collect();
+        let t = x
+            .iter()
+            .map(|r| vec![signal(r) + 0.05 * rng.random_range(-1.0..1.0)])
+            .collect();
+        let mut columns = names("m0", 24);
+        for c in &mut columns {
+            *c = format!("m{:03}_dx_px", c[2..].parse::<usize>().unwrap());
+        }
+        columns.extend(names("field", 3));
+        (x, t, columns)
+    }
+
+    #[test]
+    fn cross_validation_keeps_the_inputs_that_carry_the_signal() {
+        let targets = names("y", 1);
+        let cfg = FitConfig {
+            hidden: vec![6],
+            ensemble: 1,
+            max_epochs: 100,
+            ..FitConfig::default()
+        };
+        let field_only = |r: &[f64]| (2.0 * r[24]).sin() * (1.5 * r[25]).cos();
+        let markers_too = move |r: &[f64]| field_only(r) + r[0] - r[1];
+        let signals: [&Signal; 2] = [&field_only, &markers_too];
+        for (expected, signal) in [1, 0].into_iter().zip(signals) {
+            let (x, t, columns) = table(signal);
+            let kinds = column_kinds(&columns, &["field0", "field1", "field2"]);
+            let sets = candidate_inputs(&kinds, Some(10), FieldInputs::Auto);
+            let data = FitData {
+                x: &x,
+                t: &t,
+                feature_columns: &columns,
+                targets: &targets,
+            };
+            let m = fit_choosing(&data, &cfg, &sets, 4, |_, _, _| Control::Continue).unwrap();
+            let chosen: Vec<bool> = m.training.selection.iter().map(|s| s.chosen).collect();
+            assert_eq!(
+                chosen,
+                [expected == 0, expected == 1],
+                "{:?}",
+                m.training.selection
+            );
+            let wanted: Vec<&String> = sets[expected]
+                .columns
+                .iter()
+                .map(|&c| &columns[c])
+                .collect();
+            assert_eq!(m.feature_columns.iter().collect::<Vec<_>>(), wanted);
+            let winner = &m.training.selection[expected];
+            assert!(
+                winner.error < 0.2 && winner.error == winner.normalised_mse[0],
+                "{winner:?}"
+            );
+            // The model file keeps the scores.
+            let back = Model::from_json(&m.to_json(), "test").unwrap();
+            assert_eq!(back.training.selection, m.training.selection);
+        }
     }
 }

@@ -37,6 +37,10 @@ pub struct TrainingSummary {
     /// trainbr's final α, β and effective number of parameters γ.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub evidence: Option<crate::br::Evidence>,
+    /// The input sets training compared by cross-validation, with their scores (empty when
+    /// there was no choice).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub selection: Vec<crate::fit::InputScore>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -144,6 +148,23 @@ impl Model {
     /// Every network of the model, the first one first.
     pub fn networks(&self) -> impl Iterator<Item = &Mlp> {
         std::iter::once(&self.net).chain(&self.members)
+    }
+
+    /// Where each of the model's input columns sits in a table whose columns are `names`; an
+    /// error names the first one missing.
+    pub fn columns_in(&self, names: &[String]) -> Result<Vec<usize>, String> {
+        self.feature_columns
+            .iter()
+            .map(|c| {
+                names.iter().position(|n| n == c).ok_or_else(|| {
+                    format!(
+                        "no column `{c}` among the {} given (the model reads {} columns)",
+                        names.len(),
+                        self.feature_columns.len()
+                    )
+                })
+            })
+            .collect()
     }
 
     /// The columns of [`Estimate::into_row`]: the targets, then for an ensemble each target's

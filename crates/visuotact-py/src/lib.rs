@@ -21,13 +21,16 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::{read_image, FrameStream};
-use visuotact_nn::fit::{components_from_name, fit, FieldInputs, FitConfig, FitData};
+use visuotact_nn::fit::{
+    candidate_inputs, column_kinds, components_from_name, fit_choosing, FieldInputs, FitConfig,
+    FitData, SELECTION_FOLDS,
+};
 use visuotact_nn::lm::Control;
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
 use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
-use visuotact_vision::features::{is_field_column, FrameFeatures};
+use visuotact_vision::features::{is_field_column, FrameFeatures, FIELD_COLUMNS};
 use visuotact_vision::layout::LayoutChoice;
 
 create_exception!(
@@ -324,8 +327,9 @@ fn training_columns(columns: &[String], field: &str) -> PyResult<Vec<usize>> {
 impl Model {
     /// Trains on a feature table (`features`: samples × columns, NaN for lost markers) and
     /// labels (samples × targets), with `visuotact train`'s defaults: trainbr, one hidden
-    /// layer of 20, 5 networks, the field summary and 10 principal components of the markers'
-    /// features on wide sensors. `components`: "auto", 0 (none) or a count.
+    /// layer of 20, 5 networks; on wide sensors the field summary with 10 principal components
+    /// of the markers' features, or the field summary alone, whichever 5-fold
+    /// cross-validation prefers (`Model.selection` has the scores). `components`: "auto", 0 (none) or a count.
     #[staticmethod]
     #[pyo3(signature = (features, labels, columns, targets, hidden = None, algorithm = "trainbr", components = "auto".to_string(), field = "auto", ensemble = 5, seed = 1, max_epochs = 1000, sensor = None))]
     #[allow(
@@ -379,6 +383,11 @@ impl Model {
             max_epochs,
             ..auto
         };
+        let sets = candidate_inputs(
+            &column_kinds(&names, &FIELD_COLUMNS),
+            cfg.components,
+            FieldInputs::from_name(field).unwrap_or(FieldInputs::Auto),
+        );
         let data = FitData {
             x: &x,
             t: &t,
@@ -386,7 +395,11 @@ impl Model {
             targets: &targets,
         };
         let mut m = py
-            .detach(|| fit(&data, &cfg, |_, _, _| Control::Continue))
+            .detach(|| {
+                fit_choosing(&data, &cfg, &sets, SELECTION_FOLDS, |_, _, _| {
+                    Control::Continue
+                })
+            })
             .map_err(error)?;
         if let Some(s) = sensor {
             m.sensor = Some(
@@ -430,27 +443,70 @@ impl Model {
         self.m.target_columns.clone()
     }
 
+    /// The input sets training compared by cross-validation (empty when there was no
+    /// choice): dicts with `inputs`, `error` (held-out squared error over the target's
+    /// variance, mean over targets), `normalised_mse` per target and `chosen`.
+    #[getter]
+    fn selection<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.m
+            .training
+            .selection
+            .iter()
+            .map(|s| {
+                let d = PyDict::new(py);
+                d.set_item("inputs", &s.inputs)?;
+                d.set_item("error", s.error)?;
+                d.set_item("normalised_mse", s.normalised_mse.clone())?;
+                d.set_item("chosen", s.chosen)?;
+                Ok(d)
+            })
+            .collect()
+    }
+
     /// Estimates for rows of the model's inputs (`columns` order; one row or samples × inputs;
     /// NaN for a lost marker's features, filled from the others): a dict of arrays, each
     /// target's mean, `<target>_std` (the ensemble's spread, 0 for one network) and `filled`
     /// (inputs filled per row). Rows that cannot be estimated (too many lost markers) are NaN.
+    /// A wider table (e.g. every column `Sensor.extract` gives) is read by name: pass its
+    /// `columns`, or pass a `Features` as it is.
+    #[pyo3(signature = (features, columns = None))]
     fn predict<'py>(
         &self,
         py: Python<'py>,
         features: &Bound<'py, PyAny>,
+        columns: Option<Vec<String>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let rows: Vec<Vec<f64>> = if let Ok(a) = features.extract::<PyReadonlyArray2<'_, f64>>() {
-            rows_of(&a)
-        } else {
-            let a: PyReadonlyArray1<'_, f64> = features
-                .extract()
-                .map_err(|_| error("features must be a float64 array of 1 or 2 dimensions"))?;
-            vec![a.as_array().to_vec()]
+        let (rows, columns): (Vec<Vec<f64>>, Option<Vec<String>>) =
+            if let Ok(f) = features.extract::<PyRef<'_, Features>>() {
+                (vec![f.f.values.clone()], Some(f.columns.to_vec()))
+            } else if let Ok(a) = features.extract::<PyReadonlyArray2<'_, f64>>() {
+                (rows_of(&a), columns)
+            } else {
+                let a: PyReadonlyArray1<'_, f64> = features.extract().map_err(|_| {
+                    error("features must be a Features or a float64 array of 1 or 2 dimensions")
+                })?;
+                (vec![a.as_array().to_vec()], columns)
+            };
+        let rows = match columns {
+            Some(names) => {
+                let picked = self.m.columns_in(&names).map_err(error)?;
+                if let Some(r) = rows.iter().find(|r| r.len() != names.len()) {
+                    return Err(error(format!(
+                        "a row has {} values for {} column names",
+                        r.len(),
+                        names.len()
+                    )));
+                }
+                rows.iter()
+                    .map(|r| picked.iter().map(|&i| r[i]).collect())
+                    .collect()
+            }
+            None => rows,
         };
         let width = self.m.feature_columns.len();
         if let Some(r) = rows.iter().find(|r| r.len() != width) {
             return Err(error(format!(
-                "a row has {} values, the model reads {width} ({}…)",
+                "a row has {} values, the model reads {width} ({}…): pass columns= to pick them by name",
                 r.len(),
                 self.m.feature_columns.first().cloned().unwrap_or_default()
             )));

@@ -142,6 +142,16 @@ def test_training_and_prediction_match_the_cli(session):
             if name in est:
                 np.testing.assert_allclose(est[name], cli_pred[:, j], rtol=0, atol=1e-12)
         assert (est["filled"] == 0).all()
+        # The whole table by its column names, and a Features as it is, give the same.
+        by_name = m.predict(table, columns=header[7:])
+        np.testing.assert_array_equal(by_name[TARGETS[0]], est[TARGETS[0]])
+        first = m.predict(sensor.extract(frames_of(session)[0]))
+        np.testing.assert_allclose(first[TARGETS[0]], est[TARGETS[0]][:1], rtol=0, atol=1e-12)
+    # The inputs were chosen by cross-validation; the scores travel with the model.
+    assert [s["chosen"] for s in model.selection].count(True) == 1
+    assert model.selection == loaded.selection
+    with pytest.raises(vt.VisuotactError, match="no column"):
+        model.predict(table[:, :3], columns=header[7:10])
     # The live iterator over the same frames gives the same estimates.
     rows = list(vt.live(str(session / "s" / "frames"), model=loaded))
     assert len(rows) == len(cli_pred)
