@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use visuotact_image::RgbImage;
 
-use crate::run::{Captured, LatestQueue};
+use visuotact_pipeline::{Captured, LatestQueue};
 
 /// Pixel formats visuotact captures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

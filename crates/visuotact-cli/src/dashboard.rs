@@ -21,7 +21,7 @@ use tokio::sync::mpsc;
 use visuotact_image::RgbImage;
 use visuotact_vision::calibration::SensorCalibration;
 
-use crate::run::MarkerView;
+use visuotact_pipeline::live::MarkerView;
 
 /// The page, embedded.
 const PAGE: &str = include_str!("../assets/dashboard.html");

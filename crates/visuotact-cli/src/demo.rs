@@ -115,6 +115,16 @@ fn default_config(columns: &[String], seed: u64) -> (FitConfig, Vec<InputSet>) {
     (cfg, sets)
 }
 
+/// `model`'s inputs picked by name from rows whose columns are `columns` (the model may read
+/// a subset: the input set training chose).
+fn inputs_of_rows(
+    model: &Model,
+    columns: &[String],
+) -> anyhow::Result<impl Fn(&[f64]) -> Vec<f64>> {
+    let picks = model.columns_in(columns).map_err(anyhow::Error::msg)?;
+    Ok(move |row: &[f64]| picks.iter().map(|&i| row[i]).collect())
+}
+
 /// The inputs `model` was trained on, in words: the input set chosen, with the
 /// cross-validated error of each set compared.
 fn inputs_of(model: &Model, sets: &[InputSet]) -> String {
@@ -126,7 +136,7 @@ fn inputs_of(model: &Model, sets: &[InputSet]) -> String {
                 .training
                 .selection
                 .iter()
-                .map(|s| format!("{:.4}", s.error))
+                .map(|s| format!("{:.2e}", s.error))
                 .collect::<Vec<_>>()
                 .join(" vs ")
         ),
@@ -257,6 +267,8 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         model.networks().count()
     );
 
+    let pick = inputs_of_rows(&model, &columns)?;
+
     // Table 3: six touches anywhere.
     let t3: Vec<Touch> = TABLE3
         .iter()
@@ -274,7 +286,7 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         "\nTable 3 layout, visuotact's default: actual | estimate ± spread of its networks | error || paper's estimate | paper's error"
     );
     for (k, ((actual, paper), f)) in TABLE3.iter().zip(&f3).enumerate() {
-        let e = match model.estimate(f) {
+        let e = match model.estimate(&pick(f)) {
             Ok(e) => e,
             Err(why) => {
                 println!("{}  no estimate: {why}", k + 1);
@@ -320,7 +332,9 @@ fn iats(a: &Args) -> anyhow::Result<()> {
         if let Some(m) = complete_markers(f) {
             paper_est.push((paper.predict(&m), truth.clone()));
         }
-        let Ok(e) = model.estimate(f) else { continue };
+        let Ok(e) = model.estimate(&pick(f)) else {
+            continue;
+        };
         for j in 0..3 {
             est[j].push(e.values[j]);
             tru[j].push(truth[j]);
@@ -484,17 +498,25 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     let (default, _) = train(&x, &t, &columns, &force, &default_config_rings, &sets)?;
     let (default_g_config, sets_g) = default_config(&gauge_columns, a.seed);
     let (default_g, _) = train(&xg, &tg, &gauge_columns, &force, &default_g_config, &sets_g)?;
+    // A model's errors over frames whose features are columns of the training table's (the
+    // model reads its own columns of them).
     let errors_on = |model: &Model, feats: &[Option<Vec<f64>>], loads: &[ConeLoad]| {
+        let names = if model.feature_columns.iter().any(|c| c == "gauge_kpa") {
+            &gauge_columns
+        } else {
+            &columns
+        };
+        let pick = inputs_of_rows(model, names)?;
         let (mut est, mut tru) = (Vec::new(), Vec::new());
         for (f, l) in feats.iter().zip(loads) {
             if let Some(f) = f {
-                est.push(model.predict(f)[0]);
+                est.push(model.predict(&pick(f))[0]);
                 tru.push(l.force_n);
             }
         }
-        target_errors("force_n", &est, &tru)
+        anyhow::Ok(target_errors("force_n", &est, &tru))
     };
-    let unseen = errors_on(&model, &fte, &test_loads);
+    let unseen = errors_on(&model, &fte, &test_loads)?;
     // Seed 001's own protocol: 1..40 neurons × repeats, the best net kept (lowest test MSE),
     // then run by the Neural Network Testing Model over the recorded press.
     let repeats: u64 = if a.quick { 2 } else { 5 };
@@ -548,8 +570,8 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     };
     let own = "best of sweep, over its own press (paper's way)";
     let later = "best of sweep, on a later press (unseen)";
-    line(own, "rings", &errors_on(&best, &ftr, &train_loads));
-    line(later, "rings", &errors_on(&best, &fte, &test_loads));
+    line(own, "rings", &errors_on(&best, &ftr, &train_loads)?);
+    line(later, "rings", &errors_on(&best, &fte, &test_loads)?);
     line(
         "6 → 20 → 1, one training, on the later press",
         "rings",
@@ -563,22 +585,22 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     line(
         &default_row,
         "rings",
-        &errors_on(&default, &fte, &test_loads),
+        &errors_on(&default, &fte, &test_loads)?,
     );
     line(
         own,
         "rings + gauge",
-        &errors_on(&best_g, &gtr, &train_loads),
+        &errors_on(&best_g, &gtr, &train_loads)?,
     );
     line(
         later,
         "rings + gauge",
-        &errors_on(&best_g, &gte, &test_loads),
+        &errors_on(&best_g, &gte, &test_loads)?,
     );
     line(
         &default_row,
         "rings + gauge",
-        &errors_on(&default_g, &gte, &test_loads),
+        &errors_on(&default_g, &gte, &test_loads)?,
     );
     println!(
         "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2}",

@@ -505,7 +505,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // A camera captures on its own thread into a drop-oldest queue, timestamped on arrival.
     let camera = match a.source.strip_prefix("camera:") {
         Some(dev) => {
-            let q = Arc::new(crate::run::LatestQueue::new(4));
+            let q = Arc::new(visuotact_pipeline::LatestQueue::new(4));
             let h = crate::camera::spawn(
                 dev,
                 crate::camera::CameraRequest::default(),

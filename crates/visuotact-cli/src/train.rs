@@ -486,14 +486,14 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         choose_inputs(&data, &cfg, &sets, SELECTION_FOLDS).map_err(fit_error)?;
     for score in &selection {
         eprintln!(
-            "  {} {}: held-out error / variance {:.4} (per target {})",
+            "  {} {}: held-out error / variance {:.3e} (per target {})",
             if score.chosen { "chose" } else { "     " },
             score.inputs,
             score.error,
             score
                 .normalised_mse
                 .iter()
-                .map(|e| format!("{e:.4}"))
+                .map(|e| format!("{e:.3e}"))
                 .collect::<Vec<_>>()
                 .join(", ")
         );

@@ -795,6 +795,10 @@ mod tests {
         assert_eq!(a.networks().count(), 3);
         assert_ne!(a.members[0], a.members[1]);
         assert_eq!(a.training.algorithm, "trainbr");
+        // A row of the wrong width is refused, never read out of bounds.
+        let err = a.estimate(&[1.0]).unwrap_err();
+        assert!(err.contains("1 inputs given, the model reads 2"), "{err}");
+        assert!(a.predict(&[1.0, 2.0, 3.0])[0].is_nan());
     }
 
     #[test]

@@ -183,6 +183,14 @@ impl Model {
     /// to the inputs present ([`crate::pca::Projection::apply_partial`]). Refused, with the
     /// reason, when [`unfillable`] says so or the model has no projection.
     pub fn estimate_each(&self, features: &[f64]) -> Result<(Vec<Vec<f64>>, usize), String> {
+        if features.len() != self.feature_columns.len() {
+            return Err(format!(
+                "{} inputs given, the model reads {} ({}…)",
+                features.len(),
+                self.feature_columns.len(),
+                self.feature_columns.first().map_or("", String::as_str)
+            ));
+        }
         let missing = features.iter().filter(|v| v.is_nan()).count();
         if missing > 0 {
             if let Some(why) = unfillable(&self.feature_columns, features) {

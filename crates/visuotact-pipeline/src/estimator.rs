@@ -38,6 +38,14 @@ pub enum PipelineError {
     /// The feature extractor refused the calibration or feature set.
     #[error("features: {0}")]
     Features(String),
+    /// A model of an ensemble does not fit the others or the sensor.
+    #[error("model {model} of the ensemble: {why}")]
+    Ensemble {
+        /// Which model (from 1).
+        model: usize,
+        /// What is wrong with it.
+        why: String,
+    },
     /// A frame's size differs from the calibration's.
     #[error(transparent)]
     FrameSize(#[from] FrameSizeError),

@@ -25,5 +25,9 @@
 //! ```
 
 pub mod estimator;
+pub mod live;
+pub mod queue;
 
 pub use estimator::{feature_set_of, Estimator, PipelineError};
+pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};
+pub use queue::{Captured, LatestQueue};

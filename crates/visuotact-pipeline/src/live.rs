@@ -1,0 +1,483 @@
+//! Live estimation: the per-frame [`Estimator`] plus what a running sensor needs around it —
+//! a no-contact baseline that follows the skin's slow drift (re-zeroing), a contact rule on the
+//! markers' motion against their calibration jitter, marker health, an ensemble over several
+//! model files, and the estimate every live output sends ([`LiveEstimate`], one JSON line).
+//! `visuotact run` and its dashboard call it; so can any program with frames.
+
+use serde::Serialize;
+use visuotact_image::RgbImage;
+use visuotact_nn::model::Model;
+use visuotact_vision::features::{FieldSummary, FIELD_COLUMNS};
+use visuotact_vision::track::MarkerStatus;
+
+use crate::{Estimator, PipelineError};
+
+/// The contact and re-zeroing rules of [`LiveEstimator`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LiveConfig {
+    /// Contact when at least [`LiveConfig::contact_markers`] markers move more than this many
+    /// times their calibration jitter …
+    pub contact_sigmas: f64,
+    /// … and more than this many pixels, against the no-contact baseline.
+    pub contact_min_px: f64,
+    /// Markers that must move for contact (one noisy or half-visible marker is not a touch).
+    pub contact_markers: usize,
+    /// The baseline follows no-contact frames with this weight per frame (0: only
+    /// [`LiveEstimator::rezero_now`] moves it).
+    pub rezero_rate: f64,
+}
+
+impl Default for LiveConfig {
+    /// 5 σ and 0.5 px on 3 markers; re-zeroing at 0.05 per frame.
+    fn default() -> Self {
+        Self {
+            contact_sigmas: 5.0,
+            contact_min_px: 0.5,
+            contact_markers: 3,
+            rezero_rate: 0.05,
+        }
+    }
+}
+
+/// One target's estimate.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TargetEstimate {
+    /// The target's name with its unit (`x_mm`).
+    pub name: String,
+    /// The ensemble's mean.
+    pub value: f64,
+    /// Standard deviation over the ensemble (absent with one network).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub std: Option<f64>,
+}
+
+/// Marker health counts.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct Health {
+    /// Markers found where expected.
+    pub ok: usize,
+    /// Markers not found.
+    pub lost: usize,
+    /// Markers merged with a neighbour.
+    pub merged: usize,
+    /// Markers with two candidates.
+    pub ambiguous: usize,
+    /// Markers split from a merged pair: a position, no area.
+    pub split: usize,
+    /// Inputs the model filled this frame (lost markers, from the markers found).
+    pub filled: usize,
+    /// Markers whose no-contact baseline moved away from the calibration.
+    pub drifting: usize,
+    /// The sensor's reference was taken under contact (`calibrate --reference lightest:N`
+    /// on a data set with no contact-free frame): displacements are relative to a lightly
+    /// pressed skin.
+    pub reference_under_contact: bool,
+}
+
+/// One frame's result from [`LiveEstimator::process`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveFrame {
+    /// Whether the skin is touched (the contact rule).
+    pub contact: bool,
+    /// Largest marker displacement from the baseline, pixels.
+    pub max_displacement_px: f64,
+    /// The estimate (empty without contact, a model, or enough markers).
+    pub targets: Vec<TargetEstimate>,
+    /// Marker health.
+    pub health: Health,
+}
+
+impl LiveFrame {
+    fn new(
+        contact: bool,
+        max_displacement_px: f64,
+        targets: Vec<TargetEstimate>,
+        health: Health,
+    ) -> Self {
+        Self {
+            contact,
+            max_displacement_px,
+            targets,
+            health,
+        }
+    }
+}
+
+/// One estimate, as every live output sends it (a JSON line on standard output, a UDP
+/// datagram, a WebSocket message).
+#[derive(Clone, Debug, Serialize)]
+pub struct LiveEstimate {
+    /// The frame's name.
+    pub frame: String,
+    /// Its place in the source.
+    pub index: u64,
+    /// Capture time on the run's clock, seconds.
+    pub timestamp_s: f64,
+    /// Capture → estimate, milliseconds.
+    pub latency_ms: f64,
+    /// Frame in memory → estimate, milliseconds.
+    pub processing_ms: f64,
+    /// Whether the skin is touched.
+    pub contact: bool,
+    /// Largest marker displacement from the baseline, pixels.
+    pub max_displacement_px: f64,
+    /// Targets (empty when there is no contact or a needed marker was lost).
+    pub targets: Vec<TargetEstimate>,
+    /// Marker health.
+    pub health: Health,
+    /// Frames dropped by the capture queue so far.
+    pub dropped_frames: u64,
+}
+
+/// Marker drawing data for the dashboard: position, displacement from the baseline, status.
+#[derive(Clone, Debug, Serialize)]
+pub struct MarkerView {
+    /// Calibrated position, pixels.
+    pub x: f32,
+    /// Calibrated position, pixels.
+    pub y: f32,
+    /// Displacement from the baseline, pixels (0 when lost).
+    pub dx: f32,
+    /// Displacement from the baseline, pixels (0 when lost).
+    pub dy: f32,
+    /// Whether the marker has a position this frame.
+    pub ok: bool,
+}
+
+/// The per-frame estimator state: baseline, contact rule, ensemble.
+pub struct LiveEstimator {
+    /// The markers' rest positions (the field summary's centroid).
+    rest_px: Vec<(f64, f64)>,
+    est: Estimator,
+    ensemble: Vec<Model>,
+    cols: Vec<Vec<usize>>,
+    baseline: Vec<f64>,
+    jitter: Vec<f64>,
+    /// Indices of each marker's dx and dy in the feature vector.
+    xy: Vec<Option<(usize, usize)>>,
+    /// Calibrated marker positions, pixels.
+    marker_px: Vec<(f32, f32)>,
+    contact_sigmas: f64,
+    contact_min_px: f64,
+    contact_markers: usize,
+    rezero_rate: f64,
+    zeroed: Vec<f64>,
+}
+
+impl LiveEstimator {
+    /// Live estimation with `est`'s sensor and `models` as one ensemble (every network of
+    /// every model counts; none: contact and marker health only), by `cfg`'s contact and
+    /// re-zeroing rules. The models must estimate the same targets from `est`'s features.
+    pub fn new(
+        est: Estimator,
+        models: Vec<Model>,
+        cfg: &LiveConfig,
+    ) -> Result<Self, PipelineError> {
+        let names = est.feature_columns();
+        let cols = models
+            .iter()
+            .enumerate()
+            .map(|(k, m)| {
+                est.columns_of(m).map_err(|e| PipelineError::Ensemble {
+                    model: k + 1,
+                    why: e.to_string(),
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        if let Some(k) = models
+            .iter()
+            .position(|m| m.target_columns != models[0].target_columns)
+        {
+            return Err(PipelineError::Ensemble {
+                model: k + 1,
+                why: format!(
+                    "estimates {} where the first model estimates {}",
+                    models[k].target_columns.join(", "),
+                    models[0].target_columns.join(", ")
+                ),
+            });
+        }
+        let set = est.feature_set();
+        let per_marker = [set.dx, set.dy, set.area, set.eccentricity]
+            .iter()
+            .filter(|b| **b)
+            .count();
+        let cal = est.calibration();
+        let xy = (0..cal.markers.len())
+            .map(|m| (set.dx && set.dy).then_some((m * per_marker, m * per_marker + 1)))
+            .collect();
+        let marker_px: Vec<(f32, f32)> = cal
+            .markers
+            .iter()
+            .map(|m| (m.x_px as f32, m.y_px as f32))
+            .collect();
+        let jitter: Vec<f64> = cal
+            .markers
+            .iter()
+            .map(|m| m.jitter_px.unwrap_or(0.0))
+            .collect();
+        let rest_px = cal.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+        Ok(Self {
+            rest_px,
+            baseline: vec![0.0; names.len()],
+            est,
+            ensemble: models,
+            cols,
+            jitter,
+            xy,
+            marker_px,
+            contact_sigmas: cfg.contact_sigmas,
+            contact_min_px: cfg.contact_min_px,
+            contact_markers: cfg.contact_markers.max(1),
+            rezero_rate: cfg.rezero_rate,
+            zeroed: Vec::new(),
+        })
+    }
+
+    /// The targets estimated (empty without a model).
+    pub fn target_names(&self) -> Vec<String> {
+        self.ensemble
+            .first()
+            .map(|m| m.target_columns.clone())
+            .unwrap_or_default()
+    }
+
+    /// Sets the baseline to the current frame's features (the re-zero button).
+    pub fn rezero_now(&mut self) {
+        let n = self.marker_values();
+        for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
+            if z.is_finite() {
+                *b += z;
+            }
+        }
+    }
+
+    /// How many feature values are the markers' (the field summary follows them).
+    fn marker_values(&self) -> usize {
+        self.baseline.len().saturating_sub(FIELD_COLUMNS.len())
+    }
+
+    /// Processes one frame; `markers` gets the drawing data when asked for. Without contact,
+    /// or when the models cannot estimate the frame (too many markers lost), the targets are
+    /// empty: no estimate rather than a wrong one.
+    pub fn process(
+        &mut self,
+        img: &RgbImage,
+        markers: Option<&mut Vec<MarkerView>>,
+    ) -> Result<LiveFrame, PipelineError> {
+        let under_contact = self.est.calibration().reference.under_contact;
+        // Features only: the ensemble below predicts on the re-zeroed ones.
+        let f = self.est.features(img)?;
+        // Re-zeroed features.
+        self.zeroed.clear();
+        self.zeroed
+            .extend(f.values.iter().zip(&self.baseline).map(|(v, b)| v - b));
+        // The field summary of the re-zeroed displacements (the baseline never moves it).
+        // (`f` still borrows the estimator: the count is taken from the baseline directly.)
+        let n = self.baseline.len().saturating_sub(FIELD_COLUMNS.len());
+        if self.zeroed.len() == n + FIELD_COLUMNS.len() && self.xy.iter().all(Option::is_some) {
+            let zeroed = &self.zeroed;
+            let field = FieldSummary::of(self.rest_px.iter().zip(&self.xy).map(|(&p, xy)| {
+                let d = xy
+                    .map(|(ix, iy)| (zeroed[ix], zeroed[iy]))
+                    .filter(|d| d.0.is_finite() && d.1.is_finite());
+                (p, d)
+            }));
+            self.zeroed[n..].copy_from_slice(&field.map_or([f64::NAN; 6], |f| f.values()));
+        }
+        let mut health = Health {
+            reference_under_contact: under_contact,
+            ..Health::default()
+        };
+        let mut max_disp = 0.0f64;
+        let mut moved = 0usize;
+        for (m, st) in f.status.iter().enumerate() {
+            match st {
+                MarkerStatus::Ok => health.ok += 1,
+                MarkerStatus::Lost => health.lost += 1,
+                MarkerStatus::Merged => health.merged += 1,
+                MarkerStatus::Ambiguous => health.ambiguous += 1,
+                MarkerStatus::Split => health.split += 1,
+            }
+            if let Some((ix, iy)) = self.xy[m] {
+                let (dx, dy) = (self.zeroed[ix], self.zeroed[iy]);
+                let d = dx.hypot(dy);
+                if d.is_finite() {
+                    max_disp = max_disp.max(d);
+                    if d > self
+                        .contact_min_px
+                        .max(self.contact_sigmas * self.jitter[m])
+                    {
+                        moved += 1;
+                    }
+                }
+                let drift = self.baseline[ix].hypot(self.baseline[iy]);
+                if drift > 0.5f64.max(3.0 * self.jitter[m]) {
+                    health.drifting += 1;
+                }
+            }
+        }
+        let contact = moved >= self.contact_markers.min(self.marker_px.len().max(1));
+        if let Some(out) = markers {
+            out.clear();
+            for (m, &(x, y)) in self.marker_px.iter().enumerate() {
+                let (dx, dy) =
+                    self.xy[m].map_or((0.0, 0.0), |(ix, iy)| (self.zeroed[ix], self.zeroed[iy]));
+                out.push(MarkerView {
+                    x,
+                    y,
+                    dx: if dx.is_finite() { dx as f32 } else { 0.0 },
+                    dy: if dy.is_finite() { dy as f32 } else { 0.0 },
+                    ok: f.status[m].has_position(),
+                });
+            }
+        }
+        // No contact: follow the rest position (automatic re-zeroing), report no targets.
+        if !contact {
+            if self.rezero_rate > 0.0 {
+                let n = self.marker_values();
+                for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
+                    if z.is_finite() {
+                        *b += self.rezero_rate * z;
+                    }
+                }
+            }
+            return Ok(LiveFrame::new(false, max_disp, Vec::new(), health));
+        }
+        let Some(first) = self.ensemble.first() else {
+            return Ok(LiveFrame::new(true, max_disp, Vec::new(), health));
+        };
+        let names = &first.target_columns;
+        let mut sums = vec![0.0; names.len()];
+        let mut sq = vec![0.0; names.len()];
+        let mut x = Vec::with_capacity(self.cols[0].len());
+        let mut networks = 0usize;
+        for (m, cols) in self.ensemble.iter().zip(&self.cols) {
+            x.clear();
+            x.extend(cols.iter().map(|&c| self.zeroed[c]));
+            // Lost markers are filled by models on principal components; otherwise (or with
+            // too many lost) no estimate this frame.
+            if x.iter().any(|v| v.is_infinite()) {
+                return Ok(LiveFrame::new(true, max_disp, Vec::new(), health));
+            }
+            // Every network of every model file counts in the ensemble; each file scales and
+            // projects its inputs once for all its networks.
+            let Ok((outs, filled)) = m.estimate_each(&x) else {
+                return Ok(LiveFrame::new(true, max_disp, Vec::new(), health));
+            };
+            health.filled = health.filled.max(filled);
+            for o in &outs {
+                for (k, v) in o.iter().enumerate() {
+                    sums[k] += v;
+                    sq[k] += v * v;
+                }
+            }
+            networks += outs.len();
+        }
+        let n = networks as f64;
+        let targets = names
+            .iter()
+            .enumerate()
+            .map(|(k, name)| {
+                let mean = sums[k] / n;
+                TargetEstimate {
+                    name: name.clone(),
+                    value: mean,
+                    std: (networks > 1)
+                        .then(|| ((sq[k] / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt()),
+                }
+            })
+            .collect();
+        Ok(LiveFrame::new(true, max_disp, targets, health))
+    }
+
+    /// The sensor calibration in use.
+    pub fn calibration(&self) -> &visuotact_vision::calibration::SensorCalibration {
+        self.est.calibration()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use visuotact_nn::fit::{fit, FitConfig, FitData};
+    use visuotact_nn::lm::Control;
+    use visuotact_sim::iats::{render, IatsConfig, Touch};
+    use visuotact_vision::calibration::{calibrate, Preset};
+
+    fn sensor() -> Estimator {
+        let cfg = IatsConfig::SEED000;
+        let rest: Vec<_> = (0..2)
+            .map(|k| render(&cfg, &Touch::default(), k).unwrap().0)
+            .collect();
+        let (cal, _) =
+            calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
+        Estimator::new(Some(cal), None).unwrap()
+    }
+
+    /// A one-input model of `target` on the field summary's RMS displacement.
+    fn tiny_model(target: &str) -> Model {
+        let x: Vec<Vec<f64>> = (0..20).map(|i| vec![f64::from(i)]).collect();
+        let t: Vec<Vec<f64>> = x.iter().map(|r| vec![0.1 * r[0]]).collect();
+        let (columns, targets) = (["field_rms_px".to_string()], [target.to_string()]);
+        let data = FitData {
+            x: &x,
+            t: &t,
+            feature_columns: &columns,
+            targets: &targets,
+        };
+        let cfg = FitConfig {
+            hidden: vec![2],
+            ensemble: 2,
+            max_epochs: 20,
+            ..FitConfig::default()
+        };
+        fit(&data, &cfg, |_, _, _| Control::Continue).unwrap()
+    }
+
+    #[test]
+    fn contact_health_and_the_estimate_follow_the_skin() {
+        let cfg = IatsConfig::SEED000;
+        let model = tiny_model("a_mm");
+        let mut live =
+            LiveEstimator::new(sensor(), vec![model.clone(), model], &LiveConfig::default())
+                .unwrap();
+        assert_eq!(live.target_names(), ["a_mm"]);
+        let rest = render(&cfg, &Touch::default(), 9).unwrap().0;
+        let mut views = Vec::new();
+        let r = live.process(&rest, Some(&mut views)).unwrap();
+        assert!(!r.contact && r.targets.is_empty(), "{r:?}");
+        assert_eq!((r.health.ok, r.health.lost), (117, 0));
+        assert!(r.max_displacement_px < 0.5, "{r:?}");
+        assert_eq!(views.len(), 117);
+        let press = Touch {
+            x_mm: 30.0,
+            y_mm: 22.0,
+            depth_mm: 3.0,
+            ..Touch::default()
+        };
+        let r = live
+            .process(&render(&cfg, &press, 10).unwrap().0, None)
+            .unwrap();
+        assert!(r.contact && r.max_displacement_px > 1.0, "{r:?}");
+        // Four networks in two files (two on other seeds in each): a mean and a spread.
+        assert_eq!(r.targets.len(), 1);
+        let (value, std) = (r.targets[0].value, r.targets[0].std.unwrap());
+        assert!(value.is_finite() && std > 0.0 && std.is_finite(), "{r:?}");
+    }
+
+    #[test]
+    fn an_ensemble_of_different_targets_is_refused() {
+        let err = LiveEstimator::new(
+            sensor(),
+            vec![tiny_model("a_mm"), tiny_model("b_mm")],
+            &LiveConfig::default(),
+        )
+        .err()
+        .unwrap();
+        assert!(
+            matches!(&err, PipelineError::Ensemble { model: 2, why } if why.contains("b_mm")),
+            "{err}"
+        );
+    }
+}
