@@ -10,7 +10,6 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod blobs;
 mod calibrate;
-mod camera;
 mod dashboard;
 mod dataset;
 mod demo;
@@ -121,7 +120,7 @@ where
         Command::Replay(a) => replay::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Cameras => {
-            let list = camera::list_devices();
+            let list = visuotact_io::camera::list_devices();
             if list.is_empty() {
                 println!("no V4L2 cameras (/sys/class/video4linux is empty)");
             }

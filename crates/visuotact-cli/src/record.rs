@@ -506,9 +506,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let camera = match a.source.strip_prefix("camera:") {
         Some(dev) => {
             let q = Arc::new(visuotact_pipeline::LatestQueue::new(4));
-            let h = crate::camera::spawn(
+            let h = visuotact_io::camera::spawn(
                 dev,
-                crate::camera::CameraRequest::default(),
+                visuotact_io::camera::CameraRequest::default(),
                 a.fps,
                 q.clone(),
                 stop.clone(),

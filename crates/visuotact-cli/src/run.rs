@@ -19,6 +19,7 @@ use anyhow::{bail, Context};
 use rayon::prelude::*;
 use serde::Serialize;
 use visuotact_image::RgbImage;
+use visuotact_io::camera::CameraRequest;
 use visuotact_io::frames::FrameStream;
 
 use visuotact_pipeline::queue::median_p99;
@@ -191,7 +192,7 @@ impl Source {
         queue: Arc<LatestQueue<Captured>>,
         stop: Arc<AtomicBool>,
         clock: Instant,
-    ) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<u64>>> {
+    ) -> anyhow::Result<std::thread::JoinHandle<u64>> {
         let period = Duration::from_secs_f64(1.0 / a.fps);
         let paced = !a.unpaced;
         let max = a.max_frames.unwrap_or(u64::MAX);
@@ -239,14 +240,13 @@ impl Source {
                     k += 1;
                 }
                 queue.close();
-                Ok(k)
+                k
             }),
             Self::Camera(dev) => {
-                let req = crate::camera::CameraRequest::parse(
-                    a.camera_size.as_deref(),
-                    a.camera_format.as_deref(),
-                )?;
-                crate::camera::spawn(&dev, req, a.fps, queue, stop, clock, max)?
+                let req =
+                    CameraRequest::parse(a.camera_size.as_deref(), a.camera_format.as_deref())
+                        .map_err(|e| anyhow::anyhow!("--camera-size/--camera-format: {e}"))?;
+                visuotact_io::camera::spawn(&dev, req, a.fps, queue, stop, clock, max)?
             }
             Self::Stream(stream) => std::thread::spawn(move || {
                 let mut k = 0u64;
@@ -266,7 +266,7 @@ impl Source {
                     k += 1;
                 }
                 queue.close();
-                Ok(k)
+                k
             }),
         })
     }
@@ -431,7 +431,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     queue.close();
     summary.frames_captured = source
         .join()
-        .map_err(|_| anyhow::anyhow!("the capture thread stopped unexpectedly"))??;
+        .map_err(|_| anyhow::anyhow!("the capture thread stopped unexpectedly"))?;
     summary.frames_dropped = queue.dropped();
     (summary.latency_ms_median, summary.latency_ms_p99) = median_p99(&mut lat);
     (summary.processing_ms_median, summary.processing_ms_p99) = median_p99(&mut proc);

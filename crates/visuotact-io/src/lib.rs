@@ -5,8 +5,11 @@
 //! frame that cannot be read by name and carrying on. [`table`] writes per-frame rows as CSV or
 //! JSON lines, flushing as it goes. [`session`] writes session folders (frames, labels, force),
 //! and [`force`] defines the force/torque packet layout shared by senders and receivers.
+//! [`camera`] captures V4L2 cameras into the drop-oldest [`queue`] live runs read.
 
+pub mod camera;
 pub mod force;
 pub mod frames;
+pub mod queue;
 pub mod session;
 pub mod table;

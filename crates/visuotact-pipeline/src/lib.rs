@@ -26,8 +26,7 @@
 
 pub mod estimator;
 pub mod live;
-pub mod queue;
 
 pub use estimator::{feature_set_of, Estimator, PipelineError};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};
-pub use queue::{Captured, LatestQueue};
+pub use visuotact_io::queue::{self, Captured, LatestQueue};

@@ -12,14 +12,48 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context};
 use visuotact_image::RgbImage;
 
-use visuotact_pipeline::{Captured, LatestQueue};
+use crate::queue::{Captured, LatestQueue};
+
+/// Why a camera could not be opened or a frame not decoded.
+#[derive(Debug, thiserror::Error)]
+pub enum CameraError {
+    /// No such device.
+    #[error("camera {dev} does not exist; cameras here: {available}")]
+    NoDevice {
+        /// The device asked for.
+        dev: String,
+        /// The devices there are, with their names.
+        available: String,
+    },
+    /// The `ffmpeg` program could not be run.
+    #[error("the `ffmpeg` program is needed for cameras (Debian package `ffmpeg`): {0}")]
+    Ffmpeg(std::io::Error),
+    /// The camera offers nothing matching the request.
+    #[error("camera {dev} offers no format matching {wanted}; it offers {offered}")]
+    NoFormat {
+        /// The device.
+        dev: String,
+        /// What was asked for.
+        wanted: String,
+        /// What it offers.
+        offered: String,
+    },
+    /// A size or format request that does not parse.
+    #[error("{0}")]
+    Request(String),
+    /// A frame that does not decode.
+    #[error("{0}")]
+    Frame(String),
+    /// Reading the camera's bytes failed.
+    #[error("reading the camera: {0}")]
+    Read(#[from] std::io::Error),
+}
 
 /// Pixel formats visuotact captures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum PixelFormat {
+pub enum PixelFormat {
     /// Motion-JPEG: one JPEG per frame.
     Mjpeg,
     /// YUYV 4:2:2, two bytes per pixel.
@@ -28,15 +62,18 @@ pub(crate) enum PixelFormat {
 
 /// One format a camera offers: pixel format and frame size.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct CameraFormat {
+pub struct CameraFormat {
+    /// Pixel format.
     pub pixel: PixelFormat,
+    /// Frame width, pixels.
     pub width: usize,
+    /// Frame height, pixels.
     pub height: usize,
 }
 
 /// Formats from `ffmpeg -f v4l2 -list_formats all -i DEV` output (lines such as
 /// `Compressed:       mjpeg :          Motion-JPEG : 640x480 320x240`).
-pub(crate) fn parse_formats(text: &str) -> Vec<CameraFormat> {
+pub fn parse_formats(text: &str) -> Vec<CameraFormat> {
     let mut out = Vec::new();
     for line in text.lines() {
         let Some(rest) = line.split("] ").nth(1) else {
@@ -73,7 +110,7 @@ pub(crate) fn parse_formats(text: &str) -> Vec<CameraFormat> {
 /// Picks the format to capture: the requested size (or the largest offered up to 640×480 when
 /// none is requested — seed 001's webcam), MJPEG before YUYV (less USB bandwidth at the same
 /// rate), unless a pixel format is requested.
-pub(crate) fn negotiate(
+pub fn negotiate(
     offered: &[CameraFormat],
     size: Option<(usize, usize)>,
     pixel: Option<PixelFormat>,
@@ -97,13 +134,13 @@ pub(crate) fn negotiate(
 }
 
 /// RGB from a YUYV 4:2:2 buffer (Y0 U Y1 V per pixel pair; BT.601, limited range).
-pub(crate) fn rgb_from_yuyv(buf: &[u8], width: usize, height: usize) -> anyhow::Result<RgbImage> {
+pub fn rgb_from_yuyv(buf: &[u8], width: usize, height: usize) -> Result<RgbImage, CameraError> {
     if width % 2 != 0 || buf.len() != width * height * 2 {
-        bail!(
+        return Err(CameraError::Frame(format!(
             "YUYV frame of {} bytes for {width}×{height} (expected {} and an even width)",
             buf.len(),
             width * height * 2
-        );
+        )));
     }
     let mut rgb = Vec::with_capacity(width * height * 3);
     let px = |y: u8, u: u8, v: u8| -> [u8; 3] {
@@ -120,27 +157,27 @@ pub(crate) fn rgb_from_yuyv(buf: &[u8], width: usize, height: usize) -> anyhow::
         rgb.extend_from_slice(&px(q[0], q[1], q[3]));
         rgb.extend_from_slice(&px(q[2], q[1], q[3]));
     }
-    RgbImage::from_vec(width, height, rgb).map_err(|e| anyhow::anyhow!("{e}"))
+    RgbImage::from_vec(width, height, rgb).map_err(|e| CameraError::Frame(e.to_string()))
 }
 
 /// RGB from one JPEG frame of an MJPEG stream.
-pub(crate) fn rgb_from_mjpeg(jpeg: &[u8]) -> anyhow::Result<RgbImage> {
+pub fn rgb_from_mjpeg(jpeg: &[u8]) -> Result<RgbImage, CameraError> {
     let img = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
-        .context("MJPEG frame does not decode")?
+        .map_err(|e| CameraError::Frame(format!("MJPEG frame does not decode: {e}")))?
         .to_rgb8();
     let (w, h) = (img.width() as usize, img.height() as usize);
-    RgbImage::from_vec(w, h, img.into_raw()).map_err(|e| anyhow::anyhow!("{e}"))
+    RgbImage::from_vec(w, h, img.into_raw()).map_err(|e| CameraError::Frame(e.to_string()))
 }
 
 /// Splits a byte stream of concatenated JPEGs (SOI `FF D8` … EOI `FF D9`) into frames.
 #[derive(Default)]
-pub(crate) struct MjpegSplitter {
+pub struct MjpegSplitter {
     buf: Vec<u8>,
 }
 
 impl MjpegSplitter {
     /// Adds bytes; returns the complete frames they finish.
-    pub(crate) fn push(&mut self, bytes: &[u8]) -> Vec<Vec<u8>> {
+    pub fn push(&mut self, bytes: &[u8]) -> Vec<Vec<u8>> {
         self.buf.extend_from_slice(bytes);
         let mut frames = Vec::new();
         loop {
@@ -166,7 +203,7 @@ impl MjpegSplitter {
 }
 
 /// `/dev/videoN` devices and their names (from sysfs).
-pub(crate) fn list_devices() -> Vec<(String, String)> {
+pub fn list_devices() -> Vec<(String, String)> {
     let mut out: Vec<(String, String)> = std::fs::read_dir("/sys/class/video4linux")
         .into_iter()
         .flatten()
@@ -180,11 +217,11 @@ pub(crate) fn list_devices() -> Vec<(String, String)> {
         })
         .collect();
     // /dev/video2 before /dev/video10.
-    out.sort_by(|a, b| visuotact_io::frames::natural_cmp(&a.0, &b.0));
+    out.sort_by(|a, b| crate::frames::natural_cmp(&a.0, &b.0));
     out
 }
 
-fn offered_formats(dev: &str) -> anyhow::Result<Vec<CameraFormat>> {
+fn offered_formats(dev: &str) -> Result<Vec<CameraFormat>, CameraError> {
     let o = Command::new("ffmpeg")
         .args([
             "-hide_banner",
@@ -196,13 +233,13 @@ fn offered_formats(dev: &str) -> anyhow::Result<Vec<CameraFormat>> {
             dev,
         ])
         .output()
-        .context("the `ffmpeg` program is needed for cameras (Debian package `ffmpeg`)")?;
+        .map_err(CameraError::Ffmpeg)?;
     Ok(parse_formats(&String::from_utf8_lossy(&o.stderr)))
 }
 
 /// What to ask a camera for.
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct CameraRequest {
+pub struct CameraRequest {
     /// Frame size; `None`: the largest offered up to 640×480.
     pub size: Option<(usize, usize)>,
     /// Pixel format; `None`: MJPEG when offered, else YUYV.
@@ -211,28 +248,33 @@ pub(crate) struct CameraRequest {
 
 impl CameraRequest {
     /// Parses `--camera-size WxH` and `--camera-format mjpeg|yuyv`.
-    pub(crate) fn parse(size: Option<&str>, format: Option<&str>) -> anyhow::Result<Self> {
+    pub fn parse(size: Option<&str>, format: Option<&str>) -> Result<Self, CameraError> {
         let size = match size {
             Some(s) => {
-                let (w, h) = s
-                    .split_once('x')
-                    .with_context(|| format!("--camera-size {s:?}: expected WxH, e.g. 640x480"))?;
-                Some((w.parse()?, h.parse()?))
+                let bad =
+                    || CameraError::Request(format!("size {s:?}: expected WxH, e.g. 640x480"));
+                let (w, h) = s.split_once('x').ok_or_else(bad)?;
+                Some((w.parse().map_err(|_| bad())?, h.parse().map_err(|_| bad())?))
             }
             None => None,
         };
         let pixel = match format {
             Some("mjpeg") => Some(PixelFormat::Mjpeg),
             Some("yuyv") => Some(PixelFormat::Yuyv),
-            Some(f) => bail!("--camera-format {f:?}: expected mjpeg or yuyv"),
+            Some(f) => {
+                return Err(CameraError::Request(format!(
+                    "format {f:?}: expected mjpeg or yuyv"
+                )))
+            }
             None => None,
         };
         Ok(Self { size, pixel })
     }
 }
 
-/// Starts capturing from `dev` into `queue` until `stop` or `max` frames.
-pub(crate) fn spawn(
+/// Starts capturing from `dev` into `queue` until `stop` or `max` frames; the thread returns
+/// the number of frames captured. A camera that stops sending is re-opened once a second.
+pub fn spawn(
     dev: &str,
     req: CameraRequest,
     fps: f64,
@@ -240,24 +282,26 @@ pub(crate) fn spawn(
     stop: Arc<AtomicBool>,
     clock: Instant,
     max: u64,
-) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<u64>>> {
+) -> Result<std::thread::JoinHandle<u64>, CameraError> {
     if !Path::new(dev).exists() {
         let list = list_devices();
-        bail!(
-            "camera {dev} does not exist; cameras here: {}",
-            if list.is_empty() {
+        return Err(CameraError::NoDevice {
+            dev: dev.to_string(),
+            available: if list.is_empty() {
                 "none".to_string()
             } else {
                 list.iter()
                     .map(|(d, n)| format!("{d} ({n})"))
                     .collect::<Vec<_>>()
                     .join(", ")
-            }
-        );
+            },
+        });
     }
     let offered = offered_formats(dev)?;
-    let fmt = negotiate(&offered, req.size, req.pixel).with_context(|| {
-        format!("camera {dev} offers no format matching {req:?}; it offers {offered:?}")
+    let fmt = negotiate(&offered, req.size, req.pixel).ok_or_else(|| CameraError::NoFormat {
+        dev: dev.to_string(),
+        wanted: format!("{req:?}"),
+        offered: format!("{offered:?}"),
     })?;
     eprintln!(
         "camera {dev}: {:?} {}×{} at {fps} fps",
@@ -270,16 +314,19 @@ pub(crate) fn spawn(
             match capture_once(&dev, fmt, fps, &queue, &stop, clock, &mut k, max) {
                 Ok(()) if stop.load(Ordering::Relaxed) || k >= max => break,
                 Ok(()) => eprintln!("warning: camera {dev} stopped sending; re-opening"),
-                Err(e) => eprintln!("warning: camera {dev}: {e:#}; re-opening"),
+                Err(e) => eprintln!("warning: camera {dev}: {e}; re-opening"),
             }
             std::thread::sleep(Duration::from_secs(1));
         }
         queue.close();
-        Ok(k)
+        k
     }))
 }
 
-#[allow(clippy::too_many_arguments)] // reason: the capture loop's whole state, passed once per (re)open
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the capture loop's whole state, passed once per (re)open"
+)]
 fn capture_once(
     dev: &str,
     fmt: CameraFormat,
@@ -289,7 +336,7 @@ fn capture_once(
     clock: Instant,
     k: &mut u64,
     max: u64,
-) -> anyhow::Result<()> {
+) -> Result<(), CameraError> {
     let (input, output) = match fmt.pixel {
         PixelFormat::Mjpeg => ("mjpeg", "mjpeg"),
         PixelFormat::Yuyv => ("yuyv422", "rawvideo"),
@@ -317,8 +364,10 @@ fn capture_once(
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
-        .context("cannot start ffmpeg")?;
-    let mut out = child.stdout.take().context("no ffmpeg output")?;
+        .map_err(CameraError::Ffmpeg)?;
+    let Some(mut out) = child.stdout.take() else {
+        return Err(CameraError::Frame("ffmpeg gave no output".to_string()));
+    };
     let mut split = MjpegSplitter::default();
     let frame_len = fmt.width * fmt.height * 2;
     let mut raw = Vec::with_capacity(frame_len);
@@ -344,7 +393,7 @@ fn capture_once(
                 for jpeg in split.push(&buf[..n]) {
                     match rgb_from_mjpeg(&jpeg) {
                         Ok(img) => push(img, k),
-                        Err(e) => eprintln!("warning: camera {dev}: {e:#}; frame skipped"),
+                        Err(e) => eprintln!("warning: camera {dev}: {e}; frame skipped"),
                     }
                 }
             }

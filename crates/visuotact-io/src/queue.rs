@@ -1,4 +1,4 @@
-//! The live runner's queue: a bounded, drop-oldest queue between a frame source and the
+//! A live run's queue: a bounded, drop-oldest queue between a frame source and the
 //! estimator (a camera never waits; the estimator always gets the freshest frame), and the
 //! frame it carries.
 
