@@ -3,12 +3,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use plotters::prelude::*;
 use visuotact_io::force::{ForceTable, AXES};
-use visuotact_signal::align::Resampler;
-use visuotact_signal::bias::{Bias, BiasConfig};
-use visuotact_signal::fir::{filtfilt, firwin, FiltFiltOptions, FirSpec, PadLen, Padding, Window};
+use visuotact_signal::bias::Bias;
+use visuotact_signal::clean::{clean, BiasRemoval, CleanConfig};
+use visuotact_signal::fir::{FiltFiltOptions, PadLen, Padding, Window};
 
 /// Filter and bias options shared by `filter` and `dataset`.
 #[derive(clap::Args, Debug, Clone)]
@@ -58,7 +58,8 @@ pub(crate) struct Processed {
 }
 
 impl ForceArgs {
-    fn filter_options(&self) -> anyhow::Result<FiltFiltOptions> {
+    /// The cleaning these options ask for.
+    fn config(&self) -> anyhow::Result<CleanConfig> {
         let padding = match self.padding.as_str() {
             "odd" => Padding::Odd,
             "even" => Padding::Even,
@@ -72,97 +73,39 @@ impl ForceArgs {
                 anyhow::anyhow!("--padlen {n:?}: expected scipy, matlab or a number of samples")
             })?),
         };
-        Ok(FiltFiltOptions { padding, padlen })
+        let bias = match self.bias.as_str() {
+            "none" => BiasRemoval::None,
+            "auto" => BiasRemoval::Auto {
+                contact_threshold: self.contact_threshold_n,
+            },
+            ranges => BiasRemoval::Ranges(parse_ranges(ranges)?),
+        };
+        Ok(CleanConfig {
+            cutoff_hz: self.cutoff_hz,
+            taps: self.taps,
+            window: Window::parse(&self.window)?,
+            filtfilt: FiltFiltOptions { padding, padlen },
+            bias,
+        })
     }
 
     /// Filters and debiases a force table (sorted, repeats dropped, gaps filled on a uniform
-    /// grid at the median sample interval).
+    /// grid at the median sample interval: [`visuotact_signal::clean`]).
     pub(crate) fn process(&self, mut table: ForceTable, name: &str) -> anyhow::Result<Processed> {
+        let cfg = self.config()?;
         let duplicates = table.sort_dedup();
-        let n = table.timestamp_s.len();
-        if n < 8 {
-            bail!("{name}: {n} force samples; too few to filter");
-        }
-        let mut dt: Vec<f64> = table.timestamp_s.windows(2).map(|w| w[1] - w[0]).collect();
-        dt.sort_by(f64::total_cmp);
-        let (t0, t1) = (table.timestamp_s[0], table.timestamp_s[n - 1]);
-        let len = ((t1 - t0) / dt[dt.len() / 2]).round() as usize + 1;
-        // The grid spans exactly the first to the last sample.
-        let period = (t1 - t0) / (len - 1).max(1) as f64;
-        let rate_hz = 1.0 / period;
-        let t: Vec<f64> = (0..len)
-            .map(|k| {
-                if k + 1 == len {
-                    t1
-                } else {
-                    t0 + k as f64 * period
-                }
-            })
-            .collect();
-        let rs = Resampler::new(&table.timestamp_s, &t, 0.0, f64::INFINITY)
-            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-        let raw: Vec<Vec<f64>> = (0..6)
-            .map(|k| {
-                rs.apply(&table.axis(k))
-                    .into_iter()
-                    .map(|v| v.unwrap_or(f64::NAN))
-                    .collect()
-            })
-            .collect();
-        if raw.iter().flatten().any(|v| !v.is_finite()) {
-            bail!(
-                "{name}: force samples do not cover a uniform grid; are the timestamps in seconds?"
-            );
-        }
-        let spec = FirSpec {
-            window: Window::parse(&self.window)?,
-            ..FirSpec::lowpass(self.taps, self.cutoff_hz, rate_hz)
-        };
-        let b = firwin(&spec).with_context(|| format!("{name}: at {rate_hz:.1} Hz"))?;
-        let opt = self.filter_options()?;
-        let filtered: Vec<Vec<f64>> = raw
-            .iter()
-            .map(|x| filtfilt(&b, &[1.0], x, &opt))
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("{name}: filtering"))?;
-        let chans: Vec<&[f64]> = filtered.iter().map(Vec::as_slice).collect();
-        let bias = match self.bias.as_str() {
-            "none" => None,
-            "auto" => {
-                let detect: Vec<&[f64]> = (0..3)
-                    .filter(|&k| table.present[k])
-                    .map(|k| filtered[k].as_slice())
-                    .collect();
-                let cfg = BiasConfig {
-                    contact_threshold: self.contact_threshold_n,
-                    ..BiasConfig::default()
-                };
-                Some(
-                    Bias::detect(&t, &detect, &chans, &cfg)
-                        .with_context(|| format!("{name}: bias"))?,
-                )
-            }
-            ranges => {
-                let r = parse_ranges(ranges)?;
-                Some(
-                    Bias::from_time_ranges(&t, &chans, &r, BiasConfig::default().window_s)
-                        .with_context(|| format!("{name}: bias"))?,
-                )
-            }
-        };
-        let mut clean = filtered;
-        if let Some(bias) = &bias {
-            let mut refs: Vec<&mut [f64]> = clean.iter_mut().map(Vec::as_mut_slice).collect();
-            bias.remove(&t, &mut refs);
-        }
+        let channels: Vec<Vec<f64>> = (0..6).map(|k| table.axis(k)).collect();
+        let detect: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
+        let c = clean(&table.timestamp_s, &channels, &detect, &cfg)
+            .with_context(|| name.to_string())?;
         Ok(Processed {
-            filled: len.saturating_sub(n),
-            t,
-            raw,
-            clean,
+            filled: c.filled,
+            t: c.t,
+            raw: c.raw,
+            clean: c.clean,
             present: table.present,
-            bias,
-            rate_hz,
+            bias: c.bias,
+            rate_hz: c.rate_hz,
             duplicates,
         })
     }
