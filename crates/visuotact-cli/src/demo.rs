@@ -22,12 +22,12 @@ use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::PreprocessConfig;
 
-use crate::simulate::{frame_seed, GAUGE_SEED};
 use visuotact_nn::fit::{
     candidate_inputs, column_kinds, fit_choosing, FieldInputs, FitConfig, FitData, InputSet,
     SELECTION_FOLDS,
 };
 use visuotact_nn::model::is_marker_column;
+use visuotact_sim::rig::{frame_seed, GAUGE_SEED};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {

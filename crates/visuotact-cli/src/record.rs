@@ -28,7 +28,7 @@ use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::protocol::{self, ConePress};
 
 use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
-use crate::simulate::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
+use visuotact_sim::rig::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {

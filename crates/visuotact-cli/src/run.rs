@@ -16,7 +16,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
-use rayon::prelude::*;
 use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::camera::CameraRequest;
@@ -99,62 +98,6 @@ pub(crate) struct Args {
     summary: Option<PathBuf>,
 }
 
-/// Frames of a simulated sensor: rendered once, in parallel, then cycled with fresh timestamps.
-fn sim_frames(kind: &str, n: usize, seed: u64) -> anyhow::Result<Vec<(String, RgbImage)>> {
-    use visuotact_sim::cone::{ConeConfig, ConeLoad};
-    use visuotact_sim::iats::{IatsConfig, Touch};
-    use visuotact_sim::protocol::ConePress;
-    let n = n.max(2);
-    match kind {
-        "iats" => {
-            let cfg = IatsConfig::SEED000;
-            let touches = visuotact_sim::protocol::iats_random(&cfg, n, seed);
-            // A cycle: 40 % of the frames without contact, then touches.
-            (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    let t = if k < n * 2 / 5 {
-                        Touch::default()
-                    } else {
-                        touches[k]
-                    };
-                    let img = visuotact_sim::iats::render(&cfg, &t, seed ^ (k as u64) << 20)
-                        .map_err(anyhow::Error::msg)?
-                        .0;
-                    Ok((format!("iats_{k:04}"), img))
-                })
-                .collect()
-        }
-        "cone" => {
-            let cfg = ConeConfig::SEED001;
-            let press = ConePress {
-                duration_s: 1.0,
-                ..ConePress::SEED001
-            };
-            (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    // First 30 % at rest, then one press and release.
-                    let u = k as f64 / n as f64;
-                    let load = if u < 0.3 {
-                        ConeLoad::none(cfg.pressure_kpa)
-                    } else {
-                        ConeLoad {
-                            pressure_kpa: cfg.pressure_kpa,
-                            ..press.load_at(&cfg, (u - 0.3) / 0.7, 0.0)
-                        }
-                    };
-                    let img = visuotact_sim::cone::render(&cfg, &load, seed ^ (k as u64) << 20)
-                        .map_err(anyhow::Error::msg)?
-                        .0;
-                    Ok((format!("cone_{k:04}"), img))
-                })
-                .collect()
-        }
-        other => bail!("--source sim:{other}: expected sim:iats or sim:cone"),
-    }
-}
-
 /// A frame source, opened (simulated frames rendered, files found) but not started.
 enum Source {
     Sim(Vec<(String, Arc<RgbImage>)>),
@@ -165,7 +108,8 @@ enum Source {
 impl Source {
     fn open(a: &Args) -> anyhow::Result<Self> {
         if let Some(kind) = a.source.strip_prefix("sim:") {
-            let frames = sim_frames(kind, a.sim_frames, a.seed)?
+            let frames = visuotact_sim::rig::live_frames(kind, a.sim_frames, a.seed)
+                .map_err(|e| anyhow::anyhow!("--source {e}"))?
                 .into_iter()
                 .map(|(id, img)| (id, Arc::new(img)))
                 .collect();

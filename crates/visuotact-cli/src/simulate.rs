@@ -14,6 +14,7 @@ use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
+use visuotact_sim::rig::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
 use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
 
 #[derive(clap::Args, Debug)]
@@ -93,42 +94,6 @@ fn sensor_config<T: serde::de::DeserializeOwned + serde::Serialize>(
         }
     }
     serde_json::from_value(merged).map_err(bad)
-}
-
-/// Per-frame noise seed: SplitMix64 of the session seed and the frame number.
-pub(crate) fn frame_seed(seed: u64, k: u64) -> u64 {
-    let mut z = seed.wrapping_add(k.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Label columns of a simulated cone: the true load and link pressure, and the reading of the
-/// link's pressure gauge (lagged and noisy, as a real one: an input a network may use).
-pub(crate) const CONE_LABELS: [&str; 6] = [
-    "force_n",
-    "fx_n",
-    "fy_n",
-    "fz_n",
-    "pressure_kpa",
-    "gauge_kpa",
-];
-
-/// Mixed into the session seed for the pressure gauge's reading noise.
-pub(crate) const GAUGE_SEED: u64 = 0x6761_7567_655F_6B70;
-
-/// One frame's [`CONE_LABELS`] row: the load at time `t_s` of a link drifting as `press` says,
-/// and the gauge's reading then, its noise drawn from `gauge_seed`.
-pub(crate) fn cone_labels(
-    cfg: &ConeConfig,
-    press: &ConePress,
-    load: &ConeLoad,
-    t_s: f64,
-    gauge_seed: u64,
-) -> Vec<f64> {
-    let [fx, fy, fz] = load.components_n();
-    let gauge = PressureGauge::SEED001.reading_kpa(&press.drift, cfg.pressure_kpa, t_s, gauge_seed);
-    vec![load.force_n, fx, fy, fz, load.pressure_kpa, gauge]
 }
 
 /// Frames rendered and written per parallel batch.

@@ -224,7 +224,7 @@ fn rest(sensor: &SimSensor) -> AnyTouch {
 
 /// Calibrates on rendered rest frames and tracks every touch frame against the truth.
 pub fn check(c: &CheckConfig) -> anyhow::Result<CheckReport> {
-    let seed_of = |k: u64| crate::simulate::frame_seed(c.seed, k);
+    let seed_of = |k: u64| visuotact_sim::rig::frame_seed(c.seed, k);
     let refs: Vec<(RgbImage, Truth)> = (0..c.references.max(1) as u64)
         .into_par_iter()
         .map(|k| render(&c.sensor, &rest(&c.sensor), seed_of(k)))

@@ -16,4 +16,5 @@ pub mod jr3;
 pub mod pattern;
 pub mod protocol;
 pub mod render;
+pub mod rig;
 pub mod zoo;
