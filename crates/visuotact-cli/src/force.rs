@@ -59,7 +59,7 @@ pub(crate) struct Processed {
 
 impl ForceArgs {
     /// The cleaning these options ask for.
-    fn config(&self) -> anyhow::Result<CleanConfig> {
+    pub(crate) fn config(&self) -> anyhow::Result<CleanConfig> {
         let padding = match self.padding.as_str() {
             "odd" => Padding::Odd,
             "even" => Padding::Even,
@@ -253,9 +253,4 @@ impl crate::plot::Figure for ForcePlot<'_> {
         }
         Ok(())
     }
-}
-
-/// The force magnitude of axes fx, fy, fz at index `i`.
-pub(crate) fn magnitude(p: &Processed, i: usize) -> f64 {
-    (p.clean[0][i].powi(2) + p.clean[1][i].powi(2) + p.clean[2][i].powi(2)).sqrt()
 }

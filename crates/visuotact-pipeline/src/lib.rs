@@ -24,6 +24,7 @@
 //! assert!(rms > 0.5);
 //! ```
 
+pub mod dataset;
 pub mod estimator;
 pub mod live;
 

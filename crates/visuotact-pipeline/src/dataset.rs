@@ -1,0 +1,436 @@
+//! Recorded sessions → one training table: per session its frames' features (the session's
+//! `features.csv`, written by `record --sensor`, or extracted from its `frames/` with a sensor
+//! calibration) joined on `frame` with labels — from its force record (cleaned by
+//! [`visuotact_signal::clean`], resampled onto the frame times with a latency offset) or,
+//! without one, from its `labels.csv`. Force samples received over the network carry the
+//! sender's clock and the recorder's receive time (`recv_s`); the sender's clock is mapped onto
+//! the recorder's by the smallest `recv_s − timestamp_s` (the least-delayed packet).
+//! `visuotact dataset` writes the result as two tables.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use visuotact_io::force::ForceTable;
+use visuotact_io::frames::FrameStream;
+use visuotact_io::table::KeyedTable;
+use visuotact_nn::model::is_marker_column;
+use visuotact_signal::align::{AlignError, Resampler};
+use visuotact_signal::clean::{clean, CleanConfig, CleanError};
+use visuotact_vision::calibration::SensorCalibration;
+use visuotact_vision::features::{is_field_column, FeatureExtractor, FrameFeatures};
+
+/// How sessions become a table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DatasetConfig {
+    /// Latency correction, seconds: a frame at time t is labelled with the force at t + this.
+    pub latency_s: f64,
+    /// Longest run of missing force samples to interpolate across, seconds; frames inside a
+    /// longer gap get no label.
+    pub max_gap_s: f64,
+    /// How force records are cleaned.
+    pub clean: CleanConfig,
+}
+
+impl Default for DatasetConfig {
+    /// No latency correction, gaps up to 50 ms bridged, [`CleanConfig::default`].
+    fn default() -> Self {
+        Self {
+            latency_s: 0.0,
+            max_gap_s: 0.05,
+            clean: CleanConfig::default(),
+        }
+    }
+}
+
+/// The table: one row per labelled frame of every session.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Dataset {
+    /// Each row's frame (`SESSION/frame` when there was more than one session).
+    pub keys: Vec<String>,
+    /// Feature columns: the markers' features, then the field summary when the sessions have it.
+    pub feature_columns: Vec<String>,
+    /// Label columns (`force_n, fx_n, fy_n, fz_n` from force records).
+    pub label_columns: Vec<String>,
+    /// Features per row.
+    pub features: Vec<Vec<f64>>,
+    /// Labels per row.
+    pub labels: Vec<Vec<f64>>,
+    /// What was left out or repaired, one line each, naming the session or file.
+    pub notes: Vec<String>,
+}
+
+/// Why the sessions could not be joined.
+#[derive(Debug, thiserror::Error)]
+pub enum DatasetError {
+    /// A file could not be read.
+    #[error("{}: {why}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        why: String,
+    },
+    /// A session lacks what it needs.
+    #[error("{}: {what}", path.display())]
+    Missing {
+        /// The session or file.
+        path: PathBuf,
+        /// What is missing.
+        what: String,
+    },
+    /// A session's columns differ from the first session's.
+    #[error("{}: its {which} columns differ from the first session's{hint}", session.display())]
+    Columns {
+        /// The session.
+        session: PathBuf,
+        /// `feature` or `label`.
+        which: &'static str,
+        /// What to do about it.
+        hint: &'static str,
+    },
+    /// A force record could not be cleaned.
+    #[error("{}: {source}", path.display())]
+    Force {
+        /// The force record.
+        path: PathBuf,
+        /// Why.
+        source: CleanError,
+    },
+    /// A force record's times do not map onto the frames'.
+    #[error("{}: {source}", path.display())]
+    Align {
+        /// The force record.
+        path: PathBuf,
+        /// Why.
+        source: AlignError,
+    },
+    /// The sensor calibration cannot extract features.
+    #[error("features: {0}")]
+    Features(String),
+}
+
+/// One session's columns and rows.
+struct Session {
+    feature_columns: Vec<String>,
+    label_columns: Vec<String>,
+    rows: Vec<(String, Vec<f64>, Vec<f64>)>,
+}
+
+/// Joins `sessions` into one table; `sensor` extracts the features of sessions without a
+/// `features.csv`.
+pub fn build(
+    sessions: &[PathBuf],
+    sensor: Option<&SensorCalibration>,
+    cfg: &DatasetConfig,
+) -> Result<Dataset, DatasetError> {
+    let many = sessions.len() > 1;
+    let mut out = Dataset::default();
+    for (i, s) in sessions.iter().enumerate() {
+        let one = session(s, sensor, cfg, &mut out.notes)?;
+        if i == 0 {
+            out.feature_columns = one.feature_columns;
+            out.label_columns = one.label_columns;
+        } else if one.feature_columns != out.feature_columns {
+            return Err(DatasetError::Columns {
+                session: s.clone(),
+                which: "feature",
+                hint: "; use one sensor file",
+            });
+        } else if one.label_columns != out.label_columns {
+            return Err(DatasetError::Columns {
+                session: s.clone(),
+                which: "label",
+                hint: "",
+            });
+        }
+        let prefix = s
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        for (k, f, l) in one.rows {
+            out.keys
+                .push(if many { format!("{prefix}/{k}") } else { k });
+            out.features.push(f);
+            out.labels.push(l);
+        }
+    }
+    Ok(out)
+}
+
+fn read_table(path: &Path, text: &[&str]) -> Result<KeyedTable, DatasetError> {
+    KeyedTable::read(path, text).map_err(|why| DatasetError::Read {
+        path: path.to_path_buf(),
+        why,
+    })
+}
+
+/// Touch frames of a session and their timestamps, from frames.csv.
+fn touch_frames(session: &Path) -> Result<Vec<(String, f64)>, DatasetError> {
+    let p = session.join("frames.csv");
+    let t = read_table(&p, &["kind"])?;
+    let ts = t
+        .column("timestamp_s")
+        .ok_or_else(|| DatasetError::Missing {
+            path: p.clone(),
+            what: "no timestamp_s column".to_string(),
+        })?;
+    Ok(t.keys
+        .iter()
+        .zip(&t.rows)
+        .zip(&t.text)
+        .filter(|(_, kind)| kind[0] != "reference")
+        .map(|((k, r), _)| (k.clone(), r[ts]))
+        .collect())
+}
+
+/// Column names and each frame's values.
+type Columns = (Vec<String>, HashMap<String, Vec<f64>>);
+
+fn session(
+    s: &Path,
+    sensor: Option<&SensorCalibration>,
+    cfg: &DatasetConfig,
+    notes: &mut Vec<String>,
+) -> Result<Session, DatasetError> {
+    let frames = touch_frames(s)?;
+    let (feature_columns, features) = if s.join("features.csv").exists() {
+        features_from_table(&s.join("features.csv"))?
+    } else {
+        let sensor = sensor.ok_or_else(|| DatasetError::Missing {
+            path: s.to_path_buf(),
+            what: "no features.csv; give a sensor file to extract features from its frames"
+                .to_string(),
+        })?;
+        extract(sensor, &s.join("frames"), notes)?
+    };
+    let (label_columns, labels) = if s.join("force.csv").exists() {
+        labels_from_force(&s.join("force.csv"), &frames, cfg, notes)?
+    } else if s.join("labels.csv").exists() {
+        let t = read_table(&s.join("labels.csv"), &[])?;
+        let m = t.keys.iter().cloned().zip(t.rows.iter().cloned()).collect();
+        (t.columns.clone(), m)
+    } else {
+        return Err(DatasetError::Missing {
+            path: s.to_path_buf(),
+            what: "neither force.csv nor labels.csv: nothing to label frames with".to_string(),
+        });
+    };
+    let mut rows = Vec::new();
+    let mut unlabelled = 0;
+    for (k, _) in &frames {
+        match (features.get(k), labels.get(k)) {
+            (Some(f), Some(l)) => rows.push((k.clone(), f.clone(), l.clone())),
+            _ => unlabelled += 1,
+        }
+    }
+    if unlabelled > 0 {
+        notes.push(format!(
+            "{}: {unlabelled} frames without both features and labels left out",
+            s.display()
+        ));
+    }
+    Ok(Session {
+        feature_columns,
+        label_columns,
+        rows,
+    })
+}
+
+/// The markers' features and the field summary of a feature table.
+fn features_from_table(path: &Path) -> Result<Columns, DatasetError> {
+    let t = read_table(path, &["flags"])?;
+    let idx: Vec<usize> = (0..t.columns.len())
+        .filter(|&i| is_marker_column(&t.columns[i]) || is_field_column(&t.columns[i]))
+        .collect();
+    Ok((
+        idx.iter().map(|&i| t.columns[i].clone()).collect(),
+        t.keys
+            .iter()
+            .zip(&t.rows)
+            .map(|(k, r)| (k.clone(), idx.iter().map(|&i| r[i]).collect()))
+            .collect(),
+    ))
+}
+
+/// Force labels of `frames` from the force record at `path`.
+fn labels_from_force(
+    path: &Path,
+    frames: &[(String, f64)],
+    cfg: &DatasetConfig,
+    notes: &mut Vec<String>,
+) -> Result<Columns, DatasetError> {
+    let mut table = ForceTable::read(path).map_err(|why| DatasetError::Read {
+        path: path.to_path_buf(),
+        why,
+    })?;
+    if table.dropped_partial_line {
+        notes.push(format!(
+            "{}: an unfinished last line was left out",
+            path.display()
+        ));
+    }
+    // Sender clock → recorder clock.
+    let offset = table.recv_s.as_ref().map_or(0.0, |r| {
+        r.iter()
+            .zip(&table.timestamp_s)
+            .map(|(r, t)| r - t)
+            .fold(f64::INFINITY, f64::min)
+    });
+    table.sort_dedup();
+    let channels: Vec<Vec<f64>> = (0..6).map(|k| table.axis(k)).collect();
+    let detect: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
+    let c = clean(&table.timestamp_s, &channels, &detect, &cfg.clean).map_err(|source| {
+        DatasetError::Force {
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
+    let times: Vec<f64> = frames.iter().map(|(_, t)| t - offset).collect();
+    let rs = Resampler::new(
+        &c.t,
+        &times,
+        cfg.latency_s,
+        cfg.max_gap_s.max(1.5 / c.rate_hz),
+    )
+    .map_err(|source| DatasetError::Align {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let magnitude: Vec<f64> = (0..c.t.len())
+        .map(|i| (0..3).map(|k| c.clean[k][i].powi(2)).sum::<f64>().sqrt())
+        .collect();
+    let cols = [
+        rs.apply(&magnitude),
+        rs.apply(&c.clean[0]),
+        rs.apply(&c.clean[1]),
+        rs.apply(&c.clean[2]),
+    ];
+    if rs.missing() > 0 {
+        notes.push(format!(
+            "{}: {} frames outside the force record or in a gap get no label",
+            path.display(),
+            rs.missing()
+        ));
+    }
+    let mut m = HashMap::new();
+    for (i, (k, _)) in frames.iter().enumerate() {
+        if let (Some(f), Some(x), Some(y), Some(z)) =
+            (cols[0][i], cols[1][i], cols[2][i], cols[3][i])
+        {
+            m.insert(k.clone(), vec![f, x, y, z]);
+        }
+    }
+    Ok((
+        ["force_n", "fx_n", "fy_n", "fz_n"]
+            .map(String::from)
+            .to_vec(),
+        m,
+    ))
+}
+
+/// Features of every frame in `dir`, extracted with `sensor`.
+fn extract(
+    sensor: &SensorCalibration,
+    dir: &Path,
+    notes: &mut Vec<String>,
+) -> Result<Columns, DatasetError> {
+    let mut ex =
+        FeatureExtractor::new(sensor.clone(), sensor.features).map_err(DatasetError::Features)?;
+    let cols = ex.column_names();
+    let mut out = HashMap::new();
+    let mut f = FrameFeatures::default();
+    let stream = FrameStream::open(&[dir.to_path_buf()], 25.0).map_err(|e| DatasetError::Read {
+        path: dir.to_path_buf(),
+        why: e.to_string(),
+    })?;
+    for item in stream {
+        match item {
+            Ok(frame) => match ex.extract_into(&frame.image, &mut f) {
+                Ok(()) => {
+                    out.insert(frame.id, f.values.clone());
+                }
+                Err(e) => notes.push(format!("frame {}: {e}; skipped", frame.id)),
+            },
+            Err(e) => notes.push(format!("{e}; skipped")),
+        }
+    }
+    Ok((cols, out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A session folder written by hand: 5 touch frames at 0.5 s steps (and a reference
+    /// frame), features with the field summary and a flags column, and a 1 kHz force record
+    /// whose fz ramps at 1 N/s from 0 s with no offset.
+    fn session_dir(name: &str) -> PathBuf {
+        let d =
+            std::env::temp_dir().join(format!("visuotact-dataset-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let mut frames = String::from("frame,timestamp_s,kind\nref.png,0,reference\n");
+        let mut feats = String::from("frame,n_found,m000_dx_px,m000_dy_px,field_rms_px,flags\n");
+        for k in 0..5 {
+            let t = 1.0 + 0.5 * f64::from(k);
+            frames.push_str(&format!("f{k}.png,{t},touch\n"));
+            feats.push_str(&format!("f{k}.png,1,{k},0.5,{t},\n"));
+        }
+        std::fs::write(d.join("frames.csv"), frames).unwrap();
+        std::fs::write(d.join("features.csv"), feats).unwrap();
+        let mut force = String::from("timestamp_s,fx_n,fy_n,fz_n\n");
+        for i in 0..5000 {
+            let t = f64::from(i) / 1000.0;
+            force.push_str(&format!("{t},0,0,{t}\n"));
+        }
+        std::fs::write(d.join("force.csv"), force).unwrap();
+        d
+    }
+
+    #[test]
+    fn frames_get_the_force_at_their_time_plus_the_latency() {
+        let d = session_dir("latency");
+        let cfg = DatasetConfig {
+            latency_s: 0.1,
+            clean: CleanConfig {
+                bias: visuotact_signal::clean::BiasRemoval::None,
+                ..CleanConfig::default()
+            },
+            ..DatasetConfig::default()
+        };
+        let ds = build(std::slice::from_ref(&d), None, &cfg).unwrap();
+        assert_eq!(ds.keys, ["f0.png", "f1.png", "f2.png", "f3.png", "f4.png"]);
+        assert_eq!(
+            ds.feature_columns,
+            ["m000_dx_px", "m000_dy_px", "field_rms_px"]
+        );
+        assert_eq!(ds.label_columns, ["force_n", "fx_n", "fy_n", "fz_n"]);
+        for (k, l) in ds.labels.iter().enumerate() {
+            // A ramp passes the low-pass unchanged away from the record's ends.
+            let want = 1.1 + 0.5 * k as f64;
+            assert!(
+                (l[3] - want).abs() < 1e-3 && (l[0] - want).abs() < 1e-3,
+                "{k}: {l:?}"
+            );
+        }
+        assert_eq!(ds.features[2], [2.0, 0.5, 2.0]);
+        assert!(ds.notes.is_empty(), "{:?}", ds.notes);
+        let _ = std::fs::remove_dir_all(d);
+    }
+
+    #[test]
+    fn a_session_with_nothing_to_label_says_so() {
+        let d = session_dir("unlabelled");
+        std::fs::remove_file(d.join("force.csv")).unwrap();
+        let err = build(std::slice::from_ref(&d), None, &DatasetConfig::default()).unwrap_err();
+        assert!(
+            err.to_string().contains("neither force.csv nor labels.csv"),
+            "{err}"
+        );
+        std::fs::remove_file(d.join("features.csv")).unwrap();
+        std::fs::write(d.join("labels.csv"), "frame,x_mm\nf0.png,1\n").unwrap();
+        let err = build(std::slice::from_ref(&d), None, &DatasetConfig::default()).unwrap_err();
+        assert!(err.to_string().contains("give a sensor file"), "{err}");
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
