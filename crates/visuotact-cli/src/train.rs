@@ -11,10 +11,11 @@ use visuotact_nn::fit::{
     FitConfig, FitData, FitError, InputSet, SELECTION_FOLDS,
 };
 use visuotact_nn::lm::Control;
-use visuotact_nn::metrics::target_errors;
+use visuotact_nn::metrics::TargetErrors;
 use visuotact_nn::mlp::{Algorithm, Mlp};
 pub(crate) use visuotact_nn::model::is_marker_column;
 use visuotact_nn::model::{unfillable, Model};
+use visuotact_pipeline::evaluation::{evaluate_files, MapPoint};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 
 #[derive(clap::Args, Debug)]
@@ -760,9 +761,6 @@ pub(crate) struct EvalArgs {
     map: Option<PathBuf>,
 }
 
-/// One touch on the contact map: actual and estimated (x, y, depth); depth NaN when absent.
-type MapPoint = ([f64; 3], [f64; 3]);
-
 /// Seed 000 Fig. 10: actual contact points (rings) and estimates (discs), joined; radius ∝
 /// depth; y down, as the marker coordinates.
 struct ContactMap<'a> {
@@ -913,7 +911,8 @@ pub(crate) fn eval(a: &EvalArgs) -> anyhow::Result<()> {
     )
 }
 
-/// Prints the error figures of a predictions table against a labels table.
+/// Prints the error figures of a predictions table against a labels table
+/// ([`visuotact_pipeline::evaluation`]) and draws the figures asked for.
 pub(crate) fn evaluate(
     predictions: &Path,
     labels: &Path,
@@ -921,69 +920,18 @@ pub(crate) fn evaluate(
     plot: Option<&Path>,
     map: Option<&Path>,
 ) -> anyhow::Result<()> {
-    let p = KeyedTable::read(predictions, &["flags"]).map_err(anyhow::Error::msg)?;
-    let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
-    let by_key = l.rows_by_key();
-    let mut figures = Vec::new();
-    let mut panels: Vec<Panel> = Vec::new();
-    let mut distances: Vec<f64> = Vec::new();
-    let (xi, yi) = (p.column("x_mm"), p.column("y_mm"));
-    for (j, name) in p.columns.iter().enumerate() {
-        let Some(lj) = l.column(name) else { continue };
-        let (mut pv, mut lv) = (Vec::new(), Vec::new());
-        for (r, key) in p.keys.iter().enumerate() {
-            if let Some(&li) = by_key.get(key.as_str()) {
-                pv.push(p.rows[r][j]);
-                lv.push(l.rows[li][lj]);
-            }
-        }
-        let e = target_errors(name, &pv, &lv);
-        if e.n > 0 {
-            let pts = lv
-                .iter()
-                .zip(&pv)
-                .filter(|(t, p)| t.is_finite() && p.is_finite())
-                .map(|(t, p)| (*t, *p))
-                .collect();
-            panels.push((name.clone(), pts, e.r));
-            figures.push(e);
-        }
-    }
-    if figures.is_empty() {
-        bail!(
-            "no target column of {} is in {}",
-            predictions.display(),
-            labels.display()
-        );
-    }
-    let mut map_points: Vec<MapPoint> = Vec::new();
-    if let (Some(xi), Some(yi), Some(lx), Some(ly)) = (xi, yi, l.column("x_mm"), l.column("y_mm")) {
-        let (pd, ld) = (p.column("depth_mm"), l.column("depth_mm"));
-        let depth = |row: &[f64], c: Option<usize>| c.map_or(f64::NAN, |c| row[c]);
-        for (r, key) in p.keys.iter().enumerate() {
-            if let Some(&li) = by_key.get(key.as_str()) {
-                let (pr, lr) = (&p.rows[r], &l.rows[li]);
-                let d = (pr[xi] - lr[lx]).hypot(pr[yi] - lr[ly]);
-                if d.is_finite() {
-                    distances.push(d);
-                    map_points.push((
-                        [lr[lx], lr[ly], depth(lr, ld)],
-                        [pr[xi], pr[yi], depth(pr, pd)],
-                    ));
-                }
-            }
-        }
-    }
-    let distance = (!distances.is_empty()).then(|| {
-        let mean = distances.iter().sum::<f64>() / distances.len() as f64;
-        (mean, distances.iter().fold(0.0f64, |m, d| m.max(*d)))
-    });
+    let e = evaluate_files(predictions, labels)?;
     if let Some(path) = plot {
+        let panels: Vec<Panel> = e
+            .targets
+            .iter()
+            .map(|t| (t.errors.target.clone(), t.points.clone(), t.errors.r))
+            .collect();
         crate::plot::save(&RegressionPlot(&panels), path)?;
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = map {
-        let Some((distance_mean_mm, _)) = distance else {
+        let Some(d) = e.distance_mm else {
             bail!(
                 "--map needs contact positions: columns x_mm and y_mm in both {} and {}",
                 predictions.display(),
@@ -991,16 +939,17 @@ pub(crate) fn evaluate(
             );
         };
         let figure = ContactMap {
-            points: &map_points,
-            distance_mean_mm,
+            points: &e.map,
+            distance_mean_mm: d.mean,
         };
         crate::plot::save(&figure, path)?;
         eprintln!("wrote {}", path.display());
     }
+    let figures: Vec<&TargetErrors> = e.targets.iter().map(|t| &t.errors).collect();
     if json {
         let v = serde_json::json!({
             "targets": figures,
-            "distance_mm": distance.map(|(mean, max)| serde_json::json!({"mean": mean, "max": max})),
+            "distance_mm": e.distance_mm,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -1022,8 +971,11 @@ pub(crate) fn evaluate(
             f.accuracy_percent
         );
     }
-    if let Some((mean, max)) = distance {
-        println!("distance D (x, y): mean {mean:.3} mm, max {max:.3} mm");
+    if let Some(d) = e.distance_mm {
+        println!(
+            "distance D (x, y): mean {:.3} mm, max {:.3} mm",
+            d.mean, d.max
+        );
     }
     println!(
         "MPE and accuracy over samples with |target| ≥ {:.0} % of the largest |target|",

@@ -26,6 +26,7 @@
 
 pub mod dataset;
 pub mod estimator;
+pub mod evaluation;
 pub mod live;
 
 pub use estimator::{feature_set_of, Estimator, PipelineError};

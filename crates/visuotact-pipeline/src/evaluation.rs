@@ -1,0 +1,178 @@
+//! Estimates against labels: the source documents' error figures per target (MSE, R, mean and
+//! largest error, MPE, per-axis accuracy: [`visuotact_nn::metrics`]) and the contact distance D
+//! over the rows both tables have, matched on `frame`; plus the points the regression plot and
+//! the contact map draw. `visuotact eval` and `replay` print it; drawing lives with them.
+
+use std::path::Path;
+
+use visuotact_io::table::KeyedTable;
+use visuotact_nn::metrics::{target_errors, TargetErrors};
+
+/// One touch on the contact map: actual and estimated (x, y, depth); depth NaN when absent.
+pub type MapPoint = ([f64; 3], [f64; 3]);
+
+/// The contact distance D between estimated and actual (x, y).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Distance {
+    /// Mean over the matched rows, mm.
+    pub mean: f64,
+    /// Largest, mm.
+    pub max: f64,
+}
+
+/// One target's figures and the (truth, estimate) pairs behind them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TargetEvaluation {
+    /// The figures.
+    pub errors: TargetErrors,
+    /// (truth, estimate) per matched row where both are finite.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Every target both tables have, and D when both have `x_mm` and `y_mm`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    /// Per target, in the predictions' column order.
+    pub targets: Vec<TargetEvaluation>,
+    /// D, when both tables have contact positions and a row has both.
+    pub distance_mm: Option<Distance>,
+    /// Actual and estimated contact per matched row (for the contact map).
+    pub map: Vec<MapPoint>,
+}
+
+/// Why there is nothing to evaluate.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum EvaluationError {
+    /// A table does not read.
+    #[error("{0}")]
+    Read(String),
+    /// No column of the predictions is a label.
+    #[error("no target column of {predictions} is in {labels}")]
+    NoTargets {
+        /// The predictions' name.
+        predictions: String,
+        /// The labels' name.
+        labels: String,
+    },
+}
+
+/// Reads and evaluates a predictions table (`predict`'s output; a `flags` text column is
+/// skipped) against a labels table, both keyed by `frame`.
+pub fn evaluate_files(predictions: &Path, labels: &Path) -> Result<Evaluation, EvaluationError> {
+    let p = KeyedTable::read(predictions, &["flags"]).map_err(EvaluationError::Read)?;
+    let l = KeyedTable::read(labels, &[]).map_err(EvaluationError::Read)?;
+    evaluate(&p, &l).ok_or_else(|| EvaluationError::NoTargets {
+        predictions: predictions.display().to_string(),
+        labels: labels.display().to_string(),
+    })
+}
+
+/// Evaluates `p` against `l` on the rows whose `frame` both have; `None` when no column of
+/// `p` is in `l` with a matched row.
+pub fn evaluate(p: &KeyedTable, l: &KeyedTable) -> Option<Evaluation> {
+    let by_key = l.rows_by_key();
+    // (row of p, row of l) for every frame both have.
+    let matched: Vec<(usize, usize)> = p
+        .keys
+        .iter()
+        .enumerate()
+        .filter_map(|(r, key)| by_key.get(key.as_str()).map(|&li| (r, li)))
+        .collect();
+    let targets: Vec<TargetEvaluation> = p
+        .columns
+        .iter()
+        .enumerate()
+        .filter_map(|(j, name)| {
+            let lj = l.column(name)?;
+            let pv: Vec<f64> = matched.iter().map(|&(r, _)| p.rows[r][j]).collect();
+            let lv: Vec<f64> = matched.iter().map(|&(_, li)| l.rows[li][lj]).collect();
+            let errors = target_errors(name, &pv, &lv);
+            let points = lv
+                .iter()
+                .zip(&pv)
+                .filter(|(t, e)| t.is_finite() && e.is_finite())
+                .map(|(t, e)| (*t, *e))
+                .collect();
+            (errors.n > 0).then_some(TargetEvaluation { errors, points })
+        })
+        .collect();
+    if targets.is_empty() {
+        return None;
+    }
+    let mut map = Vec::new();
+    let mut distances = Vec::new();
+    let columns = (
+        p.column("x_mm"),
+        p.column("y_mm"),
+        l.column("x_mm"),
+        l.column("y_mm"),
+    );
+    if let (Some(xi), Some(yi), Some(lx), Some(ly)) = columns {
+        let (pd, ld) = (p.column("depth_mm"), l.column("depth_mm"));
+        let depth = |row: &[f64], c: Option<usize>| c.map_or(f64::NAN, |c| row[c]);
+        for &(r, li) in &matched {
+            let (pr, lr) = (&p.rows[r], &l.rows[li]);
+            let d = (pr[xi] - lr[lx]).hypot(pr[yi] - lr[ly]);
+            if d.is_finite() {
+                distances.push(d);
+                map.push((
+                    [lr[lx], lr[ly], depth(lr, ld)],
+                    [pr[xi], pr[yi], depth(pr, pd)],
+                ));
+            }
+        }
+    }
+    let distance_mm = (!distances.is_empty()).then(|| Distance {
+        mean: distances.iter().sum::<f64>() / distances.len() as f64,
+        max: distances.iter().fold(0.0f64, |m, d| m.max(*d)),
+    });
+    Some(Evaluation {
+        targets,
+        distance_mm,
+        map,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(columns: &[&str], rows: &[(&str, &[f64])]) -> KeyedTable {
+        KeyedTable {
+            columns: columns.iter().map(|c| c.to_string()).collect(),
+            keys: rows.iter().map(|(k, _)| k.to_string()).collect(),
+            rows: rows.iter().map(|(_, r)| r.to_vec()).collect(),
+            text: vec![Vec::new(); rows.len()],
+            dropped_partial_line: false,
+        }
+    }
+
+    #[test]
+    fn rows_are_matched_by_frame_and_d_is_the_planar_distance() {
+        // Predictions for frames a, b, c (c has no label); labels in another order.
+        let p = table(
+            &["x_mm", "y_mm", "extra"],
+            &[
+                ("a", &[3.0, 4.0, 1.0]),
+                ("b", &[1.0, 1.0, 1.0]),
+                ("c", &[9.0, 9.0, 9.0]),
+            ],
+        );
+        let l = table(
+            &["y_mm", "x_mm", "depth_mm"],
+            &[("b", &[1.0, 1.0, 2.0]), ("a", &[0.0, 0.0, 1.0])],
+        );
+        let e = evaluate(&p, &l).unwrap();
+        assert_eq!(e.targets.len(), 2);
+        assert_eq!(e.targets[0].errors.target, "x_mm");
+        assert_eq!(e.targets[0].errors.n, 2);
+        assert_eq!(e.targets[0].points, [(0.0, 3.0), (1.0, 1.0)]);
+        let d = e.distance_mm.unwrap();
+        assert_eq!((d.mean, d.max), (2.5, 5.0));
+        assert_eq!(e.map[0].0, [0.0, 0.0, 1.0]);
+        assert!(e.map[0].1[2].is_nan(), "the predictions have no depth");
+        // Nothing in common: no evaluation.
+        let other = table(&["force_n"], &[("a", &[1.0])]);
+        assert!(evaluate(&p, &other).is_none());
+    }
+}
