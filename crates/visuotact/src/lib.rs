@@ -1,0 +1,66 @@
+//! visuotact: camera-based soft tactile sensors, frame → contact position, depth and force.
+//!
+//! One crate for the layers a program needs (the command line `visuotact` and the Python
+//! package are built on the same ones):
+//!
+//! | module | what |
+//! |---|---|
+//! | [`image`] | RGB and grey images, frames |
+//! | [`vision`] | calibration (presets, layouts), marker detection and tracking, per-frame features |
+//! | [`nn`] | Levenberg–Marquardt and Bayesian-regularised networks, ensembles, model files |
+//! | [`pipeline`] | frame → estimate ([`Estimator`]), live estimation ([`LiveEstimator`]), data sets, evaluation |
+//! | [`signal`] | force filtering equal to scipy's `firwin` + `filtfilt`, bias removal, resampling |
+//! | [`io`] | frame sources, tables, session folders, cameras |
+//! | [`sim`] | simulated sensors with exact ground truth |
+//!
+//! Frame → estimate on a simulated sensor: calibrate on contact-free frames, extract features
+//! of labelled presses, train a model on them, then estimate a press it has not seen.
+//!
+//! ```
+//! use visuotact::nn::fit::{fit, FitConfig, FitData};
+//! use visuotact::nn::lm::Control;
+//! use visuotact::sim::iats::{render, IatsConfig, Touch};
+//! use visuotact::vision::calibration::{calibrate, Preset};
+//! use visuotact::Estimator;
+//!
+//! let cfg = IatsConfig::SEED000;
+//! let frame = |t: &Touch, seed| render(&cfg, t, seed).unwrap().0;
+//! let rest = [frame(&Touch::default(), 1), frame(&Touch::default(), 2)];
+//! let (sensor, _) = calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
+//!
+//! // Presses at the centre, 0.5 to 4 mm deep: the field summary's columns as inputs.
+//! let mut est = Estimator::new(Some(sensor.clone()), None).unwrap();
+//! let columns = est.feature_columns();
+//! let field: Vec<usize> = (0..columns.len()).filter(|&i| columns[i].starts_with("field_")).collect();
+//! let (mut x, mut t) = (Vec::new(), Vec::new());
+//! for k in 0..8 {
+//!     let depth_mm = 0.5 + 0.5 * k as f64;
+//!     let press = Touch { x_mm: 30.0, y_mm: 22.5, depth_mm, ..Touch::default() };
+//!     let f = est.features(&frame(&press, 10 + k)).unwrap();
+//!     x.push(field.iter().map(|&i| f.values[i]).collect::<Vec<f64>>());
+//!     t.push(vec![depth_mm]);
+//! }
+//! let names: Vec<String> = field.iter().map(|&i| columns[i].clone()).collect();
+//! let targets = ["depth_mm".to_string()];
+//! let data = FitData { x: &x, t: &t, feature_columns: &names, targets: &targets };
+//! let small = FitConfig { hidden: vec![3], ensemble: 1, max_epochs: 200, ..FitConfig::default() };
+//! let model = fit(&data, &small, |_, _, _| Control::Continue).unwrap();
+//!
+//! // The estimator reads the model's columns from each frame.
+//! let mut est = Estimator::new(Some(sensor), Some(model)).unwrap();
+//! let press = Touch { x_mm: 30.0, y_mm: 22.5, depth_mm: 2.25, ..Touch::default() };
+//! let (_, estimate) = est.process(&frame(&press, 99)).unwrap();
+//! let depth_mm = estimate.unwrap()[0];
+//! assert!((depth_mm - 2.25).abs() < 0.15, "{depth_mm}");
+//! ```
+
+pub use visuotact_image as image;
+pub use visuotact_io as io;
+pub use visuotact_nn as nn;
+pub use visuotact_pipeline as pipeline;
+pub use visuotact_signal as signal;
+pub use visuotact_sim as sim;
+pub use visuotact_vision as vision;
+
+pub use visuotact_pipeline::{Estimator, LiveConfig, LiveEstimator, PipelineError};
+pub use visuotact_vision::calibration::{Preset, SensorCalibration};
