@@ -726,7 +726,7 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
                 written += 1;
             }
             Err(why) => {
-                out.write_row(key, &vec![f64::NAN; width], &why)?;
+                out.write_row(key, &vec![f64::NAN; width], &why.to_string())?;
                 missing += 1;
             }
         }

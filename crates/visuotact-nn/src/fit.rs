@@ -797,7 +797,20 @@ mod tests {
         assert_eq!(a.training.algorithm, "trainbr");
         // A row of the wrong width is refused, never read out of bounds.
         let err = a.estimate(&[1.0]).unwrap_err();
-        assert!(err.contains("1 inputs given, the model reads 2"), "{err}");
+        assert!(
+            matches!(
+                err,
+                crate::model::EstimateError::Width {
+                    given: 1,
+                    expected: 2,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert!(err
+            .to_string()
+            .contains("1 inputs given, the model reads 2"));
         assert!(a.predict(&[1.0, 2.0, 3.0])[0].is_nan());
     }
 

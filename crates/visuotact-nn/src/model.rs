@@ -101,6 +101,57 @@ pub struct Model {
     pub sensor: Option<serde_json::Value>,
 }
 
+/// Why a row gets no estimate.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum EstimateError {
+    /// The row's width is not the model's.
+    #[error("{given} inputs given, the model reads {expected} ({first}…)")]
+    Width {
+        /// Values given.
+        given: usize,
+        /// Columns the model reads.
+        expected: usize,
+        /// The model's first column.
+        first: String,
+    },
+    /// An input that is not a marker's feature is missing: nothing can fill it.
+    #[error("`{column}`: missing reading")]
+    MissingReading {
+        /// The input's column.
+        column: String,
+    },
+    /// Over [`MAX_MISSING_FRACTION`] of the inputs are missing.
+    #[error("{missing} of {inputs} inputs missing (over a quarter): too few markers found")]
+    TooManyMissing {
+        /// Inputs missing.
+        missing: usize,
+        /// Inputs in all.
+        inputs: usize,
+    },
+    /// Inputs are missing and the model has no projection to fill them from.
+    #[error("{missing} inputs missing and the model has no principal components to fill them (train with --components)")]
+    NoProjection {
+        /// Inputs missing.
+        missing: usize,
+    },
+    /// Too few inputs are left for the projection's components.
+    #[error("{missing} inputs missing: too few left to fill them")]
+    TooFewLeft {
+        /// Inputs missing.
+        missing: usize,
+    },
+}
+
+/// Why a model file does not load.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{source_name}: {why}")]
+pub struct ModelFileError {
+    /// The file (or what the text came from).
+    pub source_name: String,
+    /// What is wrong with it.
+    pub why: String,
+}
+
 /// Whether a feature column is a marker's (`m017_dx_px`): a lost marker can be filled from the
 /// markers found, another input (a gauge's reading) cannot.
 pub fn is_marker_column(c: &str) -> bool {
@@ -111,21 +162,21 @@ pub fn is_marker_column(c: &str) -> bool {
 /// Why a row of `columns` with missing (NaN) inputs cannot be filled — a missing input that is
 /// not a marker's, or over [`MAX_MISSING_FRACTION`] of the inputs missing — or `None` when it
 /// can (or nothing is missing). Training and estimation apply the same rule.
-pub fn unfillable(columns: &[String], row: &[f64]) -> Option<String> {
+pub fn unfillable(columns: &[String], row: &[f64]) -> Option<EstimateError> {
     if let Some((c, _)) = columns
         .iter()
         .zip(row)
         .find(|(c, v)| v.is_nan() && !is_marker_column(c))
     {
-        return Some(format!("`{c}`: missing reading"));
+        return Some(EstimateError::MissingReading { column: c.clone() });
     }
     let missing = row.iter().filter(|v| v.is_nan()).count();
-    (missing as f64 > MAX_MISSING_FRACTION * row.len() as f64).then(|| {
-        format!(
-            "{missing} of {} inputs missing (over a quarter): too few markers found",
-            row.len()
-        )
-    })
+    (missing as f64 > MAX_MISSING_FRACTION * row.len() as f64).then_some(
+        EstimateError::TooManyMissing {
+            missing,
+            inputs: row.len(),
+        },
+    )
 }
 
 impl Estimate {
@@ -182,14 +233,13 @@ impl Model {
     /// model with a principal-component projection fills lost markers: the scores are fitted
     /// to the inputs present ([`crate::pca::Projection::apply_partial`]). Refused, with the
     /// reason, when [`unfillable`] says so or the model has no projection.
-    pub fn estimate_each(&self, features: &[f64]) -> Result<(Vec<Vec<f64>>, usize), String> {
+    pub fn estimate_each(&self, features: &[f64]) -> Result<(Vec<Vec<f64>>, usize), EstimateError> {
         if features.len() != self.feature_columns.len() {
-            return Err(format!(
-                "{} inputs given, the model reads {} ({}…)",
-                features.len(),
-                self.feature_columns.len(),
-                self.feature_columns.first().map_or("", String::as_str)
-            ));
+            return Err(EstimateError::Width {
+                given: features.len(),
+                expected: self.feature_columns.len(),
+                first: self.feature_columns.first().cloned().unwrap_or_default(),
+            });
         }
         let missing = features.iter().filter(|v| v.is_nan()).count();
         if missing > 0 {
@@ -197,18 +247,16 @@ impl Model {
                 return Err(why);
             }
             if self.projection.is_none() {
-                return Err(format!(
-                    "{missing} inputs missing and the model has no principal components to fill them (train with --components)"
-                ));
+                return Err(EstimateError::NoProjection { missing });
             }
         }
         let x = self.input_scaling.apply(features);
         let z = match &self.projection {
             Some(p) => {
                 let projected = x.len() - self.passthrough.min(x.len());
-                let mut z = p.apply_partial(&x[..projected]).ok_or_else(|| {
-                    format!("{missing} inputs missing: too few left to fill them")
-                })?;
+                let mut z = p
+                    .apply_partial(&x[..projected])
+                    .ok_or(EstimateError::TooFewLeft { missing })?;
                 z.extend_from_slice(&x[projected..]);
                 z
             }
@@ -223,7 +271,7 @@ impl Model {
 
     /// The ensemble's mean and standard deviation (empty for one network) from a row that may
     /// miss inputs, as [`Model::estimate_each`].
-    pub fn estimate(&self, features: &[f64]) -> Result<Estimate, String> {
+    pub fn estimate(&self, features: &[f64]) -> Result<Estimate, EstimateError> {
         let (outs, filled) = self.estimate_each(features)?;
         let k = outs.len() as f64;
         let width = outs[0].len();
@@ -248,28 +296,32 @@ impl Model {
     }
 
     /// Parses a model file's text; `source` names it in errors.
-    pub fn from_json(text: &str, source: &str) -> Result<Self, String> {
+    pub fn from_json(text: &str, source: &str) -> Result<Self, ModelFileError> {
+        let bad = |why: String| ModelFileError {
+            source_name: source.to_string(),
+            why,
+        };
         let m: Model =
-            serde_json::from_str(text).map_err(|e| format!("{source}: not a model file: {e}"))?;
+            serde_json::from_str(text).map_err(|e| bad(format!("not a model file: {e}")))?;
         if m.format != MODEL_FORMAT {
-            return Err(format!(
-                "{source}: format is {:?}, expected {MODEL_FORMAT:?}",
+            return Err(bad(format!(
+                "format is {:?}, expected {MODEL_FORMAT:?}",
                 m.format
-            ));
+            )));
         }
         if m.version > MODEL_VERSION {
-            return Err(format!(
-                "{source}: model version {} is newer than this program reads ({MODEL_VERSION})",
+            return Err(bad(format!(
+                "model version {} is newer than this program reads ({MODEL_VERSION})",
                 m.version
-            ));
+            )));
         }
         let s = &m.net.sizes;
         if m.passthrough > m.feature_columns.len() {
-            return Err(format!(
-                "{source}: inconsistent model ({} pass-through inputs of {} columns)",
+            return Err(bad(format!(
+                "inconsistent model ({} pass-through inputs of {} columns)",
                 m.passthrough,
                 m.feature_columns.len()
-            ));
+            )));
         }
         let net_inputs = match &m.projection {
             Some(p) => {
@@ -277,8 +329,9 @@ impl Model {
                     || p.components.iter().any(|c| c.len() != p.inputs())
                     || p.score_scaling.min.len() != p.outputs()
                 {
-                    return Err(format!(
-                        "{source}: inconsistent model (the projection and the feature columns disagree)"
+                    return Err(bad(
+                        "inconsistent model (the projection and the feature columns disagree)"
+                            .to_string(),
                     ));
                 }
                 p.outputs() + m.passthrough
@@ -295,8 +348,8 @@ impl Model {
             || m.input_scaling.min.len() != m.feature_columns.len()
             || m.target_scaling.min.len() != s[s.len() - 1]
         {
-            return Err(format!(
-                "{source}: inconsistent model (layer sizes, columns and weights disagree)"
+            return Err(bad(
+                "inconsistent model (layer sizes, columns and weights disagree)".to_string(),
             ));
         }
         Ok(m)

@@ -6,7 +6,7 @@
 //! features.
 
 use visuotact_image::RgbImage;
-use visuotact_nn::model::{is_marker_column, Estimate, Model};
+use visuotact_nn::model::{is_marker_column, Estimate, EstimateError, Model};
 use visuotact_vision::calibration::SensorCalibration;
 use visuotact_vision::features::{
     is_field_column, FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError,
@@ -74,6 +74,9 @@ pub fn feature_set_of(columns: &[String]) -> Result<FeatureSet, PipelineError> {
     }
     FeatureSet::parse(&kinds.join(",")).map_err(PipelineError::Features)
 }
+
+/// The model's estimate of a frame, or why it has none.
+pub type ModelEstimate = Result<Estimate, EstimateError>;
 
 /// Where one of the model's inputs comes from.
 #[derive(Clone, Copy, Debug)]
@@ -239,16 +242,16 @@ impl Estimator {
         extra: &[f64],
     ) -> Result<(&FrameFeatures, Option<Vec<f64>>), PipelineError> {
         let (f, e) = self.estimate_with(img, extra)?;
-        Ok((f, e.ok().map(Estimate::into_row)))
+        Ok((f, e.and_then(Result::ok).map(Estimate::into_row)))
     }
 
     /// As [`Estimator::process_with`], the estimate whole (values, spread, inputs filled) or
-    /// why there is none.
+    /// why the model has none for this frame; `None` without a model.
     pub fn estimate_with(
         &mut self,
         img: &RgbImage,
         extra: &[f64],
-    ) -> Result<(&FrameFeatures, Result<Estimate, String>), PipelineError> {
+    ) -> Result<(&FrameFeatures, Option<ModelEstimate>), PipelineError> {
         self.ex.extract_into(img, &mut self.features)?;
         let est = match &self.model {
             Some((m, cols)) => {
@@ -259,9 +262,9 @@ impl Estimator {
                 }));
                 // Lost markers filled (models on principal components); a missing reading or
                 // too many lost markers: no estimate.
-                m.estimate(&self.x)
+                Some(m.estimate(&self.x))
             }
-            None => Err("no model".to_string()),
+            None => None,
         };
         Ok((&self.features, est))
     }

@@ -579,14 +579,14 @@ impl Live {
                 .est
                 .estimate_with(&frame.image, &[])
                 .map_err(|e| error(format!("frame {}: {e}", frame.id)))?;
-            (f.found, e)
+            (f.found, e.map(|r| r.map_err(|why| why.to_string())))
         };
         let d = PyDict::new(py);
         d.set_item("frame", &frame.id)?;
         d.set_item("index", frame.index)?;
         d.set_item("timestamp_s", frame.timestamp_s)?;
         d.set_item("found", found)?;
-        match estimate {
+        match estimate.unwrap_or_else(|| Err("no model".to_string())) {
             Ok(e) => {
                 let est = PyDict::new(py);
                 for (t, v) in self.targets.iter().zip(e.into_row()) {
