@@ -11,6 +11,8 @@
 //! assert_eq!(layout.decode(&bytes).unwrap(), s);
 //! ```
 
+use crate::table::TableError;
+
 /// One field of a packet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ForceField {
@@ -187,30 +189,30 @@ pub const AXES: [&str; 6] = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"];
 impl ForceTable {
     /// Reads a force CSV; errors name the file, line and column. A last line without a line end
     /// (a recorder stopped mid-row) is left out and reported in `dropped_partial_line`.
-    pub fn read(path: &std::path::Path) -> Result<Self, String> {
-        let name = path.display();
+    pub fn read(path: &std::path::Path) -> Result<Self, TableError> {
+        let fail = |line, why| TableError::new(path, line, why);
         let text =
-            std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot read: {e}"))?;
+            std::fs::read_to_string(path).map_err(|e| fail(None, format!("cannot read: {e}")))?;
         let (text, dropped_partial_line) = crate::table::complete_lines(&text);
         let mut lines = text.lines();
         let header: Vec<&str> = lines
             .next()
-            .ok_or_else(|| format!("{name}: empty file"))?
+            .ok_or_else(|| fail(None, "empty file".to_string()))?
             .split(',')
             .map(str::trim)
             .collect();
         let col = |n: &str| header.iter().position(|h| *h == n);
         let tcol = col("timestamp_s").ok_or_else(|| {
-            format!(
-                "{name}: no `timestamp_s` column (columns: {})",
-                header.join(", ")
+            fail(
+                None,
+                format!("no `timestamp_s` column (columns: {})", header.join(", ")),
             )
         })?;
         let axes: Vec<Option<usize>> = AXES.iter().map(|a| col(a)).collect();
         if axes.iter().all(Option::is_none) {
-            return Err(format!(
-                "{name}: no force column; expected some of {}",
-                AXES.join(", ")
+            return Err(fail(
+                None,
+                format!("no force column; expected some of {}", AXES.join(", ")),
             ));
         }
         let rcol = col("recv_s");
@@ -228,25 +230,34 @@ impl ForceTable {
             }
             let cells: Vec<&str> = line.split(',').map(str::trim).collect();
             if cells.len() != header.len() {
-                return Err(format!(
-                    "{name}: line {line_no}: {} cells, the header has {}",
-                    cells.len(),
-                    header.len()
+                return Err(fail(
+                    Some(line_no),
+                    format!(
+                        "line {line_no}: {} cells, the header has {}",
+                        cells.len(),
+                        header.len()
+                    ),
                 ));
             }
-            let num = |i: usize| -> Result<f64, String> {
+            let num = |i: usize| -> Result<f64, TableError> {
                 let v: f64 = cells[i].parse().map_err(|_| {
-                    format!(
-                        "{name}: line {line_no}, column `{}`: {:?} is not a number",
-                        header[i], cells[i]
+                    fail(
+                        Some(line_no),
+                        format!(
+                            "line {line_no}, column `{}`: {:?} is not a number",
+                            header[i], cells[i]
+                        ),
                     )
                 })?;
                 if v.is_finite() {
                     Ok(v)
                 } else {
-                    Err(format!(
-                        "{name}: line {line_no}, column `{}`: not a finite number",
-                        header[i]
+                    Err(fail(
+                        Some(line_no),
+                        format!(
+                            "line {line_no}, column `{}`: not a finite number",
+                            header[i]
+                        ),
                     ))
                 }
             };
@@ -527,9 +538,13 @@ mod tests {
         assert!(t.dropped_partial_line && t.present == [true, false, true, false, false, false]);
         std::fs::write(&p, "timestamp_s,fz_n\n0.0,1\n0.001,x\n").unwrap();
         let e = ForceTable::read(&p).unwrap_err();
-        assert!(e.contains("line 3, column `fz_n`"), "{e}");
+        assert_eq!(e.line, Some(3));
+        assert!(e.to_string().contains("line 3, column `fz_n`"), "{e}");
         std::fs::write(&p, "time,fz_n\n").unwrap();
-        assert!(ForceTable::read(&p).unwrap_err().contains("timestamp_s"));
+        assert!(ForceTable::read(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("timestamp_s"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

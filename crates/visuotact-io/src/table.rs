@@ -159,6 +159,30 @@ pub struct KeyedTable {
     pub dropped_partial_line: bool,
 }
 
+/// Why a table file does not read: the file, the line at fault when there is one, and what
+/// is wrong (with the line and column in words).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{}: {why}", path.display())]
+pub struct TableError {
+    /// The file.
+    pub path: std::path::PathBuf,
+    /// The line at fault (from 1, the header being line 1).
+    pub line: Option<usize>,
+    /// What is wrong.
+    pub why: String,
+}
+
+impl TableError {
+    /// An error about `path` (at `line`, when one is at fault).
+    pub fn new(path: &Path, line: Option<usize>, why: String) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            line,
+            why,
+        }
+    }
+}
+
 /// The text of a table a writer may have been killed while appending to: complete lines only.
 /// Returns the text up to the last line end and whether a partial line was cut off.
 pub fn complete_lines(text: &str) -> (&str, bool) {
@@ -171,27 +195,32 @@ pub fn complete_lines(text: &str) -> (&str, bool) {
 
 impl KeyedTable {
     /// Reads `path`; errors name the file, the line and the column.
-    pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, String> {
-        let name = path.display();
+    pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
+        let fail = |line, why| TableError::new(path, line, why);
         let text =
-            std::fs::read_to_string(path).map_err(|e| format!("{name}: cannot read: {e}"))?;
+            std::fs::read_to_string(path).map_err(|e| fail(None, format!("cannot read: {e}")))?;
         let (text, dropped_partial_line) = complete_lines(&text);
         if text.is_empty() {
-            return Err(format!("{name}: empty table (no complete header line)"));
+            return Err(fail(
+                None,
+                "empty table (no complete header line)".to_string(),
+            ));
         }
         let mut rd = csv::ReaderBuilder::new()
             .has_headers(true)
             .from_reader(text.as_bytes());
         let header: Vec<String> = rd
             .headers()
-            .map_err(|e| format!("{name}: bad header: {e}"))?
+            .map_err(|e| fail(None, format!("bad header: {e}")))?
             .iter()
             .map(str::to_string)
             .collect();
-        let key_col = header
-            .iter()
-            .position(|h| h == "frame")
-            .ok_or_else(|| format!("{name}: no `frame` column (columns: {})", header.join(", ")))?;
+        let key_col = header.iter().position(|h| h == "frame").ok_or_else(|| {
+            fail(
+                None,
+                format!("no `frame` column (columns: {})", header.join(", ")),
+            )
+        })?;
         let keep: Vec<usize> = (0..header.len())
             .filter(|&i| i != key_col && !text_columns.contains(&header[i].as_str()))
             .collect();
@@ -203,12 +232,15 @@ impl KeyedTable {
         let (mut keys, mut rows, mut text) = (Vec::new(), Vec::new(), Vec::new());
         for (n, rec) in rd.records().enumerate() {
             let line = n + 2;
-            let rec = rec.map_err(|e| format!("{name}: line {line}: {e}"))?;
+            let rec = rec.map_err(|e| fail(Some(line), format!("line {line}: {e}")))?;
             if rec.len() != header.len() {
-                return Err(format!(
-                    "{name}: line {line}: {} cells, the header has {}",
-                    rec.len(),
-                    header.len()
+                return Err(fail(
+                    Some(line),
+                    format!(
+                        "line {line}: {} cells, the header has {}",
+                        rec.len(),
+                        header.len()
+                    ),
                 ));
             }
             keys.push(rec[key_col].to_string());
@@ -225,16 +257,19 @@ impl KeyedTable {
                     f64::NAN
                 } else {
                     cell.parse::<f64>().map_err(|_| {
-                        format!(
-                            "{name}: line {line}, column `{}`: {cell:?} is not a number",
-                            header[i]
+                        fail(
+                            Some(line),
+                            format!(
+                                "line {line}, column `{}`: {cell:?} is not a number",
+                                header[i]
+                            ),
                         )
                     })?
                 };
                 if v.is_infinite() {
-                    return Err(format!(
-                        "{name}: line {line}, column `{}`: infinite value",
-                        header[i]
+                    return Err(fail(
+                        Some(line),
+                        format!("line {line}, column `{}`: infinite value", header[i]),
                     ));
                 }
                 row.push(v);

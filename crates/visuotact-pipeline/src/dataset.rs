@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
 use visuotact_io::frames::FrameStream;
-use visuotact_io::table::KeyedTable;
+use visuotact_io::table::{KeyedTable, TableError};
 use visuotact_nn::model::is_marker_column;
 use visuotact_signal::align::{AlignError, Resampler};
 use visuotact_signal::clean::{clean, CleanConfig, CleanError};
@@ -70,6 +70,9 @@ pub enum DatasetError {
         /// Why.
         why: String,
     },
+    /// A table does not read.
+    #[error(transparent)]
+    Table(#[from] TableError),
     /// A session lacks what it needs.
     #[error("{}: {what}", path.display())]
     Missing {
@@ -158,10 +161,7 @@ pub fn build(
 }
 
 fn read_table(path: &Path, text: &[&str]) -> Result<KeyedTable, DatasetError> {
-    KeyedTable::read(path, text).map_err(|why| DatasetError::Read {
-        path: path.to_path_buf(),
-        why,
-    })
+    Ok(KeyedTable::read(path, text)?)
 }
 
 /// Touch frames of a session and their timestamps, from frames.csv.
@@ -259,10 +259,7 @@ fn labels_from_force(
     cfg: &DatasetConfig,
     notes: &mut Vec<String>,
 ) -> Result<Columns, DatasetError> {
-    let mut table = ForceTable::read(path).map_err(|why| DatasetError::Read {
-        path: path.to_path_buf(),
-        why,
-    })?;
+    let mut table = ForceTable::read(path)?;
     if table.dropped_partial_line {
         notes.push(format!(
             "{}: an unfinished last line was left out",

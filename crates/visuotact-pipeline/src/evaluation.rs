@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use visuotact_io::table::KeyedTable;
+use visuotact_io::table::{KeyedTable, TableError};
 use visuotact_nn::metrics::{target_errors, TargetErrors};
 
 /// One touch on the contact map: actual and estimated (x, y, depth); depth NaN when absent.
@@ -44,8 +44,8 @@ pub struct Evaluation {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum EvaluationError {
     /// A table does not read.
-    #[error("{0}")]
-    Read(String),
+    #[error(transparent)]
+    Read(#[from] TableError),
     /// No column of the predictions is a label.
     #[error("no target column of {predictions} is in {labels}")]
     NoTargets {
@@ -59,8 +59,8 @@ pub enum EvaluationError {
 /// Reads and evaluates a predictions table (`predict`'s output; a `flags` text column is
 /// skipped) against a labels table, both keyed by `frame`.
 pub fn evaluate_files(predictions: &Path, labels: &Path) -> Result<Evaluation, EvaluationError> {
-    let p = KeyedTable::read(predictions, &["flags"]).map_err(EvaluationError::Read)?;
-    let l = KeyedTable::read(labels, &[]).map_err(EvaluationError::Read)?;
+    let p = KeyedTable::read(predictions, &["flags"])?;
+    let l = KeyedTable::read(labels, &[])?;
     evaluate(&p, &l).ok_or_else(|| EvaluationError::NoTargets {
         predictions: predictions.display().to_string(),
         labels: labels.display().to_string(),
