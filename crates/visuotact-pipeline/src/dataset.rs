@@ -109,7 +109,7 @@ pub enum DatasetError {
     },
     /// The sensor calibration cannot extract features.
     #[error("features: {0}")]
-    Features(String),
+    Features(#[from] visuotact_vision::ConfigError),
 }
 
 /// One session's columns and rows.

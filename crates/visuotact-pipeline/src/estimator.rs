@@ -20,7 +20,7 @@ pub enum PipelineError {
     NoSensor,
     /// The model's stored sensor calibration does not read.
     #[error("the model's sensor: {0}")]
-    ModelSensor(String),
+    ModelSensor(visuotact_vision::calibration::SensorFileError),
     /// The model needs an input frames cannot give.
     #[error("the model needs the input `{column}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)")]
     NotAMarkerInput {
@@ -37,7 +37,7 @@ pub enum PipelineError {
     },
     /// The feature extractor refused the calibration or feature set.
     #[error("features: {0}")]
-    Features(String),
+    Features(#[from] visuotact_vision::ConfigError),
     /// A model of an ensemble does not fit the others or the sensor.
     #[error("model {model} of the ensemble: {why}")]
     Ensemble {

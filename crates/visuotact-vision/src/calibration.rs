@@ -233,7 +233,7 @@ pub enum CalibrationError {
     },
     /// Invalid settings.
     #[error("invalid settings: {0}")]
-    Config(String),
+    Config(#[from] crate::ConfigError),
     /// No marker passed the filter.
     #[error("no markers found in the reference image (threshold {threshold}; {raw} blobs before the area/border filter)")]
     NoMarkers {
@@ -303,7 +303,7 @@ where
         h,
         sum.iter().map(|&s| ((2 * s + n) / (2 * n)) as u8).collect(),
     )
-    .map_err(|e| CalibrationError::Config(e.to_string()))?;
+    .map_err(|e| CalibrationError::Config(crate::ConfigError(e.to_string())))?;
     let mut blobs = Vec::new();
     let detection = det.detect_gray_into(&mean, &mut blobs);
     if blobs.is_empty() {
@@ -521,30 +521,44 @@ pub fn track_reference(
     r
 }
 
+/// Why a sensor file does not load.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{source_name}: {why}")]
+pub struct SensorFileError {
+    /// The file (or what the text came from).
+    pub source_name: String,
+    /// What is wrong with it.
+    pub why: String,
+}
+
 impl SensorCalibration {
     /// Parses a sensor file's text; `source` names it in errors.
-    pub fn from_json(text: &str, source: &str) -> Result<Self, String> {
+    pub fn from_json(text: &str, source: &str) -> Result<Self, SensorFileError> {
+        let bad = |why: String| SensorFileError {
+            source_name: source.to_string(),
+            why,
+        };
         let cal: SensorCalibration =
-            serde_json::from_str(text).map_err(|e| format!("{source}: not a sensor file: {e}"))?;
+            serde_json::from_str(text).map_err(|e| bad(format!("not a sensor file: {e}")))?;
         if cal.format != SENSOR_FORMAT {
-            return Err(format!(
-                "{source}: format is {:?}, expected {SENSOR_FORMAT:?}",
+            return Err(bad(format!(
+                "format is {:?}, expected {SENSOR_FORMAT:?}",
                 cal.format
-            ));
+            )));
         }
         if cal.version > SENSOR_VERSION {
-            return Err(format!(
-                "{source}: sensor file version {} is newer than this program reads ({SENSOR_VERSION})",
+            return Err(bad(format!(
+                "sensor file version {} is newer than this program reads ({SENSOR_VERSION})",
                 cal.version
-            ));
+            )));
         }
         if cal.markers.is_empty() {
-            return Err(format!("{source}: the sensor file lists no markers"));
+            return Err(bad("the sensor file lists no markers".to_string()));
         }
         cal.detector
             .preprocess
             .validate()
-            .map_err(|e| format!("{source}: {e}"))?;
+            .map_err(|e| bad(e.to_string()))?;
         Ok(cal)
     }
 

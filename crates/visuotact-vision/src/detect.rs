@@ -120,13 +120,13 @@ pub struct Detector {
 
 impl Detector {
     /// A detector for `cfg`; fails with a message when the settings are inconsistent.
-    pub fn new(cfg: DetectorConfig) -> Result<Self, String> {
+    pub fn new(cfg: DetectorConfig) -> Result<Self, crate::ConfigError> {
         cfg.preprocess.validate()?;
         if cfg.filter.min_area_px > cfg.filter.max_area_px {
-            return Err(format!(
+            return Err(crate::ConfigError(format!(
                 "minimum area {} px exceeds maximum area {} px",
                 cfg.filter.min_area_px, cfg.filter.max_area_px
-            ));
+            )));
         }
         Ok(Self {
             cfg,

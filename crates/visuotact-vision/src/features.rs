@@ -14,6 +14,7 @@ use crate::blobs::Blob;
 use crate::calibration::{track_reference, SensorCalibration};
 use crate::detect::Detector;
 use crate::track::{track_with, MarkerStatus, TrackHints, TrackReference, TrackResult, View};
+use crate::ConfigError;
 
 /// Which per-marker features to output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -52,7 +53,7 @@ impl FeatureSet {
     };
 
     /// Parses a comma-separated list of `x`, `y`, `area`, `ecc` (or `eccentricity`), or `all`.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, ConfigError> {
         let mut f = Self {
             dx: false,
             dy: false,
@@ -67,14 +68,14 @@ impl FeatureSet {
                 "ecc" | "eccentricity" => f.eccentricity = true,
                 "all" => f = Self::ALL,
                 other => {
-                    return Err(format!(
+                    return Err(ConfigError(format!(
                         "unknown feature {other:?}: expected a list of x, y, area, ecc (or all)"
-                    ))
+                    )))
                 }
             }
         }
         if f.per_marker() == 0 {
-            return Err("the feature set is empty".to_string());
+            return Err(ConfigError("the feature set is empty".to_string()));
         }
         Ok(f)
     }
@@ -301,7 +302,7 @@ pub struct FeatureExtractor {
 
 impl FeatureExtractor {
     /// An extractor for `cal` producing `features`.
-    pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, String> {
+    pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, ConfigError> {
         let detector = Detector::new(cal.detector.clone())?;
         let reference = track_reference(&cal.markers, cal.pitch_px, cal.layout);
         let view = view_of(&cal);

@@ -97,7 +97,7 @@ pub enum LayoutChoice {
 
 impl LayoutChoice {
     /// Parses `auto` or a layout name.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, crate::ConfigError> {
         if s == "auto" {
             return Ok(Self::Auto);
         }
@@ -106,10 +106,10 @@ impl LayoutChoice {
             .find(|l| l.name() == s)
             .map(Self::Only)
             .ok_or_else(|| {
-                format!(
+                crate::ConfigError(format!(
                     "unknown layout {s:?}: expected auto, {}",
                     Layout::ALL.map(Layout::name).join(", ")
-                )
+                ))
             })
     }
 }

@@ -7,6 +7,11 @@
 //! the blobs of any frame), [`calibration`] (the sensor file) and [`features`] (feature vectors
 //! in named units).
 
+/// Settings that do not fit together or do not parse; the message says which and why.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ConfigError(pub String);
+
 pub mod assign;
 pub mod blobs;
 pub mod calibration;

@@ -176,27 +176,29 @@ impl PreprocessConfig {
     };
 
     /// Checks the settings; the message says which one is wrong.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::ConfigError> {
         if (self.open || self.close) && (self.morph_size == 0 || self.morph_size % 2 == 0) {
-            return Err(format!(
+            return Err(crate::ConfigError(format!(
                 "morphology size must be odd and ≥ 1, got {}",
                 self.morph_size
-            ));
+            )));
         }
         match self.threshold {
             Threshold::Fixed { level } if !(0.0..=1.0).contains(&level) => {
-                return Err(format!(
+                return Err(crate::ConfigError(format!(
                     "fixed threshold must be in 0..1 of full scale, got {level}"
-                ))
+                )))
             }
             Threshold::Adaptive { window_px, offset } => {
                 if window_px < 3 || window_px % 2 == 0 {
-                    return Err(format!(
+                    return Err(crate::ConfigError(format!(
                         "adaptive window must be odd and ≥ 3, got {window_px}"
-                    ));
+                    )));
                 }
                 if !(-1.0..=1.0).contains(&offset) {
-                    return Err(format!("adaptive offset must be in −1..1, got {offset}"));
+                    return Err(crate::ConfigError(format!(
+                        "adaptive offset must be in −1..1, got {offset}"
+                    )));
                 }
             }
             _ => {}
@@ -207,7 +209,9 @@ impl PreprocessConfig {
                 || !c.cx_px.is_finite()
                 || !c.cy_px.is_finite()
             {
-                return Err("circular mask needs a finite centre and a positive radius".into());
+                return Err(crate::ConfigError(
+                    "circular mask needs a finite centre and a positive radius".into(),
+                ));
             }
         }
         Ok(())
