@@ -48,21 +48,25 @@ impl Camera {
     };
 
     /// Checks the parameters.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         if self.width == 0 || self.height == 0 {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "camera size {}×{} must be positive",
                 self.width, self.height
-            ));
+            )));
         }
         if !(self.fx_px > 0.0 && self.fy_px > 0.0) {
-            return Err("camera focal lengths must be positive".into());
+            return Err(crate::SimError(
+                "camera focal lengths must be positive".to_string(),
+            ));
         }
         if ![self.cx_px, self.cy_px, self.k1, self.k2]
             .iter()
             .all(|v| v.is_finite())
         {
-            return Err("camera principal point and distortion must be finite".into());
+            return Err(crate::SimError(
+                "camera principal point and distortion must be finite".to_string(),
+            ));
         }
         Ok(())
     }

@@ -83,7 +83,7 @@ impl ConeConfig {
     }
 
     /// Checks the parameters.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         self.camera.validate()?;
         for (name, v) in [
             ("length_mm", self.length_mm),
@@ -100,15 +100,15 @@ impl ConeConfig {
             ("max_shortening_mm", self.max_shortening_mm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} must be positive, got {v}"));
+                return Err(crate::SimError(format!("{name} must be positive, got {v}")));
             }
         }
         for z in self.ring_heights_mm {
             if !(z > self.ring_width_mm && z < self.length_mm) {
-                return Err(format!(
+                return Err(crate::SimError(format!(
                     "ring height {z} mm must lie inside the cone (0..{} mm)",
                     self.length_mm
-                ));
+                )));
             }
         }
         Ok(())
@@ -157,18 +157,23 @@ impl ConeLoad {
     }
 
     /// Checks the load.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         if !(self.force_n.is_finite() && self.force_n >= 0.0) {
-            return Err(format!("force must be ≥ 0 N, got {}", self.force_n));
+            return Err(crate::SimError(format!(
+                "force must be ≥ 0 N, got {}",
+                self.force_n
+            )));
         }
         if !(self.pressure_kpa.is_finite() && self.pressure_kpa > 0.0) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "pressure must be positive, got {} kPa",
                 self.pressure_kpa
-            ));
+            )));
         }
         if !self.elevation_rad.is_finite() || !self.azimuth_rad.is_finite() {
-            return Err("force direction must be finite".into());
+            return Err(crate::SimError(
+                "force direction must be finite".to_string(),
+            ));
         }
         Ok(())
     }
@@ -291,7 +296,7 @@ pub fn render(
     cfg: &ConeConfig,
     load: &ConeLoad,
     seed: u64,
-) -> Result<(RgbImage, Vec<RingTruth>), String> {
+) -> Result<(RgbImage, Vec<RingTruth>), crate::SimError> {
     cfg.validate()?;
     load.validate()?;
     let rs = rings(cfg, load);

@@ -138,13 +138,13 @@ impl IatsConfig {
     }
 
     /// Checks the parameters; the message names the bad one.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         self.camera.validate()?;
         if self.cols < 2 || self.rows < 2 {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "need at least 2 × 2 markers, got {} × {}",
                 self.cols, self.rows
-            ));
+            )));
         }
         for (name, v) in [
             ("span_x_mm", self.span_x_mm),
@@ -155,23 +155,25 @@ impl IatsConfig {
             ("camera_distance_mm", self.camera_distance_mm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} must be positive, got {v}"));
+                return Err(crate::SimError(format!("{name} must be positive, got {v}")));
             }
         }
         if !(self.frame_margin_mm.is_finite() && self.frame_margin_mm >= 0.0) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "frame_margin_mm must be ≥ 0, got {}",
                 self.frame_margin_mm
-            ));
+            )));
         }
         if !(0.0..=1.0).contains(&self.stretch_coupling) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "stretch_coupling must be in 0..1, got {}",
                 self.stretch_coupling
-            ));
+            )));
         }
         if self.max_depth_mm >= self.camera_distance_mm {
-            return Err("max_depth_mm must be less than camera_distance_mm".into());
+            return Err(crate::SimError(
+                "max_depth_mm must be less than camera_distance_mm".to_string(),
+            ));
         }
         Ok(())
     }
@@ -201,7 +203,7 @@ pub struct Touch {
 impl Touch {
     /// Checks the touch against the sensor: inside the marker area, depth in range, a drag only
     /// with contact and at most two pitches.
-    pub fn validate(&self, cfg: &IatsConfig) -> Result<(), String> {
+    pub fn validate(&self, cfg: &IatsConfig) -> Result<(), crate::SimError> {
         let finite = [
             self.x_mm,
             self.y_mm,
@@ -210,28 +212,34 @@ impl Touch {
             self.shear_y_mm,
         ];
         if !finite.iter().all(|v| v.is_finite()) {
-            return Err(format!("touch values must be finite: {self:?}"));
+            return Err(crate::SimError(format!(
+                "touch values must be finite: {self:?}"
+            )));
         }
         if self.depth_mm < 0.0 || self.depth_mm > cfg.max_depth_mm {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "depth {} mm outside 0..{} mm",
                 self.depth_mm, cfg.max_depth_mm
-            ));
+            )));
         }
         if !(0.0..=cfg.span_x_mm).contains(&self.x_mm)
             || !(0.0..=cfg.span_y_mm).contains(&self.y_mm)
         {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "touch at ({}, {}) mm is outside the sensor's 0..{} × 0..{} mm marker area",
                 self.x_mm, self.y_mm, cfg.span_x_mm, cfg.span_y_mm
-            ));
+            )));
         }
         let drag = self.shear_x_mm.hypot(self.shear_y_mm);
         if drag > 0.0 && self.depth_mm <= 0.0 {
-            return Err("a sideways drag needs contact (depth > 0)".into());
+            return Err(crate::SimError(
+                "a sideways drag needs contact (depth > 0)".to_string(),
+            ));
         }
         if drag > 2.0 * cfg.pitch_x_mm().max(cfg.pitch_y_mm()) {
-            return Err(format!("drag of {drag:.2} mm exceeds two marker pitches"));
+            return Err(crate::SimError(format!(
+                "drag of {drag:.2} mm exceeds two marker pitches"
+            )));
         }
         Ok(())
     }
@@ -410,7 +418,7 @@ pub fn render(
     cfg: &IatsConfig,
     touch: &Touch,
     seed: u64,
-) -> Result<(RgbImage, Vec<IatsMarker>), String> {
+) -> Result<(RgbImage, Vec<IatsMarker>), crate::SimError> {
     cfg.validate()?;
     touch.validate(cfg)?;
     let ms = markers(cfg, touch);

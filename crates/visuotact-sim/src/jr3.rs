@@ -38,12 +38,12 @@ impl Jr3Config {
     };
 
     /// Checks the parameters.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "force sample rate must be positive, got {} Hz",
                 self.rate_hz
-            ));
+            )));
         }
         let all = [
             self.noise_n,
@@ -53,7 +53,9 @@ impl Jr3Config {
             self.lever_arm_mm,
         ];
         if !all.iter().all(|v| v.is_finite() && *v >= 0.0) {
-            return Err("force sensor noise, drift and lever arm must be ≥ 0".into());
+            return Err(crate::SimError(
+                "force sensor noise, drift and lever arm must be ≥ 0".to_string(),
+            ));
         }
         Ok(())
     }

@@ -9,6 +9,12 @@
 //! This is the test-pattern generator the vision pipeline is checked against; the sensor
 //! physics of the two seed sensors builds on it.
 
+/// Settings a simulated sensor cannot be drawn with, or a touch it cannot take; the message
+/// says which and why.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct SimError(pub String);
+
 pub mod camera;
 pub mod cone;
 pub mod iats;

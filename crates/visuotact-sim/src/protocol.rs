@@ -304,18 +304,18 @@ impl ConePress {
     }
 
     /// Checks the protocol.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         if !(self.max_force_n.is_finite() && self.max_force_n >= 0.0) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "peak force must be ≥ 0 N, got {}",
                 self.max_force_n
-            ));
+            )));
         }
         if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "press duration must be positive, got {} s",
                 self.duration_s
-            ));
+            )));
         }
         Ok(())
     }

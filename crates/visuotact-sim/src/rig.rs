@@ -48,7 +48,11 @@ pub fn cone_labels(
 /// `n` (at least 2) frames of seed 000's sensor (`iats`: 40 % without contact, then random
 /// touches) or seed 001's cone (`cone`: 30 % at rest, then one press and release), named
 /// `KIND_NNNN`, each frame's noise from [`frame_seed`], rendered in parallel. Unknown kinds say what is expected.
-pub fn live_frames(kind: &str, n: usize, seed: u64) -> Result<Vec<(String, RgbImage)>, String> {
+pub fn live_frames(
+    kind: &str,
+    n: usize,
+    seed: u64,
+) -> Result<Vec<(String, RgbImage)>, crate::SimError> {
     let n = n.max(2);
     match kind {
         "iats" => {
@@ -90,7 +94,9 @@ pub fn live_frames(kind: &str, n: usize, seed: u64) -> Result<Vec<(String, RgbIm
                 })
                 .collect()
         }
-        other => Err(format!("sim:{other}: expected sim:iats or sim:cone")),
+        other => Err(crate::SimError(format!(
+            "sim:{other}: expected sim:iats or sim:cone"
+        ))),
     }
 }
 
@@ -117,6 +123,7 @@ mod tests {
         assert_ne!(f[0].1, f[1].1, "noise differs frame to frame");
         assert!(live_frames("gelsight", 2, 1)
             .unwrap_err()
+            .0
             .contains("expected sim:iats"));
     }
 }

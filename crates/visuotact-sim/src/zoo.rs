@@ -438,7 +438,7 @@ impl ZooConfig {
     }
 
     /// Checks the parameters; the message names the bad one.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::SimError> {
         self.camera.validate()?;
         for (name, v) in [
             ("field_width_mm", self.field_width_mm),
@@ -450,7 +450,7 @@ impl ZooConfig {
             ("camera_distance_mm", self.camera_distance_mm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} must be positive, got {v}"));
+                return Err(crate::SimError(format!("{name} must be positive, got {v}")));
             }
         }
         for (name, v) in [
@@ -458,63 +458,75 @@ impl ZooConfig {
             ("blur_px", self.blur_px),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} must be ≥ 0, got {v}"));
+                return Err(crate::SimError(format!("{name} must be ≥ 0, got {v}")));
             }
         }
         if !(self.radial_coupling.is_finite() && self.radial_coupling.abs() <= 1.0) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "radial_coupling must be in −1..1, got {}",
                 self.radial_coupling
-            ));
+            )));
         }
         if !self.pattern_angle_deg.is_finite() {
-            return Err("pattern_angle_deg must be finite".into());
-        }
-        if self.marker_radius_mm >= 0.5 * self.pitch_mm {
-            return Err(format!(
-                "marker_radius_mm {} must be under half the pitch ({} mm): markers would touch",
-                self.marker_radius_mm, self.pitch_mm
+            return Err(crate::SimError(
+                "pattern_angle_deg must be finite".to_string(),
             ));
         }
+        if self.marker_radius_mm >= 0.5 * self.pitch_mm {
+            return Err(crate::SimError(format!(
+                "marker_radius_mm {} must be under half the pitch ({} mm): markers would touch",
+                self.marker_radius_mm, self.pitch_mm
+            )));
+        }
         if self.field_width_mm / self.pitch_mm > 200.0 {
-            return Err("more than 200 pitches across the field".into());
+            return Err(crate::SimError(
+                "more than 200 pitches across the field".to_string(),
+            ));
         }
         match self.surface {
             Surface::Flat => {
                 if !(self.field_height_mm.is_finite() && self.field_height_mm > 0.0) {
-                    return Err(format!(
+                    return Err(crate::SimError(format!(
                         "field_height_mm must be positive, got {}",
                         self.field_height_mm
-                    ));
+                    )));
                 }
                 if self.max_depth_mm >= self.camera_distance_mm {
-                    return Err("max_depth_mm must be less than camera_distance_mm".into());
+                    return Err(crate::SimError(
+                        "max_depth_mm must be less than camera_distance_mm".to_string(),
+                    ));
                 }
                 if self.field_height_mm / self.pitch_mm > 200.0 {
-                    return Err("more than 200 pitches down the field".into());
+                    return Err(crate::SimError(
+                        "more than 200 pitches down the field".to_string(),
+                    ));
                 }
             }
             Surface::Dome => {
                 let rd = self.dome_radius_mm;
                 if !(rd.is_finite() && rd > 0.0) {
-                    return Err(format!("dome_radius_mm must be positive, got {rd}"));
+                    return Err(crate::SimError(format!(
+                        "dome_radius_mm must be positive, got {rd}"
+                    )));
                 }
                 let theta = (0.5 * self.field_width_mm + 0.5 * self.pitch_mm) / rd;
                 if theta > 0.47 * std::f64::consts::PI {
-                    return Err(format!(
+                    return Err(crate::SimError(format!(
                         "field_width_mm {} reaches beyond the dome's side ({:.1} mm across at most)",
                         self.field_width_mm,
                         2.0 * (0.47 * std::f64::consts::PI * rd - 0.5 * self.pitch_mm)
-                    ));
+                    )));
                 }
                 if self.camera_distance_mm <= rd {
-                    return Err(format!(
+                    return Err(crate::SimError(format!(
                         "camera_distance_mm {} must exceed dome_radius_mm {rd}: the camera sits below the dome's base",
                         self.camera_distance_mm
-                    ));
+                    )));
                 }
                 if self.max_depth_mm >= 0.5 * rd {
-                    return Err("max_depth_mm must be under half the dome radius".into());
+                    return Err(crate::SimError(
+                        "max_depth_mm must be under half the dome radius".to_string(),
+                    ));
                 }
             }
         }
@@ -690,7 +702,7 @@ pub struct ZooTouch {
 impl ZooTouch {
     /// Checks the touch against the sensor: on the field, depth within the skin's limit, a drag
     /// or twist only with contact, at most two pitches of drag and 30° of twist.
-    pub fn validate(&self, cfg: &ZooConfig) -> Result<(), String> {
+    pub fn validate(&self, cfg: &ZooConfig) -> Result<(), crate::SimError> {
         let v = [
             self.x_mm,
             self.y_mm,
@@ -700,29 +712,38 @@ impl ZooTouch {
             self.twist_deg,
         ];
         if !v.iter().all(|x| x.is_finite()) {
-            return Err(format!("touch values must be finite: {self:?}"));
+            return Err(crate::SimError(format!(
+                "touch values must be finite: {self:?}"
+            )));
         }
         if !(0.0..=cfg.max_depth_mm).contains(&self.depth_mm) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "depth {} mm outside the skin's 0..{} mm",
                 self.depth_mm, cfg.max_depth_mm
-            ));
+            )));
         }
         if !cfg.field_contains(self.x_mm, self.y_mm) {
-            return Err(format!(
+            return Err(crate::SimError(format!(
                 "touch at ({}, {}) mm is off the marker field",
                 self.x_mm, self.y_mm
-            ));
+            )));
         }
         let drag = self.shear_x_mm.hypot(self.shear_y_mm);
         if (drag > 0.0 || self.twist_deg != 0.0) && self.depth_mm <= 0.0 {
-            return Err("a drag or twist needs contact (depth > 0)".into());
+            return Err(crate::SimError(
+                "a drag or twist needs contact (depth > 0)".to_string(),
+            ));
         }
         if drag > 2.0 * cfg.pitch_mm {
-            return Err(format!("drag of {drag:.2} mm exceeds two marker pitches"));
+            return Err(crate::SimError(format!(
+                "drag of {drag:.2} mm exceeds two marker pitches"
+            )));
         }
         if self.twist_deg.abs() > 30.0 {
-            return Err(format!("twist of {}° exceeds 30°", self.twist_deg));
+            return Err(crate::SimError(format!(
+                "twist of {}° exceeds 30°",
+                self.twist_deg
+            )));
         }
         Ok(())
     }
@@ -892,7 +913,7 @@ pub fn render(
     cfg: &ZooConfig,
     touch: &ZooTouch,
     seed: u64,
-) -> Result<(RgbImage, Vec<ZooMarker>), String> {
+) -> Result<(RgbImage, Vec<ZooMarker>), crate::SimError> {
     cfg.validate()?;
     touch.validate(cfg)?;
     let ms = markers(cfg, touch);
