@@ -13,6 +13,11 @@
 
 use crate::table::TableError;
 
+/// Why a packet layout does not parse or a packet does not decode.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct PacketError(pub String);
+
 /// One field of a packet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ForceField {
@@ -93,17 +98,17 @@ impl Default for ForceLayout {
 
 impl ForceLayout {
     /// Parses a comma-separated field list, e.g. `counter,fx,fy,fz,tx,ty,tz`.
-    pub fn parse(s: &str) -> Result<Self, String> {
-        let fields: Result<Vec<ForceField>, String> = s
+    pub fn parse(s: &str) -> Result<Self, PacketError> {
+        let fields: Result<Vec<ForceField>, PacketError> = s
             .split(',')
             .map(|p| {
                 ForceField::from_name(p.trim())
-                    .ok_or_else(|| format!("unknown force field {:?}", p.trim()))
+                    .ok_or_else(|| PacketError(format!("unknown force field {:?}", p.trim())))
             })
             .collect();
         let fields = fields?;
         if fields.is_empty() {
-            return Err("the force layout is empty".into());
+            return Err(PacketError("the force layout is empty".to_string()));
         }
         Ok(Self { fields })
     }
@@ -134,13 +139,13 @@ impl ForceLayout {
 
     /// Unpacks a packet; fields missing from the layout read as 0 (a `Counter` becomes the
     /// timestamp in samples). Fails on a wrong length or a non-finite value.
-    pub fn decode(&self, bytes: &[u8]) -> Result<ForceSample, String> {
+    pub fn decode(&self, bytes: &[u8]) -> Result<ForceSample, PacketError> {
         if bytes.len() != self.packet_len() {
-            return Err(format!(
+            return Err(PacketError(format!(
                 "packet of {} bytes, expected {}",
                 bytes.len(),
                 self.packet_len()
-            ));
+            )));
         }
         let mut s = ForceSample {
             timestamp_s: 0.0,
@@ -151,7 +156,10 @@ impl ForceLayout {
             b.copy_from_slice(chunk);
             let v = f64::from_le_bytes(b);
             if !v.is_finite() {
-                return Err(format!("field {} is not a finite number", f.name()));
+                return Err(PacketError(format!(
+                    "field {} is not a finite number",
+                    f.name()
+                )));
             }
             match f {
                 ForceField::Timestamp | ForceField::Counter => s.timestamp_s = v,

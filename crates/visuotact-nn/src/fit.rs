@@ -79,14 +79,16 @@ impl FieldInputs {
 
 /// The principal components for `marker_inputs` markers' features from a choice written as
 /// `auto` ([`auto_components`]), `0` (none) or a count; an error names what was expected.
-pub fn components_from_name(name: &str, marker_inputs: usize) -> Result<Option<usize>, String> {
+pub fn components_from_name(name: &str, marker_inputs: usize) -> Result<Option<usize>, FitError> {
     match name {
         _ if marker_inputs == 0 => Ok(None),
         "auto" => Ok(auto_components(marker_inputs)),
         k => match k.parse::<usize>() {
             Ok(0) => Ok(None),
             Ok(k) => Ok(Some(k)),
-            Err(_) => Err(format!("{k:?}: expected auto, 0 or a number of components")),
+            Err(_) => Err(FitError::Components(format!(
+                "{k:?}: expected auto, 0 or a number of components"
+            ))),
         },
     }
 }
@@ -341,9 +343,12 @@ pub enum FitError {
     /// inputs.
     #[error("invalid configuration: {0}")]
     Config(String),
+    /// A number of components that does not parse.
+    #[error("{0}")]
+    Components(String),
     /// The principal components could not be taken.
     #[error("principal components: {0}")]
-    Projection(String),
+    Projection(#[from] crate::pca::ProjectionError),
 }
 
 impl FitData<'_> {
@@ -438,17 +443,16 @@ pub fn fit(
                 .collect();
             Projection::fit(&complete, k)
         })
-        .transpose()
-        .map_err(FitError::Projection)?;
+        .transpose()?;
     let xs: Vec<Vec<f64>> = match &projection {
         Some(p) => xs
             .iter()
             .enumerate()
             .map(|(row, r)| {
                 let mut z = p.apply_partial(&r[..projected]).ok_or_else(|| {
-                    FitError::Projection(format!(
+                    FitError::Projection(crate::pca::ProjectionError(format!(
                         "sample {row} has fewer inputs left than components"
-                    ))
+                    )))
                 })?;
                 z.extend_from_slice(&r[projected..]);
                 Ok(z)
@@ -666,7 +670,9 @@ fn cross_validated(
                 .map(|i| {
                     let row: Vec<f64> = sets[s].columns.iter().map(|&c| data.x[i][c]).collect();
                     let e = model.estimate(&row).map_err(|why| {
-                        FitError::Projection(format!("held-out sample {i}: {why}"))
+                        FitError::Projection(crate::pca::ProjectionError(format!(
+                            "held-out sample {i}: {why}"
+                        )))
                     })?;
                     Ok(e.values
                         .iter()
@@ -833,6 +839,7 @@ mod tests {
         assert_eq!(components_from_name("4", 0), Ok(None));
         assert!(components_from_name("x", 351)
             .unwrap_err()
+            .to_string()
             .contains("expected auto"));
     }
 

@@ -264,6 +264,11 @@ pub struct LmConfig {
     pub damping: Damping,
 }
 
+/// Levenberg–Marquardt settings that cannot work; the message says which.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct LmConfigError(pub String);
+
 impl LmConfig {
     /// MATLAB `trainlm` defaults: μ = 1e−3, ×0.1 / ×10, μ_max 1e10, min gradient 1e−7,
     /// 1000 epochs.
@@ -295,21 +300,30 @@ impl LmConfig {
 impl LmConfig {
     /// Checks that μ can grow and shrink: `mu > 0`, `mu_inc > 1`, `0 < mu_dec < 1`,
     /// `mu_max ≥ mu`.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), LmConfigError> {
         if !(self.mu > 0.0 && self.mu.is_finite()) {
-            return Err(format!("mu must be positive, got {}", self.mu));
+            return Err(LmConfigError(format!(
+                "mu must be positive, got {}",
+                self.mu
+            )));
         }
         if !(self.mu_inc > 1.0 && self.mu_inc.is_finite()) {
-            return Err(format!("mu_inc must exceed 1, got {}", self.mu_inc));
+            return Err(LmConfigError(format!(
+                "mu_inc must exceed 1, got {}",
+                self.mu_inc
+            )));
         }
         if !(self.mu_dec > 0.0 && self.mu_dec < 1.0) {
-            return Err(format!("mu_dec must lie in (0, 1), got {}", self.mu_dec));
+            return Err(LmConfigError(format!(
+                "mu_dec must lie in (0, 1), got {}",
+                self.mu_dec
+            )));
         }
         if self.mu_max.is_nan() || self.mu_max < self.mu {
-            return Err(format!(
+            return Err(LmConfigError(format!(
                 "mu_max ({}) must be at least mu ({})",
                 self.mu_max, self.mu
-            ));
+            )));
         }
         Ok(())
     }

@@ -114,6 +114,16 @@ pub enum EstimateError {
         /// The model's first column.
         first: String,
     },
+    /// A table lacks one of the model's input columns.
+    #[error("no column `{column}` among the {given} given (the model reads {reads} columns)")]
+    NoColumn {
+        /// The missing column.
+        column: String,
+        /// Columns given.
+        given: usize,
+        /// Columns the model reads.
+        reads: usize,
+    },
     /// An input that is not a marker's feature is missing: nothing can fill it.
     #[error("`{column}`: missing reading")]
     MissingReading {
@@ -203,17 +213,18 @@ impl Model {
 
     /// Where each of the model's input columns sits in a table whose columns are `names`; an
     /// error names the first one missing.
-    pub fn columns_in(&self, names: &[String]) -> Result<Vec<usize>, String> {
+    pub fn columns_in(&self, names: &[String]) -> Result<Vec<usize>, EstimateError> {
         self.feature_columns
             .iter()
             .map(|c| {
-                names.iter().position(|n| n == c).ok_or_else(|| {
-                    format!(
-                        "no column `{c}` among the {} given (the model reads {} columns)",
-                        names.len(),
-                        self.feature_columns.len()
-                    )
-                })
+                names
+                    .iter()
+                    .position(|n| n == c)
+                    .ok_or_else(|| EstimateError::NoColumn {
+                        column: c.clone(),
+                        given: names.len(),
+                        reads: self.feature_columns.len(),
+                    })
             })
             .collect()
     }

@@ -44,9 +44,26 @@ fn numbers(line: &str) -> Vec<f64> {
         .collect()
 }
 
+/// Why a NIST StRD file does not parse.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct NistError(pub String);
+
+impl From<String> for NistError {
+    fn from(why: String) -> Self {
+        Self(why)
+    }
+}
+
+impl From<&str> for NistError {
+    fn from(why: &str) -> Self {
+        Self(why.to_string())
+    }
+}
+
 impl Dataset {
     /// Parses a `.dat` file's text; `name` is the dataset name (the file stem).
-    pub fn parse(name: &str, text: &str) -> Result<Self, String> {
+    pub fn parse(name: &str, text: &str) -> Result<Self, NistError> {
         let lines: Vec<&str> = text.lines().collect();
         let (s0, s1) =
             line_range(text, "Starting Values").ok_or("no starting-values line range")?;
@@ -63,7 +80,7 @@ impl Dataset {
                     .ok_or_else(|| format!("bad parameter line {l:?}"))?,
             );
             if v.len() < 4 {
-                return Err(format!("bad parameter line {l:?}"));
+                return Err(NistError(format!("bad parameter line {l:?}")));
             }
             starts[0].push(v[0]);
             starts[1].push(v[1]);
@@ -86,7 +103,7 @@ impl Dataset {
                     y.push(v[0]);
                     x.push([v[1], v[2]]);
                 }
-                _ => return Err(format!("bad data line {l:?}")),
+                _ => return Err(NistError(format!("bad data line {l:?}"))),
             }
         }
         Ok(Self {

@@ -27,21 +27,32 @@ pub struct Projection {
     pub score_scaling: MinMax,
 }
 
+/// Why principal components could not be taken.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ProjectionError(pub String);
+
+impl From<String> for ProjectionError {
+    fn from(why: String) -> Self {
+        Self(why)
+    }
+}
+
 impl Projection {
     /// The `k` leading components of `rows` (samples × inputs); an error when there are too
     /// few samples or inputs, or the eigendecomposition fails.
-    pub fn fit(rows: &[Vec<f64>], k: usize) -> Result<Self, String> {
+    pub fn fit(rows: &[Vec<f64>], k: usize) -> Result<Self, ProjectionError> {
         let (n, f) = (rows.len(), rows.first().map_or(0, Vec::len));
         if n < 2 || f == 0 {
-            return Err(format!(
+            return Err(ProjectionError(format!(
                 "principal components need at least 2 samples of 1 input, got {n} of {f}"
-            ));
+            )));
         }
         if k == 0 || k > f.min(n) {
-            return Err(format!(
+            return Err(ProjectionError(format!(
                 "asked for {k} components of {f} inputs and {n} samples: at most {}",
                 f.min(n)
-            ));
+            )));
         }
         let (mean, values, vectors) = eigen(rows)?;
         let total: f64 = values.iter().map(|v| v.max(0.0)).sum();
@@ -80,7 +91,7 @@ impl Projection {
 
     /// Fractions of the total variance of `rows` along each principal component, largest
     /// first.
-    pub fn variance_fractions(rows: &[Vec<f64>]) -> Result<Vec<f64>, String> {
+    pub fn variance_fractions(rows: &[Vec<f64>]) -> Result<Vec<f64>, ProjectionError> {
         let (_, values, _) = eigen(rows)?;
         let total: f64 = values.iter().map(|v| v.max(0.0)).sum();
         Ok(values
