@@ -112,6 +112,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         t,
         feature_columns,
         passthrough,
+        ..
     } = data;
     let jobs: Vec<(usize, usize)> = (0..archs.len())
         .flat_map(|k| (0..a.repeats).map(move |r| (k, r)))

@@ -14,8 +14,10 @@ use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::TargetErrors;
 use visuotact_nn::mlp::{Algorithm, Mlp};
 pub(crate) use visuotact_nn::model::is_marker_column;
-use visuotact_nn::model::{unfillable, Model};
+use visuotact_nn::model::Model;
 use visuotact_pipeline::evaluation::{evaluate_files, MapPoint};
+pub(crate) use visuotact_pipeline::table::TrainingTable as Joined;
+use visuotact_pipeline::table::{training_table, Incomplete, InputSources, JoinConfig, Named};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
 
 #[derive(clap::Args, Debug)]
@@ -164,18 +166,47 @@ impl DataArgs {
         fills: impl Fn(usize) -> bool,
     ) -> anyhow::Result<(Vec<String>, Joined)> {
         let targets = parse_targets(&self.targets)?;
-        let j = joined(
-            &self.features,
-            &self.labels,
-            &targets,
-            &self.extra,
+        let f = KeyedTable::read(&self.features, &["flags"])?;
+        let l = KeyedTable::read(&self.labels, &[])?;
+        let readings = self.extra.readings_table()?;
+        let (f_name, l_name) = (
+            self.features.display().to_string(),
+            self.labels.display().to_string(),
+        );
+        let r_name = self
+            .extra
+            .readings
+            .as_ref()
+            .map(|p| p.display().to_string());
+        let extra = self.extra.names()?;
+        let cfg = JoinConfig {
+            targets: &targets,
+            extra_inputs: &extra,
             field,
-            if self.drop_incomplete {
+            incomplete: if self.drop_incomplete {
                 Incomplete::Drop
             } else {
                 Incomplete::FillIf(&fills)
             },
+        };
+        let j = training_table(
+            Named {
+                table: &f,
+                name: &f_name,
+            },
+            Named {
+                table: &l,
+                name: &l_name,
+            },
+            readings
+                .as_ref()
+                .zip(r_name.as_deref())
+                .map(|(table, name)| Named { table, name }),
+            &cfg,
         )?;
+        for note in &j.notes {
+            eprintln!("{note}");
+        }
         Ok((targets, j))
     }
 }
@@ -188,236 +219,6 @@ pub(crate) fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::R
                 .map_err(|_| anyhow::anyhow!("--{what}: {p:?} is not valid"))
         })
         .collect()
-}
-
-/// Features and labels joined on `frame`.
-pub(crate) struct Joined {
-    /// Input rows (per-marker features, then the extra inputs).
-    pub(crate) x: Vec<Vec<f64>>,
-    /// Target rows.
-    pub(crate) t: Vec<Vec<f64>>,
-    /// Names of the input columns: the markers' features, then the field summary and the
-    /// extra inputs.
-    pub(crate) feature_columns: Vec<String>,
-    /// How many of the columns, at the end, are not markers' features.
-    pub(crate) passthrough: usize,
-}
-
-impl Joined {
-    /// How many of the columns are markers' features.
-    pub(crate) fn marker_inputs(&self) -> usize {
-        self.feature_columns.len() - self.passthrough
-    }
-}
-
-/// Where the model's inputs come from: the feature table's columns, then the readings table's.
-struct InputSources<'a> {
-    features: &'a KeyedTable,
-    /// Per input: `Ok(column)` in the feature table or `Err(column)` in the readings table.
-    columns: Vec<Result<usize, usize>>,
-    readings: Option<(&'a KeyedTable, std::collections::HashMap<&'a str, usize>)>,
-}
-
-impl<'a> InputSources<'a> {
-    /// Finds each of `names` (the feature table first); errors name both tables.
-    fn new(
-        names: &[String],
-        features: &'a KeyedTable,
-        features_name: &str,
-        readings: Option<(&'a KeyedTable, &Path)>,
-        what: &str,
-    ) -> anyhow::Result<Self> {
-        let columns = names
-            .iter()
-            .map(|c| {
-                if let Some(i) = features.column(c) {
-                    return Ok(Ok(i));
-                }
-                if let Some(i) = readings.and_then(|(r, _)| r.column(c)) {
-                    return Ok(Err(i));
-                }
-                let also = match readings {
-                    Some((_, p)) => format!(" nor in {}", p.display()),
-                    None if is_marker_column(c) => String::new(),
-                    None => " (give the table that has it with --readings)".to_string(),
-                };
-                bail!("{features_name}: no column `{c}`{also}: {what}")
-            })
-            .collect::<anyhow::Result<_>>()?;
-        Ok(Self {
-            features,
-            columns,
-            readings: readings.map(|(r, _)| (r, r.rows_by_key())),
-        })
-    }
-
-    /// The inputs of feature row `r` into `x` (NaN where the readings have no such frame).
-    fn row_into(&self, r: usize, x: &mut Vec<f64>) {
-        let key = self.features.keys[r].as_str();
-        let reading_row = self
-            .readings
-            .as_ref()
-            .and_then(|(t, by_key)| by_key.get(key).map(|&i| &t.rows[i]));
-        x.clear();
-        x.extend(self.columns.iter().map(|c| match c {
-            Ok(i) => self.features.rows[r][*i],
-            Err(i) => reading_row.map_or(f64::NAN, |row| row[*i]),
-        }));
-    }
-}
-
-/// What to do with frames that miss inputs.
-pub(crate) enum Incomplete<'a> {
-    /// Leave them out.
-    Drop,
-    /// Keep them (the model fills them) when this holds for the number of inputs, unless over
-    /// a quarter of a frame's inputs are missing (left out); otherwise fail.
-    FillIf(&'a dyn Fn(usize) -> bool),
-}
-
-/// Joins features (and extra inputs) and labels on `frame`.
-pub(crate) fn joined(
-    features: &Path,
-    labels: &Path,
-    targets: &[String],
-    extra: &ExtraInputs,
-    field: FieldInputs,
-    incomplete: Incomplete<'_>,
-) -> anyhow::Result<Joined> {
-    let f = KeyedTable::read(features, &["flags"]).map_err(anyhow::Error::msg)?;
-    let l = KeyedTable::read(labels, &[]).map_err(anyhow::Error::msg)?;
-    let readings = extra.readings_table()?;
-    let mut names: Vec<String> = f
-        .columns
-        .iter()
-        .filter(|c| is_marker_column(c))
-        .cloned()
-        .collect();
-    if names.is_empty() {
-        bail!(
-            "{}: no per-marker feature columns (mNNN_…)",
-            features.display()
-        );
-    }
-    let has_field = FIELD_COLUMNS.iter().all(|c| f.column(c).is_some());
-    let field = field.resolve(names.len());
-    match field {
-        FieldInputs::No => {}
-        _ if !has_field => {
-            if field == FieldInputs::Only {
-                bail!(
-                    "{}: no field-summary columns (field_rms_px …): extract the frames again, or train with --field no",
-                    features.display()
-                );
-            }
-            eprintln!(
-                "note: {} has no field-summary columns (extracted by an older visuotact): the markers' features only",
-                features.display()
-            );
-        }
-        FieldInputs::Yes | FieldInputs::Auto => {
-            names.extend(FIELD_COLUMNS.iter().map(|c| (*c).to_string()))
-        }
-        FieldInputs::Only => {
-            names.clear();
-            names.extend(FIELD_COLUMNS.iter().map(|c| (*c).to_string()));
-        }
-    }
-    names.extend(extra.names()?);
-    let marker_inputs = names.iter().filter(|c| is_marker_column(c)).count();
-    let sources = InputSources::new(
-        &names,
-        &f,
-        &features.display().to_string(),
-        readings.as_ref().zip(extra.readings.as_deref()),
-        "an input named by --inputs",
-    )?;
-    let tcols: Vec<usize> = targets
-        .iter()
-        .map(|t| {
-            l.column(t).with_context(|| {
-                format!(
-                    "{}: no target column `{t}` (columns: {})",
-                    labels.display(),
-                    l.columns.join(", ")
-                )
-            })
-        })
-        .collect::<anyhow::Result<_>>()?;
-    let by_key = l.rows_by_key();
-    let fill = match incomplete {
-        Incomplete::Drop => false,
-        Incomplete::FillIf(f) => f(marker_inputs),
-    };
-    let (mut x, mut t) = (Vec::new(), Vec::new());
-    let (mut unlabelled, mut dropped, mut filled_frames, mut filled_cells) = (0, 0, 0, 0);
-    let mut xi = Vec::with_capacity(names.len());
-    for (r, key) in f.keys.iter().enumerate() {
-        let Some(&li) = by_key.get(key.as_str()) else {
-            unlabelled += 1;
-            continue;
-        };
-        sources.row_into(r, &mut xi);
-        let missing = xi.iter().filter(|v| v.is_nan()).count();
-        if missing > 0 && fill && unfillable(&names, &xi).is_none() {
-            filled_frames += 1;
-            filled_cells += missing;
-        } else if let Some(c) = xi.iter().position(|v| v.is_nan()) {
-            if matches!(incomplete, Incomplete::Drop) || fill {
-                dropped += 1;
-                continue;
-            }
-            let why = if is_marker_column(&names[c]) {
-                "a lost marker".to_string()
-            } else {
-                format!("no reading `{}` for this frame", names[c])
-            };
-            bail!(
-                "{}: line {}, frame {key}, column `{}`: missing value ({why}); use --drop-incomplete to leave such frames out",
-                features.display(),
-                r + 2,
-                names[c]
-            );
-        }
-        let ti: Vec<f64> = tcols.iter().map(|&c| l.rows[li][c]).collect();
-        if let Some(c) = ti.iter().position(|v| v.is_nan()) {
-            bail!(
-                "{}: frame {key}, column `{}`: missing target",
-                labels.display(),
-                targets[c]
-            );
-        }
-        x.push(xi.clone());
-        t.push(ti);
-    }
-    if unlabelled > 0 {
-        eprintln!(
-            "warning: {unlabelled} feature rows have no label in {} and were left out",
-            labels.display()
-        );
-    }
-    if dropped > 0 {
-        eprintln!("warning: {dropped} frames with missing inputs were left out");
-    }
-    if filled_frames > 0 {
-        eprintln!(
-            "{filled_frames} frames with lost markers kept: {filled_cells} inputs filled from the markers found"
-        );
-    }
-    if x.len() < 10 {
-        bail!(
-            "only {} frames have both features ({}) and labels ({}): too few to train",
-            x.len(),
-            features.display(),
-            labels.display()
-        );
-    }
-    Ok(Joined {
-        x,
-        t,
-        passthrough: names.len() - marker_inputs,
-        feature_columns: names,
-    })
 }
 
 pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
@@ -455,6 +256,7 @@ pub(crate) fn train(a: &TrainArgs) -> anyhow::Result<()> {
         t,
         feature_columns,
         passthrough,
+        ..
     } = data;
     let sets = candidate_inputs(
         &column_kinds(&feature_columns, &FIELD_COLUMNS),
@@ -693,11 +495,17 @@ pub(crate) fn predict(a: &PredictArgs) -> anyhow::Result<()> {
         (None, None) => bail!("give --features TABLE, or --sensor SENSOR FRAMES..."),
     };
     let readings = read_readings(a.readings.as_deref())?;
+    let r_name = a.readings.as_ref().map(|p| p.display().to_string());
     let sources = InputSources::new(
         &model.feature_columns,
-        &f,
-        &source,
-        readings.as_ref().zip(a.readings.as_deref()),
+        Named {
+            table: &f,
+            name: &source,
+        },
+        readings
+            .as_ref()
+            .zip(r_name.as_deref())
+            .map(|(table, name)| Named { table, name }),
         &format!(
             "the model {} was trained on other inputs",
             a.model.display()

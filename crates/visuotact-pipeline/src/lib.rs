@@ -28,6 +28,7 @@ pub mod dataset;
 pub mod estimator;
 pub mod evaluation;
 pub mod live;
+pub mod table;
 
 pub use estimator::{feature_set_of, Estimator, PipelineError};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};

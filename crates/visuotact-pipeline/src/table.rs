@@ -1,0 +1,448 @@
+//! Training tables: a feature table (from `extract`, `record` or `dataset`) joined on `frame`
+//! with a label table, the model's inputs picked by name — the markers' features, the field
+//! summary as [`FieldInputs`] says, and extra inputs (a gauge's reading) from the feature
+//! table or a readings table. Frames with lost markers are kept for a model that fills them,
+//! left out, or refused with the file, line, frame and column. `visuotact train`, `sweep` and
+//! `predict` read their tables through it.
+
+use std::collections::HashMap;
+
+use visuotact_io::table::KeyedTable;
+use visuotact_nn::fit::FieldInputs;
+use visuotact_nn::model::{is_marker_column, unfillable};
+use visuotact_vision::features::FIELD_COLUMNS;
+
+/// A table and the name its errors give it (a path, or "frames read with S").
+#[derive(Clone, Copy, Debug)]
+pub struct Named<'a> {
+    /// The table.
+    pub table: &'a KeyedTable,
+    /// Its name in messages.
+    pub name: &'a str,
+}
+
+/// Why a training table could not be joined.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum JoinError {
+    /// The feature table has no markers' columns.
+    #[error("{features}: no per-marker feature columns (mNNN_…)")]
+    NoMarkerColumns {
+        /// The feature table.
+        features: String,
+    },
+    /// The field summary alone was asked for and the table has none.
+    #[error("{features}: no field-summary columns (field_rms_px …): extract the frames again, or train with --field no")]
+    NoFieldColumns {
+        /// The feature table.
+        features: String,
+    },
+    /// An input is in neither table.
+    #[error("{features}: no column `{column}`{also}: {what}")]
+    NoInput {
+        /// The feature table.
+        features: String,
+        /// The input.
+        column: String,
+        /// Where else it was looked for, or where to give it.
+        also: String,
+        /// What the input is for.
+        what: String,
+    },
+    /// A target is not a label column.
+    #[error("{labels}: no target column `{column}` (columns: {columns})")]
+    NoTarget {
+        /// The label table.
+        labels: String,
+        /// The target.
+        column: String,
+        /// The label table's columns.
+        columns: String,
+    },
+    /// A frame misses an input nothing fills.
+    #[error("{features}: line {line}, frame {frame}, column `{column}`: missing value ({why}); use --drop-incomplete to leave such frames out")]
+    MissingInput {
+        /// The feature table.
+        features: String,
+        /// Its line (the header is line 1).
+        line: usize,
+        /// The frame.
+        frame: String,
+        /// The input.
+        column: String,
+        /// Why it is missing.
+        why: String,
+    },
+    /// A frame's target is missing.
+    #[error("{labels}: frame {frame}, column `{column}`: missing target")]
+    MissingTarget {
+        /// The label table.
+        labels: String,
+        /// The frame.
+        frame: String,
+        /// The target.
+        column: String,
+    },
+    /// Too few frames are left.
+    #[error("only {frames} frames have both features ({features}) and labels ({labels}): too few to train")]
+    TooFew {
+        /// Frames left.
+        frames: usize,
+        /// The feature table.
+        features: String,
+        /// The label table.
+        labels: String,
+    },
+}
+
+/// Where a model's inputs come from: the feature table's columns, then the readings table's.
+pub struct InputSources<'a> {
+    features: &'a KeyedTable,
+    /// Per input: `Ok(column)` in the feature table or `Err(column)` in the readings table.
+    columns: Vec<Result<usize, usize>>,
+    readings: Option<(&'a KeyedTable, HashMap<&'a str, usize>)>,
+}
+
+impl<'a> InputSources<'a> {
+    /// Finds each of `names` (the feature table first); an error names both tables and says
+    /// `what` the inputs are for.
+    pub fn new(
+        names: &[String],
+        features: Named<'a>,
+        readings: Option<Named<'a>>,
+        what: &str,
+    ) -> Result<Self, JoinError> {
+        let columns = names
+            .iter()
+            .map(|c| {
+                if let Some(i) = features.table.column(c) {
+                    return Ok(Ok(i));
+                }
+                if let Some(i) = readings.and_then(|r| r.table.column(c)) {
+                    return Ok(Err(i));
+                }
+                let also = match readings {
+                    Some(r) => format!(" nor in {}", r.name),
+                    None if is_marker_column(c) => String::new(),
+                    None => " (give the table that has it with --readings)".to_string(),
+                };
+                Err(JoinError::NoInput {
+                    features: features.name.to_string(),
+                    column: c.clone(),
+                    also,
+                    what: what.to_string(),
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            features: features.table,
+            columns,
+            readings: readings.map(|r| (r.table, r.table.rows_by_key())),
+        })
+    }
+
+    /// The inputs of feature row `r` into `x` (NaN where the readings have no such frame).
+    pub fn row_into(&self, r: usize, x: &mut Vec<f64>) {
+        let key = self.features.keys[r].as_str();
+        let reading_row = self
+            .readings
+            .as_ref()
+            .and_then(|(t, by_key)| by_key.get(key).map(|&i| &t.rows[i]));
+        x.clear();
+        x.extend(self.columns.iter().map(|c| match c {
+            Ok(i) => self.features.rows[r][*i],
+            Err(i) => reading_row.map_or(f64::NAN, |row| row[*i]),
+        }));
+    }
+}
+
+/// What to do with frames that miss inputs.
+pub enum Incomplete<'a> {
+    /// Leave them out.
+    Drop,
+    /// Keep them (the model fills them) when this holds for the number of marker inputs,
+    /// unless [`unfillable`] says a frame cannot be filled (left out); otherwise refuse the
+    /// table.
+    FillIf(&'a dyn Fn(usize) -> bool),
+}
+
+/// Features and labels joined on `frame`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrainingTable {
+    /// Input rows (per-marker features, then the field summary and the extra inputs).
+    pub x: Vec<Vec<f64>>,
+    /// Target rows.
+    pub t: Vec<Vec<f64>>,
+    /// Names of the input columns: the markers' features, then the field summary and the
+    /// extra inputs.
+    pub feature_columns: Vec<String>,
+    /// How many of the columns, at the end, are not markers' features.
+    pub passthrough: usize,
+    /// What was left out or kept, one line each (`note: …`, `warning: …`).
+    pub notes: Vec<String>,
+}
+
+impl TrainingTable {
+    /// How many of the columns are markers' features.
+    pub fn marker_inputs(&self) -> usize {
+        self.feature_columns.len() - self.passthrough
+    }
+}
+
+/// How a training table is joined.
+pub struct JoinConfig<'a> {
+    /// Target columns of the labels.
+    pub targets: &'a [String],
+    /// Inputs besides the markers' features and the field summary.
+    pub extra_inputs: &'a [String],
+    /// Which of the markers' features and the field summary are inputs.
+    pub field: FieldInputs,
+    /// Frames with missing inputs.
+    pub incomplete: Incomplete<'a>,
+}
+
+/// The input columns for `field` of a feature table (markers' features first).
+fn input_names(
+    features: Named<'_>,
+    cfg: &JoinConfig<'_>,
+    notes: &mut Vec<String>,
+) -> Result<Vec<String>, JoinError> {
+    let f = features.table;
+    let mut names: Vec<String> = f
+        .columns
+        .iter()
+        .filter(|c| is_marker_column(c))
+        .cloned()
+        .collect();
+    if names.is_empty() {
+        return Err(JoinError::NoMarkerColumns {
+            features: features.name.to_string(),
+        });
+    }
+    let has_field = FIELD_COLUMNS.iter().all(|c| f.column(c).is_some());
+    let field = cfg.field.resolve(names.len());
+    let field_names = FIELD_COLUMNS.iter().map(|c| (*c).to_string());
+    match field {
+        FieldInputs::No => {}
+        FieldInputs::Only if !has_field => {
+            return Err(JoinError::NoFieldColumns {
+                features: features.name.to_string(),
+            })
+        }
+        _ if !has_field => notes.push(format!(
+            "note: {} has no field-summary columns (extracted by an older visuotact): the markers' features only",
+            features.name
+        )),
+        FieldInputs::Yes | FieldInputs::Auto => names.extend(field_names),
+        FieldInputs::Only => {
+            names.clear();
+            names.extend(field_names);
+        }
+    }
+    names.extend(cfg.extra_inputs.iter().cloned());
+    Ok(names)
+}
+
+/// Joins `features` (and the extra inputs, from it or `readings`) with `labels` on `frame`.
+pub fn training_table(
+    features: Named<'_>,
+    labels: Named<'_>,
+    readings: Option<Named<'_>>,
+    cfg: &JoinConfig<'_>,
+) -> Result<TrainingTable, JoinError> {
+    let mut notes = Vec::new();
+    let names = input_names(features, cfg, &mut notes)?;
+    let marker_inputs = names.iter().filter(|c| is_marker_column(c)).count();
+    let sources = InputSources::new(&names, features, readings, "an input named by --inputs")?;
+    let l = labels.table;
+    let tcols: Vec<usize> = cfg
+        .targets
+        .iter()
+        .map(|t| {
+            l.column(t).ok_or_else(|| JoinError::NoTarget {
+                labels: labels.name.to_string(),
+                column: t.clone(),
+                columns: l.columns.join(", "),
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let by_key = l.rows_by_key();
+    let drop = matches!(cfg.incomplete, Incomplete::Drop);
+    let fill = match cfg.incomplete {
+        Incomplete::Drop => false,
+        Incomplete::FillIf(f) => f(marker_inputs),
+    };
+    let mut out = TrainingTable::default();
+    let (mut unlabelled, mut dropped, mut filled_frames, mut filled_cells) = (0, 0, 0, 0);
+    let mut xi = Vec::with_capacity(names.len());
+    for (r, key) in features.table.keys.iter().enumerate() {
+        let Some(&li) = by_key.get(key.as_str()) else {
+            unlabelled += 1;
+            continue;
+        };
+        sources.row_into(r, &mut xi);
+        let missing = xi.iter().filter(|v| v.is_nan()).count();
+        if missing > 0 && fill && unfillable(&names, &xi).is_none() {
+            filled_frames += 1;
+            filled_cells += missing;
+        } else if let Some(c) = xi.iter().position(|v| v.is_nan()) {
+            if drop || fill {
+                dropped += 1;
+                continue;
+            }
+            return Err(JoinError::MissingInput {
+                features: features.name.to_string(),
+                line: r + 2,
+                frame: key.clone(),
+                column: names[c].clone(),
+                why: if is_marker_column(&names[c]) {
+                    "a lost marker".to_string()
+                } else {
+                    format!("no reading `{}` for this frame", names[c])
+                },
+            });
+        }
+        let ti: Vec<f64> = tcols.iter().map(|&c| l.rows[li][c]).collect();
+        if let Some(c) = ti.iter().position(|v| v.is_nan()) {
+            return Err(JoinError::MissingTarget {
+                labels: labels.name.to_string(),
+                frame: key.clone(),
+                column: cfg.targets[c].clone(),
+            });
+        }
+        out.x.push(xi.clone());
+        out.t.push(ti);
+    }
+    if unlabelled > 0 {
+        notes.push(format!(
+            "warning: {unlabelled} feature rows have no label in {} and were left out",
+            labels.name
+        ));
+    }
+    if dropped > 0 {
+        notes.push(format!(
+            "warning: {dropped} frames with missing inputs were left out"
+        ));
+    }
+    if filled_frames > 0 {
+        notes.push(format!(
+            "{filled_frames} frames with lost markers kept: {filled_cells} inputs filled from the markers found"
+        ));
+    }
+    if out.x.len() < 10 {
+        return Err(JoinError::TooFew {
+            frames: out.x.len(),
+            features: features.name.to_string(),
+            labels: labels.name.to_string(),
+        });
+    }
+    out.passthrough = names.len() - marker_inputs;
+    out.feature_columns = names;
+    out.notes = notes;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(columns: &[&str], rows: Vec<(String, Vec<f64>)>) -> KeyedTable {
+        KeyedTable {
+            columns: columns.iter().map(|c| c.to_string()).collect(),
+            text: vec![Vec::new(); rows.len()],
+            keys: rows.iter().map(|(k, _)| k.clone()).collect(),
+            rows: rows.into_iter().map(|(_, r)| r).collect(),
+            dropped_partial_line: false,
+        }
+    }
+
+    /// 12 frames of two markers' dx and the field summary; frame 3 lost marker 1.
+    fn features() -> KeyedTable {
+        let mut cols = vec!["n_found", "m000_dx_px", "m001_dx_px"];
+        cols.extend(FIELD_COLUMNS);
+        table(
+            &cols,
+            (0..12)
+                .map(|k| {
+                    let v = f64::from(k);
+                    let lost = if k == 3 { f64::NAN } else { -v };
+                    let mut row = vec![2.0, v, lost];
+                    row.extend([v; 6]);
+                    (format!("f{k}"), row)
+                })
+                .collect(),
+        )
+    }
+
+    fn labels() -> KeyedTable {
+        table(
+            &["x_mm", "gauge_kpa"],
+            (0..12)
+                .map(|k| (format!("f{k}"), vec![f64::from(k) * 0.5, 100.0]))
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn inputs_are_picked_by_name_and_lost_markers_kept_or_refused() {
+        let (f, l) = (features(), labels());
+        let named = |table, name| Named { table, name };
+        let targets = ["x_mm".to_string()];
+        let extra = ["gauge_kpa".to_string()];
+        let fills = |_: usize| true;
+        let cfg = JoinConfig {
+            targets: &targets,
+            extra_inputs: &extra,
+            field: FieldInputs::Yes,
+            incomplete: Incomplete::FillIf(&fills),
+        };
+        let t = training_table(
+            named(&f, "f.csv"),
+            named(&l, "l.csv"),
+            Some(named(&l, "l.csv")),
+            &cfg,
+        )
+        .unwrap();
+        assert_eq!(t.feature_columns.len(), 2 + 6 + 1);
+        assert_eq!((t.marker_inputs(), t.passthrough), (2, 7));
+        assert_eq!(t.x.len(), 12);
+        assert_eq!(t.x[5][..3], [5.0, -5.0, 5.0]);
+        assert_eq!(t.x[5][8], 100.0, "the gauge from the readings table");
+        assert!(
+            t.notes[0].starts_with("1 frames with lost markers kept"),
+            "{:?}",
+            t.notes
+        );
+        // Without filling, the lost marker is refused with its line, frame and column.
+        let refuse = |_: usize| false;
+        let cfg = JoinConfig {
+            incomplete: Incomplete::FillIf(&refuse),
+            extra_inputs: &[],
+            ..cfg
+        };
+        let err = training_table(named(&f, "f.csv"), named(&l, "l.csv"), None, &cfg).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "f.csv: line 5, frame f3, column `m001_dx_px`: missing value (a lost marker); use --drop-incomplete to leave such frames out"
+        );
+        // The field summary alone; a target that is not there.
+        let only = JoinConfig {
+            field: FieldInputs::Only,
+            incomplete: Incomplete::Drop,
+            ..cfg
+        };
+        let t = training_table(named(&f, "f.csv"), named(&l, "l.csv"), None, &only).unwrap();
+        assert_eq!(t.feature_columns, FIELD_COLUMNS.map(String::from));
+        let wrong = ["y_mm".to_string()];
+        let err = training_table(
+            named(&f, "f.csv"),
+            named(&l, "l.csv"),
+            None,
+            &JoinConfig {
+                targets: &wrong,
+                ..only
+            },
+        )
+        .unwrap_err();
+        assert!(matches!(err, JoinError::NoTarget { .. }), "{err}");
+    }
+}
