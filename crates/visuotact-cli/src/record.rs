@@ -22,13 +22,10 @@ use visuotact_io::force::{ForceLayout, ForceReceiver, ForceSample, ForceTable, R
 use visuotact_io::frames::{write_png, FrameStream};
 use visuotact_io::session::{probe_writable, AppendLog, SESSION_FORMAT, SESSION_VERSION};
 use visuotact_io::table::{format_number, push_csv_row};
-use visuotact_sim::cone::{ConeConfig, ConeLoad};
-use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
-use visuotact_sim::protocol::{self, ConePress};
 
 use crate::extract::{feature_row_into, flags_of, LEAD_COLUMNS};
-use visuotact_sim::rig::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
+use visuotact_sim::rig::{frame_seed, SimRig};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -93,112 +90,24 @@ pub(crate) struct Args {
     references: usize,
 }
 
-/// What the frame loop gets from a source.
-struct Captured {
+/// A frame the recorder writes: from a simulated rig (with its labels), a file or a camera,
+/// on the recorder's clock.
+struct RecordedFrame {
     id: String,
     timestamp_s: f64,
     image: RgbImage,
     labels: Vec<f64>,
 }
 
-/// A simulated rig: frames on a real-time clock and the truth behind them.
-enum Sim {
-    Cone {
-        cfg: ConeConfig,
-        press: ConePress,
-        rest_s: f64,
-    },
-    Iats {
-        cfg: IatsConfig,
-        touches: Vec<Touch>,
-    },
-}
-
-impl Sim {
-    fn label_columns(&self) -> Vec<&'static str> {
-        match self {
-            Sim::Cone { .. } => CONE_LABELS.to_vec(),
-            Sim::Iats { .. } => vec!["x_mm", "y_mm", "depth_mm"],
-        }
-    }
-
-    fn total_s(&self, fps: f64) -> f64 {
-        match self {
-            Sim::Cone { press, rest_s, .. } => press.duration_s + 2.0 * rest_s,
-            Sim::Iats { touches, .. } => touches.len() as f64 / fps,
-        }
-    }
-
-    fn cone_load(cfg: &ConeConfig, press: &ConePress, rest_s: f64, t: f64) -> ConeLoad {
-        if t >= rest_s && t <= rest_s + press.duration_s {
-            press.load_at(cfg, t - rest_s, rest_s)
-        } else {
-            ConeLoad::none(press.drift.at(cfg.pressure_kpa, t))
-        }
-    }
-
-    fn reference(&self, seed: u64) -> anyhow::Result<RgbImage> {
-        Ok(match self {
-            Sim::Cone { cfg, .. } => {
-                visuotact_sim::cone::render(cfg, &ConeLoad::none(cfg.pressure_kpa), seed)
-                    .map_err(anyhow::Error::msg)?
-                    .0
-            }
-            Sim::Iats { cfg, .. } => {
-                visuotact_sim::iats::render(cfg, &Touch::default(), seed)
-                    .map_err(anyhow::Error::msg)?
-                    .0
-            }
-        })
-    }
-
-    /// Frame `k` at time `t` s: image and labels.
-    fn frame(&self, k: usize, t: f64, seed: u64) -> anyhow::Result<(RgbImage, Vec<f64>)> {
-        match self {
-            Sim::Cone { cfg, press, rest_s } => {
-                let load = Self::cone_load(cfg, press, *rest_s, t);
-                let img = visuotact_sim::cone::render(cfg, &load, seed)
-                    .map_err(anyhow::Error::msg)?
-                    .0;
-                Ok((img, cone_labels(cfg, press, &load, t, seed ^ GAUGE_SEED)))
-            }
-            Sim::Iats { cfg, touches } => {
-                let t = &touches[k % touches.len()];
-                let img = visuotact_sim::iats::render(cfg, t, seed)
-                    .map_err(anyhow::Error::msg)?
-                    .0;
-                Ok((img, vec![t.x_mm, t.y_mm, t.depth_mm]))
-            }
-        }
-    }
-}
-
-fn sim_of(a: &Args, kind: &str) -> anyhow::Result<Sim> {
+fn sim_of(a: &Args, kind: &str) -> anyhow::Result<SimRig> {
     Ok(match kind {
         "cone" => {
-            let press = ConePress {
-                max_force_n: a.max_force_n,
-                duration_s: a.press_s,
-                ..ConePress::SEED001
-            };
-            press.validate().map_err(anyhow::Error::msg)?;
             if !(a.rest_s.is_finite() && a.rest_s >= 0.0) {
                 bail!("--rest-s must be ≥ 0");
             }
-            Sim::Cone {
-                cfg: ConeConfig::SEED001,
-                press,
-                rest_s: a.rest_s,
-            }
+            SimRig::cone(a.press_s, a.max_force_n, a.rest_s)?
         }
-        "iats" => {
-            let cfg = IatsConfig::SEED000;
-            let n = a.max_frames.unwrap_or(200).max(1);
-            Sim::Iats {
-                touches: protocol::iats_random(&cfg, n, a.seed),
-                cfg,
-            }
-        }
+        "iats" => SimRig::iats(a.max_frames.unwrap_or(200).max(1), a.seed),
         other => bail!("--source sim:{other}: expected sim:cone or sim:iats"),
     })
 }
@@ -219,7 +128,7 @@ struct Jr3Stream<'a> {
 
 /// Sends the simulated JR3 stream of the cone rig, paced in real time, until `stop`.
 fn spawn_jr3(
-    sim: &Sim,
+    sim: &SimRig,
     j: Jr3Stream<'_>,
     stop: Arc<AtomicBool>,
 ) -> anyhow::Result<Option<std::thread::JoinHandle<u64>>> {
@@ -232,7 +141,7 @@ fn spawn_jr3(
         t_from,
         t_end,
     } = j;
-    let Sim::Cone { cfg, press, rest_s } = sim else {
+    let SimRig::Cone { cfg, press, rest_s } = sim else {
         return Ok(None);
     };
     let (cfg, press, rest_s) = (*cfg, *press, *rest_s);
@@ -258,7 +167,7 @@ fn spawn_jr3(
             if due > now + Duration::from_micros(300) {
                 std::thread::sleep(due - now);
             }
-            let load = Sim::cone_load(&cfg, &press, rest_s, t);
+            let load = SimRig::cone_load(&cfg, &press, rest_s, t);
             let s = ForceSample {
                 timestamp_s: t,
                 values: jr3.sample(load.components_n()),
@@ -560,7 +469,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                         std::thread::sleep(Duration::from_secs_f64(due - el));
                     }
                     let (image, labels) = s.frame(k, t, frame_seed(a.seed, k as u64))?;
-                    Captured {
+                    RecordedFrame {
                         id: format!("frame_{k:06}.png"),
                         timestamp_s: t,
                         image,
@@ -578,7 +487,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                         if done.contains(&fr.id) {
                             continue;
                         }
-                        Captured {
+                        RecordedFrame {
                             id: fr.id,
                             timestamp_s: fr.timestamp_s,
                             image: fr.image,
@@ -587,7 +496,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                     }
                 },
                 (None, None) => match camera.as_ref().and_then(|(q, _)| q.pop()) {
-                    Some(c) => Captured {
+                    Some(c) => RecordedFrame {
                         id: format!("frame_{k:06}.png"),
                         timestamp_s: t_offset + c.timestamp_s,
                         image: Arc::try_unwrap(c.image).unwrap_or_else(|a| (*a).clone()),

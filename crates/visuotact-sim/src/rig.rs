@@ -1,12 +1,15 @@
 //! Simulated rigs as the command line, the demo and live runs use them: one seed mixer for
 //! every frame's noise ([`frame_seed`]), the cone's label row with its pressure gauge
-//! ([`cone_labels`]), and the looping camera of a live run ([`live_frames`]).
+//! ([`cone_labels`]), the looping camera of a live run ([`live_frames`]) and the recorder's rigs
+//! ([`SimRig`]).
 
 use crate::cone::{ConeConfig, ConeLoad};
 use crate::iats::{IatsConfig, Touch};
 use crate::protocol::{ConePress, PressureGauge};
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
+
+use crate::SimError;
 
 /// Per-frame noise seed: SplitMix64 of the session seed and the frame number.
 pub fn frame_seed(seed: u64, k: u64) -> u64 {
@@ -100,6 +103,110 @@ pub fn live_frames(
     }
 }
 
+/// A simulated rig for recording: frames on a real-time clock and the truth behind them.
+#[derive(Clone, Debug)]
+pub enum SimRig {
+    /// Seed 001's cone: rest, one press and release, rest; labels [`CONE_LABELS`].
+    Cone {
+        /// The link.
+        cfg: ConeConfig,
+        /// The press.
+        press: ConePress,
+        /// Rest before and after the press, seconds.
+        rest_s: f64,
+    },
+    /// Seed 000's membrane: one random touch per frame; labels `x_mm, y_mm, depth_mm`.
+    Iats {
+        /// The sensor.
+        cfg: IatsConfig,
+        /// The touches, cycled.
+        touches: Vec<Touch>,
+    },
+}
+
+impl SimRig {
+    /// Seed 001's cone pressed for `press_s` up to `max_force_n`, with `rest_s` at rest
+    /// before and after.
+    pub fn cone(press_s: f64, max_force_n: f64, rest_s: f64) -> Result<Self, SimError> {
+        let press = ConePress {
+            max_force_n,
+            duration_s: press_s,
+            ..ConePress::SEED001
+        };
+        press.validate()?;
+        if !(rest_s.is_finite() && rest_s >= 0.0) {
+            return Err(SimError(format!("rest of {rest_s} s: must be ≥ 0")));
+        }
+        Ok(Self::Cone {
+            cfg: ConeConfig::SEED001,
+            press,
+            rest_s,
+        })
+    }
+
+    /// Seed 000's membrane under `n` random touches drawn with `seed`.
+    pub fn iats(n: usize, seed: u64) -> Self {
+        let cfg = IatsConfig::SEED000;
+        Self::Iats {
+            touches: crate::protocol::iats_random(&cfg, n.max(1), seed),
+            cfg,
+        }
+    }
+
+    /// The label columns of [`SimRig::frame`].
+    pub fn label_columns(&self) -> Vec<&'static str> {
+        match self {
+            Self::Cone { .. } => CONE_LABELS.to_vec(),
+            Self::Iats { .. } => vec!["x_mm", "y_mm", "depth_mm"],
+        }
+    }
+
+    /// The session's length at `fps`, seconds.
+    pub fn total_s(&self, fps: f64) -> f64 {
+        match self {
+            Self::Cone { press, rest_s, .. } => press.duration_s + 2.0 * rest_s,
+            Self::Iats { touches, .. } => touches.len() as f64 / fps,
+        }
+    }
+
+    /// The cone's load at `t` s: `press` after `rest_s` at rest, the drifting link at rest
+    /// otherwise.
+    pub fn cone_load(cfg: &ConeConfig, press: &ConePress, rest_s: f64, t: f64) -> ConeLoad {
+        if t >= rest_s && t <= rest_s + press.duration_s {
+            press.load_at(cfg, t - rest_s, rest_s)
+        } else {
+            ConeLoad::none(press.drift.at(cfg.pressure_kpa, t))
+        }
+    }
+
+    /// A contact-free reference frame, its noise from `seed`.
+    pub fn reference(&self, seed: u64) -> Result<RgbImage, SimError> {
+        Ok(match self {
+            Self::Cone { cfg, .. } => {
+                crate::cone::render(cfg, &ConeLoad::none(cfg.pressure_kpa), seed)?.0
+            }
+            Self::Iats { cfg, .. } => crate::iats::render(cfg, &Touch::default(), seed)?.0,
+        })
+    }
+
+    /// Frame `k` at time `t_s`: image and labels (the gauge's noise and the frame's from
+    /// `seed`).
+    pub fn frame(&self, k: usize, t_s: f64, seed: u64) -> Result<(RgbImage, Vec<f64>), SimError> {
+        match self {
+            Self::Cone { cfg, press, rest_s } => {
+                let load = Self::cone_load(cfg, press, *rest_s, t_s);
+                let img = crate::cone::render(cfg, &load, seed)?.0;
+                Ok((img, cone_labels(cfg, press, &load, t_s, seed ^ GAUGE_SEED)))
+            }
+            Self::Iats { cfg, touches } => {
+                let t = &touches[k % touches.len()];
+                let img = crate::iats::render(cfg, t, seed)?.0;
+                Ok((img, vec![t.x_mm, t.y_mm, t.depth_mm]))
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -113,6 +220,21 @@ mod tests {
         assert_eq!(unique.len(), 100);
         assert_ne!(frame_seed(1, 0), frame_seed(2, 0));
         assert_eq!(frame_seed(7, 3), frame_seed(7, 3));
+    }
+
+    #[test]
+    fn a_cone_rig_rests_presses_and_rests() {
+        let rig = SimRig::cone(1.0, 5.0, 0.5).unwrap();
+        assert_eq!(rig.total_s(25.0), 2.0);
+        assert_eq!(rig.label_columns(), CONE_LABELS);
+        let (_, rest) = rig.frame(0, 0.1, 1).unwrap();
+        let (_, pressed) = rig.frame(25, 1.0, 1).unwrap();
+        assert_eq!(rest[0], 0.0);
+        assert!(pressed[0] > 1.0, "{pressed:?}");
+        assert!(SimRig::cone(1.0, 5.0, -1.0).is_err());
+        let iats = SimRig::iats(3, 7);
+        assert_eq!(iats.total_s(3.0), 1.0);
+        assert_eq!(iats.frame(4, 0.0, 1).unwrap().1.len(), 3);
     }
 
     #[test]
