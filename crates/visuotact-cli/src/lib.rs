@@ -10,7 +10,6 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod blobs;
 mod calibrate;
-mod dashboard;
 mod dataset;
 mod demo;
 mod extract;

@@ -287,11 +287,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         None => None,
     };
     let dashboard = match &a.serve {
-        Some(addr) => Some(crate::dashboard::Dashboard::start(
-            addr,
-            live.calibration(),
-            live.target_names(),
-        )?),
+        Some(addr) => Some(
+            visuotact_dashboard::Dashboard::start(addr, live.calibration(), live.target_names())
+                .map_err(|e| anyhow::anyhow!("--serve {e}"))?,
+        ),
         None => None,
     };
     let queue = Arc::new(LatestQueue::new(a.queue));

@@ -10,7 +10,6 @@ use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use anyhow::Context;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::State;
 use axum::http::header;
@@ -22,6 +21,28 @@ use visuotact_image::RgbImage;
 use visuotact_vision::calibration::SensorCalibration;
 
 use visuotact_pipeline::live::MarkerView;
+
+/// Why the dashboard could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum DashboardError {
+    /// The address does not parse.
+    #[error("{addr:?}: expected HOST:PORT, e.g. 127.0.0.1:8080")]
+    Address {
+        /// The address given.
+        addr: String,
+    },
+    /// The server's runtime could not start.
+    #[error("cannot start the dashboard's runtime: {0}")]
+    Runtime(std::io::Error),
+    /// Nothing can listen there.
+    #[error("{addr}: cannot listen: {source}")]
+    Listen {
+        /// The address.
+        addr: SocketAddr,
+        /// Why.
+        source: std::io::Error,
+    },
+}
 
 /// The page, embedded.
 const PAGE: &str = include_str!("../assets/dashboard.html");
@@ -41,7 +62,7 @@ struct Shared {
 }
 
 /// A running dashboard server.
-pub(crate) struct Dashboard {
+pub struct Dashboard {
     shared: Arc<Shared>,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -49,13 +70,13 @@ pub(crate) struct Dashboard {
 
 impl Dashboard {
     /// Serves on `addr` from a thread of its own.
-    pub(crate) fn start(
+    pub fn start(
         addr: &str,
         cal: &SensorCalibration,
         targets: Vec<String>,
-    ) -> anyhow::Result<Self> {
-        let sock: SocketAddr = addr.parse().with_context(|| {
-            format!("--serve {addr:?}: expected HOST:PORT, e.g. 127.0.0.1:8080")
+    ) -> Result<Self, DashboardError> {
+        let sock: SocketAddr = addr.parse().map_err(|_| DashboardError::Address {
+            addr: addr.to_string(),
         })?;
         if !sock.ip().is_loopback() {
             eprintln!("warning: the dashboard on {sock} is reachable from other machines");
@@ -80,11 +101,12 @@ impl Dashboard {
             .worker_threads(1)
             .enable_all()
             .build()
-            .context("cannot start the dashboard's runtime")?;
+            .map_err(DashboardError::Runtime)?;
+        let listen = |source| DashboardError::Listen { addr: sock, source };
         let listener = rt
             .block_on(tokio::net::TcpListener::bind(sock))
-            .with_context(|| format!("--serve {sock}: cannot listen"))?;
-        let bound = listener.local_addr()?;
+            .map_err(listen)?;
+        let bound = listener.local_addr().map_err(listen)?;
         let app = Router::new()
             .route("/", get(|| async { Html(PAGE) }))
             .route("/ws", get(ws))
@@ -113,28 +135,28 @@ impl Dashboard {
     }
 
     /// Whether a WebSocket client is connected (the estimator then prepares drawing data).
-    pub(crate) fn has_clients(&self) -> bool {
+    pub fn has_clients(&self) -> bool {
         self.shared.clients.load(Ordering::Relaxed) > 0
     }
 
     /// Whether the re-zero button was pressed since the last call.
-    pub(crate) fn take_rezero(&self) -> bool {
+    pub fn take_rezero(&self) -> bool {
         self.shared.rezero.swap(false, Ordering::Relaxed)
     }
 
     /// The estimator re-zeroed (the count goes out with the next estimates).
-    pub(crate) fn rezero_applied(&self) {
+    pub fn rezero_applied(&self) {
         self.shared.rezero_applied.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Messages lost by slow clients.
-    pub(crate) fn dropped(&self) -> u64 {
+    pub fn dropped(&self) -> u64 {
         self.shared.dropped.load(Ordering::Relaxed)
     }
 
     /// Sends an estimate to every client and keeps the frame for `/frame.jpg`.
     /// `estimate_json` is the estimate as already serialised for the other outputs.
-    pub(crate) fn publish(
+    pub fn publish(
         &self,
         estimate_json: &str,
         markers: Option<&[MarkerView]>,
@@ -165,7 +187,7 @@ impl Dashboard {
     }
 
     /// Stops the server.
-    pub(crate) fn stop(mut self) {
+    pub fn stop(mut self) {
         if let Some(s) = self.shutdown.take() {
             let _ = s.send(());
         }
