@@ -21,6 +21,7 @@ use visuotact_image::RgbImage;
 use visuotact_io::force::{ForceLayout, ForceReceiver, ForceSample, ForceTable, ReceiveStats};
 use visuotact_io::frames::{write_png, FrameStream};
 use visuotact_io::session::{probe_writable, AppendLog, SESSION_FORMAT, SESSION_VERSION};
+use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
 
@@ -240,9 +241,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let sync = Duration::from_secs_f64(a.sync_every_s);
 
     // Sources.
-    let sim = match a.source.strip_prefix("sim:") {
-        Some(kind) => Some(sim_of(a, kind)?),
-        None => None,
+    let source = SourceSpec::parse(&a.source);
+    let sim = match &source {
+        SourceSpec::Sim(kind) => Some(sim_of(a, kind)?),
+        _ => None,
     };
     let model = a
         .model
@@ -412,8 +414,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
 
     // Frames.
     // A camera captures on its own thread into a drop-oldest queue, timestamped on arrival.
-    let camera = match a.source.strip_prefix("camera:") {
-        Some(dev) => {
+    let camera = match &source {
+        SourceSpec::Camera(dev) => {
             let q = Arc::new(visuotact_pipeline::LatestQueue::new(4));
             let h = visuotact_io::camera::spawn(
                 dev,
@@ -426,18 +428,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             )?;
             Some((q, h))
         }
-        None => None,
+        _ => None,
     };
-    let mut stream = match (&sim, &camera) {
-        (Some(_), _) | (_, Some(_)) => None,
-        _ => {
-            let spec = a
-                .source
-                .strip_prefix("frames:")
-                .or_else(|| a.source.strip_prefix("video:"))
-                .unwrap_or(&a.source);
-            Some(FrameStream::open(&[PathBuf::from(spec)], a.fps)?)
-        }
+    let mut stream = match &source {
+        SourceSpec::Frames(path) => Some(FrameStream::open(std::slice::from_ref(path), a.fps)?),
+        _ => None,
     };
     let (mut written, mut dropped, mut failed) = (0usize, 0usize, 0usize);
     let n_targets = est.as_ref().map_or(0, |e| e.target_columns().len());

@@ -20,6 +20,7 @@ use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::camera::CameraRequest;
 use visuotact_io::frames::FrameStream;
+use visuotact_io::source::SourceSpec;
 
 use visuotact_pipeline::queue::median_p99;
 use visuotact_pipeline::{
@@ -107,26 +108,18 @@ enum Source {
 
 impl Source {
     fn open(a: &Args) -> anyhow::Result<Self> {
-        if let Some(kind) = a.source.strip_prefix("sim:") {
-            let frames = visuotact_sim::rig::live_frames(kind, a.sim_frames, a.seed)
-                .map_err(|e| anyhow::anyhow!("--source {e}"))?
-                .into_iter()
-                .map(|(id, img)| (id, Arc::new(img)))
-                .collect();
-            return Ok(Self::Sim(frames));
-        }
-        if let Some(dev) = a.source.strip_prefix("camera:") {
-            return Ok(Self::Camera(dev.to_string()));
-        }
-        let spec = a
-            .source
-            .strip_prefix("frames:")
-            .or_else(|| a.source.strip_prefix("video:"))
-            .unwrap_or(&a.source);
-        Ok(Self::Stream(FrameStream::open(
-            &[PathBuf::from(spec)],
-            a.fps,
-        )?))
+        Ok(match SourceSpec::parse(&a.source) {
+            SourceSpec::Sim(kind) => {
+                let frames = visuotact_sim::rig::live_frames(&kind, a.sim_frames, a.seed)
+                    .map_err(|e| anyhow::anyhow!("--source {e}"))?
+                    .into_iter()
+                    .map(|(id, img)| (id, Arc::new(img)))
+                    .collect();
+                Self::Sim(frames)
+            }
+            SourceSpec::Camera(dev) => Self::Camera(dev),
+            SourceSpec::Frames(path) => Self::Stream(FrameStream::open(&[path], a.fps)?),
+        })
     }
 
     /// Starts the capture thread; frames are paced on `clock` unless `--unpaced`.

@@ -12,4 +12,5 @@ pub mod force;
 pub mod frames;
 pub mod queue;
 pub mod session;
+pub mod source;
 pub mod table;
