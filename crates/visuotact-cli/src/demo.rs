@@ -121,7 +121,7 @@ fn inputs_of_rows(
     model: &Model,
     columns: &[String],
 ) -> anyhow::Result<impl Fn(&[f64]) -> Vec<f64>> {
-    let picks = model.columns_in(columns).map_err(anyhow::Error::msg)?;
+    let picks = model.columns_in(columns)?;
     Ok(move |row: &[f64]| picks.iter().map(|&i| row[i]).collect())
 }
 
@@ -498,25 +498,21 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     let (default, _) = train(&x, &t, &columns, &force, &default_config_rings, &sets)?;
     let (default_g_config, sets_g) = default_config(&gauge_columns, a.seed);
     let (default_g, _) = train(&xg, &tg, &gauge_columns, &force, &default_g_config, &sets_g)?;
-    // A model's errors over frames whose features are columns of the training table's (the
-    // model reads its own columns of them).
-    let errors_on = |model: &Model, feats: &[Option<Vec<f64>>], loads: &[ConeLoad]| {
-        let names = if model.feature_columns.iter().any(|c| c == "gauge_kpa") {
-            &gauge_columns
-        } else {
-            &columns
-        };
-        let pick = inputs_of_rows(model, names)?;
-        let (mut est, mut tru) = (Vec::new(), Vec::new());
-        for (f, l) in feats.iter().zip(loads) {
-            if let Some(f) = f {
-                est.push(model.predict(&pick(f))[0]);
-                tru.push(l.force_n);
+    // A model's errors over frames whose features are rows of `names` (the model reads its
+    // own columns of them).
+    let errors_on =
+        |model: &Model, names: &[String], feats: &[Option<Vec<f64>>], loads: &[ConeLoad]| {
+            let pick = inputs_of_rows(model, names)?;
+            let (mut est, mut tru) = (Vec::new(), Vec::new());
+            for (f, l) in feats.iter().zip(loads) {
+                if let Some(f) = f {
+                    est.push(model.predict(&pick(f))[0]);
+                    tru.push(l.force_n);
+                }
             }
-        }
-        anyhow::Ok(target_errors("force_n", &est, &tru))
-    };
-    let unseen = errors_on(&model, &fte, &test_loads)?;
+            anyhow::Ok(target_errors("force_n", &est, &tru))
+        };
+    let unseen = errors_on(&model, &columns, &fte, &test_loads)?;
     // Seed 001's own protocol: 1..40 neurons × repeats, the best net kept (lowest test MSE),
     // then run by the Neural Network Testing Model over the recorded press.
     let repeats: u64 = if a.quick { 2 } else { 5 };
@@ -570,8 +566,16 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     };
     let own = "best of sweep, over its own press (paper's way)";
     let later = "best of sweep, on a later press (unseen)";
-    line(own, "rings", &errors_on(&best, &ftr, &train_loads)?);
-    line(later, "rings", &errors_on(&best, &fte, &test_loads)?);
+    line(
+        own,
+        "rings",
+        &errors_on(&best, &columns, &ftr, &train_loads)?,
+    );
+    line(
+        later,
+        "rings",
+        &errors_on(&best, &columns, &fte, &test_loads)?,
+    );
     line(
         "6 → 20 → 1, one training, on the later press",
         "rings",
@@ -585,22 +589,22 @@ fn cone(a: &Args) -> anyhow::Result<()> {
     line(
         &default_row,
         "rings",
-        &errors_on(&default, &fte, &test_loads)?,
+        &errors_on(&default, &columns, &fte, &test_loads)?,
     );
     line(
         own,
         "rings + gauge",
-        &errors_on(&best_g, &gtr, &train_loads)?,
+        &errors_on(&best_g, &gauge_columns, &gtr, &train_loads)?,
     );
     line(
         later,
         "rings + gauge",
-        &errors_on(&best_g, &gte, &test_loads)?,
+        &errors_on(&best_g, &gauge_columns, &gte, &test_loads)?,
     );
     line(
         &default_row,
         "rings + gauge",
-        &errors_on(&default_g, &gte, &test_loads)?,
+        &errors_on(&default_g, &gauge_columns, &gte, &test_loads)?,
     );
     println!(
         "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2}",

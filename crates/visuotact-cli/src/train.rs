@@ -153,8 +153,7 @@ impl ExtraInputs {
 
 /// A readings table keyed by `frame` (every column numeric), when one is given.
 pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedTable>> {
-    path.map(|p| KeyedTable::read(p, &[]).map_err(anyhow::Error::msg))
-        .transpose()
+    Ok(path.map(|p| KeyedTable::read(p, &[])).transpose()?)
 }
 
 impl DataArgs {

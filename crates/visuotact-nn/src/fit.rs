@@ -45,7 +45,9 @@ pub fn auto_field(inputs: usize) -> bool {
 /// (`visuotact train --field`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FieldInputs {
-    /// `Yes` when [`auto_field`] says so for the markers' features, else `No`.
+    /// When [`auto_field`] says so for the markers' features, the table keeps the field
+    /// summary beside them ([`FieldInputs::resolve`] gives `Yes`) and training chooses between
+    /// the two together and the field summary alone ([`candidate_inputs`]); else `No`.
     Auto,
     /// The markers' features only.
     No,
@@ -146,14 +148,16 @@ impl InputSet {
         components: Option<usize>,
         keep: impl Fn(ColumnKind) -> bool,
     ) -> Self {
-        let of = |want: &dyn Fn(ColumnKind) -> bool| -> Vec<usize> {
+        let of = |kind: ColumnKind| -> Vec<usize> {
             (0..kinds.len())
-                .filter(|&i| keep(kinds[i]) && want(kinds[i]))
+                .filter(|&i| kinds[i] == kind && keep(kind))
                 .collect()
         };
-        let markers = of(&|k| k == ColumnKind::Marker);
-        let field = of(&|k| k == ColumnKind::Field);
-        let other = of(&|k| k == ColumnKind::Other);
+        let (markers, field, other) = (
+            of(ColumnKind::Marker),
+            of(ColumnKind::Field),
+            of(ColumnKind::Other),
+        );
         let components = components.filter(|_| !markers.is_empty());
         let mut parts = Vec::new();
         if !markers.is_empty() {
@@ -181,12 +185,11 @@ impl InputSet {
     }
 }
 
-/// The input sets training compares for a table whose columns are `kinds` after the
-/// `field` choice picked them: with [`FieldInputs::Auto`], the field summary and markers'
-/// features enough for [`auto_field`], the two (projected by `components`) against the field summary alone —
-/// which generalises better depends on the sensor (on a dense dot pattern the field summary
-/// alone halved the contact error; on the others the markers' features cut it further,
-/// docs/benchmarks.md). Otherwise every column, one set.
+/// The input sets training compares for a table whose columns are `kinds` after the `field`
+/// choice picked them. With [`FieldInputs::Auto`], the field summary and enough markers'
+/// features for [`auto_field`]: the two together (the markers' projected by `components`)
+/// against the field summary alone — which generalises better depends on the sensor
+/// (docs/benchmarks.md). Otherwise every column, one set.
 pub fn candidate_inputs(
     kinds: &[ColumnKind],
     components: Option<usize>,

@@ -17,7 +17,9 @@ use visuotact_nn::model::is_marker_column;
 use visuotact_signal::align::{AlignError, Resampler};
 use visuotact_signal::clean::{clean, CleanConfig, CleanError};
 use visuotact_vision::calibration::SensorCalibration;
-use visuotact_vision::features::{is_field_column, FeatureExtractor, FrameFeatures};
+use visuotact_vision::features::is_field_column;
+
+use crate::Estimator;
 
 /// How sessions become a table.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,7 +111,7 @@ pub enum DatasetError {
     },
     /// The sensor calibration cannot extract features.
     #[error("features: {0}")]
-    Features(#[from] visuotact_vision::ConfigError),
+    Features(#[from] crate::PipelineError),
 }
 
 /// One session's columns and rows.
@@ -325,25 +327,28 @@ fn labels_from_force(
     ))
 }
 
-/// Features of every frame in `dir`, extracted with `sensor`.
+/// Features of every frame in `dir`, extracted with `sensor` (by the pipeline's
+/// [`Estimator`], as `extract` and `record` do).
 fn extract(
     sensor: &SensorCalibration,
     dir: &Path,
     notes: &mut Vec<String>,
 ) -> Result<Columns, DatasetError> {
-    let mut ex =
-        FeatureExtractor::new(sensor.clone(), sensor.features).map_err(DatasetError::Features)?;
-    let cols = ex.column_names();
+    let mut est =
+        Estimator::new(Some(sensor.clone()), None).map_err(|e| DatasetError::Missing {
+            path: dir.to_path_buf(),
+            what: e.to_string(),
+        })?;
+    let cols = est.feature_columns();
     let mut out = HashMap::new();
-    let mut f = FrameFeatures::default();
     let stream = FrameStream::open(&[dir.to_path_buf()], 25.0).map_err(|e| DatasetError::Read {
         path: dir.to_path_buf(),
         why: e.to_string(),
     })?;
     for item in stream {
         match item {
-            Ok(frame) => match ex.extract_into(&frame.image, &mut f) {
-                Ok(()) => {
+            Ok(frame) => match est.features(&frame.image) {
+                Ok(f) => {
                     out.insert(frame.id, f.values.clone());
                 }
                 Err(e) => notes.push(format!("frame {}: {e}; skipped", frame.id)),

@@ -157,10 +157,7 @@ pub struct LiveEstimator {
     xy: Vec<Option<(usize, usize)>>,
     /// Calibrated marker positions, pixels.
     marker_px: Vec<(f32, f32)>,
-    contact_sigmas: f64,
-    contact_min_px: f64,
-    contact_markers: usize,
-    rezero_rate: f64,
+    cfg: LiveConfig,
     zeroed: Vec<f64>,
 }
 
@@ -226,10 +223,10 @@ impl LiveEstimator {
             jitter,
             xy,
             marker_px,
-            contact_sigmas: cfg.contact_sigmas,
-            contact_min_px: cfg.contact_min_px,
-            contact_markers: cfg.contact_markers.max(1),
-            rezero_rate: cfg.rezero_rate,
+            cfg: LiveConfig {
+                contact_markers: cfg.contact_markers.max(1),
+                ..*cfg
+            },
             zeroed: Vec::new(),
         })
     }
@@ -305,8 +302,9 @@ impl LiveEstimator {
                 if d.is_finite() {
                     max_disp = max_disp.max(d);
                     if d > self
+                        .cfg
                         .contact_min_px
-                        .max(self.contact_sigmas * self.jitter[m])
+                        .max(self.cfg.contact_sigmas * self.jitter[m])
                     {
                         moved += 1;
                     }
@@ -317,7 +315,7 @@ impl LiveEstimator {
                 }
             }
         }
-        let contact = moved >= self.contact_markers.min(self.marker_px.len().max(1));
+        let contact = moved >= self.cfg.contact_markers.min(self.marker_px.len().max(1));
         if let Some(out) = markers {
             out.clear();
             for (m, &(x, y)) in self.marker_px.iter().enumerate() {
@@ -334,11 +332,11 @@ impl LiveEstimator {
         }
         // No contact: follow the rest position (automatic re-zeroing), report no targets.
         if !contact {
-            if self.rezero_rate > 0.0 {
+            if self.cfg.rezero_rate > 0.0 {
                 let n = self.marker_values();
                 for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
                     if z.is_finite() {
-                        *b += self.rezero_rate * z;
+                        *b += self.cfg.rezero_rate * z;
                     }
                 }
             }
