@@ -7,23 +7,19 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-mod bench;
-mod blobs;
-mod calibrate;
-mod dataset;
-mod demo;
-mod extract;
-mod force;
-mod live;
-mod pattern;
-mod plot;
-mod record;
-mod replay;
-mod run;
-mod simulate;
-mod sweep;
-pub mod trackcheck;
-mod train;
+mod args;
+mod commands;
+mod files;
+mod print;
+
+use commands::{
+    bench, blobs, calibrate, dataset, demo, eval, extract, filter, pattern, predict, record,
+    replay, run, simulate, sweep, trackcheck, train,
+};
+pub(crate) use files::{
+    estimator, estimator_with_extra_inputs, fit_error, load_model, load_sensor, reference_note,
+    write_atomically,
+};
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.
 #[derive(Parser, Debug)]
@@ -54,15 +50,15 @@ enum Command {
     /// with the simulator's truth: lost visible markers, wrong identities, displacement error.
     CheckTracking(trackcheck::Args),
     /// Train a network (Levenberg–Marquardt) from features and labels → model.json.
-    Train(train::TrainArgs),
+    Train(train::Args),
     /// Train many hidden sizes × repeats on every core → sweep.csv, best model, plot.
     Sweep(sweep::Args),
     /// Run a model over a feature table → predictions.csv.
-    Predict(train::PredictArgs),
+    Predict(predict::Args),
     /// Error figures of predictions against labels (MSE, R, mean/max error, MPE, accuracy, D).
-    Eval(train::EvalArgs),
+    Eval(eval::Args),
     /// Force CSV → zero-phase low-passed, debiased CSV (and a before/after plot).
-    Filter(force::FilterArgs),
+    Filter(filter::Args),
     /// Session folders → features.csv + labels.csv for `train` (force filtered, debiased and
     /// aligned onto the frames).
     Dataset(dataset::Args),
@@ -109,11 +105,11 @@ where
         Command::Pattern(a) => pattern::run(&a),
         Command::Simulate(a) => simulate::run(&a),
         Command::CheckTracking(a) => trackcheck::run(&a),
-        Command::Train(a) => train::train(&a),
+        Command::Train(a) => train::run(&a),
         Command::Sweep(a) => sweep::run(&a),
-        Command::Predict(a) => train::predict(&a),
-        Command::Eval(a) => train::eval(&a),
-        Command::Filter(a) => force::filter(&a),
+        Command::Predict(a) => predict::run(&a),
+        Command::Eval(a) => eval::run(&a),
+        Command::Filter(a) => filter::run(&a),
         Command::Dataset(a) => dataset::run(&a),
         Command::Record(a) => record::run(&a),
         Command::Replay(a) => replay::run(&a),
@@ -136,42 +132,4 @@ where
             ExitCode::FAILURE
         }
     }
-}
-
-/// Reads a sensor file, naming it in errors.
-pub(crate) fn load_sensor(
-    path: &std::path::Path,
-) -> anyhow::Result<visuotact_vision::calibration::SensorCalibration> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| anyhow::anyhow!("{}: cannot read sensor file: {e}", path.display()))?;
-    visuotact_vision::calibration::SensorCalibration::from_json(&text, &path.display().to_string())
-        .map_err(anyhow::Error::msg)
-}
-
-/// A sentence for the user when a sensor's reference was taken under contact (its health
-/// flag), `None` otherwise.
-pub(crate) fn reference_note(r: &visuotact_vision::calibration::ReferenceInfo) -> Option<String> {
-    r.under_contact.then(|| {
-        format!(
-            "the sensor's reference was taken under contact ({} of {} frames chosen as the lightest, {:.2} px RMS from rest, {:.2} px at worst): displacements are relative to a lightly pressed skin",
-            r.method,
-            r.frames_considered,
-            r.residual_px.unwrap_or(f64::NAN),
-            r.residual_max_px.unwrap_or(f64::NAN)
-        )
-    })
-}
-
-/// Writes `text` to `path` through a temporary file and a rename, so a failure never leaves a
-/// half-written file over a good one.
-pub(crate) fn write_atomically(path: &std::path::Path, text: &str) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
-    }
-    let tmp = path.with_extension("tmp~");
-    std::fs::write(&tmp, text)
-        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path)
-        .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
-    Ok(())
 }

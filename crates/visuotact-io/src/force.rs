@@ -96,6 +96,14 @@ impl Default for ForceLayout {
     }
 }
 
+impl std::fmt::Display for ForceLayout {
+    /// The field names, comma-separated (what [`ForceLayout::parse`] reads back).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<&str> = self.fields.iter().map(|x| x.name()).collect();
+        f.write_str(&names.join(","))
+    }
+}
+
 impl ForceLayout {
     /// Parses a comma-separated field list, e.g. `counter,fx,fy,fz,tx,ty,tz`.
     pub fn parse(s: &str) -> Result<Self, PacketError> {

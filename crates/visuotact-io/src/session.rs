@@ -338,6 +338,20 @@ fn probe_file(path: &Path, bytes: usize) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Writes `text` to `path` through a temporary file and a rename, so a failure never leaves a
+/// half-written file over a good one. Creates the parent folder; errors name the file.
+pub fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
+    let named = |p: &Path, e: std::io::Error| {
+        std::io::Error::new(e.kind(), format!("{}: cannot write: {e}", p.display()))
+    };
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| named(dir, e))?;
+    }
+    let tmp = path.with_extension("tmp~");
+    std::fs::write(&tmp, text).map_err(|e| named(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| named(path, e))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,10 +25,14 @@
 //! ```
 
 pub mod dataset;
+pub mod demo;
 pub mod estimator;
 pub mod evaluation;
 pub mod live;
+pub mod record;
+pub mod schema;
 pub mod table;
+pub mod trackcheck;
 
 pub use estimator::{feature_set_of, Estimator, PipelineError};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};

@@ -259,9 +259,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let models = a
         .model
         .iter()
-        .map(|p| crate::train::load_model(p))
+        .map(|p| crate::load_model(p))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let mut est = crate::live::estimator(a.sensor.as_deref(), models.first().cloned())?;
+    let mut est = crate::estimator(a.sensor.as_deref(), models.first().cloned())?;
     est.set_temporal_prior(a.temporal);
     let mut live = LiveEstimator::new(est, models, &a.live_config())?;
     let stop = Arc::new(AtomicBool::new(false));

@@ -7,7 +7,9 @@
 //! motion stays within `MOTION_LIMIT_PITCHES` (frames beyond it are counted apart), and the
 //! mean displacement error is at most 0.05 px on grey-level frames.
 
-use visuotact_cli::trackcheck::{check, CheckConfig, CheckReport, SimSensor, MOTION_LIMIT_PITCHES};
+use visuotact_pipeline::trackcheck::{
+    check, CheckConfig, CheckReport, SimSensor, MOTION_LIMIT_PITCHES,
+};
 use visuotact_vision::detect::Centroid;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{TableFormat, TableWriter};
+use visuotact_pipeline::schema::{feature_columns, feature_row_into, flags_of, missing_summary};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
-use visuotact_vision::track::MarkerStatus;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -38,71 +38,6 @@ pub(crate) struct Args {
     max_warnings: usize,
 }
 
-/// Leading columns before the per-marker features.
-pub(crate) const LEAD_COLUMNS: [&str; 6] = [
-    "timestamp_s",
-    "n_found",
-    "n_markers",
-    "n_spurious",
-    "shift_x_px",
-    "shift_y_px",
-];
-
-/// One feature-table row: the [`LEAD_COLUMNS`] values, then the marker features.
-pub(crate) fn feature_row_into(
-    row: &mut Vec<f64>,
-    timestamp_s: f64,
-    n_markers: usize,
-    f: &FrameFeatures,
-) {
-    row.clear();
-    row.extend_from_slice(&[
-        timestamp_s,
-        f.found as f64,
-        n_markers as f64,
-        f.spurious as f64,
-        f.shift_px.0,
-        f.shift_px.1,
-    ]);
-    row.extend_from_slice(&f.values);
-}
-
-/// A short account of the markers not found in a frame: counts by status, then the first few
-/// marker ids (`2 lost, 1 merged: m012 m013 m025`; `… +7` when there are more).
-pub(crate) fn missing_summary(f: &FrameFeatures) -> String {
-    const SHOWN: usize = 4;
-    let counts: Vec<String> = MarkerStatus::ALL
-        .iter()
-        .filter(|&&s| s != MarkerStatus::Ok)
-        .filter_map(|&s| {
-            let n = f.status.iter().filter(|&&x| x == s).count();
-            (n > 0).then(|| format!("{n} {}", s.name()))
-        })
-        .collect();
-    let ids: Vec<usize> = f
-        .status
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| **s != MarkerStatus::Ok)
-        .map(|(i, _)| i)
-        .collect();
-    let mut shown: Vec<String> = ids.iter().take(SHOWN).map(|i| format!("m{i:03}")).collect();
-    if ids.len() > SHOWN {
-        shown.push(format!("… +{}", ids.len() - SHOWN));
-    }
-    format!("{}: {}", counts.join(", "), shown.join(" "))
-}
-
-pub(crate) fn flags_of(f: &FrameFeatures) -> String {
-    f.status
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| **s != MarkerStatus::Ok)
-        .map(|(i, s)| format!("m{i:03}:{}", s.name()))
-        .collect::<Vec<_>>()
-        .join(";")
-}
-
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if !(a.fps > 0.0 && a.fps.is_finite()) {
         bail!(
@@ -120,9 +55,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     ex.set_temporal_prior(a.temporal);
     let stream = FrameStream::open(&a.frames, a.fps)?;
     let format = TableFormat::from_name(&a.format).unwrap_or_default();
-    let mut columns: Vec<String> = LEAD_COLUMNS.iter().map(|s| s.to_string()).collect();
-    columns.extend(ex.column_names());
-    let mut out = TableWriter::create(&a.output, format, columns)
+    let mut out = TableWriter::create(&a.output, format, feature_columns(&ex.column_names()))
         .with_context(|| format!("{}: cannot create output", a.output.display()))?;
     let (mut written, mut skipped, mut warned, mut incomplete, mut lost_total) =
         (0usize, 0usize, 0usize, 0usize, 0usize);

@@ -2,13 +2,37 @@
 //!
 //! Each figure is a [`Figure`]: it draws itself on any plotters backend, so the SVG and the PNG
 //! of one figure are the same drawing. Text uses DejaVu Sans embedded in the binary (licence in
-//! `assets/fonts/LICENSE-DejaVu.txt`), so PNGs need no system fonts.
+//! `assets/fonts/LICENSE-DejaVu.txt`), so PNGs need no system fonts. The figures of the
+//! command line live in [`figures`]; estimators compute, this crate draws.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+pub mod figures;
+
+/// Why a figure could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// The file's extension is neither `.svg` nor `.png`.
+    #[error("{}: plots are written as .svg or .png; give one of those extensions", .0.display())]
+    Extension(PathBuf),
+    /// Drawing failed (plotters' message).
+    #[error("drawing {}: {why}", path.display())]
+    Draw {
+        /// The file being drawn.
+        path: PathBuf,
+        /// What went wrong.
+        why: String,
+    },
+    /// Writing the file failed.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// Encoding the PNG failed.
+    #[error(transparent)]
+    Png(#[from] visuotact_io::frames::FrameError),
+}
 
 /// DejaVu Sans, registered once as plotters' `sans-serif`.
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
@@ -24,7 +48,7 @@ fn register_font() {
 }
 
 /// A drawing that can be rendered on any plotters backend.
-pub(crate) trait Figure {
+pub trait Figure {
     /// Size in pixels (SVG user units).
     fn size(&self) -> (u32, u32);
     /// Draws the figure on `root`; errors are returned as text.
@@ -32,14 +56,20 @@ pub(crate) trait Figure {
 }
 
 /// Turns any plotters error into text.
-pub(crate) fn text<E: std::fmt::Display>(e: E) -> String {
+pub fn text<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
 
 /// Writes `figure` to `path`: `.svg` as SVG, `.png` as PNG.
-pub(crate) fn save(figure: &impl Figure, path: &Path) -> anyhow::Result<()> {
+pub fn save(figure: &impl Figure, path: &Path) -> Result<(), ReportError> {
     register_font();
     let (w, h) = figure.size();
+    let drawn = |r: Result<(), String>| {
+        r.map_err(|why| ReportError::Draw {
+            path: path.to_path_buf(),
+            why,
+        })
+    };
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -49,46 +79,50 @@ pub(crate) fn save(figure: &impl Figure, path: &Path) -> anyhow::Result<()> {
             let mut svg = String::new();
             {
                 let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
-                figure
-                    .draw(&root)
-                    .and_then(|()| root.present().map_err(text))
-                    .map_err(anyhow::Error::msg)
-                    .with_context(|| format!("drawing {}", path.display()))?;
+                drawn(
+                    figure
+                        .draw(&root)
+                        .and_then(|()| root.present().map_err(text)),
+                )?;
             }
-            crate::write_atomically(path, &svg)
+            Ok(visuotact_io::session::write_atomically(path, &svg)?)
         }
         Some("png") => {
             let mut rgb = vec![0u8; w as usize * h as usize * 3];
             {
                 let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-                figure
-                    .draw(&root)
-                    .and_then(|()| root.present().map_err(text))
-                    .map_err(anyhow::Error::msg)
-                    .with_context(|| format!("drawing {}", path.display()))?;
+                drawn(
+                    figure
+                        .draw(&root)
+                        .and_then(|()| root.present().map_err(text)),
+                )?;
             }
-            let img = visuotact_image::RgbImage::from_vec(w as usize, h as usize, rgb)
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            let img =
+                visuotact_image::RgbImage::from_vec(w as usize, h as usize, rgb).map_err(|e| {
+                    ReportError::Draw {
+                        path: path.to_path_buf(),
+                        why: e.to_string(),
+                    }
+                })?;
             let tmp = path.with_extension("part~.png");
-            visuotact_io::frames::write_png(&tmp, &img)
-                .with_context(|| format!("writing {}", tmp.display()))?;
-            std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+            visuotact_io::frames::write_png(&tmp, &img)?;
+            std::fs::rename(&tmp, path).map_err(|e| {
+                std::io::Error::new(e.kind(), format!("{}: cannot write: {e}", path.display()))
+            })?;
+            Ok(())
         }
-        _ => bail!(
-            "{}: plots are written as .svg or .png; give one of those extensions",
-            path.display()
-        ),
+        _ => Err(ReportError::Extension(path.to_path_buf())),
     }
 }
 
 /// Writes `figure` next to `stem` as both `stem.svg` and `stem.png`.
-pub(crate) fn save_both(figure: &impl Figure, stem: &Path) -> anyhow::Result<()> {
+pub fn save_both(figure: &impl Figure, stem: &Path) -> Result<(), ReportError> {
     save(figure, &stem.with_extension("svg"))?;
     save(figure, &stem.with_extension("png"))
 }
 
 /// Smallest and largest finite values, or `None` when there are none.
-pub(crate) fn finite_range(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
+pub fn finite_range(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
     values
         .into_iter()
         .filter(|v| v.is_finite())
@@ -99,7 +133,7 @@ pub(crate) fn finite_range(values: impl IntoIterator<Item = f64>) -> Option<(f64
 }
 
 /// `(lo, hi)` widened by `fraction` of its span on each side, never empty.
-pub(crate) fn padded((lo, hi): (f64, f64), fraction: f64) -> (f64, f64) {
+pub fn padded((lo, hi): (f64, f64), fraction: f64) -> (f64, f64) {
     let pad = fraction * (hi - lo).max(1e-9 * hi.abs().max(1.0));
     (lo - pad, hi + pad)
 }

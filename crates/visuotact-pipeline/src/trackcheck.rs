@@ -1,5 +1,5 @@
-//! `visuotact check-tracking`: how well the marker pipeline follows a simulated sensor, against
-//! the simulator's exact per-marker truth.
+//! How well the marker pipeline follows a simulated sensor, against the simulator's exact
+//! per-marker truth (`visuotact check-tracking`).
 //!
 //! For a sensor (`iats` or a zoo family, preset or drawn variant) and a protocol, frames are
 //! rendered in memory, the sensor is calibrated from rest frames with the layout recognised,
@@ -12,17 +12,47 @@
 //! - the **displacement error** is `|(measured − reference) − (true − true at rest)|` over the
 //!   visible markers reported `ok`.
 
-use anyhow::{bail, Context};
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol;
 use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
-use visuotact_vision::calibration::{calibrate, CalibrationConfig, SensorCalibration};
+use visuotact_sim::SimError;
+use visuotact_vision::calibration::{
+    calibrate, CalibrationConfig, CalibrationError, SensorCalibration,
+};
 use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
-use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError};
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::preprocess::{CircleMask, PreprocessConfig};
+
+/// Why a check could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckError {
+    /// No simulated sensor has this name.
+    #[error("unknown sensor {0:?}: expected iats, tactip, gelsight or dots")]
+    UnknownSensor(String),
+    /// The protocol is not one of the sensor's.
+    #[error("protocol {name:?}: expected {expected}")]
+    UnknownProtocol {
+        /// The name asked for.
+        name: String,
+        /// The protocols there are, listed.
+        expected: String,
+    },
+    /// The simulator refused a frame.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Calibration failed on the rest frames.
+    #[error(transparent)]
+    Calibration(#[from] CalibrationError),
+    /// The feature extractor refused the calibration.
+    #[error(transparent)]
+    Features(#[from] visuotact_vision::ConfigError),
+    /// A frame's size differs from the reference's.
+    #[error(transparent)]
+    FrameSize(#[from] FrameSizeError),
+}
 
 /// A simulated sensor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -36,15 +66,13 @@ pub enum SimSensor {
 impl SimSensor {
     /// The sensor called `name` (`iats`, `tactip`, `gelsight`, `dots`), variant `variant`
     /// (0: the preset).
-    pub fn named(name: &str, variant: u64) -> anyhow::Result<Self> {
+    pub fn named(name: &str, variant: u64) -> Result<Self, CheckError> {
         if name == "iats" {
             return Ok(Self::Iats(IatsConfig::variant(variant)));
         }
         ZooKind::from_name(name)
             .map(|k| Self::Zoo(ZooConfig::variant(k, variant)))
-            .with_context(|| {
-                format!("unknown sensor {name:?}: expected iats, tactip, gelsight or dots")
-            })
+            .ok_or_else(|| CheckError::UnknownSensor(name.to_string()))
     }
 
     /// Whether the markers are brighter than the skin around them.
@@ -166,7 +194,7 @@ impl AnyTouch {
     }
 }
 
-fn touches(c: &CheckConfig) -> anyhow::Result<Vec<AnyTouch>> {
+fn touches(c: &CheckConfig) -> Result<Vec<AnyTouch>, CheckError> {
     let (name, n, seed) = (c.protocol.as_str(), c.touches, c.seed);
     let (touches, known): (Option<Vec<AnyTouch>>, &[&str]) = match &c.sensor {
         SimSensor::Iats(s) => (
@@ -180,19 +208,16 @@ fn touches(c: &CheckConfig) -> anyhow::Result<Vec<AnyTouch>> {
             &protocol::ZOO_PROTOCOLS,
         ),
     };
-    touches.ok_or_else(|| {
-        anyhow::anyhow!(
-            "--protocol {name:?}: expected {}",
-            protocol::names_listed(known)
-        )
+    touches.ok_or_else(|| CheckError::UnknownProtocol {
+        name: name.to_string(),
+        expected: protocol::names_listed(known),
     })
 }
 
-fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> anyhow::Result<(RgbImage, Truth)> {
+fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> Result<(RgbImage, Truth), SimError> {
     match (sensor, touch) {
         (SimSensor::Iats(c), AnyTouch::Iats(t)) => {
-            let (img, truth) =
-                visuotact_sim::iats::render(c, t, seed).map_err(anyhow::Error::msg)?;
+            let (img, truth) = visuotact_sim::iats::render(c, t, seed)?;
             Ok((
                 img,
                 truth
@@ -202,7 +227,7 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> anyhow::Result<(Rg
             ))
         }
         (SimSensor::Zoo(c), AnyTouch::Zoo(t)) => {
-            let (img, truth) = zoo::render(c, t, seed).map_err(anyhow::Error::msg)?;
+            let (img, truth) = zoo::render(c, t, seed)?;
             Ok((
                 img,
                 truth
@@ -211,7 +236,7 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> anyhow::Result<(Rg
                     .collect(),
             ))
         }
-        _ => bail!("touch of another sensor"),
+        _ => Err(SimError("a touch of another sensor".into())),
     }
 }
 
@@ -223,12 +248,12 @@ fn rest(sensor: &SimSensor) -> AnyTouch {
 }
 
 /// Calibrates on rendered rest frames and tracks every touch frame against the truth.
-pub fn check(c: &CheckConfig) -> anyhow::Result<CheckReport> {
+pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
     let seed_of = |k: u64| visuotact_sim::rig::frame_seed(c.seed, k);
     let refs: Vec<(RgbImage, Truth)> = (0..c.references.max(1) as u64)
         .into_par_iter()
         .map(|k| render(&c.sensor, &rest(&c.sensor), seed_of(k)))
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<Result<_, SimError>>()?;
     let ids: Vec<String> = (0..refs.len()).map(|k| format!("ref{k}")).collect();
     let (cal, _) = calibrate(
         ids.iter()
@@ -268,8 +293,8 @@ pub fn check(c: &CheckConfig) -> anyhow::Result<CheckReport> {
         .enumerate()
         .map_init(
             || FeatureExtractor::new(cal.clone(), FeatureSet::ALL),
-            |ex, (k, t)| -> anyhow::Result<FrameCheck> {
-                let ex = ex.as_mut().map_err(|e| anyhow::anyhow!("{e}"))?;
+            |ex, (k, t)| -> Result<FrameCheck, CheckError> {
+                let ex = ex.as_mut().map_err(|e| e.clone())?;
                 let (img, truth) = render(&c.sensor, t, seed_of(first + k as u64))?;
                 let f = ex.extract(&img)?;
                 Ok(frame_check(
@@ -283,7 +308,7 @@ pub fn check(c: &CheckConfig) -> anyhow::Result<CheckReport> {
                 ))
             },
         )
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<Result<_, CheckError>>()?;
     let mut errs: Vec<f64> = Vec::new();
     for fc in per_frame {
         report.max_motion_pitches = report.max_motion_pitches.max(fc.max_motion);
@@ -407,111 +432,4 @@ fn frame_check(
         out.errs.push(e);
     }
     out
-}
-
-#[derive(clap::Args, Debug)]
-pub(crate) struct Args {
-    /// iats, tactip, gelsight or dots.
-    #[arg(long, default_value = "tactip")]
-    sensor: String,
-    /// Sensor variants: a number or a range `A..B` (inclusive; 0 is the preset).
-    #[arg(long, default_value = "0")]
-    variants: String,
-    /// grid, random or shear.
-    #[arg(long, default_value = "shear")]
-    protocol: String,
-    /// Touches for random and shear.
-    #[arg(long, default_value_t = 200)]
-    touches: usize,
-    /// Seed of the touches and noise.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Rest frames averaged into the reference.
-    #[arg(long, default_value_t = 10)]
-    references: usize,
-    /// Centroids: grey (calibrate's default), weighted or binary.
-    #[arg(long, default_value = "grey", value_parser = ["binary", "weighted", "grey"])]
-    centroid: String,
-    /// Binarise the zoo sensor's output (black and white frames, as published TacTip data).
-    #[arg(long)]
-    binarise: bool,
-    /// Print the first problems found.
-    #[arg(long)]
-    verbose: bool,
-}
-
-/// Parses `N` or `A..B` (inclusive).
-pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
-    let bad = || anyhow::anyhow!("{s:?}: expected a number or a range A..B");
-    if let Some((a, b)) = s.split_once("..") {
-        let (a, b): (u64, u64) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?);
-        if a > b {
-            return Err(bad());
-        }
-        Ok((a..=b).collect())
-    } else {
-        Ok(vec![s.parse().map_err(|_| bad())?])
-    }
-}
-
-pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let centroid = match a.centroid.as_str() {
-        "grey" => Centroid::Grey,
-        "weighted" => Centroid::Weighted,
-        _ => Centroid::Binary,
-    };
-    println!(
-        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong"
-    );
-    let (mut lost, mut wrong) = (0, 0);
-    for v in parse_range(&a.variants)? {
-        let mut sensor = SimSensor::named(&a.sensor, v)?;
-        if a.binarise {
-            match &mut sensor {
-                SimSensor::Zoo(c) => c.binarise = true,
-                SimSensor::Iats(_) => bail!("--binarise applies to the zoo sensors"),
-            }
-        }
-        let cfg = CheckConfig {
-            sensor,
-            protocol: a.protocol.clone(),
-            touches: a.touches,
-            seed: a.seed,
-            references: a.references,
-            detector: sensor.detector(centroid),
-            layout: LayoutChoice::Auto,
-            motion_limit_pitches: MOTION_LIMIT_PITCHES,
-        };
-        let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
-        println!(
-            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}",
-            a.sensor,
-            r.layout.map_or("-", Layout::name),
-            r.sim_markers,
-            r.calibrated,
-            r.uncalibrated,
-            r.frames,
-            r.visible,
-            r.lost,
-            r.wrong,
-            r.err_mean_px,
-            r.err_p99_px,
-            r.err_max_px,
-            r.max_motion_pitches,
-            r.beyond_frames,
-            r.beyond_lost,
-            r.beyond_wrong
-        );
-        if a.verbose {
-            for e in &r.examples {
-                println!("  {e}");
-            }
-        }
-        lost += r.lost + r.uncalibrated;
-        wrong += r.wrong;
-    }
-    if lost + wrong > 0 {
-        eprintln!("{lost} visible marker-frames lost or uncalibrated, {wrong} wrong identities");
-    }
-    Ok(())
 }

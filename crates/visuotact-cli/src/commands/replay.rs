@@ -63,8 +63,8 @@ impl Readings {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let model = crate::train::load_model(&a.model)?;
-    let mut est = crate::live::estimator_with_extra_inputs(a.sensor.as_deref(), Some(model))?;
+    let model = crate::load_model(&a.model)?;
+    let mut est = crate::estimator_with_extra_inputs(a.sensor.as_deref(), Some(model))?;
     est.set_temporal_prior(a.temporal);
     let session =
         (a.input.len() == 1 && a.input[0].join("frames.csv").is_file()).then(|| a.input[0].clone());
@@ -158,7 +158,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .or_else(|| session.map(|s| s.join("labels.csv")))
         .filter(|p| p.is_file());
     if let Some(l) = labels {
-        crate::train::evaluate(&a.output, &l, false, None, None)?;
+        crate::print::evaluation(&a.output, &l, false, None, None)?;
     }
     Ok(())
 }

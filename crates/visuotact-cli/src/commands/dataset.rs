@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use visuotact_io::table::format_number;
 use visuotact_pipeline::dataset::{build, DatasetConfig};
 
-use crate::force::ForceArgs;
+use crate::args::ForceArgs;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {

@@ -6,15 +6,14 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
-use plotters::coord::ranged1d::ValueFormatter;
-use plotters::coord::types::RangedCoordf64;
-use plotters::prelude::*;
 use rayon::prelude::*;
 use visuotact_nn::lm::Control;
 use visuotact_nn::model::Model;
+use visuotact_report::figures::PerformancePlot;
 
-use crate::train::{DataArgs, Joined};
+use crate::args::{AlgorithmArg, DataArgs};
 use visuotact_nn::fit::{fit, FitConfig, FitData};
+use visuotact_pipeline::table::TrainingTable;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -36,7 +35,7 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 1000)]
     max_epochs: usize,
     #[command(flatten)]
-    algorithm: crate::train::AlgorithmArg,
+    algorithm: AlgorithmArg,
     /// Also keep the N best networks (by validation MSE) as ensemble/model_K.json, for
     /// `run --model …` several times (mean ± standard deviation).
     #[arg(long, value_name = "N", default_value_t = 0)]
@@ -107,7 +106,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("{}: cannot create folder", a.output.display()))?;
     let components = a.algorithm.components(data.marker_inputs())?;
-    let Joined {
+    let TrainingTable {
         x,
         t,
         feature_columns,
@@ -145,7 +144,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 feature_columns: &feature_columns,
                 targets: &targets,
             };
-            let m = fit(&data, &cfg, |_, _, _| Control::Continue).map_err(crate::train::fit_error);
+            let m = fit(&data, &cfg, |_, _, _| Control::Continue).map_err(crate::fit_error);
             bar.inc(1);
             m.map(|m| (k, m))
         })
@@ -216,7 +215,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             a.output.display()
         );
     }
-    crate::plot::save_both(
+    visuotact_report::save_both(
         &PerformancePlot {
             points: &points,
             targets: &targets,
@@ -239,105 +238,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         a.output.display()
     );
     Ok(())
-}
-
-/// Mean and best test MSE against the number of hidden neurons (seed 001 Figs. 4.8/4.11/4.13).
-struct PerformancePlot<'a> {
-    /// (hidden neurons, mean test MSE, best test MSE) per architecture.
-    points: &'a [(f64, f64, f64)],
-    targets: &'a [String],
-}
-
-impl crate::plot::Figure for PerformancePlot<'_> {
-    fn size(&self) -> (u32, u32) {
-        (800, 500)
-    }
-
-    fn draw<DB: DrawingBackend>(
-        &self,
-        root: &DrawingArea<DB, plotters::coord::Shift>,
-    ) -> Result<(), String> {
-        use crate::plot::text;
-        root.fill(&WHITE).map_err(text)?;
-        let xmax = self.points.iter().map(|p| p.0).fold(1.0, f64::max);
-        let ys = self
-            .points
-            .iter()
-            .flat_map(|p| [p.1, p.2])
-            .filter(|v| *v > 0.0);
-        let (ymin, ymax) =
-            crate::plot::finite_range(ys).map_or((1e-6, 1.0), |(lo, hi)| (lo * 0.8, hi * 1.25));
-        let caption = format!(
-            "Performance against network size ({})",
-            self.targets.join(", ")
-        );
-        let mut builder = ChartBuilder::on(root);
-        builder
-            .caption(caption, ("sans-serif", 20))
-            .margin(15)
-            .x_label_area_size(40)
-            .y_label_area_size(80);
-        // A log axis only pays when the errors span decades; within one it has no labels.
-        if ymax / ymin > 20.0 {
-            let mut chart = builder
-                .build_cartesian_2d(0.0..xmax + 1.0, (ymin..ymax).log_scale())
-                .map_err(text)?;
-            self.draw_series(&mut chart)
-        } else {
-            let mut chart = builder
-                .build_cartesian_2d(0.0..xmax + 1.0, 0.0..ymax)
-                .map_err(text)?;
-            self.draw_series(&mut chart)
-        }
-    }
-}
-
-impl PerformancePlot<'_> {
-    fn draw_series<'a, DB: DrawingBackend + 'a, Y>(
-        &self,
-        chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y>>,
-    ) -> Result<(), String>
-    where
-        Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
-    {
-        use crate::plot::text;
-        chart
-            .configure_mesh()
-            .x_desc("hidden neurons")
-            .y_desc("test MSE (target units²)")
-            .x_label_formatter(&|x| format!("{x:.0}"))
-            .y_label_formatter(&|y| format!("{y:.3e}"))
-            .draw()
-            .map_err(text)?;
-        let mut mean: Vec<(f64, f64)> = self
-            .points
-            .iter()
-            .map(|p| (p.0, p.1))
-            .filter(|p| p.1 > 0.0)
-            .collect();
-        mean.sort_by(|a, b| a.0.total_cmp(&b.0));
-        chart
-            .draw_series(LineSeries::new(mean, &BLUE))
-            .map_err(text)?
-            .label("mean of repeats")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        chart
-            .draw_series(
-                self.points
-                    .iter()
-                    .filter(|p| p.2 > 0.0)
-                    .map(|p| Circle::new((p.0, p.2), 3, RED.filled())),
-            )
-            .map_err(text)?
-            .label("best of repeats")
-            .legend(|(x, y)| Circle::new((x + 10, y), 3, RED.filled()));
-        chart
-            .configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE)
-            .draw()
-            .map_err(text)
-    }
 }
 
 #[cfg(test)]

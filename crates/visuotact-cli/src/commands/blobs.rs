@@ -8,7 +8,7 @@ use visuotact_io::table::{TableFormat, TableWriter};
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
 
-use crate::calibrate::DetectorArgs;
+use crate::args::DetectorArgs;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {

@@ -1,0 +1,555 @@
+//! Option groups several commands share, each turned into the library's typed config: marker
+//! detection ([`DetectorArgs`]), force cleaning ([`ForceArgs`]), the training objective
+//! ([`AlgorithmArg`]) and the training data ([`DataArgs`]).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use visuotact_image::RgbImage;
+use visuotact_io::force::ForceTable;
+use visuotact_io::table::KeyedTable;
+use visuotact_nn::fit::{components_from_name, FieldInputs, FitConfig};
+use visuotact_nn::mlp::Algorithm;
+use visuotact_nn::model::is_marker_column;
+use visuotact_pipeline::table::{training_table, Incomplete, JoinConfig, Named, TrainingTable};
+use visuotact_signal::bias::Bias;
+use visuotact_signal::clean::{clean, BiasRemoval, CleanConfig};
+use visuotact_signal::fir::{FiltFiltOptions, PadLen, Padding, Window};
+use visuotact_vision::blobs::Connectivity;
+use visuotact_vision::calibration::Preset;
+use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
+use visuotact_vision::features::FeatureSet;
+use visuotact_vision::preprocess::{
+    marker_polarity, Channel, CircleMask, Polarity, Roi, Threshold,
+};
+
+/// Preprocessing and blob-filter options shared by commands that detect markers.
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct DetectorArgs {
+    /// Starting settings: auto (iats for markers brighter than the skin, dark-markers for
+    /// darker ones, told from the first frame), iats (green, open, Otsu), cone (luma, open,
+    /// fixed 0.25), dark-markers (luma, inverted, open, adaptive).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "iats", "cone", "dark-markers"])]
+    pub(crate) preset: String,
+    /// Channel: green, luma601, mean, red, blue.
+    #[arg(long)]
+    channel: Option<String>,
+    /// Invert the channel (dark markers on a bright background).
+    #[arg(long, overrides_with = "no_invert")]
+    invert: bool,
+    /// Do not invert.
+    #[arg(long)]
+    no_invert: bool,
+    /// Threshold: otsu, adaptive, or a fixed level in 0..1 of full scale.
+    #[arg(long)]
+    threshold: Option<String>,
+    /// Adaptive threshold window, pixels (odd).
+    #[arg(long, value_name = "PX")]
+    window: Option<usize>,
+    /// Adaptive threshold offset in 0..1 of full scale, subtracted from the local mean.
+    #[arg(long, allow_hyphen_values = true)]
+    offset: Option<f64>,
+    /// Grey-level opening (removes bright specks).
+    #[arg(long, overrides_with = "no_open")]
+    open: bool,
+    /// No opening.
+    #[arg(long)]
+    no_open: bool,
+    /// Grey-level closing (fills dark specks).
+    #[arg(long, overrides_with = "no_close")]
+    close: bool,
+    /// No closing.
+    #[arg(long)]
+    no_close: bool,
+    /// Morphology window side, pixels (odd).
+    #[arg(long, value_name = "PX")]
+    morph_size: Option<usize>,
+    /// Smallest marker area, pixels.
+    #[arg(long, value_name = "PX")]
+    min_area: Option<u32>,
+    /// Largest marker area, pixels.
+    #[arg(long, value_name = "PX")]
+    max_area: Option<u32>,
+    /// Keep blobs touching the image border (markers cut by the frame).
+    #[arg(long)]
+    keep_border: bool,
+    /// Blob centroid: binary (pixel mean, as OpenCV; `blobs`' default), weighted (by grey level
+    /// above the threshold) or grey (grey-level centroid of the marker and its edge over a
+    /// fitted background; `calibrate`'s default).
+    #[arg(long, value_parser = ["binary", "weighted", "grey"])]
+    centroid: Option<String>,
+    /// Pixel connectivity: 8 or 4.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(4..=8))]
+    connectivity: u8,
+    /// Region of interest x,y,width,height in pixels.
+    #[arg(long, value_name = "X,Y,W,H")]
+    roi: Option<String>,
+    /// Circular mask cx,cy,radius in pixels.
+    #[arg(long, value_name = "CX,CY,R")]
+    circle: Option<String>,
+}
+
+fn numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
+    let v: Result<Vec<f64>, _> = s.split(',').map(|p| p.trim().parse::<f64>()).collect();
+    match v {
+        Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
+        _ => bail!("--{what} expects {n} comma-separated numbers, got {s:?}"),
+    }
+}
+
+impl DetectorArgs {
+    /// The detector configuration for frames whose first one `first` reads: as
+    /// [`DetectorArgs::config`], with `--preset auto` resolved from the markers' polarity in
+    /// that frame (`dark-markers` for markers darker than the skin, saying so; `iats`
+    /// otherwise, or without a readable frame). The options are checked, and the frame read,
+    /// only when needed: an explicit preset never reads it.
+    pub(crate) fn config_for_frames(
+        &self,
+        default_centroid: Centroid,
+        first: impl FnOnce() -> Option<RgbImage>,
+    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
+        let checked = self.config(default_centroid)?;
+        if self.preset != "auto" {
+            return Ok(checked);
+        }
+        if !first().is_some_and(|f| marker_polarity(&f) == Polarity::Dark) {
+            return Ok(checked);
+        }
+        eprintln!(
+            "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
+        );
+        Self {
+            preset: "dark-markers".to_string(),
+            ..self.clone()
+        }
+        .config(default_centroid)
+    }
+
+    /// The detector configuration these options describe; `default_centroid` when
+    /// `--centroid` is not given. `--preset auto` reads as `iats` here
+    /// ([`DetectorArgs::config_for_frames`] resolves it).
+    pub(crate) fn config(
+        &self,
+        default_centroid: Centroid,
+    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
+        // `auto` (resolved by the caller) reads as `iats`.
+        let base = Preset::from_name(&self.preset)
+            .unwrap_or(Preset::Iats)
+            .config();
+        let (mut p, features) = (base.detector.preprocess, base.features);
+        if let Some(c) = &self.channel {
+            p.channel = Channel::from_name(c).with_context(|| {
+                format!(
+                    "--channel {c:?}: expected one of {}",
+                    Channel::ALL.map(Channel::name).join(", ")
+                )
+            })?;
+        }
+        if self.invert {
+            p.invert = true;
+        }
+        if self.no_invert {
+            p.invert = false;
+        }
+        if self.open {
+            p.open = true;
+        }
+        if self.no_open {
+            p.open = false;
+        }
+        if self.close {
+            p.close = true;
+        }
+        if self.no_close {
+            p.close = false;
+        }
+        if let Some(k) = self.morph_size {
+            p.morph_size = k;
+        }
+        let (def_window, def_offset) = match p.threshold {
+            Threshold::Adaptive { window_px, offset } => (window_px, offset),
+            _ => (31, -0.06),
+        };
+        if let Some(t) = &self.threshold {
+            p.threshold = match t.as_str() {
+                "otsu" => Threshold::Otsu,
+                "adaptive" => Threshold::Adaptive {
+                    window_px: def_window,
+                    offset: def_offset,
+                },
+                other => match other.parse::<f64>() {
+                    Ok(level) => Threshold::Fixed { level },
+                    Err(_) => {
+                        bail!("--threshold {other:?}: expected otsu, adaptive or a level in 0..1")
+                    }
+                },
+            };
+        }
+        if let Threshold::Adaptive { window_px, offset } = &mut p.threshold {
+            if let Some(wn) = self.window {
+                *window_px = wn;
+            }
+            if let Some(o) = self.offset {
+                *offset = o;
+            }
+        } else if self.window.is_some() || self.offset.is_some() {
+            bail!("--window and --offset apply to --threshold adaptive only");
+        }
+        if let Some(r) = &self.roi {
+            let v = numbers(r, 4, "roi")?;
+            if v.iter().any(|x| *x < 0.0) || v[2] < 1.0 || v[3] < 1.0 {
+                bail!("--roi {r:?}: expects a non-negative corner and a positive size");
+            }
+            p.roi = Some(Roi {
+                x: v[0] as usize,
+                y: v[1] as usize,
+                width: v[2] as usize,
+                height: v[3] as usize,
+            });
+        }
+        if let Some(c) = &self.circle {
+            let v = numbers(c, 3, "circle")?;
+            p.circle = Some(CircleMask {
+                cx_px: v[0],
+                cy_px: v[1],
+                radius_px: v[2],
+            });
+        }
+        p.validate().map_err(anyhow::Error::msg)?;
+        let mut filter = BlobFilter::DEFAULT;
+        if let Some(a) = self.min_area {
+            filter.min_area_px = a;
+        }
+        if let Some(a) = self.max_area {
+            filter.max_area_px = a;
+        }
+        if filter.min_area_px > filter.max_area_px {
+            bail!(
+                "--min-area {} exceeds --max-area {}",
+                filter.min_area_px,
+                filter.max_area_px
+            );
+        }
+        filter.keep_border = self.keep_border;
+        filter.connectivity = if self.connectivity == 4 {
+            Connectivity::Four
+        } else {
+            Connectivity::Eight
+        };
+        let centroid = match self.centroid.as_deref() {
+            Some("weighted") => Centroid::Weighted,
+            Some("grey") => Centroid::Grey,
+            Some(_) => Centroid::Binary,
+            None => default_centroid,
+        };
+        Ok((
+            DetectorConfig {
+                preprocess: p,
+                filter,
+                centroid,
+            },
+            features,
+        ))
+    }
+}
+
+/// Filter and bias options shared by `filter` and `dataset`.
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct ForceArgs {
+    /// Low-pass cutoff, Hz (FIR, windowed sinc).
+    #[arg(long, default_value_t = 5.0)]
+    pub(crate) cutoff_hz: f64,
+    /// Filter length, taps.
+    #[arg(long, default_value_t = 51)]
+    pub(crate) taps: usize,
+    /// Window: hamming, hann, rectangular, kaiser:BETA.
+    #[arg(long, default_value = "hamming")]
+    window: String,
+    /// Padding at the ends: odd (scipy and MATLAB), even, constant, none.
+    #[arg(long, default_value = "odd", value_parser = ["odd", "even", "constant", "none"])]
+    padding: String,
+    /// Padding length: scipy (3·taps), matlab (3·(taps − 1)) or a number of samples.
+    #[arg(long, default_value = "scipy")]
+    padlen: String,
+    /// Bias removal: auto (detect no-contact periods), none, or time ranges `A:B,C:D` in
+    /// seconds that are known to be free of contact.
+    #[arg(long, default_value = "auto")]
+    bias: String,
+    /// Level change (N) beyond which a still period counts as contact, for `--bias auto`.
+    #[arg(long, default_value_t = 0.25)]
+    contact_threshold_n: f64,
+}
+
+/// A processed force record on a uniform time grid.
+pub(crate) struct Processed {
+    /// Sample times, s.
+    pub t: Vec<f64>,
+    /// Raw values on the grid, one vector per axis (fx … tz).
+    pub raw: Vec<Vec<f64>>,
+    /// Filtered, debiased values.
+    pub clean: Vec<Vec<f64>>,
+    /// Which axes the input had.
+    pub present: [bool; 6],
+    /// The bias estimate, when removed.
+    pub bias: Option<Bias>,
+    /// Sample rate, Hz.
+    pub rate_hz: f64,
+    /// Grid samples that were missing in the input (filled by interpolation).
+    pub filled: usize,
+    /// Repeated samples dropped.
+    pub duplicates: usize,
+}
+
+impl ForceArgs {
+    /// The cleaning these options ask for.
+    pub(crate) fn config(&self) -> anyhow::Result<CleanConfig> {
+        let padding = match self.padding.as_str() {
+            "odd" => Padding::Odd,
+            "even" => Padding::Even,
+            "constant" => Padding::Constant,
+            _ => Padding::None,
+        };
+        let padlen = match self.padlen.as_str() {
+            "scipy" => PadLen::Scipy,
+            "matlab" => PadLen::Matlab,
+            n => PadLen::Samples(n.parse().map_err(|_| {
+                anyhow::anyhow!("--padlen {n:?}: expected scipy, matlab or a number of samples")
+            })?),
+        };
+        let bias = match self.bias.as_str() {
+            "none" => BiasRemoval::None,
+            "auto" => BiasRemoval::Auto {
+                contact_threshold: self.contact_threshold_n,
+            },
+            ranges => BiasRemoval::Ranges(parse_ranges(ranges)?),
+        };
+        Ok(CleanConfig {
+            cutoff_hz: self.cutoff_hz,
+            taps: self.taps,
+            window: Window::parse(&self.window)?,
+            filtfilt: FiltFiltOptions { padding, padlen },
+            bias,
+        })
+    }
+
+    /// Filters and debiases a force table (sorted, repeats dropped, gaps filled on a uniform
+    /// grid at the median sample interval: [`visuotact_signal::clean`]).
+    pub(crate) fn process(&self, mut table: ForceTable, name: &str) -> anyhow::Result<Processed> {
+        let cfg = self.config()?;
+        let duplicates = table.sort_dedup();
+        let channels: Vec<Vec<f64>> = (0..6).map(|k| table.axis(k)).collect();
+        let detect: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
+        let c = clean(&table.timestamp_s, &channels, &detect, &cfg)
+            .with_context(|| name.to_string())?;
+        Ok(Processed {
+            filled: c.filled,
+            t: c.t,
+            raw: c.raw,
+            clean: c.clean,
+            present: table.present,
+            bias: c.bias,
+            rate_hz: c.rate_hz,
+            duplicates,
+        })
+    }
+}
+
+/// Parses `A:B,C:D` (seconds).
+fn parse_ranges(s: &str) -> anyhow::Result<Vec<(f64, f64)>> {
+    s.split(',')
+        .map(|r| {
+            let (a, b) = r
+                .split_once(':')
+                .with_context(|| format!("--bias {s:?}: expected auto, none or A:B,C:D seconds"))?;
+            Ok((a.trim().parse()?, b.trim().parse()?))
+        })
+        .collect()
+}
+
+/// The training objective and input reduction, shared by `train` and `sweep`.
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct AlgorithmArg {
+    /// trainbr (the default: Bayesian regularisation, LM on errors plus weights, every sample
+    /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
+    /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
+    /// 70/15/15 split, stopped by the validation subset).
+    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = ["trainlm", "trainbr"])]
+    pub(crate) name: String,
+    /// Feed the network the K leading principal components of the scaled inputs (kept in the
+    /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),
+    /// 0 (the inputs themselves) or K.
+    #[arg(long, value_name = "auto|K", default_value = "auto")]
+    pub(crate) components: String,
+    /// The field-summary columns of the feature table (`field_rms_px` … `field_spread_px`:
+    /// how much the markers moved and where) as inputs: auto (the default: when there are
+    /// over 20 markers' features, 5-fold cross-validation on the training frames chooses
+    /// between the field summary beside the markers' principal components and the field
+    /// summary alone, and the model file keeps both scores; which generalises better depends
+    /// on the sensor: on 280 simulated touches of four sensors in three drawn variants each the
+    /// default was 4.1–24× better in contact distance and 3.3–10× in depth than the best
+    /// scikit-learn peer, and where both rules were measured it matched the better one,
+    /// docs/benchmarks.md), yes (beside the markers' features), only (instead of them), or
+    /// no. Tables extracted before the field summary existed have none.
+    #[arg(long, value_name = "auto|yes|only|no", default_value = "auto", value_parser = ["auto", "yes", "only", "no"])]
+    pub(crate) field: String,
+}
+
+/// `train`'s hidden layers when not told otherwise ([`FitConfig::default`]'s, as text).
+pub(crate) const DEFAULT_HIDDEN: &str = "20";
+
+impl AlgorithmArg {
+    pub(crate) fn algorithm(&self) -> Algorithm {
+        Algorithm::from_name(&self.name).unwrap_or_default()
+    }
+
+    /// Whether the field summary is an input.
+    pub(crate) fn field(&self) -> FieldInputs {
+        FieldInputs::from_name(&self.field).unwrap_or(FieldInputs::Auto)
+    }
+
+    /// The number of components for `inputs` marker inputs (`None`: no projection).
+    pub(crate) fn components(&self, inputs: usize) -> anyhow::Result<Option<usize>> {
+        components_from_name(&self.components, inputs)
+            .map_err(|e| anyhow::anyhow!("--components {e}"))
+    }
+}
+
+/// The training data: features, labels, which targets, what to do with incomplete frames.
+#[derive(clap::Args, Debug)]
+pub(crate) struct DataArgs {
+    /// Feature table from `extract` (per-marker columns `mNNN_…` are the inputs).
+    #[arg(long)]
+    pub(crate) features: PathBuf,
+    /// Label table keyed by `frame` (a session's labels.csv).
+    #[arg(long)]
+    pub(crate) labels: PathBuf,
+    /// Target columns of the labels, comma-separated (e.g. x_mm,y_mm,depth_mm).
+    #[arg(long)]
+    pub(crate) targets: String,
+    #[command(flatten)]
+    pub(crate) extra: ExtraInputs,
+    /// Leave out frames with missing feature cells (lost markers) instead of filling them
+    /// (models on principal components fill them from the markers found; others fail).
+    #[arg(long)]
+    pub(crate) drop_incomplete: bool,
+}
+
+/// Inputs besides the marker features, e.g. the reading of a pressure gauge on an inflatable
+/// link: named columns of the feature table or of a readings table keyed by `frame`.
+#[derive(clap::Args, Debug, Default)]
+pub(crate) struct ExtraInputs {
+    /// Extra input columns, comma-separated (e.g. gauge_kpa), looked up in the feature table,
+    /// then in --readings.
+    #[arg(long, value_name = "COLUMNS")]
+    pub(crate) inputs: Option<String>,
+    /// Table keyed by `frame` holding the extra inputs (a simulated cone session's labels.csv
+    /// has the gauge reading `gauge_kpa`).
+    #[arg(long, value_name = "TABLE", requires = "inputs")]
+    pub(crate) readings: Option<PathBuf>,
+}
+
+impl ExtraInputs {
+    /// The extra input names (empty without --inputs).
+    fn names(&self) -> anyhow::Result<Vec<String>> {
+        match &self.inputs {
+            None => Ok(Vec::new()),
+            Some(s) => {
+                let names = column_names(s, "inputs")?;
+                if let Some(c) = names.iter().find(|c| is_marker_column(c)) {
+                    bail!("--inputs {c}: marker features are inputs already; name other columns");
+                }
+                Ok(names)
+            }
+        }
+    }
+
+    fn readings_table(&self) -> anyhow::Result<Option<KeyedTable>> {
+        read_readings(self.readings.as_deref())
+    }
+}
+
+/// A readings table keyed by `frame` (every column numeric), when one is given.
+pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedTable>> {
+    Ok(path.map(|p| KeyedTable::read(p, &[])).transpose()?)
+}
+
+impl DataArgs {
+    /// The target names and the joined table; frames with missing inputs are kept (to be
+    /// filled) when `fills(number of inputs)` says the model will fill them.
+    pub(crate) fn load(
+        &self,
+        field: FieldInputs,
+        fills: impl Fn(usize) -> bool,
+    ) -> anyhow::Result<(Vec<String>, TrainingTable)> {
+        let targets = parse_targets(&self.targets)?;
+        let f = KeyedTable::read(&self.features, &["flags"])?;
+        let l = KeyedTable::read(&self.labels, &[])?;
+        let readings = self.extra.readings_table()?;
+        let (f_name, l_name) = (
+            self.features.display().to_string(),
+            self.labels.display().to_string(),
+        );
+        let r_name = self
+            .extra
+            .readings
+            .as_ref()
+            .map(|p| p.display().to_string());
+        let extra = self.extra.names()?;
+        let cfg = JoinConfig {
+            targets: &targets,
+            extra_inputs: &extra,
+            field,
+            incomplete: if self.drop_incomplete {
+                Incomplete::Drop
+            } else {
+                Incomplete::FillIf(&fills)
+            },
+        };
+        let j = training_table(
+            Named {
+                table: &f,
+                name: &f_name,
+            },
+            Named {
+                table: &l,
+                name: &l_name,
+            },
+            readings
+                .as_ref()
+                .zip(r_name.as_deref())
+                .map(|(table, name)| Named { table, name }),
+            &cfg,
+        )?;
+        for note in &j.notes {
+            eprintln!("{note}");
+        }
+        Ok((targets, j))
+    }
+}
+
+pub(crate) fn parse_list<T: std::str::FromStr>(s: &str, what: &str) -> anyhow::Result<Vec<T>> {
+    s.split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<T>()
+                .map_err(|_| anyhow::anyhow!("--{what}: {p:?} is not valid"))
+        })
+        .collect()
+}
+
+pub(crate) fn parse_targets(s: &str) -> anyhow::Result<Vec<String>> {
+    column_names(s, "targets")
+}
+
+/// Column names from the comma-separated list of option `--what` (at least one).
+fn column_names(s: &str, what: &str) -> anyhow::Result<Vec<String>> {
+    let names: Vec<String> = s
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if names.is_empty() {
+        bail!("--{what} is empty");
+    }
+    Ok(names)
+}

@@ -1,0 +1,35 @@
+//! `visuotact eval`: the error figures of predictions against labels
+//! ([`visuotact_pipeline::evaluation`]), with the regression plot and the contact map.
+
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Predictions from `predict`.
+    #[arg(long)]
+    predictions: PathBuf,
+    /// Labels keyed by `frame`.
+    #[arg(long)]
+    labels: PathBuf,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Also draw the regression plot (estimate against truth, one panel per target), as SVG or
+    /// PNG by the file's extension.
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
+    plot: Option<PathBuf>,
+    /// Also draw the contact map (seed 000 Fig. 10): actual and estimated contact points
+    /// (`x_mm`, `y_mm`), joined, circle size ∝ depth (`depth_mm`, when present); SVG or PNG.
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
+    map: Option<PathBuf>,
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    crate::print::evaluation(
+        &a.predictions,
+        &a.labels,
+        a.json,
+        a.plot.as_deref(),
+        a.map.as_deref(),
+    )
+}

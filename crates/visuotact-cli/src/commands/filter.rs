@@ -1,0 +1,82 @@
+//! `visuotact filter`: force CSV → zero-phase low-passed, debiased CSV with a before/after plot
+//! ([`visuotact_signal::clean`]).
+
+use std::path::PathBuf;
+
+use visuotact_io::force::{ForceTable, AXES};
+use visuotact_report::figures::{ForcePlot, ForceRecord};
+
+use crate::args::ForceArgs;
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Force CSV (`timestamp_s` and any of fx_n … tz_nm), as `simulate` and `record` write.
+    input: PathBuf,
+    /// Output CSV: the same axes, low-passed and debiased, on a uniform time grid.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Before/after plot (.svg or .png).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    #[command(flatten)]
+    force: ForceArgs,
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
+    if table.dropped_partial_line {
+        eprintln!(
+            "note: {}: an unfinished last line was left out",
+            a.input.display()
+        );
+    }
+    let p = a.force.process(table, &a.input.display().to_string())?;
+    let cols: Vec<usize> = (0..6).filter(|&k| p.present[k]).collect();
+    let mut text = String::from("timestamp_s");
+    for &k in &cols {
+        text.push(',');
+        text.push_str(AXES[k]);
+    }
+    text.push('\n');
+    for (i, t) in p.t.iter().enumerate() {
+        text.push_str(&format!("{t:.6}"));
+        for &k in &cols {
+            text.push_str(&format!(",{:.6}", p.clean[k][i]));
+        }
+        text.push('\n');
+    }
+    crate::write_atomically(&a.output, &text)?;
+    eprintln!(
+        "{} samples at {:.1} Hz ({} missing filled, {} repeats dropped); low-pass {} taps at {} Hz",
+        p.t.len(),
+        p.rate_hz,
+        p.filled,
+        p.duplicates,
+        a.force.taps,
+        a.force.cutoff_hz
+    );
+    if let Some(b) = &p.bias {
+        let periods = b.periods(0.5);
+        let first = b.at(p.t[0]);
+        let last = b.at(p.t[p.t.len() - 1]);
+        eprintln!(
+            "bias from {} no-contact periods: fz {:.4} N at the start, {:.4} N at the end",
+            periods.len(),
+            first[2],
+            last[2]
+        );
+    }
+    if let Some(path) = &a.plot {
+        let record = ForceRecord {
+            t: &p.t,
+            raw: &p.raw,
+            clean: &p.clean,
+            present: p.present,
+            bias: p.bias.as_ref(),
+        };
+        visuotact_report::save(&ForcePlot(record), path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}

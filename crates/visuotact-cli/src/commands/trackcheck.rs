@@ -1,0 +1,114 @@
+//! `visuotact check-tracking`: [`visuotact_pipeline::trackcheck`] over sensor variants, one
+//! table row per variant.
+
+use anyhow::{bail, Context};
+use visuotact_pipeline::trackcheck::{check, CheckConfig, SimSensor, MOTION_LIMIT_PITCHES};
+use visuotact_vision::detect::Centroid;
+use visuotact_vision::layout::{Layout, LayoutChoice};
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// iats, tactip, gelsight or dots.
+    #[arg(long, default_value = "tactip")]
+    sensor: String,
+    /// Sensor variants: a number or a range `A..B` (inclusive; 0 is the preset).
+    #[arg(long, default_value = "0")]
+    variants: String,
+    /// grid, random or shear.
+    #[arg(long, default_value = "shear")]
+    protocol: String,
+    /// Touches for random and shear.
+    #[arg(long, default_value_t = 200)]
+    touches: usize,
+    /// Seed of the touches and noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Rest frames averaged into the reference.
+    #[arg(long, default_value_t = 10)]
+    references: usize,
+    /// Centroids: grey (calibrate's default), weighted or binary.
+    #[arg(long, default_value = "grey", value_parser = ["binary", "weighted", "grey"])]
+    centroid: String,
+    /// Binarise the zoo sensor's output (black and white frames, as published TacTip data).
+    #[arg(long)]
+    binarise: bool,
+    /// Print the first problems found.
+    #[arg(long)]
+    verbose: bool,
+}
+
+/// Parses `N` or `A..B` (inclusive).
+pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
+    let bad = || anyhow::anyhow!("{s:?}: expected a number or a range A..B");
+    if let Some((a, b)) = s.split_once("..") {
+        let (a, b): (u64, u64) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?);
+        if a > b {
+            return Err(bad());
+        }
+        Ok((a..=b).collect())
+    } else {
+        Ok(vec![s.parse().map_err(|_| bad())?])
+    }
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let centroid = match a.centroid.as_str() {
+        "grey" => Centroid::Grey,
+        "weighted" => Centroid::Weighted,
+        _ => Centroid::Binary,
+    };
+    println!(
+        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong"
+    );
+    let (mut lost, mut wrong) = (0, 0);
+    for v in parse_range(&a.variants)? {
+        let mut sensor = SimSensor::named(&a.sensor, v)?;
+        if a.binarise {
+            match &mut sensor {
+                SimSensor::Zoo(c) => c.binarise = true,
+                SimSensor::Iats(_) => bail!("--binarise applies to the zoo sensors"),
+            }
+        }
+        let cfg = CheckConfig {
+            sensor,
+            protocol: a.protocol.clone(),
+            touches: a.touches,
+            seed: a.seed,
+            references: a.references,
+            detector: sensor.detector(centroid),
+            layout: LayoutChoice::Auto,
+            motion_limit_pitches: MOTION_LIMIT_PITCHES,
+        };
+        let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
+        println!(
+            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}",
+            a.sensor,
+            r.layout.map_or("-", Layout::name),
+            r.sim_markers,
+            r.calibrated,
+            r.uncalibrated,
+            r.frames,
+            r.visible,
+            r.lost,
+            r.wrong,
+            r.err_mean_px,
+            r.err_p99_px,
+            r.err_max_px,
+            r.max_motion_pitches,
+            r.beyond_frames,
+            r.beyond_lost,
+            r.beyond_wrong
+        );
+        if a.verbose {
+            for e in &r.examples {
+                println!("  {e}");
+            }
+        }
+        lost += r.lost + r.uncalibrated;
+        wrong += r.wrong;
+    }
+    if lost + wrong > 0 {
+        eprintln!("{lost} visible marker-frames lost or uncalibrated, {wrong} wrong identities");
+    }
+    Ok(())
+}

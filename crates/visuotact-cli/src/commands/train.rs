@@ -1,0 +1,222 @@
+//! `visuotact train`: a network (or an ensemble) from a feature table and labels → model.json
+//! ([`visuotact_nn::fit`]), its inputs chosen by cross-validation on wide sensors.
+
+use std::path::PathBuf;
+
+use anyhow::bail;
+use visuotact_nn::fit::{
+    candidate_inputs, choose_inputs, column_kinds, fit_set, FitConfig, FitData, InputSet,
+    SELECTION_FOLDS,
+};
+use visuotact_nn::lm::Control;
+use visuotact_nn::mlp::Mlp;
+use visuotact_pipeline::table::TrainingTable;
+use visuotact_vision::features::FIELD_COLUMNS;
+
+use crate::args::{parse_list, AlgorithmArg, DataArgs, DEFAULT_HIDDEN};
+use crate::fit_error;
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    #[command(flatten)]
+    data: DataArgs,
+    /// Hidden layer sizes, comma-separated (e.g. 20 or 20,20).
+    #[arg(long, default_value = DEFAULT_HIDDEN)]
+    hidden: String,
+    /// Model file to write.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Seed of the split and the initial weights.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Most epochs (trainlm: 1000).
+    #[arg(long, default_value_t = 1000)]
+    max_epochs: usize,
+    #[command(flatten)]
+    algorithm: AlgorithmArg,
+    /// Train this many networks on other seeds and splits into one model file: estimates are
+    /// their mean, with the standard deviation as the spread (`predict` writes `<target>_std`,
+    /// `run` and its dashboard show it). 5 by default: on 280 simulated touches of four sensors
+    /// it cut the contact error by 7–35 % against one network (docs/benchmarks.md).
+    #[arg(long, value_name = "K", default_value_t = FitConfig::default().ensemble)]
+    ensemble: usize,
+    /// Sensor file to store in the model (the calibration the features came from).
+    #[arg(long)]
+    sensor: Option<PathBuf>,
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let hidden: Vec<usize> = parse_list(&a.hidden, "hidden")?;
+    if hidden.is_empty() || hidden.contains(&0) {
+        bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
+    }
+    let sensor = match &a.sensor {
+        Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
+        None => None,
+    };
+    let (targets, data) = a.data.load(a.algorithm.field(), |n| {
+        matches!(a.algorithm.components(n), Ok(Some(_)))
+    })?;
+    let components = a.algorithm.components(data.marker_inputs())?;
+    let TrainingTable {
+        x,
+        t,
+        feature_columns,
+        passthrough,
+        ..
+    } = data;
+    let sets = candidate_inputs(
+        &column_kinds(&feature_columns, &FIELD_COLUMNS),
+        components,
+        a.algorithm.field(),
+    );
+    let t0 = std::time::Instant::now();
+    let cfg = FitConfig {
+        hidden,
+        seed: a.seed,
+        max_epochs: a.max_epochs,
+        algorithm: a.algorithm.algorithm(),
+        hold_out: false,
+        components,
+        passthrough,
+        ensemble: a.ensemble,
+    };
+    let data = FitData {
+        x: &x,
+        t: &t,
+        feature_columns: &feature_columns,
+        targets: &targets,
+    };
+    if sets.len() > 1 {
+        eprintln!(
+            "choosing the inputs by {SELECTION_FOLDS}-fold cross-validation (one network per fold): {}",
+            sets.iter()
+                .map(|s| s.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" or ")
+        );
+    }
+    let (best, selection) =
+        choose_inputs(&data, &cfg, &sets, SELECTION_FOLDS).map_err(fit_error)?;
+    for score in &selection {
+        eprintln!(
+            "  {} {}: held-out error / variance {:.3e} (per target {})",
+            if score.chosen { "chose" } else { "     " },
+            score.inputs,
+            score.error,
+            score
+                .normalised_mse
+                .iter()
+                .map(|e| format!("{e:.3e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let set = &sets[best];
+    eprintln!(
+        "training {} → {} → {} ({} weights, {}) on {} frames",
+        inputs_in_words(set),
+        cfg.hidden
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" → "),
+        targets.len(),
+        Mlp::n_params_for(
+            &[
+                &[set
+                    .components
+                    .map_or(set.columns.len(), |k| k + set.passthrough)][..],
+                &cfg.hidden,
+                &[targets.len()]
+            ]
+            .concat()
+        ),
+        a.algorithm.name,
+        x.len()
+    );
+    let mut model = fit_set(&data, set, &cfg, |epoch, train_mse, val_mse| {
+        if epoch % 10 == 0 {
+            if val_mse.is_nan() {
+                eprintln!("epoch {epoch}: mse train {train_mse:.3e} (scaled)");
+            } else {
+                eprintln!(
+                    "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
+                );
+            }
+        }
+        Control::Continue
+    })
+    .map_err(fit_error)?;
+    model.training.selection = selection;
+    model.sensor = sensor;
+    crate::write_atomically(&a.output, &model.to_json())?;
+    let tr = &model.training;
+    eprintln!(
+        "trained ({}) in {:.2} s: {} epochs (best {}), stopped by {}",
+        tr.algorithm,
+        t0.elapsed().as_secs_f64(),
+        tr.epochs,
+        tr.best_epoch,
+        tr.stop
+    );
+    if let Some(e) = &tr.evidence {
+        eprintln!(
+            "  effective parameters γ {:.1} of {} (α {:.3e}, β {:.3e})",
+            e.gamma,
+            model.net.params.len(),
+            e.alpha,
+            e.beta
+        );
+    }
+    let cell = |v: &[f64], j: usize, r: bool| {
+        v.get(j).map_or("–".to_string(), |x| {
+            if r {
+                format!("{x:.5}")
+            } else {
+                format!("{x:.4e}")
+            }
+        })
+    };
+    for (j, name) in targets.iter().enumerate() {
+        eprintln!(
+            "  {name}: mse train {}, validation {}, test {}; R train {}, validation {}, test {}",
+            cell(&tr.mse[0], j, false),
+            cell(&tr.mse[1], j, false),
+            cell(&tr.mse[2], j, false),
+            cell(&tr.r[0], j, true),
+            cell(&tr.r[1], j, true),
+            cell(&tr.r[2], j, true)
+        );
+    }
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// How many inputs `set` reads and how they reach the network, in words.
+fn inputs_in_words(set: &InputSet) -> String {
+    let n = set.columns.len();
+    match set.components {
+        None => n.to_string(),
+        Some(k) => format!(
+            "{n} inputs (the markers' {} as {k} principal components{})",
+            n - set.passthrough,
+            if set.passthrough > 0 {
+                format!(", {} more as they are", set.passthrough)
+            } else {
+                String::new()
+            }
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_hidden_layers_are_the_librarys() {
+        let parsed: Vec<usize> = parse_list(DEFAULT_HIDDEN, "hidden").unwrap();
+        assert_eq!(parsed, FitConfig::default().hidden);
+    }
+}

@@ -1,0 +1,81 @@
+//! Printing what several commands report the same way.
+
+use std::path::Path;
+
+use anyhow::bail;
+use visuotact_nn::metrics::TargetErrors;
+use visuotact_pipeline::evaluation::evaluate_files;
+use visuotact_report::figures::{ContactMap, Panel, RegressionPlot};
+
+/// Prints the error figures of a predictions table against a labels table
+/// ([`visuotact_pipeline::evaluation`]) and draws the figures asked for.
+pub(crate) fn evaluation(
+    predictions: &Path,
+    labels: &Path,
+    json: bool,
+    plot: Option<&Path>,
+    map: Option<&Path>,
+) -> anyhow::Result<()> {
+    let e = evaluate_files(predictions, labels)?;
+    if let Some(path) = plot {
+        let panels: Vec<Panel> = e
+            .targets
+            .iter()
+            .map(|t| (t.errors.target.clone(), t.points.clone(), t.errors.r))
+            .collect();
+        visuotact_report::save(&RegressionPlot(&panels), path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = map {
+        let Some(d) = e.distance_mm else {
+            bail!(
+                "--map needs contact positions: columns x_mm and y_mm in both {} and {}",
+                predictions.display(),
+                labels.display()
+            );
+        };
+        let figure = ContactMap {
+            points: &e.map,
+            distance_mean_mm: d.mean,
+        };
+        visuotact_report::save(&figure, path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    let figures: Vec<&TargetErrors> = e.targets.iter().map(|t| &t.errors).collect();
+    if json {
+        let v = serde_json::json!({
+            "targets": figures,
+            "distance_mm": e.distance_mm,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{:<12} {:>6} {:>11} {:>8} {:>10} {:>10} {:>8} {:>9}",
+        "target", "n", "mse", "R", "mean |e|", "max |e|", "MPE %", "acc. %"
+    );
+    for f in &figures {
+        println!(
+            "{:<12} {:>6} {:>11.4e} {:>8.5} {:>10.4} {:>10.4} {:>8.2} {:>9.2}",
+            f.target,
+            f.n,
+            f.mse,
+            f.r,
+            f.mean_abs,
+            f.max_abs,
+            f.mean_percentage_error,
+            f.accuracy_percent
+        );
+    }
+    if let Some(d) = e.distance_mm {
+        println!(
+            "distance D (x, y): mean {:.3} mm, max {:.3} mm",
+            d.mean, d.max
+        );
+    }
+    println!(
+        "MPE and accuracy over samples with |target| ≥ {:.0} % of the largest |target|",
+        100.0 * visuotact_nn::metrics::MPE_FLOOR_FRACTION
+    );
+    Ok(())
+}

@@ -1,0 +1,734 @@
+//! Both source documents' experiments end to end on the simulator — simulate, calibrate,
+//! extract, train (Levenberg–Marquardt), evaluate — as report structs beside the papers'
+//! numbers (`visuotact demo` prints them). Frames stay in memory; nothing is written.
+//!
+//! Each experiment trains the paper's own network (trainlm, the paper's inputs) and
+//! visuotact's default (what `visuotact train` builds with no options: trainbr, the field
+//! summary beside the markers' principal components on wide sensors, an ensemble whose spread
+//! is reported). Every random draw is seeded from [`DemoConfig::seed`].
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+use visuotact_image::RgbImage;
+use visuotact_nn::fit::{
+    candidate_inputs, column_kinds, fit_choosing, FieldInputs, FitConfig, FitData, FitError,
+    InputSet, SELECTION_FOLDS,
+};
+use visuotact_nn::lm::Control;
+use visuotact_nn::metrics::{target_errors, TargetErrors};
+use visuotact_nn::model::{is_marker_column, EstimateError, Model};
+use visuotact_sim::cone::{ConeConfig, ConeLoad};
+use visuotact_sim::iats::{IatsConfig, Touch};
+use visuotact_sim::protocol::{self, ConePress, PressureGauge};
+use visuotact_sim::rig::{frame_seed, GAUGE_SEED};
+use visuotact_sim::SimError;
+use visuotact_vision::calibration::{
+    calibrate, CalibrationConfig, CalibrationError, SensorCalibration,
+};
+use visuotact_vision::detect::{Centroid, DetectorConfig};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameSizeError, FIELD_COLUMNS};
+use visuotact_vision::layout::{Layout, LayoutChoice};
+use visuotact_vision::preprocess::PreprocessConfig;
+
+/// How big a demo to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DemoConfig {
+    /// A smaller run (under a minute): half the grid in each axis, shorter presses.
+    pub quick: bool,
+    /// Seed of the simulation, the splits and the weights.
+    pub seed: u64,
+}
+
+impl Default for DemoConfig {
+    fn default() -> Self {
+        Self {
+            quick: false,
+            seed: 1,
+        }
+    }
+}
+
+/// Why a demo stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum DemoError {
+    /// The simulator refused a frame.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Calibration failed on the rest frames.
+    #[error("{what} calibration: {source}")]
+    Calibration {
+        /// Which sensor.
+        what: &'static str,
+        /// Why.
+        source: CalibrationError,
+    },
+    /// The feature extractor refused the calibration.
+    #[error(transparent)]
+    Features(#[from] visuotact_vision::ConfigError),
+    /// A frame's size differs from the reference's.
+    #[error(transparent)]
+    FrameSize(#[from] FrameSizeError),
+    /// A training failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+    /// A model does not read the demo's columns.
+    #[error(transparent)]
+    Model(#[from] EstimateError),
+}
+
+/// Seed 000 Table 3: actual (x, y, depth) and the paper's estimates.
+pub const TABLE3: [([f64; 3], [f64; 3]); 6] = [
+    ([56.0, 21.0, 4.0], [54.5, 21.1, 3.8]),
+    ([16.0, 33.0, 4.0], [15.1, 33.7, 3.86]),
+    ([12.0, 9.0, 1.0], [10.7, 8.98, 1.1]),
+    ([56.0, 39.0, 2.0], [54.99, 40.43, 2.13]),
+    ([40.0, 3.0, 5.0], [38.96, 2.7, 5.1]),
+    ([32.0, 24.0, 3.0], [32.8, 22.4, 3.08]),
+];
+
+/// A trained model and how it went.
+#[derive(Clone, Debug)]
+pub struct Trained {
+    /// The model (predicts in target units).
+    pub model: Model,
+    /// Training time, s.
+    pub train_s: f64,
+    /// The inputs chosen, in words, with the cross-validated error of each set compared.
+    pub inputs: String,
+}
+
+/// One row of Table 3: the paper's touch, its estimate, and visuotact's.
+#[derive(Clone, Debug)]
+pub struct Table3Row {
+    /// Actual x, y, depth, mm.
+    pub actual: [f64; 3],
+    /// The paper's estimate.
+    pub paper: [f64; 3],
+    /// visuotact's default: values and its networks' spread, or why there is none.
+    pub estimate: Result<([f64; 3], [f64; 3]), String>,
+}
+
+/// Seed 000's experiment.
+#[derive(Clone, Debug)]
+pub struct IatsDemo {
+    /// Markers calibrated.
+    pub markers: usize,
+    /// Grid touches trained on.
+    pub grid_touches: usize,
+    /// Of them, frames with every marker found (the paper's inputs).
+    pub complete_frames: usize,
+    /// Frames visuotact's default trains on (any marker found).
+    pub default_frames: usize,
+    /// Simulating and calibrating, s.
+    pub setup_s: f64,
+    /// Seed 000's network (351 → 20 ×5 → 3, trainlm).
+    pub paper: Trained,
+    /// visuotact's default.
+    pub default: Trained,
+    /// The default's hidden layers.
+    pub default_hidden: Vec<usize>,
+    /// Table 3's six touches.
+    pub table3: Vec<Table3Row>,
+    /// Random touches (not in training).
+    pub random_touches: usize,
+    /// The default's errors on them per target (x, y, depth).
+    pub errors: Vec<TargetErrors>,
+    /// The default's mean spread per target.
+    pub mean_spread: Vec<f64>,
+    /// Contact distance D: mean and largest, mm.
+    pub distance_mm: (f64, f64),
+    /// Random touches with every marker found (the paper's network reads only those).
+    pub paper_frames: usize,
+    /// The paper's network on them: D mean and max, depth mean error, mm.
+    pub paper_distance_mm: (f64, f64),
+    /// The paper's network's mean depth error, mm.
+    pub paper_depth_mm: f64,
+}
+
+/// The best network of a 1..40-neuron sweep.
+#[derive(Clone, Debug)]
+pub struct SweepBest {
+    /// Inputs, in words (`rings`, `rings + gauge`).
+    pub inputs: &'static str,
+    /// Number of inputs.
+    pub n_inputs: usize,
+    /// Its hidden neurons.
+    pub hidden: usize,
+    /// Its test MSE, N².
+    pub test_mse: f64,
+    /// The sweep's time, s.
+    pub secs: f64,
+}
+
+/// One row of Table 5.1: a model, its inputs, its errors on a press.
+#[derive(Clone, Debug)]
+pub struct ConeRow {
+    /// Which model, on which press.
+    pub what: String,
+    /// Its inputs, in words.
+    pub inputs: &'static str,
+    /// Force errors.
+    pub errors: TargetErrors,
+}
+
+/// Seed 001's experiment.
+#[derive(Clone, Debug)]
+pub struct ConeDemo {
+    /// Rings calibrated.
+    pub rings: usize,
+    /// Frames trained on.
+    pub train_frames: usize,
+    /// The paper's 6 → 20 → 1 network, one training.
+    pub one_network: Trained,
+    /// Repeats per size in the sweeps.
+    pub repeats: u64,
+    /// The sweeps' best networks.
+    pub sweeps: Vec<SweepBest>,
+    /// Table 5.1's rows.
+    pub rows: Vec<ConeRow>,
+    /// The force below which MPE leaves frames out, N.
+    pub mpe_floor_n: f64,
+    /// How much lower the link's pressure is at the later press, %.
+    pub pressure_drop_percent: f64,
+}
+
+/// Features of frames rendered by `render(k)`, in parallel: the markers' features (NaN where
+/// a marker was lost), then the field summary.
+fn features_of(
+    cal: &SensorCalibration,
+    set: FeatureSet,
+    n: usize,
+    render: impl Fn(usize) -> Result<RgbImage, SimError> + Sync,
+) -> Result<Vec<Vec<f64>>, DemoError> {
+    let ex = FeatureExtractor::new(cal.clone(), set)?;
+    (0..n)
+        .into_par_iter()
+        .map_with(ex, |ex, k| Ok(ex.extract(&render(k)?)?.values))
+        .collect()
+}
+
+/// The papers' inputs: the markers' features without the field summary, where every marker
+/// was found.
+fn complete_markers(f: &[f64]) -> Option<Vec<f64>> {
+    let markers = &f[..f.len() - FIELD_COLUMNS.len()];
+    markers
+        .iter()
+        .all(|v| v.is_finite())
+        .then(|| markers.to_vec())
+}
+
+/// Trains on `x` (the same path as `visuotact train`). `columns` names the inputs, the
+/// markers' features first; `sets` the input sets to choose between (none: all columns).
+fn train(
+    x: &[Vec<f64>],
+    t: &[Vec<f64>],
+    columns: &[String],
+    targets: &[&str],
+    cfg: &FitConfig,
+    sets: &[InputSet],
+) -> Result<Trained, DemoError> {
+    let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
+    let data = FitData {
+        x,
+        t,
+        feature_columns: columns,
+        targets: &targets,
+    };
+    let t0 = Instant::now();
+    let model = fit_choosing(&data, cfg, sets, SELECTION_FOLDS, |_, _, _| {
+        Control::Continue
+    })?;
+    let inputs = inputs_of(&model, sets);
+    Ok(Trained {
+        model,
+        train_s: t0.elapsed().as_secs_f64(),
+        inputs,
+    })
+}
+
+/// `visuotact train`'s defaults for `columns` (markers' features first, then the rest): the
+/// configuration and the input sets it chooses between.
+fn default_config(columns: &[String], seed: u64) -> (FitConfig, Vec<InputSet>) {
+    let markers = columns.iter().filter(|c| is_marker_column(c)).count();
+    let cfg = FitConfig {
+        seed,
+        ..FitConfig::auto(markers, columns.len() - markers)
+    };
+    let sets = candidate_inputs(
+        &column_kinds(columns, &FIELD_COLUMNS),
+        cfg.components,
+        FieldInputs::Auto,
+    );
+    (cfg, sets)
+}
+
+/// `model`'s inputs picked by name from rows whose columns are `columns` (the model may read
+/// a subset: the input set training chose).
+fn inputs_of_rows(
+    model: &Model,
+    columns: &[String],
+) -> Result<impl Fn(&[f64]) -> Vec<f64>, DemoError> {
+    let picks = model.columns_in(columns)?;
+    Ok(move |row: &[f64]| picks.iter().map(|&i| row[i]).collect())
+}
+
+/// The inputs `model` was trained on, in words.
+fn inputs_of(model: &Model, sets: &[InputSet]) -> String {
+    match model.training.selection.iter().find(|s| s.chosen) {
+        Some(chosen) => format!(
+            "{} (chosen by {SELECTION_FOLDS}-fold cross-validation; held-out error / variance {})",
+            chosen.inputs,
+            model
+                .training
+                .selection
+                .iter()
+                .map(|s| format!("{:.2e}", s.error))
+                .collect::<Vec<_>>()
+                .join(" vs ")
+        ),
+        None => sets.first().map_or(String::new(), |s| s.name.clone()),
+    }
+}
+
+/// The papers' way with `hidden` layers.
+fn paper_config(hidden: &[usize], seed: u64) -> FitConfig {
+    FitConfig {
+        seed,
+        ..FitConfig::paper(hidden)
+    }
+}
+
+/// Mean and largest value (0 and 0 for none).
+fn mean_max(v: &[f64]) -> (f64, f64) {
+    (
+        v.iter().sum::<f64>() / v.len().max(1) as f64,
+        v.iter().fold(0.0f64, |m, x| m.max(*x)),
+    )
+}
+
+/// Calibrates on five rendered rest frames.
+fn calibrate_rest(
+    what: &'static str,
+    rest: &[RgbImage],
+    cfg: &CalibrationConfig,
+) -> Result<SensorCalibration, DemoError> {
+    let ids: Vec<String> = (0..rest.len()).map(|k| format!("ref{k}")).collect();
+    calibrate(ids.iter().map(String::as_str).zip(rest.iter()), cfg)
+        .map(|(cal, _)| cal)
+        .map_err(|source| DemoError::Calibration { what, source })
+}
+
+/// Seed 000's experiment: the grid protocol trains, Table 3 and random touches test.
+pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
+    let cfg = IatsConfig::SEED000;
+    let t0 = Instant::now();
+    let render = |t: &Touch, k: u64| {
+        visuotact_sim::iats::render(&cfg, t, frame_seed(a.seed, k)).map(|r| r.0)
+    };
+    let rest: Vec<RgbImage> = (0..5)
+        .map(|k| render(&Touch::default(), k))
+        .collect::<Result<_, _>>()?;
+    // As `calibrate` does by default: grey-level centroids.
+    let cal = calibrate_rest(
+        "iats",
+        &rest,
+        &CalibrationConfig {
+            detector: DetectorConfig {
+                preprocess: PreprocessConfig::IATS,
+                centroid: Centroid::Grey,
+                ..Default::default()
+            },
+            layout: LayoutChoice::Auto,
+            features: FeatureSet::IATS,
+            ..Default::default()
+        },
+    )?;
+    let mut grid = protocol::iats_grid();
+    if a.quick {
+        grid.retain(|t| (t.x_mm / 4.0) as usize % 2 == 0 && (t.y_mm / 3.0) as usize % 2 == 0);
+    }
+    let train_f = features_of(&cal, FeatureSet::IATS, grid.len(), |k| {
+        render(&grid[k], 100 + k as u64)
+    })?;
+    let truth = |t: &Touch| vec![t.x_mm, t.y_mm, t.depth_mm];
+    // Seed 000's inputs: frames with every marker found; visuotact's: every frame, lost markers
+    // filled from their neighbours, with the field summary.
+    let (x, t): (Vec<_>, Vec<_>) = train_f
+        .iter()
+        .zip(&grid)
+        .filter_map(|(f, touch)| Some((complete_markers(f)?, truth(touch))))
+        .unzip();
+    let (xd, td): (Vec<_>, Vec<_>) = train_f
+        .iter()
+        .zip(&grid)
+        .filter(|(f, _)| f.iter().any(|v| v.is_finite()))
+        .map(|(f, touch)| (f.clone(), truth(touch)))
+        .unzip();
+    let setup_s = t0.elapsed().as_secs_f64();
+    let columns = FeatureExtractor::new(cal.clone(), FeatureSet::IATS)?.column_names();
+    let targets = ["x_mm", "y_mm", "depth_mm"];
+    // Seed 000's architecture and trainer: five hidden layers of 20, trainlm.
+    let marker_columns = &columns[..columns.len() - FIELD_COLUMNS.len()];
+    let paper = train(
+        &x,
+        &t,
+        marker_columns,
+        &targets,
+        &paper_config(&[20; 5], a.seed),
+        &[],
+    )?;
+    let (default_cfg, sets) = default_config(&columns, a.seed);
+    let default = train(&xd, &td, &columns, &targets, &default_cfg, &sets)?;
+    let mut demo = IatsDemo {
+        markers: cal.markers.len(),
+        grid_touches: grid.len(),
+        complete_frames: x.len(),
+        default_frames: xd.len(),
+        setup_s,
+        paper,
+        default,
+        default_hidden: default_cfg.hidden,
+        table3: Vec::new(),
+        random_touches: 0,
+        errors: Vec::new(),
+        mean_spread: Vec::new(),
+        distance_mm: (0.0, 0.0),
+        paper_frames: 0,
+        paper_distance_mm: (0.0, 0.0),
+        paper_depth_mm: 0.0,
+    };
+    iats_table3(a, &cal, &columns, &mut demo)?;
+    iats_random(a, &cal, &columns, &mut demo)?;
+    Ok(demo)
+}
+
+/// Table 3: six touches anywhere, estimated by the default.
+fn iats_table3(
+    a: &DemoConfig,
+    cal: &SensorCalibration,
+    columns: &[String],
+    demo: &mut IatsDemo,
+) -> Result<(), DemoError> {
+    let cfg = IatsConfig::SEED000;
+    let model = &demo.default.model;
+    let pick = inputs_of_rows(model, columns)?;
+    let f3 = features_of(cal, FeatureSet::IATS, TABLE3.len(), |k| {
+        let p = TABLE3[k].0;
+        let touch = Touch {
+            x_mm: p[0],
+            y_mm: p[1],
+            depth_mm: p[2],
+            ..Touch::default()
+        };
+        visuotact_sim::iats::render(&cfg, &touch, frame_seed(a.seed, 50_000 + k as u64))
+            .map(|r| r.0)
+    })?;
+    demo.table3 = TABLE3
+        .iter()
+        .zip(&f3)
+        .map(|(&(actual, paper), f)| Table3Row {
+            actual,
+            paper,
+            estimate: model
+                .estimate(&pick(f))
+                .map(|e| {
+                    let at = |v: &[f64], j: usize| v.get(j).copied().unwrap_or(0.0);
+                    (
+                        [0, 1, 2].map(|j| at(&e.values, j)),
+                        [0, 1, 2].map(|j| at(&e.spread, j)),
+                    )
+                })
+                .map_err(|why| why.to_string()),
+        })
+        .collect();
+    Ok(())
+}
+
+/// Random touches: the accuracy figures of the paper's conclusions, for the default and for
+/// the paper's network.
+fn iats_random(
+    a: &DemoConfig,
+    cal: &SensorCalibration,
+    columns: &[String],
+    demo: &mut IatsDemo,
+) -> Result<(), DemoError> {
+    let cfg = IatsConfig::SEED000;
+    let test = protocol::iats_random(&cfg, if a.quick { 100 } else { 300 }, a.seed ^ 0x7E57);
+    let ft = features_of(cal, FeatureSet::IATS, test.len(), |k| {
+        visuotact_sim::iats::render(&cfg, &test[k], frame_seed(a.seed, 60_000 + k as u64))
+            .map(|r| r.0)
+    })?;
+    let (model, paper) = (&demo.default.model, &demo.paper.model);
+    let pick = inputs_of_rows(model, columns)?;
+    let (mut est, mut tru): ([Vec<f64>; 3], [Vec<f64>; 3]) = Default::default();
+    let (mut dist, mut spreads) = (Vec::new(), Vec::new());
+    let (mut paper_d, mut paper_depth) = (Vec::new(), Vec::new());
+    for (f, touch) in ft.iter().zip(&test) {
+        let truth = [touch.x_mm, touch.y_mm, touch.depth_mm];
+        if let Some(m) = complete_markers(f) {
+            let e = paper.predict(&m);
+            paper_d.push((e[0] - truth[0]).hypot(e[1] - truth[1]));
+            paper_depth.push((e[2] - truth[2]).abs());
+        }
+        let Ok(e) = model.estimate(&pick(f)) else {
+            continue;
+        };
+        for j in 0..3 {
+            est[j].push(e.values[j]);
+            tru[j].push(truth[j]);
+        }
+        dist.push((e.values[0] - truth[0]).hypot(e.values[1] - truth[1]));
+        spreads.push(e.spread);
+    }
+    let names = ["x_mm", "y_mm", "depth_mm"];
+    demo.random_touches = test.len();
+    demo.errors = (0..3)
+        .map(|j| target_errors(names[j], &est[j], &tru[j]))
+        .collect();
+    demo.mean_spread = (0..3)
+        .map(|j| {
+            let v: Vec<f64> = spreads.iter().filter_map(|s| s.get(j).copied()).collect();
+            mean_max(&v).0
+        })
+        .collect();
+    demo.distance_mm = mean_max(&dist);
+    demo.paper_frames = paper_d.len();
+    demo.paper_distance_mm = mean_max(&paper_d);
+    demo.paper_depth_mm = mean_max(&paper_depth).0;
+    Ok(())
+}
+
+/// Frames of the cone experiment: rows per frame (`None` where a ring was lost), with and
+/// without the gauge, and the loads behind them.
+struct ConeFrames {
+    rings: Vec<Option<Vec<f64>>>,
+    with_gauge: Vec<Option<Vec<f64>>>,
+    loads: Vec<ConeLoad>,
+}
+
+impl ConeFrames {
+    /// Training rows of `with_gauge` or not: inputs and the force.
+    fn rows(&self, gauge: bool) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        let feats = if gauge { &self.with_gauge } else { &self.rings };
+        feats
+            .iter()
+            .zip(&self.loads)
+            .filter_map(|(f, l)| f.as_ref().map(|f| (f.clone(), vec![l.force_n])))
+            .unzip()
+    }
+}
+
+/// One press of the cone at `azimuth_rad` starting at `t0` s, rendered from frame `base` on.
+fn cone_press(
+    a: &DemoConfig,
+    cal: &SensorCalibration,
+    press: &ConePress,
+    t0: f64,
+    base: u64,
+) -> Result<ConeFrames, DemoError> {
+    let (cfg, fps) = (ConeConfig::SEED001, 25.0);
+    let n = (press.duration_s * fps) as usize;
+    let loads: Vec<ConeLoad> = (0..n)
+        .map(|k| press.load_at(&cfg, k as f64 / fps, t0))
+        .collect();
+    let rings: Vec<Option<Vec<f64>>> = features_of(cal, FeatureSet::CONE, n, |k| {
+        visuotact_sim::cone::render(&cfg, &loads[k], frame_seed(a.seed, base + k as u64))
+            .map(|r| r.0)
+    })?
+    .iter()
+    .map(|f| complete_markers(f))
+    .collect();
+    // The link's pressure gauge, read with every frame: an input the paper did not use.
+    let with_gauge = rings
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let p = PressureGauge::SEED001.reading_kpa(
+                &press.drift,
+                cfg.pressure_kpa,
+                t0 + k as f64 / fps,
+                frame_seed(a.seed ^ GAUGE_SEED, base + k as u64),
+            );
+            f.as_ref().map(|f| [&f[..], &[p]].concat())
+        })
+        .collect();
+    Ok(ConeFrames {
+        rings,
+        with_gauge,
+        loads,
+    })
+}
+
+/// A model's force errors over frames whose rows have the columns `names`.
+fn errors_on(
+    model: &Model,
+    names: &[String],
+    frames: &ConeFrames,
+    gauge: bool,
+) -> Result<TargetErrors, DemoError> {
+    let pick = inputs_of_rows(model, names)?;
+    let feats = if gauge {
+        &frames.with_gauge
+    } else {
+        &frames.rings
+    };
+    let (mut est, mut tru) = (Vec::new(), Vec::new());
+    for (f, l) in feats.iter().zip(&frames.loads) {
+        if let Some(f) = f {
+            est.push(model.predict(&pick(f))[0]);
+            tru.push(l.force_n);
+        }
+    }
+    Ok(target_errors("force_n", &est, &tru))
+}
+
+/// Seed 001's own protocol: 1..40 neurons × `repeats`, the best net kept (lowest test MSE).
+fn best_of_sweep(
+    a: &DemoConfig,
+    (x, t): (&[Vec<f64>], &[Vec<f64>]),
+    columns: &[String],
+    repeats: u64,
+) -> Result<(Model, usize, f64), DemoError> {
+    let t_sweep = Instant::now();
+    let runs: Vec<(Model, usize)> = (1..=40usize)
+        .flat_map(|h| (0..repeats).map(move |r| (h, r)))
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(h, r)| {
+            let cfg = paper_config(&[h], a.seed + 7919 * r);
+            train(x, t, columns, &["force_n"], &cfg, &[]).map(|f| (f.model, h))
+        })
+        .collect::<Result<_, _>>()?;
+    let (best, h) = runs
+        .into_iter()
+        .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))
+        .ok_or(FitError::Empty {
+            samples: x.len(),
+            inputs: columns.len(),
+            targets: 1,
+        })?;
+    Ok((best, h, t_sweep.elapsed().as_secs_f64()))
+}
+
+/// Seed 001's experiment: one press trains, a later press in another state of the link tests.
+pub fn cone(a: &DemoConfig) -> Result<ConeDemo, DemoError> {
+    let cfg = ConeConfig::SEED001;
+    let press = ConePress {
+        duration_s: if a.quick { 10.0 } else { 20.0 },
+        ..ConePress::SEED001
+    };
+    let rest: Vec<RgbImage> = (0..5)
+        .map(|k| {
+            let load = ConeLoad::none(cfg.pressure_kpa);
+            visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, 200_000 + k)).map(|r| r.0)
+        })
+        .collect::<Result<_, _>>()?;
+    let cal = calibrate_rest(
+        "cone",
+        &rest,
+        &CalibrationConfig {
+            detector: DetectorConfig {
+                preprocess: PreprocessConfig::CONE,
+                centroid: Centroid::Weighted,
+                ..Default::default()
+            },
+            layout: LayoutChoice::Only(Layout::Rings),
+            features: FeatureSet::CONE,
+            ..Default::default()
+        },
+    )?;
+    // Two presses: one to train on, one (later, the link softer) to test.
+    let first = cone_press(a, &cal, &press, 0.0, 210_000)?;
+    let later = cone_press(a, &cal, &press, press.duration_s + 5.0, 220_000)?;
+    let mut columns = FeatureExtractor::new(cal.clone(), FeatureSet::CONE)?.column_names();
+    columns.truncate(columns.len() - FIELD_COLUMNS.len());
+    let gauge_columns = [&columns[..], &["gauge_kpa".to_string()]].concat();
+    cone_table(
+        a,
+        cal.markers.len(),
+        &columns,
+        &gauge_columns,
+        &first,
+        &later,
+    )
+}
+
+/// Trains the cone's models and fills Table 5.1.
+fn cone_table(
+    a: &DemoConfig,
+    rings: usize,
+    columns: &[String],
+    gauge_columns: &[String],
+    first: &ConeFrames,
+    later: &ConeFrames,
+) -> Result<ConeDemo, DemoError> {
+    let ((x, t), (xg, tg)) = (first.rows(false), first.rows(true));
+    let force = ["force_n"];
+    let one = train(&x, &t, columns, &force, &paper_config(&[20], a.seed), &[])?;
+    let (dc, sets) = default_config(columns, a.seed);
+    let default = train(&x, &t, columns, &force, &dc, &sets)?.model;
+    let (dgc, sets_g) = default_config(gauge_columns, a.seed);
+    let default_g = train(&xg, &tg, gauge_columns, &force, &dgc, &sets_g)?.model;
+    let repeats: u64 = if a.quick { 2 } else { 5 };
+    let (best, best_h, sweep_s) = best_of_sweep(a, (&x, &t), columns, repeats)?;
+    let (best_g, best_gh, sweep_gs) = best_of_sweep(a, (&xg, &tg), gauge_columns, repeats)?;
+    let sweeps = vec![
+        SweepBest {
+            inputs: "rings",
+            n_inputs: columns.len(),
+            hidden: best_h,
+            test_mse: best.training.mse[2][0],
+            secs: sweep_s,
+        },
+        SweepBest {
+            inputs: "rings + gauge",
+            n_inputs: gauge_columns.len(),
+            hidden: best_gh,
+            test_mse: best_g.training.mse[2][0],
+            secs: sweep_gs,
+        },
+    ];
+    let own = "best of sweep, over its own press (paper's way)";
+    let unseen = "best of sweep, on a later press (unseen)";
+    let default_row = format!(
+        "visuotact's default ({} × {}), later press",
+        default.training.algorithm,
+        default.networks().count()
+    );
+    let row = |what: &str, inputs, m: &Model, frames: &ConeFrames| {
+        let gauge = inputs == "rings + gauge";
+        let names = if gauge { gauge_columns } else { columns };
+        Ok::<_, DemoError>(ConeRow {
+            what: what.to_string(),
+            inputs,
+            errors: errors_on(m, names, frames, gauge)?,
+        })
+    };
+    let one_later = row(
+        "6 → 20 → 1, one training, on the later press",
+        "rings",
+        &one.model,
+        later,
+    )?;
+    let rows = vec![
+        row(own, "rings", &best, first)?,
+        row(unseen, "rings", &best, later)?,
+        one_later.clone(),
+        row(&default_row, "rings", &default, later)?,
+        row(own, "rings + gauge", &best_g, first)?,
+        row(unseen, "rings + gauge", &best_g, later)?,
+        row(&default_row, "rings + gauge", &default_g, later)?,
+    ];
+    Ok(ConeDemo {
+        rings,
+        train_frames: x.len(),
+        one_network: one,
+        repeats,
+        sweeps,
+        rows,
+        mpe_floor_n: one_later.errors.mpe_floor,
+        pressure_drop_percent: 100.0
+            * (1.0 - later.loads[0].pressure_kpa / first.loads[0].pressure_kpa),
+    })
+}

@@ -1,0 +1,840 @@
+//! Recording a session: a frame source plus an optional force source → a session folder,
+//! written as it goes.
+//!
+//! Sources ([`SourceSpec`]): image files, folders or videos; a V4L2 camera; and the simulated
+//! rigs `sim:cone` (seed 001's link pressed and released, its JR3 streaming over UDP to the
+//! force receiver) and `sim:iats` (random touches), paced in real time. Force
+//! ([`ForceSource`]): UDP packets (packed little-endian f64, [`ForceLayout`]) or a CSV table.
+//!
+//! The contract: every table row is written and flushed as it is produced and the files are
+//! `fsync`ed every [`RecordConfig::sync_every_s`], so a crash or SIGKILL leaves every completed
+//! row readable; [`RecordConfig::resume`] continues a stopped session (an unfinished last line
+//! is cut off first). Setting the `stop` flag ends the recording cleanly. An unwritable folder
+//! or a full disk is reported before recording starts. `session.json` says whether the
+//! recording completed and what was lost (frames dropped or unreadable, force packets).
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use visuotact_image::RgbImage;
+use visuotact_io::camera::{CameraError, CameraRequest};
+use visuotact_io::force::{ForceLayout, ForceReceiver, ForceSample, ForceTable, ReceiveStats};
+use visuotact_io::frames::{write_png, FrameError, FrameStream};
+use visuotact_io::queue::{Captured, LatestQueue};
+use visuotact_io::session::{
+    probe_writable, write_atomically, AppendLog, SESSION_FORMAT, SESSION_VERSION,
+};
+use visuotact_io::source::SourceSpec;
+use visuotact_io::table::{format_number, push_csv_row, TableError};
+use visuotact_sim::jr3::{Jr3, Jr3Config};
+use visuotact_sim::rig::{frame_seed, SimRig};
+use visuotact_sim::SimError;
+
+use crate::schema::{feature_columns, feature_row_into, flags_of};
+use crate::Estimator;
+
+/// Where force samples come from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ForceSource {
+    /// Listen for packets on this `HOST:PORT`.
+    Udp(String),
+    /// A force table already recorded.
+    Csv(PathBuf),
+}
+
+impl ForceSource {
+    /// Parses `udp:HOST:PORT` or `csv:FILE`.
+    pub fn parse(s: &str) -> Result<Self, RecordError> {
+        if let Some(addr) = s.strip_prefix("udp:") {
+            Ok(Self::Udp(addr.to_string()))
+        } else if let Some(path) = s.strip_prefix("csv:") {
+            Ok(Self::Csv(PathBuf::from(path)))
+        } else {
+            Err(RecordError::Config(format!(
+                "force source {s:?}: expected udp:HOST:PORT or csv:FILE"
+            )))
+        }
+    }
+}
+
+/// The simulated cone rig's press (`sim:cone`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ConeRigConfig {
+    /// Press-and-release time, seconds.
+    pub press_s: f64,
+    /// No-contact time before and after the press, seconds.
+    pub rest_s: f64,
+    /// Peak force, N.
+    pub max_force_n: f64,
+}
+
+impl Default for ConeRigConfig {
+    fn default() -> Self {
+        Self {
+            press_s: 20.0,
+            rest_s: 2.0,
+            max_force_n: 10.0,
+        }
+    }
+}
+
+/// What to record and how.
+#[derive(Clone, Debug)]
+pub struct RecordConfig {
+    /// Session folder to write.
+    pub output: PathBuf,
+    /// Frame source, as [`SourceSpec::parse`] reads it (kept verbatim in `session.json`).
+    pub source: String,
+    /// Frame rate of image folders and of the simulated camera, frames per second.
+    pub fps: f64,
+    /// Stop after this many seconds.
+    pub duration_s: Option<f64>,
+    /// Stop after this many frames.
+    pub max_frames: Option<usize>,
+    /// Force source.
+    pub force: Option<ForceSource>,
+    /// Fields of a force packet, in order.
+    pub force_layout: ForceLayout,
+    /// The force sensor's sample rate, Hz (counts lost packets; converts a counter field).
+    pub force_rate_hz: f64,
+    /// Keep every frame as PNG in `frames/`.
+    pub save_frames: bool,
+    /// `fsync` the session files this often, seconds.
+    pub sync_every_s: f64,
+    /// Continue a stopped session in the output folder.
+    pub resume: bool,
+    /// Simulated sources: random seed.
+    pub seed: u64,
+    /// `sim:cone`: the press.
+    pub cone: ConeRigConfig,
+    /// Simulated sources: no-contact reference frames written to `reference/` first.
+    pub references: usize,
+    /// The sensor file the estimator was built from (written to `session.json`).
+    pub sensor_file: Option<PathBuf>,
+    /// The model file the estimator was built from (written to `session.json`).
+    pub model_file: Option<PathBuf>,
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        Self {
+            output: PathBuf::from("session"),
+            source: "sim:iats".into(),
+            fps: 25.0,
+            duration_s: None,
+            max_frames: None,
+            force: None,
+            force_layout: ForceLayout::default(),
+            force_rate_hz: 1000.0,
+            save_frames: false,
+            sync_every_s: 1.0,
+            resume: false,
+            seed: 1,
+            cone: ConeRigConfig::default(),
+            references: 10,
+            sensor_file: None,
+            model_file: None,
+        }
+    }
+}
+
+/// Why a recording could not start or went wrong (rows already written stay on disk).
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// A setting is out of range or malformed.
+    #[error("{0}")]
+    Config(String),
+    /// The folder holds a session and `resume` was not asked for.
+    #[error("{}: already holds a session; resume it (--resume) or choose a new folder", .0.display())]
+    Exists(PathBuf),
+    /// `resume` was asked for and the folder holds no session.
+    #[error("{}: no session to resume", .0.display())]
+    NothingToResume(PathBuf),
+    /// Reading or writing a file or socket (the message names it).
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// A frame source could not be opened or a frame written.
+    #[error(transparent)]
+    Frames(#[from] FrameError),
+    /// The camera could not be opened.
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    /// The simulated rig refused its settings.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// The force table does not read.
+    #[error(transparent)]
+    ForceTable(#[from] TableError),
+    /// A capture or force thread stopped unexpectedly.
+    #[error("the {0} thread stopped unexpectedly")]
+    Thread(&'static str),
+}
+
+/// What a recording did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RecordSummary {
+    /// Frames written by this run.
+    pub written: usize,
+    /// Frames in the session, earlier runs included.
+    pub frames: usize,
+    /// Frames the simulated camera could not produce in time.
+    pub dropped: usize,
+    /// Frames that could not be read (each reported through the warning callback).
+    pub unreadable: usize,
+    /// The force receiver's counts.
+    pub force_packets: Option<ReceiveStats>,
+    /// Force packets the simulated JR3 sent.
+    pub force_packets_sent: Option<u64>,
+    /// Wall-clock time, seconds.
+    pub duration_s: f64,
+}
+
+/// A frame the recorder writes: from a simulated rig (with its labels), a file or a camera,
+/// on the recorder's clock.
+struct RecordedFrame {
+    id: String,
+    timestamp_s: f64,
+    image: RgbImage,
+    labels: Vec<f64>,
+}
+
+const FORCE_HEADER: &str = "timestamp_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm,recv_s";
+
+/// Records a session (see the module's documentation) until the source ends, a limit is
+/// reached or `stop` is set. `estimator` adds `features.csv` (and `estimates.csv` with a
+/// model); `warn` hears of frames skipped.
+pub fn record(
+    cfg: &RecordConfig,
+    mut estimator: Option<Estimator>,
+    stop: &Arc<AtomicBool>,
+    warn: &mut dyn FnMut(&str),
+) -> Result<RecordSummary, RecordError> {
+    check(cfg)?;
+    let rig = match SourceSpec::parse(&cfg.source) {
+        SourceSpec::Sim(kind) => Some(rig_of(cfg, &kind)?),
+        _ => None,
+    };
+    let mut tables = Tables::open(cfg, estimator.as_ref(), rig.as_ref())?;
+    describe(cfg, false, &RecordSummary::default())?;
+    if let Some(r) = &rig {
+        write_references(cfg, r)?;
+    }
+    let clock = Instant::now();
+    let t_offset = tables.t_offset(cfg.fps);
+    let force = ForceSide::start(cfg, rig.as_ref(), clock, t_offset, stop)?;
+    let mut frames = Frames::open(cfg, rig, clock, stop)?;
+    let mut summary = RecordSummary::default();
+    let mut k = tables.first_index;
+    let result = (|| {
+        while !stop.load(Ordering::Relaxed)
+            && cfg.max_frames.is_none_or(|m| summary.written < m)
+            && cfg
+                .duration_s
+                .is_none_or(|d| clock.elapsed().as_secs_f64() < d)
+        {
+            let frame = match frames.next(cfg, k, t_offset, &tables.done, &mut summary, warn)? {
+                Next::Frame(f) => f,
+                Next::Skip => continue,
+                Next::End => break,
+            };
+            tables.write(cfg, estimator.as_mut(), &frame, k, warn)?;
+            summary.written += 1;
+            k += 1;
+        }
+        Ok(())
+    })();
+    // Stop the camera and the force side, whatever happened to the frames.
+    stop.store(true, Ordering::Relaxed);
+    frames.close();
+    (summary.force_packets, summary.force_packets_sent) = force.finish()?;
+    tables.sync()?;
+    summary.frames = tables.first_index + summary.written;
+    summary.duration_s = clock.elapsed().as_secs_f64();
+    describe(cfg, result.is_ok(), &summary)?;
+    result.map(|()| summary)
+}
+
+fn check(cfg: &RecordConfig) -> Result<(), RecordError> {
+    if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
+        return Err(RecordError::Config(format!(
+            "fps must be a positive frame rate, got {}",
+            cfg.fps
+        )));
+    }
+    if !(cfg.sync_every_s.is_finite() && cfg.sync_every_s >= 0.0) {
+        return Err(RecordError::Config("sync_every_s must be ≥ 0".into()));
+    }
+    let out = &cfg.output;
+    let exists = holds_session(out);
+    if exists && !cfg.resume {
+        return Err(RecordError::Exists(out.clone()));
+    }
+    if cfg.resume && !exists {
+        return Err(RecordError::NothingToResume(out.clone()));
+    }
+    std::fs::create_dir_all(out).map_err(|e| {
+        std::io::Error::new(
+            e.kind(),
+            format!("cannot create the session folder {}: {e}", out.display()),
+        )
+    })?;
+    probe_writable(out, 1 << 20)?;
+    if cfg.save_frames {
+        std::fs::create_dir_all(out.join("frames"))?;
+    }
+    Ok(())
+}
+
+fn rig_of(cfg: &RecordConfig, kind: &str) -> Result<SimRig, RecordError> {
+    Ok(match kind {
+        "cone" => SimRig::cone(cfg.cone.press_s, cfg.cone.max_force_n, cfg.cone.rest_s)?,
+        "iats" => SimRig::iats(cfg.max_frames.unwrap_or(200).max(1), cfg.seed),
+        other => {
+            return Err(RecordError::Config(format!(
+                "source sim:{other}: expected sim:cone or sim:iats"
+            )))
+        }
+    })
+}
+
+/// `session.json`: the settings, whether the recording completed, and its counts.
+fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(), RecordError> {
+    #[derive(Serialize)]
+    struct Description<'a> {
+        format: &'a str,
+        version: u32,
+        recorded_by: String,
+        source: &'a str,
+        fps: f64,
+        force: Option<String>,
+        force_layout: String,
+        force_rate_hz: f64,
+        force_clock: &'a str,
+        sensor_file: &'a Option<PathBuf>,
+        model_file: &'a Option<PathBuf>,
+        frames_saved: bool,
+        complete: bool,
+        frames: usize,
+        frames_dropped: usize,
+        frames_unreadable: usize,
+        force_packets: Option<ReceiveStats>,
+        force_packets_sent_by_simulator: Option<u64>,
+        duration_s: f64,
+    }
+    let d = Description {
+        format: SESSION_FORMAT,
+        version: SESSION_VERSION,
+        recorded_by: format!("visuotact {} record", env!("CARGO_PKG_VERSION")),
+        source: &cfg.source,
+        fps: cfg.fps,
+        force: cfg.force.as_ref().map(|f| match f {
+            ForceSource::Udp(a) => format!("udp:{a}"),
+            ForceSource::Csv(p) => format!("csv:{}", p.display()),
+        }),
+        force_layout: cfg.force_layout.to_string(),
+        force_rate_hz: cfg.force_rate_hz,
+        force_clock: "timestamp_s is the force sender's clock; recv_s the recorder's",
+        sensor_file: &cfg.sensor_file,
+        model_file: &cfg.model_file,
+        frames_saved: cfg.save_frames,
+        complete,
+        frames: s.frames,
+        frames_dropped: s.dropped,
+        frames_unreadable: s.unreadable,
+        force_packets: s.force_packets,
+        force_packets_sent_by_simulator: s.force_packets_sent,
+        duration_s: s.duration_s,
+    };
+    let text = serde_json::to_string_pretty(&d).map_err(std::io::Error::other)? + "\n";
+    Ok(write_atomically(&cfg.output.join("session.json"), &text)?)
+}
+
+/// Simulated rigs write their no-contact references first.
+fn write_references(cfg: &RecordConfig, rig: &SimRig) -> Result<(), RecordError> {
+    if cfg.resume || cfg.references == 0 {
+        return Ok(());
+    }
+    let dir = cfg.output.join("reference");
+    std::fs::create_dir_all(&dir)?;
+    for k in 0..cfg.references {
+        let img = rig.reference(frame_seed(cfg.seed, 1_000_000 + k as u64))?;
+        write_png(&dir.join(format!("ref_{k:04}.png")), &img)?;
+    }
+    Ok(())
+}
+
+/// The session's tables, open for appending.
+struct Tables {
+    frames: AppendLog,
+    features: Option<AppendLog>,
+    estimates: Option<AppendLog>,
+    labels: Option<AppendLog>,
+    /// Frame ids already recorded (resume skips them).
+    done: HashSet<String>,
+    /// The last recorded timestamp, s (−∞ in a new session).
+    last_t: f64,
+    /// Frames already in the session.
+    first_index: usize,
+    line: String,
+    row: Vec<f64>,
+}
+
+impl Tables {
+    fn open(
+        cfg: &RecordConfig,
+        est: Option<&Estimator>,
+        rig: Option<&SimRig>,
+    ) -> Result<Self, RecordError> {
+        let sync = Duration::from_secs_f64(cfg.sync_every_s);
+        let open = |name: &str, header: &str| {
+            AppendLog::open(&cfg.output.join(name), header, cfg.resume, sync)
+        };
+        let (frames, kept) = open("frames.csv", "frame,index,timestamp_s,kind")?;
+        let done = kept
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.split(',').next().map(str::to_string))
+            .collect();
+        let last_t = kept
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.split(',').nth(2)?.parse::<f64>().ok())
+            .fold(f64::NEG_INFINITY, f64::max);
+        let with_frame = |cols: &[String]| format!("frame,{},flags", cols.join(","));
+        let features = est
+            .map(|e| {
+                open(
+                    "features.csv",
+                    &with_frame(&feature_columns(&e.feature_columns())),
+                )
+            })
+            .transpose()?
+            .map(|(log, _)| log);
+        let estimates = est
+            .map(Estimator::target_columns)
+            .filter(|c| !c.is_empty())
+            .map(|c| open("estimates.csv", &with_frame(&c)))
+            .transpose()?
+            .map(|(log, _)| log);
+        let labels = rig
+            .map(|r| {
+                open(
+                    "labels.csv",
+                    &format!("frame,{}", r.label_columns().join(",")),
+                )
+            })
+            .transpose()?
+            .map(|(log, _)| log);
+        Ok(Self {
+            first_index: frames.lines(),
+            frames,
+            features,
+            estimates,
+            labels,
+            done,
+            last_t,
+            line: String::new(),
+            row: Vec::new(),
+        })
+    }
+
+    /// The session clock's start: a resumed session continues after its last frame.
+    fn t_offset(&self, fps: f64) -> f64 {
+        if self.last_t.is_finite() {
+            self.last_t + 1.0 / fps
+        } else {
+            0.0
+        }
+    }
+
+    /// Writes frame `k`: its PNG if asked, its features and estimate, labels and index row.
+    fn write(
+        &mut self,
+        cfg: &RecordConfig,
+        est: Option<&mut Estimator>,
+        f: &RecordedFrame,
+        k: usize,
+        warn: &mut dyn FnMut(&str),
+    ) -> Result<(), RecordError> {
+        if cfg.save_frames {
+            let name = if f.id.ends_with(".png") {
+                f.id.clone()
+            } else {
+                format!("{}.png", f.id)
+            };
+            write_png(&cfg.output.join("frames").join(name), &f.image)?;
+        }
+        if let Some(e) = est {
+            self.write_estimate(e, f, warn)?;
+        }
+        if let Some(log) = self.labels.as_mut() {
+            let cells: Vec<String> = f.labels.iter().map(|v| format_number(*v)).collect();
+            log.line(&format!("{},{}", f.id, cells.join(",")))?;
+        }
+        self.frames.line(&format!(
+            "{},{},{},touch",
+            f.id,
+            k,
+            format_number(f.timestamp_s)
+        ))?;
+        Ok(())
+    }
+
+    fn write_estimate(
+        &mut self,
+        e: &mut Estimator,
+        f: &RecordedFrame,
+        warn: &mut dyn FnMut(&str),
+    ) -> Result<(), RecordError> {
+        let (n_markers, n_targets) = (e.n_markers(), e.target_columns().len());
+        let (features, estimate) = match e.process(&f.image) {
+            Ok(r) => r,
+            Err(err) => {
+                warn(&format!("frame {}: {err}", f.id));
+                return Ok(());
+            }
+        };
+        if let Some(log) = self.features.as_mut() {
+            feature_row_into(&mut self.row, f.timestamp_s, n_markers, features);
+            self.line.clear();
+            push_csv_row(&mut self.line, &f.id, &self.row, &flags_of(features));
+            log.line(&self.line)?;
+        }
+        if let Some(log) = self.estimates.as_mut() {
+            self.line.clear();
+            match &estimate {
+                Some(v) => push_csv_row(&mut self.line, &f.id, v, ""),
+                None => push_csv_row(
+                    &mut self.line,
+                    &f.id,
+                    &vec![f64::NAN; n_targets],
+                    "missing features",
+                ),
+            }
+            log.line(&self.line)?;
+        }
+        Ok(())
+    }
+
+    fn sync(&mut self) -> Result<(), RecordError> {
+        for log in [
+            Some(&mut self.frames),
+            self.features.as_mut(),
+            self.estimates.as_mut(),
+            self.labels.as_mut(),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            log.sync()?;
+        }
+        Ok(())
+    }
+}
+
+enum Next {
+    Frame(RecordedFrame),
+    Skip,
+    End,
+}
+
+/// The frame side: a simulated rig on the recorder's clock, files, or a camera capturing on
+/// its own thread into a drop-oldest queue (timestamped on arrival).
+enum Frames {
+    Sim { rig: SimRig, clock: Instant },
+    Stream(FrameStream),
+    Camera(Arc<LatestQueue<Captured>>, JoinHandle<u64>),
+}
+
+impl Frames {
+    fn open(
+        cfg: &RecordConfig,
+        rig: Option<SimRig>,
+        clock: Instant,
+        stop: &Arc<AtomicBool>,
+    ) -> Result<Self, RecordError> {
+        Ok(match (rig, SourceSpec::parse(&cfg.source)) {
+            (Some(rig), _) => Self::Sim { rig, clock },
+            (None, SourceSpec::Camera(dev)) => {
+                let q = Arc::new(LatestQueue::new(4));
+                let h = visuotact_io::camera::spawn(
+                    &dev,
+                    CameraRequest::default(),
+                    cfg.fps,
+                    q.clone(),
+                    stop.clone(),
+                    clock,
+                    u64::MAX,
+                )?;
+                Self::Camera(q, h)
+            }
+            (None, SourceSpec::Frames(path)) => {
+                Self::Stream(FrameStream::open(std::slice::from_ref(&path), cfg.fps)?)
+            }
+            (None, SourceSpec::Sim(kind)) => {
+                return Err(RecordError::Config(format!("source sim:{kind}: no rig")))
+            }
+        })
+    }
+
+    fn next(
+        &mut self,
+        cfg: &RecordConfig,
+        k: usize,
+        t_offset: f64,
+        done: &HashSet<String>,
+        summary: &mut RecordSummary,
+        warn: &mut dyn FnMut(&str),
+    ) -> Result<Next, RecordError> {
+        Ok(match self {
+            Self::Sim { rig, clock } => {
+                let t = k as f64 / cfg.fps;
+                if t > rig.total_s(cfg.fps) {
+                    return Ok(Next::End);
+                }
+                let (due, el) = (t - t_offset, clock.elapsed().as_secs_f64());
+                if el > due + 1.0 / cfg.fps {
+                    // The simulated camera could not keep up: this frame is gone.
+                    summary.dropped += 1;
+                    return Ok(Next::Skip);
+                }
+                if due > el {
+                    std::thread::sleep(Duration::from_secs_f64(due - el));
+                }
+                let (image, labels) = rig.frame(k, t, frame_seed(cfg.seed, k as u64))?;
+                Next::Frame(RecordedFrame {
+                    id: format!("frame_{k:06}.png"),
+                    timestamp_s: t,
+                    image,
+                    labels,
+                })
+            }
+            Self::Stream(st) => match st.next() {
+                None => Next::End,
+                Some(Err(e)) => {
+                    warn(&format!("{e}; skipped"));
+                    summary.unreadable += 1;
+                    Next::Skip
+                }
+                Some(Ok(fr)) if done.contains(&fr.id) => Next::Skip,
+                Some(Ok(fr)) => Next::Frame(RecordedFrame {
+                    id: fr.id,
+                    timestamp_s: fr.timestamp_s,
+                    image: fr.image,
+                    labels: Vec::new(),
+                }),
+            },
+            Self::Camera(q, _) => match q.pop() {
+                Some(c) => Next::Frame(RecordedFrame {
+                    id: format!("frame_{k:06}.png"),
+                    timestamp_s: t_offset + c.timestamp_s,
+                    image: Arc::try_unwrap(c.image).unwrap_or_else(|a| (*a).clone()),
+                    labels: Vec::new(),
+                }),
+                None => Next::End,
+            },
+        })
+    }
+
+    fn close(self) {
+        if let Self::Camera(q, h) = self {
+            q.close();
+            let _ = h.join();
+        }
+    }
+}
+
+/// The force side: a receiver thread writing `force.csv`, and the simulated JR3 feeding it.
+struct ForceSide {
+    receiver: Option<JoinHandle<Result<ReceiveStats, std::io::Error>>>,
+    jr3: Option<JoinHandle<u64>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl ForceSide {
+    fn start(
+        cfg: &RecordConfig,
+        rig: Option<&SimRig>,
+        clock: Instant,
+        t_offset: f64,
+        stop: &Arc<AtomicBool>,
+    ) -> Result<Self, RecordError> {
+        let mut side = Self {
+            receiver: None,
+            jr3: None,
+            stop: Arc::new(AtomicBool::new(false)),
+        };
+        let sync = Duration::from_secs_f64(cfg.sync_every_s);
+        let path = cfg.output.join("force.csv");
+        match &cfg.force {
+            None => {}
+            Some(ForceSource::Udp(addr)) => {
+                let rx =
+                    ForceReceiver::bind(addr, cfg.force_layout.clone(), Some(cfg.force_rate_hz))?;
+                let bound = rx.local_addr()?.to_string();
+                let (log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
+                side.receiver = Some(spawn_receiver(rx, log, clock, t_offset, side.stop.clone()));
+                if let Some(r) = rig {
+                    let t_end = r
+                        .total_s(cfg.fps)
+                        .min(cfg.duration_s.map_or(f64::INFINITY, |d| t_offset + d));
+                    let sim_clock = clock
+                        .checked_sub(Duration::from_secs_f64(t_offset))
+                        .unwrap_or(clock);
+                    let stream = Jr3Stream {
+                        addr: &bound,
+                        layout: cfg.force_layout.clone(),
+                        rate_hz: cfg.force_rate_hz,
+                        seed: cfg.seed,
+                        clock: sim_clock,
+                        t_from: t_offset,
+                        t_end,
+                    };
+                    side.jr3 = spawn_jr3(r, stream, stop.clone())?;
+                }
+            }
+            Some(ForceSource::Csv(p)) => {
+                let t = ForceTable::read(p)?;
+                let (mut log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
+                for (ts, v) in t.timestamp_s.iter().zip(&t.values) {
+                    let cells: Vec<String> = v.iter().map(|x| format!("{x:.6}")).collect();
+                    log.line(&format!("{ts:.6},{},{ts:.6}", cells.join(",")))?;
+                }
+                log.sync()?;
+            }
+        }
+        Ok(side)
+    }
+
+    /// Waits for the simulator, lets the last packets arrive, stops the receiver: its counts
+    /// and the packets the simulator sent.
+    fn finish(self) -> Result<(Option<ReceiveStats>, Option<u64>), RecordError> {
+        let sent = self.jr3.and_then(|h| h.join().ok());
+        std::thread::sleep(Duration::from_millis(100));
+        self.stop.store(true, Ordering::Relaxed);
+        let stats = match self.receiver {
+            Some(h) => Some(
+                h.join()
+                    .map_err(|_| RecordError::Thread("force receiver"))??,
+            ),
+            None => None,
+        };
+        Ok((stats, sent))
+    }
+}
+
+/// Where and when the simulated JR3 streams.
+struct Jr3Stream<'a> {
+    /// Destination address.
+    addr: &'a str,
+    layout: ForceLayout,
+    rate_hz: f64,
+    seed: u64,
+    /// Time zero of the rig.
+    clock: Instant,
+    /// First and last sample times, s.
+    t_from: f64,
+    t_end: f64,
+}
+
+/// Sends the simulated JR3 stream of the cone rig, paced in real time, until `stop`.
+fn spawn_jr3(
+    rig: &SimRig,
+    j: Jr3Stream<'_>,
+    stop: Arc<AtomicBool>,
+) -> Result<Option<JoinHandle<u64>>, RecordError> {
+    let SimRig::Cone { cfg, press, rest_s } = rig else {
+        return Ok(None);
+    };
+    let (cfg, press, rest_s) = (*cfg, *press, *rest_s);
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0")?;
+    sock.connect(j.addr).map_err(|e| {
+        std::io::Error::new(
+            e.kind(),
+            format!("simulated force sensor: cannot address {}: {e}", j.addr),
+        )
+    })?;
+    let jr3_cfg = Jr3Config {
+        rate_hz: j.rate_hz,
+        ..Jr3Config::JR3_1KHZ
+    };
+    jr3_cfg.validate()?;
+    let Jr3Stream {
+        layout,
+        rate_hz,
+        seed,
+        clock,
+        t_from,
+        t_end,
+        ..
+    } = j;
+    Ok(Some(std::thread::spawn(move || {
+        let mut jr3 = Jr3::new(jr3_cfg, seed ^ 0x4A33);
+        let mut sent = 0u64;
+        let mut i = (t_from * rate_hz).ceil() as u64;
+        loop {
+            let t = i as f64 / rate_hz;
+            if t > t_end || stop.load(Ordering::Relaxed) {
+                break;
+            }
+            let due = Duration::from_secs_f64(t);
+            let now = clock.elapsed();
+            if due > now + Duration::from_micros(300) {
+                std::thread::sleep(due - now);
+            }
+            let load = SimRig::cone_load(&cfg, &press, rest_s, t);
+            let s = ForceSample {
+                timestamp_s: t,
+                values: jr3.sample(load.components_n()),
+            };
+            if sock.send(&layout.encode(&s, i)).is_ok() {
+                sent += 1;
+            }
+            i += 1;
+        }
+        sent
+    })))
+}
+
+/// Receives force packets into `force.csv` until `stop`.
+fn spawn_receiver(
+    mut rx: ForceReceiver,
+    mut log: AppendLog,
+    clock: Instant,
+    t_offset: f64,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<Result<ReceiveStats, std::io::Error>> {
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        loop {
+            let got = rx.recv(Duration::from_millis(50), || {
+                t_offset + clock.elapsed().as_secs_f64()
+            })?;
+            match got {
+                Some(r) => {
+                    line.clear();
+                    line.push_str(&format!("{:.6}", r.sample.timestamp_s));
+                    for v in r.sample.values {
+                        line.push_str(&format!(",{v:.6}"));
+                    }
+                    line.push_str(&format!(",{:.6}", r.recv_s));
+                    log.line(&line)?;
+                }
+                None if stop.load(Ordering::Relaxed) => break,
+                None => {}
+            }
+        }
+        log.sync()?;
+        Ok(rx.stats())
+    })
+}
+
+/// Whether `dir` holds a recorded session (its frame index or description).
+pub fn holds_session(dir: &Path) -> bool {
+    dir.join("frames.csv").exists() || dir.join("session.json").exists()
+}
