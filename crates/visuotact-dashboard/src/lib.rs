@@ -197,6 +197,33 @@ impl Dashboard {
     }
 }
 
+/// The dashboard as a live runner's sink: markers are drawn only while a client watches; the
+/// re-zero button reaches the estimator.
+impl visuotact_pipeline::runner::Sink for Dashboard {
+    fn wants_markers(&self) -> bool {
+        self.has_clients()
+    }
+
+    fn take_rezero(&mut self) -> bool {
+        Dashboard::take_rezero(self)
+    }
+
+    fn rezero_applied(&mut self) {
+        Dashboard::rezero_applied(self);
+    }
+
+    fn send(
+        &mut self,
+        _: &visuotact_pipeline::LiveEstimate,
+        json: &str,
+        markers: Option<&[MarkerView]>,
+        image: &Arc<RgbImage>,
+    ) -> std::ops::ControlFlow<()> {
+        self.publish(json, markers, image);
+        std::ops::ControlFlow::Continue(())
+    }
+}
+
 async fn ws(State(s): State<Arc<Shared>>, upgrade: WebSocketUpgrade) -> Response {
     upgrade.on_upgrade(move |socket| client(socket, s))
 }

@@ -14,3 +14,4 @@ pub mod mlp;
 pub mod model;
 pub mod nist;
 pub mod pca;
+pub mod sweep;

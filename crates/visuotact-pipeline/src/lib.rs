@@ -30,7 +30,9 @@ pub mod estimator;
 pub mod evaluation;
 pub mod live;
 pub mod record;
+pub mod runner;
 pub mod schema;
+pub mod synth;
 pub mod table;
 pub mod trackcheck;
 

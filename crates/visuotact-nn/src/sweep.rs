@@ -1,0 +1,299 @@
+//! Architecture sweeps (seed 001 Figs. 4.8/4.11/4.13): networks of many hidden sizes, several
+//! times each on other seeds, trained in parallel on every core; mean and best performance per
+//! size, and the networks ranked.
+//!
+//! Performance is reported in target units (the mean over targets of each target's test or
+//! validation MSE) and, for choosing, on scaled targets ([`scaled_mse`]: each target's MSE over
+//! its half range squared), so a target in degrees does not drown one in millimetres.
+
+use rayon::prelude::*;
+
+use crate::fit::{fit, FitConfig, FitData, FitError};
+use crate::lm::Control;
+use crate::model::Model;
+
+/// A hidden-size spec that does not parse.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("hidden sizes {spec:?}: {why}")]
+pub struct SpecError {
+    /// The spec given.
+    pub spec: String,
+    /// What is wrong.
+    pub why: &'static str,
+}
+
+fn range(spec: &str, s: &str) -> Result<Vec<usize>, SpecError> {
+    let bad = |why| SpecError {
+        spec: spec.to_string(),
+        why,
+    };
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| bad("not a range like 1..40"))?;
+    let parse = |v: &str| v.trim().parse::<usize>().map_err(|_| bad("not a number"));
+    let (a, b) = (parse(a)?, parse(b)?);
+    if a == 0 || b < a {
+        return Err(bad("a range must be 1 ≤ start ≤ end"));
+    }
+    Ok((a..=b).collect())
+}
+
+/// The architectures a spec names: `1..40` (one layer), `1..20x1..20` (two layers) or a list
+/// `5,10,20`.
+pub fn architectures(spec: &str) -> Result<Vec<Vec<usize>>, SpecError> {
+    if let Some((l, r)) = spec.split_once('x') {
+        let (a, b) = (range(spec, l)?, range(spec, r)?);
+        return Ok(a
+            .iter()
+            .flat_map(|&i| b.iter().map(move |&j| vec![i, j]))
+            .collect());
+    }
+    if spec.contains("..") {
+        return Ok(range(spec, spec)?.into_iter().map(|n| vec![n]).collect());
+    }
+    let v: Result<Vec<usize>, _> = spec.split(',').map(|p| p.trim().parse::<usize>()).collect();
+    match v {
+        Ok(v) if !v.is_empty() && !v.contains(&0) => Ok(v.into_iter().map(|n| vec![n]).collect()),
+        _ => Err(SpecError {
+            spec: spec.to_string(),
+            why: "not a range (1..40, 1..20x1..20) or a list of sizes",
+        }),
+    }
+}
+
+fn mean_of(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+fn best_of(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+/// Mean over targets of a subset's MSE (0 train, 1 validation, 2 test) in target units.
+pub fn mse(m: &Model, subset: usize) -> f64 {
+    mean_of(&m.training.mse[subset])
+}
+
+/// Mean over targets of a subset's MSE in mapminmax space (each target's MSE over its half
+/// range squared): every target counts alike whatever its unit.
+pub fn scaled_mse(m: &Model, subset: usize) -> f64 {
+    let ts = &m.target_scaling;
+    let v: Vec<f64> = m.training.mse[subset]
+        .iter()
+        .enumerate()
+        .map(|(j, e)| {
+            let half = 0.5 * (ts.max[j] - ts.min[j]);
+            if half > 0.0 {
+                e / (half * half)
+            } else {
+                *e
+            }
+        })
+        .collect();
+    mean_of(&v)
+}
+
+/// One architecture's figures over its repeats.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepRow {
+    /// Hidden layer sizes.
+    pub hidden: Vec<usize>,
+    /// Trainings.
+    pub repeats: usize,
+    /// Test MSE in target units: mean and best over repeats.
+    pub test_mse: (f64, f64),
+    /// Validation MSE in target units: mean and best.
+    pub validation_mse: (f64, f64),
+    /// Epochs, mean.
+    pub mean_epochs: f64,
+    /// Test MSE scaled: mean and best.
+    pub test_mse_scaled: (f64, f64),
+    /// Validation MSE scaled: mean and best.
+    pub validation_mse_scaled: (f64, f64),
+}
+
+/// A finished sweep.
+#[derive(Clone, Debug)]
+pub struct Sweep {
+    /// Per architecture, in the order given.
+    pub rows: Vec<SweepRow>,
+    /// Every network trained, with its architecture's index.
+    pub models: Vec<(usize, Model)>,
+}
+
+impl Sweep {
+    /// The table as CSV, one row per architecture (`hidden` as `20x10`).
+    pub fn to_csv(&self) -> String {
+        let mut out = String::from("hidden,repeats,mean_test_mse,best_test_mse,mean_validation_mse,best_validation_mse,mean_epochs,mean_test_mse_scaled,best_test_mse_scaled,mean_validation_mse_scaled,best_validation_mse_scaled\n");
+        for r in &self.rows {
+            let name: Vec<String> = r.hidden.iter().map(usize::to_string).collect();
+            out.push_str(&format!(
+                "{},{},{},{},{},{},{},{},{},{},{}\n",
+                name.join("x"),
+                r.repeats,
+                r.test_mse.0,
+                r.test_mse.1,
+                r.validation_mse.0,
+                r.validation_mse.1,
+                r.mean_epochs,
+                r.test_mse_scaled.0,
+                r.test_mse_scaled.1,
+                r.validation_mse_scaled.0,
+                r.validation_mse_scaled.1
+            ));
+        }
+        out
+    }
+
+    /// The networks best first, by scaled validation MSE.
+    pub fn ranked(&self) -> Vec<&Model> {
+        let mut ranked: Vec<&Model> = self.models.iter().map(|r| &r.1).collect();
+        ranked.sort_by(|p, q| scaled_mse(p, 1).total_cmp(&scaled_mse(q, 1)));
+        ranked
+    }
+
+    /// (hidden neurons, mean test MSE, best test MSE) per architecture, for the plot.
+    pub fn points(&self) -> Vec<(f64, f64, f64)> {
+        self.rows
+            .iter()
+            .map(|r| {
+                (
+                    r.hidden.iter().sum::<usize>() as f64,
+                    r.test_mse.0,
+                    r.test_mse.1,
+                )
+            })
+            .collect()
+    }
+}
+
+/// Trains every architecture of `archs` `repeats` times (seed `base.seed + 1000·repeat +
+/// architecture`, validation and test subsets kept) on every core; `done` is called after each
+/// training.
+pub fn sweep(
+    data: &FitData<'_>,
+    archs: &[Vec<usize>],
+    repeats: usize,
+    base: &FitConfig,
+    done: impl Fn() + Sync,
+) -> Result<Sweep, FitError> {
+    let jobs: Vec<(usize, usize)> = (0..archs.len())
+        .flat_map(|k| (0..repeats).map(move |r| (k, r)))
+        .collect();
+    let models: Vec<(usize, Model)> = jobs
+        .par_iter()
+        .map(|&(k, r)| {
+            let cfg = FitConfig {
+                hidden: archs[k].clone(),
+                seed: base.seed.wrapping_add(1000 * r as u64 + k as u64),
+                hold_out: true,
+                ensemble: 1,
+                ..base.clone()
+            };
+            let m = fit(data, &cfg, |_, _, _| Control::Continue);
+            done();
+            m.map(|m| (k, m))
+        })
+        .collect::<Result<_, _>>()?;
+    let rows = archs
+        .iter()
+        .enumerate()
+        .map(|(k, arch)| {
+            let ms: Vec<&Model> = models
+                .iter()
+                .filter(|(kk, _)| *kk == k)
+                .map(|(_, m)| m)
+                .collect();
+            let figure = |f: &dyn Fn(&Model) -> f64| {
+                let v: Vec<f64> = ms.iter().map(|m| f(m)).collect();
+                (mean_of(&v), best_of(&v))
+            };
+            SweepRow {
+                hidden: arch.clone(),
+                repeats: ms.len(),
+                test_mse: figure(&|m| mse(m, 2)),
+                validation_mse: figure(&|m| mse(m, 1)),
+                mean_epochs: figure(&|m| m.training.epochs as f64).0,
+                test_mse_scaled: figure(&|m| scaled_mse(m, 2)),
+                validation_mse_scaled: figure(&|m| scaled_mse(m, 1)),
+            }
+        })
+        .collect();
+    Ok(Sweep { rows, models })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mlp::{MinMax, Mlp};
+    use crate::model::TrainingSummary;
+
+    #[test]
+    fn hidden_specs() {
+        assert_eq!(
+            architectures("1..3").unwrap(),
+            vec![vec![1], vec![2], vec![3]]
+        );
+        assert_eq!(
+            architectures("1..2x3..4").unwrap(),
+            vec![vec![1, 3], vec![1, 4], vec![2, 3], vec![2, 4]]
+        );
+        assert_eq!(architectures("5,10").unwrap(), vec![vec![5], vec![10]]);
+        assert!(
+            architectures("0..3").is_err()
+                && architectures("4..2").is_err()
+                && architectures("a").is_err()
+        );
+    }
+
+    fn model(val_mse: [f64; 2]) -> Model {
+        Model {
+            format: crate::model::MODEL_FORMAT.to_string(),
+            version: crate::model::MODEL_VERSION,
+            net: Mlp::nguyen_widrow(&[1, 1, 2], 1),
+            members: Vec::new(),
+            input_scaling: MinMax {
+                min: vec![0.0],
+                max: vec![1.0],
+            },
+            projection: None,
+            passthrough: 0,
+            // Target 0 spans 0..1000 (say mN), target 1 spans 0..1 (say mm).
+            target_scaling: MinMax {
+                min: vec![0.0, 0.0],
+                max: vec![1000.0, 1.0],
+            },
+            feature_columns: vec!["f".into()],
+            target_columns: vec!["a".into(), "b".into()],
+            training: TrainingSummary {
+                epochs: 1,
+                best_epoch: 1,
+                stop: String::new(),
+                samples: [1, 1, 1],
+                mse: [vec![], val_mse.to_vec(), vec![]],
+                r: [vec![], vec![], vec![]],
+                seed: 1,
+                algorithm: "trainlm".into(),
+                evidence: None,
+                selection: Vec::new(),
+            },
+            sensor: None,
+        }
+    }
+
+    #[test]
+    fn selection_weighs_every_target_alike_whatever_its_unit() {
+        // A: 1 % of range off on the big target, 63 % on the small one; B: 10 % and 6 %.
+        let (a, b) = (model([100.0, 0.1]), model([10_000.0, 0.001]));
+        // In target units A looks 100× better: the big target's unit drowns the other.
+        assert!(mse(&a, 1) < mse(&b, 1));
+        // Scaled, B is better on the whole: (0.04 + 0.004) / 2 against (0.0004 + 0.4) / 2.
+        assert!((scaled_mse(&b, 1) - 0.022).abs() < 1e-12);
+        assert!((scaled_mse(&a, 1) - 0.2002).abs() < 1e-12);
+        let s = Sweep {
+            rows: Vec::new(),
+            models: vec![(0, a), (1, b)],
+        };
+        assert_eq!(s.ranked()[0].training.mse[1][0], 10_000.0);
+    }
+}

@@ -1,0 +1,395 @@
+//! The live runner: a source thread captures frames into a small queue that never holds stale
+//! frames (when full, the oldest frame is dropped and counted); the [`LiveEstimator`] takes the
+//! newest, and each estimate goes to the [`Sink`]s (standard output, UDP, a dashboard) as one
+//! JSON line.
+//!
+//! Latency is measured per frame from the capture timestamp to the finished estimate, and the
+//! processing time from the frame in memory to the estimate; both are summarised (median, p99)
+//! in the [`RunSummary`]. Setting `stop` ends a run cleanly, as does a sink that asks to.
+
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use visuotact_image::RgbImage;
+use visuotact_io::camera::{CameraError, CameraRequest};
+use visuotact_io::frames::{FrameError, FrameStream};
+use visuotact_io::queue::{median_p99, Captured, LatestQueue};
+use visuotact_io::source::SourceSpec;
+use visuotact_sim::SimError;
+
+use crate::live::{LiveEstimate, LiveEstimator, LiveFrame, MarkerView};
+
+/// Where frames come from and how fast.
+#[derive(Clone, Debug)]
+pub struct RunConfig {
+    /// Frame source, as [`SourceSpec::parse`] reads it.
+    pub source: String,
+    /// Frame rate of simulated cameras and image sequences, frames per second.
+    pub fps: f64,
+    /// The camera's size and format.
+    pub camera: CameraRequest,
+    /// Deliver frames as fast as they can be processed (every frame is then estimated: the
+    /// source waits instead of dropping), not at the camera rate.
+    pub unpaced: bool,
+    /// Stop after this many frames.
+    pub max_frames: Option<u64>,
+    /// Stop after this many seconds.
+    pub duration_s: Option<f64>,
+    /// Frames the capture queue holds before dropping the oldest.
+    pub queue: usize,
+    /// Simulated sources: seed.
+    pub seed: u64,
+    /// Simulated sources: distinct frames rendered up front and cycled.
+    pub sim_frames: usize,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            source: "sim:iats".into(),
+            fps: 25.0,
+            camera: CameraRequest::default(),
+            unpaced: false,
+            max_frames: None,
+            duration_s: None,
+            queue: 2,
+            seed: 1,
+            sim_frames: 100,
+        }
+    }
+}
+
+/// Why a run could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// A setting is out of range.
+    #[error("{0}")]
+    Config(String),
+    /// The simulated source refused its settings.
+    #[error("source {0}")]
+    Sim(#[from] SimError),
+    /// Frames could not be opened.
+    #[error(transparent)]
+    Frames(#[from] FrameError),
+    /// The camera could not be opened.
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    /// The capture thread stopped unexpectedly.
+    #[error("the capture thread stopped unexpectedly")]
+    Capture,
+}
+
+/// Where estimates go.
+pub trait Sink {
+    /// Whether this sink wants the markers' positions with each estimate (drawing them costs).
+    fn wants_markers(&self) -> bool {
+        false
+    }
+    /// Whether the user asked to re-zero since the last call.
+    fn take_rezero(&mut self) -> bool {
+        false
+    }
+    /// The estimator re-zeroed at the sink's request.
+    fn rezero_applied(&mut self) {}
+    /// One estimate, also as its JSON line; [`ControlFlow::Break`] ends the run.
+    fn send(
+        &mut self,
+        estimate: &LiveEstimate,
+        json: &str,
+        markers: Option<&[MarkerView]>,
+        image: &Arc<RgbImage>,
+    ) -> ControlFlow<()>;
+}
+
+/// What a run reports at the end.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RunSummary {
+    /// Frames the source delivered.
+    pub frames_captured: u64,
+    /// Frames estimated.
+    pub frames_estimated: u64,
+    /// Frames dropped by the queue (the estimator was behind).
+    pub frames_dropped: u64,
+    /// Estimates with contact.
+    pub contact_frames: u64,
+    /// Capture → estimate, ms: median.
+    pub latency_ms_median: f64,
+    /// Capture → estimate, ms: 99th percentile.
+    pub latency_ms_p99: f64,
+    /// Frame in memory → estimate, ms: median.
+    pub processing_ms_median: f64,
+    /// Frame in memory → estimate, ms: 99th percentile.
+    pub processing_ms_p99: f64,
+    /// UDP datagrams that could not be sent (filled in by the caller's sink).
+    pub udp_send_errors: u64,
+    /// Dashboard messages lost by slow clients (filled in by the caller).
+    pub websocket_messages_dropped: u64,
+    /// Wall-clock time, s.
+    pub seconds: f64,
+    /// Resident memory after the first 1 000 estimates, KiB.
+    pub rss_kib_after_1000: Option<u64>,
+    /// Largest resident memory seen (sampled every 1 000 estimates), KiB.
+    pub max_rss_kib: Option<u64>,
+}
+
+/// Resident set size of this process, KiB (Linux; `None` elsewhere).
+pub fn rss_kib() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    s.lines()
+        .find(|l| l.starts_with("VmRSS:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
+}
+
+/// A frame source, opened (simulated frames rendered, files found) but not started.
+enum Source {
+    Sim(Vec<(String, Arc<RgbImage>)>),
+    Camera(String),
+    Stream(FrameStream),
+}
+
+impl Source {
+    fn open(cfg: &RunConfig) -> Result<Self, RunError> {
+        Ok(match SourceSpec::parse(&cfg.source) {
+            SourceSpec::Sim(kind) => {
+                let frames = visuotact_sim::rig::live_frames(&kind, cfg.sim_frames, cfg.seed)?
+                    .into_iter()
+                    .map(|(id, img)| (id, Arc::new(img)))
+                    .collect();
+                Self::Sim(frames)
+            }
+            SourceSpec::Camera(dev) => Self::Camera(dev),
+            SourceSpec::Frames(path) => Self::Stream(FrameStream::open(&[path], cfg.fps)?),
+        })
+    }
+
+    /// Starts the capture thread; frames are paced on `clock` unless `unpaced`.
+    fn spawn(
+        self,
+        cfg: &RunConfig,
+        queue: Arc<LatestQueue<Captured>>,
+        stop: Arc<AtomicBool>,
+        clock: Instant,
+        warn: impl Fn(&str) + Send + 'static,
+    ) -> Result<JoinHandle<u64>, RunError> {
+        let feed = Feed {
+            period: Duration::from_secs_f64(1.0 / cfg.fps),
+            paced: !cfg.unpaced,
+            clock,
+            queue,
+        };
+        let max = cfg.max_frames.unwrap_or(u64::MAX);
+        Ok(match self {
+            Self::Sim(frames) => std::thread::spawn(move || {
+                let mut k = 0u64;
+                while k < max && !stop.load(Ordering::Relaxed) {
+                    feed.pace(k);
+                    let (id, img) = &frames[(k % frames.len() as u64) as usize];
+                    // A camera's driver or decoder writes each frame just before it is
+                    // delivered; so does the simulated camera (a copy, not a shared buffer).
+                    feed.push(format!("{id}#{k}"), k, Arc::new(RgbImage::clone(img)));
+                    k += 1;
+                }
+                feed.queue.close();
+                k
+            }),
+            Self::Camera(dev) => visuotact_io::camera::spawn(
+                &dev, cfg.camera, cfg.fps, feed.queue, stop, clock, max,
+            )?,
+            Self::Stream(stream) => std::thread::spawn(move || {
+                let mut k = 0u64;
+                for item in stream {
+                    if k >= max || stop.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    match item {
+                        Ok(fr) => {
+                            feed.pace(k);
+                            feed.push(fr.id, k, Arc::new(fr.image));
+                            k += 1;
+                        }
+                        Err(e) => warn(&format!("{e}; skipped")),
+                    }
+                }
+                feed.queue.close();
+                k
+            }),
+        })
+    }
+}
+
+/// How the capture thread feeds the queue.
+struct Feed {
+    period: Duration,
+    paced: bool,
+    clock: Instant,
+    queue: Arc<LatestQueue<Captured>>,
+}
+
+impl Feed {
+    /// Waits until frame `k` is due (paced sources only).
+    fn pace(&self, k: u64) {
+        if self.paced {
+            let due = self.period.mul_f64(k as f64);
+            let el = self.clock.elapsed();
+            if due > el {
+                std::thread::sleep(due - el);
+            }
+        }
+    }
+
+    /// Paced sources behave like cameras (the oldest frame goes when the estimator is behind);
+    /// unpaced ones wait for it, so every frame is estimated.
+    fn push(&self, id: String, index: u64, image: Arc<RgbImage>) {
+        let captured = Instant::now();
+        let c = Captured {
+            id,
+            index,
+            timestamp_s: (captured - self.clock).as_secs_f64(),
+            captured,
+            image,
+        };
+        if self.paced {
+            self.queue.push(c);
+        } else {
+            self.queue.push_wait(c);
+        }
+    }
+}
+
+/// Runs `live` over the source until it ends, a limit is reached, `stop` is set or a sink
+/// breaks; `warn` hears of frames skipped.
+pub fn run(
+    live: &mut LiveEstimator,
+    cfg: &RunConfig,
+    stop: &Arc<AtomicBool>,
+    sinks: &mut [&mut dyn Sink],
+    warn: impl Fn(&str) + Send + Clone + 'static,
+) -> Result<RunSummary, RunError> {
+    if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
+        return Err(RunError::Config(format!(
+            "fps must be a positive frame rate, got {}",
+            cfg.fps
+        )));
+    }
+    let queue = Arc::new(LatestQueue::new(cfg.queue));
+    let source = Source::open(cfg)?;
+    let clock = Instant::now();
+    let capture = source.spawn(cfg, queue.clone(), stop.clone(), clock, warn.clone())?;
+    let deadline = cfg.duration_s.map(|d| clock + Duration::from_secs_f64(d));
+    let mut stats = Stats::default();
+    while let Some(cap) = queue.pop() {
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            stop.store(true, Ordering::Relaxed);
+        }
+        if estimate_one(live, cap, &queue, sinks, &mut stats, &warn).is_break() {
+            stop.store(true, Ordering::Relaxed);
+        }
+        if stop.load(Ordering::Relaxed) && deadline.is_some() {
+            break;
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    queue.close();
+    let captured = capture.join().map_err(|_| RunError::Capture)?;
+    Ok(stats.summary(captured, queue.dropped(), clock))
+}
+
+/// What the loop gathers for the summary.
+#[derive(Default)]
+struct Stats {
+    latency_ms: Vec<f64>,
+    processing_ms: Vec<f64>,
+    contact: u64,
+    rss_after_1000: Option<u64>,
+    max_rss: u64,
+    markers: Vec<MarkerView>,
+}
+
+impl Stats {
+    fn summary(mut self, captured: u64, dropped: u64, clock: Instant) -> RunSummary {
+        let mut s = RunSummary {
+            frames_captured: captured,
+            frames_estimated: self.latency_ms.len() as u64,
+            frames_dropped: dropped,
+            contact_frames: self.contact,
+            seconds: clock.elapsed().as_secs_f64(),
+            rss_kib_after_1000: self.rss_after_1000,
+            max_rss_kib: Some(self.max_rss.max(rss_kib().unwrap_or(0))),
+            ..RunSummary::default()
+        };
+        (s.latency_ms_median, s.latency_ms_p99) = median_p99(&mut self.latency_ms);
+        (s.processing_ms_median, s.processing_ms_p99) = median_p99(&mut self.processing_ms);
+        s
+    }
+}
+
+/// Estimates one captured frame and sends it to every sink.
+fn estimate_one(
+    live: &mut LiveEstimator,
+    cap: Captured,
+    queue: &LatestQueue<Captured>,
+    sinks: &mut [&mut dyn Sink],
+    stats: &mut Stats,
+    warn: &impl Fn(&str),
+) -> ControlFlow<()> {
+    let t_proc = Instant::now();
+    if sinks.iter_mut().any(|s| s.take_rezero()) {
+        live.rezero_now();
+        sinks.iter_mut().for_each(|s| s.rezero_applied());
+    }
+    let want_markers = sinks.iter().any(|s| s.wants_markers());
+    let result = live.process(&cap.image, want_markers.then_some(&mut stats.markers));
+    let done = Instant::now();
+    let LiveFrame {
+        contact,
+        max_displacement_px,
+        targets,
+        health,
+    } = match result {
+        Ok(r) => r,
+        Err(e) => {
+            warn(&format!("frame {}: {e}", cap.id));
+            return ControlFlow::Continue(());
+        }
+    };
+    let e = LiveEstimate {
+        frame: cap.id,
+        index: cap.index,
+        timestamp_s: cap.timestamp_s,
+        latency_ms: (done - cap.captured).as_secs_f64() * 1e3,
+        processing_ms: (done - t_proc).as_secs_f64() * 1e3,
+        contact,
+        max_displacement_px,
+        targets,
+        health,
+        dropped_frames: queue.dropped(),
+    };
+    stats.latency_ms.push(e.latency_ms);
+    stats.processing_ms.push(e.processing_ms);
+    stats.contact += u64::from(contact);
+    let n = stats.latency_ms.len();
+    if n % 1000 == 0 {
+        let rss = rss_kib();
+        if n == 1000 {
+            stats.rss_after_1000 = rss;
+        }
+        stats.max_rss = stats.max_rss.max(rss.unwrap_or(0));
+    }
+    // An estimate is plain numbers and strings: it always serialises.
+    let json = serde_json::to_string(&e).unwrap_or_default();
+    let markers = want_markers.then_some(&stats.markers[..]);
+    let mut flow = ControlFlow::Continue(());
+    for s in sinks.iter_mut() {
+        if s.send(&e, &json, markers, &cap.image).is_break() {
+            flow = ControlFlow::Break(());
+        }
+    }
+    flow
+}
