@@ -30,6 +30,7 @@ pub mod estimator;
 pub mod evaluation;
 pub mod live;
 pub mod record;
+pub mod replay;
 pub mod runner;
 pub mod schema;
 pub mod synth;

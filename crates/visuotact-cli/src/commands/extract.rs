@@ -2,11 +2,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
-use visuotact_io::frames::FrameStream;
-use visuotact_io::table::{TableFormat, TableWriter};
-use visuotact_pipeline::schema::{feature_columns, feature_row_into, flags_of, missing_summary};
-use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use anyhow::bail;
+use visuotact_io::table::TableFormat;
+use visuotact_pipeline::replay::extract;
+use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -53,68 +52,29 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let n_markers = cal.markers.len();
     let mut ex = FeatureExtractor::new(cal, features).map_err(anyhow::Error::msg)?;
     ex.set_temporal_prior(a.temporal);
-    let stream = FrameStream::open(&a.frames, a.fps)?;
     let format = TableFormat::from_name(&a.format).unwrap_or_default();
-    let mut out = TableWriter::create(&a.output, format, feature_columns(&ex.column_names()))
-        .with_context(|| format!("{}: cannot create output", a.output.display()))?;
-    let (mut written, mut skipped, mut warned, mut incomplete, mut lost_total) =
-        (0usize, 0usize, 0usize, 0usize, 0usize);
-    let mut f = FrameFeatures::default();
-    let mut row = Vec::new();
-    let warn = |msg: String, warned: &mut usize| {
-        if *warned < a.max_warnings {
-            eprintln!("warning: {msg}");
+    let mut warned = 0usize;
+    let done = extract(&mut ex, &a.frames, a.fps, (&a.output, format), &mut |w| {
+        if warned < a.max_warnings {
+            eprintln!("warning: {w}");
         }
-        *warned += 1;
-    };
-    for item in stream {
-        let frame = match item {
-            Ok(fr) => fr,
-            Err(e) => {
-                skipped += 1;
-                warn(format!("{e}; skipped"), &mut warned);
-                continue;
-            }
-        };
-        if let Err(e) = ex.extract_into(&frame.image, &mut f) {
-            skipped += 1;
-            warn(format!("frame {}: {e}; skipped", frame.id), &mut warned);
-            continue;
-        }
-        let missing = n_markers - f.found;
-        if missing > 0 {
-            incomplete += 1;
-            lost_total += missing;
-            let what = if missing * 2 >= n_markers {
-                "; half or more: is the skin in view?"
-            } else {
-                ""
-            };
-            warn(
-                format!(
-                    "frame {}: {missing} of {n_markers} markers not found ({}){what}",
-                    frame.id,
-                    missing_summary(&f)
-                ),
-                &mut warned,
-            );
-        }
-        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f);
-        out.write_row(&frame.id, &row, &flags_of(&f))
-            .with_context(|| format!("{}: write failed", a.output.display()))?;
-        written += 1;
-    }
+        warned += 1;
+    })?;
     if warned > a.max_warnings && a.max_warnings > 0 {
         eprintln!("… {} more warnings not shown", warned - a.max_warnings);
     }
     eprintln!(
-        "extracted {written} frames ({} features each), skipped {skipped}; {incomplete} frames with missing markers ({lost_total} marker-frames)",
-        features.per_marker() * n_markers
+        "extracted {} frames ({} features each), skipped {}; {} frames with missing markers ({} marker-frames)",
+        done.written,
+        features.per_marker() * n_markers,
+        done.skipped,
+        done.incomplete,
+        done.lost
     );
     if let Some(note) = crate::reference_note(&ex.calibration().reference) {
         eprintln!("note: {note}");
     }
-    if written == 0 {
+    if done.written == 0 {
         bail!("no frame could be processed");
     }
     Ok(())

@@ -1,0 +1,257 @@
+//! Replaying a trained model over recorded frames as the live loop would — seed 001's Neural
+//! Network Testing Model — and extracting feature tables from frames.
+//!
+//! [`replay`] reads a session folder (its saved frames in `frames.csv` order) or any videos,
+//! images and folders, estimates every frame with the [`Estimator`], and writes one row per
+//! frame: the estimate, or NaN with the reason in the flags (no estimate rather than a wrong
+//! one). Inputs of the model besides the marker features (a pressure gauge's reading) come
+//! from a readings table keyed by frame. [`extract`] writes the feature table of frames.
+
+use std::path::{Path, PathBuf};
+
+use visuotact_io::frames::{FrameError, FrameStream};
+use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
+use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
+
+use crate::schema::{feature_columns, feature_row_into, flags_of, missing_summary};
+use crate::Estimator;
+
+/// What to replay.
+#[derive(Clone, Debug)]
+pub struct ReplayConfig {
+    /// A session folder, or videos / images / folders.
+    pub inputs: Vec<PathBuf>,
+    /// The estimates table to write.
+    pub output: PathBuf,
+    /// Frame rate of image sequences, frames per second.
+    pub fps: f64,
+    /// The readings table (default: a session's `labels.csv` when the model needs readings).
+    pub readings: Option<PathBuf>,
+}
+
+/// Why a replay or an extraction could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The model needs readings and none were found.
+    #[error("the model needs {0} besides the marker features: give a readings table keyed by frame (--readings)")]
+    NoReadings(String),
+    /// The readings table lacks an input of the model.
+    #[error("{}: no column `{column}`, an input of the model", path.display())]
+    MissingReading {
+        /// The table.
+        path: PathBuf,
+        /// The input it lacks.
+        column: String,
+    },
+    /// A session folder with no saved frames.
+    #[error("{}: no saved frames (record with --save-frames to replay a session)", .0.display())]
+    NoFrames(PathBuf),
+    /// A table does not read.
+    #[error(transparent)]
+    Table(#[from] TableError),
+    /// The frames do not open.
+    #[error(transparent)]
+    Frames(#[from] FrameError),
+    /// Writing the output failed.
+    #[error("{}: {source}", path.display())]
+    Write {
+        /// The output.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+/// What a replay did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Replayed {
+    /// Frames estimated (or tried).
+    pub frames: usize,
+    /// Of them, frames without an estimate.
+    pub missing: usize,
+    /// Time taken, decoding included, s.
+    pub seconds: f64,
+    /// The session folder replayed, if the input was one.
+    pub session: Option<PathBuf>,
+}
+
+/// The extra inputs of each frame, from a table keyed by `frame`.
+struct Readings {
+    table: KeyedTable,
+    columns: Vec<usize>,
+}
+
+impl Readings {
+    /// Finds `names` in the table at `path`.
+    fn open(path: &Path, names: &[String]) -> Result<Self, ReplayError> {
+        let table = KeyedTable::read(path, &[])?;
+        let columns = names
+            .iter()
+            .map(|c| {
+                table.column(c).ok_or_else(|| ReplayError::MissingReading {
+                    path: path.to_path_buf(),
+                    column: c.clone(),
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self { table, columns })
+    }
+}
+
+/// A session's saved frames in recorded order.
+fn session_frames(s: &Path) -> Result<Vec<PathBuf>, ReplayError> {
+    let t = KeyedTable::read(&s.join("frames.csv"), &["kind"])?;
+    let frames: Vec<PathBuf> = t
+        .keys
+        .iter()
+        .map(|k| s.join("frames").join(k))
+        .filter(|p| p.is_file())
+        .collect();
+    if frames.is_empty() {
+        return Err(ReplayError::NoFrames(s.to_path_buf()));
+    }
+    Ok(frames)
+}
+
+/// Replays `est` over `cfg.inputs` (see the module's documentation); `warn` hears of frames
+/// that cannot be read.
+pub fn replay(
+    est: &mut Estimator,
+    cfg: &ReplayConfig,
+    warn: &mut dyn FnMut(&str),
+) -> Result<Replayed, ReplayError> {
+    let session = (cfg.inputs.len() == 1 && cfg.inputs[0].join("frames.csv").is_file())
+        .then(|| cfg.inputs[0].clone());
+    let extra = est.extra_inputs().to_vec();
+    let readings = if extra.is_empty() {
+        None
+    } else {
+        let path = cfg
+            .readings
+            .clone()
+            .or_else(|| session.as_ref().map(|s| s.join("labels.csv")))
+            .filter(|p| p.is_file())
+            .ok_or_else(|| ReplayError::NoReadings(extra.join(", ")))?;
+        Some(Readings::open(&path, &extra)?)
+    };
+    let by_key = readings.as_ref().map(|r| r.table.rows_by_key());
+    let paths = match &session {
+        Some(s) => session_frames(s)?,
+        None => cfg.inputs.clone(),
+    };
+    let targets = est.target_columns();
+    let write_err = |source| ReplayError::Write {
+        path: cfg.output.clone(),
+        source,
+    };
+    let mut out =
+        TableWriter::create(&cfg.output, TableFormat::Csv, targets.clone()).map_err(write_err)?;
+    let nan = vec![f64::NAN; targets.len()];
+    let mut done = Replayed::default();
+    let mut extra_values = Vec::with_capacity(extra.len());
+    let t0 = std::time::Instant::now();
+    for item in FrameStream::open(&paths, cfg.fps)? {
+        let frame = match item {
+            Ok(f) => f,
+            Err(e) => {
+                warn(&format!("{e}; skipped"));
+                continue;
+            }
+        };
+        extra_values.clear();
+        if let (Some(r), Some(by_key)) = (&readings, &by_key) {
+            let row = by_key.get(frame.id.as_str()).map(|&i| &r.table.rows[i]);
+            extra_values.extend(
+                r.columns
+                    .iter()
+                    .map(|&c| row.map_or(f64::NAN, |row| row[c])),
+            );
+        }
+        let written = match est.process_with(&frame.image, &extra_values) {
+            Ok((_, Some(v))) => out.write_row(&frame.id, &v, ""),
+            Ok((_, None)) => {
+                done.missing += 1;
+                out.write_row(&frame.id, &nan, "missing features")
+            }
+            Err(e) => {
+                done.missing += 1;
+                out.write_row(&frame.id, &nan, &format!("error: {e}"))
+            }
+        };
+        written.map_err(write_err)?;
+        done.frames += 1;
+    }
+    done.seconds = t0.elapsed().as_secs_f64();
+    done.session = session;
+    Ok(done)
+}
+
+/// What an extraction did.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Extracted {
+    /// Rows written.
+    pub written: usize,
+    /// Frames skipped (unreadable, or of another size).
+    pub skipped: usize,
+    /// Frames with markers not found.
+    pub incomplete: usize,
+    /// Marker-frames not found, in all.
+    pub lost: usize,
+}
+
+/// Writes the feature table of `frames` (image files, folders, videos at `fps`) to `output`
+/// in `format`: one row per frame ([`crate::schema`]). `warn` hears of every frame skipped
+/// or with markers not found.
+pub fn extract(
+    ex: &mut FeatureExtractor,
+    frames: &[PathBuf],
+    fps: f64,
+    (output, format): (&Path, TableFormat),
+    warn: &mut dyn FnMut(&str),
+) -> Result<Extracted, ReplayError> {
+    let n_markers = ex.calibration().markers.len();
+    let stream = FrameStream::open(frames, fps)?;
+    let write_err = |source| ReplayError::Write {
+        path: output.to_path_buf(),
+        source,
+    };
+    let mut out = TableWriter::create(output, format, feature_columns(&ex.column_names()))
+        .map_err(write_err)?;
+    let mut done = Extracted::default();
+    let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
+    for item in stream {
+        let frame = match item {
+            Ok(fr) => fr,
+            Err(e) => {
+                done.skipped += 1;
+                warn(&format!("{e}; skipped"));
+                continue;
+            }
+        };
+        if let Err(e) = ex.extract_into(&frame.image, &mut f) {
+            done.skipped += 1;
+            warn(&format!("frame {}: {e}; skipped", frame.id));
+            continue;
+        }
+        let missing = n_markers - f.found;
+        if missing > 0 {
+            done.incomplete += 1;
+            done.lost += missing;
+            let what = if missing * 2 >= n_markers {
+                "; half or more: is the skin in view?"
+            } else {
+                ""
+            };
+            warn(&format!(
+                "frame {}: {missing} of {n_markers} markers not found ({}){what}",
+                frame.id,
+                missing_summary(&f)
+            ));
+        }
+        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f);
+        out.write_row(&frame.id, &row, &flags_of(&f))
+            .map_err(write_err)?;
+        done.written += 1;
+    }
+    Ok(done)
+}
