@@ -6,22 +6,19 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use visuotact_image::RgbImage;
-use visuotact_io::force::ForceTable;
 use visuotact_io::table::KeyedTable;
 use visuotact_nn::fit::{components_from_name, FieldInputs, FitConfig};
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::is_marker_column;
 use visuotact_pipeline::table::{training_table, Incomplete, JoinConfig, Named, TrainingTable};
-use visuotact_signal::bias::Bias;
-use visuotact_signal::clean::{clean, BiasRemoval, CleanConfig};
+use visuotact_signal::clean::{BiasRemoval, CleanConfig};
 use visuotact_signal::fir::{FiltFiltOptions, PadLen, Padding, Window};
 use visuotact_vision::blobs::Connectivity;
 use visuotact_vision::calibration::Preset;
-use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
+use visuotact_vision::detect::{Centroid, DetectorConfig};
 use visuotact_vision::features::FeatureSet;
-use visuotact_vision::preprocess::{
-    marker_polarity, Channel, CircleMask, Polarity, Roi, Threshold,
-};
+use visuotact_vision::options::{DetectorOptions, ThresholdChoice};
+use visuotact_vision::preprocess::{Channel, CircleMask, Roi};
 
 /// Preprocessing and blob-filter options shared by commands that detect markers.
 #[derive(clap::Args, Debug, Clone)]
@@ -97,159 +94,100 @@ fn numbers(s: &str, n: usize, what: &str) -> anyhow::Result<Vec<f64>> {
     }
 }
 
-impl DetectorArgs {
-    /// The detector configuration for frames whose first one `first` reads: as
-    /// [`DetectorArgs::config`], with `--preset auto` resolved from the markers' polarity in
-    /// that frame (`dark-markers` for markers darker than the skin, saying so; `iats`
-    /// otherwise, or without a readable frame). The options are checked, and the frame read,
-    /// only when needed: an explicit preset never reads it.
-    pub(crate) fn config_for_frames(
-        &self,
-        default_centroid: Centroid,
-        first: impl FnOnce() -> Option<RgbImage>,
-    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
-        let checked = self.config(default_centroid)?;
-        if self.preset != "auto" {
-            return Ok(checked);
-        }
-        if !first().is_some_and(|f| marker_polarity(&f) == Polarity::Dark) {
-            return Ok(checked);
-        }
-        eprintln!(
-            "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
-        );
-        Self {
-            preset: "dark-markers".to_string(),
-            ..self.clone()
-        }
-        .config(default_centroid)
-    }
+/// `--on` / `--no-on` as a choice over the preset's (`None`: neither given).
+fn flag(on: bool, off: bool) -> Option<bool> {
+    (on || off).then_some(on)
+}
 
-    /// The detector configuration these options describe; `default_centroid` when
-    /// `--centroid` is not given. `--preset auto` reads as `iats` here
-    /// ([`DetectorArgs::config_for_frames`] resolves it).
-    pub(crate) fn config(
-        &self,
-        default_centroid: Centroid,
-    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
-        // `auto` (resolved by the caller) reads as `iats`.
-        let base = Preset::from_name(&self.preset)
-            .unwrap_or(Preset::Iats)
-            .config();
-        let (mut p, features) = (base.detector.preprocess, base.features);
-        if let Some(c) = &self.channel {
-            p.channel = Channel::from_name(c).with_context(|| {
+impl DetectorArgs {
+    /// The options as the library states them.
+    fn options(&self) -> anyhow::Result<DetectorOptions> {
+        let roi = match &self.roi {
+            Some(r) => {
+                let v = numbers(r, 4, "roi")?;
+                if v.iter().any(|x| *x < 0.0) {
+                    bail!("--roi {r:?}: expects a non-negative corner and a positive size");
+                }
+                Some(Roi {
+                    x: v[0] as usize,
+                    y: v[1] as usize,
+                    width: v[2] as usize,
+                    height: v[3] as usize,
+                })
+            }
+            None => None,
+        };
+        let circle = match &self.circle {
+            Some(c) => {
+                let v = numbers(c, 3, "circle")?;
+                Some(CircleMask {
+                    cx_px: v[0],
+                    cy_px: v[1],
+                    radius_px: v[2],
+                })
+            }
+            None => None,
+        };
+        let channel = match &self.channel {
+            Some(c) => Some(Channel::from_name(c).with_context(|| {
                 format!(
                     "--channel {c:?}: expected one of {}",
                     Channel::ALL.map(Channel::name).join(", ")
                 )
-            })?;
-        }
-        if self.invert {
-            p.invert = true;
-        }
-        if self.no_invert {
-            p.invert = false;
-        }
-        if self.open {
-            p.open = true;
-        }
-        if self.no_open {
-            p.open = false;
-        }
-        if self.close {
-            p.close = true;
-        }
-        if self.no_close {
-            p.close = false;
-        }
-        if let Some(k) = self.morph_size {
-            p.morph_size = k;
-        }
-        let (def_window, def_offset) = match p.threshold {
-            Threshold::Adaptive { window_px, offset } => (window_px, offset),
-            _ => (31, -0.06),
+            })?),
+            None => None,
         };
-        if let Some(t) = &self.threshold {
-            p.threshold = match t.as_str() {
-                "otsu" => Threshold::Otsu,
-                "adaptive" => Threshold::Adaptive {
-                    window_px: def_window,
-                    offset: def_offset,
-                },
-                other => match other.parse::<f64>() {
-                    Ok(level) => Threshold::Fixed { level },
-                    Err(_) => {
-                        bail!("--threshold {other:?}: expected otsu, adaptive or a level in 0..1")
-                    }
-                },
-            };
-        }
-        if let Threshold::Adaptive { window_px, offset } = &mut p.threshold {
-            if let Some(wn) = self.window {
-                *window_px = wn;
-            }
-            if let Some(o) = self.offset {
-                *offset = o;
-            }
-        } else if self.window.is_some() || self.offset.is_some() {
-            bail!("--window and --offset apply to --threshold adaptive only");
-        }
-        if let Some(r) = &self.roi {
-            let v = numbers(r, 4, "roi")?;
-            if v.iter().any(|x| *x < 0.0) || v[2] < 1.0 || v[3] < 1.0 {
-                bail!("--roi {r:?}: expects a non-negative corner and a positive size");
-            }
-            p.roi = Some(Roi {
-                x: v[0] as usize,
-                y: v[1] as usize,
-                width: v[2] as usize,
-                height: v[3] as usize,
-            });
-        }
-        if let Some(c) = &self.circle {
-            let v = numbers(c, 3, "circle")?;
-            p.circle = Some(CircleMask {
-                cx_px: v[0],
-                cy_px: v[1],
-                radius_px: v[2],
-            });
-        }
-        p.validate().map_err(anyhow::Error::msg)?;
-        let mut filter = BlobFilter::DEFAULT;
-        if let Some(a) = self.min_area {
-            filter.min_area_px = a;
-        }
-        if let Some(a) = self.max_area {
-            filter.max_area_px = a;
-        }
-        if filter.min_area_px > filter.max_area_px {
-            bail!(
-                "--min-area {} exceeds --max-area {}",
-                filter.min_area_px,
-                filter.max_area_px
+        Ok(DetectorOptions {
+            preset: Preset::from_name(&self.preset),
+            channel,
+            invert: flag(self.invert, self.no_invert),
+            threshold: self
+                .threshold
+                .as_deref()
+                .map(ThresholdChoice::parse)
+                .transpose()?,
+            window_px: self.window,
+            offset: self.offset,
+            open: flag(self.open, self.no_open),
+            close: flag(self.close, self.no_close),
+            morph_size: self.morph_size,
+            min_area_px: self.min_area,
+            max_area_px: self.max_area,
+            keep_border: self.keep_border,
+            centroid: self.centroid.as_deref().map(|c| match c {
+                "weighted" => Centroid::Weighted,
+                "grey" => Centroid::Grey,
+                _ => Centroid::Binary,
+            }),
+            connectivity: if self.connectivity == 4 {
+                Connectivity::Four
+            } else {
+                Connectivity::Eight
+            },
+            roi,
+            circle,
+        })
+    }
+
+    /// The detector configuration for frames whose first one `first` reads, with `--preset
+    /// auto` resolved from it ([`DetectorOptions::preset_for`], saying so when it picks the
+    /// dark-markers preset); `default_centroid` (else the preset's) without `--centroid`.
+    /// The options are checked before any frame is read; an explicit preset never reads one.
+    pub(crate) fn config_for_frames(
+        &self,
+        default_centroid: Option<Centroid>,
+        first: impl FnOnce() -> Option<RgbImage>,
+    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
+        let o = self.options()?;
+        let centroid_of = |p: Preset| default_centroid.unwrap_or(p.config().detector.centroid);
+        o.config(Preset::Iats, centroid_of(Preset::Iats))?;
+        let preset = o.preset_for(first);
+        if o.preset.is_none() && preset == Preset::DarkMarkers {
+            eprintln!(
+                "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
             );
         }
-        filter.keep_border = self.keep_border;
-        filter.connectivity = if self.connectivity == 4 {
-            Connectivity::Four
-        } else {
-            Connectivity::Eight
-        };
-        let centroid = match self.centroid.as_deref() {
-            Some("weighted") => Centroid::Weighted,
-            Some("grey") => Centroid::Grey,
-            Some(_) => Centroid::Binary,
-            None => default_centroid,
-        };
-        Ok((
-            DetectorConfig {
-                preprocess: p,
-                filter,
-                centroid,
-            },
-            features,
-        ))
+        Ok(o.config(preset, centroid_of(preset))?)
     }
 }
 
@@ -280,90 +218,23 @@ pub(crate) struct ForceArgs {
     contact_threshold_n: f64,
 }
 
-/// A processed force record on a uniform time grid.
-pub(crate) struct Processed {
-    /// Sample times, s.
-    pub t: Vec<f64>,
-    /// Raw values on the grid, one vector per axis (fx … tz).
-    pub raw: Vec<Vec<f64>>,
-    /// Filtered, debiased values.
-    pub clean: Vec<Vec<f64>>,
-    /// Which axes the input had.
-    pub present: [bool; 6],
-    /// The bias estimate, when removed.
-    pub bias: Option<Bias>,
-    /// Sample rate, Hz.
-    pub rate_hz: f64,
-    /// Grid samples that were missing in the input (filled by interpolation).
-    pub filled: usize,
-    /// Repeated samples dropped.
-    pub duplicates: usize,
-}
-
 impl ForceArgs {
     /// The cleaning these options ask for.
     pub(crate) fn config(&self) -> anyhow::Result<CleanConfig> {
-        let padding = match self.padding.as_str() {
-            "odd" => Padding::Odd,
-            "even" => Padding::Even,
-            "constant" => Padding::Constant,
-            _ => Padding::None,
-        };
-        let padlen = match self.padlen.as_str() {
-            "scipy" => PadLen::Scipy,
-            "matlab" => PadLen::Matlab,
-            n => PadLen::Samples(n.parse().map_err(|_| {
-                anyhow::anyhow!("--padlen {n:?}: expected scipy, matlab or a number of samples")
-            })?),
-        };
-        let bias = match self.bias.as_str() {
-            "none" => BiasRemoval::None,
-            "auto" => BiasRemoval::Auto {
-                contact_threshold: self.contact_threshold_n,
-            },
-            ranges => BiasRemoval::Ranges(parse_ranges(ranges)?),
-        };
         Ok(CleanConfig {
             cutoff_hz: self.cutoff_hz,
             taps: self.taps,
             window: Window::parse(&self.window)?,
-            filtfilt: FiltFiltOptions { padding, padlen },
-            bias,
+            filtfilt: FiltFiltOptions {
+                // clap allows only the four names.
+                padding: Padding::from_name(&self.padding).unwrap_or(Padding::Odd),
+                padlen: PadLen::parse(&self.padlen)
+                    .map_err(|e| anyhow::anyhow!("--padlen: {e}"))?,
+            },
+            bias: BiasRemoval::parse(&self.bias, self.contact_threshold_n)
+                .map_err(|e| anyhow::anyhow!("--bias: {e}"))?,
         })
     }
-
-    /// Filters and debiases a force table (sorted, repeats dropped, gaps filled on a uniform
-    /// grid at the median sample interval: [`visuotact_signal::clean`]).
-    pub(crate) fn process(&self, mut table: ForceTable, name: &str) -> anyhow::Result<Processed> {
-        let cfg = self.config()?;
-        let duplicates = table.sort_dedup();
-        let channels: Vec<Vec<f64>> = (0..6).map(|k| table.axis(k)).collect();
-        let detect: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
-        let c = clean(&table.timestamp_s, &channels, &detect, &cfg)
-            .with_context(|| name.to_string())?;
-        Ok(Processed {
-            filled: c.filled,
-            t: c.t,
-            raw: c.raw,
-            clean: c.clean,
-            present: table.present,
-            bias: c.bias,
-            rate_hz: c.rate_hz,
-            duplicates,
-        })
-    }
-}
-
-/// Parses `A:B,C:D` (seconds).
-fn parse_ranges(s: &str) -> anyhow::Result<Vec<(f64, f64)>> {
-    s.split(',')
-        .map(|r| {
-            let (a, b) = r
-                .split_once(':')
-                .with_context(|| format!("--bias {s:?}: expected auto, none or A:B,C:D seconds"))?;
-            Ok((a.trim().parse()?, b.trim().parse()?))
-        })
-        .collect()
 }
 
 /// The training objective and input reduction, shared by `train` and `sweep`.

@@ -15,7 +15,7 @@ use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableError};
 use visuotact_nn::model::is_marker_column;
 use visuotact_signal::align::{AlignError, Resampler};
-use visuotact_signal::clean::{clean, CleanConfig, CleanError};
+use visuotact_signal::clean::{clean, CleanConfig, CleanError, Cleaned};
 use visuotact_vision::calibration::SensorCalibration;
 use visuotact_vision::features::is_field_column;
 
@@ -254,6 +254,22 @@ fn features_from_table(path: &Path) -> Result<Columns, DatasetError> {
     ))
 }
 
+/// Cleans a force table ([`clean`]): sorted, repeats dropped (counted), gaps filled on a
+/// uniform grid at the median sample interval, low-passed and debiased, bias detected on the
+/// force axes it has. Returns the cleaned record and the repeats dropped.
+pub fn clean_table(
+    table: &mut ForceTable,
+    cfg: &CleanConfig,
+) -> Result<(Cleaned, usize), CleanError> {
+    let duplicates = table.sort_dedup();
+    let channels: Vec<Vec<f64>> = (0..6).map(|k| table.axis(k)).collect();
+    let detect: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
+    Ok((
+        clean(&table.timestamp_s, &channels, &detect, cfg)?,
+        duplicates,
+    ))
+}
+
 /// Force labels of `frames` from the force record at `path`.
 fn labels_from_force(
     path: &Path,
@@ -275,14 +291,9 @@ fn labels_from_force(
             .map(|(r, t)| r - t)
             .fold(f64::INFINITY, f64::min)
     });
-    table.sort_dedup();
-    let channels: Vec<Vec<f64>> = (0..6).map(|k| table.axis(k)).collect();
-    let detect: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
-    let c = clean(&table.timestamp_s, &channels, &detect, &cfg.clean).map_err(|source| {
-        DatasetError::Force {
-            path: path.to_path_buf(),
-            source,
-        }
+    let (c, _) = clean_table(&mut table, &cfg.clean).map_err(|source| DatasetError::Force {
+        path: path.to_path_buf(),
+        source,
     })?;
     let times: Vec<f64> = frames.iter().map(|(_, t)| t - offset).collect();
     let rs = Resampler::new(

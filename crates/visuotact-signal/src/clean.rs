@@ -22,6 +22,25 @@ pub enum BiasRemoval {
     Ranges(Vec<(f64, f64)>),
 }
 
+impl BiasRemoval {
+    /// Parses `auto` (with `contact_threshold`), `none`, or time ranges `A:B,C:D` in seconds.
+    pub fn parse(s: &str, contact_threshold: f64) -> Result<Self, CleanError> {
+        match s {
+            "none" => Ok(Self::None),
+            "auto" => Ok(Self::Auto { contact_threshold }),
+            ranges => ranges
+                .split(',')
+                .map(|r| {
+                    let (a, b) = r.split_once(':')?;
+                    Some((a.trim().parse().ok()?, b.trim().parse().ok()?))
+                })
+                .collect::<Option<Vec<(f64, f64)>>>()
+                .map(Self::Ranges)
+                .ok_or_else(|| CleanError::BiasRemoval(s.to_string())),
+        }
+    }
+}
+
 /// How a force record is cleaned. [`Default`]: 51 taps at 5 Hz, Hamming window, scipy's
 /// padding, automatic bias removal at 0.25 N.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,6 +91,9 @@ pub struct Cleaned {
 /// Why a record could not be cleaned.
 #[derive(Debug, thiserror::Error)]
 pub enum CleanError {
+    /// A bias removal that does not parse.
+    #[error("bias removal {0:?}: expected auto, none or A:B,C:D seconds")]
+    BiasRemoval(String),
     /// Too few samples for a filter.
     #[error("{0} force samples; too few to filter")]
     TooFew(usize),
@@ -183,6 +205,22 @@ pub fn clean(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bias_removal_parses() {
+        assert_eq!(BiasRemoval::parse("none", 0.25).unwrap(), BiasRemoval::None);
+        assert_eq!(
+            BiasRemoval::parse("auto", 0.5).unwrap(),
+            BiasRemoval::Auto {
+                contact_threshold: 0.5
+            }
+        );
+        assert_eq!(
+            BiasRemoval::parse("0:1.5, 9:10", 0.25).unwrap(),
+            BiasRemoval::Ranges(vec![(0.0, 1.5), (9.0, 10.0)])
+        );
+        assert!(BiasRemoval::parse("0-1", 0.25).is_err());
+    }
 
     /// 200 Hz for 4 s with one missing sample: a 0.3 N offset, a 2 N press from 1.5 to 2.5 s
     /// and a 40 Hz ripple.

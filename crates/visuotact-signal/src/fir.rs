@@ -405,6 +405,34 @@ impl Default for FiltFiltOptions {
     }
 }
 
+impl Padding {
+    /// Parses `odd` (scipy and MATLAB), `even`, `constant` or `none`.
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "odd" => Some(Self::Odd),
+            "even" => Some(Self::Even),
+            "constant" => Some(Self::Constant),
+            "none" => Some(Self::None),
+            _ => None,
+        }
+    }
+}
+
+impl PadLen {
+    /// Parses `scipy` (3·taps), `matlab` (3·(taps − 1)) or a number of samples.
+    pub fn parse(s: &str) -> Result<Self, FilterError> {
+        match s {
+            "scipy" => Ok(Self::Scipy),
+            "matlab" => Ok(Self::Matlab),
+            n => n.parse().map(Self::Samples).map_err(|_| {
+                FilterError::Design(format!(
+                    "padding length {n:?}: expected scipy, matlab or a number of samples"
+                ))
+            }),
+        }
+    }
+}
+
 impl FiltFiltOptions {
     /// MATLAB `filtfilt`'s padding: odd, `3·(nfilt − 1)` samples.
     pub const MATLAB: Self = Self {
@@ -596,6 +624,15 @@ mod kernel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn padding_names_parse() {
+        assert_eq!(Padding::from_name("even"), Some(Padding::Even));
+        assert_eq!(Padding::from_name("wrap"), None);
+        assert_eq!(PadLen::parse("matlab").unwrap(), PadLen::Matlab);
+        assert_eq!(PadLen::parse("12").unwrap(), PadLen::Samples(12));
+        assert!(PadLen::parse("lots").is_err());
+    }
 
     #[test]
     fn window_shapes() {

@@ -19,5 +19,6 @@ pub mod detect;
 pub mod features;
 pub mod kernels;
 pub mod layout;
+pub mod options;
 pub mod preprocess;
 pub mod track;

@@ -50,7 +50,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // The pixel-mean centroid of OpenCV, scikit-image and MATLAB regionprops by default.
     let (cfg, _) =
         a.detector
-            .config_for_frames(visuotact_vision::detect::Centroid::Binary, || {
+            .config_for_frames(Some(visuotact_vision::detect::Centroid::Binary), || {
                 FrameStream::open(&a.frames, 25.0)
                     .ok()?
                     .next()?

@@ -4,8 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use visuotact_io::frames::FrameStream;
-use visuotact_vision::calibration::{calibrate, CalibrationConfig, LightestFinder, Preset};
-use visuotact_vision::detect::Centroid;
+use visuotact_vision::calibration::{calibrate, CalibrationConfig, LightestFinder};
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::track::TrackConfig;
@@ -72,12 +71,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
     // Thin annuli (the cone preset) are steadiest with the grey-weighted centroid.
-    let default_centroid = Preset::from_name(&a.detector.preset)
-        .map_or(Centroid::Grey, |p| p.config().detector.centroid);
-    // Frames that cannot be read are reported where they are read below.
-    let (detector, preset_features) = a.detector.config_for_frames(default_centroid, || {
-        open_frames(a).ok()?.next()?.ok().map(|f| f.image)
-    })?;
+    let (detector, preset_features) = a
+        .detector
+        .config_for_frames(None, || open_frames(a).ok()?.next()?.ok().map(|f| f.image))?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,

@@ -3,7 +3,9 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
 use visuotact_io::force::{ForceTable, AXES};
+use visuotact_pipeline::dataset::clean_table;
 use visuotact_report::figures::{ForcePlot, ForceRecord};
 
 use crate::args::ForceArgs;
@@ -23,15 +25,16 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
+    let mut table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
     if table.dropped_partial_line {
         eprintln!(
             "note: {}: an unfinished last line was left out",
             a.input.display()
         );
     }
-    let p = a.force.process(table, &a.input.display().to_string())?;
-    let cols: Vec<usize> = (0..6).filter(|&k| p.present[k]).collect();
+    let (p, duplicates) = clean_table(&mut table, &a.force.config()?)
+        .with_context(|| a.input.display().to_string())?;
+    let cols: Vec<usize> = (0..6).filter(|&k| table.present[k]).collect();
     let mut text = String::from("timestamp_s");
     for &k in &cols {
         text.push(',');
@@ -51,7 +54,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         p.t.len(),
         p.rate_hz,
         p.filled,
-        p.duplicates,
+        duplicates,
         a.force.taps,
         a.force.cutoff_hz
     );
@@ -71,7 +74,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             t: &p.t,
             raw: &p.raw,
             clean: &p.clean,
-            present: p.present,
+            present: table.present,
             bias: p.bias.as_ref(),
         };
         visuotact_report::save(&ForcePlot(record), path)?;

@@ -1,0 +1,231 @@
+//! A detector as a user states it: a [`Preset`] (or `auto`, told from the first frame) with
+//! any settings changed over it. The command line's detection options and the Python
+//! package's keyword arguments both build a [`DetectorOptions`]; [`DetectorOptions::config`]
+//! checks it and gives the [`DetectorConfig`].
+//!
+//! ```
+//! use visuotact_vision::calibration::Preset;
+//! use visuotact_vision::detect::Centroid;
+//! use visuotact_vision::options::{DetectorOptions, ThresholdChoice};
+//!
+//! let o = DetectorOptions {
+//!     threshold: Some(ThresholdChoice::Fixed(0.4)),
+//!     min_area_px: Some(12),
+//!     ..DetectorOptions::default()
+//! };
+//! let (cfg, _) = o.config(Preset::Iats, Centroid::Grey).unwrap();
+//! assert_eq!(cfg.filter.min_area_px, 12);
+//! let bad = DetectorOptions { threshold: Some(ThresholdChoice::Fixed(1.7)), ..o };
+//! assert!(bad.config(Preset::Iats, Centroid::Grey).is_err());
+//! ```
+
+use visuotact_image::RgbImage;
+
+use crate::blobs::Connectivity;
+use crate::calibration::Preset;
+use crate::detect::{BlobFilter, Centroid, DetectorConfig};
+use crate::features::FeatureSet;
+use crate::preprocess::{Channel, CircleMask, Roi, Threshold};
+use crate::ConfigError;
+
+/// How the foreground is separated, as chosen (the adaptive window and offset are separate
+/// options over the preset's).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ThresholdChoice {
+    /// Otsu's level on every frame.
+    Otsu,
+    /// Local mean minus an offset.
+    Adaptive,
+    /// A fixed level in 0..1 of full scale.
+    Fixed(f64),
+}
+
+impl ThresholdChoice {
+    /// Parses `otsu`, `adaptive` or a level in 0..1.
+    pub fn parse(s: &str) -> Result<Self, ConfigError> {
+        match s {
+            "otsu" => Ok(Self::Otsu),
+            "adaptive" => Ok(Self::Adaptive),
+            other => other.parse::<f64>().map(Self::Fixed).map_err(|_| {
+                ConfigError(format!(
+                    "threshold {other:?}: expected otsu, adaptive or a level in 0..1"
+                ))
+            }),
+        }
+    }
+}
+
+/// A preset with settings changed over it; `None` keeps the preset's.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DetectorOptions {
+    /// The starting settings; `None`: `auto` ([`Preset::for_frame`]).
+    pub preset: Option<Preset>,
+    /// The channel.
+    pub channel: Option<Channel>,
+    /// Invert the channel (dark markers on a bright background).
+    pub invert: Option<bool>,
+    /// The threshold.
+    pub threshold: Option<ThresholdChoice>,
+    /// Adaptive threshold window, pixels (odd).
+    pub window_px: Option<usize>,
+    /// Adaptive threshold offset in 0..1 of full scale.
+    pub offset: Option<f64>,
+    /// Grey-level opening.
+    pub open: Option<bool>,
+    /// Grey-level closing.
+    pub close: Option<bool>,
+    /// Morphology window side, pixels (odd).
+    pub morph_size: Option<usize>,
+    /// Smallest marker area, pixels.
+    pub min_area_px: Option<u32>,
+    /// Largest marker area, pixels.
+    pub max_area_px: Option<u32>,
+    /// Keep blobs touching the image border.
+    pub keep_border: bool,
+    /// The centroid; `None`: the caller's default.
+    pub centroid: Option<Centroid>,
+    /// Pixel connectivity.
+    pub connectivity: Connectivity,
+    /// Region of interest.
+    pub roi: Option<Roi>,
+    /// Circular mask.
+    pub circle: Option<CircleMask>,
+}
+
+impl DetectorOptions {
+    /// The preset: the one chosen, or for `auto` the one `first` frame calls for (markers
+    /// darker than the skin: [`Preset::DarkMarkers`]; else, or without a frame,
+    /// [`Preset::Iats`]). `first` is only called for `auto`.
+    pub fn preset_for(&self, first: impl FnOnce() -> Option<RgbImage>) -> Preset {
+        self.preset
+            .unwrap_or_else(|| first().map_or(Preset::Iats, |f| Preset::for_frame(&f)))
+    }
+
+    /// The detector these options give over `preset`, and the preset's features;
+    /// `default_centroid` where no centroid was chosen.
+    pub fn config(
+        &self,
+        preset: Preset,
+        default_centroid: Centroid,
+    ) -> Result<(DetectorConfig, FeatureSet), ConfigError> {
+        let base = preset.config();
+        let mut p = base.detector.preprocess;
+        p.channel = self.channel.unwrap_or(p.channel);
+        p.invert = self.invert.unwrap_or(p.invert);
+        p.open = self.open.unwrap_or(p.open);
+        p.close = self.close.unwrap_or(p.close);
+        p.morph_size = self.morph_size.unwrap_or(p.morph_size);
+        p.threshold = self.threshold_over(p.threshold)?;
+        if let Some(r) = self.roi {
+            if r.width == 0 || r.height == 0 {
+                return Err(ConfigError(
+                    "the region of interest needs a positive size".into(),
+                ));
+            }
+            p.roi = Some(r);
+        }
+        p.circle = self.circle.or(p.circle);
+        p.validate()?;
+        let filter = BlobFilter {
+            min_area_px: self.min_area_px.unwrap_or(BlobFilter::DEFAULT.min_area_px),
+            max_area_px: self.max_area_px.unwrap_or(BlobFilter::DEFAULT.max_area_px),
+            keep_border: self.keep_border,
+            connectivity: self.connectivity,
+        };
+        if filter.min_area_px > filter.max_area_px {
+            return Err(ConfigError(format!(
+                "smallest marker area {} px exceeds the largest, {} px",
+                filter.min_area_px, filter.max_area_px
+            )));
+        }
+        let centroid = self.centroid.unwrap_or(default_centroid);
+        let cfg = DetectorConfig {
+            preprocess: p,
+            filter,
+            centroid,
+        };
+        Ok((cfg, base.features))
+    }
+
+    /// The threshold chosen over the preset's `base`, with the adaptive window and offset.
+    fn threshold_over(&self, base: Threshold) -> Result<Threshold, ConfigError> {
+        let (def_window, def_offset) = match base {
+            Threshold::Adaptive { window_px, offset } => (window_px, offset),
+            _ => (31, -0.06),
+        };
+        let mut t = match self.threshold {
+            None => base,
+            Some(ThresholdChoice::Otsu) => Threshold::Otsu,
+            Some(ThresholdChoice::Fixed(level)) => Threshold::Fixed { level },
+            Some(ThresholdChoice::Adaptive) => Threshold::Adaptive {
+                window_px: def_window,
+                offset: def_offset,
+            },
+        };
+        match &mut t {
+            Threshold::Adaptive { window_px, offset } => {
+                *window_px = self.window_px.unwrap_or(*window_px);
+                *offset = self.offset.unwrap_or(*offset);
+            }
+            _ if self.window_px.is_some() || self.offset.is_some() => {
+                return Err(ConfigError(
+                    "the window and offset apply to the adaptive threshold only".into(),
+                ))
+            }
+            _ => {}
+        }
+        Ok(t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_change_the_preset_and_are_checked() {
+        let (cfg, features) = DetectorOptions::default()
+            .config(Preset::Cone, Centroid::Binary)
+            .unwrap();
+        assert_eq!(
+            cfg,
+            DetectorConfig {
+                centroid: Centroid::Binary,
+                ..Preset::Cone.config().detector
+            }
+        );
+        assert_eq!(features, FeatureSet::CONE);
+        let adaptive = DetectorOptions {
+            threshold: Some(ThresholdChoice::Adaptive),
+            window_px: Some(41),
+            invert: Some(true),
+            ..DetectorOptions::default()
+        };
+        let (cfg, _) = adaptive.config(Preset::Iats, Centroid::Grey).unwrap();
+        assert_eq!(
+            cfg.preprocess.threshold,
+            Threshold::Adaptive {
+                window_px: 41,
+                offset: -0.06
+            }
+        );
+        assert!(cfg.preprocess.invert);
+        let stray_window = DetectorOptions {
+            window_px: Some(41),
+            ..DetectorOptions::default()
+        };
+        assert!(stray_window.config(Preset::Iats, Centroid::Grey).is_err());
+        let areas = DetectorOptions {
+            min_area_px: Some(50),
+            max_area_px: Some(10),
+            ..DetectorOptions::default()
+        };
+        assert!(areas.config(Preset::Iats, Centroid::Grey).is_err());
+        assert_eq!(
+            ThresholdChoice::parse("0.3").unwrap(),
+            ThresholdChoice::Fixed(0.3)
+        );
+        assert!(ThresholdChoice::parse("high").is_err());
+        assert_eq!(DetectorOptions::default().preset_for(|| None), Preset::Iats);
+    }
+}
