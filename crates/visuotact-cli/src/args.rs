@@ -10,7 +10,9 @@ use visuotact_io::table::KeyedTable;
 use visuotact_nn::fit::{components_from_name, FieldInputs, FitConfig};
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::is_marker_column;
-use visuotact_pipeline::table::{training_table, Incomplete, JoinConfig, Named, TrainingTable};
+use visuotact_pipeline::table::{
+    training_table_from_files, Incomplete, JoinConfig, TrainingFiles, TrainingTable,
+};
 use visuotact_signal::clean::{BiasRemoval, CleanConfig};
 use visuotact_signal::fir::{FiltFiltOptions, PadLen, Padding, Window};
 use visuotact_vision::blobs::Connectivity;
@@ -333,10 +335,6 @@ impl ExtraInputs {
             }
         }
     }
-
-    fn readings_table(&self) -> anyhow::Result<Option<KeyedTable>> {
-        read_readings(self.readings.as_deref())
-    }
 }
 
 /// A readings table keyed by `frame` (every column numeric), when one is given.
@@ -353,18 +351,6 @@ impl DataArgs {
         fills: impl Fn(usize) -> bool,
     ) -> anyhow::Result<(Vec<String>, TrainingTable)> {
         let targets = parse_targets(&self.targets)?;
-        let f = KeyedTable::read(&self.features, &["flags"])?;
-        let l = KeyedTable::read(&self.labels, &[])?;
-        let readings = self.extra.readings_table()?;
-        let (f_name, l_name) = (
-            self.features.display().to_string(),
-            self.labels.display().to_string(),
-        );
-        let r_name = self
-            .extra
-            .readings
-            .as_ref()
-            .map(|p| p.display().to_string());
         let extra = self.extra.names()?;
         let cfg = JoinConfig {
             targets: &targets,
@@ -376,21 +362,12 @@ impl DataArgs {
                 Incomplete::FillIf(&fills)
             },
         };
-        let j = training_table(
-            Named {
-                table: &f,
-                name: &f_name,
-            },
-            Named {
-                table: &l,
-                name: &l_name,
-            },
-            readings
-                .as_ref()
-                .zip(r_name.as_deref())
-                .map(|(table, name)| Named { table, name }),
-            &cfg,
-        )?;
+        let files = TrainingFiles {
+            features: &self.features,
+            labels: &self.labels,
+            readings: self.extra.readings.as_deref(),
+        };
+        let j = training_table_from_files(files, &cfg)?;
         for note in &j.notes {
             eprintln!("{note}");
         }

@@ -24,6 +24,7 @@
 //! assert!(rms > 0.5);
 //! ```
 
+pub mod calibrate;
 pub mod dataset;
 pub mod demo;
 pub mod estimator;

@@ -5,7 +5,8 @@
 //! images and folders, estimates every frame with the [`Estimator`], and writes one row per
 //! frame: the estimate, or NaN with the reason in the flags (no estimate rather than a wrong
 //! one). Inputs of the model besides the marker features (a pressure gauge's reading) come
-//! from a readings table keyed by frame. [`extract`] writes the feature table of frames.
+//! from a readings table keyed by frame. [`extract`] writes the feature table of frames,
+//! [`features_table`] keeps it in memory, and [`predict_table`] runs a model over a table.
 
 use std::path::{Path, PathBuf};
 
@@ -13,7 +14,10 @@ use visuotact_io::frames::{FrameError, FrameStream};
 use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
 
+use visuotact_nn::model::Model;
+
 use crate::schema::{feature_columns, feature_row_into, flags_of, missing_summary};
+use crate::table::InputSources;
 use crate::Estimator;
 
 /// What to replay.
@@ -252,6 +256,93 @@ pub fn extract(
         out.write_row(&frame.id, &row, &flags_of(&f))
             .map_err(write_err)?;
         done.written += 1;
+    }
+    Ok(done)
+}
+
+/// The features of `frames` (image files, folders, videos at `fps`) as a keyed table, one row
+/// per frame read; `warn` hears of frames skipped.
+pub fn features_table(
+    ex: &mut FeatureExtractor,
+    frames: &[PathBuf],
+    fps: f64,
+    warn: &mut dyn FnMut(&str),
+) -> Result<KeyedTable, ReplayError> {
+    let (mut keys, mut rows) = (Vec::new(), Vec::new());
+    for item in FrameStream::open(frames, fps)? {
+        let frame = match item {
+            Ok(f) => f,
+            Err(e) => {
+                warn(&format!("{e}; skipped"));
+                continue;
+            }
+        };
+        match ex.extract(&frame.image) {
+            Ok(f) => {
+                keys.push(frame.id);
+                rows.push(f.values);
+            }
+            Err(e) => warn(&format!("frame {}: {e}; skipped", frame.id)),
+        }
+    }
+    Ok(KeyedTable {
+        columns: ex.column_names(),
+        text: vec![Vec::new(); rows.len()],
+        keys,
+        rows,
+        dropped_partial_line: false,
+    })
+}
+
+/// What [`predict_table`] wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Predicted {
+    /// Rows with an estimate.
+    pub written: usize,
+    /// Rows without (NaN, the reason in the flags).
+    pub missing: usize,
+    /// Of the estimates, rows with lost markers filled.
+    pub filled: usize,
+}
+
+/// Estimates every row of `keys` with `model` from `sources` into the CSV at `output` (the
+/// model's estimate columns; an ensemble's spreads too). Lost markers are filled by a model on
+/// principal components; a missing reading, too many lost markers or a model without
+/// components gives no estimate rather than a wrong one, with the reason in the flags.
+pub fn predict_table(
+    model: &Model,
+    sources: &InputSources<'_>,
+    keys: &[String],
+    output: &Path,
+) -> Result<Predicted, ReplayError> {
+    let write_err = |source| ReplayError::Write {
+        path: output.to_path_buf(),
+        source,
+    };
+    let columns = model.estimate_columns();
+    let nan = vec![f64::NAN; columns.len()];
+    let mut out = TableWriter::create(output, TableFormat::Csv, columns).map_err(write_err)?;
+    let mut done = Predicted::default();
+    let mut x = Vec::with_capacity(model.feature_columns.len());
+    for (r, key) in keys.iter().enumerate() {
+        sources.row_into(r, &mut x);
+        let written = match model.estimate(&x) {
+            Ok(e) => {
+                done.written += 1;
+                let note = if e.filled > 0 {
+                    done.filled += 1;
+                    format!("filled {} inputs", e.filled)
+                } else {
+                    String::new()
+                };
+                out.write_row(key, &e.into_row(), &note)
+            }
+            Err(why) => {
+                done.missing += 1;
+                out.write_row(key, &nan, &why.to_string())
+            }
+        };
+        written.map_err(write_err)?;
     }
     Ok(done)
 }

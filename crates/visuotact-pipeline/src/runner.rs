@@ -105,6 +105,59 @@ pub trait Sink {
     ) -> ControlFlow<()>;
 }
 
+/// JSON lines to a writer (standard output); a write error (the consumer went away, a closed
+/// pipe) ends the run.
+pub struct LineSink<W: std::io::Write>(pub W);
+
+impl<W: std::io::Write> Sink for LineSink<W> {
+    fn send(
+        &mut self,
+        _: &LiveEstimate,
+        json: &str,
+        _: Option<&[MarkerView]>,
+        _: &Arc<RgbImage>,
+    ) -> ControlFlow<()> {
+        match writeln!(self.0, "{json}").and_then(|()| self.0.flush()) {
+            Ok(()) => ControlFlow::Continue(()),
+            Err(_) => ControlFlow::Break(()),
+        }
+    }
+}
+
+/// One UDP datagram (the JSON line) per estimate, never blocking; send errors are counted.
+pub struct UdpSink {
+    socket: std::net::UdpSocket,
+    /// Datagrams that could not be sent.
+    pub errors: u64,
+}
+
+impl UdpSink {
+    /// A sink sending to `addr` (`HOST:PORT`).
+    pub fn connect(addr: &str) -> std::io::Result<Self> {
+        let socket = std::net::UdpSocket::bind("0.0.0.0:0")?;
+        socket.connect(addr).map_err(|e| {
+            std::io::Error::new(e.kind(), format!("{addr}: cannot address it: {e}"))
+        })?;
+        socket.set_nonblocking(true)?;
+        Ok(Self { socket, errors: 0 })
+    }
+}
+
+impl Sink for UdpSink {
+    fn send(
+        &mut self,
+        _: &LiveEstimate,
+        json: &str,
+        _: Option<&[MarkerView]>,
+        _: &Arc<RgbImage>,
+    ) -> ControlFlow<()> {
+        if self.socket.send(json.as_bytes()).is_err() {
+            self.errors += 1;
+        }
+        ControlFlow::Continue(())
+    }
+}
+
 /// What a run reports at the end.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct RunSummary {

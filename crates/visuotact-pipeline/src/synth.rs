@@ -18,6 +18,7 @@ use visuotact_io::session::{SessionWriter, TruthRow};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
+use visuotact_sim::pattern::{render_grid, GridPattern, Press};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
 use visuotact_sim::rig::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
 use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
@@ -565,6 +566,99 @@ fn force_stream(
             }
         })
         .collect()
+}
+
+/// Marker-grid test frames with exact truth (`visuotact pattern`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PatternConfig {
+    /// Output folder: `rest/` (still frames), `touch/` (pressed frames), `truth.csv`.
+    pub output: PathBuf,
+    /// Rest (no-contact) frames, at least 1.
+    pub rest: usize,
+    /// Touch frames.
+    pub touches: usize,
+    /// Largest sideways drag, in marker pitches (0..1.5).
+    pub max_drag: f64,
+    /// Random seed.
+    pub seed: u64,
+}
+
+/// The touches of a pattern series: SplitMix64 from `seed`, a fixed, documented sequence.
+pub fn pattern_presses(pattern: &GridPattern, n: usize, max_drag: f64, seed: u64) -> Vec<Press> {
+    let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
+    let mut uniform = || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let ang = uniform() * std::f64::consts::TAU;
+            let drag = max_drag * pattern.pitch_x_px * uniform();
+            Press {
+                x_px: 100.0 + 440.0 * uniform(),
+                y_px: 90.0 + 300.0 * uniform(),
+                sigma_px: 50.0 + 50.0 * uniform(),
+                push_px: 8.0 * uniform(),
+                shear_x_px: drag * ang.cos(),
+                shear_y_px: drag * ang.sin(),
+                grow: 0.3 * uniform(),
+                stretch: 0.25 * uniform(),
+            }
+        })
+        .collect()
+}
+
+/// Writes a pattern series ([`GridPattern::IATS`]): rest frames, touch frames and the
+/// presses behind them.
+pub fn write_pattern(cfg: &PatternConfig) -> Result<(), SimulateError> {
+    if cfg.rest == 0 {
+        return Err(SimulateError::Config(
+            "rest must be at least 1 (calibration needs a still frame)".into(),
+        ));
+    }
+    if !(0.0..=1.5).contains(&cfg.max_drag) {
+        return Err(SimulateError::Config(format!(
+            "the largest drag must be in 0..1.5 pitches, got {}",
+            cfg.max_drag
+        )));
+    }
+    let pattern = GridPattern::IATS;
+    let (rest_dir, touch_dir) = (cfg.output.join("rest"), cfg.output.join("touch"));
+    for d in [&rest_dir, &touch_dir] {
+        std::fs::create_dir_all(d).map_err(|e| {
+            std::io::Error::new(
+                e.kind(),
+                format!("{}: cannot create folder: {e}", d.display()),
+            )
+        })?;
+    }
+    for i in 0..cfg.rest {
+        let seed = cfg.seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
+        let (img, _) = render_grid(&pattern, None, seed);
+        write_png(&rest_dir.join(format!("rest_{i:04}.png")), &img)?;
+    }
+    let mut truth =
+        String::from("frame,x_px,y_px,sigma_px,push_px,shear_x_px,shear_y_px,grow,stretch\n");
+    for (i, p) in pattern_presses(&pattern, cfg.touches, cfg.max_drag, cfg.seed)
+        .iter()
+        .enumerate()
+    {
+        let seed = cfg.seed.wrapping_mul(7_919).wrapping_add(10_000 + i as u64);
+        let (img, _) = render_grid(&pattern, Some(p), seed);
+        let name = format!("touch_{i:04}.png");
+        write_png(&touch_dir.join(&name), &img)?;
+        truth.push_str(&format!(
+            "{name},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
+            p.x_px, p.y_px, p.sigma_px, p.push_px, p.shear_x_px, p.shear_y_px, p.grow, p.stretch
+        ));
+    }
+    Ok(visuotact_io::session::write_atomically(
+        &cfg.output.join("truth.csv"),
+        &truth,
+    )?)
 }
 
 /// Sends samples as UDP packets at their own rate; returns how many the receiver refused (a

@@ -24,6 +24,9 @@ pub struct Named<'a> {
 /// Why a training table could not be joined.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum JoinError {
+    /// A table does not read.
+    #[error(transparent)]
+    Read(#[from] visuotact_io::table::TableError),
     /// The feature table has no markers' columns.
     #[error("{features}: no per-marker feature columns (mNNN_…)")]
     NoMarkerColumns {
@@ -339,6 +342,48 @@ pub fn training_table(
     out.feature_columns = names;
     out.notes = notes;
     Ok(out)
+}
+
+/// The files a training table is joined from: the feature table (its `flags` column is text),
+/// the labels, and a readings table for extra inputs.
+#[derive(Clone, Copy, Debug)]
+pub struct TrainingFiles<'a> {
+    /// Feature table from `extract`.
+    pub features: &'a std::path::Path,
+    /// Label table keyed by `frame`.
+    pub labels: &'a std::path::Path,
+    /// Table keyed by `frame` with extra inputs.
+    pub readings: Option<&'a std::path::Path>,
+}
+
+/// Reads `files` and joins them ([`training_table`]), naming each file in errors and notes.
+pub fn training_table_from_files(
+    files: TrainingFiles<'_>,
+    cfg: &JoinConfig<'_>,
+) -> Result<TrainingTable, JoinError> {
+    let f = KeyedTable::read(files.features, &["flags"])?;
+    let l = KeyedTable::read(files.labels, &[])?;
+    let r = files
+        .readings
+        .map(|p| KeyedTable::read(p, &[]))
+        .transpose()?;
+    let name = |p: &std::path::Path| p.display().to_string();
+    let (f_name, l_name) = (name(files.features), name(files.labels));
+    let r_name = files.readings.map(name);
+    training_table(
+        Named {
+            table: &f,
+            name: &f_name,
+        },
+        Named {
+            table: &l,
+            name: &l_name,
+        },
+        r.as_ref()
+            .zip(r_name.as_deref())
+            .map(|(table, name)| Named { table, name }),
+        cfg,
+    )
 }
 
 #[cfg(test)]

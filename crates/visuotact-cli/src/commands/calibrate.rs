@@ -2,9 +2,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use visuotact_io::frames::FrameStream;
-use visuotact_vision::calibration::{calibrate, CalibrationConfig, LightestFinder};
+use visuotact_pipeline::calibrate::{calibrate_frames, Calibrated, ReferenceSource};
+use visuotact_vision::calibration::CalibrationConfig;
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::track::TrackConfig;
@@ -40,88 +41,42 @@ pub(crate) struct Args {
     features: Option<String>,
 }
 
-/// Where the reference comes from.
-enum ReferenceSource {
-    Still,
-    Lightest(usize),
-}
-
-fn reference_source(s: &str) -> anyhow::Result<ReferenceSource> {
-    if s == "still" {
-        return Ok(ReferenceSource::Still);
-    }
-    match s.strip_prefix("lightest:").map(str::parse::<usize>) {
-        Some(Ok(n)) if n > 0 => Ok(ReferenceSource::Lightest(n)),
-        _ => bail!("--reference {s:?}: expected still or lightest:N with N ≥ 1"),
-    }
-}
-
-fn open_frames(a: &Args) -> anyhow::Result<FrameStream> {
-    let mut stream = FrameStream::open(&a.frames, 25.0)?;
-    if let Some(n) = a.first {
-        if n == 0 {
-            bail!("--first must be at least 1");
-        }
-        stream = stream.take_first(n);
-    }
-    Ok(stream)
-}
-
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    if a.first == Some(0) {
+        bail!("--first must be at least 1");
+    }
+    let open = || {
+        let s = FrameStream::open(&a.frames, 25.0)?;
+        Ok(match a.first {
+            Some(n) => s.take_first(n),
+            None => s,
+        })
+    };
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
     // Thin annuli (the cone preset) are steadiest with the grey-weighted centroid.
     let (detector, preset_features) = a
         .detector
-        .config_for_frames(None, || open_frames(a).ok()?.next()?.ok().map(|f| f.image))?;
+        .config_for_frames(None, || open().ok()?.next()?.ok().map(|f| f.image))?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
     };
     let layout = LayoutChoice::parse(&a.layout).map_err(anyhow::Error::msg)?;
-    let source = reference_source(&a.reference)?;
+    let source =
+        ReferenceSource::parse(&a.reference).map_err(|e| anyhow::anyhow!("--reference: {e}"))?;
     let cfg = CalibrationConfig {
         detector,
         layout,
         features,
         track: TrackConfig::DEFAULT,
     };
-    let open = || open_frames(a);
-    let (frames, selection) = match source {
-        ReferenceSource::Still => {
-            let mut frames = Vec::new();
-            for f in open()? {
-                // A calibration built from a partial set would be silently different: any
-                // unreadable frame stops it.
-                frames.push(f.context("calibration frames must all be readable")?);
-            }
-            (frames, None)
-        }
-        ReferenceSource::Lightest(n) => {
-            // Pass 1 keeps only each frame's blobs; pass 2 reads the chosen frames again.
-            let mut finder = LightestFinder::new(&cfg)?;
-            for f in open()? {
-                let f = f.context("every frame must be readable to rank them")?;
-                finder.add(&f.id, &f.image)?;
-            }
-            let sel = finder.choose(n)?;
-            let mut frames = Vec::with_capacity(n);
-            for f in open()? {
-                let f = f.context("calibration frames must all be readable")?;
-                if sel.chosen.contains(&f.id) {
-                    frames.push(f);
-                }
-            }
-            (frames, Some(sel))
-        }
-    };
-    if frames.is_empty() {
-        bail!("no frames could be read");
-    }
-    let (mut cal, report) = calibrate(frames.iter().map(|f| (f.id.as_str(), &f.image)), &cfg)?;
-    if let Some(sel) = &selection {
-        cal.reference = sel.reference_info();
-    }
+    let Calibrated {
+        calibration: cal,
+        report,
+        selection,
+        frames,
+    } = calibrate_frames(open, source, &cfg)?;
     write_sensor(a, &cal)?;
     let level = report
         .level
@@ -138,7 +93,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         cal.markers.len(),
         cal.layout.name(),
         cal.pitch_px,
-        frames.len(),
+        frames,
         cal.image_width,
         cal.image_height,
         report.raw_blobs,

@@ -1,11 +1,11 @@
 //! `visuotact predict`: a model over a feature table (or frames read with a sensor file) →
 //! estimates, with the reason in the flags where there is none.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::bail;
-use visuotact_io::frames::FrameStream;
-use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
+use visuotact_io::table::KeyedTable;
+use visuotact_pipeline::replay::{features_table, predict_table, Predicted};
 use visuotact_pipeline::table::{InputSources, Named};
 use visuotact_vision::features::FeatureExtractor;
 
@@ -33,42 +33,6 @@ pub(crate) struct Args {
     output: PathBuf,
 }
 
-/// Features of frames extracted with a sensor file, as a keyed table.
-fn features_from_frames(
-    sensor: &Path,
-    frames: &[PathBuf],
-    columns: &[String],
-) -> anyhow::Result<KeyedTable> {
-    let cal = crate::load_sensor(sensor)?;
-    let mut ex = FeatureExtractor::new(cal, visuotact_pipeline::feature_set_of(columns)?)?;
-    let names = ex.column_names();
-    let (mut keys, mut rows) = (Vec::new(), Vec::new());
-    for item in FrameStream::open(frames, 25.0)? {
-        let frame = match item {
-            Ok(f) => f,
-            Err(e) => {
-                eprintln!("warning: {e}; skipped");
-                continue;
-            }
-        };
-        match ex.extract(&frame.image) {
-            Ok(f) => {
-                keys.push(frame.id);
-                rows.push(f.values);
-            }
-            Err(e) => eprintln!("warning: frame {}: {e}; skipped", frame.id),
-        }
-    }
-    let n_rows = rows.len();
-    Ok(KeyedTable {
-        columns: names,
-        keys,
-        text: vec![Vec::new(); n_rows],
-        rows,
-        dropped_partial_line: false,
-    })
-}
-
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let model = crate::load_model(&a.model)?;
     let (f, source) = match (&a.features, &a.sensor) {
@@ -76,10 +40,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             KeyedTable::read(p, &["flags"]).map_err(anyhow::Error::msg)?,
             p.display().to_string(),
         ),
-        (None, Some(sensor)) => (
-            features_from_frames(sensor, &a.frames, &model.feature_columns)?,
-            format!("frames read with {}", sensor.display()),
-        ),
+        (None, Some(sensor)) => {
+            let set = visuotact_pipeline::feature_set_of(&model.feature_columns)?;
+            let mut ex = FeatureExtractor::new(crate::load_sensor(sensor)?, set)?;
+            let warn = &mut |w: &str| eprintln!("warning: {w}");
+            (
+                features_table(&mut ex, &a.frames, 25.0, warn)?,
+                format!("frames read with {}", sensor.display()),
+            )
+        }
         (None, None) => bail!("give --features TABLE, or --sensor SENSOR FRAMES..."),
     };
     let readings = read_readings(a.readings.as_deref())?;
@@ -99,34 +68,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             a.model.display()
         ),
     )?;
-    // An ensemble also writes each target's spread (standard deviation over its networks).
-    let columns = model.estimate_columns();
-    let width = columns.len();
-    let mut out = TableWriter::create(&a.output, TableFormat::Csv, columns)?;
-    let (mut written, mut missing, mut filled) = (0, 0, 0);
-    let mut x = Vec::with_capacity(model.feature_columns.len());
-    for (r, key) in f.keys.iter().enumerate() {
-        sources.row_into(r, &mut x);
-        // Lost markers are filled by a model on principal components; a missing reading, too
-        // many lost markers or a model without components: no estimate rather than a wrong one,
-        // and the reason in the flags.
-        match model.estimate(&x) {
-            Ok(e) => {
-                let note = if e.filled > 0 {
-                    filled += 1;
-                    format!("filled {} inputs", e.filled)
-                } else {
-                    String::new()
-                };
-                out.write_row(key, &e.into_row(), &note)?;
-                written += 1;
-            }
-            Err(why) => {
-                out.write_row(key, &vec![f64::NAN; width], &why.to_string())?;
-                missing += 1;
-            }
-        }
-    }
+    let Predicted {
+        written,
+        missing,
+        filled,
+    } = predict_table(&model, &sources, &f.keys, &a.output)?;
     let filled_note = if filled > 0 {
         format!(" ({filled} with lost markers filled)")
     } else {

@@ -1,19 +1,14 @@
 //! `visuotact run`: live estimation ([`visuotact_pipeline::runner`]) to standard output (JSON
 //! lines), UDP and the dashboard's WebSocket, with latency measured per frame.
 
-use std::io::Write;
-use std::net::UdpSocket;
-use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::{bail, Context};
-use visuotact_image::RgbImage;
+use anyhow::bail;
 use visuotact_io::camera::CameraRequest;
-use visuotact_pipeline::live::MarkerView;
-use visuotact_pipeline::runner::{RunConfig, Sink};
-use visuotact_pipeline::{LiveConfig, LiveEstimate, LiveEstimator};
+use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
+use visuotact_pipeline::{LiveConfig, LiveEstimator};
 
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct Args {
@@ -116,50 +111,6 @@ impl Args {
     }
 }
 
-/// JSON lines on standard output; a closed pipe (the consumer went away) ends the run.
-struct Stdout(std::io::BufWriter<std::io::StdoutLock<'static>>);
-
-impl Sink for Stdout {
-    fn send(
-        &mut self,
-        _: &LiveEstimate,
-        json: &str,
-        _: Option<&[MarkerView]>,
-        _: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        match writeln!(self.0, "{json}").and_then(|()| self.0.flush()) {
-            Ok(()) => ControlFlow::Continue(()),
-            Err(_) => ControlFlow::Break(()),
-        }
-    }
-}
-
-/// One UDP datagram per estimate; send errors are counted.
-struct Udp(UdpSocket, u64);
-
-impl Sink for Udp {
-    fn send(
-        &mut self,
-        _: &LiveEstimate,
-        json: &str,
-        _: Option<&[MarkerView]>,
-        _: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        if self.0.send(json.as_bytes()).is_err() {
-            self.1 += 1;
-        }
-        ControlFlow::Continue(())
-    }
-}
-
-fn udp(addr: &str) -> anyhow::Result<Udp> {
-    let s = UdpSocket::bind("0.0.0.0:0").context("cannot open a UDP socket")?;
-    s.connect(addr)
-        .with_context(|| format!("--udp {addr}: cannot address it"))?;
-    s.set_nonblocking(true)?;
-    Ok(Udp(s, 0))
-}
-
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if !(a.fps.is_finite() && a.fps > 0.0) {
         bail!("--fps must be a positive frame rate");
@@ -179,7 +130,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         let stop = stop.clone();
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
     }
-    let mut udp = a.udp.as_deref().map(udp).transpose()?;
+    let mut udp = a
+        .udp
+        .as_deref()
+        .map(UdpSink::connect)
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
     let mut dashboard = match &a.serve {
         Some(addr) => Some(
             visuotact_dashboard::Dashboard::start(addr, live.calibration(), live.target_names())
@@ -187,7 +143,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ),
         None => None,
     };
-    let mut stdout = (!a.quiet).then(|| Stdout(std::io::BufWriter::new(std::io::stdout().lock())));
+    let mut stdout =
+        (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
     let mut sinks: Vec<&mut dyn Sink> = Vec::new();
     if let Some(s) = stdout.as_mut() {
         sinks.push(s);
@@ -203,7 +160,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     })?;
     drop(sinks);
     drop(stdout);
-    summary.udp_send_errors = udp.map_or(0, |u| u.1);
+    summary.udp_send_errors = udp.map_or(0, |u| u.errors);
     summary.websocket_messages_dropped = dashboard.as_ref().map_or(0, |d| d.dropped());
     eprintln!(
         "{} frames captured, {} estimated ({} with contact), {} dropped in {:.1} s; latency median {:.3} ms, p99 {:.3} ms; processing median {:.3} ms, p99 {:.3} ms; UDP errors {}, WebSocket messages dropped {}",
