@@ -136,6 +136,31 @@ pub struct InputSet {
 }
 
 impl InputSet {
+    /// The inputs the network itself sees: the components and the columns passing by them, or
+    /// every column.
+    pub fn network_inputs(&self) -> usize {
+        self.components
+            .map_or(self.columns.len(), |k| k + self.passthrough)
+    }
+
+    /// How many inputs the set reads and how they reach the network, in words (`130 inputs
+    /// (the markers' 117 as 10 principal components, 13 more as they are)`).
+    pub fn in_words(&self) -> String {
+        let n = self.columns.len();
+        match self.components {
+            None => n.to_string(),
+            Some(k) => format!(
+                "{n} inputs (the markers' {} as {k} principal components{})",
+                n - self.passthrough,
+                if self.passthrough > 0 {
+                    format!(", {} more as they are", self.passthrough)
+                } else {
+                    String::new()
+                }
+            ),
+        }
+    }
+
     /// Every column of a table whose columns are `kinds` (markers' features first), the
     /// markers' features projected to `components` when there are any.
     pub fn all(kinds: &[ColumnKind], components: Option<usize>) -> Self {

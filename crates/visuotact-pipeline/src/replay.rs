@@ -16,7 +16,12 @@ use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
 
 use visuotact_nn::model::Model;
 
-use crate::schema::{feature_columns, feature_row_into, flags_of, missing_summary};
+use visuotact_vision::blobs::MomentConvention;
+use visuotact_vision::detect::Detector;
+
+use crate::schema::{
+    blob_row, feature_columns, feature_row_into, flags_of, missing_summary, BLOB_COLUMNS,
+};
 use crate::table::InputSources;
 use crate::Estimator;
 
@@ -343,6 +348,55 @@ pub fn predict_table(
             }
         };
         written.map_err(write_err)?;
+    }
+    Ok(done)
+}
+
+/// What [`blobs_table`] wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BlobsWritten {
+    /// Frames detected.
+    pub frames: usize,
+    /// Blobs written.
+    pub blobs: usize,
+    /// Frames that could not be read.
+    pub skipped: usize,
+}
+
+/// Writes every blob `det` finds in `frames` to `output` in `format` (one row per blob,
+/// [`crate::schema::BLOB_COLUMNS`]); `warn` hears of frames skipped.
+pub fn blobs_table(
+    det: &mut Detector,
+    conv: MomentConvention,
+    frames: &[PathBuf],
+    (output, format): (&Path, TableFormat),
+    warn: &mut dyn FnMut(&str),
+) -> Result<BlobsWritten, ReplayError> {
+    let write_err = |source| ReplayError::Write {
+        path: output.to_path_buf(),
+        source,
+    };
+    let columns = BLOB_COLUMNS.iter().map(|s| s.to_string()).collect();
+    let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
+    let mut done = BlobsWritten::default();
+    let mut blobs = Vec::new();
+    for item in FrameStream::open(frames, 25.0)? {
+        let f = match item {
+            Ok(f) => f,
+            Err(e) => {
+                warn(&format!("{e}; skipped"));
+                done.skipped += 1;
+                continue;
+            }
+        };
+        let d = det.detect_into(&f.image, &mut blobs);
+        let level = d.level.map_or(f64::NAN, f64::from);
+        for (k, b) in blobs.iter().enumerate() {
+            let row = blob_row(k, b, conv, level, f.timestamp_s);
+            out.write_row(&f.id, &row, "").map_err(write_err)?;
+        }
+        done.frames += 1;
+        done.blobs += blobs.len();
     }
     Ok(done)
 }

@@ -2,6 +2,7 @@
 //! frame id, the [`LEAD_COLUMNS`], the markers' features (then the field summary), and a
 //! `flags` cell naming the markers not found (`m012:lost;m013:merged`).
 
+use visuotact_vision::blobs::{Blob, MomentConvention};
 use visuotact_vision::features::FrameFeatures;
 use visuotact_vision::track::MarkerStatus;
 
@@ -73,6 +74,54 @@ pub fn flags_of(f: &FrameFeatures) -> String {
         .map(|(i, s)| format!("m{i:03}:{}", s.name()))
         .collect::<Vec<_>>()
         .join(";")
+}
+
+/// The blob table's columns after the frame column (`visuotact blobs`): one row per blob.
+pub const BLOB_COLUMNS: [&str; 15] = [
+    "blob",
+    "area_px",
+    "x_px",
+    "y_px",
+    "eccentricity",
+    "major_axis_px",
+    "minor_axis_px",
+    "orientation_rad",
+    "bbox_x",
+    "bbox_y",
+    "bbox_w",
+    "bbox_h",
+    "touches_border",
+    "level",
+    "timestamp_s",
+];
+
+/// Blob `k`'s row of the blob table ([`BLOB_COLUMNS`]), its shape in `conv`; `level` is the
+/// frame's threshold (NaN for adaptive thresholds).
+pub fn blob_row(
+    k: usize,
+    b: &Blob,
+    conv: MomentConvention,
+    level: f64,
+    timestamp_s: f64,
+) -> [f64; 15] {
+    let s = b.shape(conv);
+    [
+        k as f64,
+        f64::from(b.area_px),
+        b.x_px,
+        b.y_px,
+        s.eccentricity,
+        s.major_axis_px,
+        s.minor_axis_px,
+        s.orientation_rad,
+        f64::from(b.bbox.x0),
+        f64::from(b.bbox.y0),
+        f64::from(b.bbox.x1 - b.bbox.x0),
+        f64::from(b.bbox.y1 - b.bbox.y0),
+        f64::from(u8::from(b.touches_border)),
+        level,
+        timestamp_s,
+    ]
 }
 
 #[cfg(test)]

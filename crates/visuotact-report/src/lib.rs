@@ -11,6 +11,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 pub mod figures;
+pub mod tables;
 
 /// Why a figure could not be drawn or written.
 #[derive(Debug, thiserror::Error)]

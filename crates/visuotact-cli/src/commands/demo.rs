@@ -3,9 +3,8 @@
 
 use std::time::Instant;
 
-use visuotact_nn::metrics::TargetErrors;
-use visuotact_pipeline::demo::{self, ConeDemo, DemoConfig, IatsDemo};
-use visuotact_sim::protocol::PressureGauge;
+use visuotact_pipeline::demo::{self, DemoConfig};
+use visuotact_report::tables::{cone_text, iats_text};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -24,150 +23,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         seed: a.seed,
     };
     println!("== Seed 000: image-based areal touch sensor (117 markers, 60 × 45 mm) ==");
-    let d = demo::iats(&cfg)?;
-    print_iats_training(&d);
-    print_table3(&d);
-    print_random(&d);
+    print!("{}", iats_text(&demo::iats(&cfg)?));
     println!("\n== Seed 001: inflatable link (cone, three annuli, JR3 force) ==");
-    print_cone(&demo::cone(&cfg)?);
+    print!("{}", cone_text(&demo::cone(&cfg)?));
     println!("\ndemo finished in {:.0} s", t_all.elapsed().as_secs_f64());
     Ok(())
-}
-
-fn joined(v: &[usize]) -> String {
-    v.iter()
-        .map(usize::to_string)
-        .collect::<Vec<_>>()
-        .join(" → ")
-}
-
-fn print_iats_training(d: &IatsDemo) {
-    println!(
-        "calibrated {} markers; grid protocol: {} touches, {} with every marker found ({:.1} s)",
-        d.markers, d.grid_touches, d.complete_frames, d.setup_s
-    );
-    println!(
-        "seed 000's network: 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt (trainlm): {} epochs in {:.1} s (seed 000: 13 h 20 min)",
-        d.paper.model.training.epochs, d.paper.train_s
-    );
-    let m = &d.default.model;
-    println!(
-        "visuotact's default (`visuotact train` with no options): {} of {} frames, {} → {} → 3, {} ({} networks) in {:.1} s",
-        d.default_frames,
-        d.grid_touches,
-        d.default.inputs,
-        joined(&d.default_hidden),
-        m.training.algorithm,
-        m.networks().count(),
-        d.default.train_s
-    );
-}
-
-fn print_table3(d: &IatsDemo) {
-    println!(
-        "\nTable 3 layout, visuotact's default: actual | estimate ± spread of its networks | error || paper's estimate | paper's error"
-    );
-    for (k, r) in d.table3.iter().enumerate() {
-        let (actual, paper) = (r.actual, r.paper);
-        let (v, sd) = match &r.estimate {
-            Ok(e) => e,
-            Err(why) => {
-                println!("{}  no estimate: {why}", k + 1);
-                continue;
-            }
-        };
-        let d = (v[0] - actual[0]).hypot(v[1] - actual[1]);
-        let pd = (paper[0] - actual[0]).hypot(paper[1] - actual[1]);
-        println!(
-            "{}  X {:>4} Y {:>4} Depth {} | X {:6.2} ± {:.2} Y {:6.2} ± {:.2} Depth {:5.2} ± {:.2} | D {:4.2} mm, depth {:4.2} mm || X {:5.2} Y {:5.2} Depth {:4.2} | D {:4.2} mm, depth {:4.2} mm",
-            k + 1,
-            actual[0],
-            actual[1],
-            actual[2],
-            v[0],
-            sd[0],
-            v[1],
-            sd[1],
-            v[2],
-            sd[2],
-            d,
-            (v[2] - actual[2]).abs(),
-            paper[0],
-            paper[1],
-            paper[2],
-            pd,
-            (paper[2] - actual[2]).abs()
-        );
-    }
-}
-
-fn row(e: &TargetErrors) -> String {
-    format!(
-        "mean {:.3}, max {:.3}, R {:.5}, accuracy {:.1} %",
-        e.mean_abs, e.max_abs, e.r, e.accuracy_percent
-    )
-}
-
-fn print_random(d: &IatsDemo) {
-    println!(
-        "\n{} random touches (not in training), {} estimated by visuotact's default (mean ± its networks' mean spread):",
-        d.random_touches, d.errors[0].n
-    );
-    for (j, (name, paper_figures)) in [
-        ("X:    ", "mean 1.84 mm, accuracy 86.7 %"),
-        ("Y:    ", "mean 0.9 mm, accuracy 96.5 %"),
-        ("depth:", "mean 0.2 mm, accuracy 94.9 %"),
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        println!(
-            "  {name} {} (± {:.3})   | paper: {paper_figures}",
-            row(&d.errors[j]),
-            d.mean_spread[j]
-        );
-    }
-    let (dmean, dmax) = d.distance_mm;
-    println!("  D:     mean {dmean:.3} mm, max {dmax:.3} mm   | paper: up to 3.24 mm (Table 2)");
-    println!(
-        "  seed 000's network on the {} of them with every marker found: D mean {:.3} mm, max {:.3} mm, depth mean {:.3} mm",
-        d.paper_frames, d.paper_distance_mm.0, d.paper_distance_mm.1, d.paper_depth_mm
-    );
-}
-
-fn print_cone(d: &ConeDemo) {
-    println!(
-        "calibrated {} rings (the outermost is cut by the image border); trained 6 → 20 → 1 on {} frames: {} epochs in {:.2} s",
-        d.rings, d.train_frames, d.one_network.model.training.epochs, d.one_network.train_s
-    );
-    for s in &d.sweeps {
-        println!(
-            "sweep 1..40 neurons × {}, inputs {}, in {:.1} s: best {} → {} → 1 (test MSE {:.4})",
-            d.repeats, s.inputs, s.secs, s.n_inputs, s.hidden, s.test_mse
-        );
-    }
-    println!(
-        "\nTable 5.1 layout: visuotact | paper (no rotation)\n  {:<48} {:<14} {:>8} {:>8} {:>8} {:>7}",
-        "", "inputs", "mean N", "max N", "MPE %", "R"
-    );
-    for r in &d.rows {
-        let e = &r.errors;
-        println!(
-            "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2} {:>7.5}",
-            r.what, r.inputs, e.mean_abs, e.max_abs, e.mean_percentage_error, e.r
-        );
-    }
-    println!(
-        "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2}",
-        "paper (best of sweep, Testing Model)", "rings", 0.051, 0.531, 1.25
-    );
-    println!(
-        "  (MPE over frames ≥ {:.2} N; the later press starts 5 s after the first ends, with the link's pressure {:.1} % lower;",
-        d.mpe_floor_n, d.pressure_drop_percent
-    );
-    println!(
-        "   gauge: the link's pressure through a {} s lag with {} kPa noise, read with each frame)",
-        PressureGauge::SEED001.time_constant_s,
-        PressureGauge::SEED001.noise_kpa
-    );
 }

@@ -5,8 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_nn::fit::{
-    candidate_inputs, choose_inputs, column_kinds, fit_set, FitConfig, FitData, InputSet,
-    SELECTION_FOLDS,
+    candidate_inputs, choose_inputs, column_kinds, fit_set, FitConfig, FitData, SELECTION_FOLDS,
 };
 use visuotact_nn::lm::Control;
 use visuotact_nn::mlp::Mlp;
@@ -115,23 +114,14 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let set = &sets[best];
     eprintln!(
         "training {} → {} → {} ({} weights, {}) on {} frames",
-        inputs_in_words(set),
+        set.in_words(),
         cfg.hidden
             .iter()
             .map(usize::to_string)
             .collect::<Vec<_>>()
             .join(" → "),
         targets.len(),
-        Mlp::n_params_for(
-            &[
-                &[set
-                    .components
-                    .map_or(set.columns.len(), |k| k + set.passthrough)][..],
-                &cfg.hidden,
-                &[targets.len()]
-            ]
-            .concat()
-        ),
+        Mlp::n_params_for(&[&[set.network_inputs()][..], &cfg.hidden, &[targets.len()]].concat()),
         a.algorithm.name,
         x.len()
     );
@@ -191,23 +181,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
     eprintln!("wrote {}", a.output.display());
     Ok(())
-}
-
-/// How many inputs `set` reads and how they reach the network, in words.
-fn inputs_in_words(set: &InputSet) -> String {
-    let n = set.columns.len();
-    match set.components {
-        None => n.to_string(),
-        Some(k) => format!(
-            "{n} inputs (the markers' {} as {k} principal components{})",
-            n - set.passthrough,
-            if set.passthrough > 0 {
-                format!(", {} more as they are", set.passthrough)
-            } else {
-                String::new()
-            }
-        ),
-    }
 }
 
 #[cfg(test)]
