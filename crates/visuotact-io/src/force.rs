@@ -11,7 +11,7 @@
 //! assert_eq!(layout.decode(&bytes).unwrap(), s);
 //! ```
 
-use crate::table::TableError;
+use crate::table::{cell_number, TableError};
 
 /// Why a packet layout does not parse or a packet does not decode.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -255,28 +255,7 @@ impl ForceTable {
                     ),
                 ));
             }
-            let num = |i: usize| -> Result<f64, TableError> {
-                let v: f64 = cells[i].parse().map_err(|_| {
-                    fail(
-                        Some(line_no),
-                        format!(
-                            "line {line_no}, column `{}`: {:?} is not a number",
-                            header[i], cells[i]
-                        ),
-                    )
-                })?;
-                if v.is_finite() {
-                    Ok(v)
-                } else {
-                    Err(fail(
-                        Some(line_no),
-                        format!(
-                            "line {line_no}, column `{}`: not a finite number",
-                            header[i]
-                        ),
-                    ))
-                }
-            };
+            let num = |i: usize| cell_number(path, (line_no, header[i]), cells[i], false);
             t.timestamp_s.push(num(tcol)?);
             let mut v = [0.0; 6];
             for (k, a) in axes.iter().enumerate() {

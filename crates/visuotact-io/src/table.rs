@@ -193,6 +193,39 @@ pub fn complete_lines(text: &str) -> (&str, bool) {
     }
 }
 
+/// The number in `cell` at `line`, column `column` of `path`. `missing_ok`: an empty cell or
+/// `nan` reads as NaN (a value not measured); otherwise it is an error. Infinite values are
+/// always errors.
+pub(crate) fn cell_number(
+    path: &Path,
+    (line, column): (usize, &str),
+    cell: &str,
+    missing_ok: bool,
+) -> Result<f64, TableError> {
+    let fail = |why: String| {
+        TableError::new(
+            path,
+            Some(line),
+            format!("line {line}, column `{column}`: {why}"),
+        )
+    };
+    let cell = cell.trim();
+    if missing_ok && (cell.is_empty() || cell.eq_ignore_ascii_case("nan")) {
+        return Ok(f64::NAN);
+    }
+    let v: f64 = cell
+        .parse()
+        .map_err(|_| fail(format!("{cell:?} is not a number")))?;
+    if v.is_infinite() || (!missing_ok && v.is_nan()) {
+        return Err(fail(if missing_ok {
+            "infinite value".to_string()
+        } else {
+            "not a finite number".to_string()
+        }));
+    }
+    Ok(v)
+}
+
 impl KeyedTable {
     /// Reads `path`; errors name the file, the line and the column.
     pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
@@ -250,30 +283,10 @@ impl KeyedTable {
                     .map(|i| i.map_or_else(String::new, |i| rec[i].to_string()))
                     .collect(),
             );
-            let mut row = Vec::with_capacity(keep.len());
-            for &i in &keep {
-                let cell = rec[i].trim();
-                let v = if cell.is_empty() || cell.eq_ignore_ascii_case("nan") {
-                    f64::NAN
-                } else {
-                    cell.parse::<f64>().map_err(|_| {
-                        fail(
-                            Some(line),
-                            format!(
-                                "line {line}, column `{}`: {cell:?} is not a number",
-                                header[i]
-                            ),
-                        )
-                    })?
-                };
-                if v.is_infinite() {
-                    return Err(fail(
-                        Some(line),
-                        format!("line {line}, column `{}`: infinite value", header[i]),
-                    ));
-                }
-                row.push(v);
-            }
+            let row = keep
+                .iter()
+                .map(|&i| cell_number(path, (line, &header[i]), &rec[i], true))
+                .collect::<Result<_, _>>()?;
             rows.push(row);
         }
         Ok(Self {

@@ -85,6 +85,13 @@ impl Mlp {
         }
     }
 
+    /// Outputs for one scaled input into `acts`' last layer, allocation-free once `acts` has
+    /// held a pass of this network (keep it between calls).
+    pub fn forward_with<'a>(&self, x: &[f64], acts: &'a mut Vec<Vec<f64>>) -> &'a [f64] {
+        self.forward_into(&self.params, x, acts);
+        acts.last().map_or(&[], Vec::as_slice)
+    }
+
     /// Outputs for one scaled input.
     pub fn forward(&self, x: &[f64]) -> Vec<f64> {
         let mut acts = Vec::new();
@@ -317,32 +324,42 @@ impl MinMax {
 
     /// Scaled copy of a row.
     pub fn apply(&self, row: &[f64]) -> Vec<f64> {
-        row.iter()
-            .enumerate()
-            .map(|(j, &v)| {
-                let span = self.max[j] - self.min[j];
-                if span > 0.0 {
-                    2.0 * (v - self.min[j]) / span - 1.0
-                } else {
-                    0.0
-                }
-            })
-            .collect()
+        let mut out = Vec::with_capacity(row.len());
+        self.apply_into(row, &mut out);
+        out
+    }
+
+    /// [`MinMax::apply`] into `out` (cleared first).
+    pub fn apply_into(&self, row: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(row.iter().enumerate().map(|(j, &v)| {
+            let span = self.max[j] - self.min[j];
+            if span > 0.0 {
+                2.0 * (v - self.min[j]) / span - 1.0
+            } else {
+                0.0
+            }
+        }));
     }
 
     /// Back from [−1, 1] to the original units.
     pub fn invert(&self, row: &[f64]) -> Vec<f64> {
-        row.iter()
-            .enumerate()
-            .map(|(j, &v)| {
-                let span = self.max[j] - self.min[j];
-                if span > 0.0 {
-                    self.min[j] + (v + 1.0) * span / 2.0
-                } else {
-                    self.min[j]
-                }
-            })
-            .collect()
+        let mut out = Vec::with_capacity(row.len());
+        self.invert_into(row, &mut out);
+        out
+    }
+
+    /// [`MinMax::invert`] into `out` (cleared first).
+    pub fn invert_into(&self, row: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(row.iter().enumerate().map(|(j, &v)| {
+            let span = self.max[j] - self.min[j];
+            if span > 0.0 {
+                self.min[j] + (v + 1.0) * span / 2.0
+            } else {
+                self.min[j]
+            }
+        }));
     }
 }
 

@@ -55,7 +55,7 @@ fn trainlm_name() -> String {
 pub const MAX_MISSING_FRACTION: f64 = 0.25;
 
 /// An estimate and how many of its inputs were filled.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Estimate {
     /// Targets in their units (the ensemble's mean).
     pub values: Vec<f64>,
@@ -198,6 +198,25 @@ impl Estimate {
     }
 }
 
+/// Buffers of [`Model::estimate_into`] and [`Model::estimate_each_into`], kept between
+/// frames so that estimating does not allocate.
+#[derive(Clone, Debug, Default)]
+pub struct EstimateScratch {
+    x: Vec<f64>,
+    scores: Vec<f64>,
+    z: Vec<f64>,
+    acts: Vec<Vec<f64>>,
+    outs: Vec<Vec<f64>>,
+    n: usize,
+}
+
+impl EstimateScratch {
+    /// Every network's estimate of the last row, target units.
+    pub fn outputs(&self) -> &[Vec<f64>] {
+        &self.outs[..self.n]
+    }
+}
+
 impl Model {
     /// Estimates targets (original units) from one row of features (original units): the
     /// ensemble's mean, lost markers filled as [`Model::estimate`] does; NaN when it refuses.
@@ -245,6 +264,19 @@ impl Model {
     /// to the inputs present ([`crate::pca::Projection::apply_partial`]). Refused, with the
     /// reason, when [`unfillable`] says so or the model has no projection.
     pub fn estimate_each(&self, features: &[f64]) -> Result<(Vec<Vec<f64>>, usize), EstimateError> {
+        let mut scratch = EstimateScratch::default();
+        let filled = self.estimate_each_into(features, &mut scratch)?;
+        Ok((scratch.outputs().to_vec(), filled))
+    }
+
+    /// [`Model::estimate_each`] into `scratch` (the outputs: [`EstimateScratch::outputs`]);
+    /// allocation-free once `scratch` has held a row of this model, unless inputs are missing
+    /// (filling them solves a small least-squares problem). Returns the inputs filled.
+    pub fn estimate_each_into(
+        &self,
+        features: &[f64],
+        scratch: &mut EstimateScratch,
+    ) -> Result<usize, EstimateError> {
         if features.len() != self.feature_columns.len() {
             return Err(EstimateError::Width {
                 given: features.len(),
@@ -261,49 +293,71 @@ impl Model {
                 return Err(EstimateError::NoProjection { missing });
             }
         }
-        let x = self.input_scaling.apply(features);
-        let z = match &self.projection {
+        let s = scratch;
+        self.input_scaling.apply_into(features, &mut s.x);
+        match &self.projection {
             Some(p) => {
-                let projected = x.len() - self.passthrough.min(x.len());
-                let mut z = p
-                    .apply_partial(&x[..projected])
-                    .ok_or(EstimateError::TooFewLeft { missing })?;
-                z.extend_from_slice(&x[projected..]);
-                z
+                let projected = s.x.len() - self.passthrough.min(s.x.len());
+                if missing == 0 {
+                    p.apply_into(&s.x[..projected], &mut s.scores, &mut s.z);
+                } else {
+                    s.z = p
+                        .apply_partial(&s.x[..projected])
+                        .ok_or(EstimateError::TooFewLeft { missing })?;
+                }
+                s.z.extend_from_slice(&s.x[projected..]);
             }
-            None => x,
-        };
-        let outs = self
-            .networks()
-            .map(|n| self.target_scaling.invert(&n.forward(&z)))
-            .collect();
-        Ok((outs, missing))
+            None => {
+                s.z.clear();
+                s.z.extend_from_slice(&s.x);
+            }
+        }
+        let n = self.networks().count();
+        s.outs.resize(n, Vec::new());
+        for (net, out) in self.networks().zip(&mut s.outs) {
+            self.target_scaling
+                .invert_into(net.forward_with(&s.z, &mut s.acts), out);
+        }
+        s.n = n;
+        Ok(missing)
     }
 
     /// The ensemble's mean and standard deviation (empty for one network) from a row that may
     /// miss inputs, as [`Model::estimate_each`].
     pub fn estimate(&self, features: &[f64]) -> Result<Estimate, EstimateError> {
-        let (outs, filled) = self.estimate_each(features)?;
+        let mut e = Estimate::default();
+        self.estimate_into(features, &mut EstimateScratch::default(), &mut e)?;
+        Ok(e)
+    }
+
+    /// [`Model::estimate`] into `out` (its vectors reused), with `scratch` kept between
+    /// frames: allocation-free after the first frame when no input is missing. Returns the
+    /// inputs filled (also in `out.filled`).
+    pub fn estimate_into(
+        &self,
+        features: &[f64],
+        scratch: &mut EstimateScratch,
+        out: &mut Estimate,
+    ) -> Result<usize, EstimateError> {
+        let filled = self.estimate_each_into(features, scratch)?;
+        let outs = scratch.outputs();
         let k = outs.len() as f64;
         let width = outs[0].len();
-        let values: Vec<f64> = (0..width)
-            .map(|j| outs.iter().map(|o| o[j]).sum::<f64>() / k)
-            .collect();
-        let spread = if outs.len() > 1 {
-            (0..width)
-                .map(|j| {
-                    let v = outs.iter().map(|o| (o[j] - values[j]).powi(2)).sum::<f64>();
-                    (v / (k - 1.0)).sqrt()
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        Ok(Estimate {
-            values,
-            spread,
-            filled,
-        })
+        out.values.clear();
+        out.values
+            .extend((0..width).map(|j| outs.iter().map(|o| o[j]).sum::<f64>() / k));
+        out.spread.clear();
+        if outs.len() > 1 {
+            out.spread.extend((0..width).map(|j| {
+                let v = outs
+                    .iter()
+                    .map(|o| (o[j] - out.values[j]).powi(2))
+                    .sum::<f64>();
+                (v / (k - 1.0)).sqrt()
+            }));
+        }
+        out.filled = filled;
+        Ok(filled)
     }
 
     /// Parses a model file's text; `source` names it in errors.
@@ -369,5 +423,76 @@ impl Model {
     /// The JSON text.
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::mlp::{MinMax, Mlp};
+
+    /// A model of `sizes` with `members` more networks, inputs and targets on 0..1.
+    pub(crate) fn model(sizes: &[usize], members: usize) -> Model {
+        let (n_in, n_out) = (sizes[0], sizes[sizes.len() - 1]);
+        Model {
+            format: MODEL_FORMAT.to_string(),
+            version: MODEL_VERSION,
+            net: Mlp::nguyen_widrow(sizes, 1),
+            members: (0..members)
+                .map(|k| Mlp::nguyen_widrow(sizes, 2 + k as u64))
+                .collect(),
+            input_scaling: MinMax {
+                min: vec![0.0; n_in],
+                max: vec![1.0; n_in],
+            },
+            projection: None,
+            passthrough: 0,
+            target_scaling: MinMax {
+                min: vec![0.0; n_out],
+                max: vec![1.0; n_out],
+            },
+            feature_columns: (0..n_in).map(|i| format!("f{i}")).collect(),
+            target_columns: (0..n_out).map(|i| format!("t{i}")).collect(),
+            training: TrainingSummary {
+                epochs: 1,
+                best_epoch: 1,
+                stop: String::new(),
+                samples: [1, 1, 1],
+                mse: [vec![], vec![], vec![]],
+                r: [vec![], vec![], vec![]],
+                seed: 1,
+                algorithm: "trainlm".into(),
+                evidence: None,
+                selection: Vec::new(),
+            },
+            sensor: None,
+        }
+    }
+
+    #[test]
+    fn estimates_into_reused_buffers_equal_the_allocating_ones() {
+        let m = model(&[3, 4, 2], 2);
+        let (mut scratch, mut out) = (EstimateScratch::default(), Estimate::default());
+        let rows = [[0.1, 0.5, 0.9], [0.7, 0.2, 0.3]];
+        m.estimate_into(&rows[0], &mut scratch, &mut out).unwrap();
+        let caps = (
+            out.values.capacity(),
+            out.spread.capacity(),
+            scratch.x.capacity(),
+        );
+        for row in rows {
+            m.estimate_into(&row, &mut scratch, &mut out).unwrap();
+            // Bit-identical to the allocating call, and no buffer had to grow.
+            assert_eq!(out, m.estimate(&row).unwrap());
+            assert_eq!(out.spread.len(), 2);
+            let now = (
+                out.values.capacity(),
+                out.spread.capacity(),
+                scratch.x.capacity(),
+            );
+            assert_eq!(now, caps);
+        }
+        assert_eq!(scratch.outputs().len(), 3);
+        assert!(m.estimate_into(&[0.1], &mut scratch, &mut out).is_err());
     }
 }

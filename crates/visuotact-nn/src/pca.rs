@@ -111,20 +111,33 @@ impl Projection {
     }
 
     fn scores(&self, row: &[f64]) -> Vec<f64> {
-        self.components
-            .iter()
-            .map(|c| {
-                c.iter()
-                    .zip(row.iter().zip(&self.mean))
-                    .map(|(w, (x, m))| w * (x - m))
-                    .sum()
-            })
-            .collect()
+        let mut out = Vec::with_capacity(self.components.len());
+        self.scores_into(row, &mut out);
+        out
+    }
+
+    fn scores_into(&self, row: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(self.components.iter().map(|c| {
+            c.iter()
+                .zip(row.iter().zip(&self.mean))
+                .map(|(w, (x, m))| w * (x - m))
+                .sum::<f64>()
+        }));
     }
 
     /// The network inputs for one row of scaled inputs.
     pub fn apply(&self, row: &[f64]) -> Vec<f64> {
-        self.score_scaling.apply(&self.scores(row))
+        let (mut scores, mut out) = (Vec::new(), Vec::new());
+        self.apply_into(row, &mut scores, &mut out);
+        out
+    }
+
+    /// [`Projection::apply`] into `out`, with `scores` as scratch: allocation-free once both
+    /// have held a row.
+    pub fn apply_into(&self, row: &[f64], scores: &mut Vec<f64>, out: &mut Vec<f64>) {
+        self.scores_into(row, scores);
+        self.score_scaling.apply_into(scores, out);
     }
 
     /// The network inputs for a row with missing (NaN) inputs: the scores whose reconstruction

@@ -225,8 +225,6 @@ pub fn sweep(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mlp::{MinMax, Mlp};
-    use crate::model::TrainingSummary;
 
     #[test]
     fn hidden_specs() {
@@ -247,38 +245,11 @@ mod tests {
     }
 
     fn model(val_mse: [f64; 2]) -> Model {
-        Model {
-            format: crate::model::MODEL_FORMAT.to_string(),
-            version: crate::model::MODEL_VERSION,
-            net: Mlp::nguyen_widrow(&[1, 1, 2], 1),
-            members: Vec::new(),
-            input_scaling: MinMax {
-                min: vec![0.0],
-                max: vec![1.0],
-            },
-            projection: None,
-            passthrough: 0,
-            // Target 0 spans 0..1000 (say mN), target 1 spans 0..1 (say mm).
-            target_scaling: MinMax {
-                min: vec![0.0, 0.0],
-                max: vec![1000.0, 1.0],
-            },
-            feature_columns: vec!["f".into()],
-            target_columns: vec!["a".into(), "b".into()],
-            training: TrainingSummary {
-                epochs: 1,
-                best_epoch: 1,
-                stop: String::new(),
-                samples: [1, 1, 1],
-                mse: [vec![], val_mse.to_vec(), vec![]],
-                r: [vec![], vec![], vec![]],
-                seed: 1,
-                algorithm: "trainlm".into(),
-                evidence: None,
-                selection: Vec::new(),
-            },
-            sensor: None,
-        }
+        let mut m = crate::model::tests::model(&[1, 1, 2], 0);
+        // Target 0 spans 0..1000 (say mN), target 1 spans 0..1 (say mm).
+        m.target_scaling.max = vec![1000.0, 1.0];
+        m.training.mse = [vec![], val_mse.to_vec(), vec![]];
+        m
     }
 
     #[test]

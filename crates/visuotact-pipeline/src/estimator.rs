@@ -6,7 +6,7 @@
 //! features.
 
 use visuotact_image::RgbImage;
-use visuotact_nn::model::{is_marker_column, Estimate, EstimateError, Model};
+use visuotact_nn::model::{is_marker_column, Estimate, EstimateError, EstimateScratch, Model};
 use visuotact_vision::calibration::SensorCalibration;
 use visuotact_vision::features::{
     is_field_column, FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError,
@@ -95,6 +95,7 @@ pub struct Estimator {
     extra_inputs: Vec<String>,
     features: FrameFeatures,
     x: Vec<f64>,
+    scratch: EstimateScratch,
     n_markers: usize,
 }
 
@@ -161,6 +162,7 @@ impl Estimator {
             extra_inputs,
             features: FrameFeatures::default(),
             x: Vec::new(),
+            scratch: EstimateScratch::default(),
             n_markers,
         })
     }
@@ -252,8 +254,22 @@ impl Estimator {
         img: &RgbImage,
         extra: &[f64],
     ) -> Result<(&FrameFeatures, Option<ModelEstimate>), PipelineError> {
+        let mut e = Estimate::default();
+        let (_, got) = self.estimate_into(img, extra, &mut e)?;
+        Ok((&self.features, got.map(|r| r.map(|_| e))))
+    }
+
+    /// The live loop's form of [`Estimator::estimate_with`]: the estimate into `out` (its
+    /// vectors reused), allocation-free after the first frame when no input is missing.
+    /// Returns the features and, with a model, the inputs filled or why there is no estimate.
+    pub fn estimate_into(
+        &mut self,
+        img: &RgbImage,
+        extra: &[f64],
+        out: &mut Estimate,
+    ) -> Result<(&FrameFeatures, Option<Result<usize, EstimateError>>), PipelineError> {
         self.ex.extract_into(img, &mut self.features)?;
-        let est = match &self.model {
+        let got = match &self.model {
             Some((m, cols)) => {
                 self.x.clear();
                 self.x.extend(cols.iter().map(|&c| match c {
@@ -262,11 +278,11 @@ impl Estimator {
                 }));
                 // Lost markers filled (models on principal components); a missing reading or
                 // too many lost markers: no estimate.
-                Some(m.estimate(&self.x))
+                Some(m.estimate_into(&self.x, &mut self.scratch, out))
             }
             None => None,
         };
-        Ok((&self.features, est))
+        Ok((&self.features, got))
     }
 }
 

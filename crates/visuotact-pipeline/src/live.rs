@@ -6,7 +6,7 @@
 
 use serde::Serialize;
 use visuotact_image::RgbImage;
-use visuotact_nn::model::Model;
+use visuotact_nn::model::{EstimateScratch, Model};
 use visuotact_vision::features::{FieldSummary, FIELD_COLUMNS};
 use visuotact_vision::track::MarkerStatus;
 
@@ -159,6 +159,12 @@ pub struct LiveEstimator {
     marker_px: Vec<(f32, f32)>,
     cfg: LiveConfig,
     zeroed: Vec<f64>,
+    /// This frame's marker statuses.
+    status: Vec<MarkerStatus>,
+    /// The ensemble's input row (kept between frames).
+    x: Vec<f64>,
+    /// Each model's estimation buffers (kept between frames).
+    scratch: Vec<EstimateScratch>,
 }
 
 impl LiveEstimator {
@@ -218,7 +224,6 @@ impl LiveEstimator {
             rest_px,
             baseline: vec![0.0; names.len()],
             est,
-            ensemble: models,
             cols,
             jitter,
             xy,
@@ -228,6 +233,10 @@ impl LiveEstimator {
                 ..*cfg
             },
             zeroed: Vec::new(),
+            status: Vec::new(),
+            x: Vec::new(),
+            scratch: vec![EstimateScratch::default(); models.len()],
+            ensemble: models,
         })
     }
 
@@ -262,16 +271,31 @@ impl LiveEstimator {
         img: &RgbImage,
         markers: Option<&mut Vec<MarkerView>>,
     ) -> Result<LiveFrame, PipelineError> {
-        let under_contact = self.est.calibration().reference.under_contact;
         // Features only: the ensemble below predicts on the re-zeroed ones.
         let f = self.est.features(img)?;
-        // Re-zeroed features.
         self.zeroed.clear();
         self.zeroed
             .extend(f.values.iter().zip(&self.baseline).map(|(v, b)| v - b));
-        // The field summary of the re-zeroed displacements (the baseline never moves it).
-        // (`f` still borrows the estimator: the count is taken from the baseline directly.)
-        let n = self.baseline.len().saturating_sub(FIELD_COLUMNS.len());
+        self.status.clear();
+        self.status.extend_from_slice(&f.status);
+        self.rezero_field();
+        let (mut health, max_disp, moved) = self.motion();
+        let contact = moved >= self.cfg.contact_markers.min(self.marker_px.len().max(1));
+        if let Some(out) = markers {
+            self.marker_views(out);
+        }
+        // No contact: follow the rest position (automatic re-zeroing), report no targets.
+        if !contact {
+            self.follow_rest();
+            return Ok(LiveFrame::new(false, max_disp, Vec::new(), health));
+        }
+        let targets = self.ensemble_targets(&mut health);
+        Ok(LiveFrame::new(true, max_disp, targets, health))
+    }
+
+    /// The field summary of the re-zeroed displacements (the baseline never moves it).
+    fn rezero_field(&mut self) {
+        let n = self.marker_values();
         if self.zeroed.len() == n + FIELD_COLUMNS.len() && self.xy.iter().all(Option::is_some) {
             let zeroed = &self.zeroed;
             let field = FieldSummary::of(self.rest_px.iter().zip(&self.xy).map(|(&p, xy)| {
@@ -282,13 +306,17 @@ impl LiveEstimator {
             }));
             self.zeroed[n..].copy_from_slice(&field.map_or([f64::NAN; 6], |f| f.values()));
         }
+    }
+
+    /// The markers' health, the largest re-zeroed displacement, and how many markers moved
+    /// beyond the contact rule.
+    fn motion(&self) -> (Health, f64, usize) {
         let mut health = Health {
-            reference_under_contact: under_contact,
+            reference_under_contact: self.est.calibration().reference.under_contact,
             ..Health::default()
         };
-        let mut max_disp = 0.0f64;
-        let mut moved = 0usize;
-        for (m, st) in f.status.iter().enumerate() {
+        let (mut max_disp, mut moved) = (0.0f64, 0usize);
+        for (m, st) in self.status.iter().enumerate() {
             match st {
                 MarkerStatus::Ok => health.ok += 1,
                 MarkerStatus::Lost => health.lost += 1,
@@ -296,75 +324,75 @@ impl LiveEstimator {
                 MarkerStatus::Ambiguous => health.ambiguous += 1,
                 MarkerStatus::Split => health.split += 1,
             }
-            if let Some((ix, iy)) = self.xy[m] {
-                let (dx, dy) = (self.zeroed[ix], self.zeroed[iy]);
-                let d = dx.hypot(dy);
-                if d.is_finite() {
-                    max_disp = max_disp.max(d);
-                    if d > self
-                        .cfg
-                        .contact_min_px
-                        .max(self.cfg.contact_sigmas * self.jitter[m])
-                    {
-                        moved += 1;
-                    }
-                }
-                let drift = self.baseline[ix].hypot(self.baseline[iy]);
-                if drift > 0.5f64.max(3.0 * self.jitter[m]) {
-                    health.drifting += 1;
+            let Some((ix, iy)) = self.xy[m] else { continue };
+            let d = self.zeroed[ix].hypot(self.zeroed[iy]);
+            if d.is_finite() {
+                max_disp = max_disp.max(d);
+                let threshold = self
+                    .cfg
+                    .contact_min_px
+                    .max(self.cfg.contact_sigmas * self.jitter[m]);
+                moved += usize::from(d > threshold);
+            }
+            let drift = self.baseline[ix].hypot(self.baseline[iy]);
+            if drift > 0.5f64.max(3.0 * self.jitter[m]) {
+                health.drifting += 1;
+            }
+        }
+        (health, max_disp, moved)
+    }
+
+    /// The markers' positions and re-zeroed displacements, for drawing.
+    fn marker_views(&self, out: &mut Vec<MarkerView>) {
+        out.clear();
+        for (m, &(x, y)) in self.marker_px.iter().enumerate() {
+            let (dx, dy) =
+                self.xy[m].map_or((0.0, 0.0), |(ix, iy)| (self.zeroed[ix], self.zeroed[iy]));
+            out.push(MarkerView {
+                x,
+                y,
+                dx: if dx.is_finite() { dx as f32 } else { 0.0 },
+                dy: if dy.is_finite() { dy as f32 } else { 0.0 },
+                ok: self.status[m].has_position(),
+            });
+        }
+    }
+
+    /// Automatic re-zeroing: the baseline follows a no-contact frame.
+    fn follow_rest(&mut self) {
+        if self.cfg.rezero_rate > 0.0 {
+            let n = self.marker_values();
+            for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
+                if z.is_finite() {
+                    *b += self.cfg.rezero_rate * z;
                 }
             }
         }
-        let contact = moved >= self.cfg.contact_markers.min(self.marker_px.len().max(1));
-        if let Some(out) = markers {
-            out.clear();
-            for (m, &(x, y)) in self.marker_px.iter().enumerate() {
-                let (dx, dy) =
-                    self.xy[m].map_or((0.0, 0.0), |(ix, iy)| (self.zeroed[ix], self.zeroed[iy]));
-                out.push(MarkerView {
-                    x,
-                    y,
-                    dx: if dx.is_finite() { dx as f32 } else { 0.0 },
-                    dy: if dy.is_finite() { dy as f32 } else { 0.0 },
-                    ok: f.status[m].has_position(),
-                });
-            }
-        }
-        // No contact: follow the rest position (automatic re-zeroing), report no targets.
-        if !contact {
-            if self.cfg.rezero_rate > 0.0 {
-                let n = self.marker_values();
-                for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
-                    if z.is_finite() {
-                        *b += self.cfg.rezero_rate * z;
-                    }
-                }
-            }
-            return Ok(LiveFrame::new(false, max_disp, Vec::new(), health));
-        }
+    }
+
+    /// The ensemble's estimate of the re-zeroed features: every network of every model file
+    /// counts (each file scales and projects its inputs once for all its networks). Lost
+    /// markers are filled by models on principal components; otherwise, or with too many
+    /// lost, no targets this frame.
+    fn ensemble_targets(&mut self, health: &mut Health) -> Vec<TargetEstimate> {
         let Some(first) = self.ensemble.first() else {
-            return Ok(LiveFrame::new(true, max_disp, Vec::new(), health));
+            return Vec::new();
         };
-        let names = &first.target_columns;
-        let mut sums = vec![0.0; names.len()];
-        let mut sq = vec![0.0; names.len()];
-        let mut x = Vec::with_capacity(self.cols[0].len());
+        let width = first.target_columns.len();
+        let (mut sums, mut sq) = (vec![0.0; width], vec![0.0; width]);
         let mut networks = 0usize;
-        for (m, cols) in self.ensemble.iter().zip(&self.cols) {
-            x.clear();
-            x.extend(cols.iter().map(|&c| self.zeroed[c]));
-            // Lost markers are filled by models on principal components; otherwise (or with
-            // too many lost) no estimate this frame.
-            if x.iter().any(|v| v.is_infinite()) {
-                return Ok(LiveFrame::new(true, max_disp, Vec::new(), health));
+        for ((m, cols), scratch) in self.ensemble.iter().zip(&self.cols).zip(&mut self.scratch) {
+            self.x.clear();
+            self.x.extend(cols.iter().map(|&c| self.zeroed[c]));
+            if self.x.iter().any(|v| v.is_infinite()) {
+                return Vec::new();
             }
-            // Every network of every model file counts in the ensemble; each file scales and
-            // projects its inputs once for all its networks.
-            let Ok((outs, filled)) = m.estimate_each(&x) else {
-                return Ok(LiveFrame::new(true, max_disp, Vec::new(), health));
+            let Ok(filled) = m.estimate_each_into(&self.x, scratch) else {
+                return Vec::new();
             };
             health.filled = health.filled.max(filled);
-            for o in &outs {
+            let outs = scratch.outputs();
+            for o in outs {
                 for (k, v) in o.iter().enumerate() {
                     sums[k] += v;
                     sq[k] += v * v;
@@ -373,7 +401,8 @@ impl LiveEstimator {
             networks += outs.len();
         }
         let n = networks as f64;
-        let targets = names
+        first
+            .target_columns
             .iter()
             .enumerate()
             .map(|(k, name)| {
@@ -385,8 +414,7 @@ impl LiveEstimator {
                         .then(|| ((sq[k] / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt()),
                 }
             })
-            .collect();
-        Ok(LiveFrame::new(true, max_disp, targets, health))
+            .collect()
     }
 
     /// The sensor calibration in use.

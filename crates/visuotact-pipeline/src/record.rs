@@ -31,6 +31,7 @@ use visuotact_io::session::{
 };
 use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row, TableError};
+use visuotact_nn::model::Estimate;
 use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::rig::{frame_seed, SimRig};
 use visuotact_sim::SimError;
@@ -382,6 +383,7 @@ struct Tables {
     first_index: usize,
     line: String,
     row: Vec<f64>,
+    estimate: Estimate,
 }
 
 impl Tables {
@@ -440,6 +442,7 @@ impl Tables {
             last_t,
             line: String::new(),
             row: Vec::new(),
+            estimate: Estimate::default(),
         })
     }
 
@@ -492,7 +495,7 @@ impl Tables {
         warn: &mut dyn FnMut(&str),
     ) -> Result<(), RecordError> {
         let (n_markers, n_targets) = (e.n_markers(), e.target_columns().len());
-        let (features, estimate) = match e.process(&f.image) {
+        let (features, got) = match e.estimate_into(&f.image, &[], &mut self.estimate) {
             Ok(r) => r,
             Err(err) => {
                 warn(&format!("frame {}: {err}", f.id));
@@ -507,9 +510,14 @@ impl Tables {
         }
         if let Some(log) = self.estimates.as_mut() {
             self.line.clear();
-            match &estimate {
-                Some(v) => push_csv_row(&mut self.line, &f.id, v, ""),
-                None => push_csv_row(
+            match got {
+                Some(Ok(_)) => {
+                    self.row.clear();
+                    self.row.extend(&self.estimate.values);
+                    self.row.extend(&self.estimate.spread);
+                    push_csv_row(&mut self.line, &f.id, &self.row, "");
+                }
+                _ => push_csv_row(
                     &mut self.line,
                     &f.id,
                     &vec![f64::NAN; n_targets],

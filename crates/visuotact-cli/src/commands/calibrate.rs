@@ -71,13 +71,22 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         features,
         track: TrackConfig::DEFAULT,
     };
+    let done = calibrate_frames(open, source, &cfg)?;
+    write_sensor(a, &done.calibration)?;
+    print_calibrated(&done);
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// What calibration found, for the user: the layout, the reference, the markers' jitter and
+/// what was missing.
+fn print_calibrated(done: &Calibrated) {
     let Calibrated {
         calibration: cal,
         report,
         selection,
         frames,
-    } = calibrate_frames(open, source, &cfg)?;
-    write_sensor(a, &cal)?;
+    } = done;
     let level = report
         .level
         .map_or("adaptive".to_string(), |t| format!("{t}"));
@@ -133,8 +142,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     for (id, n) in report.missing_per_frame.iter().take(10) {
         eprintln!("warning: frame {id}: {n} markers not found in this still frame");
     }
-    eprintln!("wrote {}", a.output.display());
-    Ok(())
 }
 
 fn write_sensor(

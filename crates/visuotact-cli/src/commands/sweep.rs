@@ -40,6 +40,17 @@ pub(crate) struct Args {
     keep: usize,
 }
 
+fn progress_bar(len: u64) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} trainings, {elapsed} elapsed, ~{eta} left",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let archs = architectures(&a.hidden).map_err(|e| anyhow::anyhow!("--hidden: {e}"))?;
     if a.repeats == 0 {
@@ -58,13 +69,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         passthrough,
         ..
     } = data;
-    let bar = ProgressBar::new((archs.len() * a.repeats) as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} trainings, {elapsed} elapsed, ~{eta} left",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = progress_bar((archs.len() * a.repeats) as u64);
     let t0 = std::time::Instant::now();
     let base = FitConfig {
         seed: a.seed,

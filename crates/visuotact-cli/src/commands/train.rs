@@ -5,10 +5,12 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_nn::fit::{
-    candidate_inputs, choose_inputs, column_kinds, fit_set, FitConfig, FitData, SELECTION_FOLDS,
+    candidate_inputs, choose_inputs, column_kinds, fit_set, FitConfig, FitData, InputScore,
+    InputSet, SELECTION_FOLDS,
 };
 use visuotact_nn::lm::Control;
 use visuotact_nn::mlp::Mlp;
+use visuotact_nn::model::Model;
 use visuotact_pipeline::table::TrainingTable;
 use visuotact_vision::features::FIELD_COLUMNS;
 
@@ -86,31 +88,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         feature_columns: &feature_columns,
         targets: &targets,
     };
-    if sets.len() > 1 {
-        eprintln!(
-            "choosing the inputs by {SELECTION_FOLDS}-fold cross-validation (one network per fold): {}",
-            sets.iter()
-                .map(|s| s.name.as_str())
-                .collect::<Vec<_>>()
-                .join(" or ")
-        );
-    }
-    let (best, selection) =
-        choose_inputs(&data, &cfg, &sets, SELECTION_FOLDS).map_err(fit_error)?;
-    for score in &selection {
-        eprintln!(
-            "  {} {}: held-out error / variance {:.3e} (per target {})",
-            if score.chosen { "chose" } else { "     " },
-            score.inputs,
-            score.error,
-            score
-                .normalised_mse
-                .iter()
-                .map(|e| format!("{e:.3e}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
+    let (best, selection) = choose(&data, &cfg, &sets)?;
     let set = &sets[best];
     eprintln!(
         "training {} → {} → {} ({} weights, {}) on {} frames",
@@ -141,14 +119,52 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     model.training.selection = selection;
     model.sensor = sensor;
     crate::write_atomically(&a.output, &model.to_json())?;
+    print_trained(&model, &targets, t0.elapsed().as_secs_f64());
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// Chooses the input set by cross-validation when there is a choice, saying so.
+fn choose(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    sets: &[InputSet],
+) -> anyhow::Result<(usize, Vec<InputScore>)> {
+    if sets.len() > 1 {
+        eprintln!(
+            "choosing the inputs by {SELECTION_FOLDS}-fold cross-validation (one network per fold): {}",
+            sets.iter()
+                .map(|s| s.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" or ")
+        );
+    }
+    let (best, selection) =
+        choose_inputs(&data, &cfg, &sets, SELECTION_FOLDS).map_err(fit_error)?;
+    for score in &selection {
+        eprintln!(
+            "  {} {}: held-out error / variance {:.3e} (per target {})",
+            if score.chosen { "chose" } else { "     " },
+            score.inputs,
+            score.error,
+            score
+                .normalised_mse
+                .iter()
+                .map(|e| format!("{e:.3e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+
+    Ok((best, selection))
+}
+
+/// How training went: epochs, why it stopped, and each target's figures per subset.
+fn print_trained(model: &Model, targets: &[String], secs: f64) {
     let tr = &model.training;
     eprintln!(
         "trained ({}) in {:.2} s: {} epochs (best {}), stopped by {}",
-        tr.algorithm,
-        t0.elapsed().as_secs_f64(),
-        tr.epochs,
-        tr.best_epoch,
-        tr.stop
+        tr.algorithm, secs, tr.epochs, tr.best_epoch, tr.stop
     );
     if let Some(e) = &tr.evidence {
         eprintln!(
@@ -179,8 +195,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             cell(&tr.r[2], j, true)
         );
     }
-    eprintln!("wrote {}", a.output.display());
-    Ok(())
 }
 
 #[cfg(test)]
