@@ -78,6 +78,9 @@ pub fn feature_set_of(columns: &[String]) -> Result<FeatureSet, PipelineError> {
 /// The model's estimate of a frame, or why it has none.
 pub type ModelEstimate = Result<Estimate, EstimateError>;
 
+/// A frame's features and, with a model, the inputs filled or why there is no estimate.
+pub type FrameEstimate<'a> = (&'a FrameFeatures, Option<Result<usize, EstimateError>>);
+
 /// Where one of the model's inputs comes from.
 #[derive(Clone, Copy, Debug)]
 enum Input {
@@ -267,7 +270,7 @@ impl Estimator {
         img: &RgbImage,
         extra: &[f64],
         out: &mut Estimate,
-    ) -> Result<(&FrameFeatures, Option<Result<usize, EstimateError>>), PipelineError> {
+    ) -> Result<FrameEstimate<'_>, PipelineError> {
         self.ex.extract_into(img, &mut self.features)?;
         let got = match &self.model {
             Some((m, cols)) => {

@@ -48,7 +48,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         readings: a.readings.clone(),
     };
     let done = replay(&mut est, &cfg, &mut |w| eprintln!("warning: {w}")).map_err(|e| match e {
-        ReplayError::NoReadings(_) => anyhow::anyhow!("the model {}: {e}", a.model.display()),
+        ReplayError::NoReadings(names) => anyhow::anyhow!(
+            "the model {} needs {names} besides the marker features: give --readings TABLE (keyed by frame)",
+            a.model.display()
+        ),
         e => e.into(),
     })?;
     eprintln!(

@@ -139,8 +139,7 @@ fn choose(
                 .join(" or ")
         );
     }
-    let (best, selection) =
-        choose_inputs(&data, &cfg, &sets, SELECTION_FOLDS).map_err(fit_error)?;
+    let (best, selection) = choose_inputs(data, cfg, sets, SELECTION_FOLDS).map_err(fit_error)?;
     for score in &selection {
         eprintln!(
             "  {} {}: held-out error / variance {:.3e} (per target {})",
