@@ -245,6 +245,21 @@ fn input_names(
     Ok(names)
 }
 
+/// Where each target sits among the labels' columns.
+fn target_columns(labels: Named<'_>, targets: &[String]) -> Result<Vec<usize>, JoinError> {
+    let l = labels.table;
+    targets
+        .iter()
+        .map(|t| {
+            l.column(t).ok_or_else(|| JoinError::NoTarget {
+                labels: labels.name.to_string(),
+                column: t.clone(),
+                columns: l.columns.join(", "),
+            })
+        })
+        .collect()
+}
+
 /// Joins `features` (and the extra inputs, from it or `readings`) with `labels` on `frame`.
 pub fn training_table(
     features: Named<'_>,
@@ -257,17 +272,7 @@ pub fn training_table(
     let marker_inputs = names.iter().filter(|c| is_marker_column(c)).count();
     let sources = InputSources::new(&names, features, readings, "an input named by --inputs")?;
     let l = labels.table;
-    let tcols: Vec<usize> = cfg
-        .targets
-        .iter()
-        .map(|t| {
-            l.column(t).ok_or_else(|| JoinError::NoTarget {
-                labels: labels.name.to_string(),
-                column: t.clone(),
-                columns: l.columns.join(", "),
-            })
-        })
-        .collect::<Result<_, _>>()?;
+    let tcols = target_columns(labels, cfg.targets)?;
     let by_key = l.rows_by_key();
     let drop = matches!(cfg.incomplete, Incomplete::Drop);
     let fill = match cfg.incomplete {
@@ -321,16 +326,13 @@ pub fn training_table(
             labels.name
         ));
     }
-    if dropped > 0 {
-        notes.push(format!(
-            "warning: {dropped} frames with missing inputs were left out"
-        ));
-    }
-    if filled_frames > 0 {
-        notes.push(format!(
-            "{filled_frames} frames with lost markers kept: {filled_cells} inputs filled from the markers found"
-        ));
-    }
+    notes.extend(
+        (dropped > 0)
+            .then(|| format!("warning: {dropped} frames with missing inputs were left out")),
+    );
+    notes.extend((filled_frames > 0).then(|| {
+        format!("{filled_frames} frames with lost markers kept: {filled_cells} inputs filled from the markers found")
+    }));
     if out.x.len() < 10 {
         return Err(JoinError::TooFew {
             frames: out.x.len(),

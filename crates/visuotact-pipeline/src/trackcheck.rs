@@ -309,32 +309,40 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
             },
         )
         .collect::<Result<_, CheckError>>()?;
-    let mut errs: Vec<f64> = Vec::new();
-    for fc in per_frame {
-        report.max_motion_pitches = report.max_motion_pitches.max(fc.max_motion);
-        if fc.max_motion > c.motion_limit_pitches {
-            report.beyond_frames += 1;
-            report.beyond_lost += fc.lost;
-            report.beyond_wrong += fc.wrong;
-        }
-        report.visible += fc.visible;
-        report.lost += fc.lost;
-        report.wrong += fc.wrong;
-        report.ok_not_visible += fc.ok_not_visible;
-        errs.extend(fc.errs);
-        for e in fc.examples {
-            if report.examples.len() < 10 {
-                report.examples.push(e);
+    report.add(per_frame, c.motion_limit_pitches);
+    Ok(report)
+}
+
+impl CheckReport {
+    /// Adds the frames' checks: counts, the error percentiles, the first examples.
+    fn add(&mut self, per_frame: Vec<FrameCheck>, motion_limit_pitches: f64) {
+        let report = self;
+        let mut errs: Vec<f64> = Vec::new();
+        for fc in per_frame {
+            report.max_motion_pitches = report.max_motion_pitches.max(fc.max_motion);
+            if fc.max_motion > motion_limit_pitches {
+                report.beyond_frames += 1;
+                report.beyond_lost += fc.lost;
+                report.beyond_wrong += fc.wrong;
+            }
+            report.visible += fc.visible;
+            report.lost += fc.lost;
+            report.wrong += fc.wrong;
+            report.ok_not_visible += fc.ok_not_visible;
+            errs.extend(fc.errs);
+            for e in fc.examples {
+                if report.examples.len() < 10 {
+                    report.examples.push(e);
+                }
             }
         }
+        errs.sort_by(f64::total_cmp);
+        if !errs.is_empty() {
+            report.err_mean_px = errs.iter().sum::<f64>() / errs.len() as f64;
+            report.err_p99_px = errs[((errs.len() - 1) as f64 * 0.99).round() as usize];
+            report.err_max_px = *errs.last().unwrap_or(&0.0);
+        }
     }
-    errs.sort_by(f64::total_cmp);
-    if !errs.is_empty() {
-        report.err_mean_px = errs.iter().sum::<f64>() / errs.len() as f64;
-        report.err_p99_px = errs[((errs.len() - 1) as f64 * 0.99).round() as usize];
-        report.err_max_px = *errs.last().unwrap_or(&0.0);
-    }
-    Ok(report)
 }
 
 /// Per calibrated marker, the simulated marker nearest to it at rest (within half its

@@ -308,94 +308,9 @@ impl ZooConfig {
         let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
         c.layout_seed = seed;
         match kind {
-            ZooKind::Tactip => {
-                c.dome_radius_mm = u(17.0, 23.0);
-                c.pitch_mm = u(0.11, 0.15) * c.dome_radius_mm;
-                c.marker_radius_mm = u(0.25, 0.36) * c.pitch_mm;
-                c.field_width_mm = u(2.1, 2.5) * c.dome_radius_mm;
-                c.field_height_mm = c.field_width_mm;
-                c.pattern_angle_deg = u(0.0, 60.0);
-                c.position_jitter_mm = u(0.0, 0.05) * c.pitch_mm;
-                // The skin is backed by the gel filling the tip: the soft body is deep.
-                c.skin_thickness_mm = u(0.3, 0.6) * c.dome_radius_mm;
-                c.radial_coupling = u(-0.3, 0.3);
-                c.tip_radius_mm = u(4.0, 10.0);
-                c.max_depth_mm = u(4.0, 6.0);
-                c.camera_distance_mm = c.dome_radius_mm + u(5.0, 12.0);
-                c.camera.k1 = u(-0.15, -0.03);
-                c.camera.k2 = u(0.0, 0.02);
-                let rim = u(0.42, 0.49);
-                let grey = u(0.0, 25.0) as f32;
-                let white = u(180.0, 255.0) as f32;
-                c.look = Look {
-                    background: [grey, grey, grey + u(0.0, 5.0) as f32],
-                    marker: [
-                        white,
-                        white - u(0.0, 20.0) as f32,
-                        white - u(0.0, 30.0) as f32,
-                    ],
-                    noise_sigma: u(1.0, 5.0) as f32,
-                    vignetting: u(0.05, 0.4) as f32,
-                };
-                c.blur_px = u(0.3, 1.0);
-                c.fit_dome_in_view(rim);
-            }
-            ZooKind::Gelsight => {
-                c.pitch_mm = u(1.6, 2.4);
-                c.marker_radius_mm = u(0.15, 0.25) * c.pitch_mm;
-                c.field_width_mm = u(8.0, 12.0).floor() * c.pitch_mm;
-                c.field_height_mm = u(6.0, 9.0).floor() * c.pitch_mm;
-                c.pattern_angle_deg = u(-3.0, 3.0);
-                c.position_jitter_mm = u(0.0, 0.03) * c.pitch_mm;
-                c.skin_thickness_mm = u(1.5, 4.0);
-                c.radial_coupling = u(-0.15, 0.4);
-                c.tip_radius_mm = u(2.0, 8.0);
-                c.max_depth_mm = u(0.4, 0.6) * c.skin_thickness_mm;
-                c.camera_distance_mm = u(12.0, 20.0);
-                c.camera.k1 = u(-0.1, 0.0);
-                let fill = u(0.75, 0.92);
-                let tint = [u(0.85, 1.0), u(0.85, 1.0), u(0.8, 1.0)];
-                let bright = u(150.0, 220.0);
-                let dark = u(15.0, 70.0) as f32;
-                c.look = Look {
-                    background: tint.map(|t| (t * bright) as f32),
-                    marker: [dark, dark, dark + u(0.0, 15.0) as f32],
-                    noise_sigma: u(1.0, 4.0) as f32,
-                    vignetting: u(0.1, 0.3) as f32,
-                };
-                c.light_gradient = [u(-0.2, 0.2) as f32, u(-0.2, 0.2) as f32];
-                c.shading = u(0.3, 0.8) as f32;
-                c.blur_px = u(0.4, 1.0);
-                c.fit_flat_in_view(fill);
-            }
-            ZooKind::Dots => {
-                c.pitch_mm = u(2.0, 3.0);
-                c.marker_radius_mm = u(0.18, 0.3) * c.pitch_mm;
-                c.field_width_mm = u(14.0, 17.0) * c.pitch_mm;
-                c.field_height_mm = u(10.0, 13.0) * c.pitch_mm;
-                c.skin_thickness_mm = u(2.0, 4.0);
-                c.radial_coupling = u(-0.2, 0.3);
-                c.tip_radius_mm = u(3.0, 10.0);
-                c.max_depth_mm = u(0.4, 0.6) * c.skin_thickness_mm;
-                c.camera_distance_mm = u(25.0, 40.0);
-                c.camera.k1 = u(-0.1, 0.0);
-                let fill = u(0.75, 0.92);
-                let (lo, hi) = (u(10.0, 50.0) as f32, u(150.0, 240.0) as f32);
-                let colour = [u(0.7, 1.0) as f32, u(0.7, 1.0) as f32, u(0.3, 1.0) as f32];
-                let (bg, mk) = if u(0.0, 1.0) < 0.5 {
-                    ([lo, lo, lo], colour.map(|k| k * hi))
-                } else {
-                    (colour.map(|k| k * hi), [lo, lo, lo])
-                };
-                c.look = Look {
-                    background: bg,
-                    marker: mk,
-                    noise_sigma: u(1.0, 5.0) as f32,
-                    vignetting: u(0.05, 0.3) as f32,
-                };
-                c.blur_px = u(0.3, 1.0);
-                c.fit_flat_in_view(fill);
-            }
+            ZooKind::Tactip => c.draw_tactip(&mut u),
+            ZooKind::Gelsight => c.draw_gelsight(&mut u),
+            ZooKind::Dots => c.draw_dots(&mut u),
         }
         c
     }
@@ -435,6 +350,100 @@ impl ZooConfig {
         let theta = (0.5 * self.field_width_mm + 0.5 * self.pitch_mm) / rd;
         let zc = self.camera_distance_mm - rd;
         rd * theta.sin() / (zc + rd * theta.cos())
+    }
+
+    /// A TacTip-like dome: its geometry, camera and look drawn with `u(lo, hi)`.
+    fn draw_tactip(&mut self, u: &mut impl FnMut(f64, f64) -> f64) {
+        self.dome_radius_mm = u(17.0, 23.0);
+        self.pitch_mm = u(0.11, 0.15) * self.dome_radius_mm;
+        self.marker_radius_mm = u(0.25, 0.36) * self.pitch_mm;
+        self.field_width_mm = u(2.1, 2.5) * self.dome_radius_mm;
+        self.field_height_mm = self.field_width_mm;
+        self.pattern_angle_deg = u(0.0, 60.0);
+        self.position_jitter_mm = u(0.0, 0.05) * self.pitch_mm;
+        // The skin is backed by the gel filling the tip: the soft body is deep.
+        self.skin_thickness_mm = u(0.3, 0.6) * self.dome_radius_mm;
+        self.radial_coupling = u(-0.3, 0.3);
+        self.tip_radius_mm = u(4.0, 10.0);
+        self.max_depth_mm = u(4.0, 6.0);
+        self.camera_distance_mm = self.dome_radius_mm + u(5.0, 12.0);
+        self.camera.k1 = u(-0.15, -0.03);
+        self.camera.k2 = u(0.0, 0.02);
+        let rim = u(0.42, 0.49);
+        let grey = u(0.0, 25.0) as f32;
+        let white = u(180.0, 255.0) as f32;
+        self.look = Look {
+            background: [grey, grey, grey + u(0.0, 5.0) as f32],
+            marker: [
+                white,
+                white - u(0.0, 20.0) as f32,
+                white - u(0.0, 30.0) as f32,
+            ],
+            noise_sigma: u(1.0, 5.0) as f32,
+            vignetting: u(0.05, 0.4) as f32,
+        };
+        self.blur_px = u(0.3, 1.0);
+        self.fit_dome_in_view(rim);
+    }
+
+    /// A GelSight-like flat gel: its geometry, camera and look drawn with `u(lo, hi)`.
+    fn draw_gelsight(&mut self, u: &mut impl FnMut(f64, f64) -> f64) {
+        self.pitch_mm = u(1.6, 2.4);
+        self.marker_radius_mm = u(0.15, 0.25) * self.pitch_mm;
+        self.field_width_mm = u(8.0, 12.0).floor() * self.pitch_mm;
+        self.field_height_mm = u(6.0, 9.0).floor() * self.pitch_mm;
+        self.pattern_angle_deg = u(-3.0, 3.0);
+        self.position_jitter_mm = u(0.0, 0.03) * self.pitch_mm;
+        self.skin_thickness_mm = u(1.5, 4.0);
+        self.radial_coupling = u(-0.15, 0.4);
+        self.tip_radius_mm = u(2.0, 8.0);
+        self.max_depth_mm = u(0.4, 0.6) * self.skin_thickness_mm;
+        self.camera_distance_mm = u(12.0, 20.0);
+        self.camera.k1 = u(-0.1, 0.0);
+        let fill = u(0.75, 0.92);
+        let tint = [u(0.85, 1.0), u(0.85, 1.0), u(0.8, 1.0)];
+        let bright = u(150.0, 220.0);
+        let dark = u(15.0, 70.0) as f32;
+        self.look = Look {
+            background: tint.map(|t| (t * bright) as f32),
+            marker: [dark, dark, dark + u(0.0, 15.0) as f32],
+            noise_sigma: u(1.0, 4.0) as f32,
+            vignetting: u(0.1, 0.3) as f32,
+        };
+        self.light_gradient = [u(-0.2, 0.2) as f32, u(-0.2, 0.2) as f32];
+        self.shading = u(0.3, 0.8) as f32;
+        self.blur_px = u(0.4, 1.0);
+        self.fit_flat_in_view(fill);
+    }
+
+    /// A random-dot flat skin: its geometry, camera and look drawn with `u(lo, hi)`.
+    fn draw_dots(&mut self, u: &mut impl FnMut(f64, f64) -> f64) {
+        self.pitch_mm = u(2.0, 3.0);
+        self.marker_radius_mm = u(0.18, 0.3) * self.pitch_mm;
+        self.field_width_mm = u(14.0, 17.0) * self.pitch_mm;
+        self.field_height_mm = u(10.0, 13.0) * self.pitch_mm;
+        self.skin_thickness_mm = u(2.0, 4.0);
+        self.radial_coupling = u(-0.2, 0.3);
+        self.tip_radius_mm = u(3.0, 10.0);
+        self.max_depth_mm = u(0.4, 0.6) * self.skin_thickness_mm;
+        self.camera_distance_mm = u(25.0, 40.0);
+        self.camera.k1 = u(-0.1, 0.0);
+        let fill = u(0.75, 0.92);
+        let (lo, hi) = (u(10.0, 50.0) as f32, u(150.0, 240.0) as f32);
+        let colour = [u(0.7, 1.0) as f32, u(0.7, 1.0) as f32, u(0.3, 1.0) as f32];
+        let (bg, mk) = if u(0.0, 1.0) < 0.5 {
+            ([lo, lo, lo], colour.map(|k| k * hi))
+        } else {
+            (colour.map(|k| k * hi), [lo, lo, lo])
+        };
+        self.look = Look {
+            background: bg,
+            marker: mk,
+            noise_sigma: u(1.0, 5.0) as f32,
+            vignetting: u(0.05, 0.3) as f32,
+        };
+        self.blur_px = u(0.3, 1.0);
+        self.fit_flat_in_view(fill);
     }
 
     /// Checks the parameters; the message names the bad one.
@@ -483,6 +492,11 @@ impl ZooConfig {
                 "more than 200 pitches across the field".to_string(),
             ));
         }
+        self.validate_surface()
+    }
+
+    /// The checks of the flat field or the dome.
+    fn validate_surface(&self) -> Result<(), crate::SimError> {
         match self.surface {
             Surface::Flat => {
                 if !(self.field_height_mm.is_finite() && self.field_height_mm > 0.0) {
@@ -556,6 +570,31 @@ impl ZooConfig {
         self.field_contains(x_mm, y_mm)
     }
 
+    /// Dart throwing: at most the density of a square grid of the pitch over the field's
+    /// half-width and half-height, no two dots closer than 0.8 pitch.
+    fn random_dots(&self, half_w: f64, half_h: f64) -> Vec<(f64, f64)> {
+        let p = self.pitch_mm;
+        let mut pts = Vec::new();
+        let mut rng = ChaCha8Rng::seed_from_u64(self.layout_seed ^ 0xD075);
+        let target = ((2.0 * half_w) * (2.0 * half_h) / (p * p)) as usize;
+        let dmin2 = (0.8 * p).powi(2);
+        let mut tries = 0;
+        while pts.len() < target && tries < 60 * target.max(1) {
+            tries += 1;
+            let q = (
+                rng.random_range(-half_w..=half_w),
+                rng.random_range(-half_h..=half_h),
+            );
+            if pts
+                .iter()
+                .all(|&(x, y): &(f64, f64)| (x - q.0).powi(2) + (y - q.1).powi(2) >= dmin2)
+            {
+                pts.push(q);
+            }
+        }
+        pts
+    }
+
     /// Marker centres on the skin at rest, chart millimetres, in the pattern's own order.
     pub fn rest_positions_mm(&self) -> Vec<(f64, f64)> {
         let p = self.pitch_mm;
@@ -602,27 +641,7 @@ impl ZooConfig {
                     }
                 }
             }
-            Arrangement::Random => {
-                // Dart throwing: at most the density of a square grid of this pitch, no two
-                // closer than 0.8 pitch.
-                let mut rng = ChaCha8Rng::seed_from_u64(self.layout_seed ^ 0xD075);
-                let target = ((2.0 * half_w) * (2.0 * half_h) / (p * p)) as usize;
-                let dmin2 = (0.8 * p).powi(2);
-                let mut tries = 0;
-                while pts.len() < target && tries < 60 * target.max(1) {
-                    tries += 1;
-                    let q = (
-                        rng.random_range(-half_w..=half_w),
-                        rng.random_range(-half_h..=half_h),
-                    );
-                    if pts
-                        .iter()
-                        .all(|&(x, y): &(f64, f64)| (x - q.0).powi(2) + (y - q.1).powi(2) >= dmin2)
-                    {
-                        pts.push(q);
-                    }
-                }
-            }
+            Arrangement::Random => pts = self.random_dots(half_w, half_h),
         }
         // Lattices are cut to the field before they are turned (a field edge along a row of
         // markers keeps the whole row).
