@@ -18,8 +18,8 @@
 use faer::Mat;
 
 use crate::lm::{
-    jacobian_at, sum_sq, Control, DampedSolver, Jacobian, LmConfig, LmOutcome, Problem, Start,
-    StopReason,
+    gradient_stop, jacobian_at, start_stop, sum_sq, Control, DampedSolver, Jacobian, LmConfig,
+    LmOutcome, Problem, Start, Step, StopReason,
 };
 
 /// The regularisation state after an epoch.
@@ -35,6 +35,38 @@ pub struct Evidence {
     pub sse: f64,
     /// Sum of squared weights `E_W`.
     pub ssw: f64,
+}
+
+impl Evidence {
+    /// MATLAB's start: every one of `n` parameters counted as effective, with `m` residuals.
+    fn start((n, m): (usize, usize), (sse, ssw): (f64, f64)) -> Self {
+        let gamma = n as f64;
+        let beta = (m as f64 - gamma) / (2.0 * sse);
+        Self {
+            alpha: if ssw > 0.0 { gamma / (2.0 * ssw) } else { 1.0 },
+            beta: if beta.is_finite() && beta > 0.0 {
+                beta
+            } else {
+                1.0
+            },
+            gamma,
+            sse,
+            ssw,
+        }
+    }
+
+    /// MacKay's re-estimate from `gamma_raw` = k − λ·tr((H + λI)⁻¹) (clamped to the parameters
+    /// and the residuals, keeping β finite: some residual degrees of freedom always remain),
+    /// when the sums of squares allow it.
+    fn update(&mut self, gamma_raw: f64, (n, m): (usize, usize)) {
+        let (sse, ssw) = (self.sse, self.ssw);
+        let g_new = gamma_raw.clamp(0.0, n.min(m) as f64).min(m as f64 - 1e-3);
+        if ssw > 0.0 && sse > 0.0 && g_new > 0.0 {
+            self.gamma = g_new;
+            self.alpha = g_new / (2.0 * ssw);
+            self.beta = (m as f64 - g_new) / (2.0 * sse);
+        }
+    }
 }
 
 /// What the callback sees after each epoch.
@@ -76,6 +108,26 @@ fn regularised_gradient(jac: &Jacobian<'_>, r: &[f64], p: &[f64], lambda: f64) -
     g
 }
 
+/// The regularised step at damping `c` = λ + μ: dual (`jg` = J·g given)
+/// `δ = −(g − Jᵀ(JJᵀ + cI)⁻¹ J g) / c`, primal `δ = −(JᵀJ + cI)⁻¹ g`.
+fn regularised_step(
+    solver: &mut DampedSolver,
+    (gram, ones): (&Mat<f64>, &[f64]),
+    jac: &Jacobian<'_>,
+    (g, jg): (&[f64], &[f64]),
+    c: f64,
+) -> Option<Vec<f64>> {
+    if jg.is_empty() {
+        return solver
+            .solve(gram, c, ones, g)
+            .map(|y| y.iter().map(|v| -v).collect());
+    }
+    solver.solve(gram, c, ones, jg).map(|y| {
+        let jty = jac.transpose_times(&y);
+        g.iter().zip(&jty).map(|(gi, ti)| -(gi - ti) / c).collect()
+    })
+}
+
 /// Minimises `β‖r(p)‖² + α‖p‖²` from `p0` with α and β re-estimated each epoch, calling
 /// `callback` after every epoch.
 pub fn minimize_br<P: Problem>(
@@ -84,122 +136,61 @@ pub fn minimize_br<P: Problem>(
     cfg: &LmConfig,
     mut callback: impl FnMut(&BrProgress<'_>) -> Control,
 ) -> BrOutcome {
-    let Start {
-        n,
-        m,
-        dual,
-        mut p,
-        mut r,
-        mut p_new,
-        mut r_new,
-    } = Start::at(problem, p0);
+    let mut st = Start::at(problem, p0);
+    let (n, m, dual) = (st.n, st.m, st.dual);
     let mut dense: Option<Mat<f64>> = None;
     let mut evaluations = 1;
-    let (mut sse, mut ssw) = (sum_sq(&r), sum_sq(&p));
     let mut mu = cfg.mu;
-    // MATLAB's start: every parameter counted as effective.
-    let mut gamma = n as f64;
-    let mut alpha = if ssw > 0.0 { gamma / (2.0 * ssw) } else { 1.0 };
-    let mut beta = (m as f64 - gamma) / (2.0 * sse);
-    if !(beta.is_finite() && beta > 0.0) {
-        beta = 1.0;
-    }
+    let mut ev = Evidence::start((n, m), (sum_sq(&st.r), sum_sq(&st.p)));
     let mut fallbacks = 0;
     // Every exit gives why and after how many epochs; the outcome is built once below.
     let (reason, iterations) = 'run: {
-        if cfg.validate().is_err() {
-            break 'run (StopReason::InvalidConfig, 0);
-        }
-        if !(sse.is_finite() && ssw.is_finite()) {
-            break 'run (StopReason::NonFinite, 0);
+        if let Some(stop) = start_stop(cfg, ev.sse.is_finite() && ev.ssw.is_finite()) {
+            break 'run (stop, 0);
         }
         let k = if dual { m } else { n };
         let mut gram = Mat::<f64>::zeros(k, k);
         let mut solver = DampedSolver::new(k);
         let ones = vec![1.0; k];
         for iteration in 0..cfg.max_iterations {
-            let lambda = alpha / beta;
-            let cost = sse + lambda * ssw;
+            let lambda = ev.alpha / ev.beta;
+            let mut cost = ev.sse + lambda * ev.ssw;
             if cost == 0.0 {
                 break 'run (StopReason::ZeroResidual, iteration);
             }
-            let structured = if dual {
-                problem.dual_jacobian(&p)
-            } else {
-                None
-            };
-            let jac = jacobian_at(problem, &p, &structured, &mut dense);
-            let g = regularised_gradient(&jac, &r, &p, lambda);
+            let structured = dual.then(|| problem.dual_jacobian(&st.p)).flatten();
+            let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
+            let g = regularised_gradient(&jac, &st.r, &st.p, lambda);
             let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !gnorm.is_finite() {
-                break 'run (StopReason::NonFinite, iteration);
-            }
-            if gnorm < cfg.min_grad {
-                break 'run (StopReason::MinGradient, iteration);
+            if let Some(stop) = gradient_stop(gnorm, cfg) {
+                break 'run (stop, iteration);
             }
             jac.gram_lower_into(dual, gram.as_mut());
             let jg = if dual { jac.times(&g, m) } else { Vec::new() };
-            let mut accepted = false;
-            while mu <= cfg.mu_max {
-                let c = lambda + mu;
-                let step: Option<Vec<f64>> = if dual {
-                    solver.solve(&gram, c, &ones, &jg).map(|y| {
-                        let jty = jac.transpose_times(&y);
-                        g.iter().zip(&jty).map(|(gi, ti)| -(gi - ti) / c).collect()
-                    })
-                } else {
-                    solver
-                        .solve(&gram, c, &ones, &g)
-                        .map(|y| y.iter().map(|v| -v).collect())
-                };
+            let solve = |mu: f64| {
+                let step =
+                    regularised_step(&mut solver, (&gram, &ones), &jac, (&g, &jg), lambda + mu);
                 fallbacks = solver.fallbacks;
-                let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
-                    mu *= cfg.mu_inc;
-                    continue;
-                };
-                for i in 0..n {
-                    p_new[i] = p[i] + step[i];
-                }
-                problem.residuals(&p_new, &mut r_new);
-                evaluations += 1;
-                let (sse_new, ssw_new) = (sum_sq(&r_new), sum_sq(&p_new));
-                let c_new = sse_new + lambda * ssw_new;
-                if c_new.is_finite() && c_new < cost {
-                    std::mem::swap(&mut p, &mut p_new);
-                    std::mem::swap(&mut r, &mut r_new);
-                    (sse, ssw) = (sse_new, ssw_new);
-                    mu = (mu * cfg.mu_dec).max(1e-300);
-                    accepted = true;
-                    break;
-                }
-                mu *= cfg.mu_inc;
-            }
-            if !accepted {
+                step
+            };
+            let objective = |p: &[f64], r: &[f64]| sum_sq(r) + lambda * sum_sq(p);
+            let costs = (&mut mu, &mut cost);
+            let (step, evals) = st.damped_step(problem, costs, cfg, None, solve, objective);
+            evaluations += evals;
+            if step == Step::MuMax {
                 break 'run (StopReason::MuMax, iteration + 1);
             }
+            (ev.sse, ev.ssw) = (sum_sq(&st.r), sum_sq(&st.p));
             // The evidence with this epoch's Gauss–Newton Hessian (as trainbr does).
             if let Some(tr) = solver.trace_inverse(&gram, lambda) {
-                let g_new = (k as f64 - lambda * tr).clamp(0.0, n.min(m) as f64);
-                // Keep β finite: some residual degrees of freedom always remain.
-                let g_new = g_new.min(m as f64 - 1e-3);
-                if ssw > 0.0 && sse > 0.0 && g_new > 0.0 {
-                    gamma = g_new;
-                    alpha = gamma / (2.0 * ssw);
-                    beta = (m as f64 - gamma) / (2.0 * sse);
-                }
+                ev.update(k as f64 - lambda * tr, (n, m));
             }
             let progress = BrProgress {
                 iteration: iteration + 1,
-                evidence: Evidence {
-                    alpha,
-                    beta,
-                    gamma,
-                    sse,
-                    ssw,
-                },
+                evidence: ev,
                 mu,
                 gradient_norm: gnorm,
-                params: &p,
+                params: &st.p,
             };
             if callback(&progress) == Control::Stop {
                 break 'run (StopReason::Callback, iteration + 1);
@@ -209,21 +200,15 @@ pub fn minimize_br<P: Problem>(
     };
     BrOutcome {
         lm: LmOutcome {
-            params: p,
-            cost: sse,
+            params: st.p,
+            cost: ev.sse,
             iterations,
             evaluations,
             mu,
             reason,
             lu_fallbacks: fallbacks,
         },
-        evidence: Evidence {
-            alpha,
-            beta,
-            gamma,
-            sse,
-            ssw,
-        },
+        evidence: ev,
     }
 }
 

@@ -444,23 +444,14 @@ impl FitData<'_> {
     }
 }
 
-/// Scales, projects, initialises and trains the model's networks; the first network reports
-/// the training figures and takes `progress` (epoch, training MSE, validation MSE — NaN
-/// without a validation subset; returning [`Control::Stop`] stops it). Non-convergence is in
-/// the model's [`TrainingSummary::stop`], not an error.
-pub fn fit(
-    data: &FitData<'_>,
+/// The scaled inputs projected onto `cfg.components` principal components of their first
+/// `projected` columns (the rest pass by), when asked for. The components come from the
+/// complete samples; samples with lost markers get the scores that fit the markers found.
+fn project(
+    xs: Vec<Vec<f64>>,
+    projected: usize,
     cfg: &FitConfig,
-    progress: impl FnMut(usize, f64, f64) -> Control,
-) -> Result<Model, FitError> {
-    data.validate(cfg)?;
-    let (x, t) = (data.x, data.t);
-    let input_scaling = MinMax::fit(x);
-    let target_scaling = MinMax::fit(t);
-    let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
-    // The components from the complete samples; samples with lost markers get the scores that
-    // fit the markers found.
-    let projected = data.feature_columns.len() - cfg.passthrough;
+) -> Result<(Option<Projection>, Vec<Vec<f64>>), FitError> {
     let projection = cfg
         .components
         .map(|k| {
@@ -472,7 +463,7 @@ pub fn fit(
             Projection::fit(&complete, k)
         })
         .transpose()?;
-    let xs: Vec<Vec<f64>> = match &projection {
+    let xs = match &projection {
         Some(p) => xs
             .iter()
             .enumerate()
@@ -488,17 +479,16 @@ pub fn fit(
             .collect::<Result<_, FitError>>()?,
         None => xs,
     };
-    let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
-    let mut sizes = vec![projection.as_ref().map_or(data.feature_columns.len(), |p| {
-        p.outputs() + cfg.passthrough
-    })];
-    sizes.extend(&cfg.hidden);
-    sizes.push(data.targets.len());
+    Ok((projection, xs))
+}
+
+/// The trainer's settings for `cfg`: its algorithm's, with its epochs, seed and subsets.
+fn train_config(cfg: &FitConfig) -> TrainConfig {
     let base = match cfg.algorithm {
         Algorithm::Trainlm => TrainConfig::TRAINLM,
         Algorithm::Trainbr => TrainConfig::TRAINBR,
     };
-    let train_cfg = TrainConfig {
+    TrainConfig {
         lm: LmConfig {
             max_iterations: cfg.max_epochs,
             ..base.lm
@@ -510,7 +500,55 @@ pub fn fit(
             base.split
         },
         ..base
-    };
+    }
+}
+
+/// Per target, a subset's MSE in target units (scaled MSE × (span / 2)²) and R (unchanged by
+/// mapminmax, a linear map per target), from one forward pass per sample. An empty subset
+/// (trainbr trains on every sample) has no figures: empty lists, never NaN (JSON has no NaN).
+fn subset_figures(
+    net: &Mlp,
+    ids: &[usize],
+    (xs, ts): (&[Vec<f64>], &[Vec<f64>]),
+    target_scaling: &MinMax,
+) -> (Vec<f64>, Vec<f64>) {
+    if ids.is_empty() {
+        return (Vec::new(), Vec::new());
+    }
+    let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
+    (0..target_scaling.min.len())
+        .map(|j| {
+            let e: Vec<f64> = est.iter().map(|v| v[j]).collect();
+            let t: Vec<f64> = ids.iter().map(|&i| ts[i][j]).collect();
+            let f = target_errors("", &e, &t);
+            let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
+            (f.mse * half * half, f.r)
+        })
+        .unzip()
+}
+
+/// Scales, projects, initialises and trains the model's networks; the first network reports
+/// the training figures and takes `progress` (epoch, training MSE, validation MSE — NaN
+/// without a validation subset; returning [`Control::Stop`] stops it). Non-convergence is in
+/// the model's [`TrainingSummary::stop`], not an error.
+pub fn fit(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    progress: impl FnMut(usize, f64, f64) -> Control,
+) -> Result<Model, FitError> {
+    data.validate(cfg)?;
+    let (x, t) = (data.x, data.t);
+    let input_scaling = MinMax::fit(x);
+    let target_scaling = MinMax::fit(t);
+    let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
+    let (projection, xs) = project(xs, data.feature_columns.len() - cfg.passthrough, cfg)?;
+    let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
+    let mut sizes = vec![projection.as_ref().map_or(data.feature_columns.len(), |p| {
+        p.outputs() + cfg.passthrough
+    })];
+    sizes.extend(&cfg.hidden);
+    sizes.push(data.targets.len());
+    let train_cfg = train_config(cfg);
     let mut net = Mlp::nguyen_widrow(&sizes, cfg.seed);
     let out = crate::mlp::train(&mut net, &xs, &ts, &train_cfg, progress);
     // Further members of an ensemble: other initial weights and splits, in parallel.
@@ -526,25 +564,7 @@ pub fn fit(
             member
         })
         .collect();
-    // Per subset and target, from one forward pass per sample: the MSE in target units (scaled
-    // MSE × (span / 2)²) and R (unchanged by mapminmax, a linear map per target).
-    // An empty subset (trainbr trains on every sample) has no figures: empty lists, never
-    // NaN (JSON has no NaN).
-    let figures = |ids: &[usize]| -> (Vec<f64>, Vec<f64>) {
-        if ids.is_empty() {
-            return (Vec::new(), Vec::new());
-        }
-        let est: Vec<Vec<f64>> = ids.iter().map(|&i| net.forward(&xs[i])).collect();
-        (0..data.targets.len())
-            .map(|j| {
-                let e: Vec<f64> = est.iter().map(|v| v[j]).collect();
-                let t: Vec<f64> = ids.iter().map(|&i| ts[i][j]).collect();
-                let f = target_errors("", &e, &t);
-                let half = 0.5 * (target_scaling.max[j] - target_scaling.min[j]);
-                (f.mse * half * half, f.r)
-            })
-            .unzip()
-    };
+    let figures = |ids: &[usize]| subset_figures(&net, ids, (&xs, &ts), &target_scaling);
     let [(mse0, r0), (mse1, r1), (mse2, r2)] = out.subsets.each_ref().map(|ids| figures(ids));
     let stop = if out.validation_stop {
         "validation".to_string()

@@ -436,6 +436,87 @@ impl Start {
     }
 }
 
+/// How one epoch's search along μ ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Step {
+    /// A step lowered the objective; `small` when it was below the smallest relative step.
+    Accepted {
+        /// The step was below [`LmConfig::min_relative_step`].
+        small: bool,
+    },
+    /// No step lowered the objective and the last was below the smallest relative step.
+    Small,
+    /// μ grew past its largest value without a better point.
+    MuMax,
+}
+
+impl Start {
+    /// Tries damped steps from μ up until one lowers `objective(p_new, r_new)` below `cost`:
+    /// `solve(μ)` gives the step (`None`: the damped system did not solve). An accepted step
+    /// becomes the point, `cost` its objective, and μ shrinks; each refused one grows μ.
+    /// `small_step`: a refused step below this relative size ends the search (`Step::Small`).
+    pub(crate) fn damped_step<P: Problem>(
+        &mut self,
+        problem: &mut P,
+        (mu, cost): (&mut f64, &mut f64),
+        cfg: &LmConfig,
+        small_step: Option<f64>,
+        mut solve: impl FnMut(f64) -> Option<Vec<f64>>,
+        objective: impl Fn(&[f64], &[f64]) -> f64,
+    ) -> (Step, usize) {
+        let mut evaluations = 0;
+        while *mu <= cfg.mu_max {
+            let Some(step) = solve(*mu).filter(|s| s.iter().all(|v| v.is_finite())) else {
+                *mu *= cfg.mu_inc;
+                continue;
+            };
+            let mut max_rel = 0.0f64;
+            for ((pn, &pi), &si) in self.p_new.iter_mut().zip(&self.p).zip(&step) {
+                *pn = pi + si;
+                max_rel = max_rel.max(si.abs() / pi.abs().max(1e-300));
+            }
+            problem.residuals(&self.p_new, &mut self.r_new);
+            evaluations += 1;
+            let small = small_step.is_some_and(|s| max_rel < s);
+            let c = objective(&self.p_new, &self.r_new);
+            if c.is_finite() && c < *cost {
+                std::mem::swap(&mut self.p, &mut self.p_new);
+                std::mem::swap(&mut self.r, &mut self.r_new);
+                *cost = c;
+                *mu = (*mu * cfg.mu_dec).max(1e-300);
+                return (Step::Accepted { small }, evaluations);
+            }
+            if small {
+                return (Step::Small, evaluations);
+            }
+            *mu *= cfg.mu_inc;
+        }
+        (Step::MuMax, evaluations)
+    }
+}
+
+/// Why not to start: settings that do not validate, or a start whose objective is not finite.
+pub(crate) fn start_stop(cfg: &LmConfig, finite: bool) -> Option<StopReason> {
+    if cfg.validate().is_err() {
+        Some(StopReason::InvalidConfig)
+    } else if !finite {
+        Some(StopReason::NonFinite)
+    } else {
+        None
+    }
+}
+
+/// Why to stop before an epoch, from the gradient's norm: not finite, or below the smallest.
+pub(crate) fn gradient_stop(gnorm: f64, cfg: &LmConfig) -> Option<StopReason> {
+    if !gnorm.is_finite() {
+        Some(StopReason::NonFinite)
+    } else if gnorm < cfg.min_grad {
+        Some(StopReason::MinGradient)
+    } else {
+        None
+    }
+}
+
 /// The Jacobian at `p`: the problem's structured form when it gave one (the dual system),
 /// otherwise the dense matrix, made in `dense` on first use and reused.
 pub(crate) fn jacobian_at<'a, P: Problem>(
@@ -462,148 +543,89 @@ pub fn minimize<P: Problem>(
     cfg: &LmConfig,
     mut callback: impl FnMut(&Progress<'_>) -> Control,
 ) -> LmOutcome {
-    let Start {
-        n,
-        m,
-        dual,
-        mut p,
-        mut r,
-        mut p_new,
-        mut r_new,
-    } = Start::at(problem, p0);
+    let mut st = Start::at(problem, p0);
+    let (n, m, dual) = (st.n, st.m, st.dual);
     // The dense Jacobian, allocated only if the problem gives no structured one.
     let mut dense: Option<Mat<f64>> = None;
     let mut evaluations = 1;
-    let mut cost = sum_sq(&r);
+    let mut cost = sum_sq(&st.r);
     let mut mu = cfg.mu;
-    let lu_fallbacks = std::cell::Cell::new(0);
-    let outcome = |p: Vec<f64>, cost, iterations, evaluations, mu, reason| LmOutcome {
-        params: p,
+    let mut fallbacks = 0;
+    // Every exit gives why and after how many iterations; the outcome is built once below.
+    let (reason, iterations) = 'run: {
+        if let Some(stop) = start_stop(cfg, cost.is_finite()) {
+            break 'run (stop, 0);
+        }
+        // The Gram matrix and the solver's buffers, once the settings and the start are known
+        // to be usable: allocated once, reused by every iteration and μ trial.
+        let k = if dual { m } else { n };
+        let mut gram = Mat::<f64>::zeros(k, k);
+        let mut solver = DampedSolver::new(k);
+        for iteration in 0..cfg.max_iterations {
+            if cost == 0.0 {
+                break 'run (StopReason::ZeroResidual, iteration);
+            }
+            let structured = dual.then(|| problem.dual_jacobian(&st.p)).flatten();
+            let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
+            let g = jac.transpose_times(&st.r);
+            let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if let Some(stop) = gradient_stop(gnorm, cfg) {
+                break 'run (stop, iteration);
+            }
+            // The Gram matrix once per iteration; μ changes only its diagonal.
+            jac.gram_lower_into(dual, gram.as_mut());
+            let diag: Vec<f64> = match (cfg.damping, dual) {
+                (Damping::Marquardt, false) => (0..k).map(|i| gram[(i, i)].max(1e-300)).collect(),
+                _ => vec![1.0; k],
+            };
+            // Dual: δ = −Jᵀ (JJᵀ + μI)⁻¹ r; primal: δ = −(JᵀJ + μD)⁻¹ Jᵀr.
+            let rhs = if dual { st.r.clone() } else { g };
+            let solve = |mu: f64| {
+                let step = solver.solve(&gram, mu, &diag, &rhs).map(|y| {
+                    let d = if dual { jac.transpose_times(&y) } else { y };
+                    d.iter().map(|v| -v).collect()
+                });
+                fallbacks = solver.fallbacks;
+                step
+            };
+            let (step, evals) = st.damped_step(
+                problem,
+                (&mut mu, &mut cost),
+                cfg,
+                Some(cfg.min_relative_step),
+                solve,
+                |_, r| sum_sq(r),
+            );
+            evaluations += evals;
+            match step {
+                Step::MuMax => break 'run (StopReason::MuMax, iteration + 1),
+                Step::Small | Step::Accepted { small: true } => {
+                    break 'run (StopReason::SmallStep, iteration + 1)
+                }
+                Step::Accepted { small: false } => {}
+            }
+            let progress = Progress {
+                iteration: iteration + 1,
+                cost,
+                mu,
+                gradient_norm: gnorm,
+                params: &st.p,
+            };
+            if callback(&progress) == Control::Stop {
+                break 'run (StopReason::Callback, iteration + 1);
+            }
+        }
+        (StopReason::MaxIterations, cfg.max_iterations)
+    };
+    LmOutcome {
+        params: st.p,
         cost,
         iterations,
         evaluations,
         mu,
         reason,
-        lu_fallbacks: lu_fallbacks.get(),
-    };
-    if cfg.validate().is_err() {
-        return outcome(p, cost, 0, evaluations, mu, StopReason::InvalidConfig);
+        lu_fallbacks: fallbacks,
     }
-    if !cost.is_finite() {
-        return outcome(p, cost, 0, evaluations, mu, StopReason::NonFinite);
-    }
-    // The Gram matrix and the solver's buffers, once the settings and the start are known to be
-    // usable: allocated once, reused by every iteration and μ trial.
-    let k = if dual { m } else { n };
-    let mut gram = Mat::<f64>::zeros(k, k);
-    let mut solver = DampedSolver::new(k);
-    for iteration in 0..cfg.max_iterations {
-        if cost == 0.0 {
-            return outcome(
-                p,
-                cost,
-                iteration,
-                evaluations,
-                mu,
-                StopReason::ZeroResidual,
-            );
-        }
-        let structured = if dual {
-            problem.dual_jacobian(&p)
-        } else {
-            None
-        };
-        let jac = jacobian_at(problem, &p, &structured, &mut dense);
-        let g = jac.transpose_times(&r);
-        let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !gnorm.is_finite() {
-            return outcome(p, cost, iteration, evaluations, mu, StopReason::NonFinite);
-        }
-        if gnorm < cfg.min_grad {
-            return outcome(p, cost, iteration, evaluations, mu, StopReason::MinGradient);
-        }
-        // The Gram matrix once per iteration; μ changes only its diagonal.
-        jac.gram_lower_into(dual, gram.as_mut());
-        let diag: Vec<f64> = match (cfg.damping, dual) {
-            (Damping::Marquardt, false) => (0..k).map(|i| gram[(i, i)].max(1e-300)).collect(),
-            _ => vec![1.0; k],
-        };
-        let mut accepted = false;
-        let mut small_step = false;
-        while mu <= cfg.mu_max {
-            // Dual: δ = −Jᵀ (JJᵀ + μI)⁻¹ r; primal: δ = −(JᵀJ + μD)⁻¹ Jᵀr.
-            let rhs = if dual { &r } else { &g };
-            let step: Option<Vec<f64>> = solver.solve(&gram, mu, &diag, rhs).map(|y| {
-                let d = if dual { jac.transpose_times(&y) } else { y };
-                d.iter().map(|v| -v).collect()
-            });
-            lu_fallbacks.set(solver.fallbacks);
-            let Some(step) = step.filter(|s| s.iter().all(|v| v.is_finite())) else {
-                mu *= cfg.mu_inc;
-                continue;
-            };
-            let mut max_rel = 0.0f64;
-            for i in 0..n {
-                p_new[i] = p[i] + step[i];
-                max_rel = max_rel.max(step[i].abs() / p[i].abs().max(1e-300));
-            }
-            problem.residuals(&p_new, &mut r_new);
-            evaluations += 1;
-            let c = sum_sq(&r_new);
-            if c.is_finite() && c < cost {
-                std::mem::swap(&mut p, &mut p_new);
-                std::mem::swap(&mut r, &mut r_new);
-                cost = c;
-                mu = (mu * cfg.mu_dec).max(1e-300);
-                accepted = true;
-                small_step = max_rel < cfg.min_relative_step;
-                break;
-            }
-            if max_rel < cfg.min_relative_step {
-                small_step = true;
-                break;
-            }
-            mu *= cfg.mu_inc;
-        }
-        if !accepted && !small_step {
-            return outcome(p, cost, iteration + 1, evaluations, mu, StopReason::MuMax);
-        }
-        if small_step {
-            return outcome(
-                p,
-                cost,
-                iteration + 1,
-                evaluations,
-                mu,
-                StopReason::SmallStep,
-            );
-        }
-        let progress = Progress {
-            iteration: iteration + 1,
-            cost,
-            mu,
-            gradient_norm: gnorm,
-            params: &p,
-        };
-        if callback(&progress) == Control::Stop {
-            return outcome(
-                p,
-                cost,
-                iteration + 1,
-                evaluations,
-                mu,
-                StopReason::Callback,
-            );
-        }
-    }
-    outcome(
-        p,
-        cost,
-        cfg.max_iterations,
-        evaluations,
-        mu,
-        StopReason::MaxIterations,
-    )
 }
 
 #[cfg(test)]
