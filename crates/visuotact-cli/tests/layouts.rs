@@ -3,6 +3,11 @@
 //! with no contact-free frame, the temporal prior, and compact warnings — through the
 //! `visuotact` binary as a user runs it.
 
+#![allow(
+    clippy::too_many_lines,
+    reason = "an end-to-end scenario reads top to bottom; split, its steps would scatter"
+)]
+
 use std::path::{Path, PathBuf};
 use std::process::Output;
 

@@ -3,6 +3,11 @@
 //! live with the model, `replay` — and the faults: SIGKILL mid-session then `--resume`, an
 //! unwritable place, a session that exists, `filter` on a bad file.
 
+#![allow(
+    clippy::too_many_lines,
+    reason = "an end-to-end scenario reads top to bottom; split, its steps would scatter"
+)]
+
 use std::path::Path;
 use std::process::Command;
 

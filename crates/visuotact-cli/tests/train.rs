@@ -3,6 +3,11 @@
 //! with features it was not trained on, a half-written model never replacing a good one; an
 //! extra input (the simulated pressure gauge) beside the marker features.
 
+#![allow(
+    clippy::too_many_lines,
+    reason = "an end-to-end scenario reads top to bottom; split, its steps would scatter"
+)]
+
 use std::path::{Path, PathBuf};
 use std::process::Output;
 

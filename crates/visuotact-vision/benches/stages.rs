@@ -1,6 +1,11 @@
 //! Criterion benches for each stage of the frame → features pipeline on a 640×480 frame with
 //! 117 markers (the IATS test pattern, pressed and dragged).
 
+#![allow(
+    clippy::too_many_lines,
+    reason = "one benchmark group per pipeline stage, set up on the same frames"
+)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 use visuotact_image::GrayImage;

@@ -357,6 +357,27 @@ pub fn blobs_weighted_from_gray_into(
     label_pass(img, level, region, connectivity, s, out, Some(centroids));
 }
 
+/// Columns `[xa, xb)` of a row inside the processed region.
+type Chord = (usize, usize);
+
+/// One row's geometry for labelling: the row, the processed rectangle's columns, the
+/// circle's chord on it and on its neighbours, and the neighbourhood's reach.
+struct RowSpan {
+    y: usize,
+    /// Where the row's first processed pixel sits in the image (per-pixel levels).
+    at: usize,
+    /// The processed rectangle's first and past-the-last columns.
+    rx: (usize, usize),
+    /// The circle's chord `[xa, xb)` on this row (the rectangle without a circle).
+    chord: (usize, usize),
+    /// The chords of the rows above and below, with a circular mask.
+    around: [Option<Chord>; 2],
+    /// 1 for 8-connectivity (diagonal runs touch), 0 for 4.
+    gap: u32,
+}
+
+/// The fused threshold + labelling + moments pass (one pass over the rows, union–find on
+/// runs, moments accumulated per run); with `centroids`, also the grey-weighted ones.
 fn label_pass(
     img: &GrayImage,
     level: Level<'_>,
@@ -371,7 +392,6 @@ fn label_pass(
         c.clear();
     }
     let weighted = centroids.is_some();
-    s.wacc.clear();
     let (w, h) = (img.width(), img.height());
     let roi = region.roi.unwrap_or(Roi {
         x: 0,
@@ -379,31 +399,16 @@ fn label_pass(
         width: w,
         height: h,
     });
-    let rx0 = roi.x.min(w);
-    let ry0 = roi.y.min(h);
-    let rx1 = (roi.x + roi.width).min(w);
-    let ry1 = (roi.y + roi.height).min(h);
+    let (rx0, ry0) = (roi.x.min(w), roi.y.min(h));
+    let (rx1, ry1) = ((roi.x + roi.width).min(w), (roi.y + roi.height).min(h));
     if rx1 <= rx0 || ry1 <= ry0 {
+        s.wacc.clear();
         return;
     }
     if let Level::PerPixel(l) = level {
         assert_eq!(l.len(), w * h, "per-pixel levels must match the image size");
     }
-    let span = rx1 - rx0;
-    s.bytes.resize(span, 0);
-    s.bits.resize(span.div_ceil(64), 0);
-    s.prev.clear();
-    s.cur.clear();
-    s.parent.clear();
-    s.acc.clear();
-    if s.sq.len() != w + 1 {
-        s.sq.clear();
-        s.sq.push(0);
-        for x in 0..w as u64 {
-            let last = s.sq[x as usize];
-            s.sq.push(last + x * x);
-        }
-    }
+    s.reset(rx1 - rx0, w);
     let gap = match connectivity {
         Connectivity::Eight => 1u32,
         Connectivity::Four => 0u32,
@@ -431,32 +436,80 @@ fn label_pass(
         }
         // With a circular mask, a run whose end or 8-neighbours in the rows above and below
         // fall outside the chords touches the mask's edge.
-        let (above, below) = match region.circle {
-            Some(_) => (
+        let around = match region.circle {
+            Some(_) => [
                 (y > ry0).then(|| chord(y - 1)),
                 (y + 1 < ry1).then(|| chord(y + 1)),
-            ),
-            None => (None, None),
+            ],
+            None => [None, None],
         };
         let row = &img.row(y)[rx0..rx1];
-        match level {
-            Level::Scalar(t) => crate::kernels::above_bits(row, t, &mut s.bits),
-            Level::PerPixel(l) => {
-                let lrow = &l[y * w + rx0..y * w + rx1];
-                let bytes = &mut s.bytes[..];
-                for ((o, &v), &t) in bytes.iter_mut().zip(row).zip(lrow) {
-                    *o = u8::from(f32::from(v) > t);
-                }
-                crate::kernels::pack_bits(bytes, &mut s.bits);
-            }
-        }
+        s.threshold_row(row, level, (y * w + rx0, y * w + rx1));
         if xa > rx0 || xb < rx1 {
             clear_bits_outside(&mut s.bits, xa - rx0, xb - rx0);
         }
-        // Runs from bit words.
-        s.cur.clear();
+        s.runs_from_bits(rx1 - rx0);
+        let span = RowSpan {
+            y,
+            at: y * w + rx0,
+            rx: (rx0, rx1),
+            chord: (xa, xb),
+            around,
+            gap,
+        };
+        s.label_row(&span, row, level, weighted, region.circle.is_some());
+        std::mem::swap(&mut s.prev, &mut s.cur);
+    }
+    s.fold_labels(weighted);
+    s.emit(
+        (rx0 as u32, ry0 as u32, rx1 as u32, ry1 as u32),
+        out,
+        centroids,
+    );
+}
+
+impl BlobScratch {
+    /// Empties the per-image state for a rectangle `span` columns wide in an image `w` wide.
+    fn reset(&mut self, span: usize, w: usize) {
+        self.wacc.clear();
+        self.bytes.resize(span, 0);
+        self.bits.resize(span.div_ceil(64), 0);
+        self.prev.clear();
+        self.cur.clear();
+        self.parent.clear();
+        self.acc.clear();
+        if self.sq.len() != w + 1 {
+            self.sq.clear();
+            self.sq.push(0);
+            for x in 0..w as u64 {
+                let last = self.sq[x as usize];
+                self.sq.push(last + x * x);
+            }
+        }
+    }
+
+    /// The row's foreground as bits: above the level (`at`: the row's range in per-pixel
+    /// levels).
+    #[inline]
+    fn threshold_row(&mut self, row: &[u8], level: Level<'_>, at: (usize, usize)) {
+        match level {
+            Level::Scalar(t) => crate::kernels::above_bits(row, t, &mut self.bits),
+            Level::PerPixel(l) => {
+                let lrow = &l[at.0..at.1];
+                for ((o, &v), &t) in self.bytes.iter_mut().zip(row).zip(lrow) {
+                    *o = u8::from(f32::from(v) > t);
+                }
+                crate::kernels::pack_bits(&self.bytes, &mut self.bits);
+            }
+        }
+    }
+
+    /// The runs of set bits of a row `span` columns wide into `cur`.
+    #[inline]
+    fn runs_from_bits(&mut self, span: usize) {
+        self.cur.clear();
         let mut open: Option<u32> = None;
-        for (wi, &word) in s.bits.iter().enumerate() {
+        for (wi, &word) in self.bits.iter().enumerate() {
             let base = (wi * 64) as u32;
             let mut wv = word;
             let mut pos = 0u32;
@@ -468,7 +521,7 @@ fn label_pass(
                         break; // run continues into the next word
                     }
                     let end = base + pos + zeros; // exclusive
-                    s.cur.push(Run {
+                    self.cur.push(Run {
                         x0: start,
                         x1: end - 1,
                         label: 0,
@@ -488,50 +541,64 @@ fn label_pass(
             }
         }
         if let Some(start) = open {
-            s.cur.push(Run {
+            self.cur.push(Run {
                 x0: start,
                 x1: span as u32 - 1,
                 label: 0,
             });
         }
-        // Label against the previous row.
-        let yy = y as u32;
+    }
+
+    /// Labels the row's runs against the previous row's (union–find) and adds each run to its
+    /// label's moments (and grey-weighted sums when `weighted`).
+    #[inline]
+    fn label_row(
+        &mut self,
+        span: &RowSpan,
+        row: &[u8],
+        level: Level<'_>,
+        weighted: bool,
+        circle: bool,
+    ) {
+        let (rx0, rx1) = span.rx;
+        let (xa, xb) = span.chord;
+        let yy = span.y as u32;
         let mut j = 0usize;
-        for r in s.cur.iter_mut() {
-            while j < s.prev.len() && s.prev[j].x1 + gap < r.x0 {
+        for r in self.cur.iter_mut() {
+            while j < self.prev.len() && self.prev[j].x1 + span.gap < r.x0 {
                 j += 1;
             }
             let mut label = u32::MAX;
             let mut k = j;
-            while k < s.prev.len() && s.prev[k].x0 <= r.x1 + gap {
-                let pl = s.prev[k].label;
+            while k < self.prev.len() && self.prev[k].x0 <= r.x1 + span.gap {
+                let pl = self.prev[k].label;
                 label = if label == u32::MAX {
-                    find(&mut s.parent, pl)
+                    find(&mut self.parent, pl)
                 } else {
-                    union(&mut s.parent, label, pl)
+                    union(&mut self.parent, label, pl)
                 };
                 k += 1;
             }
             if label == u32::MAX {
-                label = s.parent.len() as u32;
-                s.parent.push(label);
-                s.acc.push(Acc::fresh());
+                label = self.parent.len() as u32;
+                self.parent.push(label);
+                self.acc.push(Acc::fresh());
                 if weighted {
-                    s.wacc.push([0.0; 3]);
+                    self.wacc.push([0.0; 3]);
                 }
             }
             r.label = label;
             let (a, b) = (r.x0 as usize + rx0, r.x1 as usize + rx0);
-            let acc = &mut s.acc[label as usize];
-            acc.add_run(yy, a as u32, b as u32, &s.sq);
-            if region.circle.is_some() {
+            let acc = &mut self.acc[label as usize];
+            acc.add_run(yy, a as u32, b as u32, &self.sq);
+            if circle {
                 let outside = |c: Option<(usize, usize)>| {
                     c.is_some_and(|(ca, cb)| cb <= ca || a < ca + 1 || b + 2 > cb)
                 };
                 acc.edge |= (a == xa && xa > rx0)
                     || (b + 1 == xb && xb < rx1)
-                    || outside(above)
-                    || outside(below);
+                    || outside(span.around[0])
+                    || outside(span.around[1]);
             }
             if weighted {
                 let (a, b) = (r.x0 as usize, r.x1 as usize);
@@ -539,46 +606,56 @@ fn label_pass(
                 let (sw, swx) = match level {
                     Level::Scalar(t) => run_weights_scalar(&row[a..=b], t, (rx0 + a) as f64),
                     Level::PerPixel(l) => {
-                        let at = y * w + rx0;
+                        let at = span.at;
                         run_weights_levels(&row[a..=b], &l[at + a..=at + b], (rx0 + a) as f64)
                     }
                 };
-                let acc = &mut s.wacc[label as usize];
+                let acc = &mut self.wacc[label as usize];
                 acc[0] += sw;
                 acc[1] += swx;
-                acc[2] += sw * y as f64;
+                acc[2] += sw * span.y as f64;
             }
         }
-        std::mem::swap(&mut s.prev, &mut s.cur);
     }
-    // Fold provisional labels into their roots (roots are the smallest label of each set, so
-    // blobs come out in raster order of their first pixel).
-    let rect = (rx0 as u32, ry0 as u32, rx1 as u32, ry1 as u32);
-    for l in 0..s.parent.len() as u32 {
-        let r = find(&mut s.parent, l);
-        if r != l {
-            let a = s.acc[l as usize];
-            s.acc[r as usize].merge(&a);
-            if weighted {
-                let wa = s.wacc[l as usize];
-                for (d, v) in s.wacc[r as usize].iter_mut().zip(wa) {
-                    *d += v;
+
+    /// One blob per root label, in label order (and its grey-weighted centroid when asked).
+    fn emit(
+        &self,
+        rect: (u32, u32, u32, u32),
+        out: &mut Vec<Blob>,
+        mut centroids: Option<&mut Vec<(f64, f64)>>,
+    ) {
+        for l in 0..self.parent.len() {
+            if self.parent[l] == l as u32 {
+                let b = self.acc[l].blob(rect);
+                if let Some(c) = centroids.as_mut() {
+                    let [sw, sx, sy] = self.wacc[l];
+                    c.push(if sw > 0.0 {
+                        (sx / sw, sy / sw)
+                    } else {
+                        (b.x_px, b.y_px)
+                    });
+                }
+                out.push(b);
+            }
+        }
+    }
+
+    /// Folds provisional labels into their roots (roots are the smallest label of each set, so
+    /// blobs come out in raster order of their first pixel).
+    fn fold_labels(&mut self, weighted: bool) {
+        for l in 0..self.parent.len() as u32 {
+            let r = find(&mut self.parent, l);
+            if r != l {
+                let a = self.acc[l as usize];
+                self.acc[r as usize].merge(&a);
+                if weighted {
+                    let wa = self.wacc[l as usize];
+                    for (d, v) in self.wacc[r as usize].iter_mut().zip(wa) {
+                        *d += v;
+                    }
                 }
             }
-        }
-    }
-    for l in 0..s.parent.len() {
-        if s.parent[l] == l as u32 {
-            let b = s.acc[l].blob(rect);
-            if let Some(c) = centroids.as_mut() {
-                let [sw, sx, sy] = s.wacc[l];
-                c.push(if sw > 0.0 {
-                    (sx / sw, sy / sw)
-                } else {
-                    (b.x_px, b.y_px)
-                });
-            }
-            out.push(b);
         }
     }
 }

@@ -267,25 +267,16 @@ pub struct CalibrationReport {
     pub level: Option<u8>,
 }
 
-/// Builds a calibration from still frames `(id, image)`.
-pub fn calibrate<'a, I>(
-    frames: I,
-    cfg: &CalibrationConfig,
-) -> Result<(SensorCalibration, CalibrationReport), CalibrationError>
-where
-    I: IntoIterator<Item = (&'a str, &'a RgbImage)>,
-{
-    let detector = cfg.detector.clone();
-    let frames: Vec<(&str, &RgbImage)> = frames.into_iter().collect();
-    let Some(&(_, first)) = frames.first() else {
-        return Err(CalibrationError::NoFrames);
-    };
-    let (w, h) = (first.width(), first.height());
-    let mut det = Detector::new(detector.clone()).map_err(CalibrationError::Config)?;
+/// The mean of `frames` in the detector's working channel, rounded.
+fn mean_frame(
+    frames: &[(&str, &RgbImage)],
+    detector: &DetectorConfig,
+    (w, h): (usize, usize),
+) -> Result<GrayImage, CalibrationError> {
     // Mean of the frames in the working channel.
     let mut sum = vec![0u32; w * h];
     let mut gray = GrayImage::new(0, 0);
-    for &(id, img) in &frames {
+    for &(id, img) in frames {
         same_size(id, img, (w, h))?;
         gray_from_rgb_into(
             img,
@@ -298,24 +289,17 @@ where
             .for_each(|(s, &v)| *s += u32::from(v));
     }
     let n = frames.len() as u32;
-    let mean = GrayImage::from_vec(
+    GrayImage::from_vec(
         w,
         h,
         sum.iter().map(|&s| ((2 * s + n) / (2 * n)) as u8).collect(),
     )
-    .map_err(|e| CalibrationError::Config(crate::ConfigError(e.to_string())))?;
-    let mut blobs = Vec::new();
-    let detection = det.detect_gray_into(&mean, &mut blobs);
-    if blobs.is_empty() {
-        return Err(CalibrationError::NoMarkers {
-            threshold: detection
-                .level
-                .map_or("adaptive".to_string(), |t| format!("level {t}")),
-            raw: detection.raw_count,
-        });
-    }
-    // Markers are alike in size: interior blobs under a fifth of the median interior area are
-    // specks, not markers (border blobs are cut markers and may be any size).
+    .map_err(|e| CalibrationError::Config(crate::ConfigError(e.to_string())))
+}
+
+/// Markers are alike in size: interior blobs under a fifth of the median interior area are
+/// specks, not markers (border blobs are cut markers and may be any size).
+fn drop_specks(blobs: &mut Vec<Blob>) {
     let mut interior: Vec<u32> = blobs
         .iter()
         .filter(|b| !b.touches_border)
@@ -326,15 +310,18 @@ where
         let floor = interior[interior.len() / 2] / 5;
         blobs.retain(|b| b.touches_border || b.area_px >= floor);
     }
-    let convention = MomentConvention::Pixel;
-    let mut report = CalibrationReport {
-        raw_blobs: detection.raw_count,
-        candidate_blobs: blobs.len(),
-        level: detection.level,
-        ..Default::default()
-    };
-    let annuli = annuli_share_centres(&blobs);
-    let rings = match cfg.layout {
+}
+
+/// The blobs numbered by `layout`: concentric annuli in ring order, else by the layout found
+/// (the blobs off it listed in `report`).
+fn number_blobs(
+    blobs: &[Blob],
+    layout: LayoutChoice,
+    convention: MomentConvention,
+    report: &mut CalibrationReport,
+) -> Result<Ordered, CalibrationError> {
+    let annuli = annuli_share_centres(blobs);
+    let rings = match layout {
         LayoutChoice::Auto => annuli,
         LayoutChoice::Only(Layout::Rings) if !annuli => {
             let pts: Vec<(f64, f64)> = blobs.iter().map(|b| (b.x_px, b.y_px)).collect();
@@ -349,11 +336,11 @@ where
         }
         LayoutChoice::Only(l) => l == Layout::Rings,
     };
-    let numbered = if rings {
-        rings_order(&blobs, convention)
+    Ok(if rings {
+        rings_order(blobs, convention)
     } else {
         let pts: Vec<(f64, f64)> = blobs.iter().map(|b| (b.x_px, b.y_px)).collect();
-        let num = number_markers(&pts, cfg.layout)?;
+        let num = number_markers(&pts, layout)?;
         report.off_grid = num.left_out.iter().map(|&i| pts[i]).collect();
         Ordered {
             layout: num.layout,
@@ -368,10 +355,12 @@ where
             pitch_px: num.pitch_px,
             neighbours: num.neighbours,
         }
-    };
-    report.layout = numbered.layout;
-    let (layout, pitch) = (numbered.layout, numbered.pitch_px);
-    let mut markers: Vec<ReferenceMarker> = numbered
+    })
+}
+
+/// The reference markers of numbered blobs (jitter still unknown).
+fn reference_markers(numbered: &Ordered, convention: MomentConvention) -> Vec<ReferenceMarker> {
+    numbered
         .blobs
         .iter()
         .zip(&numbered.neighbours)
@@ -393,29 +382,23 @@ where
                 neighbours: nb.clone(),
             }
         })
-        .collect();
-    let mut cal = SensorCalibration {
-        format: SENSOR_FORMAT.to_string(),
-        version: SENSOR_VERSION,
-        image_width: w,
-        image_height: h,
-        detector,
-        layout,
-        moment_convention: convention,
-        track: cfg.track,
-        features: cfg.features,
-        reference_frames: frames.iter().map(|(id, _)| id.to_string()).collect(),
-        reference: ReferenceInfo::still(),
-        grid_rows: numbered.rows,
-        grid_cols: numbered.cols,
-        pitch_px: pitch,
-        markers: Vec::new(),
-    };
-    // Jitter: track each still frame against the mean reference (major axes as tracked).
-    let reference = track_reference(&markers, pitch, layout);
+        .collect()
+}
+
+/// Jitter: tracks each still frame against the mean reference (major axes as tracked); each
+/// marker's RMS distance from its mean position, and the markers missing per frame.
+fn measure_jitter(
+    frames: &[(&str, &RgbImage)],
+    det: &mut Detector,
+    cal: &mut SensorCalibration,
+    report: &mut CalibrationReport,
+) {
+    let markers = &mut cal.markers;
+    let mut blobs = Vec::new();
+    let reference = track_reference(markers, cal.pitch_px, cal.layout);
     let mut sq = vec![0.0f64; markers.len()];
     let mut cnt = vec![0u32; markers.len()];
-    for &(id, img) in &frames {
+    for &(id, img) in frames {
         det.detect_into(img, &mut blobs);
         let t = track(&reference, &blobs, &cal.track);
         let mut missing = 0;
@@ -437,7 +420,63 @@ where
     for (m, (s, c)) in markers.iter_mut().zip(sq.iter().zip(&cnt)) {
         m.jitter_px = (*c > 0).then(|| (s / f64::from(*c)).sqrt());
     }
-    cal.markers = markers;
+}
+
+/// Builds a calibration from still frames `(id, image)`.
+pub fn calibrate<'a, I>(
+    frames: I,
+    cfg: &CalibrationConfig,
+) -> Result<(SensorCalibration, CalibrationReport), CalibrationError>
+where
+    I: IntoIterator<Item = (&'a str, &'a RgbImage)>,
+{
+    let detector = cfg.detector.clone();
+    let frames: Vec<(&str, &RgbImage)> = frames.into_iter().collect();
+    let Some(&(_, first)) = frames.first() else {
+        return Err(CalibrationError::NoFrames);
+    };
+    let (w, h) = (first.width(), first.height());
+    let mut det = Detector::new(detector.clone()).map_err(CalibrationError::Config)?;
+    let mean = mean_frame(&frames, &detector, (w, h))?;
+    let mut blobs = Vec::new();
+    let detection = det.detect_gray_into(&mean, &mut blobs);
+    if blobs.is_empty() {
+        return Err(CalibrationError::NoMarkers {
+            threshold: detection
+                .level
+                .map_or("adaptive".to_string(), |t| format!("level {t}")),
+            raw: detection.raw_count,
+        });
+    }
+    drop_specks(&mut blobs);
+    let convention = MomentConvention::Pixel;
+    let mut report = CalibrationReport {
+        raw_blobs: detection.raw_count,
+        candidate_blobs: blobs.len(),
+        level: detection.level,
+        ..Default::default()
+    };
+    let numbered = number_blobs(&blobs, cfg.layout, convention, &mut report)?;
+    report.layout = numbered.layout;
+    let (layout, pitch) = (numbered.layout, numbered.pitch_px);
+    let mut cal = SensorCalibration {
+        format: SENSOR_FORMAT.to_string(),
+        version: SENSOR_VERSION,
+        image_width: w,
+        image_height: h,
+        detector,
+        layout,
+        moment_convention: convention,
+        track: cfg.track,
+        features: cfg.features,
+        reference_frames: frames.iter().map(|(id, _)| id.to_string()).collect(),
+        reference: ReferenceInfo::still(),
+        grid_rows: numbered.rows,
+        grid_cols: numbered.cols,
+        pitch_px: pitch,
+        markers: reference_markers(&numbered, convention),
+    };
+    measure_jitter(&frames, &mut det, &mut cal, &mut report);
     Ok((cal, report))
 }
 
@@ -602,6 +641,64 @@ impl LightestSelection {
     }
 }
 
+/// Each marker's rest position: the median of its tracked positions over the frames.
+fn rest_positions(tracked: &[Vec<Option<(f64, f64)>>], m: usize) -> Vec<Option<(f64, f64)>> {
+    (0..m)
+        .map(|i| {
+            let mut xs: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.0)).collect();
+            let mut ys: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.1)).collect();
+            (!xs.is_empty()).then(|| (median(&mut xs), median(&mut ys)))
+        })
+        .collect()
+}
+
+/// Each frame's RMS distance of its markers from rest, with the frame's index, for frames
+/// with 90 % of the `m` markers tracked.
+fn deformations(
+    tracked: &[Vec<Option<(f64, f64)>>],
+    rest: &[Option<(f64, f64)>],
+    m: usize,
+) -> Vec<(f64, usize)> {
+    tracked
+        .iter()
+        .enumerate()
+        .filter_map(|(k, t)| {
+            let (mut sq, mut c) = (0.0, 0usize);
+            for (p, r) in t.iter().zip(rest) {
+                if let (Some(p), Some(r)) = (p, r) {
+                    sq += (p.0 - r.0).powi(2) + (p.1 - r.1).powi(2);
+                    c += 1;
+                }
+            }
+            (10 * c >= 9 * m).then(|| ((sq / c as f64).sqrt(), k))
+        })
+        .collect()
+}
+
+/// The chosen frames' mean position per marker against the rest estimate: RMS and worst.
+fn residual(
+    tracked: &[Vec<Option<(f64, f64)>>],
+    rest: &[Option<(f64, f64)>],
+    chosen: &[(f64, usize)],
+) -> (f64, f64) {
+    let (mut sq, mut c, mut worst) = (0.0, 0usize, 0.0f64);
+    for (i, r) in rest.iter().enumerate() {
+        let Some(r) = r else { continue };
+        let ps: Vec<(f64, f64)> = chosen.iter().filter_map(|&(_, k)| tracked[k][i]).collect();
+        if ps.is_empty() {
+            continue;
+        }
+        let k = ps.len() as f64;
+        let mx = ps.iter().map(|p| p.0).sum::<f64>() / k;
+        let my = ps.iter().map(|p| p.1).sum::<f64>() / k;
+        let d2 = (mx - r.0).powi(2) + (my - r.1).powi(2);
+        sq += d2;
+        c += 1;
+        worst = worst.max(d2.sqrt());
+    }
+    (if c > 0 { (sq / c as f64).sqrt() } else { 0.0 }, worst)
+}
+
 /// Finds the lightest frames of a data set in one pass over its frames (only their blobs are
 /// kept): [`LightestFinder::add`] every frame, then [`LightestFinder::choose`].
 #[derive(Debug)]
@@ -679,27 +776,8 @@ impl LightestFinder {
                     .collect()
             })
             .collect();
-        let rest: Vec<Option<(f64, f64)>> = (0..m)
-            .map(|i| {
-                let mut xs: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.0)).collect();
-                let mut ys: Vec<f64> = tracked.iter().filter_map(|t| t[i].map(|p| p.1)).collect();
-                (!xs.is_empty()).then(|| (median(&mut xs), median(&mut ys)))
-            })
-            .collect();
-        let mut scored: Vec<(f64, usize)> = tracked
-            .iter()
-            .enumerate()
-            .filter_map(|(k, t)| {
-                let (mut sq, mut c) = (0.0, 0usize);
-                for (p, r) in t.iter().zip(&rest) {
-                    if let (Some(p), Some(r)) = (p, r) {
-                        sq += (p.0 - r.0).powi(2) + (p.1 - r.1).powi(2);
-                        c += 1;
-                    }
-                }
-                (10 * c >= 9 * m).then(|| ((sq / c as f64).sqrt(), k))
-            })
-            .collect();
+        let rest = rest_positions(&tracked, m);
+        let mut scored = deformations(&tracked, &rest, m);
         let usable = scored.len();
         if usable < n {
             return fail(format!(
@@ -711,22 +789,7 @@ impl LightestFinder {
         let mut all: Vec<f64> = scored.iter().map(|s| s.0).collect();
         let median_deformation_px = median(&mut all);
         let chosen = &scored[..n];
-        // The chosen frames' mean position per marker against the rest estimate.
-        let (mut sq, mut c, mut worst) = (0.0, 0usize, 0.0f64);
-        for (i, r) in rest.iter().enumerate() {
-            let Some(r) = r else { continue };
-            let ps: Vec<(f64, f64)> = chosen.iter().filter_map(|&(_, k)| tracked[k][i]).collect();
-            if ps.is_empty() {
-                continue;
-            }
-            let k = ps.len() as f64;
-            let mx = ps.iter().map(|p| p.0).sum::<f64>() / k;
-            let my = ps.iter().map(|p| p.1).sum::<f64>() / k;
-            let d2 = (mx - r.0).powi(2) + (my - r.1).powi(2);
-            sq += d2;
-            c += 1;
-            worst = worst.max(d2.sqrt());
-        }
+        let (residual_px, residual_max_px) = residual(&tracked, &rest, chosen);
         Ok(LightestSelection {
             chosen: chosen
                 .iter()
@@ -736,8 +799,8 @@ impl LightestFinder {
             considered: self.frames.len(),
             usable,
             median_deformation_px,
-            residual_px: if c > 0 { (sq / c as f64).sqrt() } else { 0.0 },
-            residual_max_px: worst,
+            residual_px,
+            residual_max_px,
         })
     }
 }

@@ -366,31 +366,16 @@ impl FeatureExtractor {
         &self.last_track
     }
 
-    /// Features of `rgb` into `out` (buffers reused).
-    pub fn extract_into(
-        &mut self,
-        rgb: &RgbImage,
-        out: &mut FrameFeatures,
-    ) -> Result<(), FrameSizeError> {
-        if (rgb.width(), rgb.height()) != (self.cal.image_width, self.cal.image_height) {
-            return Err(FrameSizeError {
-                expected_w: self.cal.image_width,
-                expected_h: self.cal.image_height,
-                got_w: rgb.width(),
-                got_h: rgb.height(),
-            });
-        }
-        self.detector.detect_into(rgb, &mut self.blobs);
-        // Markers cut by the border go after the measurable blobs: they explain an absence.
-        self.cut = self.detector.last_cut().len();
-        self.blobs.extend_from_slice(self.detector.last_cut());
+    /// Tracks this frame's blobs: from the last frame's positions when tracking is temporal
+    /// and the last frame found markers, else (or when that loses track) from the reference.
+    fn track(&self) -> TrackResult {
         let view = Some(self.view);
         let from_reference = TrackHints {
             cut: self.cut,
             prior: None,
             view,
         };
-        self.last_track = if self.temporal && self.prior.iter().any(Option::is_some) {
+        if self.temporal && self.prior.iter().any(Option::is_some) {
             let t = track_with(
                 &self.reference,
                 &self.blobs,
@@ -426,14 +411,11 @@ impl FeatureExtractor {
                 &self.cal.track,
                 from_reference,
             )
-        };
-        if self.temporal {
-            let blobs = &self.blobs;
-            self.prior.clear();
-            let t = &self.last_track;
-            self.prior
-                .extend((0..t.status.len()).map(|i| t.position_px(i, blobs)));
         }
+    }
+
+    /// The markers' features of the last track into `out` (statuses and values).
+    fn marker_values_into(&self, out: &mut FrameFeatures) {
         let t = &self.last_track;
         out.values.clear();
         out.status.clear();
@@ -465,6 +447,36 @@ impl FeatureExtractor {
                     .push(b.map_or(f64::NAN, |b| b.shape(conv).eccentricity - m.eccentricity));
             }
         }
+    }
+
+    /// Features of `rgb` into `out` (buffers reused).
+    pub fn extract_into(
+        &mut self,
+        rgb: &RgbImage,
+        out: &mut FrameFeatures,
+    ) -> Result<(), FrameSizeError> {
+        if (rgb.width(), rgb.height()) != (self.cal.image_width, self.cal.image_height) {
+            return Err(FrameSizeError {
+                expected_w: self.cal.image_width,
+                expected_h: self.cal.image_height,
+                got_w: rgb.width(),
+                got_h: rgb.height(),
+            });
+        }
+        self.detector.detect_into(rgb, &mut self.blobs);
+        // Markers cut by the border go after the measurable blobs: they explain an absence.
+        self.cut = self.detector.last_cut().len();
+        self.blobs.extend_from_slice(self.detector.last_cut());
+        self.last_track = self.track();
+        if self.temporal {
+            let blobs = &self.blobs;
+            self.prior.clear();
+            let t = &self.last_track;
+            self.prior
+                .extend((0..t.status.len()).map(|i| t.position_px(i, blobs)));
+        }
+        self.marker_values_into(out);
+        let t = &self.last_track;
         let blobs = &self.blobs;
         let field = FieldSummary::of(self.cal.markers.iter().enumerate().map(|(i, m)| {
             let d = t

@@ -1046,6 +1046,150 @@ pub fn track(reference: &TrackReference, blobs: &[Blob], cfg: &TrackConfig) -> T
     track_with(reference, blobs, cfg, TrackHints::default())
 }
 
+/// Where each marker starts from the last frame's positions `p`: its own, or for a marker the
+/// last frame did not have, where its neighbours' motion since the reference puts it.
+fn anchors_from_prior(reference: &TrackReference, p: &[Option<(f64, f64)>]) -> Vec<(f64, f64)> {
+    (0..reference.positions.len())
+        .map(|i| {
+            let r = reference.positions[i];
+            p[i].unwrap_or_else(|| {
+                let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
+                for &j in &reference.neighbours[i] {
+                    if let Some(q) = p[j] {
+                        let rj = reference.positions[j];
+                        sx += q.0 - rj.0;
+                        sy += q.1 - rj.1;
+                        k += 1.0;
+                    }
+                }
+                if k > 0.0 {
+                    (r.0 + sx / k, r.1 + sy / k)
+                } else {
+                    r
+                }
+            })
+        })
+        .collect()
+}
+
+/// The unmatched markers' statuses, the blobs that swallowed a neighbour, and (blob, marker,
+/// predicted position, local magnification) of every merged marker.
+struct Classified {
+    status: Vec<MarkerStatus>,
+    merged_blob: Vec<bool>,
+    on_blob: Vec<(usize, usize, (f64, f64), f64)>,
+}
+
+impl Matching<'_> {
+    /// A marker without a blob, or a blob without a marker: the growth may have followed a
+    /// lattice-shifted path (a region dragged by about a pitch leaves a hole at one end and a
+    /// spare blob at the other). Matches everything at once instead; keeps whichever result
+    /// matches more markers (then the smoother one).
+    fn rematch_if_better(&mut self, predicted: &[(f64, f64)]) {
+        let m = self;
+        if m.assignment.iter().any(Option::is_none) || m.taken.iter().any(|t| !t) {
+            let lost_cost = 1.0;
+            let before = (m.assignment.clone(), m.disp.clone(), m.taken.clone());
+            let found = |m: &Matching<'_>| m.assignment.iter().filter(|a| a.is_some()).count();
+            let (found_before, e_before) = (found(m), m.energy(lost_cost));
+            m.reassign(predicted);
+            let found_after = found(m);
+            let better = found_after > found_before
+                || (found_after == found_before && m.energy(lost_cost) < e_before);
+            if better {
+                // The reassignment fills holes from afar: a marker it gave a blob its neighbours
+                // do not agree with (a piece of a neighbour's blob) is released and grown again.
+                if m.verify() > 0 {
+                    m.grow();
+                }
+            } else {
+                (m.assignment, m.disp, m.taken) = before;
+            }
+        }
+    }
+
+    /// Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
+    fn look_up_unreached(&mut self, predicted: &[(f64, f64)]) {
+        let (reference, cfg) = (self.reference, self.cfg);
+        for (i, &p) in predicted.iter().enumerate() {
+            if self.assignment[i].is_none() && self.support(i) == 0 {
+                let s = reference.spacing_px[i];
+                let (best, second) = nearest_two(p, &self.index, &self.taken, cfg.gate_pitches * s);
+                if let Some((j, d)) = best {
+                    if second >= cfg.ambiguity_ratio * d.max(0.05 * s) {
+                        self.take(i, j);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Classifies the unmatched markers: merged (a blob covering the prediction and much
+    /// larger than the marker), ambiguous or lost.
+    fn classify_unmatched(&self, predicted: &[(f64, f64)], usable: usize) -> Classified {
+        let (m, reference, blobs, cfg) = (self, self.reference, self.blobs, self.cfg);
+        let n = reference.positions.len();
+        let mut status = vec![MarkerStatus::Ok; n];
+        let mut merged_blob = vec![false; blobs.len()];
+        // (blob, marker, predicted position, local magnification) of every merged marker.
+        let mut on_blob: Vec<(usize, usize, (f64, f64), f64)> = Vec::new();
+        let matched = m.matched();
+        // The marker holding each blob.
+        let mut owner: Vec<Option<usize>> = vec![None; blobs.len()];
+        for (i, a) in m.assignment.iter().enumerate() {
+            if let Some(j) = *a {
+                owner[j] = Some(i);
+            }
+        }
+        for i in 0..n {
+            if m.assignment[i].is_some() {
+                continue;
+            }
+            let (pred, scale) = m.predict(i, &matched).unwrap_or((predicted[i], 1.0));
+            let expected_area = reference.areas_px[i] * scale * scale;
+            // A blob covering the prediction and much larger than this marker: merged (with the
+            // marker that took it, or with a neighbour that is also left without a blob).
+            // The prediction may miss a merged blob's box by a little: the pair's centroid sits
+            // between the two markers.
+            let margin = 0.3 * reference.spacing_px[i] - 0.5;
+            let merged_with = blobs[..usable].iter().enumerate().find(|&(j, b)| {
+                let owner_area =
+                    owner[j].map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
+                f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area.min(owner_area)
+                    && pred.0 >= f64::from(b.bbox.x0) - margin
+                    && pred.0 <= f64::from(b.bbox.x1) + margin - 1.0
+                    && pred.1 >= f64::from(b.bbox.y0) - margin
+                    && pred.1 <= f64::from(b.bbox.y1) + margin - 1.0
+            });
+            status[i] = if let Some((j, _)) = merged_with {
+                // The owner of that blob is merged too: its centroid is no longer its own.
+                if let Some(k) = owner[j] {
+                    status[k] = MarkerStatus::Merged;
+                    let (pk, sk) = m.predict(k, &matched).unwrap_or((predicted[k], 1.0));
+                    on_blob.push((j, k, pk, sk));
+                }
+                on_blob.push((j, i, pred, scale));
+                merged_blob[j] = true;
+                MarkerStatus::Merged
+            } else {
+                let s = reference.spacing_px[i];
+                let (best, second) = nearest_two(pred, &m.index, &m.taken, cfg.gate_pitches * s);
+                match best {
+                    Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * s) => {
+                        MarkerStatus::Ambiguous
+                    }
+                    _ => MarkerStatus::Lost,
+                }
+            };
+        }
+        Classified {
+            status,
+            merged_blob,
+            on_blob,
+        }
+    }
+}
+
 /// Matches every reference marker to at most one blob of the frame, with `hints`: markers cut
 /// by the border, and a temporal prior (without one, tracking starts from the reference after
 /// the registration's overall motion).
@@ -1064,29 +1208,7 @@ pub fn track_with(
     let index = BlobIndex::new(blobs, reference.pitch_px.max(1.0));
     let (anchors, shift) = match prior {
         Some(p) if p.len() == n => {
-            // A marker the last frame did not have starts where its neighbours' motion since
-            // the reference puts it.
-            let a: Vec<(f64, f64)> = (0..n)
-                .map(|i| {
-                    let r = reference.positions[i];
-                    p[i].unwrap_or_else(|| {
-                        let (mut sx, mut sy, mut k) = (0.0, 0.0, 0.0);
-                        for &j in &reference.neighbours[i] {
-                            if let Some(q) = p[j] {
-                                let rj = reference.positions[j];
-                                sx += q.0 - rj.0;
-                                sy += q.1 - rj.1;
-                                k += 1.0;
-                            }
-                        }
-                        if k > 0.0 {
-                            (r.0 + sx / k, r.1 + sy / k)
-                        } else {
-                            r
-                        }
-                    })
-                })
-                .collect();
+            let a = anchors_from_prior(reference, p);
             (a, (0.0, 0.0))
         }
         _ => (
@@ -1115,97 +1237,16 @@ pub fn track_with(
     if m.verify() > 0 {
         m.grow();
     }
-    // A marker without a blob, or a blob without a marker: the growth may have followed a
-    // lattice-shifted path (a region dragged by about a pitch leaves a hole at one end and a
-    // spare blob at the other). Match everything at once instead; keep whichever result
-    // matches more markers (then the smoother one).
-    if m.assignment.iter().any(Option::is_none) || m.taken.iter().any(|t| !t) {
-        let lost_cost = 1.0;
-        let before = (m.assignment.clone(), m.disp.clone(), m.taken.clone());
-        let found = |m: &Matching<'_>| m.assignment.iter().filter(|a| a.is_some()).count();
-        let (found_before, e_before) = (found(&m), m.energy(lost_cost));
-        m.reassign(&predicted);
-        let found_after = found(&m);
-        let better = found_after > found_before
-            || (found_after == found_before && m.energy(lost_cost) < e_before);
-        if better {
-            // The reassignment fills holes from afar: a marker it gave a blob its neighbours
-            // do not agree with (a piece of a neighbour's blob) is released and grown again.
-            if m.verify() > 0 {
-                m.grow();
-            }
-        } else {
-            (m.assignment, m.disp, m.taken) = before;
-        }
-    }
+    m.rematch_if_better(&predicted);
     m.slide_chains(1.0);
 
-    // Markers no growth reached (no matched neighbours at all) keep a plain gated look-up.
-    for (i, &p) in predicted.iter().enumerate() {
-        if m.assignment[i].is_none() && m.support(i) == 0 {
-            let s = reference.spacing_px[i];
-            let (best, second) = nearest_two(p, &m.index, &m.taken, cfg.gate_pitches * s);
-            if let Some((j, d)) = best {
-                if second >= cfg.ambiguity_ratio * d.max(0.05 * s) {
-                    m.take(i, j);
-                }
-            }
-        }
-    }
+    m.look_up_unreached(&predicted);
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
-    let mut status = vec![MarkerStatus::Ok; n];
-    let mut merged_blob = vec![false; blobs.len()];
-    // (blob, marker, predicted position, local magnification) of every merged marker.
-    let mut on_blob: Vec<(usize, usize, (f64, f64), f64)> = Vec::new();
-    let matched = m.matched();
-    // The marker holding each blob.
-    let mut owner: Vec<Option<usize>> = vec![None; blobs.len()];
-    for (i, a) in m.assignment.iter().enumerate() {
-        if let Some(j) = *a {
-            owner[j] = Some(i);
-        }
-    }
-    for i in 0..n {
-        if m.assignment[i].is_some() {
-            continue;
-        }
-        let (pred, scale) = m.predict(i, &matched).unwrap_or((predicted[i], 1.0));
-        let expected_area = reference.areas_px[i] * scale * scale;
-        // A blob covering the prediction and much larger than this marker: merged (with the
-        // marker that took it, or with a neighbour that is also left without a blob).
-        // The prediction may miss a merged blob's box by a little: the pair's centroid sits
-        // between the two markers.
-        let margin = 0.3 * reference.spacing_px[i] - 0.5;
-        let merged_with = blobs[..usable].iter().enumerate().find(|&(j, b)| {
-            let owner_area =
-                owner[j].map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
-            f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area.min(owner_area)
-                && pred.0 >= f64::from(b.bbox.x0) - margin
-                && pred.0 <= f64::from(b.bbox.x1) + margin - 1.0
-                && pred.1 >= f64::from(b.bbox.y0) - margin
-                && pred.1 <= f64::from(b.bbox.y1) + margin - 1.0
-        });
-        status[i] = if let Some((j, _)) = merged_with {
-            // The owner of that blob is merged too: its centroid is no longer its own.
-            if let Some(k) = owner[j] {
-                status[k] = MarkerStatus::Merged;
-                let (pk, sk) = m.predict(k, &matched).unwrap_or((predicted[k], 1.0));
-                on_blob.push((j, k, pk, sk));
-            }
-            on_blob.push((j, i, pred, scale));
-            merged_blob[j] = true;
-            MarkerStatus::Merged
-        } else {
-            let s = reference.spacing_px[i];
-            let (best, second) = nearest_two(pred, &m.index, &m.taken, cfg.gate_pitches * s);
-            match best {
-                Some((_, d)) if second < cfg.ambiguity_ratio * d.max(0.05 * s) => {
-                    MarkerStatus::Ambiguous
-                }
-                _ => MarkerStatus::Lost,
-            }
-        };
-    }
+    let Classified {
+        mut status,
+        merged_blob,
+        mut on_blob,
+    } = m.classify_unmatched(&predicted, usable);
     let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, &mut status);
     let mut assignment = m.assignment;
     for i in 0..n {

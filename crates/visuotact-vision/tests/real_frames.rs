@@ -10,6 +10,11 @@
 //! - 9DTact `camera_calibration/sample.png` (blurred, low contrast): all 63 dots of the 7 × 9
 //!   grid found and numbered in grid order.
 
+#![allow(
+    clippy::too_many_lines,
+    reason = "an end-to-end scenario reads top to bottom; split, its steps would scatter"
+)]
+
 use std::path::PathBuf;
 
 use visuotact_io::frames::FrameStream;
