@@ -240,6 +240,10 @@ pub fn record(
         {
             let frame = match frames.next(cfg, k, t_offset, &tables.done, &mut summary, warn)? {
                 Next::Frame(f) => f,
+                Next::Dropped => {
+                    k += 1;
+                    continue;
+                }
                 Next::Skip => continue,
                 Next::End => break,
             };
@@ -547,6 +551,9 @@ impl Tables {
 
 enum Next {
     Frame(RecordedFrame),
+    /// The simulated camera could not keep up: frame `k` is gone (the next is `k + 1`).
+    Dropped,
+    /// Not a frame to record (unreadable, or recorded before a resume).
     Skip,
     End,
 }
@@ -609,7 +616,7 @@ impl Frames {
                 if el > due + 1.0 / cfg.fps {
                     // The simulated camera could not keep up: this frame is gone.
                     summary.dropped += 1;
-                    return Ok(Next::Skip);
+                    return Ok(Next::Dropped);
                 }
                 if due > el {
                     std::thread::sleep(Duration::from_secs_f64(due - el));

@@ -58,9 +58,12 @@ pub use visuotact_image as image;
 pub use visuotact_io as io;
 pub use visuotact_nn as nn;
 pub use visuotact_pipeline as pipeline;
+pub use visuotact_report as report;
 pub use visuotact_signal as signal;
 pub use visuotact_sim as sim;
 pub use visuotact_vision as vision;
 
+pub use visuotact_pipeline::record::{record, RecordConfig};
+pub use visuotact_pipeline::runner::{RunConfig, Sink};
 pub use visuotact_pipeline::{Estimator, LiveConfig, LiveEstimator, PipelineError};
 pub use visuotact_vision::calibration::{Preset, SensorCalibration};

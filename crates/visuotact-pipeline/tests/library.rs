@@ -1,0 +1,162 @@
+//! The pipeline driven as a library, as a Python package, a ROS node or a script would, with
+//! no command line: simulate a session, calibrate on its references, extract its features,
+//! record a simulated rig with live features, run the live runner into a sink, replay.
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use visuotact_image::RgbImage;
+use visuotact_io::frames::FrameStream;
+use visuotact_io::table::{KeyedTable, TableFormat};
+use visuotact_pipeline::calibrate::{calibrate_frames, ReferenceSource};
+use visuotact_pipeline::live::MarkerView;
+use visuotact_pipeline::record::{record, RecordConfig};
+use visuotact_pipeline::replay::{extract, features_table};
+use visuotact_pipeline::runner::{run, RunConfig, Sink};
+use visuotact_pipeline::synth::{simulate, SimKind, SimulateConfig};
+use visuotact_pipeline::{Estimator, LiveConfig, LiveEstimate, LiveEstimator};
+use visuotact_vision::calibration::{Preset, SensorCalibration};
+use visuotact_vision::features::FeatureExtractor;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("visuotact-lib-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// A simulated seed-000 session of `touches` random touches and its calibration.
+fn session(dir: &Path, touches: usize) -> SensorCalibration {
+    let done = simulate(&SimulateConfig {
+        sensor: SimKind::Iats,
+        protocol: "random".into(),
+        output: dir.to_path_buf(),
+        touches,
+        references: 3,
+        ..SimulateConfig::default()
+    })
+    .unwrap();
+    assert_eq!(done.frames, touches);
+    let refs = [dir.join("reference")];
+    let open = || FrameStream::open(&refs, 25.0);
+    let c = calibrate_frames(open, ReferenceSource::Still, &Preset::Iats.config()).unwrap();
+    assert_eq!((c.frames, c.calibration.markers.len()), (3, 117));
+    c.calibration
+}
+
+#[test]
+fn simulate_calibrate_extract_as_a_library() {
+    let d = tmp("extract");
+    let cal = session(&d, 12);
+    let mut ex = FeatureExtractor::new(cal.clone(), cal.features).unwrap();
+    let frames = [d.join("frames")];
+    let mut warnings = Vec::new();
+    let out = d.join("features.csv");
+    let done = extract(&mut ex, &frames, 25.0, (&out, TableFormat::Csv), &mut |w| {
+        warnings.push(w.to_string())
+    })
+    .unwrap();
+    assert_eq!((done.written, done.skipped), (12, 0));
+    // The table written and the one kept in memory hold the same numbers.
+    let written = KeyedTable::read(&out, &["flags"]).unwrap();
+    let mut ex = FeatureExtractor::new(cal.clone(), cal.features).unwrap();
+    let kept = features_table(&mut ex, &frames, 25.0, &mut |_| {}).unwrap();
+    assert_eq!(written.keys, kept.keys);
+    let n_lead = visuotact_pipeline::schema::LEAD_COLUMNS.len();
+    for (w, k) in written.rows.iter().zip(&kept.rows) {
+        for (a, b) in w[n_lead..].iter().zip(k) {
+            assert!(
+                (a - b).abs() < 1e-9 || (a.is_nan() && b.is_nan()),
+                "{a} vs {b}"
+            );
+        }
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn record_a_simulated_rig_with_live_features() {
+    let d = tmp("record");
+    let cal = session(&d.join("s"), 1);
+    let cfg = RecordConfig {
+        output: d.join("rec"),
+        source: "sim:iats".into(),
+        fps: 200.0,
+        max_frames: Some(15),
+        references: 2,
+        ..RecordConfig::default()
+    };
+    let est = Estimator::new(Some(cal), None).unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = record(&cfg, Some(est), &stop, &mut |w| panic!("{w}")).unwrap();
+    assert_eq!(s.frames, s.written);
+    assert!(s.written + s.dropped >= 15 && s.written > 0, "{s:?}");
+    let rows = |name: &str| {
+        std::fs::read_to_string(cfg.output.join(name))
+            .unwrap()
+            .lines()
+            .count()
+            - 1
+    };
+    assert_eq!(rows("frames.csv"), s.written);
+    assert_eq!(rows("features.csv"), s.written);
+    assert_eq!(rows("labels.csv"), s.written);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cfg.output.join("session.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["complete"], true);
+    // A second run into the same folder is refused unless it resumes.
+    let again = record(&cfg, None, &stop, &mut |_| {});
+    assert!(again
+        .unwrap_err()
+        .to_string()
+        .contains("already holds a session"));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Keeps every estimate.
+#[derive(Default)]
+struct Keep(Vec<LiveEstimate>);
+
+impl Sink for Keep {
+    fn send(
+        &mut self,
+        e: &LiveEstimate,
+        json: &str,
+        _: Option<&[MarkerView]>,
+        _: &Arc<RgbImage>,
+    ) -> ControlFlow<()> {
+        assert!(json.starts_with('{'));
+        self.0.push(e.clone());
+        ControlFlow::Continue(())
+    }
+}
+
+#[test]
+fn the_live_runner_feeds_every_frame_to_its_sinks() {
+    let d = tmp("live");
+    let cal = session(&d, 1);
+    let est = Estimator::new(Some(cal), None).unwrap();
+    let mut live = LiveEstimator::new(est, Vec::new(), &LiveConfig::default()).unwrap();
+    let cfg = RunConfig {
+        source: "sim:iats".into(),
+        unpaced: true,
+        max_frames: Some(20),
+        sim_frames: 5,
+        ..RunConfig::default()
+    };
+    let mut keep = Keep::default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let summary = run(&mut live, &cfg, &stop, &mut [&mut keep], |w| panic!("{w}")).unwrap();
+    // Unpaced: the source waits for the estimator, so every frame is estimated, in order.
+    assert_eq!(
+        (summary.frames_captured, summary.frames_estimated),
+        (20, 20)
+    );
+    assert_eq!(summary.frames_dropped, 0);
+    let idx: Vec<u64> = keep.0.iter().map(|e| e.index).collect();
+    assert_eq!(idx, (0..20).collect::<Vec<_>>());
+    assert!(keep.0.iter().all(|e| e.health.ok + e.health.lost > 100));
+    std::fs::remove_dir_all(&d).unwrap();
+}
