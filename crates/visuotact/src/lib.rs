@@ -8,7 +8,8 @@
 //! | [`image`] | RGB and grey images, frames |
 //! | [`vision`] | calibration (presets, layouts), marker detection and tracking, per-frame features |
 //! | [`nn`] | Levenberg–Marquardt and Bayesian-regularised networks, ensembles, model files |
-//! | [`pipeline`] | frame → estimate ([`Estimator`]), live estimation ([`LiveEstimator`]), data sets, evaluation |
+//! | [`pipeline`] | frame → estimate ([`Estimator`]), live estimation ([`LiveEstimator`]) and the live runner with sinks, recording, replay, simulated sessions, data sets, evaluation |
+//! | [`report`] | figures (SVG, PNG) and the papers' tables as text |
 //! | [`signal`] | force filtering equal to scipy's `firwin` + `filtfilt`, bias removal, resampling |
 //! | [`io`] | frame sources, tables, session folders, cameras |
 //! | [`sim`] | simulated sensors with exact ground truth |
@@ -52,6 +53,24 @@
 //! let (_, estimate) = est.process(&frame(&press, 99)).unwrap();
 //! let depth_mm = estimate.unwrap()[0];
 //! assert!((depth_mm - 2.25).abs() < 0.15, "{depth_mm}");
+//! ```
+//!
+//! A live runner on a camera, each estimate a JSON line on standard output (the README's
+//! example; a ROS node would give its own [`Sink`] that publishes):
+//!
+//! ```no_run
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use std::sync::{atomic::AtomicBool, Arc};
+//! use visuotact::pipeline::runner::{run, LineSink, RunConfig};
+//! use visuotact::{Estimator, LiveConfig, LiveEstimator};
+//!
+//! let sensor = visuotact::SensorCalibration::from_json(&std::fs::read_to_string("sensor.json")?, "sensor.json")?;
+//! let mut live = LiveEstimator::new(Estimator::new(Some(sensor), None)?, vec![], &LiveConfig::default())?;
+//! let cfg = RunConfig { source: "camera:/dev/video0".into(), ..RunConfig::default() };
+//! let mut out = LineSink(std::io::stdout());
+//! run(&mut live, &cfg, &Arc::new(AtomicBool::new(false)), &mut [&mut out], |w| eprintln!("{w}"))?;
+//! # Ok(())
+//! # }
 //! ```
 
 pub use visuotact_image as image;
