@@ -33,7 +33,28 @@ class Features:
 class Sensor:
     """A sensor calibration: markers at rest, how to find them, their layout."""
     @staticmethod
-    def calibrate(frames: Sequence[Frame], preset: str = "auto", layout: str = "auto") -> Sensor: ...
+    def calibrate(
+        frames: Sequence[Frame],
+        preset: str = "auto",
+        layout: str = "auto",
+        *,
+        channel: str = ...,
+        invert: bool = ...,
+        threshold: str | float = ...,
+        window: int = ...,
+        offset: float = ...,
+        open: bool = ...,
+        close: bool = ...,
+        morph_size: int = ...,
+        min_area: int = ...,
+        max_area: int = ...,
+        keep_border: bool = ...,
+        connectivity: int = ...,
+        centroid: str = ...,
+        roi: tuple[int, int, int, int] = ...,
+        circle: tuple[float, float, float] = ...,
+    ) -> Sensor:
+        """Calibrates from contact-free frames; keyword options change the preset's detector."""
     @staticmethod
     def load(path: str | PathLike[str]) -> Sensor: ...
     def save(self, path: str | PathLike[str]) -> None: ...

@@ -107,14 +107,20 @@ impl Sensor {
 impl Sensor {
     /// Calibrates from contact-free frames (arrays or paths). `preset`: "auto" (from the
     /// markers' polarity in the first frame), "iats", "cone" or "dark-markers"; `layout`:
-    /// "auto", "grid", "hex", "rings" or "irregular".
+    /// "auto", "grid", "hex", "dot-rings", "rings" or "irregular". Keyword options change the
+    /// preset's detector as `visuotact calibrate`'s options do: `channel` ("green",
+    /// "luma601", "mean", "red", "blue"), `invert`, `threshold` ("otsu", "adaptive" or a level
+    /// in 0..1), `window`, `offset`, `open`, `close`, `morph_size`, `min_area`, `max_area`,
+    /// `keep_border`, `centroid` ("grey", "weighted", "binary"), `roi` (x, y, w, h),
+    /// `circle` (cx, cy, r).
     #[staticmethod]
-    #[pyo3(signature = (frames, preset = "auto", layout = "auto"))]
+    #[pyo3(signature = (frames, preset = "auto", layout = "auto", **options))]
     fn calibrate(
         py: Python<'_>,
         frames: Vec<Bound<'_, PyAny>>,
         preset: &str,
         layout: &str,
+        options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let images: Vec<RgbImage> = frames.iter().map(rgb_from).collect::<PyResult<_>>()?;
         // Ids as `visuotact calibrate` writes them: the file name, or the position.
@@ -131,18 +137,24 @@ impl Sensor {
         let first = images
             .first()
             .ok_or_else(|| error("calibration needs at least one frame"))?;
-        let preset = match preset {
-            "auto" => Preset::for_frame(first),
-            name => Preset::from_name(name).ok_or_else(|| {
+        let mut o = detector_options(options)?;
+        o.preset = match preset {
+            "auto" => None,
+            name => Some(Preset::from_name(name).ok_or_else(|| {
                 error(format!(
                     "preset {name:?}: expected auto, {}",
                     Preset::ALL.map(Preset::name).join(", ")
                 ))
-            })?,
+            })?),
         };
+        let preset = o.preset_for(|| Some(first.clone()));
+        let base = preset.config();
+        let (detector, features) = o.config(preset, base.detector.centroid).map_err(error)?;
         let cfg = visuotact_vision::calibration::CalibrationConfig {
             layout: LayoutChoice::parse(layout).map_err(error)?,
-            ..preset.config()
+            detector,
+            features,
+            ..base
         };
         let (cal, _) = py
             .detach(|| calibrate(ids.iter().map(String::as_str).zip(images.iter()), &cfg))
@@ -682,6 +694,84 @@ fn simulate<'py>(
         .map_err(error)?
         .0;
     array_from_rgb(py, img)
+}
+
+/// The detector options of `Sensor.calibrate`'s keyword arguments; an unknown one is an
+/// error naming it.
+fn detector_options(
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<visuotact_vision::options::DetectorOptions> {
+    use visuotact_vision::blobs::Connectivity;
+    use visuotact_vision::detect::Centroid;
+    use visuotact_vision::options::ThresholdChoice;
+    use visuotact_vision::preprocess::{Channel, CircleMask, Roi};
+    let mut o = visuotact_vision::options::DetectorOptions::default();
+    let Some(options) = options else {
+        return Ok(o);
+    };
+    for (k, v) in options.iter() {
+        let key: String = k.extract()?;
+        match key.as_str() {
+            "channel" => {
+                let c: String = v.extract()?;
+                o.channel =
+                    Some(Channel::from_name(&c).ok_or_else(|| error(format!("channel {c:?}")))?);
+            }
+            "invert" => o.invert = Some(v.extract()?),
+            "open" => o.open = Some(v.extract()?),
+            "close" => o.close = Some(v.extract()?),
+            "keep_border" => o.keep_border = v.extract()?,
+            "threshold" => {
+                o.threshold = Some(match v.extract::<f64>() {
+                    Ok(level) => ThresholdChoice::Fixed(level),
+                    Err(_) => ThresholdChoice::parse(&v.extract::<String>()?).map_err(error)?,
+                });
+            }
+            "window" => o.window_px = Some(v.extract()?),
+            "offset" => o.offset = Some(v.extract()?),
+            "morph_size" => o.morph_size = Some(v.extract()?),
+            "min_area" => o.min_area_px = Some(v.extract()?),
+            "max_area" => o.max_area_px = Some(v.extract()?),
+            "connectivity" => {
+                o.connectivity = match v.extract::<u8>()? {
+                    4 => Connectivity::Four,
+                    8 => Connectivity::Eight,
+                    n => return Err(error(format!("connectivity {n}: expected 4 or 8"))),
+                };
+            }
+            "centroid" => {
+                o.centroid = Some(match v.extract::<String>()?.as_str() {
+                    "grey" => Centroid::Grey,
+                    "weighted" => Centroid::Weighted,
+                    "binary" => Centroid::Binary,
+                    c => {
+                        return Err(error(format!(
+                            "centroid {c:?}: expected grey, weighted or binary"
+                        )))
+                    }
+                });
+            }
+            "roi" => {
+                let (x, y, width, height): (usize, usize, usize, usize) = v.extract()?;
+                o.roi = Some(Roi {
+                    x,
+                    y,
+                    width,
+                    height,
+                });
+            }
+            "circle" => {
+                let (cx_px, cy_px, radius_px): (f64, f64, f64) = v.extract()?;
+                o.circle = Some(CircleMask {
+                    cx_px,
+                    cy_px,
+                    radius_px,
+                });
+            }
+            other => return Err(error(format!("unknown calibration option `{other}`"))),
+        }
+    }
+    Ok(o)
 }
 
 /// The module.

@@ -198,3 +198,16 @@ def test_a_gray_array_and_a_press_give_features():
     assert f.dx.shape == (117,) and np.isfinite(f.dx).all()
     assert np.nanmax(np.hypot(f.dx, f.dy)) > 1.0
     assert set(f.status) == {"ok"}
+
+
+def test_calibration_options_match_the_cli(session, tmp_path):
+    refs = sorted((session / "s" / "reference").glob("*.png"))
+    opts = dict(threshold=0.4, min_area=12, centroid="weighted", keep_border=True)
+    sensor = vt.Sensor.calibrate([str(p) for p in refs], **opts)
+    cli("calibrate", session / "s" / "reference", "--threshold", 0.4, "--min-area", 12,
+        "--centroid", "weighted", "--keep-border", "-o", tmp_path / "cli.json")
+    assert sensor.to_json() == (tmp_path / "cli.json").read_text()
+    with pytest.raises(vt.VisuotactError, match="unknown calibration option `tresh`"):
+        vt.Sensor.calibrate([str(p) for p in refs], tresh=0.4)
+    with pytest.raises(vt.VisuotactError, match="window and offset"):
+        vt.Sensor.calibrate([str(p) for p in refs], window=31)
