@@ -14,3 +14,21 @@ pub mod queue;
 pub mod session;
 pub mod source;
 pub mod table;
+
+/// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// [`camera::CameraError`].
+    #[error(transparent)]
+    Camera(#[from] camera::CameraError),
+    /// [`frames::FrameError`].
+    #[error(transparent)]
+    Frame(#[from] frames::FrameError),
+    /// [`force::PacketError`].
+    #[error(transparent)]
+    Packet(#[from] force::PacketError),
+    /// [`table::TableError`].
+    #[error(transparent)]
+    Table(#[from] table::TableError),
+}

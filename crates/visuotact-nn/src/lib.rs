@@ -15,3 +15,30 @@ pub mod model;
 pub mod nist;
 pub mod pca;
 pub mod sweep;
+
+/// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// [`model::EstimateError`].
+    #[error(transparent)]
+    Estimate(#[from] model::EstimateError),
+    /// [`fit::FitError`].
+    #[error(transparent)]
+    Fit(#[from] fit::FitError),
+    /// [`lm::LmConfigError`].
+    #[error(transparent)]
+    LmConfig(#[from] lm::LmConfigError),
+    /// [`model::ModelFileError`].
+    #[error(transparent)]
+    ModelFile(#[from] model::ModelFileError),
+    /// [`nist::NistError`].
+    #[error(transparent)]
+    Nist(#[from] nist::NistError),
+    /// [`pca::ProjectionError`].
+    #[error(transparent)]
+    Projection(#[from] pca::ProjectionError),
+    /// [`sweep::SpecError`].
+    #[error(transparent)]
+    Spec(#[from] sweep::SpecError),
+}

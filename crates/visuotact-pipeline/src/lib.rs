@@ -41,3 +41,42 @@ pub mod trackcheck;
 pub use estimator::{feature_set_of, Estimator, PipelineError};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};
 pub use visuotact_io::queue::{self, Captured, LatestQueue};
+
+/// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type; the Python package maps them all to one exception).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// [`calibrate::CalibrateError`].
+    #[error(transparent)]
+    Calibrate(#[from] calibrate::CalibrateError),
+    /// [`trackcheck::CheckError`].
+    #[error(transparent)]
+    Check(#[from] trackcheck::CheckError),
+    /// [`dataset::DatasetError`].
+    #[error(transparent)]
+    Dataset(#[from] dataset::DatasetError),
+    /// [`demo::DemoError`].
+    #[error(transparent)]
+    Demo(#[from] demo::DemoError),
+    /// [`evaluation::EvaluationError`].
+    #[error(transparent)]
+    Evaluation(#[from] evaluation::EvaluationError),
+    /// [`table::JoinError`].
+    #[error(transparent)]
+    Join(#[from] table::JoinError),
+    /// [`PipelineError`].
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    /// [`record::RecordError`].
+    #[error(transparent)]
+    Record(#[from] record::RecordError),
+    /// [`replay::ReplayError`].
+    #[error(transparent)]
+    Replay(#[from] replay::ReplayError),
+    /// [`runner::RunError`].
+    #[error(transparent)]
+    Run(#[from] runner::RunError),
+    /// [`synth::SimulateError`].
+    #[error(transparent)]
+    Simulate(#[from] synth::SimulateError),
+}

@@ -8,3 +8,21 @@ pub mod align;
 pub mod bias;
 pub mod clean;
 pub mod fir;
+
+/// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// [`align::AlignError`].
+    #[error(transparent)]
+    Align(#[from] align::AlignError),
+    /// [`bias::BiasError`].
+    #[error(transparent)]
+    Bias(#[from] bias::BiasError),
+    /// [`clean::CleanError`].
+    #[error(transparent)]
+    Clean(#[from] clean::CleanError),
+    /// [`fir::FilterError`].
+    #[error(transparent)]
+    Filter(#[from] fir::FilterError),
+}

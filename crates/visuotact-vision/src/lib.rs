@@ -22,3 +22,24 @@ pub mod layout;
 pub mod options;
 pub mod preprocess;
 pub mod track;
+
+/// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// [`calibration::CalibrationError`].
+    #[error(transparent)]
+    Calibration(#[from] calibration::CalibrationError),
+    /// [`ConfigError`].
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// [`features::FrameSizeError`].
+    #[error(transparent)]
+    FrameSize(#[from] features::FrameSizeError),
+    /// [`layout::LayoutError`].
+    #[error(transparent)]
+    Layout(#[from] layout::LayoutError),
+    /// [`calibration::SensorFileError`].
+    #[error(transparent)]
+    SensorFile(#[from] calibration::SensorFileError),
+}
