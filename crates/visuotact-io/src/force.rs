@@ -256,11 +256,27 @@ impl ForceTable {
                 ));
             }
             let num = |i: usize| cell_number(path, (line_no, header[i]), cells[i], false);
-            t.timestamp_s.push(num(tcol)?);
+            let implausible = |i: usize, what: &str| {
+                fail(
+                    Some(line_no),
+                    format!(
+                        "line {line_no}, column `{}`: {} is {what}",
+                        header[i], cells[i]
+                    ),
+                )
+            };
+            let ts = num(tcol)?;
+            if ts.abs() > PLAUSIBLE_TIME_S {
+                return Err(implausible(tcol, "not a plausible time in seconds"));
+            }
+            t.timestamp_s.push(ts);
             let mut v = [0.0; 6];
             for (k, a) in axes.iter().enumerate() {
                 if let Some(i) = a {
                     v[k] = num(*i)?;
+                    if v[k].abs() > PLAUSIBLE_LOAD {
+                        return Err(implausible(*i, "beyond any plausible force or torque"));
+                    }
                 }
             }
             t.values.push(v);
@@ -307,6 +323,25 @@ pub struct ReceiveStats {
     pub reordered: u64,
     /// Samples missing from the time span covered, at the expected rate (when it is known).
     pub lost: u64,
+    /// Well-formed samples that cannot be real, dropped: a time before 0 or beyond
+    /// [`PLAUSIBLE_TIME_S`], more than [`LATE_S`] behind the stream or [`AHEAD_S`] ahead of it,
+    /// or a force or torque beyond [`PLAUSIBLE_LOAD`].
+    pub rejected: u64,
+}
+
+/// The largest plausible time stamp, s (about 317 years: UNIX times pass, 1e300 does not).
+pub const PLAUSIBLE_TIME_S: f64 = 1e10;
+/// The largest plausible force (N) or torque (N·m) of a tactile sensor's reference.
+pub const PLAUSIBLE_LOAD: f64 = 1e5;
+/// How far behind the newest sample a late one may arrive and still be kept, s.
+pub const LATE_S: f64 = 1.0;
+/// How far ahead of the newest sample the next may jump and still be kept, s.
+pub const AHEAD_S: f64 = 60.0;
+
+/// Whether a sample's numbers can be real ([`ReceiveStats::rejected`], without the stream).
+pub fn plausible(s: &ForceSample) -> bool {
+    (0.0..=PLAUSIBLE_TIME_S).contains(&s.timestamp_s)
+        && s.values.iter().all(|v| v.abs() <= PLAUSIBLE_LOAD)
 }
 
 /// Receives force samples over UDP and keeps count of what went wrong; never fails on a bad
@@ -408,8 +443,15 @@ impl ForceReceiver {
         }
     }
 
-    /// Counts a decoded sample as kept, repeated or reordered.
+    /// Counts a decoded sample as kept, rejected, repeated or reordered.
     fn accept(&mut self, s: ForceSample) -> Option<ForceSample> {
+        let in_stream = self
+            .span
+            .is_none_or(|(_, hi)| s.timestamp_s >= hi - LATE_S && s.timestamp_s <= hi + AHEAD_S);
+        if !(plausible(&s) && in_stream) {
+            self.stats.rejected += 1;
+            return None;
+        }
         let key = s.timestamp_s.to_bits();
         if self.recent.contains(&key) {
             self.stats.duplicates += 1;
@@ -541,5 +583,76 @@ mod tests {
             .to_string()
             .contains("timestamp_s"));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn junk_of_the_right_length_is_rejected_and_the_counts_stay_right() {
+        let mut rx =
+            ForceReceiver::bind("127.0.0.1:0", ForceLayout::default(), Some(1000.0)).unwrap();
+        let addr = rx.local_addr().unwrap();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let layout = ForceLayout::default();
+        let pkt = |t: f64, fx: f64| {
+            layout.encode(
+                &ForceSample {
+                    timestamp_s: t,
+                    values: [fx, 0.0, 1.0, 0.0, 0.0, 0.0],
+                },
+                0,
+            )
+        };
+        // A seeded stream of random 56-byte packets between 200 good ones (0 … 0.199 s).
+        let mut state = 0x5EED_u64;
+        let mut random = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            state
+        };
+        let mut junk = 0;
+        for k in 0..200u64 {
+            tx.send_to(&pkt(k as f64 / 1000.0, 1.0), addr).unwrap();
+            if k % 20 == 10 {
+                let bytes: Vec<u8> = (0..7).flat_map(|_| random().to_le_bytes()).collect();
+                tx.send_to(&bytes, addr).unwrap();
+                // Timestamps of 1e300, before zero, far behind the stream, and a force of 1e9.
+                for bad in [
+                    pkt(1e300, 1.0),
+                    pkt(-1.0, 1.0),
+                    pkt(5000.0, 1.0),
+                    pkt(0.1, 1e9),
+                ] {
+                    tx.send_to(&bad, addr).unwrap();
+                }
+                junk += 5;
+            }
+        }
+        let mut got = Vec::new();
+        while let Some(r) = rx
+            .recv(std::time::Duration::from_millis(300), || 0.0)
+            .unwrap()
+        {
+            got.push(r.sample);
+        }
+        let s = rx.stats();
+        assert!(got.iter().all(plausible), "{s:?}");
+        assert_eq!(s.packets, 200 + junk);
+        assert_eq!(s.kept, 200, "{s:?}");
+        assert_eq!(s.malformed + s.rejected + s.duplicates, junk, "{s:?}");
+        assert_eq!(s.lost, 0, "{s:?}");
+    }
+
+    #[test]
+    fn a_force_table_with_an_implausible_cell_names_its_row() {
+        let d = std::env::temp_dir().join(format!("visuotact-force-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("f.csv");
+        std::fs::write(&p, "timestamp_s,fz_n\n0.0,1.0\n1e300,2.0\n").unwrap();
+        let e = ForceTable::read(&p).unwrap_err().to_string();
+        assert!(e.contains("line 3, column `timestamp_s`"), "{e}");
+        std::fs::write(&p, "timestamp_s,fz_n\n0.0,1.0\n0.1,-3e7\n").unwrap();
+        let e = ForceTable::read(&p).unwrap_err().to_string();
+        assert!(e.contains("line 3, column `fz_n`"), "{e}");
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -174,6 +174,9 @@ pub enum RecordError {
     /// A capture or force thread stopped unexpectedly.
     #[error("the {0} thread stopped unexpectedly")]
     Thread(&'static str),
+    /// The recording ended without a frame written (the session says so too).
+    #[error("nothing recorded: {0}")]
+    NothingRecorded(String),
 }
 
 /// What a recording did.
@@ -215,11 +218,15 @@ pub fn record(
     stop: &Arc<AtomicBool>,
     warn: &mut dyn FnMut(&str),
 ) -> Result<RecordSummary, RecordError> {
-    check(cfg)?;
+    // Everything that can be checked is checked before anything is created: a corrected
+    // re-run is never refused for a folder a failed one left behind.
+    validate(cfg)?;
     let rig = match SourceSpec::parse(&cfg.source) {
         SourceSpec::Sim(kind) => Some(rig_of(cfg, &kind)?),
         _ => None,
     };
+    let force_input = ForceInput::open(cfg)?;
+    check(cfg)?;
     let mut tables = Tables::open(cfg, estimator.as_ref(), rig.as_ref())?;
     describe(cfg, false, &RecordSummary::default())?;
     if let Some(r) = &rig {
@@ -227,11 +234,11 @@ pub fn record(
     }
     let clock = Instant::now();
     let t_offset = tables.t_offset(cfg.fps);
-    let force = ForceSide::start(cfg, rig.as_ref(), clock, t_offset, stop)?;
+    let force = ForceSide::start(cfg, force_input, rig.as_ref(), (clock, t_offset), stop)?;
     let mut frames = Frames::open(cfg, rig, clock, stop)?;
     let mut summary = RecordSummary::default();
     let mut k = tables.first_index;
-    let result = (|| {
+    let result: Result<(), RecordError> = (|| {
         while !stop.load(Ordering::Relaxed)
             && cfg.max_frames.is_none_or(|m| summary.written < m)
             && cfg
@@ -261,19 +268,59 @@ pub fn record(
     summary.frames = tables.first_index + summary.written;
     summary.duration_s = clock.elapsed().as_secs_f64();
     describe(cfg, result.is_ok(), &summary)?;
-    result.map(|()| summary)
+    result?;
+    if summary.written == 0 {
+        return Err(RecordError::NothingRecorded(if cfg.resume {
+            format!(
+                "the session already holds {} frames and the source gave no later one",
+                summary.frames
+            )
+        } else {
+            "the source gave no frame".to_string()
+        }));
+    }
+    Ok(summary)
 }
 
+/// The longest duration or period a setting may give, s (about 11.6 days).
+const LONGEST_S: f64 = 1e6;
+
+/// `v` seconds, named `what` in the error: finite, ≥ 0 and at most [`LONGEST_S`].
+pub(crate) fn seconds(what: &str, v: f64) -> Result<Duration, String> {
+    if !(0.0..=LONGEST_S).contains(&v) {
+        return Err(format!(
+            "{what} must be a number of seconds in 0..{LONGEST_S:e}, got {v}"
+        ));
+    }
+    Duration::try_from_secs_f64(v).map_err(|e| format!("{what}: {e}"))
+}
+
+/// A rate in Hz, named `what`: finite, positive, its period at most [`LONGEST_S`].
+pub(crate) fn rate(what: &str, v: f64) -> Result<f64, String> {
+    if !(v.is_finite() && v > 0.0 && 1.0 / v <= LONGEST_S && v <= 1e9) {
+        return Err(format!("{what} must be a positive rate in Hz, got {v}"));
+    }
+    Ok(v)
+}
+
+/// Every number of the settings, checked before anything is created.
+fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
+    let check = |r: Result<(), String>| r.map_err(RecordError::Config);
+    check(rate("fps", cfg.fps).map(drop))?;
+    check(rate("force_rate_hz", cfg.force_rate_hz).map(drop))?;
+    check(seconds("sync_every_s", cfg.sync_every_s).map(drop))?;
+    if let Some(d) = cfg.duration_s {
+        check(seconds("duration_s", d).map(drop))?;
+    }
+    if cfg.max_frames == Some(0) {
+        return Err(RecordError::Config("max_frames must be at least 1".into()));
+    }
+    Ok(())
+}
+
+/// The session folder: refused when it holds a session and `resume` was not asked for (or
+/// the other way round), then created and probed for space.
 fn check(cfg: &RecordConfig) -> Result<(), RecordError> {
-    if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
-        return Err(RecordError::Config(format!(
-            "fps must be a positive frame rate, got {}",
-            cfg.fps
-        )));
-    }
-    if !(cfg.sync_every_s.is_finite() && cfg.sync_every_s >= 0.0) {
-        return Err(RecordError::Config("sync_every_s must be ≥ 0".into()));
-    }
     let out = &cfg.output;
     let exists = holds_session(out);
     if exists && !cfg.resume {
@@ -396,7 +443,7 @@ impl Tables {
         est: Option<&Estimator>,
         rig: Option<&SimRig>,
     ) -> Result<Self, RecordError> {
-        let sync = Duration::from_secs_f64(cfg.sync_every_s);
+        let sync = seconds("sync_every_s", cfg.sync_every_s).map_err(RecordError::Config)?;
         let open = |name: &str, header: &str| {
             AppendLog::open(&cfg.output.join(name), header, cfg.resume, sync)
         };
@@ -671,12 +718,34 @@ struct ForceSide {
     stop: Arc<AtomicBool>,
 }
 
+/// The force source, opened before the session folder is touched: a busy port or a bad
+/// table is reported first.
+enum ForceInput {
+    None,
+    Udp(ForceReceiver),
+    Csv(ForceTable),
+}
+
+impl ForceInput {
+    fn open(cfg: &RecordConfig) -> Result<Self, RecordError> {
+        Ok(match &cfg.force {
+            None => Self::None,
+            Some(ForceSource::Udp(addr)) => Self::Udp(ForceReceiver::bind(
+                addr,
+                cfg.force_layout.clone(),
+                Some(cfg.force_rate_hz),
+            )?),
+            Some(ForceSource::Csv(p)) => Self::Csv(ForceTable::read(p)?),
+        })
+    }
+}
+
 impl ForceSide {
     fn start(
         cfg: &RecordConfig,
+        input: ForceInput,
         rig: Option<&SimRig>,
-        clock: Instant,
-        t_offset: f64,
+        (clock, t_offset): (Instant, f64),
         stop: &Arc<AtomicBool>,
     ) -> Result<Self, RecordError> {
         let mut side = Self {
@@ -684,13 +753,11 @@ impl ForceSide {
             jr3: None,
             stop: Arc::new(AtomicBool::new(false)),
         };
-        let sync = Duration::from_secs_f64(cfg.sync_every_s);
+        let sync = seconds("sync_every_s", cfg.sync_every_s).map_err(RecordError::Config)?;
         let path = cfg.output.join("force.csv");
-        match &cfg.force {
-            None => {}
-            Some(ForceSource::Udp(addr)) => {
-                let rx =
-                    ForceReceiver::bind(addr, cfg.force_layout.clone(), Some(cfg.force_rate_hz))?;
+        match input {
+            ForceInput::None => {}
+            ForceInput::Udp(rx) => {
                 let bound = rx.local_addr()?.to_string();
                 let (log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
                 side.receiver = Some(spawn_receiver(rx, log, clock, t_offset, side.stop.clone()));
@@ -698,8 +765,9 @@ impl ForceSide {
                     let t_end = r
                         .total_s(cfg.fps)
                         .min(cfg.duration_s.map_or(f64::INFINITY, |d| t_offset + d));
-                    let sim_clock = clock
-                        .checked_sub(Duration::from_secs_f64(t_offset))
+                    let sim_clock = Duration::try_from_secs_f64(t_offset)
+                        .ok()
+                        .and_then(|d| clock.checked_sub(d))
                         .unwrap_or(clock);
                     let stream = Jr3Stream {
                         addr: &bound,
@@ -713,8 +781,7 @@ impl ForceSide {
                     side.jr3 = spawn_jr3(r, stream, stop.clone())?;
                 }
             }
-            Some(ForceSource::Csv(p)) => {
-                let t = ForceTable::read(p)?;
+            ForceInput::Csv(t) => {
                 let (mut log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
                 for (ts, v) in t.timestamp_s.iter().zip(&t.values) {
                     let cells: Vec<String> = v.iter().map(|x| format!("{x:.6}")).collect();

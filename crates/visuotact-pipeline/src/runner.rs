@@ -63,6 +63,22 @@ impl Default for RunConfig {
     }
 }
 
+impl RunConfig {
+    /// Checks the rate, the duration (returned) and the counts before anything starts.
+    pub fn validate(&self) -> Result<Option<Duration>, RunError> {
+        crate::record::rate("fps", self.fps).map_err(RunError::Config)?;
+        if self.max_frames == Some(0) || self.queue == 0 || self.sim_frames == 0 {
+            return Err(RunError::Config(
+                "max_frames, queue and sim_frames must be at least 1".into(),
+            ));
+        }
+        self.duration_s
+            .map(|d| crate::record::seconds("duration_s", d))
+            .transpose()
+            .map_err(RunError::Config)
+    }
+}
+
 /// Why a run could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
@@ -81,6 +97,9 @@ pub enum RunError {
     /// The capture thread stopped unexpectedly.
     #[error("the capture thread stopped unexpectedly")]
     Capture,
+    /// The source gave no frame (nothing readable, or stopped at once).
+    #[error("{0}: the source gave no frame")]
+    NoFrames(String),
 }
 
 /// Where estimates go.
@@ -232,7 +251,7 @@ impl Source {
         warn: impl Fn(&str) + Send + 'static,
     ) -> Result<JoinHandle<u64>, RunError> {
         let feed = Feed {
-            period: Duration::from_secs_f64(1.0 / cfg.fps),
+            period: Duration::try_from_secs_f64(1.0 / cfg.fps).unwrap_or(Duration::MAX),
             paced: !cfg.unpaced,
             clock,
             queue,
@@ -325,17 +344,12 @@ pub fn run(
     sinks: &mut [&mut dyn Sink],
     warn: impl Fn(&str) + Send + Clone + 'static,
 ) -> Result<RunSummary, RunError> {
-    if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
-        return Err(RunError::Config(format!(
-            "fps must be a positive frame rate, got {}",
-            cfg.fps
-        )));
-    }
+    let run_for = cfg.validate()?;
     let queue = Arc::new(LatestQueue::new(cfg.queue));
     let source = Source::open(cfg)?;
     let clock = Instant::now();
     let capture = source.spawn(cfg, queue.clone(), stop.clone(), clock, warn.clone())?;
-    let deadline = cfg.duration_s.map(|d| clock + Duration::from_secs_f64(d));
+    let deadline = run_for.and_then(|d| clock.checked_add(d));
     let mut stats = Stats::default();
     while let Some(cap) = queue.pop() {
         if deadline.is_some_and(|d| Instant::now() >= d) {
@@ -351,6 +365,9 @@ pub fn run(
     stop.store(true, Ordering::Relaxed);
     queue.close();
     let captured = capture.join().map_err(|_| RunError::Capture)?;
+    if captured == 0 {
+        return Err(RunError::NoFrames(cfg.source.clone()));
+    }
     Ok(stats.summary(captured, queue.dropped(), clock))
 }
 

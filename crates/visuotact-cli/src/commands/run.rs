@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::bail;
 use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
@@ -112,9 +111,8 @@ impl Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    if !(a.fps.is_finite() && a.fps > 0.0) {
-        bail!("--fps must be a positive frame rate");
-    }
+    let cfg = a.run_config()?;
+    cfg.validate()?;
     // A model file holding an ensemble counts as its networks (the spread is over all).
     let models = a
         .model
@@ -124,7 +122,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let mut est = crate::estimator(a.sensor.as_deref(), models.first().cloned())?;
     est.set_temporal_prior(a.temporal);
     let mut live = LiveEstimator::new(est, models, &a.live_config())?;
-    let cfg = a.run_config()?;
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
