@@ -81,3 +81,72 @@ pub(crate) fn estimator_with_extra_inputs(
     let cal = calibration_of(sensor, model.as_ref())?;
     Ok(Estimator::with_extra_inputs(cal, model)?)
 }
+
+/// `p` made absolute with links resolved as far as it exists (the output usually does not).
+fn resolved(p: &Path) -> std::path::PathBuf {
+    if let Ok(c) = p.canonicalize() {
+        return c;
+    }
+    match (p.parent(), p.file_name()) {
+        (Some(dir), Some(name)) if !dir.as_os_str().is_empty() => resolved(dir).join(name),
+        _ => std::env::current_dir().map_or_else(|_| p.to_path_buf(), |d| d.join(p)),
+    }
+}
+
+/// The files of a session folder (`record`, `simulate`) that hold what was measured.
+const SESSION_FILES: [&str; 8] = [
+    "session.json",
+    "frames.csv",
+    "labels.csv",
+    "truth.csv",
+    "force.csv",
+    "features.csv",
+    "estimates.csv",
+    "references.csv",
+];
+
+/// Refuses to write `output` over one of `inputs` (the same file or folder once paths are
+/// resolved) or over a session's own files when an input is a session folder: a command never
+/// destroys what it reads.
+pub(crate) fn refuse_output_over_input(output: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
+    let out = resolved(output);
+    if let Some(i) = inputs.iter().find(|i| resolved(i) == out) {
+        bail!(
+            "{}: the output is the input {}; choose another output",
+            output.display(),
+            i.display()
+        );
+    }
+    let session_file = |i: &&&Path| {
+        let dir = resolved(i);
+        dir.join("frames.csv").is_file()
+            && out.parent() == Some(dir.as_path())
+            && SESSION_FILES
+                .iter()
+                .any(|f| out.file_name() == Some(f.as_ref()))
+    };
+    if let Some(i) = inputs.iter().find(session_file) {
+        bail!(
+            "{}: would overwrite the session {}'s own file; choose another output",
+            output.display(),
+            i.display()
+        );
+    }
+    Ok(())
+}
+
+/// Checks that `output` can be written before any work: its folder is created and a probe
+/// written and removed beside it; the error names the real path.
+pub(crate) fn check_writable(output: &Path) -> anyhow::Result<()> {
+    if output == Path::new("-") {
+        return Ok(());
+    }
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("{}: cannot create its folder: {e}", output.display()))?;
+    }
+    let probe = output.with_extension("probe~");
+    std::fs::write(&probe, b"")
+        .and_then(|()| std::fs::remove_file(&probe))
+        .map_err(|e| anyhow::anyhow!("{}: cannot write here: {e}", output.display()))
+}

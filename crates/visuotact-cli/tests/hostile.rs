@@ -110,3 +110,131 @@ fn nothing_done_is_an_error() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Outputs never overwrite inputs: the same file, the same folder, or a session's own file.
+#[test]
+fn outputs_never_overwrite_inputs() {
+    let d = fresh_dir("hostile-overwrite");
+    let f = d.join("f.csv");
+    let text = "timestamp_s,fz_n\n0.0,1.0\n0.01,1.1\n";
+    std::fs::write(&f, text).unwrap();
+    let session = d.join("session");
+    std::fs::create_dir_all(&session).unwrap();
+    std::fs::write(session.join("frames.csv"), "frame,index,timestamp_s,kind\n").unwrap();
+    std::fs::write(session.join("labels.csv"), "frame,x_mm\n").unwrap();
+    let labels = session.join("labels.csv");
+    let model = d.join("m.json");
+    std::fs::write(&model, "{}").unwrap();
+    // The same file by another spelling of its path.
+    let other = d.join(".").join("f.csv");
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["filter", s(&f), "-o", s(&other)],
+        vec!["extract", "--sensor", s(&model), s(&f), "-o", s(&f)],
+        vec![
+            "predict",
+            "--model",
+            s(&model),
+            "--features",
+            s(&f),
+            "-o",
+            s(&model),
+        ],
+        vec!["dataset", s(&session), "-o", s(&session)],
+        vec![
+            "replay",
+            "--model",
+            s(&model),
+            s(&session),
+            "-o",
+            s(&labels),
+        ],
+        vec![
+            "train",
+            "--features",
+            s(&f),
+            "--labels",
+            s(&labels),
+            "--targets",
+            "x_mm",
+            "-o",
+            s(&f),
+        ],
+    ];
+    for args in cases {
+        let err = fails(&vt(&args));
+        assert!(err.contains("choose another output"), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), text);
+    assert_eq!(std::fs::read_to_string(&model).unwrap(), "{}");
+    assert_eq!(std::fs::read_to_string(&labels).unwrap(), "frame,x_mm\n");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A constant target trains with a warning and a model that loads; a value of 1e308 is
+/// refused before training, naming its row and column, and no model is written.
+#[test]
+fn models_are_written_only_when_they_load() {
+    let d = fresh_dir("hostile-model");
+    let (features, labels, model) = (d.join("f.csv"), d.join("l.csv"), d.join("m.json"));
+    let mut f = String::from("frame,m000_dx_px,m000_dy_px\n");
+    let mut l = String::from("frame,x_mm,fy_n\n");
+    for k in 0..30 {
+        let x = k as f64 / 10.0;
+        f.push_str(&format!("f{k},{x},{}\n", (x * 1.7).sin()));
+        l.push_str(&format!("f{k},{},0.5\n", 2.0 * x + 1.0));
+    }
+    std::fs::write(&features, &f).unwrap();
+    std::fs::write(&labels, &l).unwrap();
+    let train = |labels: &std::path::Path| {
+        vt(&[
+            "train",
+            "--features",
+            s(&features),
+            "--labels",
+            s(labels),
+            "--targets",
+            "x_mm,fy_n",
+            "--hidden",
+            "3",
+            "--ensemble",
+            "1",
+            "--max-epochs",
+            "20",
+            "-o",
+            s(&model),
+        ])
+    };
+    let o = train(&labels);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("target `fy_n` has the same value in every frame"),
+        "{err}"
+    );
+    let predictions = d.join("p.csv");
+    common::ok(&vt(&[
+        "predict",
+        "--model",
+        s(&model),
+        "--features",
+        s(&features),
+        "-o",
+        s(&predictions),
+    ]));
+    std::fs::remove_file(&model).unwrap();
+    let huge = d.join("huge.csv");
+    let mut l2 = String::new();
+    for line in l.lines() {
+        if line.starts_with("f7,") {
+            l2.push_str("f7,1e308,0.5\n");
+        } else {
+            l2.push_str(line);
+            l2.push('\n');
+        }
+    }
+    std::fs::write(&huge, &l2).unwrap();
+    let err = fails(&train(&huge));
+    assert!(err.contains("x_mm") && err.contains("1e15"), "{err}");
+    assert!(!model.exists(), "a model was written");
+    std::fs::remove_dir_all(&d).unwrap();
+}

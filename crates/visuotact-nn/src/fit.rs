@@ -417,30 +417,53 @@ impl FitData<'_> {
                 }
             }
             let bad_input = x.iter().enumerate().find(|&(j, v)| {
-                v.is_infinite() || (v.is_nan() && (cfg.components.is_none() || j >= projected))
+                v.is_infinite()
+                    || v.abs() > LARGEST_VALUE
+                    || (v.is_nan() && (cfg.components.is_none() || j >= projected))
             });
             if let Some((j, &value)) = bad_input {
                 return Err(FitError::NotFinite {
                     row,
                     column: self.feature_columns[j].clone(),
                     value,
-                    why: if cfg.components.is_some() && j < projected {
+                    why: if value.abs() > LARGEST_VALUE && value.is_finite() {
+                        "beyond ±1e15: not a measurement (scaling would lose every other value)"
+                    } else if cfg.components.is_some() && j < projected {
                         "inputs must be finite; a missing marker's feature may be NaN"
                     } else {
                         "inputs that are not projected must be finite"
                     },
                 });
             }
-            if let Some((j, &value)) = t.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            let bad_target = t
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !v.is_finite() || v.abs() > LARGEST_VALUE);
+            if let Some((j, &value)) = bad_target {
                 return Err(FitError::NotFinite {
                     row,
                     column: self.targets[j].clone(),
                     value,
-                    why: "targets must be finite",
+                    why: "targets must be finite and within ±1e15",
                 });
             }
         }
         Ok(())
+    }
+}
+
+/// The largest magnitude an input or a target may have: beyond it a value is not a
+/// measurement, and mapminmax scaling would squash every other value of its column to one.
+pub const LARGEST_VALUE: f64 = 1e15;
+
+impl FitData<'_> {
+    /// The targets whose every sample has the same value: a network learns nothing about them
+    /// (their R is 0 by definition); worth a warning.
+    pub fn constant_targets(&self) -> Vec<String> {
+        (0..self.targets.len())
+            .filter(|&j| self.t.iter().all(|r| r[j] == self.t[0][j]))
+            .map(|j| self.targets[j].clone())
+            .collect()
     }
 }
 

@@ -18,7 +18,8 @@ pub struct TargetErrors {
     pub n: usize,
     /// Mean squared error.
     pub mse: f64,
-    /// Pearson correlation of estimates and truth (the "R" of MATLAB's regression plot).
+    /// Pearson correlation of estimates and truth (the "R" of MATLAB's regression plot); 0 when
+    /// either does not vary (a constant target), where MATLAB gives NaN.
     pub r: f64,
     /// Mean absolute error.
     pub mean_abs: f64,
@@ -75,7 +76,9 @@ pub fn target_errors(target: &str, est: &[f64], truth: &[f64]) -> TargetErrors {
         target: target.to_string(),
         n,
         mse: pairs.iter().map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / nf,
-        r: cov / (sp * st),
+        // No variation in the truth or the estimates: no linear relation to measure, R = 0
+        // (never NaN: model files and JSON reports hold it).
+        r: if sp * st > 0.0 { cov / (sp * st) } else { 0.0 },
         mean_abs: pairs.iter().map(|(a, b)| (a - b).abs()).sum::<f64>() / nf,
         max_abs: pairs.iter().fold(0.0f64, |m, (a, b)| m.max((a - b).abs())),
         mean_percentage_error: mpe,

@@ -45,6 +45,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if a.first == Some(0) {
         bail!("--first must be at least 1");
     }
+    let inputs: Vec<&std::path::Path> = a.frames.iter().map(PathBuf::as_path).collect();
+    crate::files::refuse_output_over_input(&a.output, &inputs)?;
     let open = || {
         let s = FrameStream::open(&a.frames, 25.0)?;
         Ok(match a.first {

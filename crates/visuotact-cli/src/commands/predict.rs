@@ -34,6 +34,12 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let mut inputs = vec![a.model.as_path()];
+    inputs.extend(a.features.as_deref());
+    inputs.extend(a.readings.as_deref());
+    inputs.extend(a.sensor.as_deref());
+    inputs.extend(a.frames.iter().map(PathBuf::as_path));
+    crate::files::refuse_output_over_input(&a.output, &inputs)?;
     let model = crate::load_model(&a.model)?;
     let (f, source) = match (&a.features, &a.sensor) {
         (Some(p), _) => (

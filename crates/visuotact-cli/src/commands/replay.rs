@@ -38,6 +38,12 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let mut inputs: Vec<&std::path::Path> = a.input.iter().map(PathBuf::as_path).collect();
+    inputs.push(&a.model);
+    inputs.extend(a.sensor.as_deref());
+    inputs.extend(a.labels.as_deref());
+    inputs.extend(a.readings.as_deref());
+    crate::files::refuse_output_over_input(&a.output, &inputs)?;
     let model = crate::load_model(&a.model)?;
     let mut est = crate::estimator_with_extra_inputs(a.sensor.as_deref(), Some(model))?;
     est.set_temporal_prior(a.temporal);

@@ -51,6 +51,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if hidden.is_empty() || hidden.contains(&0) {
         bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
     }
+    let mut inputs = vec![a.data.features.as_path(), a.data.labels.as_path()];
+    inputs.extend(a.sensor.as_deref());
+    inputs.extend(a.data.extra.readings.as_deref());
+    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    crate::files::check_writable(&a.output)?;
     let sensor = match &a.sensor {
         Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
         None => None,
@@ -88,6 +93,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         feature_columns: &feature_columns,
         targets: &targets,
     };
+    for c in data.constant_targets() {
+        eprintln!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
+    }
     let (best, selection) = choose(&data, &cfg, &sets)?;
     let set = &sets[best];
     eprintln!(
@@ -118,7 +126,14 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     .map_err(fit_error)?;
     model.training.selection = selection;
     model.sensor = sensor;
-    crate::write_atomically(&a.output, &model.to_json())?;
+    // A model is written only if it is one: trained on finite numbers, and reading back.
+    if model.training.stop == "NonFinite" {
+        bail!("training met non-finite numbers (are inputs of wildly different scales?): no model written");
+    }
+    let json = model.to_json();
+    Model::from_json(&json, &a.output.display().to_string())
+        .map_err(|e| anyhow::anyhow!("the trained model does not read back, not written: {e}"))?;
+    crate::write_atomically(&a.output, &json)?;
     print_trained(&model, &targets, t0.elapsed().as_secs_f64());
     eprintln!("wrote {}", a.output.display());
     Ok(())
