@@ -136,8 +136,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     );
     if let Some(s) = s.force_packets {
         eprintln!(
-            "force: {} packets, {} kept, {} malformed, {} implausible, {} duplicates, {} reordered, {} lost",
-            s.packets, s.kept, s.malformed, s.rejected, s.duplicates, s.reordered, s.lost
+            "force: {} packets, {} kept, {} malformed, {} duplicates, {} reordered, {} lost, {} implausible",
+            s.packets, s.kept, s.malformed, s.duplicates, s.reordered, s.lost, s.rejected
         );
     }
     Ok(())

@@ -51,11 +51,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if hidden.is_empty() || hidden.contains(&0) {
         bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
     }
-    let mut inputs = vec![a.data.features.as_path(), a.data.labels.as_path()];
-    inputs.extend(a.sensor.as_deref());
-    inputs.extend(a.data.extra.readings.as_deref());
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
-    crate::files::check_writable(&a.output)?;
+    check_output(a)?;
     let sensor = match &a.sensor {
         Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
         None => None,
@@ -126,17 +122,30 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     .map_err(fit_error)?;
     model.training.selection = selection;
     model.sensor = sensor;
-    // A model is written only if it is one: trained on finite numbers, and reading back.
+    write_model(&model, &a.output)?;
+    print_trained(&model, &targets, t0.elapsed().as_secs_f64());
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// Writes `model` only if it is one: trained on finite numbers, and reading back.
+fn write_model(model: &Model, output: &std::path::Path) -> anyhow::Result<()> {
     if model.training.stop == "NonFinite" {
         bail!("training met non-finite numbers (are inputs of wildly different scales?): no model written");
     }
     let json = model.to_json();
-    Model::from_json(&json, &a.output.display().to_string())
+    Model::from_json(&json, &output.display().to_string())
         .map_err(|e| anyhow::anyhow!("the trained model does not read back, not written: {e}"))?;
-    crate::write_atomically(&a.output, &json)?;
-    print_trained(&model, &targets, t0.elapsed().as_secs_f64());
-    eprintln!("wrote {}", a.output.display());
-    Ok(())
+    crate::write_atomically(output, &json)
+}
+
+/// The model file is none of the inputs and can be written, checked before any training.
+fn check_output(a: &Args) -> anyhow::Result<()> {
+    let mut inputs = vec![a.data.features.as_path(), a.data.labels.as_path()];
+    inputs.extend(a.sensor.as_deref());
+    inputs.extend(a.data.extra.readings.as_deref());
+    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    crate::files::check_writable(&a.output)
 }
 
 /// Chooses the input set by cross-validation when there is a choice, saying so.
