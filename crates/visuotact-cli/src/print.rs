@@ -17,6 +17,9 @@ pub(crate) fn evaluation(
     map: Option<&Path>,
 ) -> anyhow::Result<()> {
     let e = evaluate_files(predictions, labels)?;
+    for note in &e.notes {
+        eprintln!("note: {note}");
+    }
     if let Some(path) = plot {
         let panels: Vec<Panel> = e
             .targets

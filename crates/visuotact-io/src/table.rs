@@ -263,6 +263,7 @@ impl KeyedTable {
             .map(|c| header.iter().position(|h| h == c))
             .collect();
         let (mut keys, mut rows, mut text) = (Vec::new(), Vec::new(), Vec::new());
+        let mut seen = std::collections::HashMap::new();
         for (n, rec) in rd.records().enumerate() {
             let line = n + 2;
             let rec = rec.map_err(|e| fail(Some(line), format!("line {line}: {e}")))?;
@@ -273,6 +274,15 @@ impl KeyedTable {
                         "line {line}: {} cells, the header has {}",
                         rec.len(),
                         header.len()
+                    ),
+                ));
+            }
+            if let Some(first) = seen.insert(rec[key_col].to_string(), line) {
+                return Err(fail(
+                    Some(line),
+                    format!(
+                        "line {line}: frame `{}` again (first on line {first}): each frame once",
+                        &rec[key_col]
                     ),
                 ));
             }
@@ -310,5 +320,23 @@ impl KeyedTable {
     /// Index of a column.
     pub fn column(&self, name: &str) -> Option<usize> {
         self.columns.iter().position(|c| c == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn a_frame_twice_is_an_error_naming_both_lines() {
+        let d = std::env::temp_dir().join(format!("visuotact-dup-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("l.csv");
+        std::fs::write(&p, "frame,x_mm\na,1\nb,2\na,3\n").unwrap();
+        let e = KeyedTable::read(&p, &[]).unwrap_err().to_string();
+        assert!(
+            e.contains("line 4: frame `a` again (first on line 2)"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -38,6 +38,9 @@ pub struct Evaluation {
     pub distance_mm: Option<Distance>,
     /// Actual and estimated contact per matched row (for the contact map).
     pub map: Vec<MapPoint>,
+    /// What was not scored and why: prediction rows without a label, rows without an
+    /// estimate, prediction columns the labels lack.
+    pub notes: Vec<String>,
 }
 
 /// Why there is nothing to evaluate.
@@ -126,11 +129,45 @@ pub fn evaluate(p: &KeyedTable, l: &KeyedTable) -> Option<Evaluation> {
         mean: distances.iter().sum::<f64>() / distances.len() as f64,
         max: distances.iter().fold(0.0f64, |m, d| m.max(*d)),
     });
+    let notes = coverage_notes(p, l, matched.len(), &targets);
     Some(Evaluation {
         targets,
         distance_mm,
         map,
+        notes,
     })
+}
+
+/// What an evaluation left out, in counts: nothing is skipped without a word.
+fn coverage_notes(
+    p: &KeyedTable,
+    l: &KeyedTable,
+    matched: usize,
+    targets: &[TargetEvaluation],
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    if matched < p.keys.len() {
+        notes.push(format!(
+            "{} of {} prediction rows have no label and were not scored",
+            p.keys.len() - matched,
+            p.keys.len()
+        ));
+    }
+    for t in targets.iter().filter(|t| t.errors.n < matched) {
+        notes.push(format!(
+            "{}: {} of {matched} labelled rows have no estimate (or no label value) and were not scored",
+            t.errors.target,
+            matched - t.errors.n
+        ));
+    }
+    for c in p.columns.iter().filter(|c| !c.ends_with("_std")) {
+        if l.column(c).is_none() {
+            notes.push(format!(
+                "prediction column `{c}` is not in the labels: not scored"
+            ));
+        }
+    }
+    notes
 }
 
 #[cfg(test)]
@@ -171,6 +208,14 @@ mod tests {
         assert_eq!((d.mean, d.max), (2.5, 5.0));
         assert_eq!(e.map[0].0, [0.0, 0.0, 1.0]);
         assert!(e.map[0].1[2].is_nan(), "the predictions have no depth");
+        // What was not scored is said, in counts.
+        assert_eq!(
+            e.notes,
+            [
+                "1 of 3 prediction rows have no label and were not scored",
+                "prediction column `extra` is not in the labels: not scored"
+            ]
+        );
         // Nothing in common: no evaluation.
         let other = table(&["force_n"], &[("a", &[1.0])]);
         assert!(evaluate(&p, &other).is_none());

@@ -107,9 +107,10 @@ impl Readings {
     }
 }
 
-/// A session's saved frames in recorded order.
-fn session_frames(s: &Path) -> Result<Vec<PathBuf>, ReplayError> {
+/// A session's saved frames in recorded order; `warn` hears how many listed are missing.
+fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, ReplayError> {
     let t = KeyedTable::read(&s.join("frames.csv"), &["kind"])?;
+    let listed = t.keys.len();
     let frames: Vec<PathBuf> = t
         .keys
         .iter()
@@ -118,6 +119,14 @@ fn session_frames(s: &Path) -> Result<Vec<PathBuf>, ReplayError> {
         .collect();
     if frames.is_empty() {
         return Err(ReplayError::NoFrames(s.to_path_buf()));
+    }
+    if frames.len() < listed {
+        warn(&format!(
+            "{}: {} of the {listed} frames listed in frames.csv are not in frames/: replaying the {} there",
+            s.display(),
+            listed - frames.len(),
+            frames.len()
+        ));
     }
     Ok(frames)
 }
@@ -145,7 +154,7 @@ pub fn replay(
     };
     let by_key = readings.as_ref().map(|r| r.table.rows_by_key());
     let paths = match &session {
-        Some(s) => session_frames(s)?,
+        Some(s) => session_frames(s, warn)?,
         None => cfg.inputs.clone(),
     };
     let targets = est.target_columns();
