@@ -238,3 +238,69 @@ fn models_are_written_only_when_they_load() {
     assert!(!model.exists(), "a model was written");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A sensor file describing no possible image is refused when read, naming it; the dashboard
+/// takes a host name; an error's cause is said once.
+#[test]
+fn small_things() {
+    let d = fresh_dir("hostile-small");
+    let session = d.join("s");
+    common::ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "2",
+        "--references",
+        "2",
+        "-o",
+        s(&session),
+    ]));
+    let sensor = d.join("sensor.json");
+    common::ok(&vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "-o",
+        s(&sensor),
+    ]));
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&sensor).unwrap()).unwrap();
+    v["image_width"] = serde_json::json!(0);
+    let bad = d.join("bad.json");
+    std::fs::write(&bad, v.to_string()).unwrap();
+    let err = fails(&vt(&[
+        "extract",
+        "--sensor",
+        s(&bad),
+        s(&session.join("frames")),
+        "-o",
+        s(&d.join("f.csv")),
+    ]));
+    assert!(
+        err.contains("bad.json") && err.contains("image size 0×480"),
+        "{err}"
+    );
+    common::ok(&vt(&[
+        "run",
+        "--source",
+        "sim:iats",
+        "--sensor",
+        s(&sensor),
+        "--max-frames",
+        "3",
+        "--unpaced",
+        "--quiet",
+        "--serve",
+        "localhost:0",
+    ]));
+    let err = fails(&vt(&[
+        "calibrate",
+        "/nonexistent/frames",
+        "-o",
+        s(&d.join("x.json")),
+    ]));
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -75,9 +75,13 @@ impl Dashboard {
         cal: &SensorCalibration,
         targets: Vec<String>,
     ) -> Result<Self, DashboardError> {
-        let sock: SocketAddr = addr.parse().map_err(|_| DashboardError::Address {
-            addr: addr.to_string(),
-        })?;
+        // Host names too (`localhost:8080`): the first address they resolve to.
+        let sock: SocketAddr = std::net::ToSocketAddrs::to_socket_addrs(addr)
+            .ok()
+            .and_then(|mut a| a.next())
+            .ok_or_else(|| DashboardError::Address {
+                addr: addr.to_string(),
+            })?;
         if !sock.ip().is_loopback() {
             eprintln!("warning: the dashboard on {sock} is reachable from other machines");
         }

@@ -594,6 +594,26 @@ impl SensorCalibration {
         if cal.markers.is_empty() {
             return Err(bad("the sensor file lists no markers".to_string()));
         }
+        let (w, h) = (cal.image_width, cal.image_height);
+        if !(1..=100_000).contains(&w) || !(1..=100_000).contains(&h) {
+            return Err(bad(format!(
+                "image size {w}×{h}: expected 1 to 100 000 pixels each way"
+            )));
+        }
+        if !(cal.pitch_px.is_finite() && cal.pitch_px > 0.0) {
+            return Err(bad(format!("pitch_px {} must be positive", cal.pitch_px)));
+        }
+        let outside = |m: &ReferenceMarker| {
+            !(m.area_px.is_finite()
+                && (-1.0..=w as f64).contains(&m.x_px)
+                && (-1.0..=h as f64).contains(&m.y_px))
+        };
+        if let Some(m) = cal.markers.iter().find(|m| outside(m)) {
+            return Err(bad(format!(
+                "marker {} at ({}, {}) lies outside the {w}×{h} image",
+                m.id, m.x_px, m.y_px
+            )));
+        }
         cal.detector
             .preprocess
             .validate()
