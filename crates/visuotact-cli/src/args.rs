@@ -265,6 +265,10 @@ pub(crate) struct AlgorithmArg {
     /// no. Tables extracted before the field summary existed have none.
     #[arg(long, value_name = "auto|yes|only|no", default_value = "auto", value_parser = ["auto", "yes", "only", "no"])]
     pub(crate) field: String,
+    /// Refuse a training that needs more memory than this, GiB (default: the memory available
+    /// when it starts).
+    #[arg(long, value_name = "GIB")]
+    pub(crate) max_memory_gib: Option<f64>,
 }
 
 /// `train`'s hidden layers when not told otherwise ([`FitConfig::default`]'s, as text).
@@ -278,6 +282,35 @@ impl AlgorithmArg {
     /// Whether the field summary is an input.
     pub(crate) fn field(&self) -> FieldInputs {
         FieldInputs::from_name(&self.field).unwrap_or(FieldInputs::Auto)
+    }
+
+    /// Refuses a training whose estimated peak memory exceeds `--max-memory-gib` (default: the
+    /// memory available now), saying both figures.
+    pub(crate) fn check_memory(
+        &self,
+        (inputs, samples, targets): (usize, usize, usize),
+        cfg: &FitConfig,
+    ) -> anyhow::Result<()> {
+        let need = visuotact_nn::fit::training_memory_bytes(inputs, samples, targets, cfg) as f64;
+        let gib = 1024f64.powi(3);
+        let limit = match self.max_memory_gib {
+            Some(g) if g.is_finite() && g > 0.0 => g * gib,
+            Some(g) => bail!("--max-memory-gib {g}: expected a positive number"),
+            None => match crate::files::available_memory_bytes() {
+                Some(b) => b as f64,
+                None => return Ok(()),
+            },
+        };
+        if need > limit {
+            bail!(
+                "this training needs about {:.1} GiB ({} inputs, hidden {:?}, {samples} samples × {targets} targets); {:.1} GiB may be used (--max-memory-gib): use fewer or smaller hidden layers, or --components",
+                need / gib,
+                inputs,
+                cfg.hidden,
+                limit / gib
+            );
+        }
+        Ok(())
     }
 
     /// The number of components for `inputs` marker inputs (`None`: no projection).

@@ -150,3 +150,16 @@ pub(crate) fn check_writable(output: &Path) -> anyhow::Result<()> {
         .and_then(|()| std::fs::remove_file(&probe))
         .map_err(|e| anyhow::anyhow!("{}: cannot write here: {e}", output.display()))
 }
+
+/// Memory available to a new allocation now, bytes (Linux `MemAvailable`; `None` elsewhere).
+pub(crate) fn available_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let kib: u64 = text
+        .lines()
+        .find(|l| l.starts_with("MemAvailable:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()?;
+    Some(kib * 1024)
+}

@@ -170,12 +170,10 @@ fn outputs_never_overwrite_inputs() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
-/// A constant target trains with a warning and a model that loads; a value of 1e308 is
-/// refused before training, naming its row and column, and no model is written.
-#[test]
-fn models_are_written_only_when_they_load() {
-    let d = fresh_dir("hostile-model");
-    let (features, labels, model) = (d.join("f.csv"), d.join("l.csv"), d.join("m.json"));
+/// A feature table (two marker columns) and labels (`x_mm` varying, `fy_n` constant) of 30
+/// frames in `d`; returns their paths and the labels' text.
+fn literal_tables(d: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf, String) {
+    let (features, labels) = (d.join("f.csv"), d.join("l.csv"));
     let mut f = String::from("frame,m000_dx_px,m000_dy_px\n");
     let mut l = String::from("frame,x_mm,fy_n\n");
     for k in 0..30 {
@@ -185,6 +183,16 @@ fn models_are_written_only_when_they_load() {
     }
     std::fs::write(&features, &f).unwrap();
     std::fs::write(&labels, &l).unwrap();
+    (features, labels, l)
+}
+
+/// A constant target trains with a warning and a model that loads; a value of 1e308 is
+/// refused before training, naming its row and column, and no model is written.
+#[test]
+fn models_are_written_only_when_they_load() {
+    let d = fresh_dir("hostile-model");
+    let (features, labels, l) = literal_tables(&d);
+    let model = d.join("m.json");
     let train = |labels: &std::path::Path| {
         vt(&[
             "train",
@@ -223,19 +231,48 @@ fn models_are_written_only_when_they_load() {
     ]));
     std::fs::remove_file(&model).unwrap();
     let huge = d.join("huge.csv");
-    let mut l2 = String::new();
-    for line in l.lines() {
-        if line.starts_with("f7,") {
-            l2.push_str("f7,1e308,0.5\n");
-        } else {
-            l2.push_str(line);
-            l2.push('\n');
-        }
-    }
+    let l2: String = l
+        .lines()
+        .map(|line| if line.starts_with("f7,") { "f7,1e308,0.5".to_string() } else { line.to_string() } + "\n")
+        .collect();
     std::fs::write(&huge, &l2).unwrap();
     let err = fails(&train(&huge));
     assert!(err.contains("x_mm") && err.contains("1e15"), "{err}");
     assert!(!model.exists(), "a model was written");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A training that cannot fit in memory is refused before it allocates, with the figure.
+#[test]
+fn oversized_trainings_are_refused_first() {
+    let d = fresh_dir("hostile-memory");
+    let (features, labels, _) = literal_tables(&d);
+    let model = d.join("m.json");
+    for extra in [
+        &["--hidden", "1000000,1000000"][..],
+        &["--max-memory-gib", "0.000001"],
+    ] {
+        let mut args = vec![
+            "train",
+            "--features",
+            s(&features),
+            "--labels",
+            s(&labels),
+            "--targets",
+            "x_mm",
+            "--ensemble",
+            "1",
+            "-o",
+            s(&model),
+        ];
+        args.extend_from_slice(extra);
+        let err = fails(&vt(&args));
+        assert!(
+            err.contains("this training needs about"),
+            "{extra:?}: {err}"
+        );
+        assert!(!model.exists());
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -452,6 +452,29 @@ impl FitData<'_> {
     }
 }
 
+/// The memory a training needs at its peak, bytes (a bound, not an exact count): the
+/// Jacobian (residuals × weights, or by layers on the dual path), the damped system (the
+/// smaller of residuals and weights, squared, twice: matrix and factor), the activations, for
+/// each network trained at once (an ensemble's members train in parallel).
+pub fn training_memory_bytes(
+    inputs: usize,
+    samples: usize,
+    targets: usize,
+    cfg: &FitConfig,
+) -> u64 {
+    let sizes: Vec<usize> = std::iter::once(inputs)
+        .chain(cfg.hidden.iter().copied())
+        .chain(std::iter::once(targets))
+        .collect();
+    let n = Mlp::n_params_for(&sizes) as u128;
+    let m = (samples * targets) as u128;
+    let k = n.min(m);
+    let activations = samples as u128 * sizes.iter().map(|&s| s as u128).sum::<u128>();
+    let one = 8 * (m * n + 2 * k * k + 2 * activations + 4 * n);
+    let parallel = cfg.ensemble.max(1).min(rayon::current_num_threads()) as u128;
+    u64::try_from(one * parallel).unwrap_or(u64::MAX)
+}
+
 /// The largest magnitude an input or a target may have: beyond it a value is not a
 /// measurement, and mapminmax scaling would squash every other value of its column to one.
 pub const LARGEST_VALUE: f64 = 1e15;

@@ -40,6 +40,24 @@ pub(crate) struct Args {
     keep: usize,
 }
 
+/// Every architecture's trainings, as many at once as there are cores, must fit in memory.
+fn check_memory(
+    a: &Args,
+    archs: &[Vec<usize>],
+    base: &FitConfig,
+    sizes: (usize, usize, usize),
+) -> anyhow::Result<()> {
+    for hidden in archs {
+        let cfg = FitConfig {
+            hidden: hidden.clone(),
+            ensemble: rayon::current_num_threads(),
+            ..base.clone()
+        };
+        a.algorithm.check_memory(sizes, &cfg)?;
+    }
+    Ok(())
+}
+
 fn progress_bar(len: u64) -> ProgressBar {
     let bar = ProgressBar::new(len);
     bar.set_style(
@@ -85,6 +103,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         feature_columns: &feature_columns,
         targets: &targets,
     };
+    let inputs = components.map_or(feature_columns.len(), |k| k + passthrough);
+    check_memory(a, &archs, &base, (inputs, x.len(), targets.len()))?;
     let s = sweep(&data, &archs, a.repeats, &base, || bar.inc(1)).map_err(crate::fit_error)?;
     bar.finish_and_clear();
     crate::write_atomically(&a.output.join("sweep.csv"), &s.to_csv())?;

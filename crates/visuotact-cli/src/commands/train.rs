@@ -89,21 +89,17 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         feature_columns: &feature_columns,
         targets: &targets,
     };
+    let widest = sets.iter().map(InputSet::network_inputs).max().unwrap_or(0);
+    a.algorithm
+        .check_memory((widest, x.len(), targets.len()), &cfg)?;
     for c in data.constant_targets() {
         eprintln!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
     }
     let (best, selection) = choose(&data, &cfg, &sets)?;
     let set = &sets[best];
     eprintln!(
-        "training {} → {} → {} ({} weights, {}) on {} frames",
-        set.in_words(),
-        cfg.hidden
-            .iter()
-            .map(usize::to_string)
-            .collect::<Vec<_>>()
-            .join(" → "),
-        targets.len(),
-        Mlp::n_params_for(&[&[set.network_inputs()][..], &cfg.hidden, &[targets.len()]].concat()),
+        "training {}, {}) on {} frames",
+        network_in_words(set, &cfg.hidden, targets.len()),
         a.algorithm.name,
         x.len()
     );
@@ -126,6 +122,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     print_trained(&model, &targets, t0.elapsed().as_secs_f64());
     eprintln!("wrote {}", a.output.display());
     Ok(())
+}
+
+/// `in → hidden → out (n weights)` for the network `set` feeds.
+fn network_in_words(set: &InputSet, hidden: &[usize], targets: usize) -> String {
+    let sizes = [&[set.network_inputs()][..], hidden, &[targets]].concat();
+    let layers: Vec<String> = hidden.iter().map(usize::to_string).collect();
+    format!(
+        "{} → {} → {targets} ({} weights",
+        set.in_words(),
+        layers.join(" → "),
+        Mlp::n_params_for(&sizes)
+    )
 }
 
 /// Writes `model` only if it is one: trained on finite numbers, and reading back.
