@@ -285,32 +285,19 @@ impl AlgorithmArg {
     }
 
     /// Refuses a training whose estimated peak memory exceeds `--max-memory-gib` (default: the
-    /// memory available now), saying both figures.
+    /// memory available now).
     pub(crate) fn check_memory(
         &self,
-        (inputs, samples, targets): (usize, usize, usize),
+        sizes: (usize, usize, usize),
         cfg: &FitConfig,
     ) -> anyhow::Result<()> {
-        let need = visuotact_nn::fit::training_memory_bytes(inputs, samples, targets, cfg) as f64;
-        let gib = 1024f64.powi(3);
         let limit = match self.max_memory_gib {
-            Some(g) if g.is_finite() && g > 0.0 => g * gib,
+            Some(g) if g.is_finite() && g > 0.0 => (g * 1024f64.powi(3)) as u64,
             Some(g) => bail!("--max-memory-gib {g}: expected a positive number"),
-            None => match crate::files::available_memory_bytes() {
-                Some(b) => b as f64,
-                None => return Ok(()),
-            },
+            None => visuotact_io::guard::available_memory_bytes().unwrap_or(u64::MAX),
         };
-        if need > limit {
-            bail!(
-                "this training needs about {:.1} GiB ({} inputs, hidden {:?}, {samples} samples × {targets} targets); {:.1} GiB may be used (--max-memory-gib): use fewer or smaller hidden layers, or --components",
-                need / gib,
-                inputs,
-                cfg.hidden,
-                limit / gib
-            );
-        }
-        Ok(())
+        visuotact_nn::fit::check_training_memory(sizes, cfg, limit)
+            .map_err(|e| anyhow::anyhow!("{e} (--max-memory-gib)"))
     }
 
     /// The number of components for `inputs` marker inputs (`None`: no projection).

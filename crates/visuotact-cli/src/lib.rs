@@ -17,8 +17,7 @@ use commands::{
     replay, run, simulate, sweep, trackcheck, train,
 };
 pub(crate) use files::{
-    estimator, estimator_with_extra_inputs, fit_error, load_model, load_sensor, reference_note,
-    write_atomically,
+    estimator, fit_error, load_model, load_sensor, reference_note, write_atomically,
 };
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.

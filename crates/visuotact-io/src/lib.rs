@@ -10,6 +10,7 @@
 pub mod camera;
 pub mod force;
 pub mod frames;
+pub mod guard;
 pub mod queue;
 pub mod session;
 pub mod source;
@@ -28,6 +29,9 @@ pub enum Error {
     /// [`force::PacketError`].
     #[error(transparent)]
     Packet(#[from] force::PacketError),
+    /// [`guard::OutputError`].
+    #[error(transparent)]
+    Output(#[from] guard::OutputError),
     /// [`table::TableError`].
     #[error(transparent)]
     Table(#[from] table::TableError),

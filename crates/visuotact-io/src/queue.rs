@@ -96,12 +96,16 @@ impl<T> LatestQueue<T> {
 
 /// Median and 99th percentile of `v` (sorted in place).
 pub fn median_p99(v: &mut [f64]) -> (f64, f64) {
+    percentiles(v, [0.5, 0.99]).into()
+}
+
+/// The `q` quantiles of `v` (nearest rank, sorted in place); NaN for an empty `v`.
+pub fn percentiles<const N: usize>(v: &mut [f64], q: [f64; N]) -> [f64; N] {
     if v.is_empty() {
-        return (f64::NAN, f64::NAN);
+        return [f64::NAN; N];
     }
     v.sort_by(f64::total_cmp);
-    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-    (at(0.5), at(0.99))
+    q.map(|q| v[((v.len() - 1) as f64 * q).round() as usize])
 }
 
 #[cfg(test)]

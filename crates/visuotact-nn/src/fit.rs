@@ -161,6 +161,19 @@ impl InputSet {
         }
     }
 
+    /// `in → hidden → out (n weights` for the network this set feeds (the caller closes the
+    /// parenthesis after adding what it knows, e.g. the algorithm).
+    pub fn network_in_words(&self, hidden: &[usize], targets: usize) -> String {
+        let sizes = [&[self.network_inputs()][..], hidden, &[targets]].concat();
+        let layers: Vec<String> = hidden.iter().map(usize::to_string).collect();
+        format!(
+            "{} → {} → {targets} ({} weights",
+            self.in_words(),
+            layers.join(" → "),
+            Mlp::n_params_for(&sizes)
+        )
+    }
+
     /// Every column of a table whose columns are `kinds` (markers' features first), the
     /// markers' features projected to `components` when there are any.
     pub fn all(kinds: &[ColumnKind], components: Option<usize>) -> Self {
@@ -473,6 +486,25 @@ pub fn training_memory_bytes(
     let one = 8 * (m * n + 2 * k * k + 2 * activations + 4 * n);
     let parallel = cfg.ensemble.max(1).min(rayon::current_num_threads()) as u128;
     u64::try_from(one * parallel).unwrap_or(u64::MAX)
+}
+
+/// Refuses a training whose [`training_memory_bytes`] exceed `limit_bytes`, saying both.
+pub fn check_training_memory(
+    (inputs, samples, targets): (usize, usize, usize),
+    cfg: &FitConfig,
+    limit_bytes: u64,
+) -> Result<(), FitError> {
+    let need = training_memory_bytes(inputs, samples, targets, cfg);
+    if need > limit_bytes {
+        let gib = |b: u64| b as f64 / 1024f64.powi(3);
+        return Err(FitError::Config(format!(
+            "this training needs about {:.1} GiB ({inputs} inputs, hidden {:?}, {samples} samples × {targets} targets) and {:.1} GiB may be used: use fewer or smaller hidden layers, or fewer inputs (components)",
+            gib(need),
+            cfg.hidden,
+            gib(limit_bytes)
+        )));
+    }
+    Ok(())
 }
 
 /// The largest magnitude an input or a target may have: beyond it a value is not a

@@ -621,6 +621,17 @@ impl SensorCalibration {
         Ok(cal)
     }
 
+    /// The layout found, in words (`9 rows × 13 columns`, `2 concentric rings`).
+    pub fn layout_in_words(&self) -> String {
+        match self.layout {
+            Layout::Rings => format!("{} concentric rings", self.markers.len()),
+            Layout::Irregular => "irregular pattern".to_string(),
+            Layout::DotRings => format!("{} rings of dots", self.grid_rows),
+            Layout::Hex => format!("hexagonal, {} rows", self.grid_rows),
+            Layout::Grid => format!("{} rows × {} columns", self.grid_rows, self.grid_cols),
+        }
+    }
+
     /// The JSON text of the file.
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_default()
@@ -648,6 +659,21 @@ pub struct LightestSelection {
 }
 
 impl LightestSelection {
+    /// What was chosen and how still it is, in words.
+    pub fn in_words(&self) -> String {
+        format!(
+            "the {} lightest of {} frames ({} usable): their deformation {:.3}–{:.3} px RMS (median frame {:.3} px); residual motion of the reference {:.3} px RMS, {:.3} px at worst",
+            self.chosen.len(),
+            self.considered,
+            self.usable,
+            self.deformation_px.first().copied().unwrap_or(0.0),
+            self.deformation_px.last().copied().unwrap_or(0.0),
+            self.median_deformation_px,
+            self.residual_px,
+            self.residual_max_px,
+        )
+    }
+
     /// The provenance a reference from these frames carries: under contact when some marker is
     /// over a quarter pixel from its rest estimate (more than tracking noise).
     pub fn reference_info(&self) -> ReferenceInfo {

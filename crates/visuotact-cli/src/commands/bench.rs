@@ -24,13 +24,6 @@ pub(crate) struct Args {
     max_frames: usize,
 }
 
-/// Median and 90th percentile of microsecond samples.
-pub(crate) fn percentiles(mut us: Vec<f64>) -> (f64, f64) {
-    us.sort_by(f64::total_cmp);
-    let at = |q: f64| us[((us.len() - 1) as f64 * q).round() as usize];
-    (at(0.5), at(0.9))
-}
-
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let cal = crate::load_sensor(&a.sensor)?;
     let features = cal.features;
@@ -55,7 +48,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         us.push(t0.elapsed().as_secs_f64() * 1e6);
         found += out.found;
     }
-    let (median, p90) = percentiles(us);
+    let [median, p90] = visuotact_io::queue::percentiles(&mut us, [0.5, 0.9]);
     println!(
         "median_us={median:.1} p90_us={p90:.1} fps={:.0} frames={} passes={} size={}x{} markers_found_mean={:.1}",
         1e6 / median,

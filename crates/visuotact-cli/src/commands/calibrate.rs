@@ -7,7 +7,7 @@ use visuotact_io::frames::FrameStream;
 use visuotact_pipeline::calibrate::{calibrate_frames, Calibrated, ReferenceSource};
 use visuotact_vision::calibration::CalibrationConfig;
 use visuotact_vision::features::FeatureSet;
-use visuotact_vision::layout::{Layout, LayoutChoice};
+use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::track::TrackConfig;
 
 use crate::args::DetectorArgs;
@@ -46,7 +46,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         bail!("--first must be at least 1");
     }
     let inputs: Vec<&std::path::Path> = a.frames.iter().map(PathBuf::as_path).collect();
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let open = || {
         let s = FrameStream::open(&a.frames, 25.0)?;
         Ok(match a.first {
@@ -92,13 +92,7 @@ fn print_calibrated(done: &Calibrated) {
     let level = report
         .level
         .map_or("adaptive".to_string(), |t| format!("{t}"));
-    let shape = match cal.layout {
-        Layout::Rings => format!("{} concentric rings", cal.markers.len()),
-        Layout::Irregular => "irregular pattern".to_string(),
-        Layout::DotRings => format!("{} rings of dots", cal.grid_rows),
-        Layout::Hex => format!("hexagonal, {} rows", cal.grid_rows),
-        Layout::Grid => format!("{} rows × {} columns", cal.grid_rows, cal.grid_cols),
-    };
+    let shape = cal.layout_in_words();
     eprintln!(
         "calibrated {} markers ({}: {shape}, pitch {:.1} px) from {} frames of {}×{}; threshold {level}; {} blobs, {} off the layout",
         cal.markers.len(),
@@ -111,22 +105,12 @@ fn print_calibrated(done: &Calibrated) {
         report.off_grid.len()
     );
     if let Some(sel) = &selection {
-        eprintln!(
-            "reference from the {} lightest of {} frames ({} usable): their deformation {:.3}–{:.3} px RMS (median frame {:.3} px); residual motion of the reference {:.3} px RMS, {:.3} px at worst{}",
-            sel.chosen.len(),
-            sel.considered,
-            sel.usable,
-            sel.deformation_px.first().copied().unwrap_or(0.0),
-            sel.deformation_px.last().copied().unwrap_or(0.0),
-            sel.median_deformation_px,
-            sel.residual_px,
-            sel.residual_max_px,
-            if cal.reference.under_contact {
-                " — taken under contact: features are relative to a lightly pressed skin"
-            } else {
-                ""
-            }
-        );
+        let note = if cal.reference.under_contact {
+            " — taken under contact: features are relative to a lightly pressed skin"
+        } else {
+            ""
+        };
+        eprintln!("reference from {}{note}", sel.in_words());
     }
     let mut jitter: Vec<f64> = cal.markers.iter().filter_map(|m| m.jitter_px).collect();
     jitter.sort_by(f64::total_cmp);

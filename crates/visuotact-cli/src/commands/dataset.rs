@@ -34,7 +34,7 @@ pub(crate) struct Args {
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let inputs: Vec<&std::path::Path> = a.sessions.iter().map(PathBuf::as_path).collect();
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let sensor = a.sensor.as_deref().map(crate::load_sensor).transpose()?;
     let cfg = DatasetConfig {
         latency_s: a.latency_s,

@@ -46,7 +46,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
     let mut inputs: Vec<&std::path::Path> = a.frames.iter().map(PathBuf::as_path).collect();
     inputs.push(&a.sensor);
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let cal = crate::load_sensor(&a.sensor)?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,

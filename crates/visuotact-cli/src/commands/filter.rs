@@ -25,9 +25,9 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    crate::files::refuse_output_over_input(&a.output, &[&a.input])?;
+    visuotact_io::guard::refuse_output_over_input(&a.output, &[&a.input])?;
     if let Some(plot) = &a.plot {
-        crate::files::refuse_output_over_input(plot, &[&a.input, &a.output])?;
+        visuotact_io::guard::refuse_output_over_input(plot, &[&a.input, &a.output])?;
     }
     let mut table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
     if table.dropped_partial_line {

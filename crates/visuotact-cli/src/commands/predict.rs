@@ -39,7 +39,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     inputs.extend(a.readings.as_deref());
     inputs.extend(a.sensor.as_deref());
     inputs.extend(a.frames.iter().map(PathBuf::as_path));
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let model = crate::load_model(&a.model)?;
     let (f, source) = match (&a.features, &a.sensor) {
         (Some(p), _) => (

@@ -43,9 +43,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     inputs.extend(a.sensor.as_deref());
     inputs.extend(a.labels.as_deref());
     inputs.extend(a.readings.as_deref());
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let model = crate::load_model(&a.model)?;
-    let mut est = crate::estimator_with_extra_inputs(a.sensor.as_deref(), Some(model))?;
+    let sensor = a.sensor.as_deref().map(crate::load_sensor).transpose()?;
+    let mut est = visuotact_pipeline::Estimator::with_extra_inputs(sensor, Some(model))?;
     est.set_temporal_prior(a.temporal);
     let cfg = ReplayConfig {
         inputs: a.input.clone(),

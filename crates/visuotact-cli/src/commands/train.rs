@@ -9,7 +9,6 @@ use visuotact_nn::fit::{
     InputSet, SELECTION_FOLDS,
 };
 use visuotact_nn::lm::Control;
-use visuotact_nn::mlp::Mlp;
 use visuotact_nn::model::Model;
 use visuotact_pipeline::table::TrainingTable;
 use visuotact_vision::features::FIELD_COLUMNS;
@@ -99,7 +98,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let set = &sets[best];
     eprintln!(
         "training {}, {}) on {} frames",
-        network_in_words(set, &cfg.hidden, targets.len()),
+        set.network_in_words(&cfg.hidden, targets.len()),
         a.algorithm.name,
         x.len()
     );
@@ -124,18 +123,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `in → hidden → out (n weights)` for the network `set` feeds.
-fn network_in_words(set: &InputSet, hidden: &[usize], targets: usize) -> String {
-    let sizes = [&[set.network_inputs()][..], hidden, &[targets]].concat();
-    let layers: Vec<String> = hidden.iter().map(usize::to_string).collect();
-    format!(
-        "{} → {} → {targets} ({} weights",
-        set.in_words(),
-        layers.join(" → "),
-        Mlp::n_params_for(&sizes)
-    )
-}
-
 /// Writes `model` only if it is one: trained on finite numbers, and reading back.
 fn write_model(model: &Model, output: &std::path::Path) -> anyhow::Result<()> {
     if model.training.stop == "NonFinite" {
@@ -152,8 +139,8 @@ fn check_output(a: &Args) -> anyhow::Result<()> {
     let mut inputs = vec![a.data.features.as_path(), a.data.labels.as_path()];
     inputs.extend(a.sensor.as_deref());
     inputs.extend(a.data.extra.readings.as_deref());
-    crate::files::refuse_output_over_input(&a.output, &inputs)?;
-    crate::files::check_writable(&a.output)
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
+    Ok(visuotact_io::guard::check_writable(&a.output)?)
 }
 
 /// Chooses the input set by cross-validation when there is a choice, saying so.
