@@ -1,7 +1,6 @@
-//! The `visuotact` command line: parses arguments and calls the library crates.
-//!
-//! `main` only calls [`run`]; each subcommand lives in its own module and returns
-//! `anyhow::Result`, printed once here as `error: …` with exit code 1 (2 for usage errors).
+//! The `visuotact` command line: parses arguments and calls the library crates. `main` only
+//! calls [`run`]; each subcommand lives in `commands/` and returns `anyhow::Result`, printed
+//! once here as `error: …` with exit code 1 (2 for usage errors).
 
 use std::process::ExitCode;
 

@@ -185,17 +185,26 @@ pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
 
 /// Writes an RGB image as PNG.
 pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), FrameError> {
-    image::save_buffer(
-        path,
+    // Through a temporary file and a rename: a full disk or a kill never leaves a torn PNG
+    // under the frame's name.
+    let tmp = path.with_extension("png.part~");
+    let failed = |e: String| FrameError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e),
+    };
+    let written = image::save_buffer_with_format(
+        &tmp,
         img.as_slice(),
         img.width() as u32,
         img.height() as u32,
         image::ExtendedColorType::Rgb8,
-    )
-    .map_err(|e| FrameError::Io {
-        path: path.to_path_buf(),
-        source: std::io::Error::other(e.to_string()),
-    })
+        image::ImageFormat::Png,
+    );
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(failed(e.to_string()));
+    }
+    std::fs::rename(&tmp, path).map_err(|e| failed(e.to_string()))
 }
 
 /// Size and rate of a video, from `ffprobe`.

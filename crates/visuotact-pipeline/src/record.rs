@@ -267,8 +267,11 @@ pub fn record(
     tables.sync()?;
     summary.frames = tables.first_index + summary.written;
     summary.duration_s = clock.elapsed().as_secs_f64();
-    describe(cfg, result.is_ok(), &summary)?;
+    // The first real error is the one reported (a full disk fails the frame before the
+    // description): the description is still attempted, its own failure then secondary.
+    let described = describe(cfg, result.is_ok(), &summary);
     result?;
+    described?;
     if summary.written == 0 {
         return Err(RecordError::NothingRecorded(if cfg.resume {
             format!(

@@ -115,11 +115,13 @@ fn print_calibrated(done: &Calibrated) {
     let mut jitter: Vec<f64> = cal.markers.iter().filter_map(|m| m.jitter_px).collect();
     jitter.sort_by(f64::total_cmp);
     if let Some(&worst) = jitter.last() {
+        let median = jitter[jitter.len() / 2];
         eprintln!(
-            "marker jitter over the calibration frames: median {:.3} px, worst {:.3} px",
-            jitter[jitter.len() / 2],
-            worst
+            "marker jitter over the calibration frames: median {median:.3} px, worst {worst:.3} px"
         );
+        if median > 0.5 && selection.is_none() {
+            eprintln!("warning: the calibration frames differ by {median:.2} px at the median marker: were they still and free of contact? (--reference lightest:N for a data set with none)");
+        }
     }
     let never = cal.markers.iter().filter(|m| m.jitter_px.is_none()).count();
     if never > 0 {
