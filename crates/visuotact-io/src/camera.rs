@@ -94,7 +94,9 @@ pub fn parse_formats(text: &str) -> Vec<CameraFormat> {
         };
         for size in cells[cells.len() - 1].split_whitespace() {
             if let Some((w, h)) = size.split_once('x') {
-                if let (Ok(width), Ok(height)) = (w.parse(), h.parse()) {
+                let size = (w.parse::<usize>(), h.parse::<usize>());
+                // A size no camera has (0, or beyond 16384) would size buffers wrongly.
+                if let (Ok(width @ 1..=16384), Ok(height @ 1..=16384)) = size {
                     out.push(CameraFormat {
                         pixel,
                         width,
@@ -169,13 +171,20 @@ pub fn rgb_from_mjpeg(jpeg: &[u8]) -> Result<RgbImage, CameraError> {
     RgbImage::from_vec(w, h, img.into_raw()).map_err(|e| CameraError::Frame(e.to_string()))
 }
 
-/// Splits a byte stream of concatenated JPEGs (SOI `FF D8` … EOI `FF D9`) into frames.
+/// Splits a byte stream of concatenated JPEGs (SOI `FF D8` … EOI `FF D9`) into frames. A
+/// frame that does not end within [`MjpegSplitter::LARGEST`] bytes is dropped (a stream of
+/// junk never grows the buffer without bound) and counted.
 #[derive(Default)]
 pub struct MjpegSplitter {
     buf: Vec<u8>,
+    /// Unterminated frames dropped so far.
+    pub dropped: u64,
 }
 
 impl MjpegSplitter {
+    /// The largest frame kept, bytes.
+    pub const LARGEST: usize = 64 << 20;
+
     /// Adds bytes; returns the complete frames they finish.
     pub fn push(&mut self, bytes: &[u8]) -> Vec<Vec<u8>> {
         self.buf.extend_from_slice(bytes);
@@ -192,6 +201,10 @@ impl MjpegSplitter {
                 .position(|w| w == [0xFF, 0xD9])
             else {
                 self.buf.drain(..start);
+                if self.buf.len() > Self::LARGEST {
+                    self.buf.clear();
+                    self.dropped += 1;
+                }
                 break;
             };
             let end = start + 2 + end + 2;
