@@ -9,8 +9,8 @@ use visuotact_io::force::{plausible, ForceLayout, ForceTable};
 use visuotact_io::table::KeyedTable;
 
 fn config() -> ProptestConfig {
+    // 256 cases unless PROPTEST_CASES says otherwise (the long run: docs/failure.md).
     ProptestConfig {
-        cases: 256,
         failure_persistence: None,
         ..ProptestConfig::default()
     }
