@@ -216,6 +216,8 @@ pub struct VideoInfo {
     pub height: usize,
     /// Frames per second.
     pub fps: f64,
+    /// Frames the container announces, when it says.
+    pub frames: Option<usize>,
 }
 
 fn tool_missing(path: &Path, tool: &str, e: &std::io::Error) -> FrameError {
@@ -244,7 +246,7 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, FrameError> {
             "-select_streams",
             "v:0",
             "-show_entries",
-            "stream=width,height,avg_frame_rate,r_frame_rate",
+            "stream=width,height,avg_frame_rate,r_frame_rate,nb_frames",
             "-of",
             "default=noprint_wrappers=1",
         ])
@@ -289,7 +291,13 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, FrameError> {
     if width == 0 || height == 0 {
         return Err(bad("zero frame size"));
     }
-    Ok(VideoInfo { width, height, fps })
+    let frames = field("nb_frames").and_then(|v| v.parse().ok());
+    Ok(VideoInfo {
+        width,
+        height,
+        fps,
+        frames,
+    })
 }
 
 /// Frames of one video, decoded by a child `ffmpeg` process.
@@ -331,6 +339,19 @@ impl VideoFrames {
     /// Size and rate.
     pub fn info(&self) -> VideoInfo {
         self.info
+    }
+
+    /// Fewer frames decoded than the container announces (a file cut short): said once, at
+    /// the end, as an error item the stream's readers report (a frame or two of slack).
+    fn short(&self) -> Option<FrameError> {
+        let announced = self.info.frames?;
+        (self.index + 1 + announced / 50 < announced).then(|| FrameError::Video {
+            path: self.path.clone(),
+            message: format!(
+                "only {} of the {announced} frames the file announces could be decoded: is it cut short?",
+                self.index
+            ),
+        })
     }
 
     fn finish(&mut self) -> Option<FrameError> {
@@ -386,7 +407,7 @@ impl Iterator for VideoFrames {
                     message: format!("frame {} truncated ({got} of {n} bytes)", self.index),
                 }));
             }
-            return err.map(Err);
+            return err.or_else(|| self.short()).map(Err);
         }
         let index = self.index;
         self.index += 1;
