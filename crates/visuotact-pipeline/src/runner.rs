@@ -223,7 +223,7 @@ pub fn rss_kib() -> Option<u64> {
 enum Source {
     Sim(Vec<(String, Arc<RgbImage>)>),
     Camera(String),
-    Stream(FrameStream),
+    Stream(Box<FrameStream>),
 }
 
 impl Source {
@@ -237,7 +237,9 @@ impl Source {
                 Self::Sim(frames)
             }
             SourceSpec::Camera(dev) => Self::Camera(dev),
-            SourceSpec::Frames(path) => Self::Stream(FrameStream::open(&[path], cfg.fps)?),
+            SourceSpec::Frames(path) => {
+                Self::Stream(Box::new(FrameStream::open(&[path], cfg.fps)?))
+            }
         })
     }
 
@@ -276,7 +278,7 @@ impl Source {
             )?,
             Self::Stream(stream) => std::thread::spawn(move || {
                 let mut k = 0u64;
-                for item in stream {
+                for item in *stream {
                     if k >= max || stop.load(Ordering::Relaxed) {
                         break;
                     }
