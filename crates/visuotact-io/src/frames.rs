@@ -47,6 +47,17 @@ pub enum FrameError {
         /// What the decoder said.
         message: String,
     },
+    /// Two images whose frame ids (their file names, as text) are the same: rows of every
+    /// table would be joined wrongly.
+    #[error("{} and {}: both give the frame id `{id}`; frames must have distinct file names", first.display(), second.display())]
+    SameId {
+        /// The id.
+        id: String,
+        /// The first image.
+        first: PathBuf,
+        /// The second.
+        second: PathBuf,
+    },
     /// ffmpeg missing, failing to open the video, or stopping early.
     #[error("{path}: {message}")]
     Video {
@@ -434,6 +445,13 @@ impl Drop for VideoFrames {
     }
 }
 
+/// An image's frame id: its file name, as text.
+fn image_id(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
 /// How many images are decoded at once (in parallel) by [`FrameStream`].
 const DECODE_BATCH: usize = 32;
 
@@ -453,6 +471,21 @@ impl FrameStream {
     /// Opens files and folders; `image_fps` sets image-sequence timestamps.
     pub fn open(paths: &[PathBuf], image_fps: f64) -> Result<Self, FrameError> {
         let inputs = expand_inputs(paths)?;
+        // Image ids are file names (as text: names that are not UTF-8 may collide), so two
+        // folders holding the same names, or two such names, are refused.
+        let mut seen = std::collections::HashMap::new();
+        for i in &inputs {
+            if let Input::Image(p) = i {
+                let id = image_id(p);
+                if let Some(first) = seen.insert(id.clone(), p) {
+                    return Err(FrameError::SameId {
+                        id,
+                        first: first.clone(),
+                        second: p.clone(),
+                    });
+                }
+            }
+        }
         // Video frame ids are bare indices unless several inputs could make them collide.
         let multi = inputs.len() > 1 && inputs.iter().any(|i| matches!(i, Input::Video(_)));
         Ok(Self {
@@ -538,10 +571,7 @@ impl Iterator for FrameStream {
                         .enumerate()
                         .map(|(k, p)| {
                             read_image(p).map(|image| Frame {
-                                id: p
-                                    .file_name()
-                                    .map(|n| n.to_string_lossy().into_owned())
-                                    .unwrap_or_default(),
+                                id: image_id(p),
                                 index: base + k,
                                 timestamp_s: (base + k) as f64 / fps,
                                 image,

@@ -1,5 +1,6 @@
 //! A video cut short decodes the frames it has, then says how many of the frames its container
-//! announces are missing (a truncated file is never taken for a short one).
+//! announces are missing (a truncated file is never taken for a short one); two images that
+//! would share a frame id are refused.
 
 use std::process::Command;
 
@@ -47,6 +48,25 @@ fn a_video_cut_short_says_so() {
         said.iter()
             .any(|e| e.contains("of the 40 frames the file announces")),
         "{said:?}"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Two folders holding the same file names would give two frames one id: refused, naming both.
+#[test]
+fn two_images_with_one_id_are_refused() {
+    let d = std::env::temp_dir().join(format!("visuotact-same-id-{}", std::process::id()));
+    for sub in ["a", "b"] {
+        std::fs::create_dir_all(d.join(sub)).unwrap();
+        std::fs::write(d.join(sub).join("0001.png"), b"").unwrap();
+    }
+    let e = FrameStream::open(&[d.join("a"), d.join("b")], 25.0)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("`0001.png`") && e.contains("a/0001.png") && e.contains("b/0001.png"),
+        "{e}"
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
