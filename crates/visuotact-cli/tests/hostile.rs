@@ -281,27 +281,8 @@ fn oversized_trainings_are_refused_first() {
 #[test]
 fn small_things() {
     let d = fresh_dir("hostile-small");
-    let session = d.join("s");
-    common::ok(&vt(&[
-        "simulate",
-        "--sensor",
-        "iats",
-        "--protocol",
-        "random",
-        "--touches",
-        "2",
-        "--references",
-        "2",
-        "-o",
-        s(&session),
-    ]));
-    let sensor = d.join("sensor.json");
-    common::ok(&vt(&[
-        "calibrate",
-        s(&session.join("reference")),
-        "-o",
-        s(&sensor),
-    ]));
+    // A simulated session, its sensor file (and a feature table this test does not need).
+    let (session, sensor, _) = common::iats_features(&d, "2", "1");
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&sensor).unwrap()).unwrap();
     v["image_width"] = serde_json::json!(0);

@@ -87,13 +87,12 @@ pub fn check_writable(output: &Path) -> Result<(), OutputError> {
         output: output.to_path_buf(),
         why,
     };
-    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| fail(format!("cannot create its folder: {e}")))?;
-    }
-    let probe = output.with_extension("probe~");
-    std::fs::write(&probe, b"")
-        .and_then(|()| std::fs::remove_file(&probe))
-        .map_err(|e| fail(format!("cannot write here: {e}")))
+    let dir = output
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).map_err(|e| fail(format!("cannot create its folder: {e}")))?;
+    crate::session::probe_writable(dir, 0).map_err(|e| fail(e.to_string()))
 }
 
 /// Memory available to a new allocation now, bytes (Linux `MemAvailable`; `None` elsewhere).

@@ -424,6 +424,27 @@ impl Model {
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).unwrap_or_default()
     }
+
+    /// The JSON text of a model worth a file, for writing to `path`: refused when training
+    /// met non-finite numbers, and read back before it is handed out, so a written model file
+    /// always loads.
+    pub fn to_checked_json(&self, path: &str) -> Result<String, ModelFileError> {
+        let bad = |why: &str| ModelFileError {
+            source_name: path.to_string(),
+            why: why.to_string(),
+        };
+        if self.training.stop == "NonFinite" {
+            return Err(bad("training met non-finite numbers (are inputs of wildly different scales?): no model written"));
+        }
+        let json = self.to_json();
+        Self::from_json(&json, path).map_err(|e| {
+            bad(&format!(
+                "the trained model does not read back, not written: {}",
+                e.why
+            ))
+        })?;
+        Ok(json)
+    }
 }
 
 #[cfg(test)]

@@ -42,6 +42,27 @@ pub use estimator::{feature_set_of, Estimator, PipelineError};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};
 pub use visuotact_io::queue::{self, Captured, LatestQueue};
 
+/// The longest duration or period a setting may give, s (about 11.6 days).
+const LONGEST_S: f64 = 1e6;
+
+/// `v` seconds, named `what` in the error: finite, ≥ 0 and at most [`LONGEST_S`].
+pub(crate) fn seconds(what: &str, v: f64) -> Result<std::time::Duration, String> {
+    if !(0.0..=LONGEST_S).contains(&v) {
+        return Err(format!(
+            "{what} must be a number of seconds in 0..{LONGEST_S:e}, got {v}"
+        ));
+    }
+    std::time::Duration::try_from_secs_f64(v).map_err(|e| format!("{what}: {e}"))
+}
+
+/// A rate in Hz, named `what`: finite, positive, its period at most [`LONGEST_S`].
+pub(crate) fn rate(what: &str, v: f64) -> Result<f64, String> {
+    if !(v.is_finite() && v > 0.0 && 1.0 / v <= LONGEST_S && v <= 1e9) {
+        return Err(format!("{what} must be a positive rate in Hz, got {v}"));
+    }
+    Ok(v)
+}
+
 /// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type; the Python package maps them all to one exception).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

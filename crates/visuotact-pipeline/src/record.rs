@@ -37,7 +37,7 @@ use visuotact_sim::rig::{frame_seed, SimRig};
 use visuotact_sim::SimError;
 
 use crate::schema::{feature_columns, feature_row_into, flags_of};
-use crate::Estimator;
+use crate::{rate, seconds, Estimator};
 
 /// Where force samples come from.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -285,27 +285,6 @@ pub fn record(
     Ok(summary)
 }
 
-/// The longest duration or period a setting may give, s (about 11.6 days).
-const LONGEST_S: f64 = 1e6;
-
-/// `v` seconds, named `what` in the error: finite, ≥ 0 and at most [`LONGEST_S`].
-pub(crate) fn seconds(what: &str, v: f64) -> Result<Duration, String> {
-    if !(0.0..=LONGEST_S).contains(&v) {
-        return Err(format!(
-            "{what} must be a number of seconds in 0..{LONGEST_S:e}, got {v}"
-        ));
-    }
-    Duration::try_from_secs_f64(v).map_err(|e| format!("{what}: {e}"))
-}
-
-/// A rate in Hz, named `what`: finite, positive, its period at most [`LONGEST_S`].
-pub(crate) fn rate(what: &str, v: f64) -> Result<f64, String> {
-    if !(v.is_finite() && v > 0.0 && 1.0 / v <= LONGEST_S && v <= 1e9) {
-        return Err(format!("{what} must be a positive rate in Hz, got {v}"));
-    }
-    Ok(v)
-}
-
 /// Every number of the settings, checked before anything is created.
 fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
     let check = |r: Result<(), String>| r.map_err(RecordError::Config);
@@ -438,6 +417,8 @@ struct Tables {
     line: String,
     row: Vec<f64>,
     estimate: Estimate,
+    /// The estimates row of a frame without one (NaN per target).
+    no_estimate: Vec<f64>,
 }
 
 impl Tables {
@@ -497,6 +478,7 @@ impl Tables {
             line: String::new(),
             row: Vec::new(),
             estimate: Estimate::default(),
+            no_estimate: vec![f64::NAN; est.map_or(0, |e| e.target_columns().len())],
         })
     }
 
@@ -548,7 +530,7 @@ impl Tables {
         f: &RecordedFrame,
         warn: &mut dyn FnMut(&str),
     ) -> Result<(), RecordError> {
-        let (n_markers, n_targets) = (e.n_markers(), e.target_columns().len());
+        let n_markers = e.n_markers();
         let (features, got) = match e.estimate_into(&f.image, &[], &mut self.estimate) {
             Ok(r) => r,
             Err(err) => {
@@ -571,12 +553,7 @@ impl Tables {
                     self.row.extend(&self.estimate.spread);
                     push_csv_row(&mut self.line, &f.id, &self.row, "");
                 }
-                _ => push_csv_row(
-                    &mut self.line,
-                    &f.id,
-                    &vec![f64::NAN; n_targets],
-                    "missing features",
-                ),
+                _ => push_csv_row(&mut self.line, &f.id, &self.no_estimate, "missing features"),
             }
             log.line(&self.line)?;
         }

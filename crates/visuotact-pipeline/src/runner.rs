@@ -66,14 +66,14 @@ impl Default for RunConfig {
 impl RunConfig {
     /// Checks the rate, the duration (returned) and the counts before anything starts.
     pub fn validate(&self) -> Result<Option<Duration>, RunError> {
-        crate::record::rate("fps", self.fps).map_err(RunError::Config)?;
+        crate::rate("fps", self.fps).map_err(RunError::Config)?;
         if self.max_frames == Some(0) || self.queue == 0 || self.sim_frames == 0 {
             return Err(RunError::Config(
                 "max_frames, queue and sim_frames must be at least 1".into(),
             ));
         }
         self.duration_s
-            .map(|d| crate::record::seconds("duration_s", d))
+            .map(|d| crate::seconds("duration_s", d))
             .transpose()
             .map_err(RunError::Config)
     }
@@ -454,7 +454,10 @@ fn estimate_one(
         }
         stats.max_rss = stats.max_rss.max(rss.unwrap_or(0));
     }
-    // An estimate is plain numbers and strings: it always serialises.
+    if sinks.is_empty() {
+        return ControlFlow::Continue(());
+    }
+    // An estimate is plain numbers and strings: it always serialises (once, for every sink).
     let json = serde_json::to_string(&e).unwrap_or_default();
     let markers = want_markers.then_some(&stats.markers[..]);
     let mut flow = ControlFlow::Continue(());

@@ -434,7 +434,11 @@ impl Model {
 
     /// Writes the model file.
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        std::fs::write(&path, self.m.to_json())
+        let json = self
+            .m
+            .to_checked_json(&path.display().to_string())
+            .map_err(error)?;
+        std::fs::write(&path, json)
             .map_err(|e| error(format!("{}: cannot write: {e}", path.display())))
     }
 

@@ -105,12 +105,8 @@ pub fn save(figure: &impl Figure, path: &Path) -> Result<(), ReportError> {
                         why: e.to_string(),
                     }
                 })?;
-            let tmp = path.with_extension("part~.png");
-            visuotact_io::frames::write_png(&tmp, &img)?;
-            std::fs::rename(&tmp, path).map_err(|e| {
-                std::io::Error::new(e.kind(), format!("{}: cannot write: {e}", path.display()))
-            })?;
-            Ok(())
+            // `write_png` writes through a temporary file and a rename.
+            Ok(visuotact_io::frames::write_png(path, &img)?)
         }
         _ => Err(ReportError::Extension(path.to_path_buf())),
     }

@@ -110,14 +110,16 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     crate::write_atomically(&a.output.join("sweep.csv"), &s.to_csv())?;
     let ranked = s.ranked();
     let best = *ranked.first().context("no training ran")?;
-    crate::write_atomically(&a.output.join("best_model.json"), &best.to_json())?;
+    let best_file = a.output.join("best_model.json");
+    let json = best.to_checked_json(&best_file.display().to_string())?;
+    crate::write_atomically(&best_file, &json)?;
     if a.keep > 0 {
         for (k, m) in ranked.iter().take(a.keep).enumerate() {
             let p = a
                 .output
                 .join("ensemble")
                 .join(format!("model_{}.json", k + 1));
-            crate::write_atomically(&p, &m.to_json())?;
+            crate::write_atomically(&p, &m.to_checked_json(&p.display().to_string())?)?;
         }
         eprintln!(
             "kept the {} best networks in {}/ensemble/",

@@ -117,21 +117,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     .map_err(fit_error)?;
     model.training.selection = selection;
     model.sensor = sensor;
-    write_model(&model, &a.output)?;
+    let json = model.to_checked_json(&a.output.display().to_string())?;
+    crate::write_atomically(&a.output, &json)?;
     print_trained(&model, &targets, t0.elapsed().as_secs_f64());
     eprintln!("wrote {}", a.output.display());
     Ok(())
-}
-
-/// Writes `model` only if it is one: trained on finite numbers, and reading back.
-fn write_model(model: &Model, output: &std::path::Path) -> anyhow::Result<()> {
-    if model.training.stop == "NonFinite" {
-        bail!("training met non-finite numbers (are inputs of wildly different scales?): no model written");
-    }
-    let json = model.to_json();
-    Model::from_json(&json, &output.display().to_string())
-        .map_err(|e| anyhow::anyhow!("the trained model does not read back, not written: {e}"))?;
-    crate::write_atomically(output, &json)
 }
 
 /// The model file is none of the inputs and can be written, checked before any training.
