@@ -416,28 +416,26 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
         // The plane about the centroid: level = p0 + sxp·dx + syp·dy.
         let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
         let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
-        let (xa, xb) = (bx0 - 1, bx1 + 1);
-        let dx0 = (xa as f64 - cx) as f32;
-        let (mut sw, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
-        for y in by0 - 1..by1 + 1 {
-            let dy = (y as f64 - cy) as f32;
-            let mut sums = [0.0f32; 2];
-            crate::kernels::ellipse_row_sums(
-                &gray.row(y)[xa..xb],
-                crate::kernels::RowEllipse {
-                    dx0,
-                    q11,
-                    bq: 2.0 * q12 * dy,
-                    cq: q22 * dy * dy - 1.0,
-                    base: p0 + syp * dy,
-                    slope: sxp,
-                },
-                &mut sums,
-            );
-            sw += f64::from(sums[0]);
-            sx += f64::from(sums[1]);
-            sy += f64::from(sums[0]) * f64::from(dy);
-        }
+        let (xa, ya) = (bx0 - 1, by0 - 1);
+        let mut sums = [0.0f64; 3];
+        crate::kernels::ellipse_window_sums(
+            &gray.as_slice()[ya * width + xa..],
+            width,
+            bx1 + 1 - xa,
+            by1 + 1 - ya,
+            crate::kernels::EllipseWindow {
+                dx0: (xa as f64 - cx) as f32,
+                dy0: (ya as f64 - cy) as f32,
+                q11,
+                q12,
+                q22,
+                p0,
+                sx: sxp,
+                sy: syp,
+            },
+            &mut sums,
+        );
+        let [sw, sx, sy] = sums;
         if sw > 0.0 {
             (b.x_px, b.y_px) = (cx + sx / sw, cy + sy / sw);
         }

@@ -273,58 +273,172 @@ dispatch! {
     }
 }
 
-/// The ellipse and background plane of one row for [`ellipse_row_sums`]: a pixel at offset
-/// `dx` from the centroid is inside when `(q11·dx + bq)·dx + cq ≤ 0`, and weighs
-/// `max(v − base − slope·dx, 0)`.
+/// A grey-level centroid window for [`ellipse_window_sums`]: a pixel at offset `(dx, dy)` from
+/// the centroid is inside the ellipse when `q11·dx² + 2·q12·dx·dy + q22·dy² ≤ 1`, and weighs
+/// `max(v − p0 − sx·dx − sy·dy, 0)` (its grey value above the background plane).
 #[derive(Clone, Copy, Debug)]
-pub struct RowEllipse {
-    /// `dx` of the row's first pixel.
+pub struct EllipseWindow {
+    /// `dx` of the window's first column.
     pub dx0: f32,
-    /// Quadratic coefficient of the ellipse test.
+    /// `dy` of the window's first row.
+    pub dy0: f32,
+    /// The ellipse's quadratic form.
     pub q11: f32,
-    /// Linear coefficient of the ellipse test (this row's `2·q12·dy`).
-    pub bq: f32,
-    /// Constant of the ellipse test (this row's `q22·dy² − 1`).
-    pub cq: f32,
-    /// Background level at `dx = 0`.
-    pub base: f32,
-    /// Background slope along the row.
-    pub slope: f32,
+    /// The ellipse's quadratic form (off-diagonal).
+    pub q12: f32,
+    /// The ellipse's quadratic form.
+    pub q22: f32,
+    /// Background level at the centroid.
+    pub p0: f32,
+    /// Background slope along x.
+    pub sx: f32,
+    /// Background slope along y.
+    pub sy: f32,
 }
 
-dispatch! {
-    /// Sums of the weights and of weight × dx over one row of a grey-level centroid window:
-    /// `out = [Σ w, Σ w·dx]` (eight lanes, then a scalar tail).
-    pub fn ellipse_row_sums(row: &[u8], e: RowEllipse, out: &mut [f32; 2]) {
-        const LANE: [f32; 8] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
-        let weight = |v: u8, dx: f32| -> f32 {
-            let w = (f32::from(v) - e.base - e.slope * dx).max(0.0);
-            if (e.q11 * dx + e.bq) * dx + e.cq <= 0.0 {
-                w
-            } else {
-                0.0
+/// Sums over a window of `rows` rows of `cols` pixels (row `r` starts at `pixels[r·stride]`) of
+/// the weights `w` inside the ellipse, of `w·dx` and of `w·dy`: `out = [Σ w, Σ w·dx, Σ w·dy]`.
+/// AVX2 (eight lanes, each row's tail padded and masked) when the CPU has it, else a scalar
+/// loop; both in `f32`, reduced in `f64`.
+pub fn ellipse_window_sums(
+    pixels: &[u8],
+    stride: usize,
+    cols: usize,
+    rows: usize,
+    e: EllipseWindow,
+    out: &mut [f64; 3],
+) {
+    if rows == 0 || cols == 0 {
+        *out = [0.0; 3];
+        return;
+    }
+    let rows_of = &pixels[..(rows - 1) * stride + cols];
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked on the line above.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function after the runtime check"
+            )]
+            unsafe {
+                *out = window::sums_avx2(rows_of, stride, cols, rows, e);
             }
-        };
-        let (mut sw, mut sx) = ([0.0f32; 8], [0.0f32; 8]);
-        let mut eights = row.chunks_exact(8);
-        let mut start = e.dx0;
-        for c in &mut eights {
-            for i in 0..8 {
-                let dx = start + LANE[i];
-                let w = weight(c[i], dx);
-                sw[i] += w;
-                sx[i] += w * dx;
+            return;
+        }
+    }
+    *out = ellipse_window_sums_portable(rows_of, stride, cols, rows, e);
+}
+
+/// Portable form of [`ellipse_window_sums`] (`pixels` holds at least the window's rows).
+pub fn ellipse_window_sums_portable(
+    pixels: &[u8],
+    stride: usize,
+    cols: usize,
+    rows: usize,
+    e: EllipseWindow,
+) -> [f64; 3] {
+    let (mut sw, mut sx, mut sy) = (0.0f32, 0.0f32, 0.0f32);
+    for r in 0..rows {
+        let dy = e.dy0 + r as f32;
+        let (bq, cq) = (2.0 * e.q12 * dy, e.q22 * dy * dy - 1.0);
+        let base = e.p0 + e.sy * dy;
+        for (c, &v) in pixels[r * stride..r * stride + cols].iter().enumerate() {
+            let dx = e.dx0 + c as f32;
+            if (e.q11 * dx + bq) * dx + cq <= 0.0 {
+                let w = (f32::from(v) - base - e.sx * dx).max(0.0);
+                sw += w;
+                sx += w * dx;
+                sy += w * dy;
             }
-            start += 8.0;
         }
-        for (i, &v) in eights.remainder().iter().enumerate() {
-            let dx = start + LANE[i];
-            let w = weight(v, dx);
-            sw[i] += w;
-            sx[i] += w * dx;
+    }
+    [f64::from(sw), f64::from(sx), f64::from(sy)]
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(
+    unsafe_code,
+    reason = "AVX2 intrinsics on 8-byte loads inside bounds-checked row slices"
+)]
+mod window {
+    use std::arch::x86_64::{
+        __m256, _mm256_add_ps, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps,
+        _mm256_cmpgt_epi32, _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32, _mm256_max_ps, _mm256_mul_ps,
+        _mm256_set1_epi32, _mm256_set1_ps, _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps,
+        _mm256_sub_ps, _mm_loadl_epi64, _CMP_LE_OQ,
+    };
+
+    use super::EllipseWindow;
+
+    /// [`super::ellipse_window_sums`] on AVX2; `pixels` holds exactly the window's rows.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn sums_avx2(
+        pixels: &[u8],
+        stride: usize,
+        cols: usize,
+        rows: usize,
+        e: EllipseWindow,
+    ) -> [f64; 3] {
+        let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let lane_f = _mm256_cvtepi32_ps(lane);
+        let (q11, sxv) = (_mm256_set1_ps(e.q11), _mm256_set1_ps(e.sx));
+        let (zero, eight) = (_mm256_setzero_ps(), _mm256_set1_ps(8.0));
+        let (mut sw, mut sx, mut sy) = (zero, zero, zero);
+        for r in 0..rows {
+            let row = &pixels[r * stride..r * stride + cols];
+            let dyf = e.dy0 + r as f32;
+            let dy = _mm256_set1_ps(dyf);
+            let bq = _mm256_set1_ps(2.0 * e.q12 * dyf);
+            let cq = _mm256_set1_ps(e.q22 * dyf * dyf - 1.0);
+            let base = _mm256_set1_ps(e.p0 + e.sy * dyf);
+            let mut dx = _mm256_add_ps(_mm256_set1_ps(e.dx0), lane_f);
+            let mut step = |bytes: &[u8; 8], valid: i32| {
+                // SAFETY: `bytes` is 8 readable bytes; the rest is register arithmetic.
+                unsafe {
+                    let v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
+                        bytes.as_ptr().cast(),
+                    )));
+                    let w = _mm256_max_ps(
+                        _mm256_sub_ps(_mm256_sub_ps(v, base), _mm256_mul_ps(sxv, dx)),
+                        zero,
+                    );
+                    let q = _mm256_add_ps(
+                        _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(q11, dx), bq), dx),
+                        cq,
+                    );
+                    let inside = _mm256_and_ps(
+                        _mm256_cmp_ps::<_CMP_LE_OQ>(q, zero),
+                        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(valid), lane)),
+                    );
+                    let w = _mm256_and_ps(w, inside);
+                    sw = _mm256_add_ps(sw, w);
+                    sx = _mm256_add_ps(sx, _mm256_mul_ps(w, dx));
+                    sy = _mm256_add_ps(sy, _mm256_mul_ps(w, dy));
+                    dx = _mm256_add_ps(dx, eight);
+                }
+            };
+            let mut eights = row.chunks_exact(8);
+            for c in &mut eights {
+                step(c.try_into().unwrap_or(&[0; 8]), 8);
+            }
+            let tail = eights.remainder();
+            if !tail.is_empty() {
+                let mut v = [0u8; 8];
+                v[..tail.len()].copy_from_slice(tail);
+                step(&v, tail.len() as i32);
+            }
         }
-        let sum = |a: [f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-        *out = [sum(sw), sum(sx)];
+        [lanes_sum(sw), lanes_sum(sx), lanes_sum(sy)]
+    }
+
+    /// The sum of the eight lanes, pairwise.
+    #[target_feature(enable = "avx2")]
+    fn lanes_sum(v: __m256) -> f64 {
+        let mut a = [0.0f32; 8];
+        // SAFETY: `a` holds eight floats.
+        unsafe { _mm256_storeu_ps(a.as_mut_ptr(), v) };
+        f64::from(((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])))
     }
 }
 
@@ -370,37 +484,54 @@ mod tests {
     }
 
     #[test]
-    fn ellipse_row_sums_match_scalar() {
-        let row: Vec<u8> = (0..29).map(|i| ((i * 53 + 7) % 256) as u8).collect();
-        for n in [0, 1, 7, 8, 9, 16, 23, 29] {
-            let e = RowEllipse {
-                dx0: -11.5,
-                q11: 0.01,
-                bq: 0.02,
-                cq: -0.9,
-                base: 60.0,
-                slope: 0.7,
-            };
-            let (mut sw, mut sx) = (0.0f64, 0.0f64);
-            for (i, &v) in row[..n].iter().enumerate() {
-                let dx = f64::from(e.dx0) + i as f64;
-                let q = (f64::from(e.q11) * dx + f64::from(e.bq)) * dx + f64::from(e.cq);
-                let w = (f64::from(v) - f64::from(e.base) - f64::from(e.slope) * dx).max(0.0);
-                if q <= 0.0 {
-                    sw += w;
-                    sx += w * dx;
+    fn ellipse_window_sums_match_scalar() {
+        let stride = 31;
+        let pixels: Vec<u8> = (0..stride * 12)
+            .map(|i| ((i * 53 + 7) % 256) as u8)
+            .collect();
+        let e = EllipseWindow {
+            dx0: -11.5,
+            dy0: -5.25,
+            q11: 0.01,
+            q12: 0.004,
+            q22: 0.03,
+            p0: 60.0,
+            sx: 0.7,
+            sy: -0.4,
+        };
+        for cols in [0, 1, 7, 8, 9, 16, 23, 29] {
+            for rows in [0, 1, 5, 12] {
+                let mut want = [0.0f64; 3];
+                for r in 0..rows {
+                    for c in 0..cols {
+                        let (dx, dy) = (f64::from(e.dx0) + c as f64, f64::from(e.dy0) + r as f64);
+                        let q = f64::from(e.q11) * dx * dx
+                            + 2.0 * f64::from(e.q12) * dx * dy
+                            + f64::from(e.q22) * dy * dy;
+                        let v = f64::from(pixels[r * stride + c]);
+                        let bg = f64::from(e.p0) + f64::from(e.sx) * dx + f64::from(e.sy) * dy;
+                        if q <= 1.0 {
+                            let w = (v - bg).max(0.0);
+                            want[0] += w;
+                            want[1] += w * dx;
+                            want[2] += w * dy;
+                        }
+                    }
+                }
+                let mut out = [0.0f64; 3];
+                ellipse_window_sums(&pixels, stride, cols, rows, e, &mut out);
+                let portable = ellipse_window_sums_portable(&pixels, stride, cols, rows, e);
+                for k in 0..3 {
+                    assert!(
+                        (portable[k] - want[k]).abs() <= 1e-4 * want[k].abs().max(10.0),
+                        "portable {cols} x {rows}, sum {k}: {portable:?} vs {want:?}"
+                    );
+                    assert!(
+                        (out[k] - want[k]).abs() <= 1e-4 * want[k].abs().max(10.0),
+                        "{cols} x {rows}, sum {k}: {out:?} vs {want:?}"
+                    );
                 }
             }
-            let mut out = [0.0f32; 2];
-            ellipse_row_sums(&row[..n], e, &mut out);
-            assert!(
-                (f64::from(out[0]) - sw).abs() <= 1e-4 * sw.max(1.0),
-                "n {n}: {out:?} vs {sw}"
-            );
-            assert!(
-                (f64::from(out[1]) - sx).abs() <= 1e-4 * sx.abs().max(10.0),
-                "n {n}: {out:?} vs {sx}"
-            );
         }
     }
 
