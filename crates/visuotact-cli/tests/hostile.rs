@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{fails, fresh_dir, s, vt};
+use common::{fails, fresh_dir, ok, s, vt};
 
 /// `run`'s and `record`'s durations, rates and counts are checked before anything starts:
 /// negative, NaN and astronomically large values were panics in `Duration::from_secs_f64`.
@@ -320,5 +320,87 @@ fn small_things() {
         s(&d.join("x.json")),
     ]));
     assert_eq!(err.matches("os error").count(), 1, "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Runs `visuotact args` with every file it writes limited to `limit_kib` KiB (`ulimit -f`,
+/// SIGXFSZ ignored): a write past it fails with EFBIG as a full disk fails with ENOSPC.
+#[cfg(unix)]
+fn vt_with_file_limit(limit_kib: u32, args: &[&str]) -> std::process::Output {
+    std::process::Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; ulimit -f {limit_kib}; exec \"$0\" \"$@\""
+        ))
+        .arg(env!("CARGO_BIN_EXE_visuotact"))
+        .args(args)
+        .output()
+        .expect("run bash")
+}
+
+/// A full disk while recording: the failed frame write is the error reported (naming the
+/// frame's file), no torn PNG is left under a frame's name, `session.json` says how many
+/// frames are safe, and `--resume` without the limit completes the session. A disk too full
+/// for the start-up probe is reported before anything is recorded and leaves no folder.
+#[cfg(unix)]
+#[test]
+fn a_full_disk_stops_recording_without_loss() {
+    let d = fresh_dir("hostile-disk-full");
+    let src = d.join("src");
+    std::fs::create_dir_all(&src).unwrap();
+    let (w, h) = (700, 600);
+    let flat = visuotact_image::RgbImage::from_fn(w, h, |_, _| [40, 40, 40]);
+    // Pseudo-random pixels: a PNG of 1.2 MiB, over the 1 100 KiB limit (the probe is 1 MiB).
+    let mut state = 1u64;
+    let noise = visuotact_image::RgbImage::from_fn(w, h, |_, _| {
+        let mut px = [0u8; 3];
+        for c in &mut px {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            *c = (state >> 56) as u8;
+        }
+        px
+    });
+    for (name, img) in [("f0", &flat), ("f1", &flat), ("f2", &noise), ("f3", &flat)] {
+        visuotact_io::frames::write_png(&src.join(format!("{name}.png")), img).unwrap();
+    }
+    let rec = d.join("rec");
+    let args = [
+        "record",
+        "--source",
+        s(&src),
+        "--save-frames",
+        "-o",
+        s(&rec),
+    ];
+    let err = fails(&vt_with_file_limit(1100, &args));
+    assert!(err.contains("f2.png"), "the failed frame is named: {err}");
+    let saved: Vec<String> = std::fs::read_dir(rec.join("frames"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!saved.iter().any(|n| n.starts_with("f2")), "{saved:?}");
+    let session: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(rec.join("session.json")).unwrap()).unwrap();
+    assert_eq!(session["complete"], false);
+    assert_eq!(session["frames"], 2);
+    let rows = std::fs::read_to_string(rec.join("frames.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 3, "{rows}");
+    ok(&vt(&[&args[..], &["--resume"]].concat()));
+    let rows = std::fs::read_to_string(rec.join("frames.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 5, "{rows}");
+    for name in ["f0", "f1", "f2", "f3"] {
+        let got = visuotact_io::frames::read_image(&rec.join("frames").join(format!("{name}.png")));
+        assert!(got.is_ok(), "{name}: {got:?}");
+    }
+    // Too full to start: refused before recording, nothing left behind.
+    let early = d.join("early");
+    let err = fails(&vt_with_file_limit(
+        100,
+        &["record", "--source", s(&src), "-o", s(&early)],
+    ));
+    assert!(err.contains("cannot record into"), "{err}");
+    assert!(!early.exists(), "the refused run left {}", early.display());
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -206,10 +206,15 @@ impl ForceTable {
     /// Reads a force CSV; errors name the file, line and column. A last line without a line end
     /// (a recorder stopped mid-row) is left out and reported in `dropped_partial_line`.
     pub fn read(path: &std::path::Path) -> Result<Self, TableError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| TableError::new(path, None, format!("cannot read: {e}")))?;
+        Self::from_text(&text, path)
+    }
+
+    /// Parses a force CSV already in memory; `path` is the name errors give it.
+    pub fn from_text(text: &str, path: &std::path::Path) -> Result<Self, TableError> {
         let fail = |line, why| TableError::new(path, line, why);
-        let text =
-            std::fs::read_to_string(path).map_err(|e| fail(None, format!("cannot read: {e}")))?;
-        let (text, dropped_partial_line) = crate::table::complete_lines(&text);
+        let (text, dropped_partial_line) = crate::table::complete_lines(text);
         let mut lines = text.lines();
         let header: Vec<&str> = lines
             .next()

@@ -329,11 +329,15 @@ fn probe_file(path: &Path, bytes: usize) -> std::io::Result<()> {
         )
     };
     let mut f = File::create(path).map_err(explain)?;
-    f.write_all(&vec![0u8; bytes]).map_err(explain)?;
-    f.sync_all().map_err(explain)?;
+    let written = f.write_all(&vec![0u8; bytes]).and_then(|()| f.sync_all());
     drop(f);
     if path.is_file() {
-        std::fs::remove_file(path).map_err(explain)?;
+        // Removed whether the write worked or not: a failed probe leaves nothing behind.
+        let removed = std::fs::remove_file(path);
+        written.map_err(explain)?;
+        removed.map_err(explain)?;
+    } else {
+        written.map_err(explain)?;
     }
     Ok(())
 }

@@ -229,10 +229,15 @@ pub(crate) fn cell_number(
 impl KeyedTable {
     /// Reads `path`; errors name the file, the line and the column.
     pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| TableError::new(path, None, format!("cannot read: {e}")))?;
+        Self::from_text(&text, path, text_columns)
+    }
+
+    /// Parses a table already in memory; `path` is the name errors give it.
+    pub fn from_text(text: &str, path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
         let fail = |line, why| TableError::new(path, line, why);
-        let text =
-            std::fs::read_to_string(path).map_err(|e| fail(None, format!("cannot read: {e}")))?;
-        let (text, dropped_partial_line) = complete_lines(&text);
+        let (text, dropped_partial_line) = complete_lines(text);
         if text.is_empty() {
             return Err(fail(
                 None,

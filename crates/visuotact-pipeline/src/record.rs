@@ -311,13 +311,21 @@ fn check(cfg: &RecordConfig) -> Result<(), RecordError> {
     if cfg.resume && !exists {
         return Err(RecordError::NothingToResume(out.clone()));
     }
+    let created = !out.exists();
     std::fs::create_dir_all(out).map_err(|e| {
         std::io::Error::new(
             e.kind(),
             format!("cannot create the session folder {}: {e}", out.display()),
         )
     })?;
-    probe_writable(out, 1 << 20)?;
+    if let Err(e) = probe_writable(out, 1 << 20) {
+        // A folder made only for this run goes again, so that the corrected run is not
+        // refused; `remove_dir` leaves a folder that is not empty.
+        if created {
+            let _ = std::fs::remove_dir(out);
+        }
+        return Err(e.into());
+    }
     if cfg.save_frames {
         std::fs::create_dir_all(out.join("frames"))?;
     }
