@@ -394,6 +394,13 @@ fn a_full_disk_stops_recording_without_loss() {
         let got = visuotact_io::frames::read_image(&rec.join("frames").join(format!("{name}.png")));
         assert!(got.is_ok(), "{name}: {got:?}");
     }
+    // Resuming a session whose source has nothing later records nothing: an error, not
+    // success.
+    let err = fails(&vt(&[&args[..], &["--resume"]].concat()));
+    assert!(
+        err.contains("nothing recorded") && err.contains("already holds 4 frames"),
+        "{err}"
+    );
     // Too full to start: refused before recording, nothing left behind.
     let early = d.join("early");
     let err = fails(&vt_with_file_limit(

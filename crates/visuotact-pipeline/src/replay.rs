@@ -409,3 +409,40 @@ pub fn blobs_table(
     }
     Ok(done)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::session_frames;
+
+    /// Frames listed in `frames.csv` but gone from `frames/` are counted in a warning; a
+    /// session with none left is an error naming it.
+    #[test]
+    fn frames_listed_but_missing_are_counted() {
+        let d = std::env::temp_dir().join(format!("visuotact-listed-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(d.join("frames")).unwrap();
+        std::fs::write(
+            d.join("frames.csv"),
+            "frame,index,timestamp_s,kind\na.png,0,0,touch\nb.png,1,0.04,touch\nc.png,2,0.08,touch\n",
+        )
+        .unwrap();
+        for name in ["a.png", "c.png"] {
+            std::fs::write(d.join("frames").join(name), b"").unwrap();
+        }
+        let mut warnings = Vec::new();
+        let frames = session_frames(&d, &mut |w| warnings.push(w.to_string())).unwrap();
+        assert_eq!(frames.len(), 2);
+        assert_eq!(warnings.len(), 1);
+        assert!(
+            warnings[0].contains("1 of the 3 frames listed in frames.csv are not in frames/"),
+            "{}",
+            warnings[0]
+        );
+        for name in ["a.png", "c.png"] {
+            std::fs::remove_file(d.join("frames").join(name)).unwrap();
+        }
+        let err = session_frames(&d, &mut |_| {}).unwrap_err();
+        assert!(err.to_string().contains(&d.display().to_string()), "{err}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
