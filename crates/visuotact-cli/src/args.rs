@@ -421,3 +421,24 @@ fn column_names(s: &str, what: &str) -> anyhow::Result<Vec<String>> {
     }
     Ok(names)
 }
+
+/// ROS 2 topic namespace and frame (`export mcap`, `run --mcap`).
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct RosArgs {
+    /// Topic namespace, one per sensor (e.g. /left_finger).
+    #[arg(long, default_value = "/visuotact")]
+    namespace: String,
+    /// frame_id of the sensor frame (the image frame is FRAME_ID/image).
+    #[arg(long, default_value = "visuotact")]
+    frame_id: String,
+}
+
+impl RosArgs {
+    pub(crate) fn config(&self, images: bool) -> visuotact_ros::RosConfig {
+        visuotact_ros::RosConfig {
+            namespace: self.namespace.clone(),
+            frame_id: self.frame_id.clone(),
+            images,
+        }
+    }
+}

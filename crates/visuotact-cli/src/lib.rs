@@ -12,8 +12,8 @@ mod files;
 mod print;
 
 use commands::{
-    bench, blobs, calibrate, dataset, demo, eval, extract, filter, pattern, predict, record,
-    replay, run, simulate, sweep, trackcheck, train,
+    bench, blobs, calibrate, dataset, demo, eval, export, extract, filter, pattern, predict,
+    record, replay, run, simulate, sweep, trackcheck, train,
 };
 pub(crate) use files::{
     estimator, fit_error, load_model, load_sensor, reference_note, write_atomically,
@@ -68,6 +68,8 @@ enum Command {
     /// Live estimation: camera, video, frames or simulator → estimates on stdout (JSON lines),
     /// UDP and the dashboard (`--serve`), with latency measured per frame.
     Run(run::Args),
+    /// Sessions into the robot's formats: `export mcap` (a ROS 2 bag).
+    Export(export::Args),
     /// List the V4L2 cameras (`/dev/videoN`) and their names.
     Cameras,
 }
@@ -112,6 +114,7 @@ where
         Command::Record(a) => record::run(&a),
         Command::Replay(a) => replay::run(&a),
         Command::Run(a) => run::run(&a),
+        Command::Export(a) => export::run(&a),
         Command::Cameras => {
             let list = visuotact_io::camera::list_devices();
             if list.is_empty() {

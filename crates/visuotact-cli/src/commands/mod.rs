@@ -8,6 +8,7 @@ pub(crate) mod calibrate;
 pub(crate) mod dataset;
 pub(crate) mod demo;
 pub(crate) mod eval;
+pub(crate) mod export;
 pub(crate) mod extract;
 pub(crate) mod filter;
 pub(crate) mod pattern;

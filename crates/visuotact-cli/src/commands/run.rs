@@ -8,6 +8,7 @@ use std::sync::Arc;
 use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
+use visuotact_ros::{BagConfig, McapSink};
 
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct Args {
@@ -53,6 +54,15 @@ pub(crate) struct Args {
     /// Serve the dashboard and the WebSocket (`/ws`) on this address (loopback by default).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
     serve: Option<String>,
+    /// Also write every estimate, the markers and the health into this MCAP bag (ROS 2
+    /// profile; FILE.mcap or a rosbag2 folder), closed cleanly at the end of the run.
+    #[arg(long, value_name = "FILE.mcap")]
+    mcap: Option<PathBuf>,
+    /// With --mcap: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
+    #[arg(long)]
+    mcap_images: bool,
+    #[command(flatten)]
+    ros: crate::args::RosArgs,
     /// Frames the capture queue holds before dropping the oldest.
     #[arg(long, default_value_t = 2)]
     queue: usize,
@@ -140,6 +150,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ),
         None => None,
     };
+    let mut mcap = a
+        .mcap
+        .as_deref()
+        .map(|p| McapSink::create(p, a.ros.config(a.mcap_images), &BagConfig::default()))
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
     let mut stdout =
         (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
     let mut sinks: Vec<&mut dyn Sink> = Vec::new();
@@ -152,13 +168,31 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if let Some(d) = dashboard.as_mut() {
         sinks.push(d);
     }
+    if let Some(m) = mcap.as_mut() {
+        sinks.push(m);
+    }
     let mut summary = visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut sinks, |w| {
         eprintln!("warning: {w}")
     })?;
     drop(sinks);
     drop(stdout);
+    if let Some(m) = mcap {
+        let (path, n) = m.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+        eprintln!("wrote {} ({n} messages)", path.display());
+    }
     summary.udp_send_errors = udp.map_or(0, |u| u.errors);
     summary.websocket_messages_dropped = dashboard.as_ref().map_or(0, |d| d.dropped());
+    print_summary(&summary);
+    if let Some(p) = &a.summary {
+        crate::write_atomically(p, &serde_json::to_string_pretty(&summary)?)?;
+    }
+    if let Some(d) = dashboard {
+        d.stop();
+    }
+    Ok(())
+}
+
+fn print_summary(summary: &visuotact_pipeline::runner::RunSummary) {
     eprintln!(
         "{} frames captured, {} estimated ({} with contact), {} dropped in {:.1} s; latency median {:.3} ms, p99 {:.3} ms; processing median {:.3} ms, p99 {:.3} ms; UDP errors {}, WebSocket messages dropped {}",
         summary.frames_captured,
@@ -173,11 +207,4 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         summary.udp_send_errors,
         summary.websocket_messages_dropped
     );
-    if let Some(p) = &a.summary {
-        crate::write_atomically(p, &serde_json::to_string_pretty(&summary)?)?;
-    }
-    if let Some(d) = dashboard {
-        d.stop();
-    }
-    Ok(())
 }

@@ -1,0 +1,134 @@
+"""ROS 2 bags written by `visuotact export mcap` and `run --mcap`, read back by two independent
+implementations: `mcap` + `mcap-ros2-support` (Foxglove's, decoding with the schemas in the
+file) and `rosbags` (decoding with its own ROS 2 Humble type store, from a rosbag2 folder).
+
+Every message must decode, stamps must not go back in time on a topic, the types must be the
+standard ROS 2 names, and the values must equal the session's tables: force to 1e-9 N, the
+contact to 1e-9 m.
+"""
+
+import csv
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+from mcap_ros2.reader import read_ros2_messages
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+BIN = os.environ.get("VISUOTACT_BIN", "visuotact")
+TYPES = {
+    "/cone/wrench": "geometry_msgs/msg/WrenchStamped",
+    "/cone/ft_sensor/wrench": "geometry_msgs/msg/WrenchStamped",
+    "/cone/contact": "geometry_msgs/msg/PointStamped",
+    "/cone/markers": "sensor_msgs/msg/PointCloud2",
+    "/cone/image/compressed": "sensor_msgs/msg/CompressedImage",
+    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+}
+AXES = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"]
+
+
+def cli(*args):
+    subprocess.run([BIN, *map(str, args)], check=True, capture_output=True)
+
+
+def rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """A simulated cone press (frames, force.csv), its features, and an estimates table made
+    up here from the labels (export copies tables, so any values do)."""
+    d = tmp_path_factory.mktemp("ros")
+    s = d / "session"
+    cli("simulate", "--sensor", "cone", "--protocol", "press", "--duration-s", "1",
+        "--references", "2", "--force-rate-hz", "200", "-o", s)
+    cli("calibrate", s / "reference", "-o", d / "sensor.json")
+    cli("extract", "--sensor", d / "sensor.json", s / "frames", "-o", s / "features.csv")
+    with open(s / "estimates.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["frame", *AXES, "x_mm", "y_mm", "depth_mm", "flags"])
+        for k, r in enumerate(rows(s / "frames.csv")):
+            w.writerow([r["frame"], *[0.1 * k + i for i in range(6)], 1.5 + k, -2.0 * k,
+                        0.25 * k, ""])
+    return d, s
+
+
+def stamp_s(header):
+    return header.stamp.sec + header.stamp.nanosec * 1e-9
+
+
+def check_messages(messages, s):
+    """messages: (topic, msgtype, msg) in file order."""
+    est = {r["frame"]: r for r in rows(s / "estimates.csv")}
+    frames = rows(s / "frames.csv")
+    force = rows(s / "force.csv")
+    by_topic = {}
+    for topic, msgtype, msg in messages:
+        assert TYPES[topic] == msgtype, (topic, msgtype)
+        by_topic.setdefault(topic, []).append(msg)
+    assert set(by_topic) == set(TYPES), set(by_topic)
+    for topic, msgs in by_topic.items():
+        stamps = [stamp_s(m.header) for m in msgs]
+        assert stamps == sorted(stamps), topic
+    assert len(by_topic["/cone/wrench"]) == len(frames)
+    for f, m in zip(frames, by_topic["/cone/wrench"]):
+        e = est[f["frame"]]
+        got = [m.wrench.force.x, m.wrench.force.y, m.wrench.force.z,
+               m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z]
+        assert all(abs(g - float(e[a])) <= 1e-9 for g, a in zip(got, AXES)), (got, e)
+        assert abs(stamp_s(m.header) - float(f["timestamp_s"])) <= 1e-9
+        assert m.header.frame_id == "visuotact"
+    for f, m in zip(frames, by_topic["/cone/contact"]):
+        e = est[f["frame"]]
+        assert abs(m.point.x - float(e["x_mm"]) / 1000) <= 1e-9
+        assert abs(m.point.y - float(e["y_mm"]) / 1000) <= 1e-9
+        assert abs(m.point.z + float(e["depth_mm"]) / 1000) <= 1e-9
+    assert len(by_topic["/cone/ft_sensor/wrench"]) == len(force)
+    for r, m in zip(force, by_topic["/cone/ft_sensor/wrench"]):
+        assert abs(m.wrench.force.z - float(r["fz_n"])) <= 1e-9
+        assert abs(m.wrench.torque.x - float(r["tx_nm"])) <= 1e-9
+        assert abs(stamp_s(m.header) - float(r["timestamp_s"])) <= 1e-6
+    cloud = by_topic["/cone/markers"][0]
+    assert [f.name for f in cloud.fields] == ["x", "y", "z", "dx", "dy", "status"]
+    assert len(cloud.data) == cloud.width * cloud.point_step
+    image = by_topic["/cone/image/compressed"][0]
+    assert image.format == "png" and bytes(image.data[:4]) == b"\x89PNG"
+    status = by_topic["/diagnostics"][0].status[0]
+    assert status.name == "/cone: markers"
+
+
+def test_mcap_file_reads_in_mcap_ros2(session):
+    d, s = session
+    bag = d / "cone.mcap"
+    cli("export", "mcap", s, "-o", bag, "--namespace", "/cone", "--sensor", d / "sensor.json")
+    msgs = [(m.channel.topic, m.schema.name, m.ros_msg) for m in read_ros2_messages(str(bag))]
+    check_messages(msgs, s)
+
+
+def test_bag_folder_reads_in_rosbags(session):
+    d, s = session
+    bag = d / "cone_bag"
+    cli("export", "mcap", s, "-o", bag, "--namespace", "/cone", "--sensor", d / "sensor.json")
+    assert (bag / "metadata.yaml").is_file() and (bag / "cone_bag_0.mcap").is_file()
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with AnyReader([Path(bag)], default_typestore=store) as r:
+        msgs = [(c.topic, c.msgtype, r.deserialize(raw, c.msgtype)) for c, _, raw in r.messages()]
+        counts = {c.topic: c.msgcount for c in r.connections}
+    check_messages(msgs, s)
+    assert sum(counts.values()) == len(msgs)
+
+
+def test_live_run_into_a_bag(session):
+    d, _ = session
+    bag = d / "live.mcap"
+    cli("run", "--source", "sim:cone", "--sensor", d / "sensor.json", "--max-frames", "8",
+        "--unpaced", "--quiet", "--mcap", bag)
+    msgs = list(read_ros2_messages(str(bag)))
+    active = [m.ros_msg.data for m in msgs if m.channel.topic == "/visuotact/contact/active"]
+    assert len(active) == 8
+    assert sum(m.channel.topic == "/visuotact/markers" for m in msgs) == 8
+    assert sum(m.channel.topic == "/diagnostics" for m in msgs) == 8

@@ -1,0 +1,216 @@
+//! MCAP bags with the ROS 2 profile: schemas in `ros2msg`, messages in CDR, one channel per
+//! topic, log and publish time the message's stamp.
+//!
+//! A path ending in `.mcap` is written as that one file (what Foxglove, the `mcap` tools and
+//! `ros2 bag` on a file read); any other path as a rosbag2 bag folder — `NAME/NAME_0.mcap` and
+//! the `metadata.yaml` that `ros2 bag play`/`info` and the `rosbags` library need. The file is
+//! chunked and a chunk is closed and flushed every [`BagConfig::flush_every_s`] of stamps, so a
+//! killed run leaves a bag readable up to its last chunk (`mcap recover` rebuilds its index).
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use crate::msg::RosMessage;
+use crate::RosError;
+
+/// How a bag is written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BagConfig {
+    /// Close a chunk (and flush it to the disk) when the stamps have moved on this much.
+    pub flush_every_s: f64,
+}
+
+impl Default for BagConfig {
+    fn default() -> Self {
+        Self { flush_every_s: 1.0 }
+    }
+}
+
+struct Topic {
+    channel: u16,
+    msgtype: &'static str,
+    count: u64,
+}
+
+/// An open bag.
+pub struct Bag {
+    writer: mcap::Writer<BufWriter<File>>,
+    file: PathBuf,
+    /// The bag folder (rosbag2 layout) when not a lone `.mcap`.
+    folder: Option<PathBuf>,
+    topics: BTreeMap<String, Topic>,
+    first_ns: Option<u64>,
+    last_ns: u64,
+    flushed_ns: u64,
+    flush_every_ns: u64,
+    messages: u64,
+}
+
+impl Bag {
+    /// Creates the bag at `path` (see the module's documentation); refuses to replace one.
+    pub fn create(path: &Path, cfg: &BagConfig) -> Result<Self, RosError> {
+        let io = |p: &Path, e: std::io::Error| RosError::Io(p.to_path_buf(), e);
+        if path.exists() {
+            return Err(RosError::Exists(path.to_path_buf()));
+        }
+        let (file, folder) = if path.extension().is_some_and(|e| e == "mcap") {
+            (path.to_path_buf(), None)
+        } else {
+            std::fs::create_dir_all(path).map_err(|e| io(path, e))?;
+            let name = path
+                .file_name()
+                .map_or_else(|| "bag".into(), |n| n.to_string_lossy().into_owned());
+            (
+                path.join(format!("{name}_0.mcap")),
+                Some(path.to_path_buf()),
+            )
+        };
+        let out = File::create(&file).map_err(|e| io(&file, e))?;
+        let writer = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("visuotact ", env!("CARGO_PKG_VERSION")))
+            .compression(None)
+            .create(BufWriter::new(out))
+            .map_err(|e| RosError::Mcap(file.clone(), e.to_string()))?;
+        Ok(Self {
+            writer,
+            file,
+            folder,
+            topics: BTreeMap::new(),
+            first_ns: None,
+            last_ns: 0,
+            flushed_ns: 0,
+            flush_every_ns: (cfg.flush_every_s.max(0.0) * 1e9) as u64,
+            messages: 0,
+        })
+    }
+
+    /// The MCAP file being written.
+    pub fn file(&self) -> &Path {
+        &self.file
+    }
+
+    /// Messages written so far.
+    pub fn messages(&self) -> u64 {
+        self.messages
+    }
+
+    fn mcap_err(&self, e: impl std::fmt::Display) -> RosError {
+        RosError::Mcap(self.file.clone(), e.to_string())
+    }
+
+    fn channel<M: RosMessage>(&mut self, topic: &str) -> Result<u16, RosError> {
+        if let Some(t) = self.topics.get(topic) {
+            if t.msgtype != M::NAME {
+                return Err(RosError::TopicType {
+                    topic: topic.to_string(),
+                    was: t.msgtype,
+                    now: M::NAME,
+                });
+            }
+            return Ok(t.channel);
+        }
+        let schema = self
+            .writer
+            .add_schema(M::NAME, "ros2msg", M::DEFINITION.as_bytes())
+            .map_err(|e| self.mcap_err(e))?;
+        let channel = self
+            .writer
+            .add_channel(schema, topic, "cdr", &BTreeMap::new())
+            .map_err(|e| self.mcap_err(e))?;
+        self.topics.insert(
+            topic.to_string(),
+            Topic {
+                channel,
+                msgtype: M::NAME,
+                count: 0,
+            },
+        );
+        Ok(channel)
+    }
+
+    /// Writes `msg` on `topic`, stamped `stamp_ns` (nanoseconds since the UNIX epoch).
+    pub fn write<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        stamp_ns: u64,
+        msg: &M,
+    ) -> Result<(), RosError> {
+        let channel = self.channel::<M>(topic)?;
+        let t = self
+            .topics
+            .get_mut(topic)
+            .expect("channel() registered the topic");
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: u32::try_from(t.count).unwrap_or(u32::MAX),
+            log_time: stamp_ns,
+            publish_time: stamp_ns,
+        };
+        t.count += 1;
+        self.writer
+            .write_to_known_channel(&header, &msg.to_cdr())
+            .map_err(|e| RosError::Mcap(self.file.clone(), e.to_string()))?;
+        self.messages += 1;
+        let first = *self.first_ns.get_or_insert(stamp_ns);
+        self.last_ns = self.last_ns.max(stamp_ns);
+        if self.flushed_ns < first {
+            self.flushed_ns = first;
+        }
+        if self.last_ns.saturating_sub(self.flushed_ns) >= self.flush_every_ns {
+            self.writer.flush().map_err(|e| self.mcap_err(e))?;
+            self.flushed_ns = self.last_ns;
+        }
+        Ok(())
+    }
+
+    /// Ends the bag: its index and summary, then (bag folders) `metadata.yaml`. Returns the
+    /// path written.
+    pub fn finish(mut self) -> Result<PathBuf, RosError> {
+        self.writer.finish().map_err(|e| self.mcap_err(e))?;
+        let Some(folder) = self.folder.clone() else {
+            return Ok(self.file);
+        };
+        let yaml = self.metadata_yaml();
+        let path = folder.join("metadata.yaml");
+        visuotact_io::session::write_atomically(&path, &yaml)
+            .map_err(|e| RosError::Io(path.clone(), e))?;
+        Ok(folder)
+    }
+
+    /// rosbag2's `metadata.yaml` (version 5, the Humble layout later versions still read).
+    fn metadata_yaml(&self) -> String {
+        let start = self.first_ns.unwrap_or(0);
+        let duration = self.last_ns.saturating_sub(start);
+        let name = self
+            .file
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let mut y = String::from("rosbag2_bagfile_information:\n  version: 5\n");
+        y += "  storage_identifier: mcap\n";
+        y += &format!("  duration:\n    nanoseconds: {duration}\n");
+        y += &format!("  starting_time:\n    nanoseconds_since_epoch: {start}\n");
+        y += &format!(
+            "  message_count: {}\n  topics_with_message_count:\n",
+            self.messages
+        );
+        for (topic, t) in &self.topics {
+            y += &format!(
+                "    - topic_metadata:\n        name: {topic}\n        type: {}\n        \
+                 serialization_format: cdr\n        offered_qos_profiles: \"\"\n      \
+                 message_count: {}\n",
+                t.msgtype, t.count
+            );
+        }
+        y += "  compression_format: \"\"\n  compression_mode: \"\"\n";
+        y += &format!("  relative_file_paths:\n    - {name}\n  files:\n");
+        y += &format!(
+            "    - path: {name}\n      starting_time:\n        nanoseconds_since_epoch: {start}\n      \
+             duration:\n        nanoseconds: {duration}\n      message_count: {}\n",
+            self.messages
+        );
+        y
+    }
+}

@@ -1,0 +1,282 @@
+//! A recorded or simulated session folder into a bag: its estimates (`estimates.csv`), the
+//! measured force (`force.csv`, each sample at its own time), the markers (`features.csv` with
+//! the sensor file's reference positions), marker health and the saved frames (`frames/`, the
+//! PNG bytes as they are), all stamped with the session's timestamps plus
+//! [`ExportConfig::start_unix_s`]. Values are copied, not recomputed: the bag says what the
+//! session's tables say.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use visuotact_io::force::ForceTable;
+use visuotact_io::table::KeyedTable;
+use visuotact_pipeline::live::{Health, TargetEstimate};
+use visuotact_vision::calibration::SensorCalibration;
+
+use crate::bag::{Bag, BagConfig};
+use crate::topics::{ns_from_s, write_frame, FrameMessages, MarkerPoint, RosConfig};
+use crate::RosError;
+
+/// How a session is exported.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExportConfig {
+    /// Topics and frames.
+    pub ros: RosConfig,
+    /// Chunking.
+    pub bag: BagConfig,
+    /// Sensor file for the marker cloud (default: the one `session.json` names, if it exists).
+    pub sensor: Option<PathBuf>,
+    /// The session's start as UNIX time, seconds, added to its timestamps (0: stamps are the
+    /// session's own seconds).
+    pub start_unix_s: f64,
+}
+
+/// What an export wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportSummary {
+    /// The bag (file or folder).
+    pub path: PathBuf,
+    /// Frames exported.
+    pub frames: usize,
+    /// Messages written.
+    pub messages: u64,
+    /// Parts of the session that were not there (said, not an error).
+    pub notes: Vec<String>,
+}
+
+/// A marker's reference position and the feature columns of its dx and dy.
+type MarkerColumns = (f32, f32, Option<(usize, usize)>);
+
+/// The session's per-frame tables, keyed by frame.
+struct SessionTables {
+    frames: KeyedTable,
+    estimates: Option<(KeyedTable, HashMap<String, usize>)>,
+    features: Option<(KeyedTable, HashMap<String, usize>)>,
+    /// Per marker: reference position and the feature columns of dx, dy.
+    markers: Vec<MarkerColumns>,
+    force: Option<ForceTable>,
+}
+
+fn keyed(t: KeyedTable) -> (KeyedTable, HashMap<String, usize>) {
+    let index = t
+        .keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| (k.clone(), i))
+        .collect();
+    (t, index)
+}
+
+fn optional_table(
+    session: &Path,
+    name: &str,
+    text: &[&str],
+    notes: &mut Vec<String>,
+) -> Result<Option<KeyedTable>, RosError> {
+    let p = session.join(name);
+    if !p.is_file() {
+        notes.push(format!("no {name}"));
+        return Ok(None);
+    }
+    Ok(Some(KeyedTable::read(&p, text)?))
+}
+
+fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibration>, RosError> {
+    let path = match &cfg.sensor {
+        Some(p) => Some(p.clone()),
+        None => std::fs::read_to_string(session.join("session.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["sensor_file"].as_str().map(PathBuf::from))
+            .filter(|p| p.is_file()),
+    };
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(&path).map_err(|e| RosError::Io(path.clone(), e))?;
+    SensorCalibration::from_json(&text, &path.display().to_string())
+        .map(Some)
+        .map_err(|e| RosError::Config(e.to_string()))
+}
+
+fn read_tables(
+    session: &Path,
+    cfg: &ExportConfig,
+    notes: &mut Vec<String>,
+) -> Result<SessionTables, RosError> {
+    let frames = KeyedTable::read(&session.join("frames.csv"), &["kind"])?;
+    let estimates = optional_table(session, "estimates.csv", &["flags"], notes)?.map(keyed);
+    let features = optional_table(session, "features.csv", &["flags"], notes)?.map(keyed);
+    let force_path = session.join("force.csv");
+    let force = if force_path.is_file() {
+        Some(ForceTable::read(&force_path)?)
+    } else {
+        notes.push("no force.csv".into());
+        None
+    };
+    let mut markers = Vec::new();
+    if let Some((f, _)) = &features {
+        match sensor_of(session, cfg)? {
+            Some(cal) => {
+                let col = |n: String| f.columns.iter().position(|c| *c == n);
+                for m in &cal.markers {
+                    let dxy =
+                        col(format!("m{:03}_dx_px", m.id)).zip(col(format!("m{:03}_dy_px", m.id)));
+                    markers.push((m.x_px as f32, m.y_px as f32, dxy));
+                }
+            }
+            None => notes.push("no sensor file: no marker cloud".into()),
+        }
+    }
+    Ok(SessionTables {
+        frames,
+        estimates,
+        features,
+        markers,
+        force,
+    })
+}
+
+fn targets_of(est: &(KeyedTable, HashMap<String, usize>), frame: &str) -> Vec<TargetEstimate> {
+    let (t, index) = est;
+    let Some(&row) = index.get(frame) else {
+        return Vec::new();
+    };
+    t.columns
+        .iter()
+        .zip(&t.rows[row])
+        .filter(|(c, v)| !c.ends_with("_std") && v.is_finite())
+        .map(|(c, &value)| TargetEstimate {
+            name: c.clone(),
+            value,
+            std: None,
+        })
+        .collect()
+}
+
+/// A frame's marker cloud and health from the feature table.
+fn markers_of(t: &SessionTables, frame: &str, out: &mut Vec<MarkerPoint>) -> Option<Health> {
+    let (f, index) = t.features.as_ref()?;
+    let row = &f.rows[*index.get(frame)?];
+    out.clear();
+    for &(x_px, y_px, dxy) in &t.markers {
+        let (dx, dy) = dxy.map_or((f64::NAN, f64::NAN), |(i, j)| (row[i], row[j]));
+        let found = dx.is_finite() && dy.is_finite();
+        out.push(MarkerPoint {
+            x_px,
+            y_px,
+            dx_px: dx as f32,
+            dy_px: dy as f32,
+            found,
+        });
+    }
+    let get = |n: &str| {
+        f.columns
+            .iter()
+            .position(|c| c == n)
+            .map(|i| row[i])
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .map(|v| v as usize)
+    };
+    let (found, total) = (get("n_found")?, get("n_markers")?);
+    Some(Health {
+        ok: found,
+        lost: total.saturating_sub(found),
+        ..Health::default()
+    })
+}
+
+/// Writes the force samples stamped before `until_s` (all with `None`), from `next` on.
+fn write_force(
+    bag: &mut Bag,
+    cfg: &ExportConfig,
+    force: &ForceTable,
+    next: &mut usize,
+    until_s: Option<f64>,
+) -> Result<(), RosError> {
+    while let Some(&t) = force.timestamp_s.get(*next) {
+        if until_s.is_some_and(|u| t > u) {
+            break;
+        }
+        let frame = FrameMessages {
+            stamp_ns: ns_from_s(cfg.start_unix_s + t),
+            measured: Some(force.values[*next]),
+            ..FrameMessages::default()
+        };
+        write_frame(bag, &cfg.ros, frame)?;
+        *next += 1;
+    }
+    Ok(())
+}
+
+/// Exports `session` into a bag at `out` ([`Bag::create`]); `progress(done, total)` hears of
+/// each frame.
+pub fn export_mcap(
+    session: &Path,
+    out: &Path,
+    cfg: &ExportConfig,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ExportSummary, RosError> {
+    cfg.ros.validate()?;
+    if !cfg.start_unix_s.is_finite() || cfg.start_unix_s < 0.0 {
+        return Err(RosError::Config(format!(
+            "start_unix_s {}: expected a UNIX time in seconds, 0 or more",
+            cfg.start_unix_s
+        )));
+    }
+    let mut notes = Vec::new();
+    let t = read_tables(session, cfg, &mut notes)?;
+    let ts = t
+        .frames
+        .columns
+        .iter()
+        .position(|c| c == "timestamp_s")
+        .ok_or_else(|| {
+            RosError::Config(format!(
+                "{}: no timestamp_s column",
+                session.join("frames.csv").display()
+            ))
+        })?;
+    let mut bag = Bag::create(out, &cfg.bag)?;
+    let (mut next_force, mut markers) = (0, Vec::new());
+    let total = t.frames.keys.len();
+    for (k, (frame, row)) in t.frames.keys.iter().zip(&t.frames.rows).enumerate() {
+        let time_s = row[ts];
+        if let Some(force) = &t.force {
+            write_force(&mut bag, cfg, force, &mut next_force, Some(time_s))?;
+        }
+        let targets = t
+            .estimates
+            .as_ref()
+            .map(|e| targets_of(e, frame))
+            .unwrap_or_default();
+        let health = markers_of(&t, frame, &mut markers);
+        let png_path = session.join("frames").join(frame);
+        let png = if cfg.ros.images && png_path.is_file() {
+            Some(std::fs::read(&png_path).map_err(|e| RosError::Io(png_path.clone(), e))?)
+        } else {
+            None
+        };
+        let msgs = FrameMessages {
+            stamp_ns: ns_from_s(cfg.start_unix_s + time_s),
+            targets: &targets,
+            markers: (health.is_some() && !t.markers.is_empty()).then_some(&markers[..]),
+            health: health.as_ref().map(|h| (h, Vec::new())),
+            png,
+            ..FrameMessages::default()
+        };
+        write_frame(&mut bag, &cfg.ros, msgs)?;
+        progress(k + 1, total);
+    }
+    if let Some(force) = &t.force {
+        write_force(&mut bag, cfg, force, &mut next_force, None)?;
+    }
+    let messages = bag.messages();
+    let path = bag.finish()?;
+    Ok(ExportSummary {
+        path,
+        frames: total,
+        messages,
+        notes,
+    })
+}

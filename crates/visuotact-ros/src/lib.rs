@@ -1,0 +1,73 @@
+//! visuotact in the robot's world: each frame's estimate, contact, markers, image and health
+//! as standard ROS 2 messages ([`msg`], CDR-encoded by [`cdr`]) on documented topics
+//! ([`topics`]), written to MCAP bags with the ROS 2 profile ([`bag`]) — live from a run
+//! ([`sink::McapSink`]) or from a recorded session ([`export::export_mcap`]). Nothing of ROS
+//! needs to be installed; the bags read in `ros2 bag`, Foxglove, RViz (played back), the
+//! `rosbags` library and `mcap` + `mcap-ros2-support`.
+
+pub mod bag;
+pub mod cdr;
+pub mod export;
+pub mod msg;
+pub mod sink;
+pub mod topics;
+
+use std::path::PathBuf;
+
+use image::ImageEncoder;
+
+pub use bag::{Bag, BagConfig};
+pub use export::{export_mcap, ExportConfig, ExportSummary};
+pub use sink::McapSink;
+pub use topics::RosConfig;
+
+/// Errors of the ROS 2 outputs.
+#[derive(Debug, thiserror::Error)]
+pub enum RosError {
+    /// A file could not be read or written.
+    #[error("{}: {}", .0.display(), .1)]
+    Io(PathBuf, #[source] std::io::Error),
+    /// The MCAP writer failed.
+    #[error("{}: {}", .0.display(), .1)]
+    Mcap(PathBuf, String),
+    /// The output exists already.
+    #[error("{}: already exists; choose a new name", .0.display())]
+    Exists(PathBuf),
+    /// A setting is out of range.
+    #[error("{0}")]
+    Config(String),
+    /// One topic was given two types.
+    #[error("topic {topic}: was {was}, now {now}")]
+    TopicType {
+        /// The topic.
+        topic: String,
+        /// Its first type.
+        was: &'static str,
+        /// The type written now.
+        now: &'static str,
+    },
+    /// A session table could not be read.
+    #[error(transparent)]
+    Table(#[from] visuotact_io::table::TableError),
+    /// A frame could not be encoded.
+    #[error("encoding a frame as PNG: {0}")]
+    Encode(String),
+}
+
+/// A frame as PNG bytes.
+pub fn png_from_rgb(img: &visuotact_image::RgbImage) -> Result<Vec<u8>, RosError> {
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    )
+    .write_image(
+        img.as_slice(),
+        u32::try_from(img.width()).unwrap_or(u32::MAX),
+        u32::try_from(img.height()).unwrap_or(u32::MAX),
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|e| RosError::Encode(e.to_string()))?;
+    Ok(out)
+}

@@ -1,0 +1,270 @@
+//! visuotact's ROS 2 topics and how a frame's results map onto them.
+//!
+//! | topic | type | content |
+//! |---|---|---|
+//! | `NS/wrench` | `geometry_msgs/msg/WrenchStamped` | the estimated force (N) and torque (N·m): `fx_n`…`tz_nm`; an axis the model does not estimate is NaN; published when the model estimates at least one axis |
+//! | `NS/ft_sensor/wrench` | `geometry_msgs/msg/WrenchStamped` | the measured force/torque sensor (a session's `force.csv`), same axes |
+//! | `NS/contact` | `geometry_msgs/msg/PointStamped` | the estimated contact in metres: x = `x_mm`/1000, y = `y_mm`/1000, z = −`depth_mm`/1000 (NaN without depth); published when x and y are estimated |
+//! | `NS/contact/active` | `std_msgs/msg/Bool` | the contact rule (live runs) |
+//! | `NS/markers` | `sensor_msgs/msg/PointCloud2` | one point per marker: `x`, `y`, `z` (= 0) its reference position and `dx`, `dy` its displacement, image pixels, `float32`; `status` `uint8` (0 found, 1 lost) |
+//! | `NS/image/compressed` | `sensor_msgs/msg/CompressedImage` | the frame, PNG |
+//! | `/diagnostics` | `diagnostic_msgs/msg/DiagnosticArray` | marker health: one status named `NS: markers`, level OK, WARN (markers lost or filled, reference under contact) or ERROR (none found) |
+//!
+//! `NS` is [`RosConfig::namespace`] (`/visuotact`; one per sensor when several run side by
+//! side). Frames: the wrench and contact are in the sensor frame [`RosConfig::frame_id`]
+//! (origin and x, y axes as the sensor's labels define them — for seed 000's membrane its
+//! centre, x and y in the skin plane — z out of the skin), the marker cloud and image in
+//! `FRAME_ID/image` (x right, y down, pixels). Stamps: each frame's timestamp.
+
+use visuotact_pipeline::live::{Health, TargetEstimate};
+
+use crate::bag::Bag;
+use crate::msg::{
+    level, Bool, CompressedImage, DiagnosticArray, DiagnosticStatus, Header, PointCloud2,
+    PointField, PointStamped, WrenchStamped, FLOAT32, UINT8,
+};
+use crate::RosError;
+
+/// Topic names and frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RosConfig {
+    /// Topic namespace, e.g. `/visuotact` or `/left_finger`.
+    pub namespace: String,
+    /// The sensor frame's `frame_id`.
+    pub frame_id: String,
+    /// Also publish each frame as a PNG `CompressedImage`.
+    pub images: bool,
+}
+
+impl Default for RosConfig {
+    fn default() -> Self {
+        Self {
+            namespace: "/visuotact".into(),
+            frame_id: "visuotact".into(),
+            images: true,
+        }
+    }
+}
+
+impl RosConfig {
+    /// Checks the namespace and frame: a namespace starts with `/` and holds letters, digits,
+    /// `_` and `/` (ROS 2 name rules), a frame is not empty.
+    pub fn validate(&self) -> Result<(), RosError> {
+        let ns = &self.namespace;
+        let ok = ns.starts_with('/')
+            && !ns.ends_with('/')
+            && !ns.contains("//")
+            && ns[1..]
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/');
+        if !ok {
+            return Err(RosError::Config(format!(
+                "namespace {ns:?}: expected `/name` (letters, digits, `_`, `/`), e.g. /visuotact"
+            )));
+        }
+        if self.frame_id.is_empty() {
+            return Err(RosError::Config("frame_id is empty".into()));
+        }
+        Ok(())
+    }
+
+    /// `NS/suffix`.
+    pub fn topic(&self, suffix: &str) -> String {
+        format!("{}/{suffix}", self.namespace)
+    }
+}
+
+/// One marker of the cloud.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MarkerPoint {
+    /// Reference position, pixels.
+    pub x_px: f32,
+    /// Reference position, pixels.
+    pub y_px: f32,
+    /// Displacement, pixels (NaN when lost).
+    pub dx_px: f32,
+    /// Displacement, pixels (NaN when lost).
+    pub dy_px: f32,
+    /// Found this frame.
+    pub found: bool,
+}
+
+/// What one frame publishes; absent parts publish nothing.
+#[derive(Clone, Debug, Default)]
+pub struct FrameMessages<'a> {
+    /// Nanoseconds since the UNIX epoch.
+    pub stamp_ns: u64,
+    /// Estimated targets (`fx_n`, `x_mm`, `depth_mm`, …).
+    pub targets: &'a [TargetEstimate],
+    /// The contact rule's verdict (live).
+    pub contact: Option<bool>,
+    /// Measured force and torque.
+    pub measured: Option<[f64; 6]>,
+    /// Marker cloud.
+    pub markers: Option<&'a [MarkerPoint]>,
+    /// The frame, PNG-encoded.
+    pub png: Option<Vec<u8>>,
+    /// Marker health and the figures to report with it.
+    pub health: Option<(&'a Health, Vec<(String, String)>)>,
+}
+
+/// The force/torque axes as target names.
+pub const WRENCH_TARGETS: [&str; 6] = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"];
+
+/// The wrench among `targets` (NaN for axes not estimated); `None` when none is.
+pub fn wrench_from_targets(targets: &[TargetEstimate]) -> Option<[f64; 6]> {
+    let mut w = [f64::NAN; 6];
+    let mut any = false;
+    for (slot, name) in w.iter_mut().zip(WRENCH_TARGETS) {
+        if let Some(t) = targets.iter().find(|t| t.name == name) {
+            *slot = t.value;
+            any = true;
+        }
+    }
+    any.then_some(w)
+}
+
+/// The contact point in metres (z = −depth), when `x_mm` and `y_mm` are estimated.
+pub fn contact_from_targets(targets: &[TargetEstimate]) -> Option<[f64; 3]> {
+    let get = |n: &str| targets.iter().find(|t| t.name == n).map(|t| t.value);
+    let (x, y) = (get("x_mm")?, get("y_mm")?);
+    let z = get("depth_mm").map_or(f64::NAN, |d| -d);
+    Some([x / 1000.0, y / 1000.0, z / 1000.0])
+}
+
+/// The marker cloud's point layout: x, y, z, dx, dy as `float32`, status as `uint8`.
+fn cloud_fields() -> Vec<PointField> {
+    let f = |name: &str, offset, datatype| PointField {
+        name: name.into(),
+        offset,
+        datatype,
+        count: 1,
+    };
+    vec![
+        f("x", 0, FLOAT32),
+        f("y", 4, FLOAT32),
+        f("z", 8, FLOAT32),
+        f("dx", 12, FLOAT32),
+        f("dy", 16, FLOAT32),
+        f("status", 20, UINT8),
+    ]
+}
+
+/// Bytes per marker point.
+pub const CLOUD_POINT_STEP: u32 = 24;
+
+/// The marker cloud message.
+pub fn marker_cloud(header: Header, markers: &[MarkerPoint]) -> PointCloud2 {
+    let mut data = Vec::with_capacity(markers.len() * CLOUD_POINT_STEP as usize);
+    for m in markers {
+        for v in [m.x_px, m.y_px, 0.0, m.dx_px, m.dy_px] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+        data.extend_from_slice(&[u8::from(!m.found), 0, 0, 0]);
+    }
+    PointCloud2 {
+        header,
+        width: u32::try_from(markers.len()).unwrap_or(u32::MAX),
+        fields: cloud_fields(),
+        point_step: CLOUD_POINT_STEP,
+        data,
+        is_dense: markers.iter().all(|m| m.found),
+    }
+}
+
+/// The marker health as one diagnostic status.
+pub fn health_status(
+    cfg: &RosConfig,
+    h: &Health,
+    mut values: Vec<(String, String)>,
+) -> DiagnosticStatus {
+    let (lvl, message) = if h.ok == 0 {
+        (level::ERROR, "no marker found".to_string())
+    } else if h.reference_under_contact {
+        (level::WARN, "reference taken under contact".to_string())
+    } else if h.lost > 0 || h.filled > 0 {
+        (level::WARN, format!("{} markers lost", h.lost))
+    } else {
+        (level::OK, "all markers found".to_string())
+    };
+    for (k, v) in [
+        ("ok", h.ok),
+        ("lost", h.lost),
+        ("merged", h.merged),
+        ("ambiguous", h.ambiguous),
+        ("split", h.split),
+        ("filled", h.filled),
+        ("drifting", h.drifting),
+    ] {
+        values.push((k.to_string(), v.to_string()));
+    }
+    DiagnosticStatus {
+        level: lvl,
+        name: format!("{}: markers", cfg.namespace),
+        message,
+        hardware_id: cfg.frame_id.clone(),
+        values,
+    }
+}
+
+/// Writes one frame's messages to `bag`.
+pub fn write_frame(bag: &mut Bag, cfg: &RosConfig, f: FrameMessages<'_>) -> Result<(), RosError> {
+    let at = f.stamp_ns;
+    let header = || Header::at_ns(at, &cfg.frame_id);
+    let image_frame = format!("{}/image", cfg.frame_id);
+    if let Some(w) = wrench_from_targets(f.targets) {
+        let m = WrenchStamped {
+            header: header(),
+            force: [w[0], w[1], w[2]],
+            torque: [w[3], w[4], w[5]],
+        };
+        bag.write(&cfg.topic("wrench"), at, &m)?;
+    }
+    if let Some(w) = f.measured {
+        let m = WrenchStamped {
+            header: header(),
+            force: [w[0], w[1], w[2]],
+            torque: [w[3], w[4], w[5]],
+        };
+        bag.write(&cfg.topic("ft_sensor/wrench"), at, &m)?;
+    }
+    if let Some(point) = contact_from_targets(f.targets) {
+        let m = PointStamped {
+            header: header(),
+            point,
+        };
+        bag.write(&cfg.topic("contact"), at, &m)?;
+    }
+    if let Some(c) = f.contact {
+        bag.write(&cfg.topic("contact/active"), at, &Bool(c))?;
+    }
+    if let Some(markers) = f.markers {
+        let m = marker_cloud(Header::at_ns(at, &image_frame), markers);
+        bag.write(&cfg.topic("markers"), at, &m)?;
+    }
+    if let Some(png) = f.png {
+        let m = CompressedImage {
+            header: Header::at_ns(at, &image_frame),
+            format: "png".into(),
+            data: png,
+        };
+        bag.write(&cfg.topic("image/compressed"), at, &m)?;
+    }
+    if let Some((h, values)) = f.health {
+        let m = DiagnosticArray {
+            header: header(),
+            status: vec![health_status(cfg, h, values)],
+        };
+        bag.write("/diagnostics", at, &m)?;
+    }
+    Ok(())
+}
+
+/// Nanoseconds since the UNIX epoch from seconds (clamped at 0).
+pub fn ns_from_s(s: f64) -> u64 {
+    if s.is_finite() && s > 0.0 {
+        (s * 1e9).round() as u64
+    } else {
+        0
+    }
+}
