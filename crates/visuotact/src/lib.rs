@@ -78,6 +78,7 @@ pub use visuotact_io as io;
 pub use visuotact_nn as nn;
 pub use visuotact_pipeline as pipeline;
 pub use visuotact_report as report;
+pub use visuotact_ros as ros;
 pub use visuotact_signal as signal;
 pub use visuotact_sim as sim;
 pub use visuotact_vision as vision;
