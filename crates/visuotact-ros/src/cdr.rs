@@ -115,7 +115,8 @@ mod tests {
         w.string("hi");
         w.f64(1.0);
         let mut want = vec![0, 1, 0, 0, 3, 0, 0, 0, b'h', b'i', 0];
-        want.extend_from_slice(&[0; 5]); // 11 → 16 (8-aligned after the header)
+        // 7 bytes of payload so far: one pad byte to 8 (alignment counts from the payload).
+        want.push(0);
         want.extend_from_slice(&1.0f64.to_le_bytes());
         assert_eq!(w.bytes(), &want[..]);
     }
