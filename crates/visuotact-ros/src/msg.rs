@@ -31,12 +31,20 @@ macro_rules! sep {
     };
 }
 
-const HEADER_DEF: &str = concat!(
-    sep!("std_msgs/Header"),
-    "builtin_interfaces/Time stamp\nstring frame_id\n",
-    sep!("builtin_interfaces/Time"),
-    "int32 sec\nuint32 nanosec\n"
-);
+/// The definitions of `std_msgs/Header` and the `builtin_interfaces/Time` it uses, as every
+/// stamped message's schema carries them.
+macro_rules! header_deps {
+    () => {
+        concat!(
+            sep!("std_msgs/Header"),
+            "builtin_interfaces/Time stamp\nstring frame_id\n",
+            sep!("builtin_interfaces/Time"),
+            "int32 sec\nuint32 nanosec\n"
+        )
+    };
+}
+
+const HEADER_DEF: &str = header_deps!();
 
 /// `std_msgs/Header`: a stamp (`builtin_interfaces/Time`) and a frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -81,10 +89,7 @@ impl RosMessage for WrenchStamped {
     const NAME: &'static str = "geometry_msgs/msg/WrenchStamped";
     const DEFINITION: &'static str = concat!(
         "std_msgs/Header header\nWrench wrench\n",
-        sep!("std_msgs/Header"),
-        "builtin_interfaces/Time stamp\nstring frame_id\n",
-        sep!("builtin_interfaces/Time"),
-        "int32 sec\nuint32 nanosec\n",
+        header_deps!(),
         sep!("geometry_msgs/Wrench"),
         "Vector3 force\nVector3 torque\n",
         sep!("geometry_msgs/Vector3"),
@@ -111,10 +116,7 @@ impl RosMessage for PointStamped {
     const NAME: &'static str = "geometry_msgs/msg/PointStamped";
     const DEFINITION: &'static str = concat!(
         "std_msgs/Header header\nPoint point\n",
-        sep!("std_msgs/Header"),
-        "builtin_interfaces/Time stamp\nstring frame_id\n",
-        sep!("builtin_interfaces/Time"),
-        "int32 sec\nuint32 nanosec\n",
+        header_deps!(),
         sep!("geometry_msgs/Point"),
         "float64 x\nfloat64 y\nfloat64 z\n"
     );
@@ -178,10 +180,7 @@ impl RosMessage for PointCloud2 {
     const DEFINITION: &'static str = concat!(
         "std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\n",
         "bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n",
-        sep!("std_msgs/Header"),
-        "builtin_interfaces/Time stamp\nstring frame_id\n",
-        sep!("builtin_interfaces/Time"),
-        "int32 sec\nuint32 nanosec\n",
+        header_deps!(),
         sep!("sensor_msgs/PointField"),
         "uint8 INT8 = 1\nuint8 UINT8 = 2\nuint8 INT16 = 3\nuint8 UINT16 = 4\nuint8 INT32 = 5\n",
         "uint8 UINT32 = 6\nuint8 FLOAT32 = 7\nuint8 FLOAT64 = 8\n",
@@ -221,10 +220,7 @@ impl RosMessage for CompressedImage {
     const NAME: &'static str = "sensor_msgs/msg/CompressedImage";
     const DEFINITION: &'static str = concat!(
         "std_msgs/Header header\nstring format\nuint8[] data\n",
-        sep!("std_msgs/Header"),
-        "builtin_interfaces/Time stamp\nstring frame_id\n",
-        sep!("builtin_interfaces/Time"),
-        "int32 sec\nuint32 nanosec\n"
+        header_deps!()
     );
     fn encode(&self, w: &mut CdrWriter) {
         self.header.encode(w);
@@ -271,10 +267,7 @@ impl RosMessage for DiagnosticArray {
     const NAME: &'static str = "diagnostic_msgs/msg/DiagnosticArray";
     const DEFINITION: &'static str = concat!(
         "std_msgs/Header header\nDiagnosticStatus[] status\n",
-        sep!("std_msgs/Header"),
-        "builtin_interfaces/Time stamp\nstring frame_id\n",
-        sep!("builtin_interfaces/Time"),
-        "int32 sec\nuint32 nanosec\n",
+        header_deps!(),
         sep!("diagnostic_msgs/DiagnosticStatus"),
         "byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\n",
         "string message\nstring hardware_id\nKeyValue[] values\n",
