@@ -331,15 +331,14 @@ fn probe_file(path: &Path, bytes: usize) -> std::io::Result<()> {
     let mut f = File::create(path).map_err(explain)?;
     let written = f.write_all(&vec![0u8; bytes]).and_then(|()| f.sync_all());
     drop(f);
-    if path.is_file() {
-        // Removed whether the write worked or not: a failed probe leaves nothing behind.
-        let removed = std::fs::remove_file(path);
-        written.map_err(explain)?;
-        removed.map_err(explain)?;
+    // Removed whether the write worked or not: a failed probe leaves nothing behind.
+    let removed = if path.is_file() {
+        std::fs::remove_file(path)
     } else {
-        written.map_err(explain)?;
-    }
-    Ok(())
+        Ok(())
+    };
+    written.map_err(explain)?;
+    removed.map_err(explain)
 }
 
 /// Writes `text` to `path` through a temporary file and a rename, so a failure never leaves a

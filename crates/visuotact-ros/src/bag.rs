@@ -43,9 +43,12 @@ pub struct Bag {
     topics: BTreeMap<String, Topic>,
     first_ns: Option<u64>,
     last_ns: u64,
-    flushed_ns: u64,
+    /// The latest stamp when a chunk was last closed (the first stamp before that).
+    flushed_ns: Option<u64>,
     flush_every_ns: u64,
     messages: u64,
+    /// The CDR buffer, reused from message to message.
+    cdr: Vec<u8>,
 }
 
 impl Bag {
@@ -81,9 +84,10 @@ impl Bag {
             topics: BTreeMap::new(),
             first_ns: None,
             last_ns: 0,
-            flushed_ns: 0,
+            flushed_ns: None,
             flush_every_ns: (cfg.flush_every_s.max(0.0) * 1e9) as u64,
             messages: 0,
+            cdr: Vec::new(),
         })
     }
 
@@ -101,34 +105,38 @@ impl Bag {
         RosError::Mcap(self.file.clone(), e.to_string())
     }
 
-    fn channel<M: RosMessage>(&mut self, topic: &str) -> Result<u16, RosError> {
-        if let Some(t) = self.topics.get(topic) {
-            if t.msgtype != M::NAME {
-                return Err(RosError::TopicType {
-                    topic: topic.to_string(),
-                    was: t.msgtype,
-                    now: M::NAME,
-                });
-            }
-            return Ok(t.channel);
-        }
-        let schema = self
-            .writer
-            .add_schema(M::NAME, "ros2msg", M::DEFINITION.as_bytes())
-            .map_err(|e| self.mcap_err(e))?;
-        let channel = self
-            .writer
-            .add_channel(schema, topic, "cdr", &BTreeMap::new())
-            .map_err(|e| self.mcap_err(e))?;
-        self.topics.insert(
-            topic.to_string(),
-            Topic {
+    /// The topic's channel, registered with its schema on first use.
+    fn topic<M: RosMessage>(&mut self, topic: &str) -> Result<&mut Topic, RosError> {
+        if !self.topics.contains_key(topic) {
+            // Only on a topic's first message: the key is copied once.
+            let failed = |e: mcap::McapError| RosError::Mcap(self.file.clone(), e.to_string());
+            let schema = self
+                .writer
+                .add_schema(M::NAME, "ros2msg", M::DEFINITION.as_bytes())
+                .map_err(failed)?;
+            let channel = self
+                .writer
+                .add_channel(schema, topic, "cdr", &BTreeMap::new())
+                .map_err(failed)?;
+            let t = Topic {
                 channel,
                 msgtype: M::NAME,
                 count: 0,
-            },
-        );
-        Ok(channel)
+            };
+            self.topics.insert(topic.to_string(), t);
+        }
+        let t = self
+            .topics
+            .get_mut(topic)
+            .ok_or_else(|| RosError::Config(format!("topic {topic} was not registered")))?;
+        if t.msgtype != M::NAME {
+            return Err(RosError::TopicType {
+                topic: topic.to_string(),
+                was: t.msgtype,
+                now: M::NAME,
+            });
+        }
+        Ok(t)
     }
 
     /// Writes `msg` on `topic`, stamped `stamp_ns` (nanoseconds since the UNIX epoch).
@@ -138,30 +146,25 @@ impl Bag {
         stamp_ns: u64,
         msg: &M,
     ) -> Result<(), RosError> {
-        let channel = self.channel::<M>(topic)?;
-        let t = self
-            .topics
-            .get_mut(topic)
-            .expect("channel() registered the topic");
+        let t = self.topic::<M>(topic)?;
         let header = mcap::records::MessageHeader {
-            channel_id: channel,
+            channel_id: t.channel,
             sequence: u32::try_from(t.count).unwrap_or(u32::MAX),
             log_time: stamp_ns,
             publish_time: stamp_ns,
         };
         t.count += 1;
+        self.cdr = msg.to_cdr_in(std::mem::take(&mut self.cdr));
         self.writer
-            .write_to_known_channel(&header, &msg.to_cdr())
+            .write_to_known_channel(&header, &self.cdr)
             .map_err(|e| RosError::Mcap(self.file.clone(), e.to_string()))?;
         self.messages += 1;
-        let first = *self.first_ns.get_or_insert(stamp_ns);
+        self.first_ns.get_or_insert(stamp_ns);
         self.last_ns = self.last_ns.max(stamp_ns);
-        if self.flushed_ns < first {
-            self.flushed_ns = first;
-        }
-        if self.last_ns.saturating_sub(self.flushed_ns) >= self.flush_every_ns {
+        let flushed = *self.flushed_ns.get_or_insert(stamp_ns);
+        if self.last_ns.saturating_sub(flushed) >= self.flush_every_ns {
             self.writer.flush().map_err(|e| self.mcap_err(e))?;
-            self.flushed_ns = self.last_ns;
+            self.flushed_ns = Some(self.last_ns);
         }
         Ok(())
     }

@@ -86,20 +86,20 @@ impl CdrWriter {
 
     /// A sequence's length (or a string's, with its NUL): saturates at `u32::MAX`, which no
     /// message of ours comes near (a frame would be 4 GiB).
-    pub fn len(&mut self, n: usize) {
+    pub fn seq_len(&mut self, n: usize) {
         self.u32(u32::try_from(n).unwrap_or(u32::MAX));
     }
 
     /// A `string`.
     pub fn string(&mut self, s: &str) {
-        self.len(s.len() + 1);
+        self.seq_len(s.len() + 1);
         self.buf.extend_from_slice(s.as_bytes());
         self.buf.push(0);
     }
 
     /// A `uint8[]`.
     pub fn bytes_seq(&mut self, b: &[u8]) {
-        self.len(b.len());
+        self.seq_len(b.len());
         self.buf.extend_from_slice(b);
     }
 }

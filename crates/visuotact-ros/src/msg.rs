@@ -15,7 +15,11 @@ pub trait RosMessage {
     fn encode(&self, w: &mut CdrWriter);
     /// The message as one CDR buffer.
     fn to_cdr(&self) -> Vec<u8> {
-        let mut w = CdrWriter::new();
+        self.to_cdr_in(Vec::new())
+    }
+    /// The message as one CDR buffer, written into `buf` (cleared first, its capacity kept).
+    fn to_cdr_in(&self, buf: Vec<u8>) -> Vec<u8> {
+        let mut w = CdrWriter::reuse(buf);
         self.encode(&mut w);
         w.into_bytes()
     }
@@ -190,7 +194,7 @@ impl RosMessage for PointCloud2 {
         self.header.encode(w);
         w.u32(1);
         w.u32(self.width);
-        w.len(self.fields.len());
+        w.seq_len(self.fields.len());
         for f in &self.fields {
             w.string(&f.name);
             w.u32(f.offset);
@@ -276,13 +280,13 @@ impl RosMessage for DiagnosticArray {
     );
     fn encode(&self, w: &mut CdrWriter) {
         self.header.encode(w);
-        w.len(self.status.len());
+        w.seq_len(self.status.len());
         for s in &self.status {
             w.u8(s.level);
             w.string(&s.name);
             w.string(&s.message);
             w.string(&s.hardware_id);
-            w.len(s.values.len());
+            w.seq_len(s.values.len());
             for (k, v) in &s.values {
                 w.string(k);
                 w.string(v);

@@ -212,21 +212,16 @@ pub fn write_frame(bag: &mut Bag, cfg: &RosConfig, f: FrameMessages<'_>) -> Resu
     let at = f.stamp_ns;
     let header = || Header::at_ns(at, &cfg.frame_id);
     let image_frame = format!("{}/image", cfg.frame_id);
+    let wrench = |w: [f64; 6]| WrenchStamped {
+        header: header(),
+        force: [w[0], w[1], w[2]],
+        torque: [w[3], w[4], w[5]],
+    };
     if let Some(w) = wrench_from_targets(f.targets) {
-        let m = WrenchStamped {
-            header: header(),
-            force: [w[0], w[1], w[2]],
-            torque: [w[3], w[4], w[5]],
-        };
-        bag.write(&cfg.topic("wrench"), at, &m)?;
+        bag.write(&cfg.topic("wrench"), at, &wrench(w))?;
     }
     if let Some(w) = f.measured {
-        let m = WrenchStamped {
-            header: header(),
-            force: [w[0], w[1], w[2]],
-            torque: [w[3], w[4], w[5]],
-        };
-        bag.write(&cfg.topic("ft_sensor/wrench"), at, &m)?;
+        bag.write(&cfg.topic("ft_sensor/wrench"), at, &wrench(w))?;
     }
     if let Some(point) = contact_from_targets(f.targets) {
         let m = PointStamped {

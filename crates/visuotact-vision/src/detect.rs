@@ -417,8 +417,7 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
         let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
         let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
         let (xa, ya) = (bx0 - 1, by0 - 1);
-        let mut sums = [0.0f64; 3];
-        crate::kernels::ellipse_window_sums(
+        let [sw, sx, sy] = crate::kernels::ellipse_window_sums(
             &gray.as_slice()[ya * width + xa..],
             width,
             bx1 + 1 - xa,
@@ -433,9 +432,7 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
                 sx: sxp,
                 sy: syp,
             },
-            &mut sums,
         );
-        let [sw, sx, sy] = sums;
         if sw > 0.0 {
             (b.x_px, b.y_px) = (cx + sx / sw, cy + sy / sw);
         }

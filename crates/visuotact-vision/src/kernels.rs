@@ -4,7 +4,10 @@
 //! twice: for the baseline target (SSE2 on x86-64) and with AVX2 enabled. The AVX2 copy is
 //! used when the running CPU has it (checked once by `std`); nothing is pinned to the build
 //! machine. Both copies compute identical results (integer code, no reassociation); the tests
-//! run whichever the machine picks and compare with scalar references.
+//! run whichever the machine picks and compare with scalar references. Two kernels the
+//! compiler would not vectorise are written with intrinsics beside a portable loop: the SSSE3
+//! channel shuffle (identical results) and the AVX2 grey-centroid window sums (floating point
+//! summed in eight lanes: equal to the portable loop within 1e-4 relative, tested).
 
 #![allow(
     clippy::needless_range_loop,
@@ -306,11 +309,9 @@ pub fn ellipse_window_sums(
     cols: usize,
     rows: usize,
     e: EllipseWindow,
-    out: &mut [f64; 3],
-) {
+) -> [f64; 3] {
     if rows == 0 || cols == 0 {
-        *out = [0.0; 3];
-        return;
+        return [0.0; 3];
     }
     let rows_of = &pixels[..(rows - 1) * stride + cols];
     #[cfg(target_arch = "x86_64")]
@@ -321,13 +322,10 @@ pub fn ellipse_window_sums(
                 unsafe_code,
                 reason = "calling a target_feature function after the runtime check"
             )]
-            unsafe {
-                *out = window::sums_avx2(rows_of, stride, cols, rows, e);
-            }
-            return;
+            return unsafe { window::sums_avx2(rows_of, stride, cols, rows, e) };
         }
     }
-    *out = ellipse_window_sums_portable(rows_of, stride, cols, rows, e);
+    ellipse_window_sums_portable(rows_of, stride, cols, rows, e)
 }
 
 /// Portable form of [`ellipse_window_sums`] (`pixels` holds at least the window's rows).
@@ -518,8 +516,7 @@ mod tests {
                         }
                     }
                 }
-                let mut out = [0.0f64; 3];
-                ellipse_window_sums(&pixels, stride, cols, rows, e, &mut out);
+                let out = ellipse_window_sums(&pixels, stride, cols, rows, e);
                 let portable = ellipse_window_sums_portable(&pixels, stride, cols, rows, e);
                 for k in 0..3 {
                     assert!(
