@@ -16,7 +16,7 @@
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -174,6 +174,9 @@ pub enum RecordError {
     /// A capture or force thread stopped unexpectedly.
     #[error("the {0} thread stopped unexpectedly")]
     Thread(&'static str),
+    /// The [`RecordObserver`] failed (its message).
+    #[error("{0}")]
+    Observer(String),
     /// The recording ended without a frame written (the session says so too).
     #[error("nothing recorded: {0}")]
     NothingRecorded(String),
@@ -196,6 +199,9 @@ pub struct RecordSummary {
     pub force_packets_sent: Option<u64>,
     /// Wall-clock time, seconds.
     pub duration_s: f64,
+    /// When the session began (its clock's zero) as UNIX time, s; a resumed session keeps
+    /// its first run's.
+    pub started_unix_s: f64,
 }
 
 /// A frame the recorder writes: from a simulated rig (with its labels), a file or a camera,
@@ -207,6 +213,52 @@ struct RecordedFrame {
     labels: Vec<f64>,
 }
 
+/// A recorded frame as the session's tables hold it, for a [`RecordObserver`].
+pub struct RecordedRow<'a> {
+    /// The frame's id (its name in `frames.csv`).
+    pub frame: &'a str,
+    /// The session clock, s.
+    pub timestamp_s: f64,
+    /// The frame.
+    pub image: &'a RgbImage,
+    /// `features.csv`'s value columns and this frame's row (without an estimator, or a frame
+    /// the extractor refused: `None`).
+    pub features: Option<(&'a [String], &'a [f64])>,
+    /// `estimates.csv`'s value columns and this frame's row, likewise.
+    pub estimates: Option<(&'a [String], &'a [f64])>,
+}
+
+/// Hears of what a recording writes as it writes it — a bag writer, a monitor. Frames come
+/// from the recording thread, force samples from the force receiver's, each after its row is
+/// written. The first error ends the recording as a failed write would.
+pub trait RecordObserver: Send {
+    /// The recording starts; its clock's zero is `started_unix_s` (UNIX time, s).
+    fn start(&mut self, started_unix_s: f64) -> Result<(), String> {
+        let _ = started_unix_s;
+        Ok(())
+    }
+    /// A frame's rows were written.
+    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), String>;
+    /// A force sample was written (its `timestamp_s` on the session clock).
+    fn force(&mut self, sample: &ForceSample) -> Result<(), String>;
+}
+
+/// A [`RecordObserver`] shared by the recording and force threads.
+pub type SharedObserver = Arc<Mutex<dyn RecordObserver>>;
+
+fn observe<T>(
+    observer: Option<&SharedObserver>,
+    f: impl FnOnce(&mut dyn RecordObserver) -> Result<T, String>,
+) -> Result<Option<T>, RecordError> {
+    let Some(o) = observer else {
+        return Ok(None);
+    };
+    let mut guard = o
+        .lock()
+        .map_err(|_| RecordError::Observer("a thread panicked while writing".into()))?;
+    f(&mut *guard).map(Some).map_err(RecordError::Observer)
+}
+
 const FORCE_HEADER: &str = "timestamp_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm,recv_s";
 
 /// Records a session (see the module's documentation) until the source ends, a limit is
@@ -214,9 +266,20 @@ const FORCE_HEADER: &str = "timestamp_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm,recv_s"
 /// model); `warn` hears of frames skipped.
 pub fn record(
     cfg: &RecordConfig,
+    estimator: Option<Estimator>,
+    stop: &Arc<AtomicBool>,
+    warn: &mut dyn FnMut(&str),
+) -> Result<RecordSummary, RecordError> {
+    record_observed(cfg, estimator, stop, warn, None)
+}
+
+/// [`record`], with `observer` hearing of every frame and force sample as it is written.
+pub fn record_observed(
+    cfg: &RecordConfig,
     mut estimator: Option<Estimator>,
     stop: &Arc<AtomicBool>,
     warn: &mut dyn FnMut(&str),
+    observer: Option<SharedObserver>,
 ) -> Result<RecordSummary, RecordError> {
     // Everything that can be checked is checked before anything is created: a corrected
     // re-run is never refused for a folder a failed one left behind.
@@ -228,15 +291,25 @@ pub fn record(
     let force_input = ForceInput::open(cfg)?;
     check(cfg)?;
     let mut tables = Tables::open(cfg, estimator.as_ref(), rig.as_ref())?;
-    describe(cfg, false, &RecordSummary::default())?;
+    let mut summary = RecordSummary {
+        started_unix_s: started_unix_s(cfg),
+        ..RecordSummary::default()
+    };
+    describe(cfg, false, &summary)?;
+    observe(observer.as_ref(), |o| o.start(summary.started_unix_s))?;
     if let Some(r) = &rig {
         write_references(cfg, r)?;
     }
     let clock = Instant::now();
     let t_offset = tables.t_offset(cfg.fps);
-    let force = ForceSide::start(cfg, force_input, rig.as_ref(), (clock, t_offset), stop)?;
+    let force = ForceSide::start(
+        cfg,
+        force_input,
+        rig.as_ref(),
+        (clock, t_offset),
+        (stop, observer.clone()),
+    )?;
     let mut frames = Frames::open(cfg, rig, clock, stop)?;
-    let mut summary = RecordSummary::default();
     let mut k = tables.first_index;
     let result: Result<(), RecordError> = (|| {
         while !stop.load(Ordering::Relaxed)
@@ -255,6 +328,7 @@ pub fn record(
                 Next::End => break,
             };
             tables.write(cfg, estimator.as_mut(), &frame, k, warn)?;
+            observe(observer.as_ref(), |o| o.frame(&tables.row_of(&frame)))?;
             summary.written += 1;
             k += 1;
         }
@@ -283,6 +357,23 @@ pub fn record(
         }));
     }
     Ok(summary)
+}
+
+/// The session clock's zero as UNIX time: now; when resuming, the first run's value from its
+/// `session.json` (a session written before this field existed: now, as a best guess).
+fn started_unix_s(cfg: &RecordConfig) -> f64 {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
+    if !cfg.resume {
+        return now;
+    }
+    std::fs::read_to_string(cfg.output.join("session.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v["started_unix_s"].as_f64())
+        .filter(|t| t.is_finite() && *t > 0.0)
+        .unwrap_or(now)
 }
 
 /// Every number of the settings, checked before anything is created.
@@ -367,6 +458,7 @@ fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(),
         force_packets: Option<ReceiveStats>,
         force_packets_sent_by_simulator: Option<u64>,
         duration_s: f64,
+        started_unix_s: f64,
     }
     let d = Description {
         format: SESSION_FORMAT,
@@ -391,6 +483,7 @@ fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(),
         force_packets: s.force_packets,
         force_packets_sent_by_simulator: s.force_packets_sent,
         duration_s: s.duration_s,
+        started_unix_s: s.started_unix_s,
     };
     let text = serde_json::to_string_pretty(&d).map_err(std::io::Error::other)? + "\n";
     Ok(write_atomically(&cfg.output.join("session.json"), &text)?)
@@ -423,10 +516,15 @@ struct Tables {
     /// Frames already in the session.
     first_index: usize,
     line: String,
-    row: Vec<f64>,
     estimate: Estimate,
     /// The estimates row of a frame without one (NaN per target).
     no_estimate: Vec<f64>,
+    /// The value columns of `features.csv` and `estimates.csv`.
+    feature_cols: Vec<String>,
+    estimate_cols: Vec<String>,
+    /// The last frame's rows (empty: none written).
+    feature_row: Vec<f64>,
+    estimate_row: Vec<f64>,
 }
 
 impl Tables {
@@ -451,19 +549,14 @@ impl Tables {
             .filter_map(|l| l.split(',').nth(2)?.parse::<f64>().ok())
             .fold(f64::NEG_INFINITY, f64::max);
         let with_frame = |cols: &[String]| format!("frame,{},flags", cols.join(","));
+        let feature_cols = est.map_or_else(Vec::new, |e| feature_columns(&e.feature_columns()));
         let features = est
-            .map(|e| {
-                open(
-                    "features.csv",
-                    &with_frame(&feature_columns(&e.feature_columns())),
-                )
-            })
+            .map(|_| open("features.csv", &with_frame(&feature_cols)))
             .transpose()?
             .map(|(log, _)| log);
-        let estimates = est
-            .map(Estimator::target_columns)
-            .filter(|c| !c.is_empty())
-            .map(|c| open("estimates.csv", &with_frame(&c)))
+        let estimate_cols = est.map_or_else(Vec::new, Estimator::target_columns);
+        let estimates = (!estimate_cols.is_empty())
+            .then(|| open("estimates.csv", &with_frame(&estimate_cols)))
             .transpose()?
             .map(|(log, _)| log);
         let labels = rig
@@ -484,9 +577,12 @@ impl Tables {
             done,
             last_t,
             line: String::new(),
-            row: Vec::new(),
             estimate: Estimate::default(),
-            no_estimate: vec![f64::NAN; est.map_or(0, |e| e.target_columns().len())],
+            no_estimate: vec![f64::NAN; estimate_cols.len()],
+            feature_cols,
+            estimate_cols,
+            feature_row: Vec::new(),
+            estimate_row: Vec::new(),
         })
     }
 
@@ -516,6 +612,8 @@ impl Tables {
             };
             write_png(&cfg.output.join("frames").join(name), &f.image)?;
         }
+        self.feature_row.clear();
+        self.estimate_row.clear();
         if let Some(e) = est {
             self.write_estimate(e, f, warn)?;
         }
@@ -547,25 +645,43 @@ impl Tables {
             }
         };
         if let Some(log) = self.features.as_mut() {
-            feature_row_into(&mut self.row, f.timestamp_s, n_markers, features);
+            feature_row_into(&mut self.feature_row, f.timestamp_s, n_markers, features);
             self.line.clear();
-            push_csv_row(&mut self.line, &f.id, &self.row, &flags_of(features));
+            push_csv_row(
+                &mut self.line,
+                &f.id,
+                &self.feature_row,
+                &flags_of(features),
+            );
             log.line(&self.line)?;
         }
         if let Some(log) = self.estimates.as_mut() {
             self.line.clear();
             match got {
                 Some(Ok(_)) => {
-                    self.row.clear();
-                    self.row.extend(&self.estimate.values);
-                    self.row.extend(&self.estimate.spread);
-                    push_csv_row(&mut self.line, &f.id, &self.row, "");
+                    self.estimate_row.extend(&self.estimate.values);
+                    self.estimate_row.extend(&self.estimate.spread);
+                    push_csv_row(&mut self.line, &f.id, &self.estimate_row, "");
                 }
                 _ => push_csv_row(&mut self.line, &f.id, &self.no_estimate, "missing features"),
             }
             log.line(&self.line)?;
         }
         Ok(())
+    }
+
+    /// The frame just written, as its rows say it.
+    fn row_of<'a>(&'a self, f: &'a RecordedFrame) -> RecordedRow<'a> {
+        let part = |cols: &'a [String], row: &'a [f64]| {
+            (!row.is_empty() && row.len() == cols.len()).then_some((cols, row))
+        };
+        RecordedRow {
+            frame: &f.id,
+            timestamp_s: f.timestamp_s,
+            image: &f.image,
+            features: part(&self.feature_cols, &self.feature_row),
+            estimates: part(&self.estimate_cols, &self.estimate_row),
+        }
     }
 
     fn sync(&mut self) -> Result<(), RecordError> {
@@ -734,7 +850,7 @@ impl ForceSide {
         input: ForceInput,
         rig: Option<&SimRig>,
         (clock, t_offset): (Instant, f64),
-        stop: &Arc<AtomicBool>,
+        (stop, observer): (&Arc<AtomicBool>, Option<SharedObserver>),
     ) -> Result<Self, RecordError> {
         let mut side = Self {
             receiver: None,
@@ -748,7 +864,8 @@ impl ForceSide {
             ForceInput::Udp(rx) => {
                 let bound = rx.local_addr()?.to_string();
                 let (log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
-                side.receiver = Some(spawn_receiver(rx, log, clock, t_offset, side.stop.clone()));
+                let on = (clock, t_offset, side.stop.clone());
+                side.receiver = Some(spawn_receiver(rx, log, on, observer));
                 if let Some(r) = rig {
                     let t_end = r
                         .total_s(cfg.fps)
@@ -772,8 +889,14 @@ impl ForceSide {
             ForceInput::Csv(t) => {
                 let (mut log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
                 for (ts, v) in t.timestamp_s.iter().zip(&t.values) {
-                    let cells: Vec<String> = v.iter().map(|x| format!("{x:.6}")).collect();
-                    log.line(&format!("{ts:.6},{},{ts:.6}", cells.join(",")))?;
+                    let cells: Vec<String> = v.iter().map(|x| format_number(*x)).collect();
+                    let ts_cell = format_number(*ts);
+                    log.line(&format!("{ts_cell},{},{ts_cell}", cells.join(",")))?;
+                    let sample = ForceSample {
+                        timestamp_s: *ts,
+                        values: *v,
+                    };
+                    observe(observer.as_ref(), |o| o.force(&sample))?;
                 }
                 log.sync()?;
             }
@@ -875,9 +998,8 @@ fn spawn_jr3(
 fn spawn_receiver(
     mut rx: ForceReceiver,
     mut log: AppendLog,
-    clock: Instant,
-    t_offset: f64,
-    stop: Arc<AtomicBool>,
+    (clock, t_offset, stop): (Instant, f64, Arc<AtomicBool>),
+    observer: Option<SharedObserver>,
 ) -> JoinHandle<Result<ReceiveStats, std::io::Error>> {
     std::thread::spawn(move || {
         let mut line = String::new();
@@ -887,13 +1009,18 @@ fn spawn_receiver(
             })?;
             match got {
                 Some(r) => {
+                    // Shortest round-trip numbers: the table holds the sample exactly.
                     line.clear();
-                    line.push_str(&format!("{:.6}", r.sample.timestamp_s));
+                    line.push_str(&format_number(r.sample.timestamp_s));
                     for v in r.sample.values {
-                        line.push_str(&format!(",{v:.6}"));
+                        line.push(',');
+                        line.push_str(&format_number(v));
                     }
-                    line.push_str(&format!(",{:.6}", r.recv_s));
+                    line.push(',');
+                    line.push_str(&format_number(r.recv_s));
                     log.line(&line)?;
+                    observe(observer.as_ref(), |o| o.force(&r.sample))
+                        .map_err(std::io::Error::other)?;
                 }
                 None if stop.load(Ordering::Relaxed) => break,
                 None => {}

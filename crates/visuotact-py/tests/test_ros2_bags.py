@@ -164,3 +164,55 @@ def test_killed_run_leaves_a_bag_readable_to_its_last_chunk(session):
         pass
     assert messages > 0
     assert "/visuotact/contact/active" in channels.values()
+
+
+def test_record_writes_the_bag_that_export_writes(session):
+    """`record --mcap` writes the bag as the session is recorded; `export mcap` of the finished
+    session must give the same messages (raw CDR, stamps to the nanosecond; frames as PNG on
+    both), and the force messages must equal force.csv to 1e-9 N."""
+    import json
+
+    d, _ = session
+    s, live, later = d / "recorded", d / "recorded.mcap", d / "exported.mcap"
+    # 2 fps: a debug build keeps up (the simulated camera drops frames it cannot make in time).
+    cli("record", "-o", s, "--source", "sim:cone", "--press-s", "2", "--rest-s", "0.2", "--fps", "2",
+        "--references", "0", "--force", "udp:127.0.0.1:0", "--force-rate-hz", "500",
+        "--sensor", d / "sensor.json", "--save-frames", "--mcap", live, "--mcap-images",
+        "--namespace", "/cone")
+    cli("export", "mcap", s, "-o", later, "--namespace", "/cone", "--sensor", d / "sensor.json")
+
+    from mcap.reader import make_reader
+
+    def by_topic(path):
+        """topic → [(log time, raw CDR)]."""
+        out = {}
+        with open(path, "rb") as f:
+            for _, channel, message in make_reader(f).iter_messages():
+                out.setdefault(channel.topic, []).append((message.log_time, message.data))
+        return out
+
+    a, b = by_topic(live), by_topic(later)
+    assert set(a) == set(b) == {"/cone/ft_sensor/wrench", "/cone/markers",
+                                "/cone/image/compressed", "/diagnostics"}
+    frames = rows(s / "frames.csv")
+    assert len(a["/cone/markers"]) == len(frames) >= 3
+    for topic in a:
+        assert len(a[topic]) == len(b[topic]), topic
+        for (tx, x), (ty, y) in zip(a[topic], b[topic]):
+            assert tx == ty, topic
+            if topic != "/cone/image/compressed":
+                assert x == y, topic
+    decoded = {}
+    for m in read_ros2_messages(str(live)):
+        decoded.setdefault(m.channel.topic, []).append(m.ros_msg)
+    start = json.loads((s / "session.json").read_text())["started_unix_s"]
+    assert start > 1.7e9
+    force = rows(s / "force.csv")
+    assert len(decoded["/cone/ft_sensor/wrench"]) == len(force) > 100
+    for r, m in zip(force, decoded["/cone/ft_sensor/wrench"]):
+        w = m.wrench
+        got = [w.force.x, w.force.y, w.force.z, w.torque.x, w.torque.y, w.torque.z]
+        assert all(abs(g - float(r[k])) <= 1e-9 for g, k in zip(got, AXES)), (got, r)
+        assert abs(stamp_s(m.header) - (start + float(r["timestamp_s"]))) <= 1e-6
+    for f, m in zip(frames, decoded["/cone/markers"]):
+        assert abs(stamp_s(m.header) - (start + float(f["timestamp_s"]))) <= 1e-6

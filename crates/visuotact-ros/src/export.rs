@@ -26,9 +26,10 @@ pub struct ExportConfig {
     pub bag: BagConfig,
     /// Sensor file for the marker cloud (default: the one `session.json` names, if it exists).
     pub sensor: Option<PathBuf>,
-    /// The session's start as UNIX time, seconds, added to its timestamps (0: stamps are the
-    /// session's own seconds).
-    pub start_unix_s: f64,
+    /// The session's start as UNIX time, seconds, added to its timestamps (`None`: the
+    /// `started_unix_s` of its `session.json`, which `record` writes; without one 0, the stamps
+    /// then the session's own seconds).
+    pub start_unix_s: Option<f64>,
 }
 
 /// What an export wrote.
@@ -44,17 +45,101 @@ pub struct ExportSummary {
     pub notes: Vec<String>,
 }
 
-/// A marker's reference position and the feature columns of its dx and dy.
-type MarkerColumns = (f32, f32, Option<(usize, usize)>);
-
 /// The session's per-frame tables, keyed by frame.
 struct SessionTables {
     frames: KeyedTable,
     estimates: Option<(KeyedTable, HashMap<String, usize>)>,
     features: Option<(KeyedTable, HashMap<String, usize>)>,
-    /// Per marker: reference position and the feature columns of dx, dy.
-    markers: Vec<MarkerColumns>,
+    markers: MarkerColumns,
     force: Option<ForceTable>,
+}
+
+/// A marker's reference position (pixels) and the columns of its dx and dy.
+#[derive(Clone, Copy, Debug)]
+struct MarkerColumn {
+    x_px: f32,
+    y_px: f32,
+    dxy: Option<(usize, usize)>,
+}
+
+/// Where a feature row holds each marker's displacement and the health counts, with the
+/// markers' reference positions: the map from `features.csv` rows to the marker cloud.
+#[derive(Clone, Debug, Default)]
+pub struct MarkerColumns {
+    markers: Vec<MarkerColumn>,
+    n_found: Option<usize>,
+    n_markers: Option<usize>,
+}
+
+impl MarkerColumns {
+    /// The map for `columns` (a feature table's value columns) and the sensor's markers.
+    pub fn new(cal: &SensorCalibration, columns: &[String]) -> Self {
+        let col = |n: &str| columns.iter().position(|c| c == n);
+        Self {
+            markers: cal
+                .markers
+                .iter()
+                .map(|m| {
+                    let dxy = col(&format!("m{:03}_dx_px", m.id))
+                        .zip(col(&format!("m{:03}_dy_px", m.id)));
+                    MarkerColumn {
+                        x_px: m.x_px as f32,
+                        y_px: m.y_px as f32,
+                        dxy,
+                    }
+                })
+                .collect(),
+            n_found: col("n_found"),
+            n_markers: col("n_markers"),
+        }
+    }
+
+    /// Whether there are markers to publish.
+    pub fn is_empty(&self) -> bool {
+        self.markers.is_empty()
+    }
+
+    /// A feature row's marker cloud into `out`, and its health (`None`: the row has no
+    /// counts).
+    pub fn cloud_from_row(&self, row: &[f64], out: &mut Vec<MarkerPoint>) -> Option<Health> {
+        out.clear();
+        for &MarkerColumn { x_px, y_px, dxy } in &self.markers {
+            let (dx, dy) = dxy.map_or((f64::NAN, f64::NAN), |(i, j)| (row[i], row[j]));
+            let found = dx.is_finite() && dy.is_finite();
+            out.push(MarkerPoint {
+                x_px,
+                y_px,
+                dx_px: dx as f32,
+                dy_px: dy as f32,
+                found,
+            });
+        }
+        let count = |i: Option<usize>| {
+            i.map(|i| row[i])
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .map(|v| v as usize)
+        };
+        let (found, total) = (count(self.n_found)?, count(self.n_markers)?);
+        Some(Health {
+            ok: found,
+            lost: total.saturating_sub(found),
+            ..Health::default()
+        })
+    }
+}
+
+/// An estimates row as targets: every finite value whose column is not a spread (`_std`).
+pub fn targets_from_row(columns: &[String], row: &[f64]) -> Vec<TargetEstimate> {
+    columns
+        .iter()
+        .zip(row)
+        .filter(|(c, v)| !c.ends_with("_std") && v.is_finite())
+        .map(|(c, &value)| TargetEstimate {
+            name: c.clone(),
+            value,
+            std: None,
+        })
+        .collect()
 }
 
 fn keyed(t: KeyedTable) -> (KeyedTable, HashMap<String, usize>) {
@@ -81,12 +166,20 @@ fn optional_table(
     Ok(Some(KeyedTable::read(&p, text)?))
 }
 
-fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibration>, RosError> {
+/// The session's `session.json`, if it reads.
+fn session_json(session: &Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(session.join("session.json")).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+/// The sensor file the export was given or the session names.
+pub fn sensor_of(
+    session: &Path,
+    cfg: &ExportConfig,
+) -> Result<Option<SensorCalibration>, RosError> {
     let path = match &cfg.sensor {
         Some(p) => Some(p.clone()),
-        None => std::fs::read_to_string(session.join("session.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        None => session_json(session)
             .and_then(|v| v["sensor_file"].as_str().map(PathBuf::from))
             .filter(|p| p.is_file()),
     };
@@ -114,17 +207,10 @@ fn read_tables(
         notes.push("no force.csv".into());
         None
     };
-    let mut markers = Vec::new();
+    let mut markers = MarkerColumns::default();
     if let Some((f, _)) = &features {
         match sensor_of(session, cfg)? {
-            Some(cal) => {
-                let col = |n: String| f.columns.iter().position(|c| *c == n);
-                for m in &cal.markers {
-                    let dxy =
-                        col(format!("m{:03}_dx_px", m.id)).zip(col(format!("m{:03}_dy_px", m.id)));
-                    markers.push((m.x_px as f32, m.y_px as f32, dxy));
-                }
-            }
+            Some(cal) => markers = MarkerColumns::new(&cal, &f.columns),
             None => notes.push("no sensor file: no marker cloud".into()),
         }
     }
@@ -139,57 +225,22 @@ fn read_tables(
 
 fn targets_of(est: &(KeyedTable, HashMap<String, usize>), frame: &str) -> Vec<TargetEstimate> {
     let (t, index) = est;
-    let Some(&row) = index.get(frame) else {
-        return Vec::new();
-    };
-    t.columns
-        .iter()
-        .zip(&t.rows[row])
-        .filter(|(c, v)| !c.ends_with("_std") && v.is_finite())
-        .map(|(c, &value)| TargetEstimate {
-            name: c.clone(),
-            value,
-            std: None,
-        })
-        .collect()
+    index
+        .get(frame)
+        .map(|&row| targets_from_row(&t.columns, &t.rows[row]))
+        .unwrap_or_default()
 }
 
 /// A frame's marker cloud and health from the feature table.
 fn markers_of(t: &SessionTables, frame: &str, out: &mut Vec<MarkerPoint>) -> Option<Health> {
     let (f, index) = t.features.as_ref()?;
-    let row = &f.rows[*index.get(frame)?];
-    out.clear();
-    for &(x_px, y_px, dxy) in &t.markers {
-        let (dx, dy) = dxy.map_or((f64::NAN, f64::NAN), |(i, j)| (row[i], row[j]));
-        let found = dx.is_finite() && dy.is_finite();
-        out.push(MarkerPoint {
-            x_px,
-            y_px,
-            dx_px: dx as f32,
-            dy_px: dy as f32,
-            found,
-        });
-    }
-    let get = |n: &str| {
-        f.columns
-            .iter()
-            .position(|c| c == n)
-            .map(|i| row[i])
-            .filter(|v| v.is_finite() && *v >= 0.0)
-            .map(|v| v as usize)
-    };
-    let (found, total) = (get("n_found")?, get("n_markers")?);
-    Some(Health {
-        ok: found,
-        lost: total.saturating_sub(found),
-        ..Health::default()
-    })
+    t.markers.cloud_from_row(&f.rows[*index.get(frame)?], out)
 }
 
 /// Writes the force samples stamped before `until_s` (all with `None`), from `next` on.
 fn write_force(
     bag: &mut Bag,
-    cfg: &ExportConfig,
+    (ros, start_unix_s): (&RosConfig, f64),
     force: &ForceTable,
     next: &mut usize,
     until_s: Option<f64>,
@@ -199,11 +250,11 @@ fn write_force(
             break;
         }
         let frame = FrameMessages {
-            stamp_ns: ns_from_s(cfg.start_unix_s + t),
+            stamp_ns: ns_from_s(start_unix_s + t),
             measured: Some(force.values[*next]),
             ..FrameMessages::default()
         };
-        write_frame(bag, &cfg.ros, frame)?;
+        write_frame(bag, ros, frame)?;
         *next += 1;
     }
     Ok(())
@@ -218,10 +269,14 @@ pub fn export_mcap(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ExportSummary, RosError> {
     cfg.ros.validate()?;
-    if !cfg.start_unix_s.is_finite() || cfg.start_unix_s < 0.0 {
+    let start_unix_s = cfg.start_unix_s.unwrap_or_else(|| {
+        session_json(session)
+            .and_then(|v| v["started_unix_s"].as_f64())
+            .unwrap_or(0.0)
+    });
+    if !start_unix_s.is_finite() || start_unix_s < 0.0 {
         return Err(RosError::Config(format!(
-            "start_unix_s {}: expected a UNIX time in seconds, 0 or more",
-            cfg.start_unix_s
+            "start_unix_s {start_unix_s}: expected a UNIX time in seconds, 0 or more"
         )));
     }
     let mut notes = Vec::new();
@@ -243,7 +298,13 @@ pub fn export_mcap(
     for (k, (frame, row)) in t.frames.keys.iter().zip(&t.frames.rows).enumerate() {
         let time_s = row[ts];
         if let Some(force) = &t.force {
-            write_force(&mut bag, cfg, force, &mut next_force, Some(time_s))?;
+            write_force(
+                &mut bag,
+                (&cfg.ros, start_unix_s),
+                force,
+                &mut next_force,
+                Some(time_s),
+            )?;
         }
         let targets = t
             .estimates
@@ -258,7 +319,7 @@ pub fn export_mcap(
             None
         };
         let msgs = FrameMessages {
-            stamp_ns: ns_from_s(cfg.start_unix_s + time_s),
+            stamp_ns: ns_from_s(start_unix_s + time_s),
             targets: &targets,
             markers: (health.is_some() && !t.markers.is_empty()).then_some(&markers[..]),
             health: health.as_ref().map(|h| (h, Vec::new())),
@@ -269,7 +330,13 @@ pub fn export_mcap(
         progress(k + 1, total);
     }
     if let Some(force) = &t.force {
-        write_force(&mut bag, cfg, force, &mut next_force, None)?;
+        write_force(
+            &mut bag,
+            (&cfg.ros, start_unix_s),
+            force,
+            &mut next_force,
+            None,
+        )?;
     }
     let messages = bag.messages();
     let path = bag.finish()?;

@@ -1,7 +1,7 @@
 //! visuotact in the robot's world: each frame's estimate, contact, markers, image and health
 //! as standard ROS 2 messages ([`msg`], CDR-encoded by [`cdr`]) on documented topics
 //! ([`topics`]), written to MCAP bags with the ROS 2 profile ([`bag`]) — live from a run
-//! ([`sink::McapSink`]) or from a recorded session ([`export::export_mcap`]). Nothing of ROS
+//! ([`sink::McapSink`]), while recording ([`sink::McapRecorder`]) or from a recorded session ([`export::export_mcap`]). Nothing of ROS
 //! needs to be installed; the bags read in `ros2 bag`, Foxglove, RViz (played back), the
 //! `rosbags` library and `mcap` + `mcap-ros2-support`.
 
@@ -18,7 +18,7 @@ use image::ImageEncoder;
 
 pub use bag::{Bag, BagConfig};
 pub use export::{export_mcap, ExportConfig, ExportSummary};
-pub use sink::McapSink;
+pub use sink::{McapRecorder, McapSink};
 pub use topics::RosConfig;
 
 /// Errors of the ROS 2 outputs.

@@ -29,10 +29,10 @@ struct Mcap {
     /// Sensor file for the marker cloud (default: the one session.json names).
     #[arg(long)]
     sensor: Option<PathBuf>,
-    /// The session's start as UNIX time, seconds, added to its timestamps (default 0: the
-    /// stamps are the session's own seconds).
-    #[arg(long, default_value_t = 0.0)]
-    start_unix_s: f64,
+    /// The session's start as UNIX time, seconds, added to its timestamps (default: the
+    /// start `record` wrote in session.json; without one 0, the session's own seconds).
+    #[arg(long)]
+    start_unix_s: Option<f64>,
     /// Leave the frames out (no CompressedImage topic).
     #[arg(long)]
     no_images: bool,

@@ -15,8 +15,13 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use std::sync::Mutex;
 use visuotact_io::force::ForceLayout;
-use visuotact_pipeline::record::{record, ConeRigConfig, ForceSource, RecordConfig};
+
+use visuotact_pipeline::record::{
+    record_observed, ConeRigConfig, ForceSource, RecordConfig, SharedObserver,
+};
+use visuotact_ros::{BagConfig, McapRecorder};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -79,6 +84,15 @@ pub(crate) struct Args {
     /// sim sources: no-contact reference frames written to reference/ first.
     #[arg(long, default_value_t = 10)]
     references: usize,
+    /// Also write an MCAP bag (ROS 2 profile; FILE.mcap or a rosbag2 folder) as the session is
+    /// recorded: estimates, force sensor, markers (with --sensor or --model), diagnostics.
+    #[arg(long, value_name = "FILE.mcap")]
+    mcap: Option<PathBuf>,
+    /// With --mcap: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
+    #[arg(long)]
+    mcap_images: bool,
+    #[command(flatten)]
+    ros: crate::args::RosArgs,
 }
 
 impl Args {
@@ -109,6 +123,10 @@ impl Args {
     }
 }
 
+fn warn(w: &str) {
+    eprintln!("warning: {w}");
+}
+
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let cfg = a.config()?;
     let model = a.model.as_deref().map(crate::load_model).transpose()?;
@@ -125,7 +143,34 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         // A second handler cannot be installed in the same process (tests); that is fine.
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
     }
-    let s = record(&cfg, estimator, &stop, &mut |w| eprintln!("warning: {w}"))?;
+    let bag = a
+        .mcap
+        .as_deref()
+        .map(|p| {
+            let cal = estimator.as_ref().map(|e| e.calibration().clone());
+            let ros = a.ros.config(a.mcap_images);
+            McapRecorder::create(p, ros, &BagConfig::default(), cal).map(Mutex::new)
+        })
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--mcap {e}"))?
+        .map(Arc::new);
+    let observer = bag.clone().map(|b| b as SharedObserver);
+    let recorded = record_observed(&cfg, estimator, &stop, &mut warn, observer);
+    if let Some(b) = bag {
+        let b = Arc::try_unwrap(b)
+            .map_err(|_| anyhow::anyhow!("--mcap: the bag is still in use"))?
+            .into_inner()
+            .map_err(|_| anyhow::anyhow!("--mcap: a thread panicked while writing"))?;
+        let (path, n) = b.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+        if recorded.is_err() && n == 0 {
+            // Refused before anything was recorded: the corrected re-run finds no bag in the
+            // way.
+            let _ = std::fs::remove_file(&path).or_else(|_| std::fs::remove_dir_all(&path));
+        } else {
+            eprintln!("wrote {} ({n} messages)", path.display());
+        }
+    }
+    let s = recorded?;
     eprintln!(
         "recorded {} frames ({} dropped, {} unreadable) into {} in {:.1} s",
         s.written,
