@@ -137,7 +137,7 @@ pub fn negotiate(
 
 /// RGB from a YUYV 4:2:2 buffer (Y0 U Y1 V per pixel pair; BT.601, limited range).
 pub fn rgb_from_yuyv(buf: &[u8], width: usize, height: usize) -> Result<RgbImage, CameraError> {
-    if width % 2 != 0 || buf.len() != width * height * 2 {
+    if !width.is_multiple_of(2) || buf.len() != width * height * 2 {
         return Err(CameraError::Frame(format!(
             "YUYV frame of {} bytes for {width}×{height} (expected {} and an even width)",
             buf.len(),

@@ -346,7 +346,10 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
     )?;
     let mut grid = protocol::iats_grid();
     if a.quick {
-        grid.retain(|t| (t.x_mm / 4.0) as usize % 2 == 0 && (t.y_mm / 3.0) as usize % 2 == 0);
+        grid.retain(|t| {
+            ((t.x_mm / 4.0) as usize).is_multiple_of(2)
+                && ((t.y_mm / 3.0) as usize).is_multiple_of(2)
+        });
     }
     let train_f = features_of(&cal, FeatureSet::IATS, grid.len(), |k| {
         render(&grid[k], 100 + k as u64)

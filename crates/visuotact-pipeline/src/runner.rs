@@ -447,7 +447,7 @@ fn estimate_one(
     stats.processing_ms.push(e.processing_ms);
     stats.contact += u64::from(contact);
     let n = stats.latency_ms.len();
-    if n % 1000 == 0 {
+    if n.is_multiple_of(1000) {
         let rss = rss_kib();
         if n == 1000 {
             stats.rss_after_1000 = rss;

@@ -236,7 +236,7 @@ pub fn firwin(spec: &FirSpec) -> Result<Vec<f64>, FilterError> {
         )));
     }
     let pass_nyquist = (cut.len() % 2 == 1) != spec.pass_zero;
-    if pass_nyquist && n % 2 == 0 {
+    if pass_nyquist && n.is_multiple_of(2) {
         return Err(FilterError::Design(format!(
             "a filter that passes the Nyquist frequency needs an odd number of taps, got {n}"
         )));

@@ -177,7 +177,8 @@ impl PreprocessConfig {
 
     /// Checks the settings; the message says which one is wrong.
     pub fn validate(&self) -> Result<(), crate::ConfigError> {
-        if (self.open || self.close) && (self.morph_size == 0 || self.morph_size % 2 == 0) {
+        if (self.open || self.close) && (self.morph_size == 0 || self.morph_size.is_multiple_of(2))
+        {
             return Err(crate::ConfigError(format!(
                 "morphology size must be odd and ≥ 1, got {}",
                 self.morph_size

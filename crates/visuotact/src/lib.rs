@@ -75,6 +75,7 @@
 
 pub use visuotact_image as image;
 pub use visuotact_io as io;
+pub use visuotact_lerobot as lerobot;
 pub use visuotact_nn as nn;
 pub use visuotact_pipeline as pipeline;
 pub use visuotact_report as report;

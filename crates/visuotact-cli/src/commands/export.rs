@@ -1,5 +1,6 @@
 //! `visuotact export`: sessions into the robot's formats — `mcap` writes a ROS 2 bag
-//! ([`visuotact_ros::export_mcap`]).
+//! ([`visuotact_ros::export_mcap`]), `lerobot` a LeRobot v3.0 data set
+//! ([`visuotact_lerobot::export_lerobot`]).
 
 use std::path::PathBuf;
 
@@ -14,6 +15,35 @@ enum Format {
     /// A session folder → an MCAP bag with the ROS 2 profile (estimates as WrenchStamped and
     /// PointStamped, force sensor, marker cloud, frames, diagnostics; topics in README "ROS 2").
     Mcap(Mcap),
+    /// Session folders → a LeRobot v3.0 data set, one episode per session (Parquet data with
+    /// the tactile features, estimates and force as observation.* columns, the frames as MP4
+    /// through ffmpeg, meta/info.json, episodes, tasks, stats; README "Data sets").
+    Lerobot(Lerobot),
+}
+
+#[derive(clap::Args, Debug)]
+struct Lerobot {
+    /// Session folders, one episode each, in this order.
+    #[arg(required = true)]
+    sessions: Vec<PathBuf>,
+    /// The data set's folder (must not exist).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Frames per second (default: the first session's, from session.json or its frame times).
+    #[arg(long)]
+    fps: Option<u32>,
+    /// The task of every episode, in words.
+    #[arg(long, default_value = "touch the tactile sensor")]
+    task: String,
+    /// robot_type in meta/info.json.
+    #[arg(long)]
+    robot_type: Option<String>,
+    /// No video feature (sessions recorded without --save-frames).
+    #[arg(long)]
+    no_video: bool,
+    /// ffmpeg encoder: libsvtav1 (AV1, as LeRobot) or libx264 where AV1 is missing.
+    #[arg(long, default_value = "libsvtav1")]
+    encoder: String,
 }
 
 #[derive(clap::Args, Debug)]
@@ -39,14 +69,59 @@ struct Mcap {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let Format::Mcap(m) = &a.format;
+    match &a.format {
+        Format::Mcap(m) => mcap(m),
+        Format::Lerobot(l) => lerobot(l),
+    }
+}
+
+fn bar() -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
+    let cfg = visuotact_lerobot::LeRobotConfig {
+        fps: l.fps,
+        task: l.task.clone(),
+        robot_type: l.robot_type.clone(),
+        video: (!l.no_video).then(|| visuotact_lerobot::VideoConfig {
+            encoder: l.encoder.clone(),
+            ..Default::default()
+        }),
+    };
+    let bar = bar();
+    let s = visuotact_lerobot::export_lerobot(&l.sessions, &l.output, &cfg, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    for n in &s.notes {
+        eprintln!("note: {n}");
+    }
+    eprintln!(
+        "wrote {} ({} episodes, {} frames at {} fps; {})",
+        s.path.display(),
+        s.episodes,
+        s.frames,
+        s.fps,
+        s.features.join(", ")
+    );
+    Ok(())
+}
+
+fn mcap(m: &Mcap) -> anyhow::Result<()> {
     let cfg = visuotact_ros::ExportConfig {
         ros: m.ros.config(!m.no_images),
         sensor: m.sensor.clone(),
         start_unix_s: m.start_unix_s,
         ..Default::default()
     };
-    let bar = indicatif::ProgressBar::new(0);
+    let bar = bar();
     let s = visuotact_ros::export_mcap(&m.session, &m.output, &cfg, &mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);

@@ -1,0 +1,191 @@
+//! A session folder as one episode: its frames in `frames.csv` order with their tables'
+//! rows aligned (a frame a table has no row for: NaN), and the force sensor at each frame's
+//! time.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use visuotact_io::force::ForceTable;
+use visuotact_io::table::KeyedTable;
+
+use crate::LeRobotError;
+
+/// A per-frame table's value columns and its rows aligned to the frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Aligned {
+    /// Value columns.
+    pub columns: Vec<String>,
+    /// One row per frame.
+    pub rows: Vec<Vec<f64>>,
+}
+
+/// One session, read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Episode {
+    /// The session folder.
+    pub dir: PathBuf,
+    /// Frame names, in `frames.csv` order.
+    pub frames: Vec<String>,
+    /// Each frame's timestamp on the session clock, s.
+    pub capture_s: Vec<f64>,
+    /// `features.csv` without its `timestamp_s` column.
+    pub features: Option<Aligned>,
+    /// `estimates.csv`.
+    pub estimates: Option<Aligned>,
+    /// The force sensor at each frame's time, interpolated linearly between its samples (NaN
+    /// before the first and after the last).
+    pub force: Option<Vec<[f64; 6]>>,
+    /// The session's frame rate as `session.json` gives it.
+    pub fps: Option<f64>,
+}
+
+fn aligned(
+    dir: &Path,
+    name: &str,
+    frames: &[String],
+    drop: &[&str],
+) -> Result<Option<Aligned>, LeRobotError> {
+    let path = dir.join(name);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let t = KeyedTable::read(&path, &["flags"])?;
+    let keep: Vec<usize> = (0..t.columns.len())
+        .filter(|&i| !drop.contains(&t.columns[i].as_str()))
+        .collect();
+    let index: HashMap<&str, usize> = t
+        .keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| (k.as_str(), i))
+        .collect();
+    let rows = frames
+        .iter()
+        .map(|f| match index.get(f.as_str()) {
+            Some(&r) => keep.iter().map(|&i| t.rows[r][i]).collect(),
+            None => vec![f64::NAN; keep.len()],
+        })
+        .collect();
+    Ok(Some(Aligned {
+        columns: keep.iter().map(|&i| t.columns[i].clone()).collect(),
+        rows,
+    }))
+}
+
+/// Sorts the samples by time (a table in arrival order may not be).
+fn sort_by_time(f: &mut ForceTable) {
+    if f.timestamp_s.windows(2).all(|w| w[0] <= w[1]) {
+        return;
+    }
+    let mut order: Vec<usize> = (0..f.timestamp_s.len()).collect();
+    order.sort_by(|&a, &b| f.timestamp_s[a].total_cmp(&f.timestamp_s[b]));
+    f.timestamp_s = order.iter().map(|&i| f.timestamp_s[i]).collect();
+    f.values = order.iter().map(|&i| f.values[i]).collect();
+}
+
+/// The force table at `t`, linearly interpolated (NaN outside its samples).
+fn force_at(f: &ForceTable, t: f64) -> [f64; 6] {
+    let ts = &f.timestamp_s;
+    let k = ts.partition_point(|&x| x < t);
+    if k < ts.len() && ts[k] == t {
+        return f.values[k];
+    }
+    if k == 0 || k == ts.len() {
+        return [f64::NAN; 6];
+    }
+    let w = (t - ts[k - 1]) / (ts[k] - ts[k - 1]);
+    std::array::from_fn(|i| f.values[k - 1][i] * (1.0 - w) + f.values[k][i] * w)
+}
+
+impl Episode {
+    /// Reads the session in `dir`.
+    pub fn read(dir: &Path) -> Result<Self, LeRobotError> {
+        let index = KeyedTable::read(&dir.join("frames.csv"), &["kind"])?;
+        let ts = index
+            .columns
+            .iter()
+            .position(|c| c == "timestamp_s")
+            .ok_or_else(|| {
+                LeRobotError::Invalid(format!(
+                    "{}: no timestamp_s column",
+                    dir.join("frames.csv").display()
+                ))
+            })?;
+        let frames = index.keys.clone();
+        if frames.is_empty() {
+            return Err(LeRobotError::Invalid(format!(
+                "{}: no frames",
+                dir.join("frames.csv").display()
+            )));
+        }
+        let capture_s: Vec<f64> = index.rows.iter().map(|r| r[ts]).collect();
+        let force_path = dir.join("force.csv");
+        let force = if force_path.is_file() {
+            let mut f = ForceTable::read(&force_path)?;
+            sort_by_time(&mut f);
+            Some(capture_s.iter().map(|&t| force_at(&f, t)).collect())
+        } else {
+            None
+        };
+        let fps = std::fs::read_to_string(dir.join("session.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v["fps"].as_f64());
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            features: aligned(dir, "features.csv", &frames, &["timestamp_s"])?,
+            estimates: aligned(dir, "estimates.csv", &frames, &[])?,
+            frames,
+            capture_s,
+            force,
+            fps,
+        })
+    }
+
+    /// The median interval between frames as a rate, Hz (`None` with one frame).
+    pub fn median_rate_hz(&self) -> Option<f64> {
+        let mut d: Vec<f64> = self
+            .capture_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect();
+        if d.is_empty() {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        Some(1.0 / d[d.len() / 2])
+    }
+
+    /// The PNG of frame `k`: under `frames/`, or `reference/` for the no-contact frames a
+    /// simulated session lists first.
+    pub fn frame_path(&self, k: usize) -> PathBuf {
+        let touch = self.dir.join("frames").join(&self.frames[k]);
+        let reference = self.dir.join("reference").join(&self.frames[k]);
+        if !touch.is_file() && reference.is_file() {
+            reference
+        } else {
+            touch
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn force_is_interpolated_between_samples_and_nan_outside() {
+        let f = ForceTable {
+            timestamp_s: vec![0.0, 1.0, 2.0],
+            values: vec![[0.0; 6], [2.0; 6], [4.0; 6]],
+            present: [true; 6],
+            recv_s: None,
+            dropped_partial_line: false,
+        };
+        assert_eq!(force_at(&f, 0.25)[2], 0.5);
+        assert_eq!(force_at(&f, 1.0)[0], 2.0);
+        assert_eq!(force_at(&f, 1.5)[5], 3.0);
+        assert!(force_at(&f, -0.1)[0].is_nan() && force_at(&f, 2.1)[0].is_nan());
+    }
+}
