@@ -1,7 +1,7 @@
 """visuotact: camera-based soft tactile sensors from numpy (type stubs)."""
 
 from os import PathLike
-from typing import Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -112,3 +112,23 @@ def filtfilt(
     b: npt.NDArray[np.float64], a: npt.NDArray[np.float64], x: npt.NDArray[np.float64]
 ) -> npt.NDArray[np.float64]: ...
 def simulate(x_mm: float = 0.0, y_mm: float = 0.0, depth_mm: float = 0.0, seed: int = 1) -> npt.NDArray[np.uint8]: ...
+def export_mcap(
+    session: str | PathLike[str],
+    output: str | PathLike[str],
+    namespace: str = "/visuotact",
+    frame_id: str = "visuotact",
+    sensor: str | PathLike[str] | None = None,
+    start_unix_s: float | None = None,
+    images: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, Any]: ...
+def export_lerobot(
+    sessions: Sequence[str | PathLike[str]],
+    output: str | PathLike[str],
+    fps: int | None = None,
+    task: str = "touch the tactile sensor",
+    robot_type: str | None = None,
+    video: bool = True,
+    encoder: str = "libsvtav1",
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, Any]: ...

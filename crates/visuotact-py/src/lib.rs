@@ -700,6 +700,103 @@ fn simulate<'py>(
     array_from_rgb(py, img)
 }
 
+/// A `progress(done, total)` callback for an export run without the GIL; an exception it
+/// raises is printed, not propagated (the export goes on).
+fn progress_of(cb: Option<Py<PyAny>>) -> impl FnMut(usize, usize) + Send {
+    move |done, total| {
+        if let Some(cb) = &cb {
+            Python::attach(|py| {
+                if let Err(e) = cb.call1(py, (done, total)) {
+                    e.print(py);
+                }
+            });
+        }
+    }
+}
+
+/// A recorded session into an MCAP bag with the ROS 2 profile (`output` ending in `.mcap`:
+/// one file; otherwise a rosbag2 folder): a dict of what was written.
+#[pyfunction]
+#[pyo3(signature = (session, output, namespace = "/visuotact".to_string(), frame_id = "visuotact".to_string(), sensor = None, start_unix_s = None, images = true, progress = None))]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "Python keyword arguments, each with a default"
+)]
+fn export_mcap<'py>(
+    py: Python<'py>,
+    session: PathBuf,
+    output: PathBuf,
+    namespace: String,
+    frame_id: String,
+    sensor: Option<PathBuf>,
+    start_unix_s: Option<f64>,
+    images: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let cfg = visuotact_ros::ExportConfig {
+        ros: visuotact_ros::RosConfig {
+            namespace,
+            frame_id,
+            images,
+        },
+        sensor,
+        start_unix_s,
+        ..Default::default()
+    };
+    let mut cb = progress_of(progress);
+    let s = py
+        .detach(|| visuotact_ros::export_mcap(&session, &output, &cfg, &mut cb))
+        .map_err(error)?;
+    let d = PyDict::new(py);
+    d.set_item("path", s.path)?;
+    d.set_item("frames", s.frames)?;
+    d.set_item("messages", s.messages)?;
+    d.set_item("notes", s.notes)?;
+    Ok(d)
+}
+
+/// Recorded sessions (one episode each) into a new LeRobot v3.0 data set at `output`: a dict
+/// of what was written.
+#[pyfunction]
+#[pyo3(signature = (sessions, output, fps = None, task = "touch the tactile sensor".to_string(), robot_type = None, video = true, encoder = "libsvtav1".to_string(), progress = None))]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "Python keyword arguments, each with a default"
+)]
+fn export_lerobot<'py>(
+    py: Python<'py>,
+    sessions: Vec<PathBuf>,
+    output: PathBuf,
+    fps: Option<u32>,
+    task: String,
+    robot_type: Option<String>,
+    video: bool,
+    encoder: String,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let cfg = visuotact_lerobot::LeRobotConfig {
+        fps,
+        task,
+        robot_type,
+        video: video.then(|| visuotact_lerobot::VideoConfig {
+            encoder,
+            ..Default::default()
+        }),
+    };
+    let mut cb = progress_of(progress);
+    let s = py
+        .detach(|| visuotact_lerobot::export_lerobot(&sessions, &output, &cfg, &mut cb))
+        .map_err(error)?;
+    let d = PyDict::new(py);
+    d.set_item("path", s.path)?;
+    d.set_item("episodes", s.episodes)?;
+    d.set_item("frames", s.frames)?;
+    d.set_item("fps", s.fps)?;
+    d.set_item("features", s.features)?;
+    d.set_item("notes", s.notes)?;
+    Ok(d)
+}
+
 /// The detector options of `Sensor.calibrate`'s keyword arguments; an unknown one is an
 /// error naming it.
 fn detector_options(
@@ -789,6 +886,8 @@ fn visuotact(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(live, m)?)?;
     m.add_function(wrap_pyfunction!(filtfilt, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(export_mcap, m)?)?;
+    m.add_function(wrap_pyfunction!(export_lerobot, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -210,3 +210,29 @@ def test_refusals_leave_nothing_behind(dataset, tmp_path):
     cli("export", "lerobot", bare, "-o", tmp_path / "y", "--no-video")
     info = json.loads((tmp_path / "y/meta/info.json").read_text())
     assert KEY not in info["features"] and info["video_path"] is None
+
+
+def test_exports_from_python(dataset, tmp_path):
+    """The Python package writes the same data set and a bag, with progress callbacks."""
+    import visuotact as vt
+
+    out, sessions = dataset
+    seen = []
+    s = vt.export_lerobot(sessions, tmp_path / "py", task="press the cone",
+                          progress=lambda done, total: seen.append((done, total)))
+    assert (s["episodes"], s["fps"]) == (2, 25)
+    assert seen[-1] == (s["frames"], s["frames"]) and len(seen) == s["frames"]
+    a = pq.read_table(out / "data/chunk-000/file-000.parquet")
+    b = pq.read_table(tmp_path / "py/data/chunk-000/file-000.parquet")
+    assert a.schema == b.schema and a.num_rows == b.num_rows
+    for name in a.column_names:  # NaN-aware: a missing value equals a missing value
+        x = np.array(a.column(name).to_pylist(), dtype=np.float64)
+        y = np.array(b.column(name).to_pylist(), dtype=np.float64)
+        assert np.array_equal(x, y, equal_nan=True), name
+    seen.clear()
+    m = vt.export_mcap(sessions[0], tmp_path / "s.mcap", namespace="/cone",
+                       progress=lambda done, total: seen.append((done, total)))
+    assert m["frames"] == len(rows(sessions[0] / "frames.csv")) == seen[-1][0] == seen[-1][1]
+    assert m["messages"] > m["frames"]
+    with pytest.raises(vt.VisuotactError, match="already exists"):
+        vt.export_lerobot(sessions, tmp_path / "py")
