@@ -7,6 +7,8 @@
 
 pub mod bag;
 pub mod cdr;
+#[cfg(feature = "dds")]
+pub mod dds;
 pub mod export;
 pub mod msg;
 pub mod sink;
@@ -17,6 +19,8 @@ use std::path::PathBuf;
 use image::ImageEncoder;
 
 pub use bag::{Bag, BagConfig};
+#[cfg(feature = "dds")]
+pub use dds::{DdsConfig, DdsSink};
 pub use export::{export_mcap, ExportConfig, ExportSummary};
 pub use sink::{McapRecorder, McapSink};
 pub use topics::RosConfig;
@@ -49,6 +53,9 @@ pub enum RosError {
     /// A session table could not be read.
     #[error(transparent)]
     Table(#[from] visuotact_io::table::TableError),
+    /// DDS (live publishing) failed.
+    #[error("DDS: {0}")]
+    Dds(String),
     /// A frame could not be encoded.
     #[error("encoding a frame as PNG: {0}")]
     Encode(String),

@@ -34,9 +34,7 @@ impl McapSink {
     /// A bag at `path` ([`Bag::create`]); stamps count from now.
     pub fn create(path: &Path, cfg: RosConfig, bag: &BagConfig) -> Result<Self, RosError> {
         cfg.validate()?;
-        let origin_ns = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+        let origin_ns = unix_now_ns();
         Ok(Self {
             bag: Bag::create(path, bag)?,
             cfg,
@@ -62,36 +60,57 @@ impl McapSink {
         markers: Option<&[MarkerView]>,
         image: &RgbImage,
     ) -> Result<(), RosError> {
-        if let Some(m) = markers {
-            self.markers.clear();
-            self.markers.extend(m.iter().map(|v| MarkerPoint {
-                x_px: v.x,
-                y_px: v.y,
-                dx_px: if v.ok { v.dx } else { f32::NAN },
-                dy_px: if v.ok { v.dy } else { f32::NAN },
-                found: v.ok,
-            }));
-        }
-        let png = if self.cfg.images {
-            Some(crate::png_from_rgb(image)?)
-        } else {
-            None
-        };
-        let values = vec![
-            ("latency_ms".to_string(), format!("{:.3}", e.latency_ms)),
-            ("dropped_frames".to_string(), e.dropped_frames.to_string()),
-        ];
-        let frame = FrameMessages {
-            stamp_ns: self.origin_ns + ns_from_s(e.timestamp_s),
-            targets: &e.targets,
-            contact: Some(e.contact),
-            measured: None,
-            markers: markers.map(|_| &self.markers[..]),
-            png,
-            health: Some((&e.health, values)),
-        };
+        let stamp_ns = self.origin_ns + ns_from_s(e.timestamp_s);
+        let frame = live_frame(&self.cfg, stamp_ns, e, markers, image, &mut self.markers)?;
         write_frame(&mut self.bag, &self.cfg, frame)
     }
+}
+
+/// Nanoseconds since the UNIX epoch, now.
+pub(crate) fn unix_now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+}
+
+/// A live estimate's messages: targets, the contact rule, the marker cloud (kept in `cloud`),
+/// the frame as PNG when asked, and the health with the run's latency and drops.
+pub(crate) fn live_frame<'a>(
+    cfg: &RosConfig,
+    stamp_ns: u64,
+    e: &'a LiveEstimate,
+    markers: Option<&[MarkerView]>,
+    image: &RgbImage,
+    cloud: &'a mut Vec<MarkerPoint>,
+) -> Result<FrameMessages<'a>, RosError> {
+    if let Some(m) = markers {
+        cloud.clear();
+        cloud.extend(m.iter().map(|v| MarkerPoint {
+            x_px: v.x,
+            y_px: v.y,
+            dx_px: if v.ok { v.dx } else { f32::NAN },
+            dy_px: if v.ok { v.dy } else { f32::NAN },
+            found: v.ok,
+        }));
+    }
+    let png = if cfg.images {
+        Some(crate::png_from_rgb(image)?)
+    } else {
+        None
+    };
+    let values = vec![
+        ("latency_ms".to_string(), format!("{:.3}", e.latency_ms)),
+        ("dropped_frames".to_string(), e.dropped_frames.to_string()),
+    ];
+    Ok(FrameMessages {
+        stamp_ns,
+        targets: &e.targets,
+        contact: Some(e.contact),
+        measured: None,
+        markers: markers.map(|_| &cloud[..]),
+        png,
+        health: Some((&e.health, values)),
+    })
 }
 
 impl Sink for McapSink {

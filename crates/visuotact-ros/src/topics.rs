@@ -21,7 +21,7 @@ use visuotact_pipeline::live::{Health, TargetEstimate};
 use crate::bag::Bag;
 use crate::msg::{
     level, Bool, CompressedImage, DiagnosticArray, DiagnosticStatus, Header, PointCloud2,
-    PointField, PointStamped, WrenchStamped, FLOAT32, UINT8,
+    PointField, PointStamped, RosMessage, WrenchStamped, FLOAT32, UINT8,
 };
 use crate::RosError;
 
@@ -207,8 +207,34 @@ pub fn health_status(
     }
 }
 
-/// Writes one frame's messages to `bag`.
-pub fn write_frame(bag: &mut Bag, cfg: &RosConfig, f: FrameMessages<'_>) -> Result<(), RosError> {
+/// Where messages go: a bag ([`Bag`]) or live DDS writers ([`crate::dds::DdsPublisher`]).
+pub trait Publish {
+    /// Publishes `msg` on `topic`, stamped `stamp_ns` (nanoseconds since the UNIX epoch).
+    fn publish<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        stamp_ns: u64,
+        msg: &M,
+    ) -> Result<(), RosError>;
+}
+
+impl Publish for Bag {
+    fn publish<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        stamp_ns: u64,
+        msg: &M,
+    ) -> Result<(), RosError> {
+        self.write(topic, stamp_ns, msg)
+    }
+}
+
+/// Publishes one frame's messages to `bag` (or any [`Publish`]).
+pub fn write_frame<P: Publish>(
+    bag: &mut P,
+    cfg: &RosConfig,
+    f: FrameMessages<'_>,
+) -> Result<(), RosError> {
     let at = f.stamp_ns;
     let header = || Header::at_ns(at, &cfg.frame_id);
     let image_frame = format!("{}/image", cfg.frame_id);
@@ -218,24 +244,24 @@ pub fn write_frame(bag: &mut Bag, cfg: &RosConfig, f: FrameMessages<'_>) -> Resu
         torque: [w[3], w[4], w[5]],
     };
     if let Some(w) = wrench_from_targets(f.targets) {
-        bag.write(&cfg.topic("wrench"), at, &wrench(w))?;
+        bag.publish(&cfg.topic("wrench"), at, &wrench(w))?;
     }
     if let Some(w) = f.measured {
-        bag.write(&cfg.topic("ft_sensor/wrench"), at, &wrench(w))?;
+        bag.publish(&cfg.topic("ft_sensor/wrench"), at, &wrench(w))?;
     }
     if let Some(point) = contact_from_targets(f.targets) {
         let m = PointStamped {
             header: header(),
             point,
         };
-        bag.write(&cfg.topic("contact"), at, &m)?;
+        bag.publish(&cfg.topic("contact"), at, &m)?;
     }
     if let Some(c) = f.contact {
-        bag.write(&cfg.topic("contact/active"), at, &Bool(c))?;
+        bag.publish(&cfg.topic("contact/active"), at, &Bool(c))?;
     }
     if let Some(markers) = f.markers {
         let m = marker_cloud(Header::at_ns(at, &image_frame), markers);
-        bag.write(&cfg.topic("markers"), at, &m)?;
+        bag.publish(&cfg.topic("markers"), at, &m)?;
     }
     if let Some(png) = f.png {
         let m = CompressedImage {
@@ -243,14 +269,14 @@ pub fn write_frame(bag: &mut Bag, cfg: &RosConfig, f: FrameMessages<'_>) -> Resu
             format: "png".into(),
             data: png,
         };
-        bag.write(&cfg.topic("image/compressed"), at, &m)?;
+        bag.publish(&cfg.topic("image/compressed"), at, &m)?;
     }
     if let Some((h, values)) = f.health {
         let m = DiagnosticArray {
             header: header(),
             status: vec![health_status(cfg, h, values)],
         };
-        bag.write("/diagnostics", at, &m)?;
+        bag.publish("/diagnostics", at, &m)?;
     }
     Ok(())
 }

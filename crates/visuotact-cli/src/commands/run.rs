@@ -8,7 +8,7 @@ use std::sync::Arc;
 use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
-use visuotact_ros::{BagConfig, McapSink};
+use visuotact_ros::{BagConfig, DdsConfig, DdsSink, McapSink};
 
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct Args {
@@ -63,6 +63,16 @@ pub(crate) struct Args {
     mcap_images: bool,
     #[command(flatten)]
     ros: crate::args::RosArgs,
+    /// Publish the same topics live over DDS (ROS 2 without ROS installed; `ros2 topic echo`
+    /// sees them): on loopback unless --ros-network names an interface's address.
+    #[arg(long)]
+    ros2: bool,
+    /// With --ros2: the DDS domain (ROS_DOMAIN_ID).
+    #[arg(long, default_value_t = 0)]
+    ros_domain_id: u16,
+    /// With --ros2: publish on this interface's address (e.g. 192.168.1.20) instead of loopback.
+    #[arg(long, value_name = "ADDR")]
+    ros_network: Option<std::net::IpAddr>,
     /// Frames the capture queue holds before dropping the oldest.
     #[arg(long, default_value_t = 2)]
     queue: usize,
@@ -150,12 +160,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ),
         None => None,
     };
-    let mut mcap = a
-        .mcap
-        .as_deref()
-        .map(|p| McapSink::create(p, a.ros.config(a.mcap_images), &BagConfig::default()))
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+    let (mut mcap, mut dds) = ros_sinks(a)?;
     let mut stdout =
         (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
     let mut sinks: Vec<&mut dyn Sink> = Vec::new();
@@ -171,15 +176,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if let Some(m) = mcap.as_mut() {
         sinks.push(m);
     }
+    if let Some(d) = dds.as_mut() {
+        sinks.push(d);
+    }
     let mut summary = visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut sinks, |w| {
         eprintln!("warning: {w}")
     })?;
     drop(sinks);
     drop(stdout);
-    if let Some(m) = mcap {
-        let (path, n) = m.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
-        eprintln!("wrote {} ({n} messages)", path.display());
-    }
+    finish_ros_sinks(mcap, dds)?;
     summary.udp_send_errors = udp.map_or(0, |u| u.errors);
     summary.websocket_messages_dropped = dashboard.as_ref().map_or(0, |d| d.dropped());
     print_summary(&summary);
@@ -188,6 +193,40 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
     if let Some(d) = dashboard {
         d.stop();
+    }
+    Ok(())
+}
+
+/// The ROS 2 outputs asked for: the bag (`--mcap`) and the live DDS topics (`--ros2`).
+fn ros_sinks(a: &Args) -> anyhow::Result<(Option<McapSink>, Option<DdsSink>)> {
+    let mcap = a
+        .mcap
+        .as_deref()
+        .map(|p| McapSink::create(p, a.ros.config(a.mcap_images), &BagConfig::default()))
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+    let dds = a
+        .ros2
+        .then(|| {
+            DdsSink::create(&DdsConfig {
+                ros: a.ros.config(false),
+                domain_id: a.ros_domain_id,
+                network: a.ros_network,
+            })
+        })
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--ros2 {e}"))?;
+    Ok((mcap, dds))
+}
+
+fn finish_ros_sinks(mcap: Option<McapSink>, dds: Option<DdsSink>) -> anyhow::Result<()> {
+    if let Some(m) = mcap {
+        let (path, n) = m.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+        eprintln!("wrote {} ({n} messages)", path.display());
+    }
+    if let Some(d) = dds {
+        let n = d.finish().map_err(|e| anyhow::anyhow!("--ros2 {e}"))?;
+        eprintln!("published {n} messages over DDS");
     }
     Ok(())
 }

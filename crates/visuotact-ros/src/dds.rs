@@ -1,0 +1,245 @@
+//! Live ROS 2 over DDS without ROS: the same topics and messages as the bags
+//! ([`crate::topics`]), published with RustDDS (RTPS), so that a ROS 2 machine — any RMW on
+//! DDS: `rmw_cyclonedds_cpp`, `rmw_fastrtps_cpp` — sees them in `ros2 topic list/echo`.
+//!
+//! The ROS 2 mapping: topic `/ns/name` is the DDS topic `rt/ns/name`; type
+//! `pkg/msg/Name` is `pkg::msg::dds_::Name_`; the payload is the message's CDR (little-endian,
+//! as the bags hold it). QoS, per topic: reliable, volatile, keep last 10 — ROS 2's default
+//! profile, which both reliable and best-effort subscribers accept. Domain: `ROS_DOMAIN_ID`'s
+//! role is [`DdsConfig::domain_id`] (0 by default).
+//!
+//! Network: loopback only unless [`DdsConfig::network`] is set — discovery is announced on
+//! 127.0.0.1 (no multicast needed), and only the loopback address is advertised, so nothing
+//! leaves the machine; set the interface's address to reach other machines (then multicast
+//! discovery as in any ROS 2 install).
+
+use std::collections::HashMap;
+use std::net::IpAddr;
+use std::ops::ControlFlow;
+use std::sync::Arc;
+
+use rustdds::no_key::{DataWriter, SerializerAdapter};
+use rustdds::policy::{Durability, History, Reliability};
+use rustdds::{
+    DomainParticipant, DomainParticipantBuilder, Publisher, QosPolicies, QosPolicyBuilder,
+    RepresentationIdentifier, TopicKind,
+};
+use visuotact_image::RgbImage;
+use visuotact_pipeline::live::MarkerView;
+use visuotact_pipeline::runner::Sink;
+use visuotact_pipeline::LiveEstimate;
+
+use crate::msg::RosMessage;
+use crate::topics::{ns_from_s, write_frame, MarkerPoint, Publish, RosConfig};
+use crate::RosError;
+
+/// Where and how the live topics are published.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DdsConfig {
+    /// Topics and frames.
+    pub ros: RosConfig,
+    /// DDS domain (ROS 2's `ROS_DOMAIN_ID`).
+    pub domain_id: u16,
+    /// The network interface's address to publish on (`None`: loopback only).
+    pub network: Option<IpAddr>,
+}
+
+impl Default for DdsConfig {
+    fn default() -> Self {
+        Self {
+            ros: RosConfig {
+                images: false,
+                ..RosConfig::default()
+            },
+            domain_id: 0,
+            network: None,
+        }
+    }
+}
+
+/// A message already in CDR (its 4-byte encapsulation header included).
+pub struct Cdr(Vec<u8>);
+
+/// Hands RustDDS the CDR payload as it is (RustDDS writes the encapsulation header itself).
+pub struct RawCdr;
+
+impl SerializerAdapter<Cdr> for RawCdr {
+    type Error = std::convert::Infallible;
+
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+
+    fn to_bytes(value: &Cdr) -> Result<rustdds::bytes::Bytes, Self::Error> {
+        Ok(rustdds::bytes::Bytes::copy_from_slice(
+            value.0.get(4..).unwrap_or_default(),
+        ))
+    }
+}
+
+/// The DDS type name of a ROS 2 type: `pkg/msg/Name` → `pkg::msg::dds_::Name_`.
+pub fn dds_type_name(ros: &str) -> String {
+    match ros.rsplit_once('/') {
+        Some((pkg, name)) => format!("{}::dds_::{name}_", pkg.replace('/', "::")),
+        None => ros.to_string(),
+    }
+}
+
+/// The DDS topic name of a ROS 2 topic: `/ns/name` → `rt/ns/name`.
+pub fn dds_topic_name(ros: &str) -> String {
+    format!("rt/{}", ros.trim_start_matches('/'))
+}
+
+/// ROS 2's default QoS profile: reliable, volatile, keep last 10.
+pub fn ros_default_qos() -> QosPolicies {
+    QosPolicyBuilder::new()
+        .reliability(Reliability::Reliable {
+            max_blocking_time: rustdds::Duration::from_millis(100),
+        })
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 })
+        .build()
+}
+
+/// Live DDS writers, one per topic, made on first use.
+pub struct DdsPublisher {
+    participant: DomainParticipant,
+    publisher: Publisher,
+    qos: QosPolicies,
+    writers: HashMap<String, (&'static str, DataWriter<Cdr, RawCdr>)>,
+    /// Messages published.
+    pub messages: u64,
+}
+
+fn dds_err(e: impl std::fmt::Display) -> RosError {
+    RosError::Dds(e.to_string())
+}
+
+impl DdsPublisher {
+    /// A participant in `cfg.domain_id` on loopback (or `cfg.network`).
+    pub fn new(cfg: &DdsConfig) -> Result<Self, RosError> {
+        let only: IpAddr = cfg.network.unwrap_or(IpAddr::from([127, 0, 0, 1]));
+        let participant = DomainParticipantBuilder::new(cfg.domain_id)
+            .with_only_networks([only])
+            .same_host_loopback(true)
+            .build()
+            .map_err(dds_err)?;
+        let qos = ros_default_qos();
+        let publisher = participant.create_publisher(&qos).map_err(dds_err)?;
+        Ok(Self {
+            participant,
+            publisher,
+            qos,
+            writers: HashMap::new(),
+            messages: 0,
+        })
+    }
+
+    fn writer<M: RosMessage>(&mut self, topic: &str) -> Result<&DataWriter<Cdr, RawCdr>, RosError> {
+        if !self.writers.contains_key(topic) {
+            let t = self
+                .participant
+                .create_topic(
+                    dds_topic_name(topic),
+                    dds_type_name(M::NAME),
+                    &self.qos,
+                    TopicKind::NoKey,
+                )
+                .map_err(dds_err)?;
+            let w = self
+                .publisher
+                .create_datawriter_no_key::<Cdr, RawCdr>(&t, None)
+                .map_err(dds_err)?;
+            self.writers.insert(topic.to_string(), (M::NAME, w));
+        }
+        match self.writers.get(topic) {
+            Some((name, w)) if *name == M::NAME => Ok(w),
+            Some((name, _)) => Err(RosError::TopicType {
+                topic: topic.to_string(),
+                was: name,
+                now: M::NAME,
+            }),
+            None => Err(RosError::Config(format!("topic {topic}: no writer"))),
+        }
+    }
+}
+
+impl Publish for DdsPublisher {
+    fn publish<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        stamp_ns: u64,
+        msg: &M,
+    ) -> Result<(), RosError> {
+        let _ = stamp_ns; // the message's header carries it
+        let data = Cdr(msg.to_cdr());
+        self.writer::<M>(topic)?
+            .write(data, None)
+            .map_err(|e| RosError::Dds(format!("{topic}: {e}")))?;
+        self.messages += 1;
+        Ok(())
+    }
+}
+
+/// A live run's estimates published over DDS: a [`Sink`] of the live runner, stamped on the
+/// wall clock like [`crate::McapSink`].
+pub struct DdsSink {
+    out: DdsPublisher,
+    cfg: RosConfig,
+    origin_ns: u64,
+    markers: Vec<MarkerPoint>,
+    error: Option<RosError>,
+}
+
+impl DdsSink {
+    /// Joins the domain; stamps count from now.
+    pub fn create(cfg: &DdsConfig) -> Result<Self, RosError> {
+        cfg.ros.validate()?;
+        Ok(Self {
+            out: DdsPublisher::new(cfg)?,
+            cfg: cfg.ros.clone(),
+            origin_ns: crate::sink::unix_now_ns(),
+            markers: Vec::new(),
+            error: None,
+        })
+    }
+
+    /// Leaves the domain: the messages published, or the run's first error.
+    pub fn finish(self) -> Result<u64, RosError> {
+        match self.error {
+            Some(e) => Err(e),
+            None => Ok(self.out.messages),
+        }
+    }
+}
+
+impl Sink for DdsSink {
+    fn wants_markers(&self) -> bool {
+        true
+    }
+
+    fn send(
+        &mut self,
+        e: &LiveEstimate,
+        _json: &str,
+        markers: Option<&[MarkerView]>,
+        image: &Arc<RgbImage>,
+    ) -> ControlFlow<()> {
+        let frame = crate::sink::live_frame(
+            &self.cfg,
+            self.origin_ns + ns_from_s(e.timestamp_s),
+            e,
+            markers,
+            image,
+            &mut self.markers,
+        )
+        .and_then(|f| write_frame(&mut self.out, &self.cfg, f));
+        match frame {
+            Ok(()) => ControlFlow::Continue(()),
+            Err(err) => {
+                self.error = Some(err);
+                ControlFlow::Break(())
+            }
+        }
+    }
+}
