@@ -422,6 +422,21 @@ fn column_names(s: &str, what: &str) -> anyhow::Result<Vec<String>> {
     Ok(names)
 }
 
+/// A bag written alongside (`run --mcap`, `record --mcap`), with its topics.
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct BagArgs {
+    /// Also write an MCAP bag (ROS 2 profile; FILE.mcap or a rosbag2 folder) as frames are
+    /// estimated or recorded: estimates, force sensor, markers, diagnostics; closed cleanly at
+    /// the end, readable to its last chunk if killed.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub(crate) mcap: Option<PathBuf>,
+    /// With --mcap: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
+    #[arg(long)]
+    pub(crate) mcap_images: bool,
+    #[command(flatten)]
+    pub(crate) ros: RosArgs,
+}
+
 /// ROS 2 topic namespace and frame (`export mcap`, `run --mcap`).
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct RosArgs {

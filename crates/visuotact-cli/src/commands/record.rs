@@ -84,15 +84,8 @@ pub(crate) struct Args {
     /// sim sources: no-contact reference frames written to reference/ first.
     #[arg(long, default_value_t = 10)]
     references: usize,
-    /// Also write an MCAP bag (ROS 2 profile; FILE.mcap or a rosbag2 folder) as the session is
-    /// recorded: estimates, force sensor, markers (with --sensor or --model), diagnostics.
-    #[arg(long, value_name = "FILE.mcap")]
-    mcap: Option<PathBuf>,
-    /// With --mcap: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
-    #[arg(long)]
-    mcap_images: bool,
     #[command(flatten)]
-    ros: crate::args::RosArgs,
+    bag: crate::args::BagArgs,
 }
 
 impl Args {
@@ -144,11 +137,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
     }
     let bag = a
+        .bag
         .mcap
         .as_deref()
         .map(|p| {
             let cal = estimator.as_ref().map(|e| e.calibration().clone());
-            let ros = a.ros.config(a.mcap_images);
+            let ros = a.bag.ros.config(a.bag.mcap_images);
             McapRecorder::create(p, ros, &BagConfig::default(), cal).map(Mutex::new)
         })
         .transpose()

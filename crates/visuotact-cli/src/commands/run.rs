@@ -54,15 +54,8 @@ pub(crate) struct Args {
     /// Serve the dashboard and the WebSocket (`/ws`) on this address (loopback by default).
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
     serve: Option<String>,
-    /// Also write every estimate, the markers and the health into this MCAP bag (ROS 2
-    /// profile; FILE.mcap or a rosbag2 folder), closed cleanly at the end of the run.
-    #[arg(long, value_name = "FILE.mcap")]
-    mcap: Option<PathBuf>,
-    /// With --mcap: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
-    #[arg(long)]
-    mcap_images: bool,
     #[command(flatten)]
-    ros: crate::args::RosArgs,
+    bag: crate::args::BagArgs,
     /// Publish the same topics live over DDS (ROS 2 without ROS installed; `ros2 topic echo`
     /// sees them): on loopback unless --ros-network names an interface's address.
     #[arg(long)]
@@ -200,16 +193,23 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
 /// The ROS 2 outputs asked for: the bag (`--mcap`) and the live DDS topics (`--ros2`).
 fn ros_sinks(a: &Args) -> anyhow::Result<(Option<McapSink>, Option<DdsSink>)> {
     let mcap = a
+        .bag
         .mcap
         .as_deref()
-        .map(|p| McapSink::create(p, a.ros.config(a.mcap_images), &BagConfig::default()))
+        .map(|p| {
+            McapSink::create(
+                p,
+                a.bag.ros.config(a.bag.mcap_images),
+                &BagConfig::default(),
+            )
+        })
         .transpose()
         .map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
     let dds = a
         .ros2
         .then(|| {
             DdsSink::create(&DdsConfig {
-                ros: a.ros.config(false),
+                ros: a.bag.ros.config(false),
                 domain_id: a.ros_domain_id,
                 network: a.ros_network,
             })
