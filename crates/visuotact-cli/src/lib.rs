@@ -49,8 +49,13 @@ enum Command {
     CheckTracking(trackcheck::Args),
     /// Train a network (Levenberg–Marquardt) from features and labels → model.json.
     Train(train::Args),
-    /// Train many hidden sizes × repeats on every core → sweep.csv, best model, plot.
+    /// Train many hidden sizes × repeats on every core → sweep.csv, best model, plot (`sweep
+    /// merge` joins the parts of `--shard K/N`; `--slurm N` writes a cluster's scripts).
     Sweep(sweep::Args),
+    /// Parts from `sweep --shard K/N` → sweep.csv, best model, plot, as one machine's; called
+    /// as `visuotact sweep merge PARTS… -o DIR`.
+    #[command(name = "sweep-merge", hide = true)]
+    SweepMerge(sweep::MergeArgs),
     /// Run a model over a feature table → predictions.csv.
     Predict(predict::Args),
     /// Error figures of predictions against labels (MSE, R, mean/max error, MPE, accuracy, D).
@@ -79,13 +84,31 @@ pub fn run() -> ExitCode {
     run_with(std::env::args_os())
 }
 
+/// `sweep merge …` as the hidden command `sweep-merge …`: clap checks `sweep`'s required
+/// arguments (its training data) even before a subcommand, so the merge is its own command
+/// that the user still calls `sweep merge`.
+pub(crate) fn route_sweep_merge<I, T>(args: I) -> Vec<std::ffi::OsString>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString>,
+{
+    let mut v: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
+    if let Some(k) = v.iter().position(|a| a == "sweep") {
+        if v.get(k + 1).is_some_and(|a| a == "merge") {
+            v[k] = "sweep-merge".into();
+            v.remove(k + 1);
+        }
+    }
+    v
+}
+
 /// Runs the program with the given arguments (the first is the program name).
 pub fn run_with<I, T>(args: I) -> ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    let cli = match Cli::try_parse_from(args) {
+    let cli = match Cli::try_parse_from(route_sweep_merge(args)) {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
@@ -107,6 +130,7 @@ where
         Command::CheckTracking(a) => trackcheck::run(&a),
         Command::Train(a) => train::run(&a),
         Command::Sweep(a) => sweep::run(&a),
+        Command::SweepMerge(a) => sweep::merge(&a),
         Command::Predict(a) => predict::run(&a),
         Command::Eval(a) => eval::run(&a),
         Command::Filter(a) => filter::run(&a),

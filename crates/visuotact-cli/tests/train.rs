@@ -177,6 +177,7 @@ fn train_predict_eval_and_bad_tables() {
     );
     let png = visuotact_io::frames::read_image(&sw.join("performance.png")).unwrap();
     assert_eq!((png.width(), png.height()), (800, 500));
+    sharded_sweep_equals_the_single_machine(&d, &f, &l, &sw);
 
     // A non-numeric cell.
     let text = std::fs::read_to_string(&f).unwrap();
@@ -709,4 +710,110 @@ fn contact_map_of_literal_tables() {
         err.contains("--map needs contact positions: columns x_mm and y_mm"),
         "{err}"
     );
+}
+
+/// The sweep of `sw` again in three shards merged, and through the SLURM scripts (their bodies
+/// run here by bash with the array index set, as SLURM would): the same sweep.csv and best
+/// model, byte for byte.
+fn sharded_sweep_equals_the_single_machine(d: &Path, f: &Path, l: &Path, sw: &Path) {
+    let common = [
+        "sweep",
+        "--features",
+        s(f),
+        "--labels",
+        s(l),
+        "--targets",
+        "force_n",
+        "--hidden",
+        "1..4",
+        "--repeats",
+        "3",
+    ];
+    let parts = d.join("parts");
+    for k in 1..=3 {
+        let shard = format!("{k}/3");
+        let mut a = common.to_vec();
+        a.extend(["--shard", &shard, "-o", s(&parts)]);
+        let err = ok(&vt(&a));
+        assert!(err.contains(&format!("shard {k}/3: 4 trainings")), "{err}");
+    }
+    let merged = d.join("merged");
+    let p = |k: usize| parts.join(format!("part-{k}-of-3.json"));
+    let (p1, p2, p3) = (p(1), p(2), p(3));
+    ok(&vt(&[
+        "sweep",
+        "merge",
+        s(&p3),
+        s(&p1),
+        s(&p2),
+        "-o",
+        s(&merged),
+        "--keep",
+        "3",
+    ]));
+    let same = |a: &Path, b: &Path, name: &str| {
+        assert_eq!(
+            std::fs::read(a.join(name)).unwrap(),
+            std::fs::read(b.join(name)).unwrap(),
+            "{name}"
+        );
+    };
+    for name in ["sweep.csv", "best_model.json", "ensemble/model_3.json"] {
+        same(sw, &merged, name);
+    }
+    let err = fails(&vt(&[
+        "sweep",
+        "merge",
+        s(&p1),
+        s(&p2),
+        "-o",
+        s(&d.join("m2")),
+    ]));
+    assert!(err.contains("shards missing: 3/3"), "{err}");
+
+    let slurm = d.join("slurm");
+    let mut a = common.to_vec();
+    a.extend([
+        "--keep",
+        "3",
+        "--slurm",
+        "2",
+        "--slurm-cpus",
+        "1",
+        "-o",
+        s(&slurm),
+    ]);
+    ok(&vt(&a));
+    for name in ["sweep.sbatch", "merge.sbatch", "submit.sh"] {
+        let o = std::process::Command::new("bash")
+            .args(["-n", s(&slurm.join(name))])
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let text = std::fs::read_to_string(slurm.join("sweep.sbatch")).unwrap();
+    assert!(
+        text.contains("#SBATCH --array=1-2") && !text.contains("--slurm"),
+        "{text}"
+    );
+    for k in ["1", "2"] {
+        let o = std::process::Command::new("bash")
+            .arg(slurm.join("sweep.sbatch"))
+            .env("SLURM_ARRAY_TASK_ID", k)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let o = std::process::Command::new("bash")
+        .arg(slurm.join("merge.sbatch"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for name in ["sweep.csv", "best_model.json"] {
+        same(sw, &slurm, name);
+    }
 }

@@ -7,6 +7,7 @@
 //! its half range squared), so a target in degrees does not drown one in millimetres.
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 use crate::fit::{fit, FitConfig, FitData, FitError};
 use crate::lm::Control;
@@ -167,21 +168,73 @@ impl Sweep {
     }
 }
 
-/// Trains every architecture of `archs` `repeats` times (seed `base.seed + 1000·repeat +
-/// architecture`, validation and test subsets kept) on every core; `done` is called after each
-/// training.
-pub fn sweep(
+/// The sweep's trainings in their fixed order: (architecture index, repeat).
+pub fn jobs(n_archs: usize, repeats: usize) -> Vec<(usize, usize)> {
+    (0..n_archs)
+        .flat_map(|k| (0..repeats).map(move |r| (k, r)))
+        .collect()
+}
+
+/// One slice of a sweep's trainings: shard `index` (1-based) of `count` takes every
+/// `count`-th training from the `index`-th on (round robin, so each shard gets small and large
+/// networks alike).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    /// This shard, 1..=count.
+    pub index: usize,
+    /// Shards in all.
+    pub count: usize,
+}
+
+impl Shard {
+    /// The whole sweep as one shard.
+    pub const ALL: Self = Self { index: 1, count: 1 };
+
+    /// Parses `K/N` (1 ≤ K ≤ N).
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let (k, n) = s
+            .split_once('/')
+            .ok_or_else(|| format!("shard {s:?}: expected K/N, e.g. 3/10"))?;
+        let parse = |v: &str| v.trim().parse::<usize>().ok();
+        match (parse(k), parse(n)) {
+            (Some(index), Some(count)) if index >= 1 && index <= count => Ok(Self { index, count }),
+            _ => Err(format!("shard {s:?}: expected K/N with 1 ≤ K ≤ N")),
+        }
+    }
+
+    /// Whether training number `job` (in [`jobs`] order) is this shard's.
+    pub fn takes(&self, job: usize) -> bool {
+        job % self.count == self.index - 1
+    }
+}
+
+/// A trained network of a sweep, with where it belongs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Trained {
+    /// Architecture index.
+    pub arch: usize,
+    /// Repeat.
+    pub repeat: usize,
+    /// The network.
+    pub model: Model,
+}
+
+/// Trains `shard`'s part of the sweep (see [`sweep`]) on every core.
+pub fn sweep_shard(
     data: &FitData<'_>,
     archs: &[Vec<usize>],
     repeats: usize,
     base: &FitConfig,
+    shard: Shard,
     done: impl Fn() + Sync,
-) -> Result<Sweep, FitError> {
-    let jobs: Vec<(usize, usize)> = (0..archs.len())
-        .flat_map(|k| (0..repeats).map(move |r| (k, r)))
+) -> Result<Vec<Trained>, FitError> {
+    let mine: Vec<(usize, usize)> = jobs(archs.len(), repeats)
+        .into_iter()
+        .enumerate()
+        .filter(|(j, _)| shard.takes(*j))
+        .map(|(_, job)| job)
         .collect();
-    let models: Vec<(usize, Model)> = jobs
-        .par_iter()
+    mine.par_iter()
         .map(|&(k, r)| {
             let cfg = FitConfig {
                 hidden: archs[k].clone(),
@@ -192,17 +245,27 @@ pub fn sweep(
             };
             let m = fit(data, &cfg, |_, _, _| Control::Continue);
             done();
-            m.map(|m| (k, m))
+            m.map(|model| Trained {
+                arch: k,
+                repeat: r,
+                model,
+            })
         })
-        .collect::<Result<_, _>>()?;
+        .collect()
+}
+
+/// The sweep from all its trainings (any order; shards merged): the same [`Sweep`] as one
+/// machine's.
+pub fn sweep_of(archs: &[Vec<usize>], mut trained: Vec<Trained>) -> Sweep {
+    trained.sort_by_key(|t| (t.arch, t.repeat));
     let rows = archs
         .iter()
         .enumerate()
         .map(|(k, arch)| {
-            let ms: Vec<&Model> = models
+            let ms: Vec<&Model> = trained
                 .iter()
-                .filter(|(kk, _)| *kk == k)
-                .map(|(_, m)| m)
+                .filter(|t| t.arch == k)
+                .map(|t| &t.model)
                 .collect();
             let figure = |f: &dyn Fn(&Model) -> f64| {
                 let v: Vec<f64> = ms.iter().map(|m| f(m)).collect();
@@ -219,7 +282,81 @@ pub fn sweep(
             }
         })
         .collect();
-    Ok(Sweep { rows, models })
+    Sweep {
+        rows,
+        models: trained.into_iter().map(|t| (t.arch, t.model)).collect(),
+    }
+}
+
+/// Trains every architecture of `archs` `repeats` times (seed `base.seed + 1000·repeat +
+/// architecture`, validation and test subsets kept) on every core; `done` is called after each
+/// training.
+pub fn sweep(
+    data: &FitData<'_>,
+    archs: &[Vec<usize>],
+    repeats: usize,
+    base: &FitConfig,
+    done: impl Fn() + Sync,
+) -> Result<Sweep, FitError> {
+    let trained = sweep_shard(data, archs, repeats, base, Shard::ALL, done)?;
+    Ok(sweep_of(archs, trained))
+}
+
+/// One shard's trainings as a file (`sweep --shard`), to be merged with the others.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SweepPart {
+    /// `visuotact-sweep-part`.
+    pub format: String,
+    /// What the sweep was: hidden spec, repeats, base seed and anything else that must agree
+    /// between parts (the caller's words).
+    pub sweep: String,
+    /// The hidden-size spec ([`architectures`]).
+    pub hidden: String,
+    /// The target columns.
+    pub targets: Vec<String>,
+    /// Which shard.
+    pub shard: Shard,
+    /// Its networks.
+    pub trained: Vec<Trained>,
+}
+
+/// The format name of a [`SweepPart`] file.
+pub const PART_FORMAT: &str = "visuotact-sweep-part";
+
+/// Checks that `parts` are every shard of one sweep, once each, and gives their trainings.
+pub fn merge_parts(parts: Vec<(String, SweepPart)>) -> Result<Vec<Trained>, String> {
+    let Some((first_name, first)) = parts.first() else {
+        return Err("no part to merge".into());
+    };
+    let (sweep, count) = (first.sweep.clone(), first.shard.count);
+    let mut seen = vec![None::<&str>; count];
+    for (name, p) in &parts {
+        if p.format != PART_FORMAT {
+            return Err(format!("{name}: not a sweep part (format {:?})", p.format));
+        }
+        if p.sweep != sweep || p.shard.count != count {
+            return Err(format!(
+                "{name}: from another sweep than {first_name} ({} of {} shards, {} against {})",
+                p.sweep, p.shard.count, sweep, count
+            ));
+        }
+        let slot = &mut seen[p.shard.index - 1];
+        if let Some(other) = slot {
+            return Err(format!(
+                "{name}: shard {}/{count} again (also {other})",
+                p.shard.index
+            ));
+        }
+        *slot = Some(name);
+    }
+    let missing: Vec<String> = (1..=count)
+        .filter(|k| seen[k - 1].is_none())
+        .map(|k| format!("{k}/{count}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!("shards missing: {}", missing.join(", ")));
+    }
+    Ok(parts.into_iter().flat_map(|(_, p)| p.trained).collect())
 }
 
 #[cfg(test)]
@@ -266,5 +403,47 @@ mod tests {
             models: vec![(0, a), (1, b)],
         };
         assert_eq!(s.ranked()[0].training.mse[1][0], 10_000.0);
+    }
+
+    #[test]
+    fn shards_partition_the_trainings_and_parse() {
+        let all = jobs(7, 3).len();
+        let mut count = vec![0; all];
+        for k in 1..=4 {
+            let s = Shard::parse(&format!("{k}/4")).unwrap();
+            for (j, c) in count.iter_mut().enumerate() {
+                *c += usize::from(s.takes(j));
+            }
+        }
+        assert!(count.iter().all(|&c| c == 1));
+        assert!(Shard::parse("0/3").is_err() && Shard::parse("4/3").is_err());
+        assert!(Shard::parse("3").is_err() && Shard::parse("a/b").is_err());
+    }
+
+    #[test]
+    fn parts_merge_only_when_every_shard_is_there_once() {
+        let part = |k: usize, n: usize, sweep: &str| {
+            let p = SweepPart {
+                format: PART_FORMAT.into(),
+                sweep: sweep.into(),
+                hidden: "1..2".into(),
+                targets: vec!["a".into(), "b".into()],
+                shard: Shard { index: k, count: n },
+                trained: vec![Trained {
+                    arch: k,
+                    repeat: 0,
+                    model: model([1.0, 1.0]),
+                }],
+            };
+            (format!("part{k}"), p)
+        };
+        let ok = merge_parts(vec![part(2, 2, "a"), part(1, 2, "a")]).unwrap();
+        assert_eq!(ok.len(), 2);
+        let e = merge_parts(vec![part(1, 3, "a"), part(3, 3, "a")]).unwrap_err();
+        assert!(e.contains("shards missing: 2/3"), "{e}");
+        let e = merge_parts(vec![part(1, 2, "a"), part(1, 2, "a")]).unwrap_err();
+        assert!(e.contains("again"), "{e}");
+        let e = merge_parts(vec![part(1, 2, "a"), part(2, 2, "b")]).unwrap_err();
+        assert!(e.contains("another sweep"), "{e}");
     }
 }
