@@ -816,4 +816,24 @@ fn sharded_sweep_equals_the_single_machine(d: &Path, f: &Path, l: &Path, sw: &Pa
     for name in ["sweep.csv", "best_model.json"] {
         same(sw, &slurm, name);
     }
+
+    // A two-layer sweep also draws the surface of mean test MSE over both sizes.
+    let two = d.join("two_layers");
+    let mut a = common.to_vec();
+    a[8] = "1..2x1..3";
+    a[10] = "1";
+    a.extend(["-o", s(&two)]);
+    let err = ok(&vt(&a));
+    assert!(err.contains("surface.svg, surface.png"), "{err}");
+    let svg = std::fs::read_to_string(two.join("surface.svg")).unwrap();
+    assert!(
+        svg.contains("second hidden layer") && svg.contains("<circle"),
+        "{svg}"
+    );
+    let png = visuotact_io::frames::read_image(&two.join("surface.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (760, 640));
+    assert!(
+        !sw.join("surface.svg").exists(),
+        "one-layer sweeps have no surface"
+    );
 }

@@ -312,3 +312,190 @@ impl PerformancePlot<'_> {
             .map_err(text)
     }
 }
+
+/// A two-layer sweep's mean test MSE over both layer sizes as a heat map (seed 001 Fig. 4.13's
+/// surface seen from above): one cell per architecture, coloured by log₁₀ of the error (dark
+/// blue lowest, yellow highest), the best cell ringed, and a colour bar.
+pub struct SweepSurface<'a> {
+    /// (first layer, second layer, mean test MSE) per architecture.
+    pub cells: &'a [(usize, usize, f64)],
+    /// The targets' names (in the caption).
+    pub targets: &'a [String],
+}
+
+/// A tick's label when it falls on a whole number (a layer size), else none.
+fn integer_label(v: &f64) -> String {
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{v:.0}")
+    } else {
+        String::new()
+    }
+}
+
+/// A colour from dark blue (0) through teal and green to yellow (1).
+pub fn heat_colour(t: f64) -> RGBColor {
+    let stops = [
+        (68.0, 1.0, 84.0),
+        (59.0, 82.0, 139.0),
+        (33.0, 145.0, 140.0),
+        (94.0, 201.0, 98.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        1.0
+    } * (stops.len() - 1) as f64;
+    let k = (t.floor() as usize).min(stops.len() - 2);
+    let w = t - k as f64;
+    let (a, b) = (stops[k], stops[k + 1]);
+    let mix = |x: f64, y: f64| (x + (y - x) * w).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+impl SweepSurface<'_> {
+    /// log₁₀ range of the positive errors.
+    fn log_range(&self) -> (f64, f64) {
+        finite_range(self.cells.iter().filter(|c| c.2 > 0.0).map(|c| c.2.log10())).map_or(
+            (0.0, 1.0),
+            |(lo, hi)| {
+                if hi > lo {
+                    (lo, hi)
+                } else {
+                    (lo - 0.5, hi + 0.5)
+                }
+            },
+        )
+    }
+
+    fn colour(&self, mse: f64) -> RGBColor {
+        let (lo, hi) = self.log_range();
+        heat_colour(if mse > 0.0 {
+            (mse.log10() - lo) / (hi - lo)
+        } else {
+            f64::NAN
+        })
+    }
+}
+
+impl Figure for SweepSurface<'_> {
+    fn size(&self) -> (u32, u32) {
+        (760, 640)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        root.fill(&WHITE).map_err(text)?;
+        let (map, bar) = root.split_horizontally(620);
+        let n1 = self.cells.iter().map(|c| c.0).max().unwrap_or(1);
+        let n2 = self.cells.iter().map(|c| c.1).max().unwrap_or(1);
+        let mut chart = ChartBuilder::on(&map)
+            .caption(
+                format!(
+                    "Mean test MSE over both layer sizes ({})",
+                    self.targets.join(", ")
+                ),
+                ("sans-serif", 18),
+            )
+            .margin(15)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.5..n1 as f64 + 0.5, 0.5..n2 as f64 + 0.5)
+            .map_err(text)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("first hidden layer")
+            .y_desc("second hidden layer")
+            .x_label_formatter(&integer_label)
+            .y_label_formatter(&integer_label)
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(text)?;
+        chart
+            .draw_series(self.cells.iter().map(|&(a, b, mse)| {
+                let (x, y) = (a as f64, b as f64);
+                Rectangle::new(
+                    [(x - 0.5, y - 0.5), (x + 0.5, y + 0.5)],
+                    self.colour(mse).filled(),
+                )
+            }))
+            .map_err(text)?;
+        let best = self
+            .cells
+            .iter()
+            .filter(|c| c.2 > 0.0)
+            .min_by(|p, q| p.2.total_cmp(&q.2));
+        if let Some(&(a, b, _)) = best {
+            chart
+                .draw_series([Circle::new((a as f64, b as f64), 8, RED.stroke_width(3))])
+                .map_err(text)?;
+        }
+        self.draw_bar(&bar)
+    }
+}
+
+impl SweepSurface<'_> {
+    fn draw_bar<DB: DrawingBackend>(&self, bar: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        let (lo, hi) = self.log_range();
+        let mut chart = ChartBuilder::on(bar)
+            .margin_top(60)
+            .margin_bottom(55)
+            .margin_right(5)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.0..1.0, lo..hi)
+            .map_err(text)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .disable_x_axis()
+            .y_label_formatter(&|v| format!("{:.1e}", 10f64.powf(*v)))
+            .label_style(("sans-serif", 13))
+            .y_labels(6)
+            .draw()
+            .map_err(text)?;
+        let steps = 64;
+        chart
+            .draw_series((0..steps).map(|k| {
+                let (a, b) = (k as f64 / steps as f64, (k + 1) as f64 / steps as f64);
+                let (y0, y1) = (lo + (hi - lo) * a, lo + (hi - lo) * b);
+                Rectangle::new([(0.0, y0), (1.0, y1)], heat_colour(a).filled())
+            }))
+            .map_err(text)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod surface_tests {
+    use super::*;
+
+    #[test]
+    fn heat_colours_run_from_dark_blue_to_yellow_and_nan_is_the_top() {
+        assert_eq!(heat_colour(0.0), RGBColor(68, 1, 84));
+        assert_eq!(heat_colour(1.0), RGBColor(253, 231, 37));
+        assert_eq!(heat_colour(f64::NAN), heat_colour(1.0));
+        assert_eq!(heat_colour(0.5), RGBColor(33, 145, 140));
+    }
+
+    #[test]
+    fn the_surface_draws_one_cell_per_architecture_and_rings_the_best() {
+        let cells = [(1, 1, 1e-2), (1, 2, 1e-3), (2, 1, 1e-1), (2, 2, 5e-3)];
+        let targets = ["force_n".to_string()];
+        let fig = SweepSurface {
+            cells: &cells,
+            targets: &targets,
+        };
+        let path = std::env::temp_dir().join(format!("vt-surface-{}.svg", std::process::id()));
+        crate::save(&fig, &path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        // The lowest error is the darkest cell; the highest the yellow one.
+        assert!(svg.contains("fill=\"#440154\""), "darkest cell");
+        assert!(
+            svg.contains("fill=\"#FDE725\"") || svg.contains("fill=\"#fde725\""),
+            "yellow cell"
+        );
+        assert!(svg.contains("<circle"), "the best cell is ringed");
+        assert!(svg.contains("first hidden layer") && svg.contains("second hidden layer"));
+    }
+}

@@ -17,7 +17,7 @@ use visuotact_nn::sweep::{
     PART_FORMAT,
 };
 use visuotact_pipeline::table::TrainingTable;
-use visuotact_report::figures::PerformancePlot;
+use visuotact_report::figures::{PerformancePlot, SweepSurface};
 
 use crate::args::{AlgorithmArg, DataArgs};
 
@@ -31,7 +31,8 @@ pub(crate) struct Args {
     /// Trainings per size (different seeds).
     #[arg(long, default_value_t = 10)]
     repeats: usize,
-    /// Output folder: sweep.csv, best_model.json, performance.svg and .png.
+    /// Output folder: sweep.csv, best_model.json, performance.svg and .png (and for two-layer
+    /// sweeps surface.svg and .png, the mean test MSE over both sizes as a heat map).
     #[arg(short, long)]
     output: PathBuf,
     /// Base seed.
@@ -256,6 +257,19 @@ fn write_outputs(
         targets,
     };
     visuotact_report::save_both(&plot, &output.join("performance")).context("performance plot")?;
+    let two_layers = !s.rows.is_empty() && s.rows.iter().all(|r| r.hidden.len() == 2);
+    if two_layers {
+        let cells: Vec<(usize, usize, f64)> = s
+            .rows
+            .iter()
+            .map(|r| (r.hidden[0], r.hidden[1], r.test_mse.0))
+            .collect();
+        let surface = SweepSurface {
+            cells: &cells,
+            targets,
+        };
+        visuotact_report::save_both(&surface, &output.join("surface")).context("surface plot")?;
+    }
     eprintln!(
         "best (by scaled validation MSE {:.4e}): hidden {:?}, validation MSE {:.4e}, test MSE {:.4e} (target units)",
         scaled_mse(best, 1),
@@ -264,8 +278,13 @@ fn write_outputs(
         mse(best, 2)
     );
     eprintln!(
-        "wrote {}/sweep.csv, best_model.json, performance.svg, performance.png",
-        output.display()
+        "wrote {}/sweep.csv, best_model.json, performance.svg, performance.png{}",
+        output.display(),
+        if two_layers {
+            ", surface.svg, surface.png"
+        } else {
+            ""
+        }
     );
     Ok(())
 }
