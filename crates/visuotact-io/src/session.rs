@@ -20,7 +20,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::force::ForceSample;
-use crate::table::format_number;
+use crate::table::{format_number, KeyedTable, TableError};
 
 /// Identifies session descriptions.
 pub const SESSION_FORMAT: &str = "visuotact-session";
@@ -392,4 +392,40 @@ mod tests {
         let e = probe_writable(Path::new("/proc/version"), 16).unwrap_err();
         assert!(e.to_string().contains("cannot record into"), "{e}");
     }
+}
+
+/// One row of a session's `frames.csv`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IndexedFrame {
+    /// The frame's name (its PNG under `frames/`, or `reference/` for a reference frame).
+    pub name: String,
+    /// Its time on the session clock, s.
+    pub timestamp_s: f64,
+    /// A no-contact reference frame (`kind` = `reference`).
+    pub reference: bool,
+}
+
+/// A session's frames in recorded order, from its `frames.csv`.
+pub fn frame_index(dir: &Path) -> Result<Vec<IndexedFrame>, TableError> {
+    let path = dir.join("frames.csv");
+    let t = KeyedTable::read(&path, &["kind"])?;
+    let ts = t
+        .column("timestamp_s")
+        .ok_or_else(|| TableError::new(&path, Some(1), "no timestamp_s column".into()))?;
+    Ok(t.keys
+        .iter()
+        .zip(&t.rows)
+        .zip(&t.text)
+        .map(|((name, row), text)| IndexedFrame {
+            name: name.clone(),
+            timestamp_s: row[ts],
+            reference: text.first().is_some_and(|k| k == "reference"),
+        })
+        .collect())
+}
+
+/// A session's description (`session.json`), when it is there and reads as JSON.
+pub fn description(dir: &Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join("session.json")).ok()?;
+    serde_json::from_str(&text).ok()
 }

@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
+use visuotact_io::session::{description, frame_index, IndexedFrame};
 use visuotact_io::table::KeyedTable;
 
 use crate::LeRobotError;
@@ -24,10 +25,8 @@ pub struct Aligned {
 pub struct Episode {
     /// The session folder.
     pub dir: PathBuf,
-    /// Frame names, in `frames.csv` order.
-    pub frames: Vec<String>,
-    /// Each frame's timestamp on the session clock, s.
-    pub capture_s: Vec<f64>,
+    /// The frames, in `frames.csv` order, with their times on the session clock.
+    pub frames: Vec<IndexedFrame>,
     /// `features.csv` without its `timestamp_s` column.
     pub features: Option<Aligned>,
     /// `estimates.csv`.
@@ -42,7 +41,7 @@ pub struct Episode {
 fn aligned(
     dir: &Path,
     name: &str,
-    frames: &[String],
+    frames: &[IndexedFrame],
     drop: &[&str],
 ) -> Result<Option<Aligned>, LeRobotError> {
     let path = dir.join(name);
@@ -61,7 +60,7 @@ fn aligned(
         .collect();
     let rows = frames
         .iter()
-        .map(|f| match index.get(f.as_str()) {
+        .map(|f| match index.get(f.name.as_str()) {
             Some(&r) => keep.iter().map(|&i| t.rows[r][i]).collect(),
             None => vec![f64::NAN; keep.len()],
         })
@@ -100,43 +99,32 @@ fn force_at(f: &ForceTable, t: f64) -> [f64; 6] {
 impl Episode {
     /// Reads the session in `dir`.
     pub fn read(dir: &Path) -> Result<Self, LeRobotError> {
-        let index = KeyedTable::read(&dir.join("frames.csv"), &["kind"])?;
-        let ts = index
-            .columns
-            .iter()
-            .position(|c| c == "timestamp_s")
-            .ok_or_else(|| {
-                LeRobotError::Invalid(format!(
-                    "{}: no timestamp_s column",
-                    dir.join("frames.csv").display()
-                ))
-            })?;
-        let frames = index.keys.clone();
+        let frames = frame_index(dir)?;
         if frames.is_empty() {
             return Err(LeRobotError::Invalid(format!(
                 "{}: no frames",
                 dir.join("frames.csv").display()
             )));
         }
-        let capture_s: Vec<f64> = index.rows.iter().map(|r| r[ts]).collect();
         let force_path = dir.join("force.csv");
         let force = if force_path.is_file() {
             let mut f = ForceTable::read(&force_path)?;
             sort_by_time(&mut f);
-            Some(capture_s.iter().map(|&t| force_at(&f, t)).collect())
+            Some(
+                frames
+                    .iter()
+                    .map(|fr| force_at(&f, fr.timestamp_s))
+                    .collect(),
+            )
         } else {
             None
         };
-        let fps = std::fs::read_to_string(dir.join("session.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .and_then(|v| v["fps"].as_f64());
+        let fps = description(dir).and_then(|v| v["fps"].as_f64());
         Ok(Self {
             dir: dir.to_path_buf(),
             features: aligned(dir, "features.csv", &frames, &["timestamp_s"])?,
             estimates: aligned(dir, "estimates.csv", &frames, &[])?,
             frames,
-            capture_s,
             force,
             fps,
         })
@@ -145,9 +133,9 @@ impl Episode {
     /// The median interval between frames as a rate, Hz (`None` with one frame).
     pub fn median_rate_hz(&self) -> Option<f64> {
         let mut d: Vec<f64> = self
-            .capture_s
+            .frames
             .windows(2)
-            .map(|w| w[1] - w[0])
+            .map(|w| w[1].timestamp_s - w[0].timestamp_s)
             .filter(|x| x.is_finite() && *x > 0.0)
             .collect();
         if d.is_empty() {
@@ -160,13 +148,9 @@ impl Episode {
     /// The PNG of frame `k`: under `frames/`, or `reference/` for the no-contact frames a
     /// simulated session lists first.
     pub fn frame_path(&self, k: usize) -> PathBuf {
-        let touch = self.dir.join("frames").join(&self.frames[k]);
-        let reference = self.dir.join("reference").join(&self.frames[k]);
-        if !touch.is_file() && reference.is_file() {
-            reference
-        } else {
-            touch
-        }
+        let f = &self.frames[k];
+        let folder = if f.reference { "reference" } else { "frames" };
+        self.dir.join(folder).join(&f.name)
     }
 }
 

@@ -153,7 +153,7 @@ fn features_of(
             "observation.tactile.capture_time_s",
             "float64",
             eps.iter()
-                .flat_map(|e| e.capture_s.iter().copied())
+                .flat_map(|e| e.frames.iter().map(|f| f.timestamp_s))
                 .collect(),
         ),
     ];
@@ -291,6 +291,8 @@ fn write_json(path: &Path, v: &Value) -> Result<(), LeRobotError> {
 struct Written<'a> {
     eps: &'a [Episode],
     features: &'a [Feature],
+    /// Per feature, each episode's statistics.
+    stats: Vec<Vec<Stats>>,
     /// Frame size and per-episode pixel statistics, with video.
     video: Option<((u32, u32), Vec<Stats>)>,
     fps: u32,
@@ -310,15 +312,14 @@ impl Written<'_> {
     }
 }
 
+/// The `stats/KEY/…` columns of the episodes table: each statistic's figures per episode,
+/// shaped `[dims]` (an image: `[3, 1, 1]`).
 fn stats_columns(key: &str, per_episode: &[Stats], image: bool, cols: &mut Vec<Column>) {
-    let shape: &[usize] = if image { &[3, 1, 1] } else { &[] };
-    let width = per_episode.first().map_or(1, |s| s.figures()[0].len());
-    let shape = if image { shape.to_vec() } else { vec![width] };
+    let figures: Vec<[Vec<f64>; 4]> = per_episode.iter().map(Stats::figures).collect();
+    let width = figures.first().map_or(1, |f| f[0].len());
+    let shape = if image { vec![3, 1, 1] } else { vec![width] };
     for (i, stat) in ["min", "max", "mean", "std"].iter().enumerate() {
-        let values = per_episode
-            .iter()
-            .flat_map(|s| s.figures()[i].clone())
-            .collect();
+        let values = figures.iter().flat_map(|f| f[i].iter().copied()).collect();
         cols.push(Column::list(
             &format!("stats/{key}/{stat}"),
             &shape,
@@ -331,6 +332,15 @@ fn stats_columns(key: &str, per_episode: &[Stats], image: bool, cols: &mut Vec<C
         &[1],
         Values::I64(counts),
     ));
+}
+
+/// The data set's statistics from its episodes'.
+fn merged(per_episode: &[Stats]) -> Stats {
+    let mut all = Stats::new(per_episode.first().map_or(0, |s| s.figures()[0].len()));
+    for s in per_episode {
+        all.merge(s);
+    }
+    all
 }
 
 fn write_episodes(dir: &Path, w: &Written<'_>, task: &str) -> Result<(), LeRobotError> {
@@ -365,9 +375,8 @@ fn write_episodes(dir: &Path, w: &Written<'_>, task: &str) -> Result<(), LeRobot
     }
     cols.push(Column::scalar("meta/episodes/chunk_index", zeros()));
     cols.push(Column::scalar("meta/episodes/file_index", zeros()));
-    for f in w.features {
-        let per: Vec<Stats> = ranges.iter().map(|r| f.stats(r.clone())).collect();
-        stats_columns(&f.key, &per, false, &mut cols);
+    for (f, per) in w.features.iter().zip(&w.stats) {
+        stats_columns(&f.key, per, false, &mut cols);
     }
     if let Some((_, per)) = &w.video {
         stats_columns(IMAGE_KEY, per, true, &mut cols);
@@ -408,9 +417,9 @@ fn write_meta(dir: &Path, w: &Written<'_>, cfg: &LeRobotConfig) -> Result<(), Le
     let total: usize = w.eps.iter().map(|e| e.frames.len()).sum();
     let mut features = serde_json::Map::new();
     let mut stats = serde_json::Map::new();
-    for f in w.features {
+    for (f, per) in w.features.iter().zip(&w.stats) {
         features.insert(f.key.clone(), f.info());
-        stats.insert(f.key.clone(), f.stats(0..total).to_json(false));
+        stats.insert(f.key.clone(), merged(per).to_json(false));
     }
     if let (Some(((width, height), per)), Some(v)) = (&w.video, &cfg.video) {
         features.insert(
@@ -426,11 +435,7 @@ fn write_meta(dir: &Path, w: &Written<'_>, cfg: &LeRobotConfig) -> Result<(), Le
                 },
             }),
         );
-        let mut all = Stats::new(3);
-        for s in per {
-            all.merge(s);
-        }
-        stats.insert(IMAGE_KEY.into(), all.to_json(true));
+        stats.insert(IMAGE_KEY.into(), merged(per).to_json(true));
     }
     let info = json!({
         "codebase_version": CODEBASE_VERSION,
@@ -487,12 +492,18 @@ pub fn export_lerobot(
         mkdir_for(&data)?;
         let cols: Vec<Column> = features.iter().map(Feature::column).collect();
         write_table(&data, &cols, &[])?;
-        let w = Written {
+        let mut w = Written {
             eps: &eps,
             features: &features,
+            stats: Vec::new(),
             video,
             fps,
         };
+        let ranges = w.ranges();
+        w.stats = features
+            .iter()
+            .map(|f| ranges.iter().map(|r| f.stats(r.clone())).collect())
+            .collect();
         write_meta(out, &w, cfg)
     })();
     if let Err(e) = result {

@@ -168,20 +168,10 @@ fn read_table(path: &Path, text: &[&str]) -> Result<KeyedTable, DatasetError> {
 
 /// Touch frames of a session and their timestamps, from frames.csv.
 fn touch_frames(session: &Path) -> Result<Vec<(String, f64)>, DatasetError> {
-    let p = session.join("frames.csv");
-    let t = read_table(&p, &["kind"])?;
-    let ts = t
-        .column("timestamp_s")
-        .ok_or_else(|| DatasetError::Missing {
-            path: p.clone(),
-            what: "no timestamp_s column".to_string(),
-        })?;
-    Ok(t.keys
-        .iter()
-        .zip(&t.rows)
-        .zip(&t.text)
-        .filter(|(_, kind)| kind[0] != "reference")
-        .map(|((k, r), _)| (k.clone(), r[ts]))
+    Ok(visuotact_io::session::frame_index(session)?
+        .into_iter()
+        .filter(|f| !f.reference)
+        .map(|f| (f.name, f.timestamp_s))
         .collect())
 }
 

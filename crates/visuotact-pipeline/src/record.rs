@@ -296,11 +296,16 @@ pub fn record_observed(
         ..RecordSummary::default()
     };
     describe(cfg, false, &summary)?;
-    observe(observer.as_ref(), |o| o.start(summary.started_unix_s))?;
     if let Some(r) = &rig {
         write_references(cfg, r)?;
     }
     let clock = Instant::now();
+    if !cfg.resume {
+        // The clock's zero is now, not when the folder was made (references take a while).
+        summary.started_unix_s = started_unix_s(cfg);
+        describe(cfg, false, &summary)?;
+    }
+    observe(observer.as_ref(), |o| o.start(summary.started_unix_s))?;
     let t_offset = tables.t_offset(cfg.fps);
     let force = ForceSide::start(
         cfg,
@@ -368,9 +373,7 @@ fn started_unix_s(cfg: &RecordConfig) -> f64 {
     if !cfg.resume {
         return now;
     }
-    std::fs::read_to_string(cfg.output.join("session.json"))
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+    visuotact_io::session::description(&cfg.output)
         .and_then(|v| v["started_unix_s"].as_f64())
         .filter(|t| t.is_finite() && *t > 0.0)
         .unwrap_or(now)

@@ -57,10 +57,18 @@ impl Default for DdsConfig {
     }
 }
 
-/// A message already in CDR (its 4-byte encapsulation header included).
-pub struct Cdr(Vec<u8>);
+/// A message's CDR payload without its 4-byte encapsulation header (RustDDS writes that
+/// itself); a view into the encoded buffer, handed to RustDDS without a copy.
+pub struct Cdr(rustdds::bytes::Bytes);
 
-/// Hands RustDDS the CDR payload as it is (RustDDS writes the encapsulation header itself).
+impl Cdr {
+    /// `msg` encoded.
+    pub fn of<M: RosMessage>(msg: &M) -> Self {
+        Self(rustdds::bytes::Bytes::from(msg.to_cdr()).slice(4..))
+    }
+}
+
+/// Hands RustDDS the CDR payload as it is.
 pub struct RawCdr;
 
 impl SerializerAdapter<Cdr> for RawCdr {
@@ -71,9 +79,7 @@ impl SerializerAdapter<Cdr> for RawCdr {
     }
 
     fn to_bytes(value: &Cdr) -> Result<rustdds::bytes::Bytes, Self::Error> {
-        Ok(rustdds::bytes::Bytes::copy_from_slice(
-            value.0.get(4..).unwrap_or_default(),
-        ))
+        Ok(value.0.clone())
     }
 }
 
@@ -172,7 +178,7 @@ impl Publish for DdsPublisher {
         msg: &M,
     ) -> Result<(), RosError> {
         let _ = stamp_ns; // the message's header carries it
-        let data = Cdr(msg.to_cdr());
+        let data = Cdr::of(msg);
         self.writer::<M>(topic)?
             .write(data, None)
             .map_err(|e| RosError::Dds(format!("{topic}: {e}")))?;

@@ -9,6 +9,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
+use visuotact_io::session::{description, frame_index, IndexedFrame};
 use visuotact_io::table::KeyedTable;
 use visuotact_pipeline::live::{Health, TargetEstimate};
 use visuotact_vision::calibration::SensorCalibration;
@@ -47,7 +48,7 @@ pub struct ExportSummary {
 
 /// The session's per-frame tables, keyed by frame.
 struct SessionTables {
-    frames: KeyedTable,
+    frames: Vec<IndexedFrame>,
     estimates: Option<(KeyedTable, HashMap<String, usize>)>,
     features: Option<(KeyedTable, HashMap<String, usize>)>,
     markers: MarkerColumns,
@@ -166,20 +167,11 @@ fn optional_table(
     Ok(Some(KeyedTable::read(&p, text)?))
 }
 
-/// The session's `session.json`, if it reads.
-fn session_json(session: &Path) -> Option<serde_json::Value> {
-    let text = std::fs::read_to_string(session.join("session.json")).ok()?;
-    serde_json::from_str(&text).ok()
-}
-
 /// The sensor file the export was given or the session names.
-pub fn sensor_of(
-    session: &Path,
-    cfg: &ExportConfig,
-) -> Result<Option<SensorCalibration>, RosError> {
+fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibration>, RosError> {
     let path = match &cfg.sensor {
         Some(p) => Some(p.clone()),
-        None => session_json(session)
+        None => description(session)
             .and_then(|v| v["sensor_file"].as_str().map(PathBuf::from))
             .filter(|p| p.is_file()),
     };
@@ -197,7 +189,7 @@ fn read_tables(
     cfg: &ExportConfig,
     notes: &mut Vec<String>,
 ) -> Result<SessionTables, RosError> {
-    let frames = KeyedTable::read(&session.join("frames.csv"), &["kind"])?;
+    let frames = frame_index(session)?;
     let estimates = optional_table(session, "estimates.csv", &["flags"], notes)?.map(keyed);
     let features = optional_table(session, "features.csv", &["flags"], notes)?.map(keyed);
     let force_path = session.join("force.csv");
@@ -270,7 +262,7 @@ pub fn export_mcap(
 ) -> Result<ExportSummary, RosError> {
     cfg.ros.validate()?;
     let start_unix_s = cfg.start_unix_s.unwrap_or_else(|| {
-        session_json(session)
+        description(session)
             .and_then(|v| v["started_unix_s"].as_f64())
             .unwrap_or(0.0)
     });
@@ -281,22 +273,11 @@ pub fn export_mcap(
     }
     let mut notes = Vec::new();
     let t = read_tables(session, cfg, &mut notes)?;
-    let ts = t
-        .frames
-        .columns
-        .iter()
-        .position(|c| c == "timestamp_s")
-        .ok_or_else(|| {
-            RosError::Config(format!(
-                "{}: no timestamp_s column",
-                session.join("frames.csv").display()
-            ))
-        })?;
     let mut bag = Bag::create(out, &cfg.bag)?;
     let (mut next_force, mut markers) = (0, Vec::new());
-    let total = t.frames.keys.len();
-    for (k, (frame, row)) in t.frames.keys.iter().zip(&t.frames.rows).enumerate() {
-        let time_s = row[ts];
+    let total = t.frames.len();
+    for (k, f) in t.frames.iter().enumerate() {
+        let (frame, time_s) = (&f.name, f.timestamp_s);
         if let Some(force) = &t.force {
             write_force(
                 &mut bag,
