@@ -18,7 +18,7 @@
 use faer::Mat;
 
 use crate::lm::{
-    gradient_stop, jacobian_at, start_stop, sum_sq, Control, DampedSolver, Jacobian, LmConfig,
+    gradient_stop, jacobian_at, normal_system, start_stop, sum_sq, Control, DampedSolver, Jacobian, LmConfig,
     LmOutcome, Problem, Start, Step, StopReason,
 };
 
@@ -99,30 +99,30 @@ pub const TRAINBR: LmConfig = LmConfig {
     ..LmConfig::TRAINLM
 };
 
-/// The gradient of `½(E_D + λE_W)`: `Jᵀr + λp`.
-fn regularised_gradient(jac: &Jacobian<'_>, r: &[f64], p: &[f64], lambda: f64) -> Vec<f64> {
-    let mut g = jac.transpose_times(r);
+/// The gradient of `½(E_D + λE_W)`: `Jᵀr + λp` from `Jᵀr`.
+fn regularised_gradient(jtr: Vec<f64>, p: &[f64], lambda: f64) -> Vec<f64> {
+    let mut g = jtr;
     for (gi, pi) in g.iter_mut().zip(p) {
         *gi += lambda * pi;
     }
     g
 }
 
-/// The regularised step at damping `c` = λ + μ: dual (`jg` = J·g given)
-/// `δ = −(g − Jᵀ(JJᵀ + cI)⁻¹ J g) / c`, primal `δ = −(JᵀJ + cI)⁻¹ g`.
+/// The regularised step at damping `c` = λ + μ from the kept Gram matrix: dual (`jac` and
+/// `jg` = J·g given) `δ = −(g − Jᵀ(JJᵀ + cI)⁻¹ J g) / c`, primal `δ = −(JᵀJ + cI)⁻¹ g`.
 fn regularised_step(
     solver: &mut DampedSolver,
-    (gram, ones): (&Mat<f64>, &[f64]),
-    jac: &Jacobian<'_>,
-    (g, jg): (&[f64], &[f64]),
+    ones: &[f64],
+    jac: Option<(&Jacobian<'_>, &[f64])>,
+    g: &[f64],
     c: f64,
 ) -> Option<Vec<f64>> {
-    if jg.is_empty() {
+    let Some((jac, jg)) = jac else {
         return solver
-            .solve(gram, c, ones, g)
+            .solve(c, ones, g)
             .map(|y| y.iter().map(|v| -v).collect());
-    }
-    solver.solve(gram, c, ones, jg).map(|y| {
+    };
+    solver.solve(c, ones, jg).map(|y| {
         let jty = jac.transpose_times(&y);
         g.iter().zip(&jty).map(|(gi, ti)| -(gi - ti) / c).collect()
     })
@@ -149,7 +149,6 @@ pub fn minimize_br<P: Problem>(
             break 'run (stop, 0);
         }
         let k = if dual { m } else { n };
-        let mut gram = Mat::<f64>::zeros(k, k);
         let mut solver = DampedSolver::new(k);
         let ones = vec![1.0; k];
         for iteration in 0..cfg.max_iterations {
@@ -158,18 +157,30 @@ pub fn minimize_br<P: Problem>(
             if cost == 0.0 {
                 break 'run (StopReason::ZeroResidual, iteration);
             }
+            // Dual: the Jacobian and JJᵀ; primal: JᵀJ and Jᵀr, accumulated by the problem
+            // when it can.
             let structured = dual.then(|| problem.dual_jacobian(&st.p)).flatten();
-            let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
-            let g = regularised_gradient(&jac, &st.r, &st.p, lambda);
+            let (jac, jtr) = if dual {
+                let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
+                let jtr = jac.transpose_times(&st.r);
+                (Some(jac), jtr)
+            } else {
+                let jtr = normal_system(problem, (&st.p, &st.r), &mut dense, solver.gram_mut());
+                (None, jtr)
+            };
+            let g = regularised_gradient(jtr, &st.p, lambda);
             let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
             if let Some(stop) = gradient_stop(gnorm, cfg) {
                 break 'run (stop, iteration);
             }
-            jac.gram_lower_into(dual, gram.as_mut());
-            let jg = if dual { jac.times(&g, m) } else { Vec::new() };
+            if let Some(jac) = &jac {
+                jac.gram_lower_into(true, solver.gram_mut());
+            }
+            solver.keep_gram();
+            let jg = jac.as_ref().map(|jac| jac.times(&g, m));
             let solve = |mu: f64| {
-                let step =
-                    regularised_step(&mut solver, (&gram, &ones), &jac, (&g, &jg), lambda + mu);
+                let with_jac = jac.as_ref().zip(jg.as_deref());
+                let step = regularised_step(&mut solver, &ones, with_jac, &g, lambda + mu);
                 fallbacks = solver.fallbacks;
                 step
             };
@@ -182,7 +193,7 @@ pub fn minimize_br<P: Problem>(
             }
             (ev.sse, ev.ssw) = (sum_sq(&st.r), sum_sq(&st.p));
             // The evidence with this epoch's Gauss–Newton Hessian (as trainbr does).
-            if let Some(tr) = solver.trace_inverse(&gram, lambda) {
+            if let Some(tr) = solver.trace_inverse(lambda) {
                 ev.update(k as f64 - lambda * tr, (n, m));
             }
             let progress = BrProgress {
@@ -256,7 +267,7 @@ mod tests {
         c.residuals(&p, &mut r);
         let mut jac = Mat::<f64>::zeros(9, 3);
         c.jacobian(&p, &mut jac);
-        let g = regularised_gradient(&Jacobian::Dense(&jac), &r, &p, lambda);
+        let g = regularised_gradient(Jacobian::Dense(&jac).transpose_times(&r), &p, lambda);
         // g = ½ ∇(E_D + λ E_W) by central differences.
         let mut f = |q: &[f64]| -> f64 {
             let mut rr = vec![0.0; 9];
@@ -286,21 +297,21 @@ mod tests {
         let mut gram_p = Mat::<f64>::zeros(5, 5);
         jm.gram_lower_into(false, gram_p.as_mut());
         let jg = jm.times(&g, 3);
-        let y = DampedSolver::new(3)
-            .solve(&gram_d, c, &[1.0; 3], &jg)
-            .unwrap();
+        let mut dual_solver = DampedSolver::new(3);
+        dual_solver.load_gram(&gram_d);
+        let y = dual_solver.solve(c, &[1.0; 3], &jg).unwrap();
         let jty = jm.transpose_times(&y);
         let dual: Vec<f64> = g.iter().zip(&jty).map(|(a, b)| (a - b) / c).collect();
-        let primal = DampedSolver::new(5)
-            .solve(&gram_p, c, &[1.0; 5], &g)
-            .unwrap();
+        let mut primal_solver = DampedSolver::new(5);
+        primal_solver.load_gram(&gram_p);
+        let primal = primal_solver.solve(c, &[1.0; 5], &g).unwrap();
         for (a, b) in dual.iter().zip(&primal) {
             assert!((a - b).abs() < 1e-12, "{dual:?} vs {primal:?}");
         }
         // γ by the trace on either Gram matrix: the same nonzero eigenvalues.
         let lam = 0.3;
-        let tr_d = DampedSolver::new(3).trace_inverse(&gram_d, lam).unwrap();
-        let tr_p = DampedSolver::new(5).trace_inverse(&gram_p, lam).unwrap();
+        let tr_d = dual_solver.trace_inverse(lam).unwrap();
+        let tr_p = primal_solver.trace_inverse(lam).unwrap();
         assert!(((3.0 - lam * tr_d) - (5.0 - lam * tr_p)).abs() < 1e-12);
     }
 }

@@ -44,25 +44,71 @@ pub(crate) fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) 
     );
 }
 
-/// Solves the damped system `(G + μD) y = b` for a symmetric `G` given by its lower triangle:
-/// Cholesky in place in a buffer reused by every call; when Cholesky fails (the matrix is not
+/// Copies a square matrix's strict upper triangle onto its strict lower one, transposed
+/// (`upper == false`: the other way round), by halves so that every copy is a block.
+fn mirror_triangle(a: MatMut<'_, f64>, upper_to_lower: bool) {
+    let k = a.nrows();
+    if k <= 64 {
+        let mut a = a;
+        for j in 0..k {
+            for i in j + 1..k {
+                if upper_to_lower {
+                    a[(i, j)] = a[(j, i)];
+                } else {
+                    a[(j, i)] = a[(i, j)];
+                }
+            }
+        }
+        return;
+    }
+    let h = k / 2;
+    let (a11, mut a12, mut a21, a22) = a.split_at_mut(h, h);
+    if upper_to_lower {
+        a21.copy_from(a12.as_ref().transpose());
+    } else {
+        a12.copy_from(a21.as_ref().transpose());
+    }
+    rayon::join(
+        || mirror_triangle(a11, upper_to_lower),
+        || mirror_triangle(a22, upper_to_lower),
+    );
+}
+
+/// Solves the damped systems `(G + μD) y = b` of one iteration for a symmetric Gram matrix `G`
+/// in a single `k × k` buffer: the caller writes `G`'s lower triangle ([`DampedSolver::gram_mut`])
+/// and [`DampedSolver::keep_gram`] keeps its strict lower triangle in the strict upper one
+/// (transposed), its diagonal and the [`BAND`] subdiagonals below it aside; every μ trial then
+/// restores the lower triangle from there and factorises it in place. faer's Cholesky writes
+/// the factor into the lower triangle and, in its small diagonal kernels, scratch into upper
+/// entries fewer than 16 places from the diagonal (32 with AVX-512) — which is why the band
+/// is kept aside; a test factorises sizes across faer's block and recursion thresholds and
+/// checks that every trial solves the kept system. One matrix of `k²` numbers, not two. When Cholesky fails (the matrix is not
 /// positive definite in floating point) it falls back, as MATLAB's backslash does, to LU with
-/// partial pivoting on the whole symmetric matrix.
+/// partial pivoting on the whole symmetric matrix (a second matrix, made only then).
 pub(crate) struct DampedSolver {
-    factor: Mat<f64>,
+    a: Mat<f64>,
+    gram_diag: Vec<f64>,
+    /// `G[j + d, j]` for `d` in `1..=BAND` at `band[j * BAND + d − 1]`.
+    band: Vec<f64>,
     scratch: MemBuffer,
     par: faer::Par,
     /// Systems solved by the LU fallback.
     pub(crate) fallbacks: usize,
-    /// `L⁻¹` for [`DampedSolver::trace_inverse`], made on first use and reused.
-    inverse: Option<Mat<f64>>,
 }
+
+/// Subdiagonals of the Gram matrix kept beside the buffer (see [`DampedSolver`]).
+const BAND: usize = 64;
+
+/// Columns of `L⁻¹` made at a time by [`DampedSolver::trace_inverse`].
+const INVERSE_BLOCK: usize = 256;
 
 impl DampedSolver {
     pub(crate) fn new(k: usize) -> Self {
         let par = faer::get_global_parallelism();
         Self {
-            factor: Mat::<f64>::zeros(k, k),
+            a: Mat::<f64>::zeros(k, k),
+            gram_diag: vec![0.0; k],
+            band: vec![0.0; k * BAND],
             scratch: MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
                 k,
                 par,
@@ -70,84 +116,116 @@ impl DampedSolver {
             )),
             par,
             fallbacks: 0,
-            inverse: None,
         }
     }
 
-    /// `y` with `(G + μ·diag(d)) y = b`; `None` when neither factorisation gives finite numbers.
-    pub(crate) fn solve(
-        &mut self,
-        gram: &Mat<f64>,
-        mu: f64,
-        d: &[f64],
-        b: &[f64],
-    ) -> Option<Vec<f64>> {
-        let k = gram.nrows();
-        self.factor.copy_from(gram);
-        for (i, di) in d.iter().enumerate() {
-            self.factor[(i, i)] += mu * di;
+    /// The buffer whose lower triangle receives the Gram matrix (the upper triangle may be
+    /// overwritten freely); call [`DampedSolver::keep_gram`] once it is written.
+    pub(crate) fn gram_mut(&mut self) -> MatMut<'_, f64> {
+        self.a.as_mut()
+    }
+
+    /// Keeps the Gram matrix just written for every μ trial of the iteration.
+    pub(crate) fn keep_gram(&mut self) {
+        mirror_triangle(self.a.as_mut(), false);
+        let k = self.a.nrows();
+        for j in 0..k {
+            self.gram_diag[j] = self.a[(j, j)];
+            let col = &self.a.col_as_slice(j)[j + 1..(j + 1 + BAND).min(k)];
+            self.band[j * BAND..j * BAND + col.len()].copy_from_slice(col);
         }
-        let mut y = Mat::<f64>::from_fn(k, 1, |i, _| b[i]);
-        let cholesky = llt::factor::cholesky_in_place(
-            self.factor.as_mut(),
+    }
+
+    /// The kept Gram matrix's diagonal.
+    pub(crate) fn gram_diag(&self) -> &[f64] {
+        &self.gram_diag
+    }
+
+    /// Writes `G`'s lower triangle and keeps it (tests and small problems).
+    #[cfg(test)]
+    pub(crate) fn load_gram(&mut self, g: &Mat<f64>) {
+        self.a.copy_from(g);
+        self.keep_gram();
+    }
+
+    /// The lower triangle back to `G + diag(shift)` from the kept copy.
+    fn restore(&mut self, shift: impl Fn(usize) -> f64) {
+        mirror_triangle(self.a.as_mut(), true);
+        let k = self.a.nrows();
+        for j in 0..k {
+            self.a[(j, j)] = self.gram_diag[j] + shift(j);
+            let end = (j + 1 + BAND).min(k);
+            self.a.col_as_slice_mut(j)[j + 1..end]
+                .copy_from_slice(&self.band[j * BAND..j * BAND + end - j - 1]);
+        }
+    }
+
+    /// Cholesky of the restored lower triangle in place.
+    fn factorise(&mut self) -> bool {
+        llt::factor::cholesky_in_place(
+            self.a.as_mut(),
             Default::default(),
             self.par,
             MemStack::new(&mut self.scratch),
             Default::default(),
-        );
-        if cholesky.is_ok() {
+        )
+        .is_ok()
+    }
+
+    /// `y` with `(G + μ·diag(d)) y = b`; `None` when neither factorisation gives finite numbers.
+    pub(crate) fn solve(&mut self, mu: f64, d: &[f64], b: &[f64]) -> Option<Vec<f64>> {
+        let k = self.a.nrows();
+        self.restore(|i| mu * d[i]);
+        let mut y = Mat::<f64>::from_fn(k, 1, |i, _| b[i]);
+        if self.factorise() {
             llt::solve::solve_in_place(
-                self.factor.as_ref(),
+                self.a.as_ref(),
                 y.as_mut(),
                 self.par,
                 MemStack::new(&mut self.scratch),
             );
         } else {
             self.fallbacks += 1;
-            let full = Mat::<f64>::from_fn(k, k, |i, j| {
-                let g = if i >= j { gram[(i, j)] } else { gram[(j, i)] };
-                if i == j {
-                    g + mu * d[i]
-                } else {
-                    g
-                }
-            });
+            // The kept G: the band and the diagonal aside, the rest in the upper triangle.
+            let (a, diag, band) = (&self.a, &self.gram_diag, &self.band);
+            let kept = |i: usize, j: usize| match i - j {
+                0 => diag[i] + mu * d[i],
+                o if o <= BAND => band[j * BAND + o - 1],
+                _ => a[(j, i)],
+            };
+            let full = Mat::<f64>::from_fn(k, k, |i, j| kept(i.max(j), i.min(j)));
             y = full.partial_piv_lu().solve(&y);
         }
         let y: Vec<f64> = (0..k).map(|i| y[(i, 0)]).collect();
         y.iter().all(|v| v.is_finite()).then_some(y)
     }
 
-    /// `tr((G + shift·I)⁻¹)` for a symmetric `G` given by its lower triangle, from its Cholesky
-    /// factor `L` as `‖L⁻¹‖²_F`; `None` when the shifted matrix is not positive definite.
-    pub(crate) fn trace_inverse(&mut self, gram: &Mat<f64>, shift: f64) -> Option<f64> {
-        let k = gram.nrows();
-        self.factor.copy_from(gram);
-        for i in 0..k {
-            self.factor[(i, i)] += shift;
+    /// `tr((G + shift·I)⁻¹)` as `‖L⁻¹‖²_F` from the Cholesky factor `L` of the shifted kept
+    /// Gram matrix, `L⁻¹` made [`INVERSE_BLOCK`] columns at a time (column `j` of `L⁻¹` starts
+    /// at row `j`); `None` when the shifted matrix is not positive definite.
+    pub(crate) fn trace_inverse(&mut self, shift: f64) -> Option<f64> {
+        let k = self.a.nrows();
+        self.restore(|_| shift);
+        if !self.factorise() {
+            return None;
         }
-        llt::factor::cholesky_in_place(
-            self.factor.as_mut(),
-            Default::default(),
-            self.par,
-            MemStack::new(&mut self.scratch),
-            Default::default(),
-        )
-        .ok()?;
-        let inv = self.inverse.get_or_insert_with(|| Mat::<f64>::zeros(k, k));
-        inv.fill(0.0);
-        for i in 0..k {
-            inv[(i, i)] = 1.0;
-        }
-        faer::linalg::triangular_solve::solve_lower_triangular_in_place(
-            self.factor.as_ref(),
-            inv.as_mut(),
-            self.par,
-        );
-        let mut sum = 0.0;
-        for j in 0..k {
-            // L⁻¹ is lower triangular: column j starts at row j.
-            sum += inv.col_as_slice(j)[j..].iter().map(|v| v * v).sum::<f64>();
+        let mut x = Mat::<f64>::zeros(k, INVERSE_BLOCK.min(k));
+        let mut sum = 0.0f64;
+        for j0 in (0..k).step_by(INVERSE_BLOCK) {
+            let w = INVERSE_BLOCK.min(k - j0);
+            let mut xb = x.as_mut().submatrix_mut(j0, 0, k - j0, w);
+            xb.fill(0.0);
+            for c in 0..w {
+                xb[(c, c)] = 1.0;
+            }
+            faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+                self.a.as_ref().submatrix(j0, j0, k - j0, k - j0),
+                xb.as_mut(),
+                self.par,
+            );
+            for c in 0..w {
+                sum += xb.as_ref().col(c).iter().map(|v| v * v).sum::<f64>();
+            }
         }
         sum.is_finite().then_some(sum)
     }
@@ -169,6 +247,23 @@ pub trait Problem {
     fn dual_jacobian(&mut self, p: &[f64]) -> Option<Box<dyn DualJacobian>> {
         let _ = p;
         None
+    }
+    /// The normal equations at `p` for the primal system (at least as many residuals as
+    /// parameters), built without holding the whole Jacobian — e.g. accumulated over blocks of
+    /// residuals, so that memory does not grow with their number: the lower triangle of `JᵀJ`
+    /// into `gram` (n_params × n_params; its upper part may be overwritten) and `Jᵀv` into
+    /// `jtv` for `v` of length n_residuals. Both must equal those of the dense
+    /// [`Problem::jacobian`] to rounding. `false` (the default): not available, and the solver
+    /// forms the dense Jacobian instead.
+    fn normal_equations(
+        &mut self,
+        p: &[f64],
+        v: &[f64],
+        gram: MatMut<'_, f64>,
+        jtv: &mut [f64],
+    ) -> bool {
+        let _ = (p, v, gram, jtv);
+        false
     }
 }
 
@@ -536,6 +631,24 @@ pub(crate) fn jacobian_at<'a, P: Problem>(
     }
 }
 
+/// The primal system at `p`: the lower triangle of `JᵀJ` into `gram` and `Jᵀr` returned, from
+/// the problem's own [`Problem::normal_equations`] when it has them, otherwise from the dense
+/// Jacobian, made in `dense` on first use and reused.
+pub(crate) fn normal_system<P: Problem>(
+    problem: &mut P,
+    (p, r): (&[f64], &[f64]),
+    dense: &mut Option<Mat<f64>>,
+    mut gram: MatMut<'_, f64>,
+) -> Vec<f64> {
+    let mut g = vec![0.0; problem.n_params()];
+    if dense.is_none() && problem.normal_equations(p, r, gram.as_mut(), &mut g) {
+        return g;
+    }
+    let jac = jacobian_at(problem, p, &None, dense);
+    jac.gram_lower_into(false, gram);
+    jac.transpose_times(r)
+}
+
 /// Minimises `‖r(p)‖²` from `p0`, calling `callback` after every iteration.
 pub fn minimize<P: Problem>(
     problem: &mut P,
@@ -559,30 +672,45 @@ pub fn minimize<P: Problem>(
         // The Gram matrix and the solver's buffers, once the settings and the start are known
         // to be usable: allocated once, reused by every iteration and μ trial.
         let k = if dual { m } else { n };
-        let mut gram = Mat::<f64>::zeros(k, k);
         let mut solver = DampedSolver::new(k);
         for iteration in 0..cfg.max_iterations {
             if cost == 0.0 {
                 break 'run (StopReason::ZeroResidual, iteration);
             }
+            // Dual: the structured (or dense) Jacobian, JJᵀ and the gradient Jᵀr; primal: JᵀJ
+            // and Jᵀr, accumulated by the problem when it can.
             let structured = dual.then(|| problem.dual_jacobian(&st.p)).flatten();
-            let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
-            let g = jac.transpose_times(&st.r);
+            let (jac, g) = if dual {
+                let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
+                let g = jac.transpose_times(&st.r);
+                (Some(jac), g)
+            } else {
+                let g = normal_system(problem, (&st.p, &st.r), &mut dense, solver.gram_mut());
+                (None, g)
+            };
             let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
             if let Some(stop) = gradient_stop(gnorm, cfg) {
                 break 'run (stop, iteration);
             }
             // The Gram matrix once per iteration; μ changes only its diagonal.
-            jac.gram_lower_into(dual, gram.as_mut());
+            if let Some(jac) = &jac {
+                jac.gram_lower_into(true, solver.gram_mut());
+            }
+            solver.keep_gram();
             let diag: Vec<f64> = match (cfg.damping, dual) {
-                (Damping::Marquardt, false) => (0..k).map(|i| gram[(i, i)].max(1e-300)).collect(),
+                (Damping::Marquardt, false) => {
+                    solver.gram_diag().iter().map(|d| d.max(1e-300)).collect()
+                }
                 _ => vec![1.0; k],
             };
             // Dual: δ = −Jᵀ (JJᵀ + μI)⁻¹ r; primal: δ = −(JᵀJ + μD)⁻¹ Jᵀr.
             let rhs = if dual { st.r.clone() } else { g };
             let solve = |mu: f64| {
-                let step = solver.solve(&gram, mu, &diag, &rhs).map(|y| {
-                    let d = if dual { jac.transpose_times(&y) } else { y };
+                let step = solver.solve(mu, &diag, &rhs).map(|y| {
+                    let d = match &jac {
+                        Some(jac) => jac.transpose_times(&y),
+                        None => y,
+                    };
                     d.iter().map(|v| -v).collect()
                 });
                 fallbacks = solver.fallbacks;
@@ -631,6 +759,7 @@ pub fn minimize<P: Problem>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use faer::linalg::solvers::DenseSolveCore;
 
     /// r(p) = A p − b for a fixed A (m × n).
     struct Linear {
@@ -709,7 +838,8 @@ mod tests {
         // Symmetric but indefinite (eigenvalues 3 and −1): Cholesky fails, LU solves it.
         let g = Mat::<f64>::from_fn(2, 2, |i, j| if i == j { 1.0 } else { 2.0 });
         let mut s = DampedSolver::new(2);
-        let y = s.solve(&g, 0.0, &[1.0, 1.0], &[3.0, 0.0]).unwrap();
+        s.load_gram(&g);
+        let y = s.solve(0.0, &[1.0, 1.0], &[3.0, 0.0]).unwrap();
         // [[1, 2], [2, 1]] y = [3, 0] → y = [−1, 2].
         assert!(
             (y[0] + 1.0).abs() < 1e-12 && (y[1] - 2.0).abs() < 1e-12,
@@ -719,7 +849,8 @@ mod tests {
         // Positive definite once damped: Cholesky, no fallback; only the lower triangle is read.
         let mut lower = g.clone();
         lower[(0, 1)] = f64::NAN;
-        let y = s.solve(&lower, 2.0, &[1.0, 1.0], &[3.0, 0.0]).unwrap();
+        s.load_gram(&lower);
+        let y = s.solve(2.0, &[1.0, 1.0], &[3.0, 0.0]).unwrap();
         // [[3, 2], [2, 3]] y = [3, 0] → y = [9/5, −6/5].
         assert!(
             (y[0] - 1.8).abs() < 1e-12 && (y[1] + 1.2).abs() < 1e-12,
@@ -727,8 +858,66 @@ mod tests {
         );
         assert_eq!(s.fallbacks, 1);
         // Singular even for LU: no step.
-        let z = Mat::<f64>::zeros(2, 2);
-        assert!(s.solve(&z, 0.0, &[1.0, 1.0], &[1.0, 1.0]).is_none());
+        s.load_gram(&Mat::<f64>::zeros(2, 2));
+        assert!(s.solve(0.0, &[1.0, 1.0], &[1.0, 1.0]).is_none());
+    }
+
+    /// A symmetric positive definite `k × k` matrix `B Bᵀ + I` from a seeded `B`.
+    fn spd(k: usize, seed: u64) -> Mat<f64> {
+        let mut state = seed;
+        let mut next = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let b = Mat::<f64>::from_fn(k, k, |_, _| next());
+        let mut g = &b * b.transpose();
+        for i in 0..k {
+            g[(i, i)] += 1.0;
+        }
+        g
+    }
+
+    #[test]
+    fn every_mu_trial_solves_the_kept_system_in_one_buffer() {
+        // Sizes on both sides of faer's blocked and recursive Cholesky; each trial must solve
+        // (G + μI) y = b exactly as a fresh factorisation does, however many came before it
+        // (the factor of one trial overwrites the lower triangle the next one restores).
+        for k in [5, 70, 300, 700] {
+            let g = spd(k, k as u64);
+            let b: Vec<f64> = (0..k).map(|i| (i as f64 * 0.37).sin()).collect();
+            let mut kept = DampedSolver::new(k);
+            // Only the lower triangle is written: the upper is garbage until kept.
+            let mut buf = kept.gram_mut();
+            for j in 0..k {
+                for i in 0..k {
+                    buf[(i, j)] = if i >= j { g[(i, j)] } else { f64::NAN };
+                }
+            }
+            kept.keep_gram();
+            for mu in [1e-3, 1e-2, 10.0, 1e-3] {
+                let y = kept.solve(mu, &vec![1.0; k], &b).unwrap();
+                let mut damped = g.clone();
+                for i in 0..k {
+                    damped[(i, i)] += mu;
+                }
+                let bm = Mat::<f64>::from_fn(k, 1, |i, _| b[i]);
+                let resid = &damped * Mat::<f64>::from_fn(k, 1, |i, _| y[i]) - &bm;
+                let rel = resid.norm_l2() / bm.norm_l2();
+                assert!(rel < 1e-12, "k {k} μ {mu}: relative residual {rel}");
+            }
+            assert_eq!(kept.fallbacks, 0);
+            // tr((G + λI)⁻¹) by blocks of L⁻¹ equals the trace of the dense inverse.
+            let lam = 0.5;
+            let mut shifted = g.clone();
+            for i in 0..k {
+                shifted[(i, i)] += lam;
+            }
+            let inv = shifted.partial_piv_lu().inverse();
+            let want: f64 = (0..k).map(|i| inv[(i, i)]).sum();
+            let got = kept.trace_inverse(lam).unwrap();
+            assert!((got - want).abs() < 1e-10 * want.abs(), "k {k}: {got} vs {want}");
+            assert_eq!(kept.gram_diag()[k - 1], g[(k - 1, k - 1)]);
+        }
     }
 
     #[test]
