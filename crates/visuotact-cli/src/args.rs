@@ -285,12 +285,12 @@ impl AlgorithmArg {
     }
 
     /// Refuses a training whose estimated peak memory exceeds `--max-memory-gib` (default: the
-    /// memory available now).
+    /// memory available now); gives the estimate, bytes.
     pub(crate) fn check_memory(
         &self,
         sizes: (usize, usize, usize),
         cfg: &FitConfig,
-    ) -> anyhow::Result<()> {
+    ) -> anyhow::Result<u64> {
         let limit = match self.max_memory_gib {
             Some(g) if g.is_finite() && g > 0.0 => (g * 1024f64.powi(3)) as u64,
             Some(g) => bail!("--max-memory-gib {g}: expected a positive number"),

@@ -4,8 +4,43 @@ use std::path::Path;
 
 use anyhow::bail;
 use visuotact_nn::metrics::TargetErrors;
-use visuotact_pipeline::evaluation::evaluate_files;
+use visuotact_pipeline::evaluation::{evaluate_files, Evaluation};
 use visuotact_report::figures::{ContactMap, Panel, RegressionPlot};
+use visuotact_report::pages::{evaluation_page, RunInfo};
+
+/// Writes `eval --report`'s page.
+fn evaluation_report(
+    e: &Evaluation,
+    (predictions, labels): (&Path, &Path),
+    path: &Path,
+    secs: f64,
+) -> anyhow::Result<()> {
+    let run = RunInfo {
+        settings: vec![
+            (
+                "command".into(),
+                std::env::args().collect::<Vec<_>>().join(" "),
+            ),
+            ("version".into(), env!("CARGO_PKG_VERSION").into()),
+        ],
+        timings_s: vec![("evaluation".into(), secs)],
+    };
+    let names = (
+        predictions.display().to_string(),
+        labels.display().to_string(),
+    );
+    evaluation_page(e, (&names.0, &names.1), &run)?.write(path)?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+/// States a training's memory estimate before it starts.
+pub(crate) fn memory(what: &str, bytes: u64) {
+    eprintln!(
+        "memory: {what} about {} MiB at the peak",
+        bytes.div_ceil(1 << 20)
+    );
+}
 
 /// Prints the error figures of a predictions table against a labels table
 /// ([`visuotact_pipeline::evaluation`]) and draws the figures asked for.
@@ -15,7 +50,9 @@ pub(crate) fn evaluation(
     json: bool,
     plot: Option<&Path>,
     map: Option<&Path>,
+    report: Option<&Path>,
 ) -> anyhow::Result<()> {
+    let t0 = std::time::Instant::now();
     let e = evaluate_files(predictions, labels)?;
     for note in &e.notes {
         eprintln!("note: {note}");
@@ -43,6 +80,9 @@ pub(crate) fn evaluation(
         };
         visuotact_report::save(&figure, path)?;
         eprintln!("wrote {}", path.display());
+    }
+    if let Some(path) = report {
+        evaluation_report(&e, (predictions, labels), path, t0.elapsed().as_secs_f64())?;
     }
     let figures: Vec<&TargetErrors> = e.targets.iter().map(|t| &t.errors).collect();
     if json {

@@ -702,6 +702,14 @@ fn contact_map_of_literal_tables() {
         4,
         "two touches, actual and estimate"
     );
+    // The same evaluation as one HTML page: the error table, both figures inline.
+    let report = d.join("report.html");
+    ok(&eval(&p, &l, &["--report", s(&report)]));
+    let html = std::fs::read_to_string(&report).unwrap();
+    assert!(html.contains("<td>x_mm</td><td>2</td>"), "{html}");
+    assert!(html.contains("Contact distance D (x, y): mean 3.000 mm, max 5.000 mm."));
+    assert_eq!(html.matches("<svg").count(), 2, "regression plot and contact map");
+    assert!(!html.contains("src=") && !html.contains("href="));
     // Without positions there is nothing to map.
     std::fs::write(&p, "frame,force_n\na,1\n").unwrap();
     std::fs::write(&l, "frame,force_n\na,1.2\n").unwrap();

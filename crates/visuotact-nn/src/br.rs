@@ -18,7 +18,7 @@
 use faer::Mat;
 
 use crate::lm::{
-    gradient_stop, jacobian_at, normal_system, start_stop, sum_sq, Control, DampedSolver, Jacobian, LmConfig,
+    gradient_stop, start_stop, sum_sq, system_at, Control, DampedSolver, Jacobian, LmConfig,
     LmOutcome, Problem, Start, Step, StopReason,
 };
 
@@ -157,26 +157,14 @@ pub fn minimize_br<P: Problem>(
             if cost == 0.0 {
                 break 'run (StopReason::ZeroResidual, iteration);
             }
-            // Dual: the Jacobian and JJᵀ; primal: JᵀJ and Jᵀr, accumulated by the problem
-            // when it can.
             let structured = dual.then(|| problem.dual_jacobian(&st.p)).flatten();
-            let (jac, jtr) = if dual {
-                let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
-                let jtr = jac.transpose_times(&st.r);
-                (Some(jac), jtr)
-            } else {
-                let jtr = normal_system(problem, (&st.p, &st.r), &mut dense, solver.gram_mut());
-                (None, jtr)
-            };
+            let with = (&structured, &mut dense);
+            let (jac, jtr) = system_at(problem, (&st.p, &st.r, dual), with, &mut solver);
             let g = regularised_gradient(jtr, &st.p, lambda);
             let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
             if let Some(stop) = gradient_stop(gnorm, cfg) {
                 break 'run (stop, iteration);
             }
-            if let Some(jac) = &jac {
-                jac.gram_lower_into(true, solver.gram_mut());
-            }
-            solver.keep_gram();
             let jg = jac.as_ref().map(|jac| jac.times(&g, m));
             let solve = |mu: f64| {
                 let with_jac = jac.as_ref().zip(jg.as_deref());

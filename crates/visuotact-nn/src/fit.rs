@@ -465,10 +465,16 @@ impl FitData<'_> {
     }
 }
 
-/// The memory a training needs at its peak, bytes (a bound, not an exact count): the
-/// Jacobian (residuals × weights, or by layers on the dual path), the damped system (the
-/// smaller of residuals and weights, squared, twice: matrix and factor), the activations, for
-/// each network trained at once (an ensemble's members train in parallel).
+/// The memory a training needs at its peak, bytes (a bound, not an exact count), for each
+/// network trained at once (an ensemble's members train in parallel):
+/// - the damped system, one buffer of the smaller of residuals and weights, squared (see
+///   [`crate::lm`]), and its kept band;
+/// - with fewer residuals than weights (the dual system) the Jacobian by layers: each
+///   layer's sensitivities (residuals × width) and inputs (samples × inputs), and the Gram
+///   matrix of each layer's inputs (samples²);
+/// - otherwise one block of [`crate::mlp::NORMAL_BLOCK`] samples' Jacobian rows: weights ×
+///   block residuals — the same for any number of samples;
+/// - the samples' activations.
 pub fn training_memory_bytes(
     inputs: usize,
     samples: usize,
@@ -480,20 +486,35 @@ pub fn training_memory_bytes(
         .chain(std::iter::once(targets))
         .collect();
     let n = Mlp::n_params_for(&sizes) as u128;
-    let m = (samples * targets) as u128;
+    let (s, t) = (samples as u128, targets as u128);
+    let m = s * t;
     let k = n.min(m);
-    let activations = samples as u128 * sizes.iter().map(|&s| s as u128).sum::<u128>();
-    let one = 8 * (m * n + 2 * k * k + 2 * activations + 4 * n);
+    let layers = sizes.len() as u128 - 1;
+    let widths: u128 = sizes[1..].iter().map(|&w| w as u128).sum();
+    let fan_in: u128 = sizes[..sizes.len() - 1]
+        .iter()
+        .map(|&w| w as u128 + 1)
+        .sum();
+    let jacobian = if m < n {
+        m * widths + s * fan_in + layers * s * s
+    } else {
+        let block = crate::mlp::NORMAL_BLOCK as u128;
+        n * block * (t + 1) + block * (widths + fan_in) * (t + 1)
+    };
+    let activations = s * sizes.iter().map(|&w| w as u128).sum::<u128>();
+    let system = k * k + k * crate::lm::BAND as u128;
+    let one = 8 * (system + jacobian + 2 * activations + 4 * n);
     let parallel = cfg.ensemble.max(1).min(rayon::current_num_threads()) as u128;
     u64::try_from(one * parallel).unwrap_or(u64::MAX)
 }
 
-/// Refuses a training whose [`training_memory_bytes`] exceed `limit_bytes`, saying both.
+/// Refuses a training whose [`training_memory_bytes`] exceed `limit_bytes`, saying both;
+/// otherwise gives the estimate, to be stated before the training starts.
 pub fn check_training_memory(
     (inputs, samples, targets): (usize, usize, usize),
     cfg: &FitConfig,
     limit_bytes: u64,
-) -> Result<(), FitError> {
+) -> Result<u64, FitError> {
     let need = training_memory_bytes(inputs, samples, targets, cfg);
     if need > limit_bytes {
         let gib = |b: u64| b as f64 / 1024f64.powi(3);
@@ -504,7 +525,7 @@ pub fn check_training_memory(
             gib(limit_bytes)
         )));
     }
-    Ok(())
+    Ok(need)
 }
 
 /// The largest magnitude an input or a target may have: beyond it a value is not a

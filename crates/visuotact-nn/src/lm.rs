@@ -97,7 +97,7 @@ pub(crate) struct DampedSolver {
 }
 
 /// Subdiagonals of the Gram matrix kept beside the buffer (see [`DampedSolver`]).
-const BAND: usize = 64;
+pub(crate) const BAND: usize = 64;
 
 /// Columns of `L⁻¹` made at a time by [`DampedSolver::trace_inverse`].
 const INVERSE_BLOCK: usize = 256;
@@ -649,6 +649,30 @@ pub(crate) fn normal_system<P: Problem>(
     jac.transpose_times(r)
 }
 
+/// One iteration's system at `p` with residuals `r`, kept in `solver`: on the dual path the
+/// Jacobian (the problem's `structured` one, or the dense one made in `dense`) and `JJᵀ`, on
+/// the primal path `JᵀJ` alone ([`normal_system`]); and the gradient `Jᵀr`.
+pub(crate) fn system_at<'a, P: Problem>(
+    problem: &mut P,
+    (p, r, dual): (&[f64], &[f64], bool),
+    (structured, dense): (&'a Option<Box<dyn DualJacobian>>, &'a mut Option<Mat<f64>>),
+    solver: &mut DampedSolver,
+) -> (Option<Jacobian<'a>>, Vec<f64>) {
+    let out = if dual {
+        let jac = jacobian_at(problem, p, structured, dense);
+        let g = jac.transpose_times(r);
+        jac.gram_lower_into(true, solver.gram_mut());
+        (Some(jac), g)
+    } else {
+        (
+            None,
+            normal_system(problem, (p, r), dense, solver.gram_mut()),
+        )
+    };
+    solver.keep_gram();
+    out
+}
+
 /// Minimises `‖r(p)‖²` from `p0`, calling `callback` after every iteration.
 pub fn minimize<P: Problem>(
     problem: &mut P,
@@ -677,26 +701,13 @@ pub fn minimize<P: Problem>(
             if cost == 0.0 {
                 break 'run (StopReason::ZeroResidual, iteration);
             }
-            // Dual: the structured (or dense) Jacobian, JJᵀ and the gradient Jᵀr; primal: JᵀJ
-            // and Jᵀr, accumulated by the problem when it can.
             let structured = dual.then(|| problem.dual_jacobian(&st.p)).flatten();
-            let (jac, g) = if dual {
-                let jac = jacobian_at(problem, &st.p, &structured, &mut dense);
-                let g = jac.transpose_times(&st.r);
-                (Some(jac), g)
-            } else {
-                let g = normal_system(problem, (&st.p, &st.r), &mut dense, solver.gram_mut());
-                (None, g)
-            };
+            let with = (&structured, &mut dense);
+            let (jac, g) = system_at(problem, (&st.p, &st.r, dual), with, &mut solver);
             let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
             if let Some(stop) = gradient_stop(gnorm, cfg) {
                 break 'run (stop, iteration);
             }
-            // The Gram matrix once per iteration; μ changes only its diagonal.
-            if let Some(jac) = &jac {
-                jac.gram_lower_into(true, solver.gram_mut());
-            }
-            solver.keep_gram();
             let diag: Vec<f64> = match (cfg.damping, dual) {
                 (Damping::Marquardt, false) => {
                     solver.gram_diag().iter().map(|d| d.max(1e-300)).collect()
@@ -866,7 +877,9 @@ mod tests {
     fn spd(k: usize, seed: u64) -> Mat<f64> {
         let mut state = seed;
         let mut next = || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
             (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
         let b = Mat::<f64>::from_fn(k, k, |_, _| next());
@@ -915,7 +928,10 @@ mod tests {
             let inv = shifted.partial_piv_lu().inverse();
             let want: f64 = (0..k).map(|i| inv[(i, i)]).sum();
             let got = kept.trace_inverse(lam).unwrap();
-            assert!((got - want).abs() < 1e-10 * want.abs(), "k {k}: {got} vs {want}");
+            assert!(
+                (got - want).abs() < 1e-10 * want.abs(),
+                "k {k}: {got} vs {want}"
+            );
             assert_eq!(kept.gram_diag()[k - 1], g[(k - 1, k - 1)]);
         }
     }

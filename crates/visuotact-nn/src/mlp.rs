@@ -173,6 +173,220 @@ impl Mlp {
     }
 }
 
+/// Samples per block of the primal normal equations ([`Fit`]'s `normal_equations`): the
+/// only part of the Jacobian held is this many samples' rows.
+pub const NORMAL_BLOCK: usize = 256;
+
+/// Layers with at least this many inputs build their rows of `JᵀJ` by hidden unit (see
+/// [`Fit`]'s `normal_equations`); narrower ones straight from the block of `J`.
+const WIDE_LAYER: usize = 64;
+
+/// One block of samples' part of the primal normal equations of a network.
+///
+/// The rows of `JᵀJ` for a layer with wide inputs (at least [`WIDE_LAYER`], the first layer of
+/// a marker network) are made by hidden unit: the rows of unit `o`'s weights `(o, i)` are
+/// `Σ_s A[s, i] Z_o[s, :]` with `Z_o[s, :] = Σ_k D[(s, k), o] J[(s, k), :]` — products whose
+/// inner dimension is the block's samples rather than its residuals (a third of the work of
+/// `JᵀJ` from the rows of `J`, for three outputs) — and its bias rows are `Dᵀ J`. Those rows
+/// are made up to their diagonal and, for the columns of later narrow layers, beyond it (in
+/// the upper triangle, copied down once at the end by [`NormalBlock::mirror_wide_rows`]):
+/// a narrow layer's rows then need only the narrow layers' columns, straight from the block
+/// of `J`.
+struct NormalBlock<'a> {
+    net: &'a Mlp,
+    offsets: Vec<usize>,
+    /// `Jᵀ` of the block (column `s·k + j`: output `j` of sample `s`).
+    jt: Mat<f64>,
+    /// Each layer's inputs (column `s`).
+    at: Vec<Mat<f64>>,
+    /// Each layer's sensitivities (column `s·k + j`).
+    dt: Vec<Mat<f64>>,
+    /// `Z_o` (column `s`).
+    zt: Mat<f64>,
+    /// Samples in the block now.
+    samples: usize,
+    scratch: (Vec<f64>, Vec<f64>),
+}
+
+impl<'a> NormalBlock<'a> {
+    fn new(net: &'a Mlp, b: usize) -> Self {
+        let sizes = &net.sizes;
+        let layers = sizes.len() - 1;
+        let (k, n) = (sizes[layers], net.params.len());
+        Self {
+            net,
+            offsets: net.layer_offsets(),
+            jt: Mat::zeros(n, b * k),
+            at: (0..layers).map(|l| Mat::zeros(sizes[l], b)).collect(),
+            dt: (0..layers)
+                .map(|l| Mat::zeros(sizes[l + 1], b * k))
+                .collect(),
+            zt: Mat::zeros(n, b),
+            samples: 0,
+            scratch: (Vec::new(), Vec::new()),
+        }
+    }
+
+    /// Parameter range of layer `l`.
+    fn range(&self, l: usize) -> std::ops::Range<usize> {
+        let (n_in, h) = (self.net.sizes[l], self.net.sizes[l + 1]);
+        self.offsets[l]..self.offsets[l] + h * n_in + h
+    }
+
+    fn wide(&self, l: usize) -> bool {
+        self.net.sizes[l] >= WIDE_LAYER
+    }
+
+    /// The ranges of the narrow layers after `l`.
+    fn narrow_after(&self, l: usize) -> Vec<std::ops::Range<usize>> {
+        (l + 1..self.net.sizes.len() - 1)
+            .filter(|&m| !self.wide(m))
+            .map(|m| self.range(m))
+            .collect()
+    }
+
+    /// Forward and backward passes of the block's samples at `p`.
+    fn fill(&mut self, p: &[f64], xs: &[&[f64]], acts: &mut Vec<Vec<f64>>) {
+        let net = self.net;
+        let (sizes, offs) = (&net.sizes, &self.offsets);
+        let k = sizes[sizes.len() - 1];
+        self.samples = xs.len();
+        for (s, x) in xs.iter().enumerate() {
+            net.forward_into(p, x, acts);
+            for (l, a) in self.at.iter_mut().enumerate() {
+                a.col_as_slice_mut(s).copy_from_slice(&acts[l]);
+            }
+            for j in 0..k {
+                let r = s * k + j;
+                let (jt, dt) = (&mut self.jt, &mut self.dt);
+                net.backprop(p, acts, offs, j, &mut self.scratch, |l, delta| {
+                    dt[l].col_as_slice_mut(r).copy_from_slice(delta);
+                    let (n_in, n_o, o0) = (sizes[l], sizes[l + 1], offs[l]);
+                    let col = jt.col_as_slice_mut(r);
+                    for (o, &d) in delta.iter().enumerate() {
+                        let row = &mut col[o0 + o * n_in..o0 + (o + 1) * n_in];
+                        for (dst, &ai) in row.iter_mut().zip(&acts[l]) {
+                            *dst = d * ai;
+                        }
+                        col[o0 + n_o * n_in + o] = d;
+                    }
+                });
+            }
+        }
+    }
+
+    /// `jtv += Jᵀ v` for the block's residuals `v`.
+    fn add_jtv(&self, v: &[f64], jtv: &mut [f64]) {
+        for (r, &vr) in v.iter().enumerate() {
+            for (g, &jv) in jtv.iter_mut().zip(self.jt.col_as_slice(r)) {
+                *g += vr * jv;
+            }
+        }
+    }
+
+    /// `gram[rows, cols] += lhs · Jᵀ[cols, :]ᵀ` over the block's samples or residuals.
+    fn add_product(
+        &self,
+        gram: &mut MatMut<'_, f64>,
+        (rows, cols): (std::ops::Range<usize>, std::ops::Range<usize>),
+        lhs: faer::MatRef<'_, f64>,
+        rhs: faer::MatRef<'_, f64>,
+    ) {
+        matmul::matmul(
+            gram.as_mut()
+                .submatrix_mut(rows.start, cols.start, rows.len(), cols.len()),
+            Accum::Add,
+            lhs,
+            rhs.subrows(cols.start, cols.len()).transpose(),
+            1.0,
+            faer::get_global_parallelism(),
+        );
+    }
+
+    /// Adds the block's `JᵀJ` rows (see [`NormalBlock`]).
+    fn add_gram(&mut self, mut gram: MatMut<'_, f64>) {
+        let layers = self.net.sizes.len() - 1;
+        let rows = self.samples * self.net.sizes[layers];
+        for l in 0..layers {
+            let (n_in, h, off) = (self.net.sizes[l], self.net.sizes[l + 1], self.offsets[l]);
+            if !self.wide(l) {
+                // The narrow layers' columns up to this one's, from the block of J.
+                let jt = self.jt.as_ref().subcols(0, rows);
+                for m in (0..=l).filter(|&m| !self.wide(m)) {
+                    let lhs = jt.subrows(off, self.range(l).len());
+                    self.add_product(&mut gram, (self.range(l), self.range(m)), lhs, jt);
+                }
+                continue;
+            }
+            let later = self.narrow_after(l);
+            for o in 0..h {
+                let mut cols = std::iter::once(0..off + (o + 1) * n_in).collect::<Vec<_>>();
+                cols.extend(later.iter().cloned());
+                self.make_z(l, o, &cols);
+                let lhs = self.at[l].as_ref().subcols(0, self.samples);
+                let z = self.zt.as_ref().subcols(0, self.samples);
+                let row0 = off + o * n_in;
+                for c in &cols {
+                    self.add_product(&mut gram, (row0..row0 + n_in, c.clone()), lhs, z);
+                }
+            }
+            let (jt, lhs) = (
+                self.jt.as_ref().subcols(0, rows),
+                self.dt[l].as_ref().subcols(0, rows),
+            );
+            let bias = off + h * n_in..off + h * n_in + h;
+            let mut cols = std::iter::once(0..bias.end).collect::<Vec<_>>();
+            cols.extend(later);
+            for c in cols {
+                self.add_product(&mut gram, (bias.clone(), c), lhs, jt);
+            }
+        }
+    }
+
+    /// `Z_o` over the columns `cols` into `zt`, samples in parallel.
+    fn make_z(&mut self, l: usize, o: usize, cols: &[std::ops::Range<usize>]) {
+        use rayon::prelude::*;
+        let k = self.net.sizes[self.net.sizes.len() - 1];
+        let (dl, jt) = (&self.dt[l], &self.jt);
+        self.zt
+            .as_mut()
+            .subcols_mut(0, self.samples)
+            .par_col_iter_mut()
+            .enumerate()
+            .for_each(|(s, z)| {
+                let Some(z) = z.try_as_col_major_mut() else {
+                    return;
+                };
+                let z = z.as_slice_mut();
+                for c in cols {
+                    z[c.clone()].fill(0.0);
+                    for j in 0..k {
+                        let w = dl[(o, s * k + j)];
+                        let src = &jt.col_as_slice(s * k + j)[c.clone()];
+                        for (zi, &ji) in z[c.clone()].iter_mut().zip(src) {
+                            *zi += w * ji;
+                        }
+                    }
+                }
+            });
+    }
+
+    /// The wide layers' rows beyond their diagonal, copied to the narrow layers' rows below.
+    fn mirror_wide_rows(&self, mut gram: MatMut<'_, f64>) {
+        for l in (0..self.net.sizes.len() - 1).filter(|&l| self.wide(l)) {
+            let wide = self.range(l);
+            for narrow in self.narrow_after(l) {
+                let (r, c) = (narrow.start, wide.start);
+                let (h, w) = (narrow.len(), wide.len());
+                // The wide rows lie above the narrow ones.
+                let (top, bottom) = gram.as_mut().split_at_row_mut(r);
+                let mut below = bottom.submatrix_mut(0, c, h, w);
+                below.copy_from(top.as_ref().submatrix(c, r, w, h).transpose());
+            }
+        }
+    }
+}
+
 /// A layer's inputs with the column of ones, and the lower triangle of their Gram matrix.
 type SharedGram = (Arc<Mat<f64>>, Arc<Mat<f64>>);
 
@@ -407,6 +621,10 @@ pub struct TrainConfig {
     pub max_fail: usize,
     /// Seed for the split and the initial weights.
     pub seed: u64,
+    /// Hold the whole Jacobian (residuals × weights) on the primal path instead of
+    /// accumulating `JᵀJ` over blocks of samples — the path before blocks, kept for
+    /// comparisons; the same results to rounding, more memory and time.
+    pub whole_jacobian: bool,
 }
 
 impl TrainConfig {
@@ -417,6 +635,7 @@ impl TrainConfig {
         split: [0.70, 0.15, 0.15],
         max_fail: 6,
         seed: 1,
+        whole_jacobian: false,
     };
 
     /// MATLAB's trainbr: μ = 0.005, no validation stop; here every sample trains (a test
@@ -427,6 +646,7 @@ impl TrainConfig {
         split: [1.0, 0.0, 0.0],
         max_fail: 6,
         seed: 1,
+        whole_jacobian: false,
     };
 }
 
@@ -461,6 +681,8 @@ struct Fit<'a> {
     /// The inputs with a column of ones, and the lower triangle of their Gram matrix: the first
     /// layer's part of every [`LayerJacobian`], made once.
     inputs: Option<SharedGram>,
+    /// [`TrainConfig::whole_jacobian`]: no blocked normal equations.
+    whole_jacobian: bool,
 }
 
 impl Problem for Fit<'_> {
@@ -485,6 +707,32 @@ impl Problem for Fit<'_> {
         for (s, x) in self.x.iter().enumerate() {
             self.net.jacobian_rows(p, x, &mut self.acts, jac, s * k);
         }
+    }
+
+    /// `JᵀJ` and `Jᵀv` over blocks of [`NORMAL_BLOCK`] samples, by [`NormalBlock`]; memory:
+    /// one block of `J` (weights × block residuals), whatever the number of samples.
+    fn normal_equations(
+        &mut self,
+        p: &[f64],
+        v: &[f64],
+        mut gram: MatMut<'_, f64>,
+        jtv: &mut [f64],
+    ) -> bool {
+        if self.whole_jacobian {
+            return false;
+        }
+        gram.fill(0.0);
+        jtv.fill(0.0);
+        let k = self.net.sizes[self.net.sizes.len() - 1];
+        let b = NORMAL_BLOCK.min(self.x.len()).max(1);
+        let mut block = NormalBlock::new(self.net, b);
+        for (c, chunk) in self.x.chunks(b).enumerate() {
+            block.fill(p, chunk, &mut self.acts);
+            block.add_jtv(&v[c * b * k..(c * b + chunk.len()) * k], jtv);
+            block.add_gram(gram.as_mut());
+        }
+        block.mirror_wide_rows(gram);
+        true
     }
 
     fn dual_jacobian(&mut self, p: &[f64]) -> Option<Box<dyn DualJacobian>> {
@@ -622,6 +870,7 @@ pub fn train(
         t: refs(&ts[0]),
         acts: Vec::new(),
         inputs: None,
+        whole_jacobian: cfg.whole_jacobian,
     };
     let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
     let n_out = snapshot.sizes[snapshot.sizes.len() - 1];
@@ -702,6 +951,7 @@ mod tests {
             t: refs(&t),
             acts: Vec::new(),
             inputs: None,
+            whole_jacobian: false,
         };
         let (m, n) = (fit.n_residuals(), fit.n_params());
         assert!(m < n, "the dual system applies");
@@ -746,6 +996,119 @@ mod tests {
                 assert!((o - want).abs() < 1e-12 * (1.0 + want.abs()), "Ju[{i}]");
             }
         }
+    }
+
+    /// Inputs and targets in ±1 from a seeded generator.
+    fn random_rows(n: usize, (d_in, d_out): (usize, usize), seed: u64) -> (Rows, Rows) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut rows = |d: usize| -> Rows {
+            (0..n)
+                .map(|_| (0..d).map(|_| rng.random_range(-1.0..1.0)).collect())
+                .collect()
+        };
+        let x = rows(d_in);
+        (x, rows(d_out))
+    }
+
+    #[test]
+    fn blocked_normal_equations_equal_those_of_the_dense_jacobian() {
+        // 2½ blocks of samples (the last one partial); all layers narrow, a wide first layer
+        // (rows by hidden unit, the columns of the narrow layers after it mirrored), a wide
+        // layer after a narrow one.
+        for (sizes, seed) in [
+            (vec![6, 7, 5, 3], 5),
+            (vec![70, 4, 3, 3], 6),
+            (vec![5, 70, 2], 7),
+        ] {
+            let net = Mlp::nguyen_widrow(&sizes, seed);
+            let outputs = sizes[sizes.len() - 1];
+            let (x, t) = random_rows(2 * NORMAL_BLOCK + 37, (sizes[0], outputs), seed + 9);
+            let mut fit = Fit {
+                net: &net,
+                x: refs(&x),
+                t: refs(&t),
+                acts: Vec::new(),
+                inputs: None,
+                whole_jacobian: false,
+            };
+            let (m, n) = (fit.n_residuals(), fit.n_params());
+            assert!(m > n, "the primal system applies");
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let p: Vec<f64> = net
+                .params
+                .iter()
+                .map(|v| v + rng.random_range(-0.3..0.3))
+                .collect();
+            let mut jac = Mat::<f64>::zeros(m, n);
+            fit.jacobian(&p, &mut jac);
+            let dense = jac.transpose() * &jac;
+            let v: Vec<f64> = (0..m).map(|i| (i as f64 * 0.7).sin()).collect();
+            let mut gram = Mat::<f64>::from_fn(n, n, |_, _| f64::NAN);
+            let mut jtv = vec![f64::NAN; n];
+            assert!(fit.normal_equations(&p, &v, gram.as_mut(), &mut jtv));
+            for c in 0..n {
+                for r in c..n {
+                    let want = dense[(r, c)];
+                    assert!(
+                        (gram[(r, c)] - want).abs() < 1e-12 * (1.0 + want.abs()),
+                        "{sizes:?} JᵀJ[{r}, {c}]: {} vs {want}",
+                        gram[(r, c)]
+                    );
+                }
+                let want: f64 = (0..m).map(|i| jac[(i, c)] * v[i]).sum();
+                assert!(
+                    (jtv[c] - want).abs() < 1e-12 * (1.0 + want.abs()),
+                    "Jᵀv[{c}]"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn training_by_blocks_follows_the_dense_jacobian_path() {
+        // trainlm and trainbr on the primal system, 20 epochs: every epoch's cost and the final
+        // weights agree to 1e-9 whether JᵀJ comes by blocks or from the whole Jacobian.
+        let net = Mlp::nguyen_widrow(&[5, 8, 6, 2], 3);
+        let (x, t) = random_rows(700, (5, 2), 12);
+        let cfg = LmConfig {
+            max_iterations: 20,
+            ..LmConfig::TRAINLM
+        };
+        let fit = |whole_jacobian| Fit {
+            net: &net,
+            x: refs(&x),
+            t: refs(&t),
+            acts: Vec::new(),
+            inputs: None,
+            whole_jacobian,
+        };
+        let mut costs = [Vec::new(), Vec::new()];
+        let blocked = minimize(&mut fit(false), &net.params, &cfg, |p| {
+            costs[0].push(p.cost);
+            Control::Continue
+        });
+        let dense = minimize(&mut fit(true), &net.params, &cfg, |p| {
+            costs[1].push(p.cost);
+            Control::Continue
+        });
+        assert_eq!(blocked.iterations, dense.iterations);
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-300);
+        for (e, (a, b)) in costs[0].iter().zip(&costs[1]).enumerate() {
+            assert!(close(*a, *b), "epoch {e}: cost {a} vs {b}");
+        }
+        for (a, b) in blocked.params.iter().zip(&dense.params) {
+            assert!((a - b).abs() <= 1e-9 * (1.0 + a.abs()), "weight {a} vs {b}");
+        }
+        let br_b =
+            crate::br::minimize_br(&mut fit(false), &net.params, &cfg, |_| Control::Continue);
+        let br_d = crate::br::minimize_br(&mut fit(true), &net.params, &cfg, |_| Control::Continue);
+        assert!(
+            close(br_b.lm.cost, br_d.lm.cost),
+            "{} vs {}",
+            br_b.lm.cost,
+            br_d.lm.cost
+        );
+        assert!(close(br_b.evidence.gamma, br_d.evidence.gamma));
     }
 
     #[test]

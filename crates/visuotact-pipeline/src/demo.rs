@@ -144,6 +144,8 @@ pub struct IatsDemo {
     pub paper_distance_mm: (f64, f64),
     /// The paper's network's mean depth error, mm.
     pub paper_depth_mm: f64,
+    /// The default's random touches: actual and estimated (x, y, depth), mm.
+    pub random_points: Vec<([f64; 3], [f64; 3])>,
 }
 
 /// The best network of a 1..40-neuron sweep.
@@ -159,6 +161,8 @@ pub struct SweepBest {
     pub test_mse: f64,
     /// The sweep's time, s.
     pub secs: f64,
+    /// (hidden neurons, mean test MSE, best test MSE) per size: the sweep figure.
+    pub curve: Vec<(f64, f64, f64)>,
 }
 
 /// One row of Table 5.1: a model, its inputs, its errors on a press.
@@ -170,6 +174,8 @@ pub struct ConeRow {
     pub inputs: &'static str,
     /// Force errors.
     pub errors: TargetErrors,
+    /// Actual and estimated force per frame, N.
+    pub points: Vec<(f64, f64)>,
 }
 
 /// Seed 001's experiment.
@@ -400,6 +406,7 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
         paper_frames: 0,
         paper_distance_mm: (0.0, 0.0),
         paper_depth_mm: 0.0,
+        random_points: Vec::new(),
     };
     iats_table3(a, &cal, &columns, &mut demo)?;
     iats_random(a, &cal, &columns, &mut demo)?;
@@ -467,6 +474,7 @@ fn iats_random(
     let (mut est, mut tru): ([Vec<f64>; 3], [Vec<f64>; 3]) = Default::default();
     let (mut dist, mut spreads) = (Vec::new(), Vec::new());
     let (mut paper_d, mut paper_depth) = (Vec::new(), Vec::new());
+    let mut points = Vec::new();
     for (f, touch) in ft.iter().zip(&test) {
         let truth = [touch.x_mm, touch.y_mm, touch.depth_mm];
         if let Some(m) = complete_markers(f) {
@@ -481,6 +489,7 @@ fn iats_random(
             est[j].push(e.values[j]);
             tru[j].push(truth[j]);
         }
+        points.push((truth, [e.values[0], e.values[1], e.values[2]]));
         dist.push((e.values[0] - truth[0]).hypot(e.values[1] - truth[1]));
         spreads.push(e.spread);
     }
@@ -499,6 +508,7 @@ fn iats_random(
     demo.paper_frames = paper_d.len();
     demo.paper_distance_mm = mean_max(&paper_d);
     demo.paper_depth_mm = mean_max(&paper_depth).0;
+    demo.random_points = points;
     Ok(())
 }
 
@@ -563,13 +573,14 @@ fn cone_press(
     })
 }
 
-/// A model's force errors over frames whose rows have the columns `names`.
+/// A model's force errors over frames whose rows have the columns `names`, and its (actual,
+/// estimated) forces.
 fn errors_on(
     model: &Model,
     names: &[String],
     frames: &ConeFrames,
     gauge: bool,
-) -> Result<TargetErrors, DemoError> {
+) -> Result<(TargetErrors, Vec<(f64, f64)>), DemoError> {
     let pick = inputs_of_rows(model, names)?;
     let feats = if gauge {
         &frames.with_gauge
@@ -583,7 +594,8 @@ fn errors_on(
             tru.push(l.force_n);
         }
     }
-    Ok(target_errors("force_n", &est, &tru))
+    let points = tru.iter().copied().zip(est.iter().copied()).collect();
+    Ok((target_errors("force_n", &est, &tru), points))
 }
 
 /// Seed 001's own protocol: 1..40 neurons × `repeats`, the best net kept (lowest test MSE).
@@ -592,7 +604,7 @@ fn best_of_sweep(
     (x, t): (&[Vec<f64>], &[Vec<f64>]),
     columns: &[String],
     repeats: u64,
-) -> Result<(Model, usize, f64), DemoError> {
+) -> Result<(Model, usize, f64, SweepCurve), DemoError> {
     let t_sweep = Instant::now();
     let runs: Vec<(Model, usize)> = (1..=40usize)
         .flat_map(|h| (0..repeats).map(move |r| (h, r)))
@@ -603,6 +615,21 @@ fn best_of_sweep(
             train(x, t, columns, &["force_n"], &cfg, &[]).map(|f| (f.model, h))
         })
         .collect::<Result<_, _>>()?;
+    let curve = (1..=40usize)
+        .map(|h| {
+            let mse: Vec<f64> = runs
+                .iter()
+                .filter(|r| r.1 == h)
+                .map(|r| r.0.training.mse[2][0])
+                .collect();
+            let best = mse.iter().copied().fold(f64::INFINITY, f64::min);
+            (
+                h as f64,
+                mse.iter().sum::<f64>() / mse.len().max(1) as f64,
+                best,
+            )
+        })
+        .collect();
     let (best, h) = runs
         .into_iter()
         .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))
@@ -611,8 +638,11 @@ fn best_of_sweep(
             inputs: columns.len(),
             targets: 1,
         })?;
-    Ok((best, h, t_sweep.elapsed().as_secs_f64()))
+    Ok((best, h, t_sweep.elapsed().as_secs_f64(), curve))
 }
+
+/// (hidden neurons, mean test MSE, best test MSE) per size of a sweep.
+type SweepCurve = Vec<(f64, f64, f64)>;
 
 /// Seed 001's experiment: one press trains, a later press in another state of the link tests.
 pub fn cone(a: &DemoConfig) -> Result<ConeDemo, DemoError> {
@@ -674,8 +704,9 @@ fn cone_table(
     let (dgc, sets_g) = default_config(gauge_columns, a.seed);
     let default_g = train(&xg, &tg, gauge_columns, &force, &dgc, &sets_g)?.model;
     let repeats: u64 = if a.quick { 2 } else { 5 };
-    let (best, best_h, sweep_s) = best_of_sweep(a, (&x, &t), columns, repeats)?;
-    let (best_g, best_gh, sweep_gs) = best_of_sweep(a, (&xg, &tg), gauge_columns, repeats)?;
+    let (best, best_h, sweep_s, curve) = best_of_sweep(a, (&x, &t), columns, repeats)?;
+    let (best_g, best_gh, sweep_gs, curve_g) =
+        best_of_sweep(a, (&xg, &tg), gauge_columns, repeats)?;
     let sweeps = vec![
         SweepBest {
             inputs: "rings",
@@ -683,6 +714,7 @@ fn cone_table(
             hidden: best_h,
             test_mse: best.training.mse[2][0],
             secs: sweep_s,
+            curve,
         },
         SweepBest {
             inputs: "rings + gauge",
@@ -690,6 +722,7 @@ fn cone_table(
             hidden: best_gh,
             test_mse: best_g.training.mse[2][0],
             secs: sweep_gs,
+            curve: curve_g,
         },
     ];
     let own = "best of sweep, over its own press (paper's way)";
@@ -702,10 +735,12 @@ fn cone_table(
     let row = |what: &str, inputs, m: &Model, frames: &ConeFrames| {
         let gauge = inputs == "rings + gauge";
         let names = if gauge { gauge_columns } else { columns };
+        let (errors, points) = errors_on(m, names, frames, gauge)?;
         Ok::<_, DemoError>(ConeRow {
             what: what.to_string(),
             inputs,
-            errors: errors_on(m, names, frames, gauge)?,
+            errors,
+            points,
         })
     };
     let one_later = row(

@@ -11,6 +11,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 pub mod figures;
+pub mod html;
+pub mod pages;
 pub mod tables;
 
 /// Why a figure could not be drawn or written.

@@ -1,9 +1,11 @@
 //! `visuotact demo`: both source documents' experiments end to end on the simulator
 //! ([`visuotact_pipeline::demo`]), printed beside the papers' numbers.
 
+use std::path::PathBuf;
 use std::time::Instant;
 
 use visuotact_pipeline::demo::{self, DemoConfig};
+use visuotact_report::pages::{demo_page, RunInfo};
 use visuotact_report::tables::{cone_text, iats_text};
 
 #[derive(clap::Args, Debug)]
@@ -14,6 +16,10 @@ pub(crate) struct Args {
     /// Seed of the simulation, the splits and the weights.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Also write one self-contained HTML page (readable offline): every table beside the
+    /// papers', the regression plots, the contact map, the sweep figures, settings and timings.
+    #[arg(long, value_name = "FILE.html")]
+    report: Option<PathBuf>,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -23,9 +29,46 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         seed: a.seed,
     };
     println!("== Seed 000: image-based areal touch sensor (117 markers, 60 × 45 mm) ==");
-    print!("{}", iats_text(&demo::iats(&cfg)?));
+    let iats = demo::iats(&cfg)?;
+    let iats_s = t_all.elapsed().as_secs_f64();
+    print!("{}", iats_text(&iats));
     println!("\n== Seed 001: inflatable link (cone, three annuli, JR3 force) ==");
-    print!("{}", cone_text(&demo::cone(&cfg)?));
-    println!("\ndemo finished in {:.0} s", t_all.elapsed().as_secs_f64());
+    let cone = demo::cone(&cfg)?;
+    print!("{}", cone_text(&cone));
+    let total_s = t_all.elapsed().as_secs_f64();
+    println!("\ndemo finished in {total_s:.0} s");
+    if let Some(path) = &a.report {
+        let run = RunInfo {
+            settings: vec![
+                (
+                    "command".into(),
+                    std::env::args().collect::<Vec<_>>().join(" "),
+                ),
+                ("version".into(), env!("CARGO_PKG_VERSION").into()),
+                ("quick".into(), a.quick.to_string()),
+                ("seed".into(), a.seed.to_string()),
+                ("threads".into(), rayon::current_num_threads().to_string()),
+            ],
+            timings_s: vec![
+                ("seed 000: simulate and calibrate".into(), iats.setup_s),
+                ("seed 000: paper's network".into(), iats.paper.train_s),
+                ("seed 000: default".into(), iats.default.train_s),
+                ("seed 000 in all".into(), iats_s),
+                ("seed 001: one 6 → 20 → 1".into(), cone.one_network.train_s),
+                (
+                    "seed 001: sweep, rings".into(),
+                    cone.sweeps.first().map_or(0.0, |s| s.secs),
+                ),
+                (
+                    "seed 001: sweep, rings + gauge".into(),
+                    cone.sweeps.get(1).map_or(0.0, |s| s.secs),
+                ),
+                ("seed 001 in all".into(), total_s - iats_s),
+                ("demo".into(), total_s),
+            ],
+        };
+        demo_page(&iats, &cone, &run)?.write(path)?;
+        eprintln!("wrote {}", path.display());
+    }
     Ok(())
 }

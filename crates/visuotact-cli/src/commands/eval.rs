@@ -22,6 +22,10 @@ pub(crate) struct Args {
     /// (`x_mm`, `y_mm`), joined, circle size ∝ depth (`depth_mm`, when present); SVG or PNG.
     #[arg(long, value_name = "FILE.svg|FILE.png")]
     map: Option<PathBuf>,
+    /// Also write one self-contained HTML page (readable offline): the error table, the
+    /// regression plot and the contact map.
+    #[arg(long, value_name = "FILE.html")]
+    report: Option<PathBuf>,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -31,5 +35,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         a.json,
         a.plot.as_deref(),
         a.map.as_deref(),
+        a.report.as_deref(),
     )
 }

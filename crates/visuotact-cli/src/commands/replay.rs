@@ -75,7 +75,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .or_else(|| done.session.map(|s| s.join("labels.csv")))
         .filter(|p| p.is_file());
     if let Some(l) = labels {
-        crate::print::evaluation(&a.output, &l, false, None, None)?;
+        crate::print::evaluation(&a.output, &l, false, None, None, None)?;
     }
     Ok(())
 }

@@ -81,14 +81,18 @@ fn check_memory(
     base: &FitConfig,
     sizes: (usize, usize, usize),
 ) -> anyhow::Result<()> {
+    let mut most = 0;
     for hidden in archs {
         let cfg = FitConfig {
             hidden: hidden.clone(),
             ensemble: rayon::current_num_threads(),
             ..base.clone()
         };
-        a.algorithm.check_memory(sizes, &cfg)?;
+        most = most.max(a.algorithm.check_memory(sizes, &cfg)?);
     }
+    let at_once = rayon::current_num_threads();
+    let what = format!("the largest architecture's trainings, {at_once} at once, need");
+    crate::print::memory(&what, most);
     Ok(())
 }
 

@@ -89,8 +89,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         targets: &targets,
     };
     let widest = sets.iter().map(InputSet::network_inputs).max().unwrap_or(0);
-    a.algorithm
+    let need = a
+        .algorithm
         .check_memory((widest, x.len(), targets.len()), &cfg)?;
+    crate::print::memory("this training needs", need);
     for c in data.constant_targets() {
         eprintln!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
     }
