@@ -708,7 +708,11 @@ fn contact_map_of_literal_tables() {
     let html = std::fs::read_to_string(&report).unwrap();
     assert!(html.contains("<td>x_mm</td><td>2</td>"), "{html}");
     assert!(html.contains("Contact distance D (x, y): mean 3.000 mm, max 5.000 mm."));
-    assert_eq!(html.matches("<svg").count(), 2, "regression plot and contact map");
+    assert_eq!(
+        html.matches("<svg").count(),
+        2,
+        "regression plot and contact map"
+    );
     assert!(!html.contains("src=") && !html.contains("href="));
     // Without positions there is nothing to map.
     std::fs::write(&p, "frame,force_n\na,1\n").unwrap();

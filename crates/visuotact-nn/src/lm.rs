@@ -90,6 +90,8 @@ pub(crate) struct DampedSolver {
     gram_diag: Vec<f64>,
     /// `G[j + d, j]` for `d` in `1..=BAND` at `band[j * BAND + d − 1]`.
     band: Vec<f64>,
+    /// The lower triangle still holds the kept Gram matrix (no trial has factorised it yet).
+    lower_is_gram: bool,
     scratch: MemBuffer,
     par: faer::Par,
     /// Systems solved by the LU fallback.
@@ -109,6 +111,7 @@ impl DampedSolver {
             a: Mat::<f64>::zeros(k, k),
             gram_diag: vec![0.0; k],
             band: vec![0.0; k * BAND],
+            lower_is_gram: false,
             scratch: MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
                 k,
                 par,
@@ -134,6 +137,7 @@ impl DampedSolver {
             let col = &self.a.col_as_slice(j)[j + 1..(j + 1 + BAND).min(k)];
             self.band[j * BAND..j * BAND + col.len()].copy_from_slice(col);
         }
+        self.lower_is_gram = true;
     }
 
     /// The kept Gram matrix's diagonal.
@@ -149,9 +153,17 @@ impl DampedSolver {
     }
 
     /// The lower triangle back to `G + diag(shift)` from the kept copy.
+    /// (The first trial after [`DampedSolver::keep_gram`] finds it there and sets only the
+    /// diagonal.)
     fn restore(&mut self, shift: impl Fn(usize) -> f64) {
-        mirror_triangle(self.a.as_mut(), true);
         let k = self.a.nrows();
+        if std::mem::take(&mut self.lower_is_gram) {
+            for j in 0..k {
+                self.a[(j, j)] = self.gram_diag[j] + shift(j);
+            }
+            return;
+        }
+        mirror_triangle(self.a.as_mut(), true);
         for j in 0..k {
             self.a[(j, j)] = self.gram_diag[j] + shift(j);
             let end = (j + 1 + BAND).min(k);

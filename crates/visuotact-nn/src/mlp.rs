@@ -390,6 +390,47 @@ impl<'a> NormalBlock<'a> {
 /// A layer's inputs with the column of ones, and the lower triangle of their Gram matrix.
 type SharedGram = (Arc<Mat<f64>>, Arc<Mat<f64>>);
 
+/// `o[i] (=|+=) dd[i] · aa[sample of row c + i − sample of row c]` for residual rows from
+/// `c` down, `K` rows per sample (the first sample possibly partial): the Hadamard product of
+/// one column of `D Dᵀ` with the samples' Gram column, expanded to residuals.
+fn hadamard_rows<const K: usize>(o: &mut [f64], dd: &[f64], aa: &[f64], c: usize, first: bool) {
+    // The rest of row c's sample, then whole samples.
+    let head = (K - c % K) % K;
+    let head = head.min(o.len());
+    let (o_head, o_rest) = o.split_at_mut(head);
+    let (d_head, d_rest) = dd.split_at(head);
+    let mut s = 0;
+    if !c.is_multiple_of(K) {
+        for (x, &d) in o_head.iter_mut().zip(d_head) {
+            *x = if first { d * aa[0] } else { *x + d * aa[0] };
+        }
+        s = 1;
+    }
+    let whole = o_rest.len() / K;
+    let mut oc = o_rest.chunks_exact_mut(K);
+    let mut dc = d_rest.chunks_exact(K);
+    for ((ox, dx), &f) in (&mut oc).zip(&mut dc).zip(&aa[s..]) {
+        for i in 0..K {
+            ox[i] = if first { dx[i] * f } else { ox[i] + dx[i] * f };
+        }
+    }
+    let (o_tail, d_tail) = (oc.into_remainder(), dc.remainder());
+    if !o_tail.is_empty() {
+        let f = aa[s + whole];
+        for (x, &d) in o_tail.iter_mut().zip(d_tail) {
+            *x = if first { d * f } else { *x + d * f };
+        }
+    }
+}
+
+/// [`hadamard_rows`] for any number of outputs per sample.
+fn hadamard_rows_any(o: &mut [f64], dd: &[f64], aa: &[f64], (c, k): (usize, usize), first: bool) {
+    for (i, (x, &d)) in o.iter_mut().zip(dd).enumerate() {
+        let f = aa[(c + i) / k - c / k];
+        *x = if first { d * f } else { *x + d * f };
+    }
+}
+
 /// One layer of a [`LayerJacobian`].
 struct LayerBlock {
     /// Sensitivity of each residual to the layer's pre-activations (n_residuals × n_out).
@@ -425,17 +466,21 @@ fn gram_rows_lower(a: &Mat<f64>) -> Mat<f64> {
 impl DualJacobian for LayerJacobian {
     fn gram_lower_into(&self, mut out: MatMut<'_, f64>) {
         use rayon::prelude::*;
-        // Columns in blocks: D_l D_lᵀ for one block of columns (rows from the block's first
-        // down) at a time, so no second n_residuals² matrix is made.
-        const BLOCK: usize = 128;
+        // Columns in blocks: every layer's D_l D_lᵀ for one block of columns (rows from the
+        // block's first down), then each column of the block summed over the layers while it
+        // is in cache — one pass over the n_residuals² matrix, no second one made.
+        const BLOCK: usize = 64;
         let m = self.layers.first().map_or(0, |b| b.d.nrows());
         let k = self.outputs.max(1);
         let par = faer::get_global_parallelism();
-        out.fill(0.0);
-        let mut dd = Mat::<f64>::zeros(m, BLOCK.min(m));
+        let mut dd: Vec<Mat<f64>> = self
+            .layers
+            .iter()
+            .map(|_| Mat::<f64>::zeros(m, BLOCK.min(m)))
+            .collect();
         for c0 in (0..m).step_by(BLOCK) {
             let (w, h) = (BLOCK.min(m - c0), m - c0);
-            for b in &self.layers {
+            for (b, dd) in self.layers.iter().zip(dd.iter_mut()) {
                 matmul::matmul(
                     dd.as_mut().submatrix_mut(0, 0, h, w),
                     Accum::Replace,
@@ -444,31 +489,32 @@ impl DualJacobian for LayerJacobian {
                     1.0,
                     par,
                 );
-                // out += dd ∘ (A Aᵀ)[s(r), s(c)] on and below the diagonal; the rows of one
-                // sample share the factor.
-                let (dd, aa) = (&dd, &*b.aa);
-                out.as_mut()
-                    .subcols_mut(c0, w)
-                    .par_col_iter_mut()
-                    .enumerate()
-                    .for_each(|(j, o_col)| {
-                        let c = c0 + j;
-                        let aa = aa.col_as_slice(c / k);
-                        let dd_col = &dd.col_as_slice(j)[..h];
-                        let mut o_col = o_col;
-                        let mut r = c;
-                        let mut s = c / k;
-                        while r < m {
-                            let end = ((s + 1) * k).min(m);
-                            let f = aa[s];
-                            for rr in r..end {
-                                o_col[rr] += dd_col[rr - c0] * f;
-                            }
-                            r = end;
-                            s += 1;
-                        }
-                    });
             }
+            // out = Σ_l dd_l ∘ (A_l A_lᵀ)[s(r), s(c)] on and below the diagonal; the rows of
+            // one sample share each factor.
+            let dd = &dd;
+            out.as_mut()
+                .subcols_mut(c0, w)
+                .par_col_iter_mut()
+                .enumerate()
+                .for_each(|(j, o_col)| {
+                    let c = c0 + j;
+                    let Some(o_col) = o_col.try_as_col_major_mut() else {
+                        return;
+                    };
+                    let o_col = &mut o_col.as_slice_mut()[c..];
+                    for (li, b) in self.layers.iter().enumerate() {
+                        let aa = &b.aa.col_as_slice(c / k)[c / k..];
+                        let dd_col = &dd[li].col_as_slice(j)[c - c0..h];
+                        let first = li == 0;
+                        match k {
+                            1 => hadamard_rows::<1>(o_col, dd_col, aa, c, first),
+                            2 => hadamard_rows::<2>(o_col, dd_col, aa, c, first),
+                            3 => hadamard_rows::<3>(o_col, dd_col, aa, c, first),
+                            _ => hadamard_rows_any(o_col, dd_col, aa, (c, k), first),
+                        }
+                    }
+                });
         }
     }
 
@@ -937,13 +983,21 @@ mod tests {
 
     #[test]
     fn layer_jacobian_products_equal_the_dense_jacobians() {
-        let net = Mlp::nguyen_widrow(&[4, 5, 3, 2], 3);
+        // Two, three (the rows of JJᵀ by whole samples) and four outputs (any count).
+        for sizes in [vec![4, 5, 3, 2], vec![4, 5, 3], vec![3, 6, 4]] {
+            layer_jacobian_products_equal_the_dense_ones(&sizes);
+        }
+    }
+
+    fn layer_jacobian_products_equal_the_dense_ones(sizes: &[usize]) {
+        let outputs = sizes[sizes.len() - 1];
+        let net = Mlp::nguyen_widrow(sizes, 3);
         let mut rng = ChaCha8Rng::seed_from_u64(8);
         let x: Rows = (0..7)
-            .map(|_| (0..4).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .map(|_| (0..sizes[0]).map(|_| rng.random_range(-1.0..1.0)).collect())
             .collect();
         let t: Rows = (0..7)
-            .map(|_| (0..2).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .map(|_| (0..outputs).map(|_| rng.random_range(-1.0..1.0)).collect())
             .collect();
         let mut fit = Fit {
             net: &net,
