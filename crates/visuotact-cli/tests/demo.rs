@@ -29,6 +29,9 @@ fn quick_demo_runs_both_experiments() {
         "calibrated 117 markers",
         "calibrated 2 rings",
         "inputs rings + gauge",
+        "Table 5.2 layout: visuotact | paper (with rotation)",
+        "2 layers, best of 1..20 × 1..20",
+        "paper: 1 hidden layer (74 neurons)",
     ] {
         assert!(out.contains(want), "missing {want:?} in\n{out}");
     }
@@ -77,7 +80,7 @@ fn report_opens_offline(report: &Path, printed: &str) {
         .find(|l| l.contains("best of sweep, over its own press"))
         .unwrap();
     assert!(html.contains(row.trim()), "report lacks {row:?}");
-    assert!(html.matches("<svg").count() >= 6, "figures missing");
+    assert!(html.matches("<svg").count() >= 12, "figures missing");
     for outside in ["<script", "<link", "src=", "href="] {
         assert!(!html.contains(outside), "the report refers to {outside}");
     }
@@ -118,7 +121,13 @@ fn report_opens_offline(report: &Path, printed: &str) {
     };
     let dom = browser(&["--dump-dom"]);
     let dom = String::from_utf8_lossy(&dom.stdout);
-    for want in ["Table 3 layout", "Table 5.1 layout", "<svg", "<table"] {
+    for want in [
+        "Table 3 layout",
+        "Table 5.1 layout",
+        "Table 5.2 layout",
+        "<svg",
+        "<table",
+    ] {
         assert!(dom.contains(want), "Chromium's DOM lacks {want:?}");
     }
     let arg = format!("--screenshot={}", shot.display());

@@ -148,20 +148,21 @@ pub struct IatsDemo {
     pub random_points: Vec<([f64; 3], [f64; 3])>,
 }
 
-/// The best network of a 1..40-neuron sweep.
+/// The best network of a sweep of architectures.
 #[derive(Clone, Debug)]
 pub struct SweepBest {
     /// Inputs, in words (`rings`, `rings + gauge`).
     pub inputs: &'static str,
     /// Number of inputs.
     pub n_inputs: usize,
-    /// Its hidden neurons.
-    pub hidden: usize,
+    /// Its hidden layers' neurons.
+    pub hidden: Vec<usize>,
     /// Its test MSE, N².
     pub test_mse: f64,
     /// The sweep's time, s.
     pub secs: f64,
-    /// (hidden neurons, mean test MSE, best test MSE) per size: the sweep figure.
+    /// (hidden neurons, mean test MSE, best test MSE) per size of a one-layer sweep: its
+    /// figure (empty for other sweeps).
     pub curve: Vec<(f64, f64, f64)>,
 }
 
@@ -598,39 +599,48 @@ fn errors_on(
     Ok((target_errors("force_n", &est, &tru), points))
 }
 
-/// Seed 001's own protocol: 1..40 neurons × `repeats`, the best net kept (lowest test MSE).
+/// A sweep's outcome: the best network, its hidden layers, the sweep's time (s), and each
+/// architecture's (hidden layers, mean test MSE, best test MSE) over its repeats.
+struct Swept {
+    best: Model,
+    hidden: Vec<usize>,
+    secs: f64,
+    per_arch: Vec<(Vec<usize>, f64, f64)>,
+}
+
+/// Seed 001's own protocol: every architecture of `archs` × `repeats` trainings, the best net
+/// kept (lowest test MSE).
 fn best_of_sweep(
     a: &DemoConfig,
     (x, t): (&[Vec<f64>], &[Vec<f64>]),
     columns: &[String],
-    repeats: u64,
-) -> Result<(Model, usize, f64, SweepCurve), DemoError> {
+    (archs, repeats): (&[Vec<usize>], u64),
+) -> Result<Swept, DemoError> {
     let t_sweep = Instant::now();
-    let runs: Vec<(Model, usize)> = (1..=40usize)
-        .flat_map(|h| (0..repeats).map(move |r| (h, r)))
+    let runs: Vec<(Model, usize)> = (0..archs.len())
+        .flat_map(|i| (0..repeats).map(move |r| (i, r)))
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|(h, r)| {
-            let cfg = paper_config(&[h], a.seed + 7919 * r);
-            train(x, t, columns, &["force_n"], &cfg, &[]).map(|f| (f.model, h))
+        .map(|(i, r)| {
+            let cfg = paper_config(&archs[i], a.seed + 7919 * r);
+            train(x, t, columns, &["force_n"], &cfg, &[]).map(|f| (f.model, i))
         })
         .collect::<Result<_, _>>()?;
-    let curve = (1..=40usize)
-        .map(|h| {
+    let per_arch = archs
+        .iter()
+        .enumerate()
+        .map(|(i, arch)| {
             let mse: Vec<f64> = runs
                 .iter()
-                .filter(|r| r.1 == h)
+                .filter(|r| r.1 == i)
                 .map(|r| r.0.training.mse[2][0])
                 .collect();
             let best = mse.iter().copied().fold(f64::INFINITY, f64::min);
-            (
-                h as f64,
-                mse.iter().sum::<f64>() / mse.len().max(1) as f64,
-                best,
-            )
+            let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
+            (arch.clone(), mean, best)
         })
         .collect();
-    let (best, h) = runs
+    let (best, i) = runs
         .into_iter()
         .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))
         .ok_or(FitError::Empty {
@@ -638,19 +648,49 @@ fn best_of_sweep(
             inputs: columns.len(),
             targets: 1,
         })?;
-    Ok((best, h, t_sweep.elapsed().as_secs_f64(), curve))
+    Ok(Swept {
+        best,
+        hidden: archs[i].clone(),
+        secs: t_sweep.elapsed().as_secs_f64(),
+        per_arch,
+    })
 }
 
-/// (hidden neurons, mean test MSE, best test MSE) per size of a sweep.
-type SweepCurve = Vec<(f64, f64, f64)>;
+/// One hidden layer of 1..=`most` neurons, every `step`-th size (and `most`).
+fn one_layer_archs(most: usize, step: usize) -> Vec<Vec<usize>> {
+    let mut sizes: Vec<usize> = (1..=most).step_by(step.max(1)).collect();
+    if sizes.last() != Some(&most) {
+        sizes.push(most);
+    }
+    sizes.into_iter().map(|h| vec![h]).collect()
+}
 
-/// Seed 001's experiment: one press trains, a later press in another state of the link tests.
-pub fn cone(a: &DemoConfig) -> Result<ConeDemo, DemoError> {
+impl Swept {
+    /// (hidden neurons, mean test MSE, best test MSE) per size of a one-layer sweep.
+    fn curve(&self) -> Vec<(f64, f64, f64)> {
+        self.per_arch
+            .iter()
+            .map(|(h, mean, best)| (h[0] as f64, *mean, *best))
+            .collect()
+    }
+
+    fn summary(&self, inputs: &'static str, n_inputs: usize) -> SweepBest {
+        SweepBest {
+            inputs,
+            n_inputs,
+            hidden: self.hidden.clone(),
+            test_mse: self.best.training.mse[2][0],
+            secs: self.secs,
+            curve: self.curve(),
+        }
+    }
+}
+
+/// The cone calibrated on five rest frames, and its columns without and with the gauge.
+fn cone_calibration(
+    a: &DemoConfig,
+) -> Result<(SensorCalibration, Vec<String>, Vec<String>), DemoError> {
     let cfg = ConeConfig::SEED001;
-    let press = ConePress {
-        duration_s: if a.quick { 10.0 } else { 20.0 },
-        ..ConePress::SEED001
-    };
     let rest: Vec<RgbImage> = (0..5)
         .map(|k| {
             let load = ConeLoad::none(cfg.pressure_kpa);
@@ -671,12 +711,22 @@ pub fn cone(a: &DemoConfig) -> Result<ConeDemo, DemoError> {
             ..Default::default()
         },
     )?;
-    // Two presses: one to train on, one (later, the link softer) to test.
-    let first = cone_press(a, &cal, &press, 0.0, 210_000)?;
-    let later = cone_press(a, &cal, &press, press.duration_s + 5.0, 220_000)?;
     let mut columns = FeatureExtractor::new(cal.clone(), FeatureSet::CONE)?.column_names();
     columns.truncate(columns.len() - FIELD_COLUMNS.len());
     let gauge_columns = [&columns[..], &["gauge_kpa".to_string()]].concat();
+    Ok((cal, columns, gauge_columns))
+}
+
+/// Seed 001's experiment: one press trains, a later press in another state of the link tests.
+pub fn cone(a: &DemoConfig) -> Result<ConeDemo, DemoError> {
+    let press = ConePress {
+        duration_s: if a.quick { 10.0 } else { 20.0 },
+        ..ConePress::SEED001
+    };
+    let (cal, columns, gauge_columns) = cone_calibration(a)?;
+    // Two presses: one to train on, one (later, the link softer) to test.
+    let first = cone_press(a, &cal, &press, 0.0, 210_000)?;
+    let later = cone_press(a, &cal, &press, press.duration_s + 5.0, 220_000)?;
     cone_table(
         a,
         cal.markers.len(),
@@ -685,6 +735,93 @@ pub fn cone(a: &DemoConfig) -> Result<ConeDemo, DemoError> {
         &first,
         &later,
     )
+}
+
+/// The best two-layer network of a 1..n × 1..n sweep.
+#[derive(Clone, Debug)]
+pub struct SurfaceBest {
+    /// The sweep's best network and time.
+    pub best: SweepBest,
+    /// (first layer, second layer, mean test MSE) per architecture: the surface figure.
+    pub cells: Vec<(usize, usize, f64)>,
+}
+
+/// Seed 001's experiment with rotation (Table 5.2): the force turns once about the link's
+/// axis during each press.
+#[derive(Clone, Debug)]
+pub struct RotationDemo {
+    /// Frames trained on.
+    pub train_frames: usize,
+    /// Repeats per architecture.
+    pub repeats: u64,
+    /// The one-layer sweeps (1..100 neurons; every size in the full run), rings and rings +
+    /// gauge.
+    pub one_layer: Vec<SweepBest>,
+    /// The two-layer sweeps (1..20 × 1..20), rings and rings + gauge.
+    pub two_layer: Vec<SurfaceBest>,
+    /// Table 5.2's rows.
+    pub rows: Vec<ConeRow>,
+}
+
+/// Seed 001's press with rotation: a one-layer sweep of 1..100 neurons and a two-layer sweep
+/// of 1..20 × 1..20, with and without the gauge, the best of each over its own press (the
+/// paper's way) and on a later press.
+pub fn cone_rotation(a: &DemoConfig) -> Result<RotationDemo, DemoError> {
+    let press = ConePress {
+        duration_s: if a.quick { 10.0 } else { 20.0 },
+        rotate: true,
+        ..ConePress::SEED001
+    };
+    let (cal, columns, gauge_columns) = cone_calibration(a)?;
+    let first = cone_press(a, &cal, &press, 0.0, 230_000)?;
+    let later = cone_press(a, &cal, &press, press.duration_s + 5.0, 240_000)?;
+    // The full run sweeps as the paper did; the quick one every few sizes, once each.
+    let (step1, step2, repeats): (usize, usize, u64) = if a.quick { (9, 4, 1) } else { (1, 1, 2) };
+    let one = one_layer_archs(100, step1);
+    let sizes2: Vec<usize> = (1..=20).step_by(step2).collect();
+    let two: Vec<Vec<usize>> = sizes2
+        .iter()
+        .flat_map(|&h1| sizes2.iter().map(move |&h2| vec![h1, h2]))
+        .collect();
+    let mut demo = RotationDemo {
+        train_frames: 0,
+        repeats,
+        one_layer: Vec::new(),
+        two_layer: Vec::new(),
+        rows: Vec::new(),
+    };
+    for (inputs, names) in [("rings", &columns), ("rings + gauge", &gauge_columns)] {
+        let gauge = inputs == "rings + gauge";
+        let (x, t) = first.rows(gauge);
+        demo.train_frames = x.len();
+        let s1 = best_of_sweep(a, (&x, &t), names, (&one, repeats))?;
+        let s2 = best_of_sweep(a, (&x, &t), names, (&two, repeats))?;
+        for (what, sw) in [
+            ("1 layer, best of 1..100", &s1),
+            ("2 layers, best of 1..20 × 1..20", &s2),
+        ] {
+            for (when, frames) in [("own press", &first), ("later press", &later)] {
+                let (errors, points) = errors_on(&sw.best, names, frames, gauge)?;
+                let hidden: Vec<String> = sw.hidden.iter().map(ToString::to_string).collect();
+                demo.rows.push(ConeRow {
+                    what: format!("{what} ({}), {when}", hidden.join("-")),
+                    inputs,
+                    errors,
+                    points,
+                });
+            }
+        }
+        demo.one_layer.push(s1.summary(inputs, names.len()));
+        let cells = s2
+            .per_arch
+            .iter()
+            .map(|(h, mean, _)| (h[0], h[1], *mean))
+            .collect();
+        let mut best = s2.summary(inputs, names.len());
+        best.curve.clear();
+        demo.two_layer.push(SurfaceBest { best, cells });
+    }
+    Ok(demo)
 }
 
 /// Trains the cone's models and fills Table 5.1.
@@ -704,26 +841,13 @@ fn cone_table(
     let (dgc, sets_g) = default_config(gauge_columns, a.seed);
     let default_g = train(&xg, &tg, gauge_columns, &force, &dgc, &sets_g)?.model;
     let repeats: u64 = if a.quick { 2 } else { 5 };
-    let (best, best_h, sweep_s, curve) = best_of_sweep(a, (&x, &t), columns, repeats)?;
-    let (best_g, best_gh, sweep_gs, curve_g) =
-        best_of_sweep(a, (&xg, &tg), gauge_columns, repeats)?;
+    let archs = one_layer_archs(40, 1);
+    let sw = best_of_sweep(a, (&x, &t), columns, (&archs, repeats))?;
+    let sw_g = best_of_sweep(a, (&xg, &tg), gauge_columns, (&archs, repeats))?;
+    let (best, best_g) = (&sw.best, &sw_g.best);
     let sweeps = vec![
-        SweepBest {
-            inputs: "rings",
-            n_inputs: columns.len(),
-            hidden: best_h,
-            test_mse: best.training.mse[2][0],
-            secs: sweep_s,
-            curve,
-        },
-        SweepBest {
-            inputs: "rings + gauge",
-            n_inputs: gauge_columns.len(),
-            hidden: best_gh,
-            test_mse: best_g.training.mse[2][0],
-            secs: sweep_gs,
-            curve: curve_g,
-        },
+        sw.summary("rings", columns.len()),
+        sw_g.summary("rings + gauge", gauge_columns.len()),
     ];
     let own = "best of sweep, over its own press (paper's way)";
     let unseen = "best of sweep, on a later press (unseen)";
@@ -750,12 +874,12 @@ fn cone_table(
         later,
     )?;
     let rows = vec![
-        row(own, "rings", &best, first)?,
-        row(unseen, "rings", &best, later)?,
+        row(own, "rings", best, first)?,
+        row(unseen, "rings", best, later)?,
         one_later.clone(),
         row(&default_row, "rings", &default, later)?,
-        row(own, "rings + gauge", &best_g, first)?,
-        row(unseen, "rings + gauge", &best_g, later)?,
+        row(own, "rings + gauge", best_g, first)?,
+        row(unseen, "rings + gauge", best_g, later)?,
         row(&default_row, "rings + gauge", &default_g, later)?,
     ];
     Ok(ConeDemo {

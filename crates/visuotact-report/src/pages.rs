@@ -4,12 +4,12 @@
 //! the regression plot and the contact map of one evaluation).
 
 use visuotact_nn::metrics::{TargetErrors, MPE_FLOOR_FRACTION};
-use visuotact_pipeline::demo::{ConeDemo, IatsDemo};
+use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo};
 use visuotact_pipeline::evaluation::Evaluation;
 
-use crate::figures::{ContactMap, Panel, PerformancePlot, RegressionPlot};
+use crate::figures::{ContactMap, Panel, PerformancePlot, RegressionPlot, SweepSurface};
 use crate::html::Page;
-use crate::tables::{cone_text, iats_text};
+use crate::tables::{cone_text, iats_text, rotation_text};
 use crate::ReportError;
 
 /// What a run was asked and how long its parts took, for the page's last section.
@@ -81,8 +81,68 @@ fn run_section(page: &mut Page, run: &RunInfo) {
     page.table("timings", &["part", "seconds"], &timings);
 }
 
+/// Regression plots of a force table's rows, two per figure.
+fn force_regressions(page: &mut Page, table: &str, rows: &[ConeRow]) -> Result<(), ReportError> {
+    let panels: Vec<Panel> = rows
+        .iter()
+        .map(|r| {
+            let name = format!("{} [{}]", r.what, r.inputs);
+            (name, r.points.clone(), r.errors.r)
+        })
+        .collect();
+    for (k, chunk) in panels.chunks(2).enumerate() {
+        page.figure(
+            &format!(
+                "Regression of the force (N), {table} rows {}–{}",
+                2 * k + 1,
+                2 * k + chunk.len()
+            ),
+            &RegressionPlot(chunk),
+        )?;
+    }
+    Ok(())
+}
+
+/// Seed 001 with rotation: Table 5.2, the sweeps' figures (Figs. 4.11 and 4.13) and the rows'
+/// regressions.
+fn rotation_section(page: &mut Page, d: &RotationDemo) -> Result<(), ReportError> {
+    page.heading(3, "With rotation: Table 5.2, beside the paper");
+    page.preformatted(&rotation_text(d));
+    for s in &d.one_layer {
+        page.figure(
+            &format!(
+                "With rotation, one hidden layer of 1..100 neurons × {} trainings, inputs {} \
+                 (seed 001 Fig. 4.11): mean and best test MSE (N²); best {} neurons",
+                d.repeats, s.inputs, s.hidden[0]
+            ),
+            &PerformancePlot {
+                points: &s.curve,
+                targets: &["force_n".to_string()],
+            },
+        )?;
+    }
+    for s in &d.two_layer {
+        page.figure(
+            &format!(
+                "With rotation, two hidden layers of 1..20 × 1..20 neurons, inputs {} (seed 001 \
+                 Fig. 4.13 seen from above): mean test MSE (N²), the best cell ringed",
+                s.best.inputs
+            ),
+            &SweepSurface {
+                cells: &s.cells,
+                targets: &["force_n".to_string()],
+            },
+        )?;
+    }
+    force_regressions(page, "Table 5.2", &d.rows)
+}
+
 /// `visuotact demo --report`: both experiments, their tables beside the papers', and figures.
-pub fn demo_page(iats: &IatsDemo, cone: &ConeDemo, run: &RunInfo) -> Result<Page, ReportError> {
+pub fn demo_page(
+    iats: &IatsDemo,
+    (cone, rotation): (&ConeDemo, &RotationDemo),
+    run: &RunInfo,
+) -> Result<Page, ReportError> {
     let mut page = Page::new("visuotact demo — both source documents' experiments");
     page.paragraph(
         "Everything below was measured in this run on the simulator (no hardware): each table \
@@ -125,7 +185,7 @@ pub fn demo_page(iats: &IatsDemo, cone: &ConeDemo, run: &RunInfo) -> Result<Page
             &format!(
                 "Sweep of 1..40 hidden neurons × {} trainings, inputs {} (seed 001 Fig. 4.8): \
                  mean and best test MSE (N²); best {} neurons, {:.1} s",
-                cone.repeats, s.inputs, s.hidden, s.secs
+                cone.repeats, s.inputs, s.hidden[0], s.secs
             ),
             &PerformancePlot {
                 points: &s.curve,
@@ -133,24 +193,8 @@ pub fn demo_page(iats: &IatsDemo, cone: &ConeDemo, run: &RunInfo) -> Result<Page
             },
         )?;
     }
-    let panels: Vec<Panel> = cone
-        .rows
-        .iter()
-        .map(|r| {
-            let name = format!("{} [{}]", r.what, r.inputs);
-            (name, r.points.clone(), r.errors.r)
-        })
-        .collect();
-    for (k, chunk) in panels.chunks(2).enumerate() {
-        page.figure(
-            &format!(
-                "Regression of the force (N), Table 5.1 rows {}–{}",
-                2 * k + 1,
-                2 * k + chunk.len()
-            ),
-            &RegressionPlot(chunk),
-        )?;
-    }
+    force_regressions(&mut page, "Table 5.1", &cone.rows)?;
+    rotation_section(&mut page, rotation)?;
     run_section(&mut page, run);
     Ok(page)
 }

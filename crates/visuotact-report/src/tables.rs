@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 
 use visuotact_nn::metrics::TargetErrors;
-use visuotact_pipeline::demo::{ConeDemo, IatsDemo};
+use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo, SweepBest};
 use visuotact_sim::protocol::PressureGauge;
 
 /// Seed 000's experiment: the trainings, Table 3 and the random touches beside the paper.
@@ -131,27 +131,24 @@ pub fn cone_text(d: &ConeDemo) -> String {
         d.rings, d.train_frames, d.one_network.model.training.epochs, d.one_network.train_s
     );
     for s in &d.sweeps {
-        let _ =
-            writeln!(out,
-            "sweep 1..40 neurons × {}, inputs {}, in {:.1} s: best {} → {} → 1 (test MSE {:.4})",
-            d.repeats, s.inputs, s.secs, s.n_inputs, s.hidden, s.test_mse
+        let _ = writeln!(
+            out,
+            "sweep 1..40 neurons × {}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
+            d.repeats,
+            s.inputs,
+            s.secs,
+            network(s),
+            s.test_mse
         );
     }
     let _ = writeln!(out,
-        "\nTable 5.1 layout: visuotact | paper (no rotation)\n  {:<48} {:<14} {:>8} {:>8} {:>8} {:>7}",
+        "\nTable 5.1 layout: visuotact | paper (no rotation)\n  {:<52} {:<14} {:>8} {:>8} {:>8} {:>7}",
         "", "inputs", "mean N", "max N", "MPE %", "R"
     );
-    for r in &d.rows {
-        let e = &r.errors;
-        let _ = writeln!(
-            out,
-            "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2} {:>7.5}",
-            r.what, r.inputs, e.mean_abs, e.max_abs, e.mean_percentage_error, e.r
-        );
-    }
+    force_rows(out, &d.rows);
     let _ = writeln!(
         out,
-        "  {:<48} {:<14} {:>8.3} {:>8.3} {:>8.2}",
+        "  {:<52} {:<14} {:>8.3} {:>8.3} {:>8.2}",
         "paper (best of sweep, Testing Model)", "rings", 0.051, 0.531, 1.25
     );
     let _ = writeln!(out,
@@ -164,5 +161,74 @@ pub fn cone_text(d: &ConeDemo) -> String {
         PressureGauge::SEED001.time_constant_s,
         PressureGauge::SEED001.noise_kpa
     );
+    text
+}
+
+/// `6 → 74 → 1`: a sweep's best network.
+fn network(s: &SweepBest) -> String {
+    let hidden: Vec<String> = s.hidden.iter().map(ToString::to_string).collect();
+    format!("{} → {} → 1", s.n_inputs, hidden.join(" → "))
+}
+
+/// Rows of a force table: what, inputs, mean and max |error|, MPE, R.
+fn force_rows(out: &mut String, rows: &[ConeRow]) {
+    for r in rows {
+        let e = &r.errors;
+        let _ = writeln!(
+            out,
+            "  {:<52} {:<14} {:>8.3} {:>8.3} {:>8.2} {:>7.5}",
+            r.what, r.inputs, e.mean_abs, e.max_abs, e.mean_percentage_error, e.r
+        );
+    }
+}
+
+/// Seed 001's experiment with rotation: the sweeps and Table 5.2 beside the paper.
+pub fn rotation_text(d: &RotationDemo) -> String {
+    let mut text = String::new();
+    let out = &mut text;
+    let _ = writeln!(
+        out,
+        "press with rotation (the force turns once about the axis); trained on {} frames",
+        d.train_frames
+    );
+    for s in &d.one_layer {
+        let _ = writeln!(
+            out,
+            "sweep 1..100 neurons ({} sizes) × {}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
+            s.curve.len(),
+            d.repeats,
+            s.inputs,
+            s.secs,
+            network(s),
+            s.test_mse
+        );
+    }
+    for s in &d.two_layer {
+        let _ = writeln!(
+            out,
+            "sweep 1..20 × 1..20 neurons ({} architectures) × {}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
+            s.cells.len(),
+            d.repeats,
+            s.best.inputs,
+            s.best.secs,
+            network(&s.best),
+            s.best.test_mse
+        );
+    }
+    let _ = writeln!(out,
+        "\nTable 5.2 layout: visuotact | paper (with rotation)\n  {:<52} {:<14} {:>8} {:>8} {:>8} {:>7}",
+        "", "inputs", "mean N", "max N", "MPE %", "R"
+    );
+    force_rows(out, &d.rows);
+    for (what, mean, max, mpe) in [
+        ("paper: 1 hidden layer (74 neurons)", 0.185, 0.902, 5.446),
+        ("paper: 2 hidden layers (16-1)", 0.255, 0.882, 7.094),
+    ] {
+        let _ = writeln!(
+            out,
+            "  {what:<52} {:<14} {mean:>8.3} {max:>8.3} {mpe:>8.2}",
+            "rings"
+        );
+    }
     text
 }
