@@ -2,7 +2,6 @@
 //! writes the HTML report, which headless Chromium opens offline.
 
 use std::path::Path;
-use std::process::{Command, Stdio};
 
 mod common;
 use common::*;
@@ -11,17 +10,10 @@ use common::*;
 fn quick_demo_runs_both_experiments() {
     let d = fresh_dir("demo-report");
     let report = d.join("report.html");
-    let o = Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(["demo", "--quick", "--report", s(&report)])
-        .output()
-        .unwrap();
+    let o = vt(&["demo", "--quick", "--report", s(&report)]);
+    ok(&o);
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success(),
-        "{out}\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    for want in [
+    let wants = [
         "Table 3 layout",
         "random touches (not in training)",
         "Table 5.1 layout",
@@ -32,9 +24,10 @@ fn quick_demo_runs_both_experiments() {
         "Table 5.2 layout: visuotact | paper (with rotation)",
         "2 layers, best of 1..20 × 1..20",
         "paper: 1 hidden layer (74 neurons)",
-    ] {
-        assert!(out.contains(want), "missing {want:?} in\n{out}");
-    }
+        "torque_nmm (rings + T)",
+        "torque_nmm (rings alone)",
+    ];
+    has_all(&out, &wants, "the printed demo");
     // The depth line: "depth: mean 0.247, max …": well under the 5 mm range even in the quick run.
     let depth_line = out
         .lines()
@@ -58,7 +51,28 @@ fn quick_demo_runs_both_experiments() {
         .unwrap();
     let r: f64 = r_line.split_whitespace().last().unwrap().parse().unwrap();
     assert!(r > 0.99, "{r_line}");
+    // Torque from the T: "torque_nmm (rings + T)   mean max MPE R", R last; the T is what
+    // carries it (the rings do not turn with the twist).
+    let r_of = |label: &str| -> f64 {
+        let line = out.lines().find(|l| l.contains(label)).unwrap();
+        line.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    let (with_t, rings) = (
+        r_of("torque_nmm (rings + T)"),
+        r_of("torque_nmm (rings alone)"),
+    );
+    assert!(
+        with_t > 0.99 && with_t > rings,
+        "torque R {with_t} with the T, {rings} without"
+    );
     report_opens_offline(&report, &out);
+}
+
+/// Every one of `wants` is in `text`.
+fn has_all(text: &str, wants: &[&str], what: &str) {
+    for want in wants {
+        assert!(text.contains(want), "{what} lacks {want:?}");
+    }
 }
 
 /// The report holds the printed tables and the figures, refers to nothing outside itself, and
@@ -84,54 +98,33 @@ fn report_opens_offline(report: &Path, printed: &str) {
     for outside in ["<script", "<link", "src=", "href="] {
         assert!(!html.contains(outside), "the report refers to {outside}");
     }
-    let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|c| {
-            Command::new(c)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-    else {
+    let Some(chromium) = chromium() else {
         eprintln!("skipped the browser check: no chromium (scripts/test installs Debian's)");
         return;
     };
     let dir = report.parent().unwrap();
-    let shot = dir.join("report.png");
+    let (shot, profile) = (dir.join("report.png"), dir.join("profile"));
     let url = format!("file://{}", report.display());
-    let browser = |extra: &[&str]| {
-        let profile = format!("--user-data-dir={}", dir.join("profile").display());
-        let mut args = vec![
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            profile.as_str(),
-        ];
-        args.extend_from_slice(extra);
-        args.push(&url);
-        Command::new(chromium)
-            .args(&args)
-            .stderr(Stdio::null())
-            .output()
-            .unwrap()
-    };
-    let dom = browser(&["--dump-dom"]);
+    let dom = headless(chromium, &profile, &["--dump-dom"], &url);
     let dom = String::from_utf8_lossy(&dom.stdout);
-    for want in [
-        "Table 3 layout",
-        "Table 5.1 layout",
-        "Table 5.2 layout",
-        "<svg",
-        "<table",
-    ] {
-        assert!(dom.contains(want), "Chromium's DOM lacks {want:?}");
-    }
+    has_all(
+        &dom,
+        &[
+            "Table 3 layout",
+            "Table 5.1 layout",
+            "Table 5.2 layout",
+            "<svg",
+            "<table",
+        ],
+        "Chromium's DOM",
+    );
     let arg = format!("--screenshot={}", shot.display());
-    browser(&[arg.as_str(), "--window-size=1280,2400", "--hide-scrollbars"]);
+    headless(
+        chromium,
+        &profile,
+        &[&arg, "--window-size=1280,2400", "--hide-scrollbars"],
+        &url,
+    );
     let img = image::open(&shot)
         .expect("Chromium wrote a screenshot")
         .to_rgb8();

@@ -186,40 +186,19 @@ fn gelsight_video_contact_only_during_the_press() {
 
 #[test]
 fn dashboard_in_headless_chromium() {
-    let Some(chromium) = ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|c| {
-            Command::new(c)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-    else {
+    let Some(chromium) = chromium() else {
         eprintln!("skipped: no chromium (scripts/test installs Debian's)");
         return;
     };
     let d = fresh_dir("run-dash");
     let m = iats_model(&d);
     let (mut child, _err, url) = serving(&m, &["--duration-s", "60"]);
-    let profile = d.join("profile");
-    let dom = Command::new(chromium)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            &format!("--user-data-dir={}", profile.display()),
-            "--virtual-time-budget=15000",
-            "--dump-dom",
-            &format!("{url}?selftest=1"),
-        ])
-        .stderr(Stdio::null())
-        .output()
-        .unwrap();
+    let dom = headless(
+        chromium,
+        &d.join("profile"),
+        &["--virtual-time-budget=15000", "--dump-dom"],
+        &format!("{url}?selftest=1"),
+    );
     let _ = child.kill();
     let _ = child.wait();
     let dom = String::from_utf8_lossy(&dom.stdout);

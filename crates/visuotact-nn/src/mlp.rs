@@ -992,21 +992,9 @@ mod tests {
     fn layer_jacobian_products_equal_the_dense_ones(sizes: &[usize]) {
         let outputs = sizes[sizes.len() - 1];
         let net = Mlp::nguyen_widrow(sizes, 3);
+        let (x, t) = random_rows(7, (sizes[0], outputs), 8);
         let mut rng = ChaCha8Rng::seed_from_u64(8);
-        let x: Rows = (0..7)
-            .map(|_| (0..sizes[0]).map(|_| rng.random_range(-1.0..1.0)).collect())
-            .collect();
-        let t: Rows = (0..7)
-            .map(|_| (0..outputs).map(|_| rng.random_range(-1.0..1.0)).collect())
-            .collect();
-        let mut fit = Fit {
-            net: &net,
-            x: refs(&x),
-            t: refs(&t),
-            acts: Vec::new(),
-            inputs: None,
-            whole_jacobian: false,
-        };
+        let mut fit = fit_of(&net, (&x, &t), false);
         let (m, n) = (fit.n_residuals(), fit.n_params());
         assert!(m < n, "the dual system applies");
         // Away from the initial weights, so that every layer's part is exercised.
@@ -1052,6 +1040,18 @@ mod tests {
         }
     }
 
+    /// The least-squares problem of `net` on `x` → `t`.
+    fn fit_of<'a>(net: &'a Mlp, (x, t): (&'a Rows, &'a Rows), whole_jacobian: bool) -> Fit<'a> {
+        Fit {
+            net,
+            x: refs(x),
+            t: refs(t),
+            acts: Vec::new(),
+            inputs: None,
+            whole_jacobian,
+        }
+    }
+
     /// Inputs and targets in ±1 from a seeded generator.
     fn random_rows(n: usize, (d_in, d_out): (usize, usize), seed: u64) -> (Rows, Rows) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -1077,14 +1077,7 @@ mod tests {
             let net = Mlp::nguyen_widrow(&sizes, seed);
             let outputs = sizes[sizes.len() - 1];
             let (x, t) = random_rows(2 * NORMAL_BLOCK + 37, (sizes[0], outputs), seed + 9);
-            let mut fit = Fit {
-                net: &net,
-                x: refs(&x),
-                t: refs(&t),
-                acts: Vec::new(),
-                inputs: None,
-                whole_jacobian: false,
-            };
+            let mut fit = fit_of(&net, (&x, &t), false);
             let (m, n) = (fit.n_residuals(), fit.n_params());
             assert!(m > n, "the primal system applies");
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -1128,14 +1121,7 @@ mod tests {
             max_iterations: 20,
             ..LmConfig::TRAINLM
         };
-        let fit = |whole_jacobian| Fit {
-            net: &net,
-            x: refs(&x),
-            t: refs(&t),
-            acts: Vec::new(),
-            inputs: None,
-            whole_jacobian,
-        };
+        let fit = |whole_jacobian| fit_of(&net, (&x, &t), whole_jacobian);
         let mut costs = [Vec::new(), Vec::new()];
         let blocked = minimize(&mut fit(false), &net.params, &cfg, |p| {
             costs[0].push(p.cost);

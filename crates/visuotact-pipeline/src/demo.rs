@@ -49,6 +49,9 @@ impl Default for DemoConfig {
     }
 }
 
+mod torque;
+pub use torque::{cone_torque, TorqueDemo};
+
 /// Why a demo stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum DemoError {
@@ -75,6 +78,9 @@ pub enum DemoError {
     /// A model does not read the demo's columns.
     #[error(transparent)]
     Model(#[from] EstimateError),
+    /// Something the experiment needs was not in its frames.
+    #[error("not found: {0}")]
+    Missing(String),
 }
 
 /// Seed 000 Table 3: actual (x, y, depth) and the paper's estimates.

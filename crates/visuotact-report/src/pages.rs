@@ -4,12 +4,12 @@
 //! the regression plot and the contact map of one evaluation).
 
 use visuotact_nn::metrics::{TargetErrors, MPE_FLOOR_FRACTION};
-use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo};
+use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo, TorqueDemo};
 use visuotact_pipeline::evaluation::Evaluation;
 
 use crate::figures::{ContactMap, Panel, PerformancePlot, RegressionPlot, SweepSurface};
 use crate::html::Page;
-use crate::tables::{cone_text, iats_text, rotation_text};
+use crate::tables::{cone_text, iats_text, rotation_text, torque_text};
 use crate::ReportError;
 
 /// What a run was asked and how long its parts took, for the page's last section.
@@ -140,7 +140,7 @@ fn rotation_section(page: &mut Page, d: &RotationDemo) -> Result<(), ReportError
 /// `visuotact demo --report`: both experiments, their tables beside the papers', and figures.
 pub fn demo_page(
     iats: &IatsDemo,
-    (cone, rotation): (&ConeDemo, &RotationDemo),
+    (cone, rotation, torque): (&ConeDemo, &RotationDemo, &TorqueDemo),
     run: &RunInfo,
 ) -> Result<Page, ReportError> {
     let mut page = Page::new("visuotact demo — both source documents' experiments");
@@ -195,6 +195,17 @@ pub fn demo_page(
     }
     force_regressions(&mut page, "Table 5.1", &cone.rows)?;
     rotation_section(&mut page, rotation)?;
+    page.heading(
+        3,
+        "Torque from the T-shaped marker (seed 001's future work)",
+    );
+    page.preformatted(&torque_text(torque));
+    let r = torque.errors.get(1).map_or(f64::NAN, |e| e.r);
+    let panel: Vec<Panel> = vec![("torque_nmm".to_string(), torque.points.clone(), r)];
+    page.figure(
+        "Torque on the later press (N·mm): estimate against the simulator's truth",
+        &RegressionPlot(&panel),
+    )?;
     run_section(&mut page, run);
     Ok(page)
 }

@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 
 use visuotact_nn::metrics::TargetErrors;
-use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo, SweepBest};
+use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo, SweepBest, TorqueDemo};
 use visuotact_sim::protocol::PressureGauge;
 
 /// Seed 000's experiment: the trainings, Table 3 and the random touches beside the paper.
@@ -230,5 +230,41 @@ pub fn rotation_text(d: &RotationDemo) -> String {
             "rings"
         );
     }
+    text
+}
+
+/// Seed 001's future work: torque from the T-shaped marker.
+pub fn torque_text(d: &TorqueDemo) -> String {
+    let mut text = String::new();
+    let out = &mut text;
+    let _ = writeln!(
+        out,
+        "T marker on the distal disc, the link twisted up to ±{:.0} N·mm while pressed; the T found in {:.1} % of the frames; trained on {} frames (force and torque), tested on a later press",
+        d.max_torque_nmm, d.t_found_percent, d.train_frames
+    );
+    let _ = writeln!(
+        out,
+        "  {:<34} {:>10} {:>10} {:>8} {:>7}",
+        "", "mean |e|", "max |e|", "MPE %", "R"
+    );
+    let rows = d
+        .errors
+        .iter()
+        .map(|e| (format!("{} (rings + T)", e.target), e))
+        .chain(std::iter::once((
+            "torque_nmm (rings alone)".to_string(),
+            &d.rings_only,
+        )));
+    for (what, e) in rows {
+        let _ = writeln!(
+            out,
+            "  {what:<34} {:>10.3} {:>10.3} {:>8.2} {:>7.5}",
+            e.mean_abs, e.max_abs, e.mean_percentage_error, e.r
+        );
+    }
+    let _ = writeln!(
+        out,
+        "  (no paper figure: seed 001 planned torque as future work)"
+    );
     text
 }

@@ -17,6 +17,7 @@ fn main() {
                 elevation_rad: 30f64.to_radians(),
                 azimuth_rad: num(4, 0.0).to_radians(),
                 pressure_kpa: 4.0,
+                torque_nmm: 0.0,
             };
             visuotact_sim::cone::render(&ConeConfig::SEED001, &load, 1)
                 .expect("valid load")

@@ -42,6 +42,14 @@ pub struct ConeConfig {
     pub axial_stiffness_n_per_mm: f64,
     /// Largest axial shortening, mm.
     pub max_shortening_mm: f64,
+    /// Bar length of the T-shaped marker painted on the distal disc, mm (0: none). The bar is
+    /// `t_marker_mm × t_marker_mm/6`, the stem `t_marker_mm/6 × t_marker_mm/2.4` below its
+    /// middle — longer across than along, so its second moments give its orientation.
+    pub t_marker_mm: f64,
+    /// Torsional stiffness of the link at nominal pressure, N·mm per radian of twist.
+    pub torsional_stiffness_nmm_per_rad: f64,
+    /// Largest twist of the distal disc (the tanh saturation), radians.
+    pub max_twist_rad: f64,
     /// The camera at the base, looking up the axis.
     pub camera: Camera,
     /// Colours, vignetting and noise.
@@ -63,6 +71,9 @@ impl ConeConfig {
         max_deflection_mm: 4.0,
         axial_stiffness_n_per_mm: 2.5,
         max_shortening_mm: 6.0,
+        t_marker_mm: 0.0,
+        torsional_stiffness_nmm_per_rad: 2000.0,
+        max_twist_rad: 0.6,
         camera: Camera {
             width: 640,
             height: 480,
@@ -75,6 +86,13 @@ impl ConeConfig {
         },
         look: Look::WHITE_ON_BLACK,
         blur_px: 0.8,
+    };
+
+    /// Seed 001's link with the T-shaped marker its author painted on the distal disc for
+    /// torque (24 mm bar), twisting 2 000 N·mm per radian at 4 kPa, at most 0.6 rad.
+    pub const SEED001_T: Self = Self {
+        t_marker_mm: 24.0,
+        ..Self::SEED001
     };
 
     /// Inner radius of the wall at height `z`, mm.
@@ -98,10 +116,21 @@ impl ConeConfig {
             ("max_deflection_mm", self.max_deflection_mm),
             ("axial_stiffness_n_per_mm", self.axial_stiffness_n_per_mm),
             ("max_shortening_mm", self.max_shortening_mm),
+            (
+                "torsional_stiffness_nmm_per_rad",
+                self.torsional_stiffness_nmm_per_rad,
+            ),
+            ("max_twist_rad", self.max_twist_rad),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(crate::SimError(format!("{name} must be positive, got {v}")));
             }
+        }
+        if !(self.t_marker_mm.is_finite() && self.t_marker_mm >= 0.0) {
+            return Err(crate::SimError(format!(
+                "t_marker_mm must be ≥ 0 (0: no T), got {}",
+                self.t_marker_mm
+            )));
         }
         for z in self.ring_heights_mm {
             if !(z > self.ring_width_mm && z < self.length_mm) {
@@ -132,6 +161,9 @@ pub struct ConeLoad {
     pub azimuth_rad: f64,
     /// Inflation pressure now, kPa.
     pub pressure_kpa: f64,
+    /// Torque about the link's axis at the distal end, N·mm (positive: counter-clockwise
+    /// seen from the camera, i.e. from +x towards +y).
+    pub torque_nmm: f64,
 }
 
 impl ConeLoad {
@@ -142,6 +174,7 @@ impl ConeLoad {
             elevation_rad: 0.0,
             azimuth_rad: 0.0,
             pressure_kpa,
+            torque_nmm: 0.0,
         }
     }
 
@@ -170,6 +203,9 @@ impl ConeLoad {
                 self.pressure_kpa
             )));
         }
+        if !self.torque_nmm.is_finite() {
+            return Err(crate::SimError("torque must be finite".to_string()));
+        }
         if !self.elevation_rad.is_finite() || !self.azimuth_rad.is_finite() {
             return Err(crate::SimError(
                 "force direction must be finite".to_string(),
@@ -188,6 +224,8 @@ pub struct ConeShape {
     pub tip_shortening_mm: f64,
     /// Direction of the deflection, radians.
     pub azimuth_rad: f64,
+    /// Twist of the distal disc about the axis, radians (same sense as the torque).
+    pub twist_rad: f64,
 }
 
 /// How the load deforms the cone.
@@ -202,7 +240,47 @@ pub fn shape(cfg: &ConeConfig, load: &ConeLoad) -> ConeShape {
         tip_shortening_mm: cfg.max_shortening_mm
             * ((-fz).max(0.0) / (ka * cfg.max_shortening_mm)).tanh(),
         azimuth_rad: fy.atan2(fx),
+        twist_rad: cfg.max_twist_rad
+            * (load.torque_nmm / (cfg.torsional_stiffness_nmm_per_rad * stiff * cfg.max_twist_rad))
+                .tanh(),
     }
+}
+
+/// The T-shaped marker on the distal disc, projected: its bar and its stem, or nothing when
+/// the sensor has none. The disc moves with the tip (deflection, shortening) and turns by the
+/// twist; its tilt is neglected (at most a few degrees). At rest the bar lies along the image
+/// rows (+x) and the stem points to +y.
+pub fn t_marker(cfg: &ConeConfig, s: &ConeShape) -> Vec<ConvexPolygon> {
+    if cfg.t_marker_mm <= 0.0 {
+        return Vec::new();
+    }
+    let (w, t) = (cfg.t_marker_mm, cfg.t_marker_mm / 6.0);
+    let stem = cfg.t_marker_mm / 2.4;
+    let z = cfg.length_mm - s.tip_shortening_mm;
+    let (cx, cy) = (
+        s.tip_deflection_mm * s.azimuth_rad.cos(),
+        s.tip_deflection_mm * s.azimuth_rad.sin(),
+    );
+    let (c, sn) = (s.twist_rad.cos(), s.twist_rad.sin());
+    // Rectangles in the disc's own frame (x along the bar), the bar's middle at the centre.
+    let rects = [
+        (-0.5 * w, 0.5 * w, -0.5 * t, 0.5 * t),
+        (-0.5 * t, 0.5 * t, 0.5 * t, 0.5 * t + stem),
+    ];
+    rects
+        .iter()
+        .filter_map(|&(x0, x1, y0, y1)| {
+            let corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
+            let verts: Vec<(f64, f64)> = corners
+                .iter()
+                .filter_map(|&(x, y)| {
+                    cfg.camera
+                        .px_from_mm([cx + c * x - sn * y, cy + sn * x + c * y, z])
+                })
+                .collect();
+            ConvexPolygon::new(verts)
+        })
+        .collect()
 }
 
 /// Truth for one ring in one frame.
@@ -306,6 +384,9 @@ pub fn render(
             cov.fill_polygon(outer, Some(hole), 1.0);
         }
     }
+    for part in t_marker(cfg, &shape(cfg, load)) {
+        cov.fill_polygon(&part, None, 1.0);
+    }
     cov.blur(cfg.blur_px);
     let img = crate::pattern::frame_from_coverage(&cov, &cfg.look, seed);
     Ok((img, rs.into_iter().map(|(_, t)| t).collect()))
@@ -321,6 +402,7 @@ mod tests {
             elevation_rad: 30f64.to_radians(),
             azimuth_rad: az,
             pressure_kpa: 4.0,
+            torque_nmm: 0.0,
         }
     }
 
@@ -384,6 +466,50 @@ mod tests {
             assert!((p.1.x_px - q.1.x_px).abs() < 1e-9);
             assert!(((p.1.y_px - c.camera.cy_px) + (q.1.y_px - c.camera.cy_px)).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn the_t_twists_with_the_torque_and_only_where_painted() {
+        let c = ConeConfig::SEED001_T;
+        let twisted = |torque: f64, pressure_kpa: f64| {
+            let l = ConeLoad {
+                torque_nmm: torque,
+                pressure_kpa,
+                ..load(0.0, 0.0)
+            };
+            shape(&c, &l).twist_rad
+        };
+        assert_eq!(twisted(0.0, 4.0), 0.0);
+        // Small torques: τ / k_t; opposite torques, opposite twists; saturating below the
+        // largest twist; a softer link twists more.
+        assert!((twisted(20.0, 4.0) - 20.0 / c.torsional_stiffness_nmm_per_rad).abs() < 1e-5);
+        assert!((twisted(-300.0, 4.0) + twisted(300.0, 4.0)).abs() < 1e-12);
+        let most = twisted(1e6, 4.0);
+        assert!(most <= c.max_twist_rad && most > 0.99 * c.max_twist_rad);
+        assert!(twisted(300.0, 3.0) > twisted(300.0, 4.0));
+        // The T: bar and stem, turned by the twist about the disc's centre; none by default.
+        let s = shape(
+            &c,
+            &ConeLoad {
+                torque_nmm: 300.0,
+                ..load(0.0, 0.0)
+            },
+        );
+        let height = |s: &ConeShape| {
+            let parts = t_marker(&c, s);
+            assert_eq!(parts.len(), 2);
+            let (_, y0, _, y1) = parts[0].bounds();
+            y1 - y0
+        };
+        let rest = shape(&c, &load(0.0, 0.0));
+        // The bar (6:1) turned by 0.15 rad spans more rows than lying along them.
+        assert!(
+            height(&s) > 1.5 * height(&rest),
+            "{} vs {}",
+            height(&s),
+            height(&rest)
+        );
+        assert!(t_marker(&ConeConfig::SEED001, &s).is_empty());
     }
 
     #[test]

@@ -271,9 +271,19 @@ pub struct ConePress {
     pub azimuth_rad: f64,
     /// Turn the direction about the axis (seed 001's "with rotation").
     pub rotate: bool,
+    /// Largest torque about the axis, N·mm: the link is twisted back and forth,
+    /// `τ = τ_max sin(2π · 3.3 · t / duration + torque_phase_rad)` — 3.3 turns per press, so
+    /// that the torque cannot be told from the force's phase (0: no torque, seed 001's
+    /// presses).
+    pub max_torque_nmm: f64,
+    /// Phase of the twist at the start of the press, radians.
+    pub torque_phase_rad: f64,
     /// Pressure drift.
     pub drift: PressureDrift,
 }
+
+/// Back-and-forth twists per press of [`ConePress::max_torque_nmm`].
+const TORQUE_TURNS: f64 = 3.3;
 
 impl ConePress {
     /// Seed 001's slow press: up to 10 N over 20 s.
@@ -282,6 +292,8 @@ impl ConePress {
         duration_s: 20.0,
         azimuth_rad: 0.0,
         rotate: false,
+        max_torque_nmm: 0.0,
+        torque_phase_rad: 0.0,
         drift: PressureDrift::DEFAULT,
     };
 
@@ -300,11 +312,16 @@ impl ConePress {
             elevation_rad: 30f64.to_radians(),
             azimuth_rad,
             pressure_kpa: self.drift.at(cfg.pressure_kpa, t0_s + t_s),
+            torque_nmm: self.max_torque_nmm
+                * (std::f64::consts::TAU * TORQUE_TURNS * u + self.torque_phase_rad).sin(),
         }
     }
 
     /// Checks the protocol.
     pub fn validate(&self) -> Result<(), crate::SimError> {
+        if !(self.max_torque_nmm.is_finite() && self.torque_phase_rad.is_finite()) {
+            return Err(crate::SimError("peak torque must be finite".to_string()));
+        }
         if !(self.max_force_n.is_finite() && self.max_force_n >= 0.0) {
             return Err(crate::SimError(format!(
                 "peak force must be ≥ 0 N, got {}",

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use visuotact_pipeline::demo::{self, DemoConfig};
 use visuotact_report::pages::{demo_page, RunInfo};
-use visuotact_report::tables::{cone_text, iats_text, rotation_text};
+use visuotact_report::tables::{cone_text, iats_text, rotation_text, torque_text};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -40,6 +40,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let rotation = demo::cone_rotation(&cfg)?;
     print!("{}", rotation_text(&rotation));
     let rotation_s = t_rotation.elapsed().as_secs_f64();
+    let t_torque = Instant::now();
+    println!("\n== Seed 001's future work: torque from the T-shaped marker ==");
+    let torque = demo::cone_torque(&cfg)?;
+    print!("{}", torque_text(&torque));
+    let torque_s = t_torque.elapsed().as_secs_f64();
     let total_s = t_all.elapsed().as_secs_f64();
     println!("\ndemo finished in {total_s:.0} s");
     if let Some(path) = &a.report {
@@ -68,7 +73,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                     "seed 001: sweep, rings + gauge".into(),
                     cone.sweeps.get(1).map_or(0.0, |s| s.secs),
                 ),
-                ("seed 001 in all".into(), total_s - iats_s - rotation_s),
+                (
+                    "seed 001 in all".into(),
+                    total_s - iats_s - rotation_s - torque_s,
+                ),
                 (
                     "seed 001 with rotation: sweeps and Table 5.2".into(),
                     rotation_s,
@@ -76,7 +84,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 ("demo".into(), total_s),
             ],
         };
-        demo_page(&iats, (&cone, &rotation), &run)?.write(path)?;
+        demo_page(&iats, (&cone, &rotation, &torque), &run)?.write(path)?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())

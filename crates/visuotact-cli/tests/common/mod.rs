@@ -2,7 +2,7 @@
 #![allow(dead_code)] // reason: each test binary uses its own subset of these helpers
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 /// Runs the `visuotact` binary with `args`.
 pub fn vt(args: &[&str]) -> Output {
@@ -80,4 +80,40 @@ pub fn iats_features(dir: &Path, touches: &str, seed: &str) -> (PathBuf, PathBuf
         s(&features),
     ]));
     (session, sensor, features)
+}
+
+/// The headless browser the test command installs (Debian's `chromium`), when there is one.
+pub fn chromium() -> Option<&'static str> {
+    ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|c| {
+            Command::new(c)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
+}
+
+/// Runs `chromium` headless on `url` with a private profile under `profile` and no network
+/// side traffic, `extra` flags before the address (e.g. `--dump-dom`).
+pub fn headless(chromium: &str, profile: &Path, extra: &[&str], url: &str) -> Output {
+    let profile = format!("--user-data-dir={}", profile.display());
+    let mut args = vec![
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        profile.as_str(),
+    ];
+    args.extend_from_slice(extra);
+    args.push(url);
+    Command::new(chromium)
+        .args(&args)
+        .stderr(Stdio::null())
+        .output()
+        .expect("run chromium")
 }
