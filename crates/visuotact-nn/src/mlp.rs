@@ -993,18 +993,10 @@ mod tests {
         let outputs = sizes[sizes.len() - 1];
         let net = Mlp::nguyen_widrow(sizes, 3);
         let (x, t) = random_rows(7, (sizes[0], outputs), 8);
-        let mut rng = ChaCha8Rng::seed_from_u64(8);
         let mut fit = fit_of(&net, (&x, &t), false);
         let (m, n) = (fit.n_residuals(), fit.n_params());
         assert!(m < n, "the dual system applies");
-        // Away from the initial weights, so that every layer's part is exercised.
-        let p: Vec<f64> = net
-            .params
-            .iter()
-            .map(|v| v + rng.random_range(-0.3..0.3))
-            .collect();
-        let mut jac = Mat::<f64>::zeros(m, n);
-        fit.jacobian(&p, &mut jac);
+        let (p, jac) = moved_point(&mut fit, 8);
         // Twice: the second call reuses the cached first-layer part.
         for _ in 0..2 {
             let sj = fit
@@ -1052,6 +1044,21 @@ mod tests {
         }
     }
 
+    /// A point away from the initial weights (so that every layer's part is exercised) and
+    /// the dense Jacobian there.
+    fn moved_point(fit: &mut Fit<'_>, seed: u64) -> (Vec<f64>, Mat<f64>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let p: Vec<f64> = fit
+            .net
+            .params
+            .iter()
+            .map(|v| v + rng.random_range(-0.3..0.3))
+            .collect();
+        let mut jac = Mat::<f64>::zeros(fit.n_residuals(), fit.n_params());
+        fit.jacobian(&p, &mut jac);
+        (p, jac)
+    }
+
     /// Inputs and targets in ±1 from a seeded generator.
     fn random_rows(n: usize, (d_in, d_out): (usize, usize), seed: u64) -> (Rows, Rows) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -1080,14 +1087,7 @@ mod tests {
             let mut fit = fit_of(&net, (&x, &t), false);
             let (m, n) = (fit.n_residuals(), fit.n_params());
             assert!(m > n, "the primal system applies");
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let p: Vec<f64> = net
-                .params
-                .iter()
-                .map(|v| v + rng.random_range(-0.3..0.3))
-                .collect();
-            let mut jac = Mat::<f64>::zeros(m, n);
-            fit.jacobian(&p, &mut jac);
+            let (p, jac) = moved_point(&mut fit, seed);
             let dense = jac.transpose() * &jac;
             let v: Vec<f64> = (0..m).map(|i| (i as f64 * 0.7).sin()).collect();
             let mut gram = Mat::<f64>::from_fn(n, n, |_, _| f64::NAN);

@@ -692,19 +692,21 @@ impl Swept {
     }
 }
 
-/// The cone calibrated on five rest frames, and its columns without and with the gauge.
-fn cone_calibration(
+/// A cone calibrated as seed 001's (annuli, weighted centroids) on five rest frames rendered
+/// from frame `base` on; the frames too.
+fn calibrated_cone(
     a: &DemoConfig,
-) -> Result<(SensorCalibration, Vec<String>, Vec<String>), DemoError> {
-    let cfg = ConeConfig::SEED001;
+    cfg: &ConeConfig,
+    (what, base): (&'static str, u64),
+) -> Result<(SensorCalibration, Vec<RgbImage>), DemoError> {
     let rest: Vec<RgbImage> = (0..5)
         .map(|k| {
             let load = ConeLoad::none(cfg.pressure_kpa);
-            visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, 200_000 + k)).map(|r| r.0)
+            visuotact_sim::cone::render(cfg, &load, frame_seed(a.seed, base + k)).map(|r| r.0)
         })
         .collect::<Result<_, _>>()?;
     let cal = calibrate_rest(
-        "cone",
+        what,
         &rest,
         &CalibrationConfig {
             detector: DetectorConfig {
@@ -717,8 +719,22 @@ fn cone_calibration(
             ..Default::default()
         },
     )?;
+    Ok((cal, rest))
+}
+
+/// The markers' feature columns of a calibration (no field summary).
+fn marker_columns(cal: &SensorCalibration) -> Result<Vec<String>, DemoError> {
     let mut columns = FeatureExtractor::new(cal.clone(), FeatureSet::CONE)?.column_names();
     columns.truncate(columns.len() - FIELD_COLUMNS.len());
+    Ok(columns)
+}
+
+/// The cone calibrated on five rest frames, and its columns without and with the gauge.
+fn cone_calibration(
+    a: &DemoConfig,
+) -> Result<(SensorCalibration, Vec<String>, Vec<String>), DemoError> {
+    let (cal, _) = calibrated_cone(a, &ConeConfig::SEED001, ("cone", 200_000))?;
+    let columns = marker_columns(&cal)?;
     let gauge_columns = [&columns[..], &["gauge_kpa".to_string()]].concat();
     Ok((cal, columns, gauge_columns))
 }

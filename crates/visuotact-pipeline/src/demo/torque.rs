@@ -7,20 +7,18 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use rayon::prelude::*;
-use visuotact_image::RgbImage;
 use visuotact_nn::metrics::{target_errors, TargetErrors};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::protocol::ConePress;
 use visuotact_sim::rig::frame_seed;
 use visuotact_vision::blobs::{Blob, MomentConvention};
-use visuotact_vision::calibration::{CalibrationConfig, ReferenceMarker, SensorCalibration};
-use visuotact_vision::detect::{Centroid, Detector, DetectorConfig};
-use visuotact_vision::features::{FeatureExtractor, FeatureSet, FIELD_COLUMNS};
-use visuotact_vision::layout::{Layout, LayoutChoice};
-use visuotact_vision::preprocess::PreprocessConfig;
+use visuotact_vision::calibration::{ReferenceMarker, SensorCalibration};
+use visuotact_vision::detect::Detector;
+use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 use super::{
-    calibrate_rest, complete_markers, default_config, inputs_of_rows, train, DemoConfig, DemoError,
+    calibrated_cone, complete_markers, default_config, inputs_of_rows, marker_columns, train,
+    DemoConfig, DemoError,
 };
 
 /// The torque experiment's outcome.
@@ -115,27 +113,7 @@ fn torque_press(
 
 /// Rest frames of the T cone, its rings calibrated as seed 001's, and the reference T.
 fn t_calibration(a: &DemoConfig) -> Result<(SensorCalibration, Blob), DemoError> {
-    let cfg = ConeConfig::SEED001_T;
-    let rest: Vec<RgbImage> = (0..5)
-        .map(|k| {
-            let load = ConeLoad::none(cfg.pressure_kpa);
-            visuotact_sim::cone::render(&cfg, &load, frame_seed(a.seed, 250_000 + k)).map(|r| r.0)
-        })
-        .collect::<Result<_, _>>()?;
-    let cal = calibrate_rest(
-        "cone with the T",
-        &rest,
-        &CalibrationConfig {
-            detector: DetectorConfig {
-                preprocess: PreprocessConfig::CONE,
-                centroid: Centroid::Weighted,
-                ..Default::default()
-            },
-            layout: LayoutChoice::Only(Layout::Rings),
-            features: FeatureSet::CONE,
-            ..Default::default()
-        },
-    )?;
+    let (cal, rest) = calibrated_cone(a, &ConeConfig::SEED001_T, ("cone with the T", 250_000))?;
     // The T: the smallest blob whose centroid lies inside the innermost ring's hole.
     let blobs = Detector::new(cal.detector.clone())?.detect(&rest[0]);
     let (cx, cy) = (cal.image_width as f64 / 2.0, cal.image_height as f64 / 2.0);
@@ -169,8 +147,7 @@ pub fn cone_torque(a: &DemoConfig) -> Result<TorqueDemo, DemoError> {
     let (later, later_loads) =
         torque_press(a, (&cal, &reference), &later_press, (later_t0, 270_000))?;
     let found = first.iter().chain(&later).filter(|r| r.is_some()).count();
-    let mut columns = FeatureExtractor::new(cal.clone(), FeatureSet::CONE)?.column_names();
-    columns.truncate(columns.len() - FIELD_COLUMNS.len());
+    let columns = marker_columns(&cal)?;
     let with_t = [&columns[..], &["t_angle_deg".to_string()]].concat();
     // The rings alone: without the T's own columns (it is tracked as a marker too, and its
     // centroid, off the disc's centre, moves as the disc turns).
