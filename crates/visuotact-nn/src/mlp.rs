@@ -173,8 +173,9 @@ impl Mlp {
     }
 }
 
-/// Samples per block of the primal normal equations ([`Fit`]'s `normal_equations`): the
-/// only part of the Jacobian held is this many samples' rows.
+/// Samples per block of the primal normal equations of a network's training (see
+/// [`crate::lm::Problem::normal_equations`]): the only part of the Jacobian held is this many
+/// samples' rows.
 pub const NORMAL_BLOCK: usize = 256;
 
 /// Layers with at least this many inputs build their rows of `JᵀJ` by hidden unit (see
