@@ -81,6 +81,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                     "seed 001 with rotation: sweeps and Table 5.2".into(),
                     rotation_s,
                 ),
+                ("seed 001: torque from the T".into(), torque_s),
                 ("demo".into(), total_s),
             ],
         };
