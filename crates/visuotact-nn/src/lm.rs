@@ -45,7 +45,7 @@ pub(crate) fn gram_lower_into(jac: &Mat<f64>, dual: bool, out: MatMut<'_, f64>) 
 }
 
 /// Copies a square matrix's strict upper triangle onto its strict lower one, transposed
-/// (`upper == false`: the other way round), by halves so that every copy is a block.
+/// (`upper_to_lower == false`: the other way round), by halves so that every copy is a block.
 fn mirror_triangle(a: MatMut<'_, f64>, upper_to_lower: bool) {
     let k = a.nrows();
     if k <= 64 {
@@ -82,9 +82,11 @@ fn mirror_triangle(a: MatMut<'_, f64>, upper_to_lower: bool) {
 /// the factor into the lower triangle and, in its small diagonal kernels, scratch into upper
 /// entries fewer than 16 places from the diagonal (32 with AVX-512) — which is why the band
 /// is kept aside; a test factorises sizes across faer's block and recursion thresholds and
-/// checks that every trial solves the kept system. One matrix of `k²` numbers, not two. When Cholesky fails (the matrix is not
-/// positive definite in floating point) it falls back, as MATLAB's backslash does, to LU with
-/// partial pivoting on the whole symmetric matrix (a second matrix, made only then).
+/// checks that every trial solves the kept system. One matrix of `k²` numbers, not two.
+///
+/// When Cholesky fails (the matrix is not positive definite in floating point) it falls back,
+/// as MATLAB's backslash does, to LU with partial pivoting on the whole symmetric matrix (a
+/// second matrix, made only then).
 pub(crate) struct DampedSolver {
     a: Mat<f64>,
     gram_diag: Vec<f64>,

@@ -142,6 +142,25 @@ impl Mlp {
         }
     }
 
+    /// Layer `l`'s part of one Jacobian row, from the sensitivities `delta` to its
+    /// pre-activations and its inputs `a`: `put(offset + o·n_in + i, delta[o]·a[i])` for the
+    /// weights, `put(offset + n_out·n_in + o, delta[o])` for the biases.
+    fn layer_row(
+        &self,
+        l: usize,
+        (delta, a): (&[f64], &[f64]),
+        offset: usize,
+        mut put: impl FnMut(usize, f64),
+    ) {
+        let (n_in, n_o) = (self.sizes[l], self.sizes[l + 1]);
+        for (o, &d) in delta.iter().enumerate().take(n_o) {
+            for (i, &ai) in a.iter().enumerate().take(n_in) {
+                put(offset + o * n_in + i, d * ai);
+            }
+            put(offset + n_o * n_in + o, d);
+        }
+    }
+
     /// Rows `row0..row0 + outputs` of the Jacobian of the outputs with respect to `p` for one
     /// input, by back-propagation (one backward pass per output).
     fn jacobian_rows(
@@ -159,15 +178,7 @@ impl Mlp {
         for k in 0..n_out {
             let r = row0 + k;
             self.backprop(p, acts, &offs, k, &mut scratch, |l, delta| {
-                let (n_in, n_o) = (self.sizes[l], self.sizes[l + 1]);
-                let a = &acts[l];
-                let o0 = offs[l];
-                for (o, &d) in delta.iter().enumerate().take(n_o) {
-                    for i in 0..n_in {
-                        jac[(r, o0 + o * n_in + i)] = d * a[i];
-                    }
-                    jac[(r, o0 + n_o * n_in + o)] = d;
-                }
+                self.layer_row(l, (delta, &acts[l]), offs[l], |j, v| jac[(r, j)] = v);
             });
         }
     }
@@ -262,15 +273,8 @@ impl<'a> NormalBlock<'a> {
                 let (jt, dt) = (&mut self.jt, &mut self.dt);
                 net.backprop(p, acts, offs, j, &mut self.scratch, |l, delta| {
                     dt[l].col_as_slice_mut(r).copy_from_slice(delta);
-                    let (n_in, n_o, o0) = (sizes[l], sizes[l + 1], offs[l]);
                     let col = jt.col_as_slice_mut(r);
-                    for (o, &d) in delta.iter().enumerate() {
-                        let row = &mut col[o0 + o * n_in..o0 + (o + 1) * n_in];
-                        for (dst, &ai) in row.iter_mut().zip(&acts[l]) {
-                            *dst = d * ai;
-                        }
-                        col[o0 + n_o * n_in + o] = d;
-                    }
+                    net.layer_row(l, (delta, &acts[l]), offs[l], |i, v| col[i] = v);
                 });
             }
         }

@@ -18,6 +18,7 @@ use visuotact_nn::fit::{
 use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::{target_errors, TargetErrors};
 use visuotact_nn::model::{is_marker_column, EstimateError, Model};
+use visuotact_nn::sweep::{self, Sweep};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::protocol::{self, ConePress, PressureGauge};
@@ -605,17 +606,17 @@ fn errors_on(
     Ok((target_errors("force_n", &est, &tru), points))
 }
 
-/// A sweep's outcome: the best network, its hidden layers, the sweep's time (s), and each
-/// architecture's (hidden layers, mean test MSE, best test MSE) over its repeats.
+/// A sweep's outcome: the best network (lowest test MSE, the paper's way), its hidden layers,
+/// the sweep's time (s), and every architecture's figures ([`Sweep`]).
 struct Swept {
     best: Model,
     hidden: Vec<usize>,
     secs: f64,
-    per_arch: Vec<(Vec<usize>, f64, f64)>,
+    sweep: Sweep,
 }
 
-/// Seed 001's own protocol: every architecture of `archs` × `repeats` trainings, the best net
-/// kept (lowest test MSE).
+/// Seed 001's own protocol: every architecture of `archs` × `repeats` trainings (each repeat
+/// on its own seed, the same for every architecture), the best net kept (lowest test MSE).
 fn best_of_sweep(
     a: &DemoConfig,
     (x, t): (&[Vec<f64>], &[Vec<f64>]),
@@ -623,42 +624,33 @@ fn best_of_sweep(
     (archs, repeats): (&[Vec<usize>], u64),
 ) -> Result<Swept, DemoError> {
     let t_sweep = Instant::now();
-    let runs: Vec<(Model, usize)> = (0..archs.len())
-        .flat_map(|i| (0..repeats).map(move |r| (i, r)))
-        .collect::<Vec<_>>()
+    let trained: Vec<sweep::Trained> = sweep::jobs(archs.len(), repeats as usize)
         .into_par_iter()
-        .map(|(i, r)| {
-            let cfg = paper_config(&archs[i], a.seed + 7919 * r);
-            train(x, t, columns, &["force_n"], &cfg, &[]).map(|f| (f.model, i))
+        .map(|(arch, repeat)| {
+            let cfg = paper_config(&archs[arch], a.seed + 7919 * repeat as u64);
+            let model = train(x, t, columns, &["force_n"], &cfg, &[])?.model;
+            Ok(sweep::Trained {
+                arch,
+                repeat,
+                model,
+            })
         })
-        .collect::<Result<_, _>>()?;
-    let per_arch = archs
+        .collect::<Result<_, DemoError>>()?;
+    let sweep = sweep::sweep_of(archs, trained);
+    let (i, best) = sweep
+        .models
         .iter()
-        .enumerate()
-        .map(|(i, arch)| {
-            let mse: Vec<f64> = runs
-                .iter()
-                .filter(|r| r.1 == i)
-                .map(|r| r.0.training.mse[2][0])
-                .collect();
-            let best = mse.iter().copied().fold(f64::INFINITY, f64::min);
-            let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
-            (arch.clone(), mean, best)
-        })
-        .collect();
-    let (best, i) = runs
-        .into_iter()
-        .min_by(|p, q| p.0.training.mse[2][0].total_cmp(&q.0.training.mse[2][0]))
+        .min_by(|p, q| sweep::mse(&p.1, 2).total_cmp(&sweep::mse(&q.1, 2)))
         .ok_or(FitError::Empty {
             samples: x.len(),
             inputs: columns.len(),
             targets: 1,
         })?;
     Ok(Swept {
-        best,
-        hidden: archs[i].clone(),
+        best: best.clone(),
+        hidden: archs[*i].clone(),
         secs: t_sweep.elapsed().as_secs_f64(),
-        per_arch,
+        sweep,
     })
 }
 
@@ -672,22 +664,19 @@ fn one_layer_archs(most: usize, step: usize) -> Vec<Vec<usize>> {
 }
 
 impl Swept {
-    /// (hidden neurons, mean test MSE, best test MSE) per size of a one-layer sweep.
-    fn curve(&self) -> Vec<(f64, f64, f64)> {
-        self.per_arch
-            .iter()
-            .map(|(h, mean, best)| (h[0] as f64, *mean, *best))
-            .collect()
-    }
-
     fn summary(&self, inputs: &'static str, n_inputs: usize) -> SweepBest {
         SweepBest {
             inputs,
             n_inputs,
             hidden: self.hidden.clone(),
-            test_mse: self.best.training.mse[2][0],
+            test_mse: sweep::mse(&self.best, 2),
             secs: self.secs,
-            curve: self.curve(),
+            // The performance figure's points: for one-layer sweeps only.
+            curve: if self.sweep.rows.iter().all(|r| r.hidden.len() == 1) {
+                self.sweep.points()
+            } else {
+                Vec::new()
+            },
         }
     }
 }
@@ -835,12 +824,12 @@ pub fn cone_rotation(a: &DemoConfig) -> Result<RotationDemo, DemoError> {
         }
         demo.one_layer.push(s1.summary(inputs, names.len()));
         let cells = s2
-            .per_arch
+            .sweep
+            .rows
             .iter()
-            .map(|(h, mean, _)| (h[0], h[1], *mean))
+            .map(|r| (r.hidden[0], r.hidden[1], r.test_mse.0))
             .collect();
-        let mut best = s2.summary(inputs, names.len());
-        best.curve.clear();
+        let best = s2.summary(inputs, names.len());
         demo.two_layer.push(SurfaceBest { best, cells });
     }
     Ok(demo)

@@ -131,15 +131,7 @@ pub fn cone_text(d: &ConeDemo) -> String {
         d.rings, d.train_frames, d.one_network.model.training.epochs, d.one_network.train_s
     );
     for s in &d.sweeps {
-        let _ = writeln!(
-            out,
-            "sweep 1..40 neurons × {}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
-            d.repeats,
-            s.inputs,
-            s.secs,
-            network(s),
-            s.test_mse
-        );
+        sweep_line(out, "1..40 neurons", d.repeats, s);
     }
     let _ = writeln!(out,
         "\nTable 5.1 layout: visuotact | paper (no rotation)\n  {:<52} {:<14} {:>8} {:>8} {:>8} {:>7}",
@@ -170,6 +162,18 @@ fn network(s: &SweepBest) -> String {
     format!("{} → {} → 1", s.n_inputs, hidden.join(" → "))
 }
 
+/// `sweep SPAN × REPEATS, inputs …, in … s: best 6 → 22 → 1 (test MSE …)`.
+fn sweep_line(out: &mut String, span: &str, repeats: u64, s: &SweepBest) {
+    let _ = writeln!(
+        out,
+        "sweep {span} × {repeats}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
+        s.inputs,
+        s.secs,
+        network(s),
+        s.test_mse
+    );
+}
+
 /// Rows of a force table: what, inputs, mean and max |error|, MPE, R.
 fn force_rows(out: &mut String, rows: &[ConeRow]) {
     for r in rows {
@@ -192,28 +196,12 @@ pub fn rotation_text(d: &RotationDemo) -> String {
         d.train_frames
     );
     for s in &d.one_layer {
-        let _ = writeln!(
-            out,
-            "sweep 1..100 neurons ({} sizes) × {}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
-            s.curve.len(),
-            d.repeats,
-            s.inputs,
-            s.secs,
-            network(s),
-            s.test_mse
-        );
+        let span = format!("1..100 neurons ({} sizes)", s.curve.len());
+        sweep_line(out, &span, d.repeats, s);
     }
     for s in &d.two_layer {
-        let _ = writeln!(
-            out,
-            "sweep 1..20 × 1..20 neurons ({} architectures) × {}, inputs {}, in {:.1} s: best {} (test MSE {:.4})",
-            s.cells.len(),
-            d.repeats,
-            s.best.inputs,
-            s.best.secs,
-            network(&s.best),
-            s.best.test_mse
-        );
+        let span = format!("1..20 × 1..20 neurons ({} architectures)", s.cells.len());
+        sweep_line(out, &span, d.repeats, &s.best);
     }
     let _ = writeln!(out,
         "\nTable 5.2 layout: visuotact | paper (with rotation)\n  {:<52} {:<14} {:>8} {:>8} {:>8} {:>7}",
