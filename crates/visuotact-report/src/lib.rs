@@ -79,15 +79,10 @@ pub fn save(figure: &impl Figure, path: &Path) -> Result<(), ReportError> {
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("svg") => {
-            let mut svg = String::new();
-            {
-                let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
-                drawn(
-                    figure
-                        .draw(&root)
-                        .and_then(|()| root.present().map_err(text)),
-                )?;
-            }
+            let svg = html::svg_of(figure).map_err(|why| ReportError::Draw {
+                path: path.to_path_buf(),
+                why,
+            })?;
             Ok(visuotact_io::session::write_atomically(path, &svg)?)
         }
         Some("png") => {
