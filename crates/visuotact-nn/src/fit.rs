@@ -502,7 +502,7 @@ pub fn training_memory_bytes(
         n * block * (t + 1) + block * (widths + fan_in) * (t + 1)
     };
     let activations = s * sizes.iter().map(|&w| w as u128).sum::<u128>();
-    let system = k * k + k * crate::lm::BAND as u128;
+    let system = crate::damped::buffer_len(k as usize) as u128 + k * crate::damped::BAND as u128;
     let one = 8 * (system + jacobian + 2 * activations + 4 * n);
     let parallel = cfg.ensemble.max(1).min(rayon::current_num_threads()) as u128;
     u64::try_from(one * parallel).unwrap_or(u64::MAX)

@@ -6,6 +6,7 @@
 //! exact derivatives of those models by forward-mode automatic differentiation.
 
 pub mod br;
+mod damped;
 pub mod dual;
 pub mod fit;
 pub mod lm;

@@ -8,7 +8,7 @@
 
 use std::sync::Arc;
 
-use faer::linalg::matmul;
+use faer::linalg::matmul::{self, triangular, triangular::BlockStructure};
 use faer::{Accum, Mat, MatMut};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -324,17 +324,21 @@ impl<'a> NormalBlock<'a> {
                 continue;
             }
             let later = self.narrow_after(l);
+            let mut cols = (off > 0).then_some(0..off).into_iter().collect::<Vec<_>>();
+            cols.extend(later.iter().cloned());
             for o in 0..h {
-                let mut cols = std::iter::once(0..off + (o + 1) * n_in).collect::<Vec<_>>();
-                cols.extend(later.iter().cloned());
-                self.make_z(l, o, &cols);
-                let lhs = self.at[l].as_ref().subcols(0, self.samples);
-                let z = self.zt.as_ref().subcols(0, self.samples);
                 let row0 = off + o * n_in;
-                for c in &cols {
-                    self.add_product(&mut gram, (row0..row0 + n_in, c.clone()), lhs, z);
+                // Earlier layers' and later narrow layers' columns through Z_o.
+                if !cols.is_empty() {
+                    self.make_z(l, o, &cols);
+                    let lhs = self.at[l].as_ref().subcols(0, self.samples);
+                    let z = self.zt.as_ref().subcols(0, self.samples);
+                    for c in &cols {
+                        self.add_product(&mut gram, (row0..row0 + n_in, c.clone()), lhs, z);
+                    }
                 }
             }
+            self.add_own_blocks(l, gram.as_mut());
             let (jt, lhs) = (
                 self.jt.as_ref().subcols(0, rows),
                 self.dt[l].as_ref().subcols(0, rows),
@@ -376,9 +380,66 @@ impl<'a> NormalBlock<'a> {
             });
     }
 
+    /// Adds a wide layer `l`'s own weight blocks: the block between units `o` and `p ≤ o` is
+    /// `A diag(c) Aᵀ` over the block's samples with `c_s = Σ_k D[(s, k), o] D[(s, k), p]` —
+    /// symmetric, so only its lower triangle is made (half the work; the upper one is copied
+    /// once at the end by [`NormalBlock::mirror_wide_rows`]). The blocks in parallel, one
+    /// thread each.
+    fn add_own_blocks(&self, l: usize, gram: MatMut<'_, f64>) {
+        use rayon::prelude::*;
+        let (n_in, h, off) = (self.net.sizes[l], self.net.sizes[l + 1], self.offsets[l]);
+        let k = self.net.sizes[self.net.sizes.len() - 1];
+        let mut rest = gram.submatrix_mut(off, off, h * n_in, h * n_in);
+        let mut blocks = Vec::with_capacity(h * (h + 1) / 2);
+        for o in 0..h {
+            let (mut band, below) = rest.split_at_row_mut(n_in);
+            rest = below;
+            for p in 0..=o {
+                let (block, right) = band.split_at_col_mut(n_in);
+                blocks.push(((o, p), block));
+                band = right;
+            }
+        }
+        let (dl, a) = (&self.dt[l], self.at[l].as_ref().subcols(0, self.samples));
+        blocks.into_par_iter().for_each_init(
+            || Mat::<f64>::zeros(n_in, self.samples),
+            |scaled, ((o, p), block)| {
+                for s in 0..self.samples {
+                    let c: f64 = (0..k)
+                        .map(|j| dl[(o, s * k + j)] * dl[(p, s * k + j)])
+                        .sum();
+                    for (z, &ai) in scaled.col_as_slice_mut(s).iter_mut().zip(a.col(s).iter()) {
+                        *z = c * ai;
+                    }
+                }
+                triangular::matmul(
+                    block,
+                    BlockStructure::TriangularLower,
+                    Accum::Add,
+                    a,
+                    BlockStructure::Rectangular,
+                    scaled.transpose(),
+                    BlockStructure::Rectangular,
+                    1.0,
+                    faer::Par::Seq,
+                );
+            },
+        );
+    }
+
     /// The wide layers' rows beyond their diagonal, copied to the narrow layers' rows below.
     fn mirror_wide_rows(&self, mut gram: MatMut<'_, f64>) {
         for l in (0..self.net.sizes.len() - 1).filter(|&l| self.wide(l)) {
+            let (n_in, off) = (self.net.sizes[l], self.offsets[l]);
+            for o in 1..self.net.sizes[l + 1] {
+                for p in 0..o {
+                    let (r, c) = (off + o * n_in, off + p * n_in);
+                    crate::damped::mirror_triangle(
+                        gram.as_mut().submatrix_mut(r, c, n_in, n_in),
+                        false,
+                    );
+                }
+            }
             let wide = self.range(l);
             for narrow in self.narrow_after(l) {
                 let (r, c) = (narrow.start, wide.start);
