@@ -35,7 +35,8 @@ use visuotact_vision::preprocess::PreprocessConfig;
 /// How big a demo to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DemoConfig {
-    /// A smaller run (under a minute): half the grid in each axis, shorter presses.
+    /// A smaller run: half the grid in each axis, shorter presses, sparser sweeps, and
+    /// visuotact's default with fewer networks, epochs and folds (printed).
     pub quick: bool,
     /// Seed of the simulation, the splits and the weights.
     pub seed: u64,
@@ -119,6 +120,9 @@ pub struct Table3Row {
 /// Seed 000's experiment.
 #[derive(Clone, Debug)]
 pub struct IatsDemo {
+    /// The default's settings differ from `visuotact train`'s for `--quick` (see
+    /// [`DemoConfig::quick`]): they, in words; empty for the full run.
+    pub quick_note: String,
     /// Markers calibrated.
     pub markers: usize,
     /// Grid touches trained on.
@@ -233,14 +237,15 @@ fn complete_markers(f: &[f64]) -> Option<Vec<f64>> {
 }
 
 /// Trains on `x` (the same path as `visuotact train`). `columns` names the inputs, the
-/// markers' features first; `sets` the input sets to choose between (none: all columns).
+/// markers' features first; `sets` the input sets to choose between by `folds`-fold
+/// cross-validation (none: all columns).
 fn train(
     x: &[Vec<f64>],
     t: &[Vec<f64>],
     columns: &[String],
     targets: &[&str],
     cfg: &FitConfig,
-    sets: &[InputSet],
+    (sets, folds): (&[InputSet], usize),
 ) -> Result<Trained, DemoError> {
     let targets: Vec<String> = targets.iter().map(|s| s.to_string()).collect();
     let data = FitData {
@@ -250,10 +255,8 @@ fn train(
         targets: &targets,
     };
     let t0 = Instant::now();
-    let model = fit_choosing(&data, cfg, sets, SELECTION_FOLDS, |_, _, _| {
-        Control::Continue
-    })?;
-    let inputs = inputs_of(&model, sets);
+    let model = fit_choosing(&data, cfg, sets, folds, |_, _, _| Control::Continue)?;
+    let inputs = inputs_of(&model, (sets, folds));
     Ok(Trained {
         model,
         train_s: t0.elapsed().as_secs_f64(),
@@ -261,20 +264,60 @@ fn train(
     })
 }
 
-/// `visuotact train`'s defaults for `columns` (markers' features first, then the rest): the
-/// configuration and the input sets it chooses between.
-fn default_config(columns: &[String], seed: u64) -> (FitConfig, Vec<InputSet>) {
+/// `visuotact train`'s defaults for some columns: the configuration, the input sets it
+/// chooses between and the folds it chooses by.
+struct Defaults {
+    cfg: FitConfig,
+    sets: Vec<InputSet>,
+    folds: usize,
+}
+
+impl Defaults {
+    /// The input sets and folds, as [`train`] takes them.
+    fn choice(&self) -> (&[InputSet], usize) {
+        (&self.sets, self.folds)
+    }
+}
+
+/// Networks in a quick demo's default ensemble (the full run trains `visuotact train`'s).
+const QUICK_ENSEMBLE: usize = 2;
+/// Folds of a quick demo's input selection.
+const QUICK_FOLDS: usize = 3;
+/// Most epochs of a quick demo's default networks.
+const QUICK_EPOCHS: usize = 300;
+
+/// How a quick run's defaults differ from `visuotact train`'s, in words (empty otherwise).
+fn quick_note(a: &DemoConfig) -> String {
+    if a.quick {
+        format!(
+            "; --quick: {QUICK_ENSEMBLE} networks of at most {QUICK_EPOCHS} epochs, {QUICK_FOLDS} folds"
+        )
+    } else {
+        String::new()
+    }
+}
+
+/// [`Defaults`] for `columns` (markers' features first, then the rest); `--quick` trains
+/// [`QUICK_ENSEMBLE`] networks of at most [`QUICK_EPOCHS`] epochs and chooses the inputs by
+/// [`QUICK_FOLDS`] folds — the demo prints how many networks, epochs and folds it used.
+fn default_config(columns: &[String], a: &DemoConfig) -> Defaults {
     let markers = columns.iter().filter(|c| is_marker_column(c)).count();
-    let cfg = FitConfig {
-        seed,
+    let mut cfg = FitConfig {
+        seed: a.seed,
         ..FitConfig::auto(markers, columns.len() - markers)
     };
+    let mut folds = SELECTION_FOLDS;
+    if a.quick {
+        cfg.ensemble = cfg.ensemble.min(QUICK_ENSEMBLE);
+        cfg.max_epochs = cfg.max_epochs.min(QUICK_EPOCHS);
+        folds = QUICK_FOLDS;
+    }
     let sets = candidate_inputs(
         &column_kinds(columns, &FIELD_COLUMNS),
         cfg.components,
         FieldInputs::Auto,
     );
-    (cfg, sets)
+    Defaults { cfg, sets, folds }
 }
 
 /// `model`'s inputs picked by name from rows whose columns are `columns` (the model may read
@@ -288,10 +331,10 @@ fn inputs_of_rows(
 }
 
 /// The inputs `model` was trained on, in words.
-fn inputs_of(model: &Model, sets: &[InputSet]) -> String {
+fn inputs_of(model: &Model, (sets, folds): (&[InputSet], usize)) -> String {
     match model.training.selection.iter().find(|s| s.chosen) {
         Some(chosen) => format!(
-            "{} (chosen by {SELECTION_FOLDS}-fold cross-validation; held-out error / variance {})",
+            "{} (chosen by {folds}-fold cross-validation; held-out error / variance {})",
             chosen.inputs,
             model
                 .training
@@ -333,20 +376,12 @@ fn calibrate_rest(
         .map_err(|source| DemoError::Calibration { what, source })
 }
 
-/// Seed 000's experiment: the grid protocol trains, Table 3 and random touches test.
-pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
-    let cfg = IatsConfig::SEED000;
-    let t0 = Instant::now();
-    let render = |t: &Touch, k: u64| {
-        visuotact_sim::iats::render(&cfg, t, frame_seed(a.seed, k)).map(|r| r.0)
-    };
-    let rest: Vec<RgbImage> = (0..5)
-        .map(|k| render(&Touch::default(), k))
-        .collect::<Result<_, _>>()?;
-    // As `calibrate` does by default: grey-level centroids.
-    let cal = calibrate_rest(
+/// Seed 000's sensor calibrated from contact-free frames as `calibrate` does by default
+/// (grey-level centroids).
+fn iats_calibration(rest: &[RgbImage]) -> Result<SensorCalibration, DemoError> {
+    calibrate_rest(
         "iats",
-        &rest,
+        rest,
         &CalibrationConfig {
             detector: DetectorConfig {
                 preprocess: PreprocessConfig::IATS,
@@ -357,7 +392,20 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
             features: FeatureSet::IATS,
             ..Default::default()
         },
-    )?;
+    )
+}
+
+/// Seed 000's experiment: the grid protocol trains, Table 3 and random touches test.
+pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
+    let cfg = IatsConfig::SEED000;
+    let t0 = Instant::now();
+    let render = |t: &Touch, k: u64| {
+        visuotact_sim::iats::render(&cfg, t, frame_seed(a.seed, k)).map(|r| r.0)
+    };
+    let rest: Vec<RgbImage> = (0..5)
+        .map(|k| render(&Touch::default(), k))
+        .collect::<Result<_, _>>()?;
+    let cal = iats_calibration(&rest)?;
     let mut grid = protocol::iats_grid();
     if a.quick {
         grid.retain(|t| {
@@ -393,11 +441,19 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
         marker_columns,
         &targets,
         &paper_config(&[20; 5], a.seed),
-        &[],
+        (&[], 0),
     )?;
-    let (default_cfg, sets) = default_config(&columns, a.seed);
-    let default = train(&xd, &td, &columns, &targets, &default_cfg, &sets)?;
+    let defaults = default_config(&columns, a);
+    let default = train(
+        &xd,
+        &td,
+        &columns,
+        &targets,
+        &defaults.cfg,
+        defaults.choice(),
+    )?;
     let mut demo = IatsDemo {
+        quick_note: quick_note(a),
         markers: cal.markers.len(),
         grid_touches: grid.len(),
         complete_frames: x.len(),
@@ -405,7 +461,7 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
         setup_s,
         paper,
         default,
-        default_hidden: default_cfg.hidden,
+        default_hidden: defaults.cfg.hidden,
         table3: Vec::new(),
         random_touches: 0,
         errors: Vec::new(),
@@ -628,7 +684,7 @@ fn best_of_sweep(
         .into_par_iter()
         .map(|(arch, repeat)| {
             let cfg = paper_config(&archs[arch], a.seed + 7919 * repeat as u64);
-            let model = train(x, t, columns, &["force_n"], &cfg, &[])?.model;
+            let model = train(x, t, columns, &["force_n"], &cfg, (&[], 0))?.model;
             Ok(sweep::Trained {
                 arch,
                 repeat,
@@ -846,11 +902,18 @@ fn cone_table(
 ) -> Result<ConeDemo, DemoError> {
     let ((x, t), (xg, tg)) = (first.rows(false), first.rows(true));
     let force = ["force_n"];
-    let one = train(&x, &t, columns, &force, &paper_config(&[20], a.seed), &[])?;
-    let (dc, sets) = default_config(columns, a.seed);
-    let default = train(&x, &t, columns, &force, &dc, &sets)?.model;
-    let (dgc, sets_g) = default_config(gauge_columns, a.seed);
-    let default_g = train(&xg, &tg, gauge_columns, &force, &dgc, &sets_g)?.model;
+    let one = train(
+        &x,
+        &t,
+        columns,
+        &force,
+        &paper_config(&[20], a.seed),
+        (&[], 0),
+    )?;
+    let d = default_config(columns, a);
+    let default = train(&x, &t, columns, &force, &d.cfg, d.choice())?.model;
+    let dg = default_config(gauge_columns, a);
+    let default_g = train(&xg, &tg, gauge_columns, &force, &dg.cfg, dg.choice())?.model;
     let repeats: u64 = if a.quick { 2 } else { 5 };
     let archs = one_layer_archs(40, 1);
     let sw = best_of_sweep(a, (&x, &t), columns, (&archs, repeats))?;

@@ -35,13 +35,15 @@ fn iats_training(out: &mut String, d: &IatsDemo) {
     );
     let m = &d.default.model;
     let _ = writeln!(out,
-        "visuotact's default (`visuotact train` with no options): {} of {} frames, {} → {} → 3, {} ({} networks) in {:.1} s",
+        "visuotact's default (`visuotact train` with no options{}): {} of {} frames, {} → {} → 3, {} ({} networks, {} epochs) in {:.1} s",
+        d.quick_note,
         d.default_frames,
         d.grid_touches,
         d.default.inputs,
         joined(&d.default_hidden),
         m.training.algorithm,
         m.networks().count(),
+        m.training.epochs,
         d.default.train_s
     );
 }

@@ -204,10 +204,24 @@ pub fn frame_from_coverage_lit(
         let mut px = [0u8; 3];
         for (o, (b, m)) in px.iter_mut().zip(bg.iter().zip(&mk)) {
             let v = (b * (1.0 - c) + m * c) * light + noise.sample(&mut rng);
-            *o = v.round().clamp(0.0, 255.0) as u8;
+            *o = u8_from_level(v);
         }
         px
     })
+}
+
+/// `v.round().clamp(0.0, 255.0) as u8` (half away from zero; NaN to 0) without the libm call
+/// that `round` is on baseline x86-64 — the same bits, a few times faster per pixel.
+fn u8_from_level(v: f32) -> u8 {
+    if v.is_nan() || v < 0.5 {
+        return 0;
+    }
+    if v >= 254.5 {
+        return 255;
+    }
+    // 0.5 ≤ v < 254.5: truncation and the fraction are exact.
+    let t = v as u8;
+    t + u8::from(v - f32::from(t) >= 0.5)
 }
 
 /// Renders a grid pattern; returns the frame and the truth per marker in grid order.
@@ -223,4 +237,31 @@ pub fn render_grid(
         render_markers(pattern.width, pattern.height, &shapes, &pattern.look, seed),
         markers,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::u8_from_level;
+
+    #[test]
+    fn levels_round_as_the_standard_library_does() {
+        let mut values: Vec<f32> = (-2_000..=260_000).map(|i| i as f32 / 1000.0).collect();
+        // Both neighbours of every half and whole level, where rounding changes.
+        for i in -4..=520 {
+            let v = i as f32 * 0.5;
+            values.extend([v, v.next_up(), v.next_down()]);
+        }
+        values.extend([
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -0.0,
+            1e30,
+            -1e30,
+        ]);
+        for v in values {
+            let want = v.round().clamp(0.0, 255.0) as u8;
+            assert_eq!(u8_from_level(v), want, "{v} ({:#x})", v.to_bits());
+        }
+    }
 }
