@@ -284,7 +284,7 @@ const QUICK_ENSEMBLE: usize = 2;
 /// Folds of a quick demo's input selection.
 const QUICK_FOLDS: usize = 3;
 /// Most epochs of a quick demo's default networks.
-const QUICK_EPOCHS: usize = 300;
+const QUICK_EPOCHS: usize = 200;
 
 /// How a quick run's defaults differ from `visuotact train`'s, in words (empty otherwise).
 fn quick_note(a: &DemoConfig) -> String {
@@ -596,6 +596,16 @@ impl ConeFrames {
     }
 }
 
+/// Frames per second of the cone's camera: 25, as seed 001's; a quick run films every other
+/// frame.
+fn cone_fps(a: &DemoConfig) -> f64 {
+    if a.quick {
+        12.5
+    } else {
+        25.0
+    }
+}
+
 /// One press of the cone at `azimuth_rad` starting at `t0` s, rendered from frame `base` on.
 fn cone_press(
     a: &DemoConfig,
@@ -604,7 +614,7 @@ fn cone_press(
     t0: f64,
     base: u64,
 ) -> Result<ConeFrames, DemoError> {
-    let (cfg, fps) = (ConeConfig::SEED001, 25.0);
+    let (cfg, fps) = (ConeConfig::SEED001, cone_fps(a));
     let n = (press.duration_s * fps) as usize;
     let loads: Vec<ConeLoad> = (0..n)
         .map(|k| press.load_at(&cfg, k as f64 / fps, t0))

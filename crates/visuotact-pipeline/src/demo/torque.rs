@@ -17,8 +17,8 @@ use visuotact_vision::detect::Detector;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 use super::{
-    calibrated_cone, complete_markers, default_config, inputs_of_rows, marker_columns, train,
-    DemoConfig, DemoError,
+    calibrated_cone, complete_markers, cone_fps, default_config, inputs_of_rows, marker_columns,
+    train, DemoConfig, DemoError,
 };
 
 /// The torque experiment's outcome.
@@ -90,7 +90,7 @@ fn torque_press(
     press: &ConePress,
     (t0, base): (f64, u64),
 ) -> Result<(Rows, Vec<ConeLoad>), DemoError> {
-    let (cfg, fps) = (ConeConfig::SEED001_T, 25.0);
+    let (cfg, fps) = (ConeConfig::SEED001_T, cone_fps(a));
     let n = (press.duration_s * fps) as usize;
     let loads: Vec<ConeLoad> = (0..n)
         .map(|k| press.load_at(&cfg, k as f64 / fps, t0))
