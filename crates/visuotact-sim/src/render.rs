@@ -547,14 +547,8 @@ impl Canvas {
         if sigma_px <= 0.0 {
             return;
         }
-        let r = (3.0 * sigma_px).ceil() as i64;
-        let k: Vec<f64> = (-r..=r)
-            .map(|i| (-(i * i) as f64 / (2.0 * sigma_px * sigma_px)).exp())
-            .collect();
-        let sum: f64 = k.iter().sum();
-        let k: Vec<f32> = k.iter().map(|v| (v / sum) as f32).collect();
+        let (r, k) = gaussian_taps(sigma_px);
         let (w, h) = (self.width, self.height);
-        let r = r as usize;
         // Each output pixel sums its taps in the same order as a per-pixel loop would (tap 0
         // first); the loops run over whole rows so that the sums vectorise. Edges clamp.
         let mut tmp = vec![0f32; self.data.len()];
@@ -590,6 +584,16 @@ impl Canvas {
             }
         }
     }
+}
+
+/// The radius `r = ⌈3σ⌉` and the `2r + 1` taps of a normalised Gaussian kernel.
+fn gaussian_taps(sigma_px: f64) -> (usize, Vec<f32>) {
+    let r = (3.0 * sigma_px).ceil() as i64;
+    let k: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma_px * sigma_px)).exp())
+        .collect();
+    let sum: f64 = k.iter().sum();
+    (r as usize, k.iter().map(|v| (v / sum) as f32).collect())
 }
 
 #[cfg(test)]
@@ -678,31 +682,24 @@ mod tests {
             }
             let src = canvas.data.clone();
             canvas.blur(sigma);
-            let r = (3.0 * sigma).ceil() as i64;
-            let k: Vec<f64> = (-r..=r)
-                .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
-                .collect();
-            let sum: f64 = k.iter().sum();
-            let k: Vec<f32> = k.iter().map(|v| (v / sum) as f32).collect();
+            let (r, k) = gaussian_taps(sigma);
+            let r = r as i64;
             let (wi, hi) = (w as i64, h as i64);
+            // Σ_t k[t] · line(clamp(at + t − r)) over a line of n pixels, tap 0 first.
+            let taps = |line: &dyn Fn(i64) -> f32, at: i64, n: i64| {
+                k.iter().enumerate().fold(0f32, |acc, (t, kv)| {
+                    acc + kv * line((at + t as i64 - r).clamp(0, n - 1))
+                })
+            };
             let mut tmp = vec![0f32; src.len()];
             for y in 0..hi {
                 for x in 0..wi {
-                    let mut acc = 0f32;
-                    for (t, kv) in k.iter().enumerate() {
-                        let xx = (x + t as i64 - r).clamp(0, wi - 1);
-                        acc += kv * src[(y * wi + xx) as usize];
-                    }
-                    tmp[(y * wi + x) as usize] = acc;
+                    tmp[(y * wi + x) as usize] = taps(&|xx| src[(y * wi + xx) as usize], x, wi);
                 }
             }
             for y in 0..hi {
                 for x in 0..wi {
-                    let mut acc = 0f32;
-                    for (t, kv) in k.iter().enumerate() {
-                        let yy = (y + t as i64 - r).clamp(0, hi - 1);
-                        acc += kv * tmp[(yy * wi + x) as usize];
-                    }
+                    let acc = taps(&|yy| tmp[(yy * wi + x) as usize], y, hi);
                     let got = canvas.data[(y * wi + x) as usize];
                     assert_eq!(got.to_bits(), acc.to_bits(), "{w}×{h} at ({x}, {y})");
                 }
