@@ -17,9 +17,10 @@
 
 use faer::Mat;
 
+use crate::damped::DampedSolver;
 use crate::lm::{
-    gradient_stop, start_stop, sum_sq, system_at, Control, DampedSolver, Jacobian, LmConfig,
-    LmOutcome, Problem, Start, Step, StopReason,
+    gradient_stop, start_stop, sum_sq, system_at, Control, Jacobian, LmConfig, LmOutcome, Problem,
+    Start, Step, StopReason,
 };
 
 /// The regularisation state after an epoch.

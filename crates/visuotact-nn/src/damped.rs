@@ -154,16 +154,17 @@ impl DampedSolver {
             return;
         }
         self.pack();
+        self.abs_sums = packed_symmetric_times(&self.buf, k, &vec![1.0; k], f64::abs);
     }
 
-    /// The packed layout from a square whose lower triangle holds `G`.
+    /// The packed layout from a square whose lower triangle holds `G` (the iteration's
+    /// column sums of `|G|` are kept from [`DampedSolver::keep_gram`]).
     fn pack(&mut self) {
         let k = self.k;
         for j in 1..k {
             let src = j * k + j;
             self.buf.copy_within(src..(j + 1) * k, packed_start(j, k));
         }
-        self.abs_sums = packed_symmetric_times(&self.buf, k, &vec![1.0; k], f64::abs);
         self.layout = Layout::Packed;
     }
 
@@ -553,24 +554,15 @@ mod tests {
             kept.keep_gram();
             for mu in [1e-3, 1e-2, 10.0, 1e-3] {
                 let y = kept.solve(mu, &vec![1.0; k], &b).unwrap();
-                let mut damped = g.clone();
-                for i in 0..k {
-                    damped[(i, i)] += mu;
-                }
                 let bm = Mat::<f64>::from_fn(k, 1, |i, _| b[i]);
-                let resid = &damped * Mat::<f64>::from_fn(k, 1, |i, _| y[i]) - &bm;
+                let resid = shifted(&g, mu) * Mat::<f64>::from_fn(k, 1, |i, _| y[i]) - &bm;
                 let rel = resid.norm_l2() / bm.norm_l2();
                 assert!(rel < 1e-12, "k {k} μ {mu}: relative residual {rel}");
             }
             assert_eq!(kept.fallbacks, 0);
             // tr((G + λI)⁻¹) by blocks of L⁻¹ equals the trace of the dense inverse.
             let lam = 0.5;
-            let mut shifted = g.clone();
-            for i in 0..k {
-                shifted[(i, i)] += lam;
-            }
-            let inv = shifted.partial_piv_lu().inverse();
-            let want: f64 = (0..k).map(|i| inv[(i, i)]).sum();
+            let want = dense_trace_inverse(&g, lam);
             let got = kept.trace_inverse(lam).unwrap();
             assert!(
                 (got - want).abs() < 1e-10 * want.abs(),
@@ -580,13 +572,24 @@ mod tests {
         }
     }
 
-    /// `y` with `(G + μI) y = b` by a dense LU factorisation.
-    fn dense_solution(g: &Mat<f64>, mu: f64, b: &[f64]) -> Vec<f64> {
+    /// `G + μI`.
+    fn shifted(g: &Mat<f64>, mu: f64) -> Mat<f64> {
         let mut damped = g.clone();
         for i in 0..g.nrows() {
             damped[(i, i)] += mu;
         }
-        let y = damped
+        damped
+    }
+
+    /// `tr((G + λI)⁻¹)` from the dense inverse.
+    fn dense_trace_inverse(g: &Mat<f64>, lam: f64) -> f64 {
+        let inv = shifted(g, lam).partial_piv_lu().inverse();
+        (0..g.nrows()).map(|i| inv[(i, i)]).sum()
+    }
+
+    /// `y` with `(G + μI) y = b` by a dense LU factorisation.
+    fn dense_solution(g: &Mat<f64>, mu: f64, b: &[f64]) -> Vec<f64> {
+        let y = shifted(g, mu)
             .partial_piv_lu()
             .solve(Mat::<f64>::from_fn(b.len(), 1, |i, _| b[i]));
         (0..b.len()).map(|i| y[(i, 0)]).collect()
@@ -619,14 +622,7 @@ mod tests {
             // The double-precision path from the packed layout: the trace of the inverse,
             // then trials on the square layout.
             let lam = 0.5;
-            let inv = {
-                let mut shifted = g.clone();
-                for i in 0..k {
-                    shifted[(i, i)] += lam;
-                }
-                shifted.partial_piv_lu().inverse()
-            };
-            let want: f64 = (0..k).map(|i| inv[(i, i)]).sum();
+            let want = dense_trace_inverse(&g, lam);
             let got = s.trace_inverse(lam).unwrap();
             assert!((got - want).abs() < 1e-10 * want, "k {k}: {got} vs {want}");
             let y = s.solve(0.1, &vec![1.0; k], &b).unwrap();

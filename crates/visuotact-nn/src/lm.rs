@@ -19,7 +19,7 @@
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::{Accum, Mat, MatMut};
 
-pub(crate) use crate::damped::DampedSolver;
+use crate::damped::DampedSolver;
 
 /// The lower triangle of `JJᵀ` (dual) or `JᵀJ` into `out`: a symmetric product computes half
 /// the entries, and the Cholesky factorisation reads only that half.

@@ -196,14 +196,19 @@ const WIDE_LAYER: usize = 64;
 /// One block of samples' part of the primal normal equations of a network.
 ///
 /// The rows of `JᵀJ` for a layer with wide inputs (at least [`WIDE_LAYER`], the first layer of
-/// a marker network) are made by hidden unit: the rows of unit `o`'s weights `(o, i)` are
-/// `Σ_s A[s, i] Z_o[s, :]` with `Z_o[s, :] = Σ_k D[(s, k), o] J[(s, k), :]` — products whose
-/// inner dimension is the block's samples rather than its residuals (a third of the work of
-/// `JᵀJ` from the rows of `J`, for three outputs) — and its bias rows are `Dᵀ J`. Those rows
-/// are made up to their diagonal and, for the columns of later narrow layers, beyond it (in
-/// the upper triangle, copied down once at the end by [`NormalBlock::mirror_wide_rows`]):
-/// a narrow layer's rows then need only the narrow layers' columns, straight from the block
-/// of `J`.
+/// a marker network) use the layer's structure, `J[(s, k), (o, i)] = D[(s, k), o] A[s, i]`:
+/// - its own weight blocks, between units `o` and `p ≤ o`, are `Σ_s c_s A[s, :]ᵀ A[s, :]` with
+///   `c_s = Σ_k D[(s, k), o] D[(s, k), p]` — symmetric, so only their lower triangles are made
+///   ([`NormalBlock::add_own_blocks`]);
+/// - its rows against other layers' columns are, for unit `o`, `Σ_s A[s, i] Z_o[s, :]` with
+///   `Z_o[s, :] = Σ_k D[(s, k), o] J[(s, k), :]` — products whose inner dimension is the
+///   block's samples rather than its residuals;
+/// - its bias rows are `Dᵀ J`.
+///
+/// The rows against later narrow layers' columns lie beyond the diagonal (in the upper
+/// triangle); they and the own blocks' upper triangles are copied once at the end by
+/// [`NormalBlock::mirror_wide_rows`]: a narrow layer's rows then need only the narrow layers'
+/// columns, straight from the block of `J`.
 struct NormalBlock<'a> {
     net: &'a Mlp,
     offsets: Vec<usize>,
@@ -427,7 +432,8 @@ impl<'a> NormalBlock<'a> {
         );
     }
 
-    /// The wide layers' rows beyond their diagonal, copied to the narrow layers' rows below.
+    /// The wide layers' own blocks below the diagonal made whole, and their rows beyond the
+    /// diagonal copied to the narrow layers' rows below.
     fn mirror_wide_rows(&self, mut gram: MatMut<'_, f64>) {
         for l in (0..self.net.sizes.len() - 1).filter(|&l| self.wide(l)) {
             let (n_in, off) = (self.net.sizes[l], self.offsets[l]);

@@ -264,6 +264,9 @@ fn train(
     })
 }
 
+/// No input sets to choose between: [`train`] reads every column.
+const EVERY_COLUMN: (&[InputSet], usize) = (&[], 0);
+
 /// `visuotact train`'s defaults for some columns: the configuration, the input sets it
 /// chooses between and the folds it chooses by.
 struct Defaults {
@@ -441,7 +444,7 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
         marker_columns,
         &targets,
         &paper_config(&[20; 5], a.seed),
-        (&[], 0),
+        EVERY_COLUMN,
     )?;
     let defaults = default_config(&columns, a);
     let default = train(
@@ -694,7 +697,7 @@ fn best_of_sweep(
         .into_par_iter()
         .map(|(arch, repeat)| {
             let cfg = paper_config(&archs[arch], a.seed + 7919 * repeat as u64);
-            let model = train(x, t, columns, &["force_n"], &cfg, (&[], 0))?.model;
+            let model = train(x, t, columns, &["force_n"], &cfg, EVERY_COLUMN)?.model;
             Ok(sweep::Trained {
                 arch,
                 repeat,
@@ -918,7 +921,7 @@ fn cone_table(
         columns,
         &force,
         &paper_config(&[20], a.seed),
-        (&[], 0),
+        EVERY_COLUMN,
     )?;
     let d = default_config(columns, a);
     let default = train(&x, &t, columns, &force, &d.cfg, d.choice())?.model;
