@@ -309,11 +309,9 @@ impl RingSides<'_> {
         // Residuals against the plane: RMS and the worst.
         let (mut sq, mut worst, mut n) = (0.0f32, 0.0f32, 0usize);
         for &(vals, start, step) in &sides {
-            for (i, &v) in vals.iter().enumerate() {
-                let r = (f32::from(v) - start - step * i as f32).abs();
-                sq += r * r;
-                worst = worst.max(r);
-            }
+            let (s, w) = residual_sq_max(vals, start, step);
+            sq += s;
+            worst = worst.max(w);
             n += vals.len();
         }
         let cut = 3.0 * (sq / n as f32).sqrt().max(0.5);
@@ -360,6 +358,32 @@ impl RingSides<'_> {
     }
 }
 
+/// `Σ r²` and `max |r|` of the residuals `r_i = v_i − start − step·i`, in eight lanes (the
+/// compiler vectorises the fixed-width inner loop; a scalar loop's running sum and maximum are
+/// chains it cannot).
+fn residual_sq_max(vals: &[u8], start: f32, step: f32) -> (f32, f32) {
+    const LANES: usize = 8;
+    let (mut sq, mut worst) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let mut chunks = vals.chunks_exact(LANES);
+    let mut i0 = 0.0f32;
+    for c in &mut chunks {
+        for k in 0..LANES {
+            let r = (f32::from(c[k]) - start - step * (i0 + k as f32)).abs();
+            sq[k] += r * r;
+            // Not `f32::max`: residuals are finite, and its NaN handling blocks vectorising.
+            worst[k] = if r > worst[k] { r } else { worst[k] };
+        }
+        i0 += LANES as f32;
+    }
+    for (k, &v) in chunks.remainder().iter().enumerate() {
+        let r = (f32::from(v) - start - step * (i0 + k as f32)).abs();
+        sq[k] += r * r;
+        worst[k] = if r > worst[k] { r } else { worst[k] };
+    }
+    let total = ((sq[0] + sq[1]) + (sq[2] + sq[3])) + ((sq[4] + sq[5]) + (sq[6] + sq[7]));
+    (total, worst.into_iter().fold(0.0, f32::max))
+}
+
 /// Replaces each blob's centroid by its grey-level centroid ([`Centroid::Grey`]) measured on
 /// `gray`; `ring` is scratch.
 fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
@@ -384,13 +408,14 @@ fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
         let (nw, nh) = (x1 - x0, y1 - y0);
         // The ring: top row, bottom row, left column, right column (between the rows).
         let (xm, ym) = (0.5 * (nw - 1) as f32, 0.5 * (nh - 1) as f32);
+        let data = gray.as_slice();
         ring.clear();
-        ring.extend((y0 + 1..y1 - 1).map(|y| gray.row(y)[x0]));
-        ring.extend((y0 + 1..y1 - 1).map(|y| gray.row(y)[x1 - 1]));
+        ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x0]));
+        ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x1 - 1]));
         let (left, right) = ring.split_at(nh - 2);
         let sides = RingSides {
-            top: &gray.row(y0)[x0..x1],
-            bottom: &gray.row(y1 - 1)[x0..x1],
+            top: &data[y0 * width + x0..y0 * width + x1],
+            bottom: &data[(y1 - 1) * width + x0..(y1 - 1) * width + x1],
             left,
             right,
             xm,

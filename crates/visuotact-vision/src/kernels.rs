@@ -322,7 +322,7 @@ pub fn ellipse_window_sums(
                 unsafe_code,
                 reason = "calling a target_feature function after the runtime check"
             )]
-            return unsafe { window::sums_avx2(rows_of, stride, cols, rows, e) };
+            return unsafe { window::sums_avx2(pixels, stride, cols, rows, e) };
         }
     }
     ellipse_window_sums_portable(rows_of, stride, cols, rows, e)
@@ -369,7 +369,9 @@ mod window {
 
     use super::EllipseWindow;
 
-    /// [`super::ellipse_window_sums`] on AVX2; `pixels` holds exactly the window's rows.
+    /// [`super::ellipse_window_sums`] on AVX2; `pixels` holds at least the window's rows. A
+    /// row's tail is read in place (its bytes past the window masked off) while eight bytes
+    /// remain in `pixels`, else copied.
     #[target_feature(enable = "avx2")]
     pub(super) fn sums_avx2(
         pixels: &[u8],
@@ -422,9 +424,14 @@ mod window {
             }
             let tail = eights.remainder();
             if !tail.is_empty() {
-                let mut v = [0u8; 8];
-                v[..tail.len()].copy_from_slice(tail);
-                step(&v, tail.len() as i32);
+                let at = r * stride + cols - tail.len();
+                if let Some(bytes) = pixels.get(at..at + 8) {
+                    step(bytes.try_into().unwrap_or(&[0; 8]), tail.len() as i32);
+                } else {
+                    let mut v = [0u8; 8];
+                    v[..tail.len()].copy_from_slice(tail);
+                    step(&v, tail.len() as i32);
+                }
             }
         }
         [lanes_sum(sw), lanes_sum(sx), lanes_sum(sy)]
@@ -517,6 +524,11 @@ mod tests {
                     }
                 }
                 let out = ellipse_window_sums(&pixels, stride, cols, rows, e);
+                // Tails read in place (bytes past the window masked) and copied agree.
+                if rows > 0 {
+                    let exact = &pixels[..(rows - 1) * stride + cols];
+                    assert_eq!(ellipse_window_sums(exact, stride, cols, rows, e), out);
+                }
                 let portable = ellipse_window_sums_portable(&pixels, stride, cols, rows, e);
                 for k in 0..3 {
                     assert!(
