@@ -109,8 +109,8 @@ impl Sensor {
     /// markers' polarity in the first frame), "iats", "cone" or "dark-markers"; `layout`:
     /// "auto", "grid", "hex", "dot-rings", "rings" or "irregular". Keyword options change the
     /// preset's detector as `visuotact calibrate`'s options do: `channel` ("green",
-    /// "luma601", "mean", "red", "blue"), `invert`, `threshold` ("otsu", "adaptive" or a level
-    /// in 0..1), `window`, `offset`, `open`, `close`, `morph_size`, `min_area`, `max_area`,
+    /// "luma601", "mean", "red", "blue"), `invert`, `threshold` ("otsu", "otsu-sampled",
+    /// "adaptive" or a level in 0..1), `window`, `offset`, `open`, `close`, `morph_size`, `min_area`, `max_area`,
     /// `keep_border`, `centroid` ("grey", "weighted", "binary"), `roi` (x, y, w, h),
     /// `circle` (cx, cy, r).
     #[staticmethod]

@@ -11,8 +11,9 @@ use crate::blobs::{
     Region,
 };
 use crate::preprocess::{
-    adaptive_levels_into, gray_from_rgb_into, histogram, morphology_in_place, open3_from_rgb_into,
-    otsu_level, MorphScratch, Open3Scratch, PreprocessConfig, Threshold,
+    adaptive_levels_into, gray_from_rgb_into, histogram_of, morphology_in_place,
+    open3_from_rgb_into, otsu_level, HistogramPixels, MorphScratch, Open3Scratch, PreprocessConfig,
+    Threshold,
 };
 
 /// The integer level `t` with `v > t` ⟺ `v > level · 255` for 8-bit `v` (MATLAB `im2bw`):
@@ -106,9 +107,9 @@ pub struct Detector {
     gray: GrayImage,
     morph: MorphScratch,
     levels: Vec<f32>,
-    scratch: BlobScratch,
-    all: Vec<Blob>,
-    centroids: Vec<(f64, f64)>,
+    labelling: Labelling,
+    /// The last frame had grey-centroid blobs that keep the weighted centroid.
+    grey_needs_weights: bool,
     open3: Open3Scratch,
     /// Histogram of the preprocessed image, when the streaming path computed it.
     hist: Option<[u32; 256]>,
@@ -133,9 +134,8 @@ impl Detector {
             gray: GrayImage::new(0, 0),
             morph: MorphScratch::default(),
             levels: Vec::new(),
-            scratch: BlobScratch::default(),
-            all: Vec::new(),
-            centroids: Vec::new(),
+            labelling: Labelling::default(),
+            grey_needs_weights: false,
             open3: Open3Scratch::default(),
             hist: None,
             cut: Vec::new(),
@@ -168,7 +168,7 @@ impl Detector {
         if p.open && !p.close && p.morph_size == 3 {
             // The common case streams channel + opening (+ histogram for Otsu) row by row.
             let mut hist = [0u32; 256];
-            let want = matches!(p.threshold, Threshold::Otsu).then_some(&mut hist);
+            let want = p.threshold.histogram_pixels().map(|px| (&mut hist, px));
             let got = want.is_some();
             open3_from_rgb_into(
                 rgb,
@@ -218,9 +218,11 @@ impl Detector {
         };
         let level = match p.threshold {
             Threshold::Fixed { level } => Some(fixed_level(level)),
-            Threshold::Otsu => Some(otsu_level(
-                &self.hist.unwrap_or_else(|| histogram(self.gray.as_slice())),
-            )),
+            Threshold::Otsu | Threshold::OtsuSampled => {
+                let pixels = p.threshold.histogram_pixels();
+                let of_gray = || histogram_of(&self.gray, pixels.unwrap_or(HistogramPixels::All));
+                Some(otsu_level(&self.hist.unwrap_or_else(of_gray)))
+            }
             Threshold::Adaptive { window_px, offset } => {
                 adaptive_levels_into(&self.gray, window_px, offset, &mut self.levels);
                 None
@@ -230,47 +232,76 @@ impl Detector {
             Some(t) => Level::Scalar(t),
             None => Level::PerPixel(&self.levels),
         };
-        match self.cfg.centroid {
-            Centroid::Binary => blobs_from_gray_into(
-                &self.gray,
-                lv,
-                region,
-                self.cfg.filter.connectivity,
-                &mut self.scratch,
-                &mut self.all,
-            ),
-            Centroid::Weighted | Centroid::Grey => {
-                blobs_weighted_from_gray_into(
-                    &self.gray,
-                    lv,
-                    region,
-                    self.cfg.filter.connectivity,
-                    &mut self.scratch,
-                    &mut self.all,
-                    &mut self.centroids,
-                );
-                for (b, &(x, y)) in self.all.iter_mut().zip(&self.centroids) {
-                    (b.x_px, b.y_px) = (x, y);
-                }
+        let connectivity = self.cfg.filter.connectivity;
+        let grey = self.cfg.centroid == Centroid::Grey;
+        // Grey centroids with a global level are refined from binary blobs (the ellipse centred
+        // on the weighted centroid taken over each blob's box); only when a kept blob cannot be
+        // refined (a hollow one, one at the border) does the frame need the labelling's
+        // weighted centroids. Whether it did is remembered, so that a sensor of annuli is
+        // labelled once per frame; the result is the same either way.
+        let mut weighted = match self.cfg.centroid {
+            Centroid::Binary => false,
+            Centroid::Weighted => true,
+            Centroid::Grey => level.is_none() || self.grey_needs_weights,
+        };
+        loop {
+            let lab = &mut self.labelling;
+            lab.label(&self.gray, lv, region, connectivity, weighted);
+            out.clear();
+            out.extend(lab.all.iter().filter(|b| self.cfg.filter.keeps(b)));
+            if !grey {
+                break;
             }
-        }
-        out.clear();
-        out.extend(self.all.iter().filter(|b| self.cfg.filter.keeps(b)));
-        if self.cfg.centroid == Centroid::Grey {
             // On the preprocessed image: a 3 × 3 opening keeps a marker's grey profile (it is
             // larger than the window and convex) and takes noise peaks off.
-            refine_grey(out, &self.gray, &mut self.ring);
+            let left = refine_grey(out, &self.gray, &mut self.ring, level);
+            self.grey_needs_weights = left > 0;
+            if left == 0 || weighted {
+                break;
+            }
+            weighted = true;
         }
         let f = &self.cfg.filter;
         self.cut.clear();
         self.cut.extend(
-            self.all
+            self.labelling
+                .all
                 .iter()
                 .filter(|b| !f.keep_border && b.touches_border && b.area_px <= f.max_area_px),
         );
         Detection {
             level,
-            raw_count: self.all.len(),
+            raw_count: self.labelling.all.len(),
+        }
+    }
+}
+
+/// The labelling pass's scratch and its blobs (before the filter).
+#[derive(Clone, Debug, Default)]
+struct Labelling {
+    scratch: BlobScratch,
+    all: Vec<Blob>,
+    centroids: Vec<(f64, f64)>,
+}
+
+impl Labelling {
+    /// Labels `gray` into `all`, with grey-level weighted centroids when `weighted`.
+    fn label(
+        &mut self,
+        gray: &GrayImage,
+        lv: Level<'_>,
+        region: Region,
+        connectivity: Connectivity,
+        weighted: bool,
+    ) {
+        let (s, all) = (&mut self.scratch, &mut self.all);
+        if !weighted {
+            blobs_from_gray_into(gray, lv, region, connectivity, s, all);
+            return;
+        }
+        blobs_weighted_from_gray_into(gray, lv, region, connectivity, s, all, &mut self.centroids);
+        for (b, &(x, y)) in all.iter_mut().zip(&self.centroids) {
+            (b.x_px, b.y_px) = (x, y);
         }
     }
 }
@@ -318,22 +349,12 @@ impl RingSides<'_> {
         if worst <= cut {
             return Some(first);
         }
-        let kept_mean = |&(vals, start, step): &Side<'_>| -> Option<f32> {
-            let (mut sum, mut k) = (0.0f32, 0.0f32);
-            for (i, &v) in vals.iter().enumerate() {
-                let v = f32::from(v);
-                if (v - start - step * i as f32).abs() <= cut {
-                    sum += v;
-                    k += 1.0;
-                }
-            }
-            (k > 0.0).then(|| sum / k)
-        };
+        let kept = |&(vals, start, step): &Side<'_>| kept_mean(vals, start, step, cut);
         Some(self.plane_of_means([
-            kept_mean(&sides[0])?,
-            kept_mean(&sides[1])?,
-            kept_mean(&sides[2])?,
-            kept_mean(&sides[3])?,
+            kept(&sides[0])?,
+            kept(&sides[1])?,
+            kept(&sides[2])?,
+            kept(&sides[3])?,
         ]))
     }
 
@@ -358,115 +379,241 @@ impl RingSides<'_> {
     }
 }
 
-/// `Σ r²` and `max |r|` of the residuals `r_i = v_i − start − step·i`, in eight lanes (the
-/// compiler vectorises the fixed-width inner loop; a scalar loop's running sum and maximum are
-/// chains it cannot).
-fn residual_sq_max(vals: &[u8], start: f32, step: f32) -> (f32, f32) {
-    const LANES: usize = 8;
-    let (mut sq, mut worst) = ([0.0f32; LANES], [0.0f32; LANES]);
-    let mut chunks = vals.chunks_exact(LANES);
+/// Lanes of the ring's residual loops.
+const LANES: usize = 8;
+
+/// Calls `f(lane, v_i, |r_i|)` for the residuals `r_i = v_i − start − step·i` of `vals`, the
+/// lane being `i mod LANES`. Inlined into fixed-width loops over per-lane state, which the
+/// compiler vectorises (a running sum or maximum over one scalar is a chain it cannot).
+#[inline(always)]
+fn for_residuals(vals: &[u8], start: f32, step: f32, mut f: impl FnMut(usize, u8, f32)) {
+    let (chunks, rest) = vals.as_chunks::<LANES>();
     let mut i0 = 0.0f32;
-    for c in &mut chunks {
-        for k in 0..LANES {
-            let r = (f32::from(c[k]) - start - step * (i0 + k as f32)).abs();
-            sq[k] += r * r;
-            // Not `f32::max`: residuals are finite, and its NaN handling blocks vectorising.
-            worst[k] = if r > worst[k] { r } else { worst[k] };
+    for c in chunks {
+        for (k, &v) in c.iter().enumerate() {
+            f(k, v, (f32::from(v) - start - step * (i0 + k as f32)).abs());
         }
         i0 += LANES as f32;
     }
-    for (k, &v) in chunks.remainder().iter().enumerate() {
-        let r = (f32::from(v) - start - step * (i0 + k as f32)).abs();
-        sq[k] += r * r;
-        worst[k] = if r > worst[k] { r } else { worst[k] };
+    for (k, &v) in rest.iter().enumerate() {
+        f(k, v, (f32::from(v) - start - step * (i0 + k as f32)).abs());
     }
+}
+
+/// The mean of the values whose residuals `|v_i − start − step·i|` are at most `cut`, `None`
+/// when none is.
+fn kept_mean(vals: &[u8], start: f32, step: f32, cut: f32) -> Option<f32> {
+    // Integer sums: exact, so the order of the lanes does not matter.
+    let (mut sum, mut kept) = ([0u32; LANES], [0u32; LANES]);
+    for_residuals(vals, start, step, |k, v, r| {
+        let keep = u32::from(r <= cut);
+        sum[k] += keep * u32::from(v);
+        kept[k] += keep;
+    });
+    let (sum, kept) = (sum.iter().sum::<u32>(), kept.iter().sum::<u32>());
+    (kept > 0).then(|| sum as f32 / kept as f32)
+}
+
+/// `Σ r²` and `max |r|` of the residuals `r_i = v_i − start − step·i`.
+fn residual_sq_max(vals: &[u8], start: f32, step: f32) -> (f32, f32) {
+    let (mut sq, mut worst) = ([0.0f32; LANES], [0.0f32; LANES]);
+    for_residuals(vals, start, step, |k, _, r| {
+        sq[k] += r * r;
+        // Not `f32::max`: residuals are finite, and its NaN handling blocks vectorising.
+        worst[k] = if r > worst[k] { r } else { worst[k] };
+    });
     let total = ((sq[0] + sq[1]) + (sq[2] + sq[3])) + ((sq[4] + sq[5]) + (sq[6] + sq[7]));
     (total, worst.into_iter().fold(0.0, f32::max))
 }
 
 /// Replaces each blob's centroid by its grey-level centroid ([`Centroid::Grey`]) measured on
-/// `gray`; `ring` is scratch.
-fn refine_grey(blobs: &mut [Blob], gray: &GrayImage, ring: &mut Vec<u8>) {
-    let (width, height) = (gray.width(), gray.height());
+/// `gray` where it can be measured; `ring` is scratch, `level` the frame's global level if it
+/// has one (else the blobs carry weighted centroids). Returns how many blobs it left as they
+/// were (hollow ones, those at the border).
+fn refine_grey(
+    blobs: &mut [Blob],
+    gray: &GrayImage,
+    ring: &mut Vec<u8>,
+    level: Option<u8>,
+) -> usize {
+    let mut left = 0;
     for b in blobs.iter_mut() {
-        // Annuli and other hollow shapes (under half their box) keep the weighted centroid.
-        let box_area = (b.bbox.x1 - b.bbox.x0) * (b.bbox.y1 - b.bbox.y0);
-        if b.touches_border || 2 * b.area_px < box_area {
-            continue;
-        }
-        // Window: the box grown by 3 px; background ring: its outer 1-px frame.
-        let (bx0, by0, bx1, by1) = (
-            b.bbox.x0 as usize,
-            b.bbox.y0 as usize,
-            b.bbox.x1 as usize,
-            b.bbox.y1 as usize,
-        );
-        if bx0 < 3 || by0 < 3 || bx1 + 3 > width || by1 + 3 > height {
-            continue;
-        }
-        let (x0, y0, x1, y1) = (bx0 - 3, by0 - 3, bx1 + 3, by1 + 3);
-        let (nw, nh) = (x1 - x0, y1 - y0);
-        // The ring: top row, bottom row, left column, right column (between the rows).
-        let (xm, ym) = (0.5 * (nw - 1) as f32, 0.5 * (nh - 1) as f32);
-        let data = gray.as_slice();
-        ring.clear();
-        ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x0]));
-        ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x1 - 1]));
-        let (left, right) = ring.split_at(nh - 2);
-        let sides = RingSides {
-            top: &data[y0 * width + x0..y0 * width + x1],
-            bottom: &data[(y1 - 1) * width + x0..(y1 - 1) * width + x1],
-            left,
-            right,
-            xm,
-            ym,
-        };
-        let Some((mid, sxp, syp)) = sides.plane() else {
-            continue;
-        };
-        // Weights inside the blob's moment ellipse (semi-axes 2·sqrt(λ)) grown by one pixel,
-        // q(dx, dy) ≤ 1 for its quadratic form q; coordinates relative to the centroid.
-        let (cx, cy) = (b.x_px, b.y_px);
-        let (a, bb, c) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
-        let half = 0.5 * (a + c);
-        let root = (0.25 * (a - c) * (a - c) + bb * bb).sqrt();
-        let (l1, l2) = (half + root, (half - root).max(0.0));
-        let theta = 0.5 * (2.0 * bb).atan2(a - c);
-        let (ra, rb) = (2.0 * l1.sqrt() + 1.0, 2.0 * l2.sqrt() + 1.0);
-        let (st, ct) = theta.sin_cos();
-        let (ia, ib) = (1.0 / (ra * ra), 1.0 / (rb * rb));
-        let q11 = (ct * ct * ia + st * st * ib) as f32;
-        let q12 = (ct * st * (ia - ib)) as f32;
-        let q22 = (st * st * ia + ct * ct * ib) as f32;
-        // The plane about the centroid: level = p0 + sxp·dx + syp·dy.
-        let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
-        let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
-        let (xa, ya) = (bx0 - 1, by0 - 1);
-        let [sw, sx, sy] = crate::kernels::ellipse_window_sums(
-            &gray.as_slice()[ya * width + xa..],
-            width,
-            bx1 + 1 - xa,
-            by1 + 1 - ya,
-            crate::kernels::EllipseWindow {
-                dx0: (xa as f64 - cx) as f32,
-                dy0: (ya as f64 - cy) as f32,
-                q11,
-                q12,
-                q22,
-                p0,
-                sx: sxp,
-                sy: syp,
-            },
-        );
-        if sw > 0.0 {
-            (b.x_px, b.y_px) = (cx + sx / sw, cy + sy / sw);
+        match grey_centroid(b, gray, ring, level) {
+            Some(c) => (b.x_px, b.y_px) = c,
+            None => left += 1,
         }
     }
+    left
+}
+
+/// The grey-level centroid of blob `b` ([`Centroid::Grey`]), `None` where it has none.
+fn grey_centroid(
+    b: &Blob,
+    gray: &GrayImage,
+    ring: &mut Vec<u8>,
+    level: Option<u8>,
+) -> Option<(f64, f64)> {
+    let (width, height) = (gray.width(), gray.height());
+    // Annuli and other hollow shapes (under half their box) keep the weighted centroid.
+    let box_area = (b.bbox.x1 - b.bbox.x0) * (b.bbox.y1 - b.bbox.y0);
+    if b.touches_border || 2 * b.area_px < box_area {
+        return None;
+    }
+    // Window: the box grown by 3 px; background ring: its outer 1-px frame.
+    let (bx0, by0, bx1, by1) = (
+        b.bbox.x0 as usize,
+        b.bbox.y0 as usize,
+        b.bbox.x1 as usize,
+        b.bbox.y1 as usize,
+    );
+    if bx0 < 3 || by0 < 3 || bx1 + 3 > width || by1 + 3 > height {
+        return None;
+    }
+    let (x0, y0, x1, y1) = (bx0 - 3, by0 - 3, bx1 + 3, by1 + 3);
+    let (nw, nh) = (x1 - x0, y1 - y0);
+    // The ring: top row, bottom row, left column, right column (between the rows).
+    let (xm, ym) = (0.5 * (nw - 1) as f32, 0.5 * (nh - 1) as f32);
+    let data = gray.as_slice();
+    ring.clear();
+    ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x0]));
+    ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x1 - 1]));
+    let (left, right) = ring.split_at(nh - 2);
+    let sides = RingSides {
+        top: &data[y0 * width + x0..y0 * width + x1],
+        bottom: &data[(y1 - 1) * width + x0..(y1 - 1) * width + x1],
+        left,
+        right,
+        xm,
+        ym,
+    };
+    let (mid, sxp, syp) = sides.plane()?;
+    // Weights inside the blob's moment ellipse (semi-axes 2·sqrt(λ)) grown by one pixel,
+    // q(dx, dy) ≤ 1 for its quadratic form q; coordinates relative to its centre. The centre
+    // is the weighted centroid (pixels weighted by their excess over the level; centred on the
+    // binary centroid, the zoo's displacement errors were 7–13 % larger), taken over the box,
+    // where it equals the labelling's unless another blob reaches into the box.
+    let (cx, cy) = match level {
+        Some(t) => {
+            let (cols, rows) = (bx1 - bx0, by1 - by0);
+            let e = crate::kernels::excess_sums(&data[by0 * width + bx0..], width, cols, rows, t);
+            if e[0] > 0 {
+                let sw = e[0] as f64;
+                (bx0 as f64 + e[1] as f64 / sw, by0 as f64 + e[2] as f64 / sw)
+            } else {
+                (b.x_px, b.y_px)
+            }
+        }
+        None => (b.x_px, b.y_px),
+    };
+    let (a, bb, c) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
+    let half = 0.5 * (a + c);
+    let root = (0.25 * (a - c) * (a - c) + bb * bb).sqrt();
+    let (l1, l2) = (half + root, (half - root).max(0.0));
+    let theta = 0.5 * (2.0 * bb).atan2(a - c);
+    let (ra, rb) = (2.0 * l1.sqrt() + 1.0, 2.0 * l2.sqrt() + 1.0);
+    let (st, ct) = theta.sin_cos();
+    let (ia, ib) = (1.0 / (ra * ra), 1.0 / (rb * rb));
+    let q11 = (ct * ct * ia + st * st * ib) as f32;
+    let q12 = (ct * st * (ia - ib)) as f32;
+    let q22 = (st * st * ia + ct * ct * ib) as f32;
+    // The plane about the centroid: level = p0 + sxp·dx + syp·dy.
+    let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
+    let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
+    let (xa, ya) = (bx0 - 1, by0 - 1);
+    let [sw, sx, sy] = crate::kernels::ellipse_window_sums(
+        &gray.as_slice()[ya * width + xa..],
+        width,
+        bx1 + 1 - xa,
+        by1 + 1 - ya,
+        crate::kernels::EllipseWindow {
+            dx0: (xa as f64 - cx) as f32,
+            dy0: (ya as f64 - cy) as f32,
+            q11,
+            q12,
+            q22,
+            p0,
+            sx: sxp,
+            sy: syp,
+        },
+    );
+    (sw > 0.0).then(|| (cx + sx / sw, cy + sy / sw))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::fixed_level;
+    use super::*;
+
+    /// A dark frame with bright anti-aliased discs `(cx, cy, r)` and annuli `(cx, cy, r_in,
+    /// r_out)` (4 × 4 supersampled coverage).
+    fn frame(discs: &[(f64, f64, f64)], annuli: &[(f64, f64, f64, f64)]) -> RgbImage {
+        RgbImage::from_fn(120, 80, |x, y| {
+            let mut cover = 0.0;
+            for sy in 0..4 {
+                for sx in 0..4 {
+                    let (px, py) = (
+                        x as f64 + (sx as f64 - 1.5) / 4.0,
+                        y as f64 + (sy as f64 - 1.5) / 4.0,
+                    );
+                    let inside = discs
+                        .iter()
+                        .any(|&(cx, cy, r)| (px - cx).hypot(py - cy) <= r)
+                        || annuli.iter().any(|&(cx, cy, ri, ro)| {
+                            let d = (px - cx).hypot(py - cy);
+                            ri <= d && d <= ro
+                        });
+                    cover += f64::from(u8::from(inside)) / 16.0;
+                }
+            }
+            let g = (20.0 + 200.0 * cover).round() as u8;
+            [g, g, g]
+        })
+    }
+
+    fn detector(centroid: Centroid) -> Detector {
+        Detector::new(DetectorConfig {
+            centroid,
+            ..Default::default()
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn grey_centroids_do_not_depend_on_the_frame_before() {
+        let discs = [(20.3, 20.6, 6.0), (50.1, 22.4, 5.5), (90.7, 60.2, 7.0)];
+        let with_annulus = frame(&discs, &[(40.4, 58.3, 8.0, 12.0)]);
+        let moved = frame(
+            &[(21.0, 20.1, 6.0), (49.6, 23.0, 5.5), (90.2, 60.9, 7.0)],
+            &[],
+        );
+        // The frame with an annulus needs the labelling's weighted centroids, and the detector
+        // remembers it; the next frame's blobs equal a fresh detector's.
+        let (mut warm, mut out) = (detector(Centroid::Grey), Vec::new());
+        warm.detect_into(&with_annulus, &mut out);
+        assert_eq!(out.len(), 4);
+        let annulus = out.iter().find(|b| b.bbox.x1 - b.bbox.x0 > 20).unwrap();
+        let weighted = detector(Centroid::Weighted).detect(&with_annulus);
+        let same = weighted
+            .iter()
+            .find(|b| b.bbox.x1 - b.bbox.x0 > 20)
+            .unwrap();
+        assert_eq!((annulus.x_px, annulus.y_px), (same.x_px, same.y_px));
+        warm.detect_into(&moved, &mut out);
+        assert_eq!(out, detector(Centroid::Grey).detect(&moved));
+        // And the discs' grey centroids are where the discs are.
+        for (b, &(cx, cy, _)) in
+            out.iter()
+                .zip(&[(21.0, 20.1, 6.0), (49.6, 23.0, 5.5), (90.2, 60.9, 7.0)])
+        {
+            assert!(
+                (b.x_px - cx).abs() < 0.02 && (b.y_px - cy).abs() < 0.02,
+                "{b:?} vs {cx} {cy}"
+            );
+        }
+        // Back to the frame with the annulus: the same blobs as the first time.
+        let mut again = Vec::new();
+        warm.detect_into(&with_annulus, &mut again);
+        assert_eq!(again, detector(Centroid::Grey).detect(&with_annulus));
+    }
 
     #[test]
     fn fixed_level_is_im2bw() {

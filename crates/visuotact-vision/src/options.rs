@@ -34,6 +34,8 @@ use crate::ConfigError;
 pub enum ThresholdChoice {
     /// Otsu's level on every frame.
     Otsu,
+    /// Otsu's level on every frame from a quarter of its pixels.
+    OtsuSampled,
     /// Local mean minus an offset.
     Adaptive,
     /// A fixed level in 0..1 of full scale.
@@ -41,16 +43,36 @@ pub enum ThresholdChoice {
 }
 
 impl ThresholdChoice {
-    /// Parses `otsu`, `adaptive` or a level in 0..1.
+    /// Parses `otsu`, `otsu-sampled`, `adaptive` or a level in 0..1.
     pub fn parse(s: &str) -> Result<Self, ConfigError> {
         match s {
             "otsu" => Ok(Self::Otsu),
+            "otsu-sampled" => Ok(Self::OtsuSampled),
             "adaptive" => Ok(Self::Adaptive),
             other => other.parse::<f64>().map(Self::Fixed).map_err(|_| {
                 ConfigError(format!(
-                    "threshold {other:?}: expected otsu, adaptive or a level in 0..1"
+                    "threshold {other:?}: expected otsu, otsu-sampled, adaptive or a level in 0..1"
                 ))
             }),
+        }
+    }
+}
+
+impl ThresholdChoice {
+    /// The threshold this choice makes of a preset's `base`: an adaptive choice keeps the
+    /// base's window and offset when it is adaptive (else 31 px and −0.06).
+    pub fn over(self, base: Threshold) -> Threshold {
+        match self {
+            ThresholdChoice::Otsu => Threshold::Otsu,
+            ThresholdChoice::OtsuSampled => Threshold::OtsuSampled,
+            ThresholdChoice::Fixed(level) => Threshold::Fixed { level },
+            ThresholdChoice::Adaptive => match base {
+                Threshold::Adaptive { .. } => base,
+                _ => Threshold::Adaptive {
+                    window_px: 31,
+                    offset: -0.06,
+                },
+            },
         }
     }
 }
@@ -149,19 +171,7 @@ impl DetectorOptions {
 
     /// The threshold chosen over the preset's `base`, with the adaptive window and offset.
     fn threshold_over(&self, base: Threshold) -> Result<Threshold, ConfigError> {
-        let (def_window, def_offset) = match base {
-            Threshold::Adaptive { window_px, offset } => (window_px, offset),
-            _ => (31, -0.06),
-        };
-        let mut t = match self.threshold {
-            None => base,
-            Some(ThresholdChoice::Otsu) => Threshold::Otsu,
-            Some(ThresholdChoice::Fixed(level)) => Threshold::Fixed { level },
-            Some(ThresholdChoice::Adaptive) => Threshold::Adaptive {
-                window_px: def_window,
-                offset: def_offset,
-            },
-        };
+        let mut t = self.threshold.map_or(base, |c| c.over(base));
         match &mut t {
             Threshold::Adaptive { window_px, offset } => {
                 *window_px = self.window_px.unwrap_or(*window_px);

@@ -5,6 +5,7 @@ use anyhow::{bail, Context};
 use visuotact_pipeline::trackcheck::{check, CheckConfig, SimSensor, MOTION_LIMIT_PITCHES};
 use visuotact_vision::detect::Centroid;
 use visuotact_vision::layout::{Layout, LayoutChoice};
+use visuotact_vision::options::ThresholdChoice;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -29,6 +30,9 @@ pub(crate) struct Args {
     /// Centroids: grey (calibrate's default), weighted or binary.
     #[arg(long, default_value = "grey", value_parser = ["binary", "weighted", "grey"])]
     centroid: String,
+    /// Threshold over the sensor's preset: otsu, otsu-sampled, adaptive or a level in 0..1.
+    #[arg(long)]
+    threshold: Option<String>,
     /// Binarise the zoo sensor's output (black and white frames, as published TacTip data).
     #[arg(long)]
     binarise: bool,
@@ -69,13 +73,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 SimSensor::Iats(_) => bail!("--binarise applies to the zoo sensors"),
             }
         }
+        let mut detector = sensor.detector(centroid);
+        if let Some(t) = &a.threshold {
+            let choice = ThresholdChoice::parse(t).map_err(anyhow::Error::msg)?;
+            detector.preprocess.threshold = choice.over(detector.preprocess.threshold);
+        }
         let cfg = CheckConfig {
             sensor,
             protocol: a.protocol.clone(),
             touches: a.touches,
             seed: a.seed,
             references: a.references,
-            detector: sensor.detector(centroid),
+            detector,
             layout: LayoutChoice::Auto,
             motion_limit_pitches: MOTION_LIMIT_PITCHES,
         };
