@@ -172,6 +172,11 @@ impl DetectorArgs {
         })
     }
 
+    /// Whether `--threshold` was given.
+    pub(crate) fn threshold_chosen(&self) -> bool {
+        self.threshold.is_some()
+    }
+
     /// The detector configuration for frames whose first one `first` reads, with `--preset
     /// auto` resolved from it ([`DetectorOptions::preset_for`], saying so when it picks the
     /// dark-markers preset); `default_centroid` (else the preset's) without `--centroid`.

@@ -19,12 +19,12 @@ use visuotact_sim::protocol;
 use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
 use visuotact_sim::SimError;
 use visuotact_vision::calibration::{
-    calibrate, CalibrationConfig, CalibrationError, SensorCalibration,
+    calibrate, CalibrationConfig, CalibrationError, Preset, SensorCalibration,
 };
 use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError};
 use visuotact_vision::layout::{Layout, LayoutChoice};
-use visuotact_vision::preprocess::{CircleMask, PreprocessConfig};
+use visuotact_vision::preprocess::CircleMask;
 
 /// Why a check could not run.
 #[derive(Debug, thiserror::Error)]
@@ -85,17 +85,18 @@ impl SimSensor {
         luma(look.marker) > luma(look.background)
     }
 
-    /// The detector a user would pick for it: the iats preset (green channel, Otsu) for bright
-    /// markers, the dark-markers preset (inverted luma, adaptive) for dark ones, with
-    /// grey-weighted centroids when asked.
+    /// The detector a user would pick for it: the iats preset (green channel, sampled Otsu)
+    /// for bright markers, the dark-markers preset (inverted luma, adaptive) for dark ones,
+    /// with grey-weighted centroids when asked.
     /// A circular view (a TacTip's rim) is masked at its edge, as `--circle`
     /// does, so markers cut by the rim count as cut by the border.
     pub fn detector(&self, centroid: Centroid) -> DetectorConfig {
-        let mut preprocess = if self.bright_markers() {
-            PreprocessConfig::IATS
+        let preset = if self.bright_markers() {
+            Preset::Iats
         } else {
-            PreprocessConfig::DARK_MARKERS
+            Preset::DarkMarkers
         };
+        let mut preprocess = preset.config().detector.preprocess;
         if let SimSensor::Zoo(c) = self {
             preprocess.circle = c.aperture_px().map(|((cx, cy), r)| CircleMask {
                 cx_px: cx,

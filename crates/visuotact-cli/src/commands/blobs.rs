@@ -7,6 +7,7 @@ use visuotact_io::table::TableFormat;
 use visuotact_pipeline::replay::blobs_table;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
+use visuotact_vision::preprocess::Threshold;
 
 use crate::args::DetectorArgs;
 
@@ -30,7 +31,7 @@ pub(crate) struct Args {
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // The pixel-mean centroid of OpenCV, scikit-image and MATLAB regionprops by default.
-    let (cfg, _) =
+    let (mut cfg, _) =
         a.detector
             .config_for_frames(Some(visuotact_vision::detect::Centroid::Binary), || {
                 FrameStream::open(&a.frames, 25.0)
@@ -39,6 +40,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                     .ok()
                     .map(|f| f.image)
             })?;
+    // And their Otsu level, from every pixel, unless a threshold was chosen (the preset's
+    // sampled Otsu is for tracking).
+    if cfg.preprocess.threshold == Threshold::OtsuSampled && !a.detector.threshold_chosen() {
+        cfg.preprocess.threshold = Threshold::Otsu;
+    }
     let mut det = Detector::new(cfg).map_err(anyhow::Error::msg)?;
     let conv = if a.moments == "matlab" {
         MomentConvention::Matlab
