@@ -11,13 +11,13 @@ use std::hint::black_box;
 use visuotact_image::GrayImage;
 use visuotact_sim::pattern::{render_grid, GridPattern, Press};
 use visuotact_vision::blobs::{blobs_from_gray_into, BlobScratch, Connectivity, Level, Region};
-use visuotact_vision::calibration::{calibrate, track_reference, CalibrationConfig};
+use visuotact_vision::calibration::{calibrate, track_reference, CalibrationConfig, Preset};
 use visuotact_vision::detect::{Detector, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::preprocess::{
-    gray_from_rgb_into, histogram, morphology_in_place, otsu_level, Channel, MorphScratch,
-    PreprocessConfig,
+    gray_from_rgb_into, histogram, histogram_of, morphology_in_place, otsu_level, Channel,
+    HistogramPixels, MorphScratch, PreprocessConfig,
 };
 use visuotact_vision::track::{track, TrackConfig};
 
@@ -69,6 +69,9 @@ fn stages(c: &mut Criterion) {
     c.bench_function("histogram_otsu", |b| {
         b.iter(|| otsu_level(&histogram(black_box(opened.as_slice()))))
     });
+    c.bench_function("histogram_quarter_otsu", |b| {
+        b.iter(|| otsu_level(&histogram_of(black_box(&opened), HistogramPixels::Quarter)))
+    });
     let t = otsu_level(&histogram(opened.as_slice()));
     let mut bs = BlobScratch::default();
     let mut blobs = Vec::new();
@@ -100,6 +103,11 @@ fn stages(c: &mut Criterion) {
     let mut found = Vec::new();
     c.bench_function("detect_total", |b| {
         b.iter(|| det.detect_into(black_box(&img), &mut found))
+    });
+    // What `calibrate` configures by default: sampled Otsu, grey-level centroids.
+    let mut grey = Detector::new(Preset::Iats.config().detector).unwrap();
+    c.bench_function("detect_total_iats_preset", |b| {
+        b.iter(|| grey.detect_into(black_box(&img), &mut found))
     });
     // Blobs of the pressed frame, whether or not `detect_total` ran in this invocation.
     det.detect_into(&img, &mut found);
