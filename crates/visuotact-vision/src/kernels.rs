@@ -289,22 +289,44 @@ dispatch! {
 /// assert_eq!(excess_sums(&px, 3, 3, 2, 10), [25, 5 + 2 * 20, 20]);
 /// ```
 pub fn excess_sums(pixels: &[u8], stride: usize, cols: usize, rows: usize, t: u8) -> [u64; 3] {
+    on_window(
+        (pixels, stride, cols, rows),
+        t,
+        #[cfg(target_arch = "x86_64")]
+        excess::sums_avx2,
+        excess_sums_portable,
+    )
+}
+
+/// A window's pixels, row stride, columns and rows.
+type Window<'a> = (&'a [u8], usize, usize, usize);
+
+/// Runs `avx2` on the window (`pixels` from its first row to the image's end) when the CPU has
+/// AVX2, else `portable` on exactly its rows; the rows are bounds-checked first either way. An
+/// empty window gives `T::default()`.
+fn on_window<P, T: Default>(
+    (pixels, stride, cols, rows): Window<'_>,
+    p: P,
+    #[cfg(target_arch = "x86_64")] avx2: unsafe fn(&[u8], usize, usize, usize, P) -> T,
+    portable: fn(&[u8], usize, usize, usize, P) -> T,
+) -> T {
     if rows == 0 || cols == 0 {
-        return [0; 3];
+        return T::default();
     }
+    let rows_of = &pixels[..(rows - 1) * stride + cols];
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
-            let _ = &pixels[..(rows - 1) * stride + cols];
-            // SAFETY: the CPU supports AVX2, checked on the line above.
+            // SAFETY: the CPU supports AVX2, checked on the line above; `avx2` is a
+            // `target_feature(enable = "avx2")` function.
             #[allow(
                 unsafe_code,
                 reason = "calling a target_feature function after the runtime check"
             )]
-            return unsafe { excess::sums_avx2(pixels, stride, cols, rows, t) };
+            return unsafe { avx2(pixels, stride, cols, rows, p) };
         }
     }
-    excess_sums_portable(pixels, stride, cols, rows, t)
+    portable(rows_of, stride, cols, rows, p)
 }
 
 /// Portable form of [`excess_sums`].
@@ -445,22 +467,13 @@ pub fn ellipse_window_sums(
     rows: usize,
     e: EllipseWindow,
 ) -> [f64; 3] {
-    if rows == 0 || cols == 0 {
-        return [0.0; 3];
-    }
-    let rows_of = &pixels[..(rows - 1) * stride + cols];
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked on the line above.
-            #[allow(
-                unsafe_code,
-                reason = "calling a target_feature function after the runtime check"
-            )]
-            return unsafe { window::sums_avx2(pixels, stride, cols, rows, e) };
-        }
-    }
-    ellipse_window_sums_portable(rows_of, stride, cols, rows, e)
+    on_window(
+        (pixels, stride, cols, rows),
+        e,
+        #[cfg(target_arch = "x86_64")]
+        window::sums_avx2,
+        ellipse_window_sums_portable,
+    )
 }
 
 /// Portable form of [`ellipse_window_sums`] (`pixels` holds at least the window's rows).
