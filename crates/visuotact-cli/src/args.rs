@@ -19,7 +19,7 @@ use visuotact_vision::blobs::Connectivity;
 use visuotact_vision::calibration::Preset;
 use visuotact_vision::detect::{Centroid, DetectorConfig};
 use visuotact_vision::features::FeatureSet;
-use visuotact_vision::options::{DetectorOptions, ThresholdChoice};
+use visuotact_vision::options::{DetectorOptions, Purpose, ThresholdChoice};
 use visuotact_vision::preprocess::{Channel, CircleMask, Roi};
 
 /// Preprocessing and blob-filter options shared by commands that detect markers.
@@ -172,30 +172,24 @@ impl DetectorArgs {
         })
     }
 
-    /// Whether `--threshold` was given.
-    pub(crate) fn threshold_chosen(&self) -> bool {
-        self.threshold.is_some()
-    }
-
     /// The detector configuration for frames whose first one `first` reads, with `--preset
     /// auto` resolved from it ([`DetectorOptions::preset_for`], saying so when it picks the
-    /// dark-markers preset); `default_centroid` (else the preset's) without `--centroid`.
-    /// The options are checked before any frame is read; an explicit preset never reads one.
+    /// dark-markers preset), for `purpose`. The options are checked before any frame is
+    /// read; an explicit preset never reads one.
     pub(crate) fn config_for_frames(
         &self,
-        default_centroid: Option<Centroid>,
+        purpose: Purpose,
         first: impl FnOnce() -> Option<RgbImage>,
     ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
         let o = self.options()?;
-        let centroid_of = |p: Preset| default_centroid.unwrap_or(p.config().detector.centroid);
-        o.config(Preset::Iats, centroid_of(Preset::Iats))?;
+        o.config(Preset::Iats, purpose)?;
         let preset = o.preset_for(first);
         if o.preset.is_none() && preset == Preset::DarkMarkers {
             eprintln!(
                 "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
             );
         }
-        Ok(o.config(preset, centroid_of(preset))?)
+        Ok(o.config(preset, purpose)?)
     }
 }
 

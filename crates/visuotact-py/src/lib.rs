@@ -32,6 +32,7 @@ use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
 use visuotact_vision::features::{is_field_column, FrameFeatures, FIELD_COLUMNS};
 use visuotact_vision::layout::LayoutChoice;
+use visuotact_vision::options::Purpose;
 
 create_exception!(
     visuotact,
@@ -148,13 +149,12 @@ impl Sensor {
             })?),
         };
         let preset = o.preset_for(|| Some(first.clone()));
-        let base = preset.config();
-        let (detector, features) = o.config(preset, base.detector.centroid).map_err(error)?;
+        let (detector, features) = o.config(preset, Purpose::Tracking).map_err(error)?;
         let cfg = visuotact_vision::calibration::CalibrationConfig {
             layout: LayoutChoice::parse(layout).map_err(error)?,
             detector,
             features,
-            ..base
+            ..preset.config()
         };
         let (cal, _) = py
             .detach(|| calibrate(ids.iter().map(String::as_str).zip(images.iter()), &cfg))

@@ -293,7 +293,7 @@ pub fn excess_sums(pixels: &[u8], stride: usize, cols: usize, rows: usize, t: u8
         (pixels, stride, cols, rows),
         t,
         #[cfg(target_arch = "x86_64")]
-        excess::sums_avx2,
+        window::excess_sums_avx2,
         excess_sums_portable,
     )
 }
@@ -350,87 +350,6 @@ pub fn excess_sums_portable(
         out[2] += sw * r as u64;
     }
     out
-}
-
-#[cfg(target_arch = "x86_64")]
-#[allow(
-    unsafe_code,
-    reason = "AVX2 intrinsics on 32-byte loads inside bounds-checked row slices"
-)]
-mod excess {
-    use std::arch::x86_64::{
-        __m256i, _mm256_add_epi32, _mm256_add_epi64, _mm256_and_si256, _mm256_castsi256_si128,
-        _mm256_cmpgt_epi8, _mm256_cvtepi32_epi64, _mm256_extracti128_si256, _mm256_loadu_si256,
-        _mm256_madd_epi16, _mm256_maddubs_epi16, _mm256_mul_epu32, _mm256_sad_epu8,
-        _mm256_set1_epi16, _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_setr_epi8,
-        _mm256_setzero_si256, _mm256_storeu_si256, _mm256_subs_epu8, _mm_add_epi32,
-    };
-
-    /// [`super::excess_sums`] on AVX2, 32 columns at a time: `Σ w` by `vpsadbw`, `Σ w·c` within
-    /// a block by `vpmaddubsw` (≤ 255 · 31 per byte pair, no saturation), the block's offset
-    /// and the row index applied to the 64-bit `Σ w` lanes by `vpmuludq`.
-    #[target_feature(enable = "avx2")]
-    pub(super) fn sums_avx2(
-        pixels: &[u8],
-        stride: usize,
-        cols: usize,
-        rows: usize,
-        t: u8,
-    ) -> [u64; 3] {
-        let idx = _mm256_setr_epi8(
-            0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23,
-            24, 25, 26, 27, 28, 29, 30, 31,
-        );
-        let level = _mm256_set1_epi8(t as i8);
-        let (zero, ones) = (_mm256_setzero_si256(), _mm256_set1_epi16(1));
-        // 64-bit lanes: Σ w, Σ w·(block offset), Σ w·r; 32-bit lanes of Σ w·c in the block,
-        // widened once per row.
-        let (mut sw, mut soff, mut sr, mut sc) = (zero, zero, zero, zero);
-        let mut pad: [u8; 32];
-        for r in 0..rows {
-            let row = &pixels[r * stride..r * stride + cols];
-            let (mut row_w, mut row_c) = (zero, zero);
-            for at in (0..cols).step_by(32) {
-                let n = (cols - at).min(32);
-                let bytes: &[u8] = match pixels.get(r * stride + at..r * stride + at + 32) {
-                    Some(b) => b,
-                    None => {
-                        pad = [0; 32];
-                        pad[..n].copy_from_slice(&row[at..at + n]);
-                        &pad
-                    }
-                };
-                // SAFETY: `bytes` holds 32 readable bytes; the rest is register arithmetic.
-                let v = unsafe { _mm256_loadu_si256(bytes.as_ptr().cast::<__m256i>()) };
-                let valid = _mm256_cmpgt_epi8(_mm256_set1_epi8(n as i8), idx);
-                let w = _mm256_and_si256(_mm256_subs_epu8(v, level), valid);
-                let block_w = _mm256_sad_epu8(w, zero);
-                row_w = _mm256_add_epi64(row_w, block_w);
-                soff = _mm256_add_epi64(
-                    soff,
-                    _mm256_mul_epu32(block_w, _mm256_set1_epi64x(at as i64)),
-                );
-                row_c =
-                    _mm256_add_epi32(row_c, _mm256_madd_epi16(_mm256_maddubs_epi16(w, idx), ones));
-            }
-            sw = _mm256_add_epi64(sw, row_w);
-            sr = _mm256_add_epi64(sr, _mm256_mul_epu32(row_w, _mm256_set1_epi64x(r as i64)));
-            // Eight 32-bit lanes (each ≤ 255 · 31 · 4 per block, summed over ≤ cols/32 blocks)
-            // folded to four and widened.
-            let half = _mm_add_epi32(
-                _mm256_castsi256_si128(row_c),
-                _mm256_extracti128_si256::<1>(row_c),
-            );
-            sc = _mm256_add_epi64(sc, _mm256_cvtepi32_epi64(half));
-        }
-        let lanes = |v: __m256i| -> u64 {
-            let mut a = [0u64; 4];
-            // SAFETY: `a` holds 32 bytes.
-            unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast::<__m256i>(), v) };
-            a.iter().sum()
-        };
-        [lanes(sw), lanes(soff) + lanes(sc), lanes(sr)]
-    }
 }
 
 /// A grey-level centroid window for [`ellipse_window_sums`]: a pixel at offset `(dx, dy)` from
@@ -505,14 +424,19 @@ pub fn ellipse_window_sums_portable(
 #[cfg(target_arch = "x86_64")]
 #[allow(
     unsafe_code,
-    reason = "AVX2 intrinsics on 8-byte loads inside bounds-checked row slices"
+    reason = "AVX2 intrinsics on 8- and 32-byte loads inside bounds-checked row slices"
 )]
 mod window {
     use std::arch::x86_64::{
-        __m256, _mm256_add_ps, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps,
-        _mm256_cmpgt_epi32, _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32, _mm256_max_ps, _mm256_mul_ps,
-        _mm256_set1_epi32, _mm256_set1_ps, _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps,
-        _mm256_sub_ps, _mm_loadl_epi64, _CMP_LE_OQ,
+        __m256, __m256i, _mm256_add_epi32, _mm256_add_epi64, _mm256_add_ps, _mm256_and_ps,
+        _mm256_and_si256, _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_ps,
+        _mm256_cmpgt_epi32, _mm256_cmpgt_epi8, _mm256_cvtepi32_epi64, _mm256_cvtepi32_ps,
+        _mm256_cvtepu8_epi32, _mm256_extracti128_si256, _mm256_loadu_si256, _mm256_madd_epi16,
+        _mm256_maddubs_epi16, _mm256_max_ps, _mm256_mul_epu32, _mm256_mul_ps, _mm256_sad_epu8,
+        _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_set1_ps,
+        _mm256_setr_epi32, _mm256_setr_epi8, _mm256_setzero_ps, _mm256_setzero_si256,
+        _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_ps, _mm256_subs_epu8, _mm_add_epi32,
+        _mm_loadl_epi64, _CMP_LE_OQ,
     };
 
     use super::EllipseWindow;
@@ -583,6 +507,72 @@ mod window {
             }
         }
         [lanes_sum(sw), lanes_sum(sx), lanes_sum(sy)]
+    }
+
+    /// [`super::excess_sums`] on AVX2, 32 columns at a time: `Σ w` by `vpsadbw`, `Σ w·c` within
+    /// a block by `vpmaddubsw` (≤ 255 · 31 per byte pair, no saturation), the block's offset
+    /// and the row index applied to the 64-bit `Σ w` lanes by `vpmuludq`.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn excess_sums_avx2(
+        pixels: &[u8],
+        stride: usize,
+        cols: usize,
+        rows: usize,
+        t: u8,
+    ) -> [u64; 3] {
+        let idx = _mm256_setr_epi8(
+            0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23,
+            24, 25, 26, 27, 28, 29, 30, 31,
+        );
+        let level = _mm256_set1_epi8(t as i8);
+        let (zero, ones) = (_mm256_setzero_si256(), _mm256_set1_epi16(1));
+        // 64-bit lanes: Σ w, Σ w·(block offset), Σ w·r; 32-bit lanes of Σ w·c in the block,
+        // widened once per row.
+        let (mut sw, mut soff, mut sr, mut sc) = (zero, zero, zero, zero);
+        let mut pad: [u8; 32];
+        for r in 0..rows {
+            let row = &pixels[r * stride..r * stride + cols];
+            let (mut row_w, mut row_c) = (zero, zero);
+            for at in (0..cols).step_by(32) {
+                let n = (cols - at).min(32);
+                let bytes: &[u8] = match pixels.get(r * stride + at..r * stride + at + 32) {
+                    Some(b) => b,
+                    None => {
+                        pad = [0; 32];
+                        pad[..n].copy_from_slice(&row[at..at + n]);
+                        &pad
+                    }
+                };
+                // SAFETY: `bytes` holds 32 readable bytes; the rest is register arithmetic.
+                let v = unsafe { _mm256_loadu_si256(bytes.as_ptr().cast::<__m256i>()) };
+                let valid = _mm256_cmpgt_epi8(_mm256_set1_epi8(n as i8), idx);
+                let w = _mm256_and_si256(_mm256_subs_epu8(v, level), valid);
+                let block_w = _mm256_sad_epu8(w, zero);
+                row_w = _mm256_add_epi64(row_w, block_w);
+                soff = _mm256_add_epi64(
+                    soff,
+                    _mm256_mul_epu32(block_w, _mm256_set1_epi64x(at as i64)),
+                );
+                row_c =
+                    _mm256_add_epi32(row_c, _mm256_madd_epi16(_mm256_maddubs_epi16(w, idx), ones));
+            }
+            sw = _mm256_add_epi64(sw, row_w);
+            sr = _mm256_add_epi64(sr, _mm256_mul_epu32(row_w, _mm256_set1_epi64x(r as i64)));
+            // Eight 32-bit lanes (each ≤ 255 · 31 · 4 per block, summed over ≤ cols/32 blocks)
+            // folded to four and widened.
+            let half = _mm_add_epi32(
+                _mm256_castsi256_si128(row_c),
+                _mm256_extracti128_si256::<1>(row_c),
+            );
+            sc = _mm256_add_epi64(sc, _mm256_cvtepi32_epi64(half));
+        }
+        let lanes = |v: __m256i| -> u64 {
+            let mut a = [0u64; 4];
+            // SAFETY: `a` holds 32 bytes.
+            unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast::<__m256i>(), v) };
+            a.iter().sum()
+        };
+        [lanes(sw), lanes(soff) + lanes(sc), lanes(sr)]
     }
 
     /// The sum of the eight lanes, pairwise.

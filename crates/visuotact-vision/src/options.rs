@@ -5,18 +5,17 @@
 //!
 //! ```
 //! use visuotact_vision::calibration::Preset;
-//! use visuotact_vision::detect::Centroid;
-//! use visuotact_vision::options::{DetectorOptions, ThresholdChoice};
+//! use visuotact_vision::options::{DetectorOptions, Purpose, ThresholdChoice};
 //!
 //! let o = DetectorOptions {
 //!     threshold: Some(ThresholdChoice::Fixed(0.4)),
 //!     min_area_px: Some(12),
 //!     ..DetectorOptions::default()
 //! };
-//! let (cfg, _) = o.config(Preset::Iats, Centroid::Grey).unwrap();
+//! let (cfg, _) = o.config(Preset::Iats, Purpose::Tracking).unwrap();
 //! assert_eq!(cfg.filter.min_area_px, 12);
 //! let bad = DetectorOptions { threshold: Some(ThresholdChoice::Fixed(1.7)), ..o };
-//! assert!(bad.config(Preset::Iats, Centroid::Grey).is_err());
+//! assert!(bad.config(Preset::Iats, Purpose::Tracking).is_err());
 //! ```
 
 use visuotact_image::RgbImage;
@@ -77,6 +76,16 @@ impl ThresholdChoice {
     }
 }
 
+/// What the detector serves, which settles what a preset leaves to its caller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Purpose {
+    /// Tracking markers (`calibrate`, Python): the preset's centroid and threshold.
+    Tracking,
+    /// Blob tables comparable with OpenCV, scikit-image and MATLAB `regionprops` (`blobs`):
+    /// the pixel-mean centroid, and Otsu's level from every pixel where the preset samples it.
+    BlobAnalysis,
+}
+
 /// A preset with settings changed over it; `None` keeps the preset's.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DetectorOptions {
@@ -123,15 +132,24 @@ impl DetectorOptions {
             .unwrap_or_else(|| first().map_or(Preset::Iats, |f| Preset::for_frame(&f)))
     }
 
-    /// The detector these options give over `preset`, and the preset's features;
-    /// `default_centroid` where no centroid was chosen.
+    /// The detector these options give over `preset` for `purpose`, and the preset's
+    /// features.
     pub fn config(
         &self,
         preset: Preset,
-        default_centroid: Centroid,
+        purpose: Purpose,
     ) -> Result<(DetectorConfig, FeatureSet), ConfigError> {
         let base = preset.config();
         let mut p = base.detector.preprocess;
+        let default_centroid = match purpose {
+            Purpose::Tracking => base.detector.centroid,
+            Purpose::BlobAnalysis => {
+                if p.threshold == Threshold::OtsuSampled {
+                    p.threshold = Threshold::Otsu;
+                }
+                Centroid::Binary
+            }
+        };
         p.channel = self.channel.unwrap_or(p.channel);
         p.invert = self.invert.unwrap_or(p.invert);
         p.open = self.open.unwrap_or(p.open);
@@ -195,7 +213,7 @@ mod tests {
     #[test]
     fn options_change_the_preset_and_are_checked() {
         let (cfg, features) = DetectorOptions::default()
-            .config(Preset::Cone, Centroid::Binary)
+            .config(Preset::Cone, Purpose::BlobAnalysis)
             .unwrap();
         assert_eq!(
             cfg,
@@ -205,13 +223,28 @@ mod tests {
             }
         );
         assert_eq!(features, FeatureSet::CONE);
+        // Blob tables take Otsu from every pixel and the pixel mean; tracking, the preset's.
+        let o = DetectorOptions::default();
+        let (blobs, _) = o.config(Preset::Iats, Purpose::BlobAnalysis).unwrap();
+        let (tracking, _) = o.config(Preset::Iats, Purpose::Tracking).unwrap();
+        assert_eq!(
+            (blobs.preprocess.threshold, blobs.centroid),
+            (Threshold::Otsu, Centroid::Binary)
+        );
+        assert_eq!(tracking, Preset::Iats.config().detector);
+        let sampled = DetectorOptions {
+            threshold: Some(ThresholdChoice::OtsuSampled),
+            ..DetectorOptions::default()
+        };
+        let (chosen, _) = sampled.config(Preset::Iats, Purpose::BlobAnalysis).unwrap();
+        assert_eq!(chosen.preprocess.threshold, Threshold::OtsuSampled);
         let adaptive = DetectorOptions {
             threshold: Some(ThresholdChoice::Adaptive),
             window_px: Some(41),
             invert: Some(true),
             ..DetectorOptions::default()
         };
-        let (cfg, _) = adaptive.config(Preset::Iats, Centroid::Grey).unwrap();
+        let (cfg, _) = adaptive.config(Preset::Iats, Purpose::Tracking).unwrap();
         assert_eq!(
             cfg.preprocess.threshold,
             Threshold::Adaptive {
@@ -224,13 +257,15 @@ mod tests {
             window_px: Some(41),
             ..DetectorOptions::default()
         };
-        assert!(stray_window.config(Preset::Iats, Centroid::Grey).is_err());
+        assert!(stray_window
+            .config(Preset::Iats, Purpose::Tracking)
+            .is_err());
         let areas = DetectorOptions {
             min_area_px: Some(50),
             max_area_px: Some(10),
             ..DetectorOptions::default()
         };
-        assert!(areas.config(Preset::Iats, Centroid::Grey).is_err());
+        assert!(areas.config(Preset::Iats, Purpose::Tracking).is_err());
         assert_eq!(
             ThresholdChoice::parse("0.3").unwrap(),
             ThresholdChoice::Fixed(0.3)

@@ -310,7 +310,7 @@ pub struct Open3Scratch {
     e: Vec<u8>,
     hd: Vec<u8>,
     planes: Vec<u8>,
-    tables: Box<[[u32; 256]; 8]>,
+    tables: Box<Tables>,
 }
 
 /// Channel selection, inversion and a 3×3 grey opening in one streaming pass over rows (three
@@ -375,12 +375,8 @@ pub fn open3_from_rgb_into(
             let y = y_in - 2;
             let out = dst.row_mut(y);
             vertical3(&s.hd, w, y, h, out, true);
-            match want_hist {
-                Some(HistogramPixels::All) => count_row(out, &mut s.tables),
-                Some(HistogramPixels::Quarter) if y % 2 == 0 => {
-                    count_even_of_row(out, &mut s.tables);
-                }
-                _ => {}
+            if let Some(pixels) = want_hist {
+                count_pixels_of_row(out, y, pixels, &mut s.tables);
             }
         }
     }
@@ -389,11 +385,24 @@ pub fn open3_from_rgb_into(
     }
 }
 
+/// Adds the chosen pixels of row `y` to `tables`.
+#[inline]
+fn count_pixels_of_row(row: &[u8], y: usize, pixels: HistogramPixels, tables: &mut Tables) {
+    match pixels {
+        HistogramPixels::All => count_row(row, tables),
+        HistogramPixels::Quarter if y.is_multiple_of(2) => count_even_of_row(row, tables),
+        HistogramPixels::Quarter => {}
+    }
+}
+
+/// Eight interleaved histograms, summed by [`merged`].
+type Tables = [[u32; 256]; 8];
+
 /// Adds every byte of `row` to the eight interleaved `tables` (each sees every eighth byte,
 /// which breaks the store-to-load chain when neighbouring pixels are equal, the common case on
 /// a flat background).
 #[inline]
-fn count_row(row: &[u8], tables: &mut [[u32; 256]; 8]) {
+fn count_row(row: &[u8], tables: &mut Tables) {
     let mut chunks = row.chunks_exact(8);
     for c in &mut chunks {
         let v = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
@@ -408,7 +417,7 @@ fn count_row(row: &[u8], tables: &mut [[u32; 256]; 8]) {
 
 /// Adds the bytes at even offsets of `row` to `tables` (four of them in turn).
 #[inline]
-fn count_even_of_row(row: &[u8], tables: &mut [[u32; 256]; 8]) {
+fn count_even_of_row(row: &[u8], tables: &mut Tables) {
     let mut chunks = row.chunks_exact(8);
     for c in &mut chunks {
         for (k, table) in tables.iter_mut().take(4).enumerate() {
@@ -421,7 +430,7 @@ fn count_even_of_row(row: &[u8], tables: &mut [[u32; 256]; 8]) {
 }
 
 /// The sum of the interleaved tables.
-fn merged(tables: &[[u32; 256]; 8]) -> [u32; 256] {
+fn merged(tables: &Tables) -> [u32; 256] {
     let mut out = [0u32; 256];
     for (i, o) in out.iter_mut().enumerate() {
         *o = tables.iter().map(|t| t[i]).sum();
@@ -569,7 +578,7 @@ pub fn morphology_in_place(img: &mut GrayImage, cfg: &PreprocessConfig, s: &mut 
 
 /// 256-bin histogram of an 8-bit buffer.
 pub fn histogram(data: &[u8]) -> [u32; 256] {
-    let mut tables = Box::new([[0u32; 256]; 8]);
+    let mut tables = [[0u32; 256]; 8];
     count_row(data, &mut tables);
     merged(&tables)
 }
@@ -586,16 +595,11 @@ pub fn histogram(data: &[u8]) -> [u32; 256] {
 /// assert_eq!(histogram_of(&img, HistogramPixels::All)[9], 5);
 /// ```
 pub fn histogram_of(img: &GrayImage, pixels: HistogramPixels) -> [u32; 256] {
-    match pixels {
-        HistogramPixels::All => histogram(img.as_slice()),
-        HistogramPixels::Quarter => {
-            let mut tables = Box::new([[0u32; 256]; 8]);
-            for y in (0..img.height()).step_by(2) {
-                count_even_of_row(img.row(y), &mut tables);
-            }
-            merged(&tables)
-        }
+    let mut tables = [[0u32; 256]; 8];
+    for y in 0..img.height() {
+        count_pixels_of_row(img.row(y), y, pixels, &mut tables);
     }
+    merged(&tables)
 }
 
 /// Otsu's level from a 256-bin histogram: the `t` maximising the between-class variance of

@@ -7,7 +7,7 @@ use visuotact_io::table::TableFormat;
 use visuotact_pipeline::replay::blobs_table;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
-use visuotact_vision::preprocess::Threshold;
+use visuotact_vision::options::Purpose;
 
 use crate::args::DetectorArgs;
 
@@ -30,21 +30,15 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    // The pixel-mean centroid of OpenCV, scikit-image and MATLAB regionprops by default.
-    let (mut cfg, _) =
-        a.detector
-            .config_for_frames(Some(visuotact_vision::detect::Centroid::Binary), || {
-                FrameStream::open(&a.frames, 25.0)
-                    .ok()?
-                    .next()?
-                    .ok()
-                    .map(|f| f.image)
-            })?;
-    // And their Otsu level, from every pixel, unless a threshold was chosen (the preset's
-    // sampled Otsu is for tracking).
-    if cfg.preprocess.threshold == Threshold::OtsuSampled && !a.detector.threshold_chosen() {
-        cfg.preprocess.threshold = Threshold::Otsu;
-    }
+    // The pixel-mean centroid and whole-frame Otsu of OpenCV, scikit-image and MATLAB by
+    // default.
+    let (cfg, _) = a.detector.config_for_frames(Purpose::BlobAnalysis, || {
+        FrameStream::open(&a.frames, 25.0)
+            .ok()?
+            .next()?
+            .ok()
+            .map(|f| f.image)
+    })?;
     let mut det = Detector::new(cfg).map_err(anyhow::Error::msg)?;
     let conv = if a.moments == "matlab" {
         MomentConvention::Matlab

@@ -8,6 +8,7 @@ use visuotact_pipeline::calibrate::{calibrate_frames, Calibrated, ReferenceSourc
 use visuotact_vision::calibration::CalibrationConfig;
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::LayoutChoice;
+use visuotact_vision::options::Purpose;
 use visuotact_vision::track::TrackConfig;
 
 use crate::args::DetectorArgs;
@@ -57,9 +58,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
     // Thin annuli (the cone preset) are steadiest with the grey-weighted centroid.
-    let (detector, preset_features) = a
-        .detector
-        .config_for_frames(None, || open().ok()?.next()?.ok().map(|f| f.image))?;
+    let (detector, preset_features) = a.detector.config_for_frames(Purpose::Tracking, || {
+        open().ok()?.next()?.ok().map(|f| f.image)
+    })?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
