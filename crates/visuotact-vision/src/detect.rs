@@ -505,17 +505,7 @@ fn grey_centroid(
         }
         None => (b.x_px, b.y_px),
     };
-    let (a, bb, c) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
-    let half = 0.5 * (a + c);
-    let root = (0.25 * (a - c) * (a - c) + bb * bb).sqrt();
-    let (l1, l2) = (half + root, (half - root).max(0.0));
-    let theta = 0.5 * (2.0 * bb).atan2(a - c);
-    let (ra, rb) = (2.0 * l1.sqrt() + 1.0, 2.0 * l2.sqrt() + 1.0);
-    let (st, ct) = theta.sin_cos();
-    let (ia, ib) = (1.0 / (ra * ra), 1.0 / (rb * rb));
-    let q11 = (ct * ct * ia + st * st * ib) as f32;
-    let q12 = (ct * st * (ia - ib)) as f32;
-    let q22 = (st * st * ia + ct * ct * ib) as f32;
+    let [q11, q12, q22] = ellipse_form(b.mu20_px2, b.mu11_px2, b.mu02_px2);
     // The plane about the centroid: level = p0 + sxp·dx + syp·dy.
     let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
     let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
@@ -537,6 +527,33 @@ fn grey_centroid(
         },
     );
     (sw > 0.0).then(|| (cx + sx / sw, cy + sy / sw))
+}
+
+/// The quadratic form `[q11, q12, q22]` of the ellipse with the axes of the covariance
+/// `[[a, b], [b, c]]` and semi-axes `2·sqrt(λ) + 1` for its eigenvalues `λ` (negative ones
+/// taken as 0). Without angles: with `P` the projector onto the major axis, `(C − λ₂ I)/(λ₁ −
+/// λ₂)`, the form is `i₂ I + (i₁ − i₂) P` for `iₖ = 1/rₖ²`, and `(i₁ − i₂)/(λ₁ − λ₂)` has a
+/// closed form free of the difference `λ₁ − λ₂` (finite for a circle).
+fn ellipse_form(a: f64, b: f64, c: f64) -> [f32; 3] {
+    let half = 0.5 * (a + c);
+    let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let l2_exact = half - root;
+    let (s1, s2) = ((half + root).sqrt(), l2_exact.max(0.0).sqrt());
+    let (ra, rb) = (2.0 * s1 + 1.0, 2.0 * s2 + 1.0);
+    let (ia, ib) = (1.0 / (ra * ra), 1.0 / (rb * rb));
+    // k = (ia − ib)/(λ₁ − λ₂): with ra − rb = 2(λ₁ − λ₂)/(s1 + s2) where λ₂ ≥ 0.
+    let k = if l2_exact < 0.0 {
+        (ia - ib) / (2.0 * root)
+    } else if s1 + s2 > 0.0 {
+        -2.0 * (ra + rb) * ia * ib / (s1 + s2)
+    } else {
+        0.0
+    };
+    [
+        (ib + k * (a - l2_exact)) as f32,
+        (k * b) as f32,
+        (ib + k * (c - l2_exact)) as f32,
+    ]
 }
 
 #[cfg(test)]
@@ -613,6 +630,43 @@ mod tests {
         let mut again = Vec::new();
         warm.detect_into(&with_annulus, &mut again);
         assert_eq!(again, detector(Centroid::Grey).detect(&with_annulus));
+    }
+
+    #[test]
+    fn ellipse_form_matches_the_rotated_axes() {
+        // Against the form built from the angle of the major axis, over shapes from a circle
+        // to a needle at many angles.
+        for (a, b, c) in [
+            (4.0f64, 0.0f64, 4.0f64),
+            (9.0, 0.0, 1.0),
+            (1.0, 0.0, 9.0),
+            (5.0, 2.0, 3.0),
+            (3.0, -2.5, 3.0),
+            (2.0, 1.9999, 2.0),
+            (0.0, 0.0, 0.0),
+            (6.25, 0.5, 6.2500001),
+            (1.0, 2.0, 1.0),
+        ] {
+            let half = 0.5 * (a + c);
+            let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+            let (l1, l2): (f64, f64) = (half + root, (half - root).max(0.0));
+            let theta = 0.5 * (2.0 * b).atan2(a - c);
+            let (ra, rb) = (2.0 * l1.sqrt() + 1.0, 2.0 * l2.sqrt() + 1.0);
+            let (st, ct) = theta.sin_cos();
+            let (ia, ib) = (1.0 / (ra * ra), 1.0 / (rb * rb));
+            let want = [
+                ct * ct * ia + st * st * ib,
+                ct * st * (ia - ib),
+                st * st * ia + ct * ct * ib,
+            ];
+            let got = ellipse_form(a, b, c);
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (f64::from(*g) - w).abs() < 1e-6,
+                    "{a} {b} {c}: {got:?} vs {want:?}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -73,9 +73,20 @@ pub fn above_bits(src: &[u8], t: u8, bits: &mut [u64]) {
     }
     #[cfg(target_arch = "x86_64")]
     {
-        // SSE2 is part of the x86-64 baseline.
         let n = src.len() / 64 * 64;
-        shuffle::above_bits_sse2(&src[..n], t, &mut bits[..n / 64]);
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked on the line above.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function after the runtime check"
+            )]
+            unsafe {
+                window::above_bits_avx2(&src[..n], t, &mut bits[..n / 64]);
+            }
+        } else {
+            // SSE2 is part of the x86-64 baseline.
+            shuffle::above_bits_sse2(&src[..n], t, &mut bits[..n / 64]);
+        }
         let rest = &src[n..];
         if !rest.is_empty() {
             let mut bytes = [0u8; 64];
@@ -302,7 +313,7 @@ pub fn excess_sums(pixels: &[u8], stride: usize, cols: usize, rows: usize, t: u8
 type Window<'a> = (&'a [u8], usize, usize, usize);
 
 /// Runs `avx2` on the window (`pixels` from its first row to the image's end) when the CPU has
-/// AVX2, else `portable` on exactly its rows; the rows are bounds-checked first either way. An
+/// AVX2 and FMA, else `portable` on exactly its rows; the rows are bounds-checked first either way. An
 /// empty window gives `T::default()`.
 fn on_window<P, T: Default>(
     (pixels, stride, cols, rows): Window<'_>,
@@ -316,9 +327,10 @@ fn on_window<P, T: Default>(
     let rows_of = &pixels[..(rows - 1) * stride + cols];
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked on the line above; `avx2` is a
-            // `target_feature(enable = "avx2")` function.
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the CPU supports AVX2 and FMA, checked on the line above; `avx2` enables
+            // no other target feature.
             #[allow(
                 unsafe_code,
                 reason = "calling a target_feature function after the runtime check"
@@ -431,20 +443,21 @@ mod window {
         __m256, __m256i, _mm256_add_epi32, _mm256_add_epi64, _mm256_add_ps, _mm256_and_ps,
         _mm256_and_si256, _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_ps,
         _mm256_cmpgt_epi32, _mm256_cmpgt_epi8, _mm256_cvtepi32_epi64, _mm256_cvtepi32_ps,
-        _mm256_cvtepu8_epi32, _mm256_extracti128_si256, _mm256_loadu_si256, _mm256_madd_epi16,
-        _mm256_maddubs_epi16, _mm256_max_ps, _mm256_mul_epu32, _mm256_mul_ps, _mm256_sad_epu8,
-        _mm256_set1_epi16, _mm256_set1_epi32, _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_set1_ps,
-        _mm256_setr_epi32, _mm256_setr_epi8, _mm256_setzero_ps, _mm256_setzero_si256,
-        _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_ps, _mm256_subs_epu8, _mm_add_epi32,
-        _mm_loadl_epi64, _CMP_LE_OQ,
+        _mm256_cvtepu8_epi32, _mm256_extracti128_si256, _mm256_fmadd_ps, _mm256_fnmadd_ps,
+        _mm256_loadu_si256, _mm256_madd_epi16, _mm256_maddubs_epi16, _mm256_max_ps,
+        _mm256_mul_epu32, _mm256_sad_epu8, _mm256_set1_epi16, _mm256_set1_epi32,
+        _mm256_set1_epi64x, _mm256_set1_epi8, _mm256_set1_ps, _mm256_setr_epi32, _mm256_setr_epi8,
+        _mm256_setzero_ps, _mm256_setzero_si256, _mm256_storeu_ps, _mm256_storeu_si256,
+        _mm256_sub_ps, _mm256_subs_epu8, _mm_add_epi32, _mm_loadl_epi64, _CMP_LE_OQ,
     };
+    use std::arch::x86_64::{_mm256_cmpeq_epi8, _mm256_max_epu8, _mm256_movemask_epi8};
 
     use super::EllipseWindow;
 
-    /// [`super::ellipse_window_sums`] on AVX2; `pixels` holds at least the window's rows. A
-    /// row's tail is read in place (its bytes past the window masked off) while eight bytes
-    /// remain in `pixels`, else copied.
-    #[target_feature(enable = "avx2")]
+    /// [`super::ellipse_window_sums`] on AVX2 and FMA; `pixels` holds at least the window's
+    /// rows. A row's tail is read in place (its bytes past the window masked off) while eight
+    /// bytes remain in `pixels`, else copied. `Σ w·dy` is taken per row, as `dy · Σ_row w`.
+    #[target_feature(enable = "avx2,fma")]
     pub(super) fn sums_avx2(
         pixels: &[u8],
         stride: usize,
@@ -457,62 +470,81 @@ mod window {
         let (q11, sxv) = (_mm256_set1_ps(e.q11), _mm256_set1_ps(e.sx));
         let (zero, eight) = (_mm256_setzero_ps(), _mm256_set1_ps(8.0));
         let (mut sw, mut sx, mut sy) = (zero, zero, zero);
+        // Every lane valid; a row's tail masks off the lanes past the window.
+        let all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        let tail_mask = _mm256_castsi256_ps(_mm256_cmpgt_epi32(
+            _mm256_set1_epi32((cols % 8) as i32),
+            lane,
+        ));
         for r in 0..rows {
             let row = &pixels[r * stride..r * stride + cols];
             let dyf = e.dy0 + r as f32;
-            let dy = _mm256_set1_ps(dyf);
             let bq = _mm256_set1_ps(2.0 * e.q12 * dyf);
             let cq = _mm256_set1_ps(e.q22 * dyf * dyf - 1.0);
             let base = _mm256_set1_ps(e.p0 + e.sy * dyf);
             let mut dx = _mm256_add_ps(_mm256_set1_ps(e.dx0), lane_f);
-            let mut step = |bytes: &[u8; 8], valid: i32| {
+            let mut row_w = zero;
+            let mut step = |bytes: &[u8; 8], valid: __m256| {
                 // SAFETY: `bytes` is 8 readable bytes; the rest is register arithmetic.
-                unsafe {
-                    let v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
-                        bytes.as_ptr().cast(),
-                    )));
-                    let w = _mm256_max_ps(
-                        _mm256_sub_ps(_mm256_sub_ps(v, base), _mm256_mul_ps(sxv, dx)),
-                        zero,
-                    );
-                    let q = _mm256_add_ps(
-                        _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(q11, dx), bq), dx),
-                        cq,
-                    );
-                    let inside = _mm256_and_ps(
-                        _mm256_cmp_ps::<_CMP_LE_OQ>(q, zero),
-                        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(valid), lane)),
-                    );
-                    let w = _mm256_and_ps(w, inside);
-                    sw = _mm256_add_ps(sw, w);
-                    sx = _mm256_add_ps(sx, _mm256_mul_ps(w, dx));
-                    sy = _mm256_add_ps(sy, _mm256_mul_ps(w, dy));
-                    dx = _mm256_add_ps(dx, eight);
-                }
+                let v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
+                    _mm_loadl_epi64(bytes.as_ptr().cast())
+                }));
+                // v − (p0 + sy·dy) − sx·dx, not below 0.
+                let w = _mm256_max_ps(_mm256_fnmadd_ps(sxv, dx, _mm256_sub_ps(v, base)), zero);
+                let q = _mm256_fmadd_ps(_mm256_fmadd_ps(q11, dx, bq), dx, cq);
+                let inside = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(q, zero), valid);
+                let w = _mm256_and_ps(w, inside);
+                row_w = _mm256_add_ps(row_w, w);
+                sx = _mm256_fmadd_ps(w, dx, sx);
+                dx = _mm256_add_ps(dx, eight);
             };
             let mut eights = row.chunks_exact(8);
             for c in &mut eights {
-                step(c.try_into().unwrap_or(&[0; 8]), 8);
+                step(c.try_into().unwrap_or(&[0; 8]), all);
             }
             let tail = eights.remainder();
             if !tail.is_empty() {
                 let at = r * stride + cols - tail.len();
                 if let Some(bytes) = pixels.get(at..at + 8) {
-                    step(bytes.try_into().unwrap_or(&[0; 8]), tail.len() as i32);
+                    step(bytes.try_into().unwrap_or(&[0; 8]), tail_mask);
                 } else {
                     let mut v = [0u8; 8];
                     v[..tail.len()].copy_from_slice(tail);
-                    step(&v, tail.len() as i32);
+                    step(&v, tail_mask);
                 }
             }
+            sw = _mm256_add_ps(sw, row_w);
+            sy = _mm256_fmadd_ps(row_w, _mm256_set1_ps(dyf), sy);
         }
         [lanes_sum(sw), lanes_sum(sx), lanes_sum(sy)]
+    }
+
+    /// [`super::above_bits`] on AVX2: `src.len()` a multiple of 64, `bits.len() == src.len() /
+    /// 64`, `t < 255`.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn above_bits_avx2(src: &[u8], t: u8, bits: &mut [u64]) {
+        // v > t  ⟺  max(v, t + 1) == v (unsigned bytes, t < 255).
+        let t1 = _mm256_set1_epi8((t + 1) as i8);
+        for (w, c) in bits.iter_mut().zip(src.chunks_exact(64)) {
+            let (lo, hi) = c.split_at(32);
+            // SAFETY: `lo` and `hi` are 32 bytes each (a 64-byte chunk split in two).
+            let (a, b) = unsafe {
+                (
+                    _mm256_loadu_si256(lo.as_ptr().cast::<__m256i>()),
+                    _mm256_loadu_si256(hi.as_ptr().cast::<__m256i>()),
+                )
+            };
+            let above = |v: __m256i| {
+                _mm256_movemask_epi8(_mm256_cmpeq_epi8(_mm256_max_epu8(v, t1), v)) as u32 as u64
+            };
+            *w = above(a) | (above(b) << 32);
+        }
     }
 
     /// [`super::excess_sums`] on AVX2, 32 columns at a time: `Σ w` by `vpsadbw`, `Σ w·c` within
     /// a block by `vpmaddubsw` (≤ 255 · 31 per byte pair, no saturation), the block's offset
     /// and the row index applied to the 64-bit `Σ w` lanes by `vpmuludq`.
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     pub(super) fn excess_sums_avx2(
         pixels: &[u8],
         stride: usize,

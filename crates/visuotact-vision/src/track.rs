@@ -228,7 +228,11 @@ impl TrackResult {
 }
 
 fn dist(a: (f64, f64), b: (f64, f64)) -> f64 {
-    ((a.0 - b.0) * (a.0 - b.0) + (a.1 - b.1) * (a.1 - b.1)).sqrt()
+    dist_sq(a, b).sqrt()
+}
+
+fn dist_sq(a: (f64, f64), b: (f64, f64)) -> f64 {
+    (a.0 - b.0) * (a.0 - b.0) + (a.1 - b.1) * (a.1 - b.1)
 }
 
 /// Blob centroids bucketed on a square grid of cell size `cell` for near look-ups.
@@ -292,15 +296,34 @@ impl BlobIndex {
         }
     }
 
+    /// The blob nearest to `p` within `r` (ties to the lower index). Looks within one cell
+    /// first: a blob found there is nearer than any outside it.
+    fn nearest(&self, p: (f64, f64), r: f64) -> Option<usize> {
+        let mut best: Option<(usize, f64)> = None;
+        let keep = |best: &mut Option<(usize, f64)>, j: usize, d: f64| {
+            if best.is_none_or(|(bj, bd)| d < bd || (d == bd && j < bj)) {
+                *best = Some((j, d));
+            }
+        };
+        let first = r.min(self.cell);
+        self.near(p, first, |j, d| keep(&mut best, j, d));
+        if best.is_none() && r > first {
+            self.near(p, r, |j, d| keep(&mut best, j, d));
+        }
+        best.map(|(j, _)| j)
+    }
+
     /// Calls `f(index, squared distance)` for every blob within `r` of `p`.
     fn near(&self, p: (f64, f64), r: f64, mut f: impl FnMut(usize, f64)) {
         if self.pts.is_empty() {
             return;
         }
-        let cx0 = ((p.0 - r - self.x0) / self.cell).floor().max(0.0) as usize;
-        let cy0 = ((p.1 - r - self.y0) / self.cell).floor().max(0.0) as usize;
-        let cx1 = ((p.0 + r - self.x0) / self.cell).floor();
-        let cy1 = ((p.1 + r - self.y0) / self.cell).floor();
+        // Cell indices: truncating a non-negative value is its floor (and cheaper: without
+        // SSE4.1, `floor` is a library call).
+        let cx0 = ((p.0 - r - self.x0) / self.cell).max(0.0) as usize;
+        let cy0 = ((p.1 - r - self.y0) / self.cell).max(0.0) as usize;
+        let cx1 = (p.0 + r - self.x0) / self.cell;
+        let cy1 = (p.1 + r - self.y0) / self.cell;
         if cx1 < 0.0 || cy1 < 0.0 {
             return;
         }
@@ -334,13 +357,7 @@ fn register(reference: &TrackReference, index: &BlobIndex, cfg: &TrackConfig) ->
     let mut votes = vec![0u32; nb * nb];
     let mut picks: Vec<(f64, f64)> = Vec::with_capacity(reference.positions.len());
     for &m in &reference.positions {
-        let mut nearest: Option<(usize, f64)> = None;
-        index.near(m, range, |j, d| {
-            if nearest.is_none_or(|(_, bd)| d < bd) {
-                nearest = Some((j, d));
-            }
-        });
-        if let Some((j, _)) = nearest {
+        if let Some(j) = index.nearest(m, range) {
             let q = index.pts[j];
             let d = (q.0 - m.0, q.1 - m.1);
             let bx = ((d.0 + range) / cell).floor() as usize;
@@ -559,6 +576,9 @@ struct Matching<'a> {
     assignment: Vec<Option<usize>>,
     disp: Vec<(f64, f64)>,
     taken: Vec<bool>,
+    /// How many of each marker's neighbours hold a blob (kept by `take` and `release`; the
+    /// neighbour relation is symmetric).
+    support: Vec<u32>,
 }
 
 impl Matching<'_> {
@@ -567,7 +587,11 @@ impl Matching<'_> {
     }
 
     fn take(&mut self, i: usize, j: usize) {
-        self.assignment[i] = Some(j);
+        if self.assignment[i].replace(j).is_none() {
+            for &k in &self.reference.neighbours[i] {
+                self.support[k] += 1;
+            }
+        }
         self.taken[j] = true;
         let a = self.anchors[i];
         self.disp[i] = (self.blobs[j].x_px - a.0, self.blobs[j].y_px - a.1);
@@ -576,14 +600,15 @@ impl Matching<'_> {
     fn release(&mut self, i: usize) {
         if let Some(j) = self.assignment[i].take() {
             self.taken[j] = false;
+            for &k in &self.reference.neighbours[i] {
+                self.support[k] -= 1;
+            }
         }
     }
 
+    /// How many of `i`'s neighbours hold a blob.
     fn support(&self, i: usize) -> usize {
-        self.reference.neighbours[i]
-            .iter()
-            .filter(|&&k| self.assignment[k].is_some())
-            .count()
+        self.support[i] as usize
     }
 
     /// Where `i` should be according to its matched neighbours, and the local magnification.
@@ -610,7 +635,7 @@ impl Matching<'_> {
             let bj = (blobs[j].x_px, blobs[j].y_px);
             let mutual = self.reference.neighbours[i]
                 .iter()
-                .all(|&k| dist(predicted[k], bj) > d);
+                .all(|&k| dist_sq(predicted[k], bj) > d * d);
             if mutual {
                 self.take(i, j);
             }
@@ -631,8 +656,10 @@ impl Matching<'_> {
                 for &k in &self.reference.neighbours[i] {
                     if self.assignment[k].is_some()
                         && component[k] == usize::MAX
-                        && dist(self.disp[i], self.disp[k])
-                            < 0.25 * self.reference.spacing_px[i].min(self.reference.spacing_px[k])
+                        && dist_sq(self.disp[i], self.disp[k])
+                            < (0.25
+                                * self.reference.spacing_px[i].min(self.reference.spacing_px[k]))
+                            .powi(2)
                     {
                         component[k] = c;
                         stack.push(k);
@@ -1089,7 +1116,12 @@ impl Matching<'_> {
         let m = self;
         if m.assignment.iter().any(Option::is_none) || m.taken.iter().any(|t| !t) {
             let lost_cost = 1.0;
-            let before = (m.assignment.clone(), m.disp.clone(), m.taken.clone());
+            let before = (
+                m.assignment.clone(),
+                m.disp.clone(),
+                m.taken.clone(),
+                m.support.clone(),
+            );
             let found = |m: &Matching<'_>| m.assignment.iter().filter(|a| a.is_some()).count();
             let (found_before, e_before) = (found(m), m.energy(lost_cost));
             m.reassign(predicted);
@@ -1103,7 +1135,7 @@ impl Matching<'_> {
                     m.grow();
                 }
             } else {
-                (m.assignment, m.disp, m.taken) = before;
+                (m.assignment, m.disp, m.taken, m.support) = before;
             }
         }
     }
@@ -1226,6 +1258,7 @@ pub fn track_with(
         assignment: vec![None; n],
         disp: vec![(0.0, 0.0); n],
         taken: vec![false; blobs.len()],
+        support: vec![0; n],
     };
     let predicted: Vec<(f64, f64)> = m
         .anchors
