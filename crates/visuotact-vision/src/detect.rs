@@ -306,126 +306,6 @@ impl Labelling {
     }
 }
 
-/// The background ring of a grey-level centroid window: its four sides in window-centred
-/// coordinates (`top` at `y = −ym`, `bottom` at `ym`, both from `x = −xm`; `left` at
-/// `x = −xm`, `right` at `xm`, both from `y = 1 − ym`).
-struct RingSides<'a> {
-    top: &'a [u8],
-    bottom: &'a [u8],
-    left: &'a [u8],
-    right: &'a [u8],
-    xm: f32,
-    ym: f32,
-}
-
-/// One side's values and where the plane's level along it starts and how it steps.
-type Side<'a> = (&'a [u8], f32, f32);
-
-impl RingSides<'_> {
-    /// Background plane `v = mid + sx·x + sy·y`: the mean level and the slopes from the means
-    /// of opposite sides. Ring pixels over 3 RMS (at least 1.5 grey levels) from it, such as a
-    /// neighbour's edge, are dropped and the plane taken again; `None` when a side is empty.
-    fn plane(&self) -> Option<(f32, f32, f32)> {
-        let mean = |v: &[u8]| -> Option<f32> {
-            let sum: u32 = v.iter().map(|&x| u32::from(x)).sum();
-            (!v.is_empty()).then(|| sum as f32 / v.len() as f32)
-        };
-        let first = self.plane_of_means([
-            mean(self.top)?,
-            mean(self.bottom)?,
-            mean(self.left)?,
-            mean(self.right)?,
-        ]);
-        let sides = self.sides(first);
-        // Residuals against the plane: RMS and the worst.
-        let (mut sq, mut worst, mut n) = (0.0f32, 0.0f32, 0usize);
-        for &(vals, start, step) in &sides {
-            let (s, w) = residual_sq_max(vals, start, step);
-            sq += s;
-            worst = worst.max(w);
-            n += vals.len();
-        }
-        let cut = 3.0 * (sq / n as f32).sqrt().max(0.5);
-        if worst <= cut {
-            return Some(first);
-        }
-        let kept = |&(vals, start, step): &Side<'_>| kept_mean(vals, start, step, cut);
-        Some(self.plane_of_means([
-            kept(&sides[0])?,
-            kept(&sides[1])?,
-            kept(&sides[2])?,
-            kept(&sides[3])?,
-        ]))
-    }
-
-    /// The plane from the means of the top, bottom, left and right sides.
-    fn plane_of_means(&self, [t, bo, l, r]: [f32; 4]) -> (f32, f32, f32) {
-        (
-            0.25 * (t + bo + l + r),
-            (r - l) / (2.0 * self.xm),
-            (bo - t) / (2.0 * self.ym),
-        )
-    }
-
-    /// Each side with the plane's level at its first pixel and its step per pixel.
-    fn sides(&self, (mid, sx, sy): (f32, f32, f32)) -> [Side<'_>; 4] {
-        let (xm, ym) = (self.xm, self.ym);
-        [
-            (self.top, mid - sx * xm - sy * ym, sx),
-            (self.bottom, mid - sx * xm + sy * ym, sx),
-            (self.left, mid - sx * xm + sy * (1.0 - ym), sy),
-            (self.right, mid + sx * xm + sy * (1.0 - ym), sy),
-        ]
-    }
-}
-
-/// Lanes of the ring's residual loops.
-const LANES: usize = 8;
-
-/// Calls `f(lane, v_i, |r_i|)` for the residuals `r_i = v_i − start − step·i` of `vals`, the
-/// lane being `i mod LANES`. Inlined into fixed-width loops over per-lane state, which the
-/// compiler vectorises (a running sum or maximum over one scalar is a chain it cannot).
-#[inline(always)]
-fn for_residuals(vals: &[u8], start: f32, step: f32, mut f: impl FnMut(usize, u8, f32)) {
-    let (chunks, rest) = vals.as_chunks::<LANES>();
-    let mut i0 = 0.0f32;
-    for c in chunks {
-        for (k, &v) in c.iter().enumerate() {
-            f(k, v, (f32::from(v) - start - step * (i0 + k as f32)).abs());
-        }
-        i0 += LANES as f32;
-    }
-    for (k, &v) in rest.iter().enumerate() {
-        f(k, v, (f32::from(v) - start - step * (i0 + k as f32)).abs());
-    }
-}
-
-/// The mean of the values whose residuals `|v_i − start − step·i|` are at most `cut`, `None`
-/// when none is.
-fn kept_mean(vals: &[u8], start: f32, step: f32, cut: f32) -> Option<f32> {
-    // Integer sums: exact, so the order of the lanes does not matter.
-    let (mut sum, mut kept) = ([0u32; LANES], [0u32; LANES]);
-    for_residuals(vals, start, step, |k, v, r| {
-        let keep = u32::from(r <= cut);
-        sum[k] += keep * u32::from(v);
-        kept[k] += keep;
-    });
-    let (sum, kept) = (sum.iter().sum::<u32>(), kept.iter().sum::<u32>());
-    (kept > 0).then(|| sum as f32 / kept as f32)
-}
-
-/// `Σ r²` and `max |r|` of the residuals `r_i = v_i − start − step·i`.
-fn residual_sq_max(vals: &[u8], start: f32, step: f32) -> (f32, f32) {
-    let (mut sq, mut worst) = ([0.0f32; LANES], [0.0f32; LANES]);
-    for_residuals(vals, start, step, |k, _, r| {
-        sq[k] += r * r;
-        // Not `f32::max`: residuals are finite, and its NaN handling blocks vectorising.
-        worst[k] = if r > worst[k] { r } else { worst[k] };
-    });
-    let total = ((sq[0] + sq[1]) + (sq[2] + sq[3])) + ((sq[4] + sq[5]) + (sq[6] + sq[7]));
-    (total, worst.into_iter().fold(0.0, f32::max))
-}
-
 /// Replaces each blob's centroid by its grey-level centroid ([`Centroid::Grey`]) measured on
 /// `gray` where it can be measured; `ring` is scratch, `level` the frame's global level if it
 /// has one (else the blobs carry weighted centroids). Returns how many blobs it left as they
@@ -478,7 +358,7 @@ fn grey_centroid(
     ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x0]));
     ring.extend((y0 + 1..y1 - 1).map(|y| data[y * width + x1 - 1]));
     let (left, right) = ring.split_at(nh - 2);
-    let sides = RingSides {
+    let sides = crate::kernels::RingSides {
         top: &data[y0 * width + x0..y0 * width + x1],
         bottom: &data[(y1 - 1) * width + x0..(y1 - 1) * width + x1],
         left,
@@ -486,7 +366,7 @@ fn grey_centroid(
         xm,
         ym,
     };
-    let (mid, sxp, syp) = sides.plane()?;
+    let (mid, sxp, syp) = crate::kernels::ring_plane(&sides)?;
     // Weights inside the blob's moment ellipse (semi-axes 2·sqrt(λ)) grown by one pixel,
     // q(dx, dy) ≤ 1 for its quadratic form q; coordinates relative to its centre. The centre
     // is the weighted centroid (pixels weighted by their excess over the level; centred on the

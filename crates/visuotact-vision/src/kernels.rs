@@ -18,15 +18,15 @@
 /// Generates `pub fn $name(args)` that dispatches between an AVX2 build and a baseline build of
 /// the same body.
 macro_rules! dispatch {
-    ($(#[$m:meta])* pub fn $name:ident($($arg:ident : $ty:ty),*) $body:block) => {
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident : $ty:ty),*) $(-> $ret:ty)? $body:block) => {
         $(#[$m])*
-        pub fn $name($($arg: $ty),*) {
+        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
             #[inline(always)]
-            fn body($($arg: $ty),*) $body
+            fn body($($arg: $ty),*) $(-> $ret)? $body
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2")]
-                fn avx2($($arg: $ty),*) {
+                fn avx2($($arg: $ty),*) $(-> $ret)? {
                     body($($arg),*)
                 }
                 if std::arch::is_x86_feature_detected!("avx2") {
@@ -431,6 +431,138 @@ pub fn ellipse_window_sums_portable(
         }
     }
     [f64::from(sw), f64::from(sx), f64::from(sy)]
+}
+
+/// The background ring of a grey-level centroid window: its four sides in window-centred
+/// coordinates (`top` at `y = −ym`, `bottom` at `ym`, both from `x = −xm`; `left` at
+/// `x = −xm`, `right` at `xm`, both from `y = 1 − ym`).
+pub(crate) struct RingSides<'a> {
+    pub(crate) top: &'a [u8],
+    pub(crate) bottom: &'a [u8],
+    pub(crate) left: &'a [u8],
+    pub(crate) right: &'a [u8],
+    pub(crate) xm: f32,
+    pub(crate) ym: f32,
+}
+
+/// One side's values and where the plane's level along it starts and how it steps.
+type Side<'a> = (&'a [u8], f32, f32);
+
+impl RingSides<'_> {
+    /// See [`ring_plane`].
+    #[inline(always)]
+    fn plane(&self) -> Option<(f32, f32, f32)> {
+        let mean = |v: &[u8]| -> Option<f32> {
+            let sum: u32 = v.iter().map(|&x| u32::from(x)).sum();
+            (!v.is_empty()).then(|| sum as f32 / v.len() as f32)
+        };
+        let first = self.plane_of_means([
+            mean(self.top)?,
+            mean(self.bottom)?,
+            mean(self.left)?,
+            mean(self.right)?,
+        ]);
+        let sides = self.sides(first);
+        // Residuals against the plane: RMS and the worst.
+        let (mut sq, mut worst, mut n) = (0.0f32, 0.0f32, 0usize);
+        for &(vals, start, step) in &sides {
+            let (s, w) = residual_sq_max(vals, start, step);
+            sq += s;
+            worst = worst.max(w);
+            n += vals.len();
+        }
+        let cut = 3.0 * (sq / n as f32).sqrt().max(0.5);
+        if worst <= cut {
+            return Some(first);
+        }
+        let kept = |&(vals, start, step): &Side<'_>| kept_mean(vals, start, step, cut);
+        Some(self.plane_of_means([
+            kept(&sides[0])?,
+            kept(&sides[1])?,
+            kept(&sides[2])?,
+            kept(&sides[3])?,
+        ]))
+    }
+
+    /// The plane from the means of the top, bottom, left and right sides.
+    fn plane_of_means(&self, [t, bo, l, r]: [f32; 4]) -> (f32, f32, f32) {
+        (
+            0.25 * (t + bo + l + r),
+            (r - l) / (2.0 * self.xm),
+            (bo - t) / (2.0 * self.ym),
+        )
+    }
+
+    /// Each side with the plane's level at its first pixel and its step per pixel.
+    fn sides(&self, (mid, sx, sy): (f32, f32, f32)) -> [Side<'_>; 4] {
+        let (xm, ym) = (self.xm, self.ym);
+        [
+            (self.top, mid - sx * xm - sy * ym, sx),
+            (self.bottom, mid - sx * xm + sy * ym, sx),
+            (self.left, mid - sx * xm + sy * (1.0 - ym), sy),
+            (self.right, mid + sx * xm + sy * (1.0 - ym), sy),
+        ]
+    }
+}
+
+/// Lanes of the ring's residual loops.
+const LANES: usize = 8;
+
+/// Calls `f(lane, v_i, |r_i|)` for the residuals `r_i = v_i − start − step·i` of `vals`, the
+/// lane being `i mod LANES`. Inlined into fixed-width loops over per-lane state, which the
+/// compiler vectorises (a running sum or maximum over one scalar is a chain it cannot).
+#[inline(always)]
+fn for_residuals(vals: &[u8], start: f32, step: f32, mut f: impl FnMut(usize, u8, f32)) {
+    let (chunks, rest) = vals.as_chunks::<LANES>();
+    let mut i0 = 0.0f32;
+    for c in chunks {
+        for (k, &v) in c.iter().enumerate() {
+            f(k, v, (f32::from(v) - start - step * (i0 + k as f32)).abs());
+        }
+        i0 += LANES as f32;
+    }
+    for (k, &v) in rest.iter().enumerate() {
+        f(k, v, (f32::from(v) - start - step * (i0 + k as f32)).abs());
+    }
+}
+
+/// The mean of the values whose residuals `|v_i − start − step·i|` are at most `cut`, `None`
+/// when none is.
+#[inline(always)]
+fn kept_mean(vals: &[u8], start: f32, step: f32, cut: f32) -> Option<f32> {
+    // Integer sums: exact, so the order of the lanes does not matter.
+    let (mut sum, mut kept) = ([0u32; LANES], [0u32; LANES]);
+    for_residuals(vals, start, step, |k, v, r| {
+        let keep = u32::from(r <= cut);
+        sum[k] += keep * u32::from(v);
+        kept[k] += keep;
+    });
+    let (sum, kept) = (sum.iter().sum::<u32>(), kept.iter().sum::<u32>());
+    (kept > 0).then(|| sum as f32 / kept as f32)
+}
+
+/// `Σ r²` and `max |r|` of the residuals `r_i = v_i − start − step·i`.
+#[inline(always)]
+fn residual_sq_max(vals: &[u8], start: f32, step: f32) -> (f32, f32) {
+    let (mut sq, mut worst) = ([0.0f32; LANES], [0.0f32; LANES]);
+    for_residuals(vals, start, step, |k, _, r| {
+        sq[k] += r * r;
+        // Not `f32::max`: residuals are finite, and its NaN handling blocks vectorising.
+        worst[k] = if r > worst[k] { r } else { worst[k] };
+    });
+    let total = ((sq[0] + sq[1]) + (sq[2] + sq[3])) + ((sq[4] + sq[5]) + (sq[6] + sq[7]));
+    (total, worst.into_iter().fold(0.0, f32::max))
+}
+
+dispatch! {
+    /// The background plane `v = mid + sx·x + sy·y` of a grey-level centroid window's ring:
+    /// the mean level and the slopes from the means of opposite sides. Ring pixels over 3 RMS
+    /// (at least 1.5 grey levels) from it, such as a neighbour's edge, are dropped and the
+    /// plane taken again; `None` when a side is empty. The same arithmetic in both builds (the
+    /// AVX2 one holds the eight lanes in one register).
+    pub(crate) fn ring_plane(sides: &RingSides<'_>) -> Option<(f32, f32, f32)> {
+        sides.plane()
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
