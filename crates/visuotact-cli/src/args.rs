@@ -39,7 +39,7 @@ pub(crate) struct DetectorArgs {
     /// Do not invert.
     #[arg(long)]
     no_invert: bool,
-    /// Threshold: otsu (all pixels), otsu-sampled (Otsu on a quarter of the pixels: faster),
+    /// Threshold: otsu (all pixels), otsu-sampled (Otsu on an eighth of the pixels: faster),
     /// adaptive, or a fixed level in 0..1 of full scale.
     #[arg(long)]
     threshold: Option<String>,

@@ -69,8 +69,8 @@ fn stages(c: &mut Criterion) {
     c.bench_function("histogram_otsu", |b| {
         b.iter(|| otsu_level(&histogram(black_box(opened.as_slice()))))
     });
-    c.bench_function("histogram_quarter_otsu", |b| {
-        b.iter(|| otsu_level(&histogram_of(black_box(&opened), HistogramPixels::Quarter)))
+    c.bench_function("histogram_eighth_otsu", |b| {
+        b.iter(|| otsu_level(&histogram_of(black_box(&opened), HistogramPixels::Eighth)))
     });
     let t = otsu_level(&histogram(opened.as_slice()));
     let mut bs = BlobScratch::default();

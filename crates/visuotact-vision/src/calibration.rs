@@ -110,8 +110,8 @@ pub struct CalibrationConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Preset {
     /// Bright markers on a darker skin (seed 000's green markers, TacTip pins): the green
-    /// channel, a 3 × 3 opening, Otsu's level from a quarter of the pixels
-    /// ([`Threshold::OtsuSampled`]: the frame's costliest step in a quarter of the time, the
+    /// channel, a 3 × 3 opening, Otsu's level from an eighth of the pixels
+    /// ([`Threshold::OtsuSampled`]: the frame's costliest step in an eighth of the time, the
     /// same tracking accuracy with grey-level centroids), grey-level centroids, features
     /// `x,y,area`.
     ///

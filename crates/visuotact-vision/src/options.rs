@@ -33,7 +33,7 @@ use crate::ConfigError;
 pub enum ThresholdChoice {
     /// Otsu's level on every frame.
     Otsu,
-    /// Otsu's level on every frame from a quarter of its pixels.
+    /// Otsu's level on every frame from an eighth of its pixels.
     OtsuSampled,
     /// Local mean minus an offset.
     Adaptive,
