@@ -391,7 +391,7 @@ fn grey_centroid(
     let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
     let (xa, ya) = (bx0 - 1, by0 - 1);
     let [sw, sx, sy] = crate::kernels::ellipse_window_sums(
-        &gray.as_slice()[ya * width + xa..],
+        &data[ya * width + xa..],
         width,
         bx1 + 1 - xa,
         by1 + 1 - ya,

@@ -3,12 +3,13 @@
 //! Each kernel is written once as plain safe Rust that the compiler vectorises, and compiled
 //! twice: for the baseline target (SSE2 on x86-64) and with AVX2 enabled. The AVX2 copy is
 //! used when the running CPU has it (checked once by `std`); nothing is pinned to the build
-//! machine. Both copies compute identical results (integer code, no reassociation); the tests
-//! run whichever the machine picks and compare with scalar references. Three kernels the
-//! compiler would not vectorise are written with intrinsics beside a portable loop: the SSSE3
-//! channel shuffle and the AVX2 excess sums (identical results), and the AVX2 grey-centroid
-//! window sums (floating point summed in eight lanes: equal to the portable loop within 1e-4
-//! relative, tested).
+//! machine. Both copies compute identical results (integer code, or floating point in the same
+//! order of operations, with no reassociation or fused multiply-adds); the tests run whichever
+//! the machine picks and compare with scalar references. Kernels the compiler would not
+//! vectorise are written with intrinsics beside a portable loop: the SSSE3 channel shuffle, the
+//! SSE2/AVX2 threshold bits and the AVX2 excess sums (identical results), and the AVX2 + FMA
+//! grey-centroid window sums (floating point summed in eight lanes: equal to the portable loop
+//! within 1e-4 relative, tested).
 
 #![allow(
     clippy::needless_range_loop,
@@ -313,8 +314,8 @@ pub fn excess_sums(pixels: &[u8], stride: usize, cols: usize, rows: usize, t: u8
 type Window<'a> = (&'a [u8], usize, usize, usize);
 
 /// Runs `avx2` on the window (`pixels` from its first row to the image's end) when the CPU has
-/// AVX2 and FMA, else `portable` on exactly its rows; the rows are bounds-checked first either way. An
-/// empty window gives `T::default()`.
+/// AVX2 and FMA, else `portable` on exactly its rows; the rows are bounds-checked first either
+/// way. An empty window gives `T::default()`.
 fn on_window<P, T: Default>(
     (pixels, stride, cols, rows): Window<'_>,
     p: P,
@@ -330,7 +331,7 @@ fn on_window<P, T: Default>(
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
             // SAFETY: the CPU supports AVX2 and FMA, checked on the line above; `avx2` enables
-            // no other target feature.
+            // no target feature beyond these two.
             #[allow(
                 unsafe_code,
                 reason = "calling a target_feature function after the runtime check"
@@ -676,7 +677,7 @@ mod window {
     /// [`super::excess_sums`] on AVX2, 32 columns at a time: `Σ w` by `vpsadbw`, `Σ w·c` within
     /// a block by `vpmaddubsw` (≤ 255 · 31 per byte pair, no saturation), the block's offset
     /// and the row index applied to the 64-bit `Σ w` lanes by `vpmuludq`.
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     pub(super) fn excess_sums_avx2(
         pixels: &[u8],
         stride: usize,

@@ -55,9 +55,7 @@ impl ThresholdChoice {
             }),
         }
     }
-}
 
-impl ThresholdChoice {
     /// The threshold this choice makes of a preset's `base`: an adaptive choice keeps the
     /// base's window and offset when it is adaptive (else 31 px and −0.06).
     pub fn over(self, base: Threshold) -> Threshold {

@@ -300,15 +300,15 @@ impl BlobIndex {
     /// first: a blob found there is nearer than any outside it.
     fn nearest(&self, p: (f64, f64), r: f64) -> Option<usize> {
         let mut best: Option<(usize, f64)> = None;
-        let keep = |best: &mut Option<(usize, f64)>, j: usize, d: f64| {
-            if best.is_none_or(|(bj, bd)| d < bd || (d == bd && j < bj)) {
-                *best = Some((j, d));
+        for radius in [r.min(self.cell), r] {
+            self.near(p, radius, |j, d| {
+                if best.is_none_or(|(bj, bd)| d < bd || (d == bd && j < bj)) {
+                    best = Some((j, d));
+                }
+            });
+            if best.is_some() || radius >= r {
+                break;
             }
-        };
-        let first = r.min(self.cell);
-        self.near(p, first, |j, d| keep(&mut best, j, d));
-        if best.is_none() && r > first {
-            self.near(p, r, |j, d| keep(&mut best, j, d));
         }
         best.map(|(j, _)| j)
     }
