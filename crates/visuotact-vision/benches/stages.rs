@@ -16,8 +16,8 @@ use visuotact_vision::detect::{Detector, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::preprocess::{
-    gray_from_rgb_into, histogram, histogram_of, morphology_in_place, otsu_level, Channel,
-    HistogramPixels, MorphScratch, PreprocessConfig,
+    gray_from_rgb_into, histogram, histogram_of, morphology_in_place, open3_from_rgb_into,
+    otsu_level, Channel, HistogramPixels, MorphScratch, Open3Scratch, PreprocessConfig,
 };
 use visuotact_vision::track::{track, TrackConfig};
 
@@ -64,6 +64,22 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             opened.as_mut_slice().copy_from_slice(gray.as_slice());
             morphology_in_place(&mut opened, &PreprocessConfig::IATS, &mut ms);
+        })
+    });
+    // What the detector runs by default: green channel, 3 × 3 opening and the sampled
+    // histogram in one streaming pass.
+    let (mut fused, mut o3) = (GrayImage::new(0, 0), Open3Scratch::default());
+    let mut hist = [0u32; 256];
+    c.bench_function("green_open_3x3_eighth_histogram", |b| {
+        b.iter(|| {
+            open3_from_rgb_into(
+                black_box(&img),
+                Channel::Green,
+                false,
+                &mut fused,
+                Some((&mut hist, HistogramPixels::Eighth)),
+                &mut o3,
+            )
         })
     });
     c.bench_function("histogram_otsu", |b| {

@@ -232,9 +232,31 @@ dispatch! {
     }
 }
 
+/// `dst[i] = min(a[i], b[i], c[i])` (or max): the 3-tap step of a separable filter. AVX2 when
+/// the CPU has it and there are at least 32 bytes (the last 32 are taken again, overlapping, so
+/// no byte takes a scalar tail), else [`extremum3_portable`].
+pub fn extremum3(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let n = dst.len().min(a.len()).min(b.len()).min(c.len());
+        if n >= 32 && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked on the line above.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function after the runtime check"
+            )]
+            unsafe {
+                window::extremum3_avx2(&a[..n], &b[..n], &c[..n], &mut dst[..n], max);
+            }
+            return;
+        }
+    }
+    extremum3_portable(a, b, c, dst, max);
+}
+
 dispatch! {
-    /// `dst[i] = min(a[i], b[i], c[i])` (or max): the 3-tap step of a separable filter.
-    pub fn extremum3(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
+    /// Portable form of [`extremum3`].
+    pub fn extremum3_portable(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
         if max {
             for (((o, &x), &y), &z) in dst.iter_mut().zip(a).zip(b).zip(c) {
                 *o = x.max(y).max(z);
@@ -583,7 +605,9 @@ mod window {
         _mm256_setzero_ps, _mm256_setzero_si256, _mm256_storeu_ps, _mm256_storeu_si256,
         _mm256_sub_ps, _mm256_subs_epu8, _mm_add_epi32, _mm_loadl_epi64, _CMP_LE_OQ,
     };
-    use std::arch::x86_64::{_mm256_cmpeq_epi8, _mm256_max_epu8, _mm256_movemask_epi8};
+    use std::arch::x86_64::{
+        _mm256_cmpeq_epi8, _mm256_max_epu8, _mm256_min_epu8, _mm256_movemask_epi8,
+    };
 
     use super::EllipseWindow;
 
@@ -650,6 +674,39 @@ mod window {
             sy = _mm256_fmadd_ps(row_w, _mm256_set1_ps(dyf), sy);
         }
         [lanes_sum(sw), lanes_sum(sx), lanes_sum(sy)]
+    }
+
+    /// [`super::extremum3`] on AVX2: all four slices of one length `n ≥ 32`; 32 bytes a step,
+    /// the last step at `n − 32` (overlapping the one before: `dst` is written from `a`, `b`,
+    /// `c` only, so writing a byte twice writes the same value).
+    #[target_feature(enable = "avx2")]
+    pub(super) fn extremum3_avx2(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
+        let n = dst.len();
+        assert!(n >= 32 && a.len() == n && b.len() == n && c.len() == n);
+        let step = |i: usize, dst: &mut [u8]| {
+            let v = |s: &[u8]| {
+                let s = &s[i..i + 32];
+                // SAFETY: `s` is 32 bytes (a bounds-checked slice).
+                unsafe { _mm256_loadu_si256(s.as_ptr().cast::<__m256i>()) }
+            };
+            let (x, y, z) = (v(a), v(b), v(c));
+            let r = if max {
+                _mm256_max_epu8(_mm256_max_epu8(x, y), z)
+            } else {
+                _mm256_min_epu8(_mm256_min_epu8(x, y), z)
+            };
+            let d = &mut dst[i..i + 32];
+            // SAFETY: `d` is 32 bytes (a bounds-checked slice).
+            unsafe { _mm256_storeu_si256(d.as_mut_ptr().cast::<__m256i>(), r) };
+        };
+        let mut i = 0;
+        while i + 32 <= n {
+            step(i, dst);
+            i += 32;
+        }
+        if i < n {
+            step(n - 32, dst);
+        }
     }
 
     /// [`super::above_bits`] on AVX2: `src.len()` a multiple of 64, `bits.len() == src.len() /
@@ -895,12 +952,15 @@ mod tests {
                 + 1140 * u32::from(src[3 * i + 2]);
             assert_eq!(u32::from(v), (x + 5000) / 10000);
         }
-        let (a, b, c) = (&src[..100], &src[1..101], &src[2..102]);
-        let mut d = vec![0; 100];
-        extremum3(a, b, c, &mut d, false);
-        assert!((0..100).all(|i| d[i] == a[i].min(b[i]).min(c[i])));
-        extremum3(a, b, c, &mut d, true);
-        assert!((0..100).all(|i| d[i] == a[i].max(b[i]).max(c[i])));
+        // Lengths below, at and past one 32-byte step, with and without an overlapping tail.
+        for n in [0, 1, 31, 32, 33, 63, 64, 65, 100] {
+            let (a, b, c) = (&src[..n], &src[1..n + 1], &src[2..n + 2]);
+            let mut d = vec![0; n];
+            extremum3(a, b, c, &mut d, false);
+            assert!((0..n).all(|i| d[i] == a[i].min(b[i]).min(c[i])), "min, {n}");
+            extremum3(a, b, c, &mut d, true);
+            assert!((0..n).all(|i| d[i] == a[i].max(b[i]).max(c[i])), "max, {n}");
+        }
         let mut bytes = vec![0u8; 150];
         above(&src[..150], 120, &mut bytes);
         let mut bits = vec![0u64; 3];
