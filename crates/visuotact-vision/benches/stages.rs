@@ -82,11 +82,60 @@ fn stages(c: &mut Criterion) {
             )
         })
     });
+    // The same on frames out of cache, as a camera delivers them: 48 distinct frames (44 MB)
+    // in turn.
+    let frames: Vec<_> = (0..48u64)
+        .map(|k| render_grid(&pattern, Some(&press), 100 + k).0)
+        .collect();
+    let mut next = 0;
+    c.bench_function("green_open_3x3_eighth_histogram_cold", |b| {
+        b.iter(|| {
+            next = (next + 1) % frames.len();
+            open3_from_rgb_into(
+                black_box(&frames[next]),
+                Channel::Green,
+                false,
+                &mut fused,
+                Some((&mut hist, HistogramPixels::Eighth)),
+                &mut o3,
+            )
+        })
+    });
+    let mut picked = GrayImage::new(0, 0);
+    c.bench_function("green_channel_cold", |b| {
+        b.iter(|| {
+            next = (next + 1) % frames.len();
+            gray_from_rgb_into(black_box(&frames[next]), Channel::Green, false, &mut picked)
+        })
+    });
     c.bench_function("histogram_otsu", |b| {
         b.iter(|| otsu_level(&histogram(black_box(opened.as_slice()))))
     });
     c.bench_function("histogram_eighth_otsu", |b| {
         b.iter(|| otsu_level(&histogram_of(black_box(&opened), HistogramPixels::Eighth)))
+    });
+    // One marker's grey-centroid window: 20 × 20 pixels, the ellipse of a marker ~17 px wide.
+    let window = visuotact_vision::kernels::EllipseWindow {
+        dx0: -9.6,
+        dy0: -9.4,
+        q11: 1.0 / 81.0,
+        q12: 0.0005,
+        q22: 1.0 / 79.0,
+        p0: 60.0,
+        sx: 0.3,
+        sy: -0.2,
+    };
+    let at = 200 * 640 + 280;
+    c.bench_function("grey_window_sums_20x20", |b| {
+        b.iter(|| {
+            visuotact_vision::kernels::ellipse_window_sums(
+                black_box(&opened.as_slice()[at..]),
+                640,
+                20,
+                20,
+                window,
+            )
+        })
     });
     let t = otsu_level(&histogram(opened.as_slice()));
     let mut bs = BlobScratch::default();

@@ -43,26 +43,78 @@ macro_rules! dispatch {
     };
 }
 
+/// A CPU with AVX2, made by [`Avx2::detect`] only after the runtime check: a kernel handed
+/// one runs its AVX2 code without checking again. A row loop compiled with AVX2 that passes
+/// one down to its kernels has them inlined, with no check or call per row.
+#[derive(Clone, Copy, Debug)]
+#[cfg_attr(
+    not(target_arch = "x86_64"),
+    allow(dead_code, reason = "only x86-64 has the AVX2 kernels")
+)]
+pub(crate) struct Avx2(());
+
+impl Avx2 {
+    /// `Some` when the running CPU has AVX2.
+    #[inline]
+    pub(crate) fn detect() -> Option<Self> {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Some(Avx2(()));
+            }
+        }
+        None
+    }
+}
+
 /// `dst[i] = src[3 i + c]`: one channel of interleaved RGB (SSSE3 byte shuffles when the CPU
 /// has them, else the portable loop).
 pub fn pick_channel(src: &[u8], dst: &mut [u8], c: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("ssse3") {
-            let n = dst.len().min(src.len() / 3) / 16 * 16;
             // SAFETY: the CPU supports SSSE3, checked on the line above.
             #[allow(
                 unsafe_code,
                 reason = "calling a target_feature function after the runtime check"
             )]
             unsafe {
-                shuffle::pick_channel_ssse3(&src[..3 * n], &mut dst[..n], c);
+                pick_channel_ssse3_then_portable(src, dst, c);
             }
-            pick_channel_portable(&src[3 * n..], &mut dst[n..], c);
             return;
         }
     }
     pick_channel_portable(src, dst, c);
+}
+
+/// [`pick_channel`] on `cpu`'s kernels (AVX2 implies SSSE3).
+#[inline(always)]
+pub(crate) fn pick_channel_on(cpu: Option<Avx2>, src: &[u8], dst: &mut [u8], c: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if cpu.is_some() {
+            // SAFETY: an `Avx2` exists only on a CPU with AVX2, hence SSSE3.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function on a CPU with it"
+            )]
+            unsafe {
+                pick_channel_ssse3_then_portable(src, dst, c);
+            }
+            return;
+        }
+    }
+    let _ = cpu;
+    pick_channel(src, dst, c);
+}
+
+/// The SSSE3 shuffles over whole 16-pixel steps, the portable loop over the rest.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "ssse3")]
+fn pick_channel_ssse3_then_portable(src: &[u8], dst: &mut [u8], c: usize) {
+    let n = dst.len().min(src.len() / 3) / 16 * 16;
+    shuffle::pick_channel_ssse3(&src[..3 * n], &mut dst[..n], c);
+    pick_channel_portable(&src[3 * n..], &mut dst[n..], c);
 }
 
 /// Bit `i` of the result words is `src[i] > t` (little-endian words, as [`pack_bits`]).
@@ -236,14 +288,27 @@ dispatch! {
 /// the CPU has it and there are at least 32 bytes (the last 32 are taken again, overlapping, so
 /// no byte takes a scalar tail), else [`extremum3_portable`].
 pub fn extremum3(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
+    extremum3_on(Avx2::detect(), a, b, c, dst, max);
+}
+
+/// [`extremum3`] on `cpu`'s kernels.
+#[inline(always)]
+pub(crate) fn extremum3_on(
+    cpu: Option<Avx2>,
+    a: &[u8],
+    b: &[u8],
+    c: &[u8],
+    dst: &mut [u8],
+    max: bool,
+) {
     #[cfg(target_arch = "x86_64")]
     {
         let n = dst.len().min(a.len()).min(b.len()).min(c.len());
-        if n >= 32 && std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked on the line above.
+        if n >= 32 && cpu.is_some() {
+            // SAFETY: an `Avx2` exists only on a CPU with AVX2.
             #[allow(
                 unsafe_code,
-                reason = "calling a target_feature function after the runtime check"
+                reason = "calling a target_feature function on a CPU with it"
             )]
             unsafe {
                 window::extremum3_avx2(&a[..n], &b[..n], &c[..n], &mut dst[..n], max);
@@ -251,6 +316,7 @@ pub fn extremum3(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
             return;
         }
     }
+    let _ = cpu;
     extremum3_portable(a, b, c, dst, max);
 }
 
@@ -640,7 +706,10 @@ mod window {
             let cq = _mm256_set1_ps(e.q22 * dyf * dyf - 1.0);
             let base = _mm256_set1_ps(e.p0 + e.sy * dyf);
             let mut dx = _mm256_add_ps(_mm256_set1_ps(e.dx0), lane_f);
-            let mut row_w = zero;
+            // The row's own sums, added to the totals once per row: each row's chain of adds
+            // is a few steps long and rows overlap, where one running total over every step
+            // would wait on each fused multiply-add's latency.
+            let (mut row_w, mut row_x) = (zero, zero);
             let mut step = |bytes: &[u8; 8], valid: __m256| {
                 // SAFETY: `bytes` is 8 readable bytes; the rest is register arithmetic.
                 let v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
@@ -652,7 +721,7 @@ mod window {
                 let inside = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(q, zero), valid);
                 let w = _mm256_and_ps(w, inside);
                 row_w = _mm256_add_ps(row_w, w);
-                sx = _mm256_fmadd_ps(w, dx, sx);
+                row_x = _mm256_fmadd_ps(w, dx, row_x);
                 dx = _mm256_add_ps(dx, eight);
             };
             let mut eights = row.chunks_exact(8);
@@ -671,6 +740,7 @@ mod window {
                 }
             }
             sw = _mm256_add_ps(sw, row_w);
+            sx = _mm256_add_ps(sx, row_x);
             sy = _mm256_fmadd_ps(row_w, _mm256_set1_ps(dyf), sy);
         }
         [lanes_sum(sw), lanes_sum(sx), lanes_sum(sy)]

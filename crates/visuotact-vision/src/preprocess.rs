@@ -16,6 +16,8 @@
 use serde::{Deserialize, Serialize};
 use visuotact_image::{GrayImage, RgbImage};
 
+use crate::kernels::{extremum3_on, pick_channel_on, Avx2};
+
 /// Which pixels a threshold histogram counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HistogramPixels {
@@ -351,38 +353,82 @@ pub fn open3_from_rgb_into(
     if want_hist.is_some() {
         *s.tables = [[0; 256]; 8];
     }
+    // One check of the CPU per frame; the row loop is compiled with AVX2 where it runs on it.
+    match Avx2::detect() {
+        #[cfg(target_arch = "x86_64")]
+        Some(cpu) => {
+            // SAFETY: `cpu` exists only on a CPU with AVX2.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function on a CPU with it"
+            )]
+            unsafe {
+                open3_rows_avx2(cpu, src, channel, invert, dst, want_hist, s);
+            }
+        }
+        cpu => open3_rows(cpu, src, channel, invert, dst, want_hist, s),
+    }
+    if let Some((hh, _)) = hist {
+        *hh = merged(&s.tables);
+    }
+}
+
+/// [`open3_rows`] compiled with AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn open3_rows_avx2(
+    cpu: Avx2,
+    src: &RgbImage,
+    channel: Channel,
+    invert: bool,
+    dst: &mut GrayImage,
+    want_hist: Option<HistogramPixels>,
+    s: &mut Open3Scratch,
+) {
+    open3_rows(Some(cpu), src, channel, invert, dst, want_hist, s);
+}
+
+/// The rows of [`open3_from_rgb_into`] (scratch sized, `w, h ≥ 3`) on `cpu`'s kernels.
+#[inline(always)]
+fn open3_rows(
+    cpu: Option<Avx2>,
+    src: &RgbImage,
+    channel: Channel,
+    invert: bool,
+    dst: &mut GrayImage,
+    want_hist: Option<HistogramPixels>,
+    s: &mut Open3Scratch,
+) {
+    let (w, h) = (src.width(), src.height());
     let rgb = src.as_slice();
     let slot = |y: usize| (y % 3) * w..(y % 3) * w + w;
     for y_in in 0..h + 2 {
         // Stage A: channel row y_in, eroded horizontally.
         if y_in < h {
-            channel_from_rgb(
-                &rgb[3 * w * y_in..3 * w * (y_in + 1)],
-                channel,
-                invert,
-                &mut s.g,
-                &mut s.planes,
-            );
-            row_extremum(&s.g, &mut s.he[slot(y_in)], 1, Extremum::Min);
+            let row = &rgb[3 * w * y_in..3 * w * (y_in + 1)];
+            match (channel, invert) {
+                (Channel::Red, false) => pick_channel_on(cpu, row, &mut s.g, 0),
+                (Channel::Green, false) => pick_channel_on(cpu, row, &mut s.g, 1),
+                (Channel::Blue, false) => pick_channel_on(cpu, row, &mut s.g, 2),
+                _ => channel_from_rgb(row, channel, invert, &mut s.g, &mut s.planes),
+            }
+            row_extremum(cpu, &s.g, &mut s.he[slot(y_in)], 1, Extremum::Min);
         }
         // Stage B: row y_in − 1 eroded vertically, then dilated horizontally.
         if (1..=h).contains(&y_in) {
             let y = y_in - 1;
-            vertical3(&s.he, w, y, h, &mut s.e, false);
-            row_extremum(&s.e, &mut s.hd[slot(y)], 1, Extremum::Max);
+            vertical3(cpu, &s.he, w, y, h, &mut s.e, false);
+            row_extremum(cpu, &s.e, &mut s.hd[slot(y)], 1, Extremum::Max);
         }
         // Stage C: row y_in − 2 dilated vertically: the opened row.
         if y_in >= 2 {
             let y = y_in - 2;
             let out = dst.row_mut(y);
-            vertical3(&s.hd, w, y, h, out, true);
+            vertical3(cpu, &s.hd, w, y, h, out, true);
             if let Some(pixels) = want_hist {
                 count_pixels_of_row(out, y, pixels, &mut s.tables);
             }
         }
-    }
-    if let Some((hh, _)) = hist {
-        *hh = merged(&s.tables);
     }
 }
 
@@ -454,10 +500,19 @@ impl Default for Open3Scratch {
 }
 
 /// Min (or max) of ring-buffer rows `y − 1, y, y + 1` (clipped to `0..h`) into `out`.
-fn vertical3(ring: &[u8], w: usize, y: usize, h: usize, out: &mut [u8], max: bool) {
+#[inline(always)]
+fn vertical3(
+    cpu: Option<Avx2>,
+    ring: &[u8],
+    w: usize,
+    y: usize,
+    h: usize,
+    out: &mut [u8],
+    max: bool,
+) {
     let row = |yy: usize| &ring[(yy % 3) * w..(yy % 3) * w + w];
     match (y > 0, y + 1 < h) {
-        (true, true) => crate::kernels::extremum3(row(y - 1), row(y), row(y + 1), out, max),
+        (true, true) => extremum3_on(cpu, row(y - 1), row(y), row(y + 1), out, max),
         (lo, _) => {
             let other = if lo { y - 1 } else { y + 1 };
             out.copy_from_slice(row(y));
@@ -490,7 +545,8 @@ impl Extremum {
 }
 
 /// Horizontal running min/max of radius `r` over one row, clipped at the ends.
-fn row_extremum(src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
+#[inline(always)]
+fn row_extremum(cpu: Option<Avx2>, src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
     let n = src.len();
     if n == 0 {
         return;
@@ -498,7 +554,14 @@ fn row_extremum(src: &[u8], dst: &mut [u8], r: usize, op: Extremum) {
     if r == 1 && n >= 3 {
         // The 3-wide case is the hot one: three shifted slices so the loop vectorises.
         let (a, b, c) = (&src[..n - 2], &src[1..n - 1], &src[2..]);
-        crate::kernels::extremum3(a, b, c, &mut dst[1..n - 1], matches!(op, Extremum::Max));
+        extremum3_on(
+            cpu,
+            a,
+            b,
+            c,
+            &mut dst[1..n - 1],
+            matches!(op, Extremum::Max),
+        );
         dst[0] = op.pick(src[0], src[1]);
         dst[n - 1] = op.pick(src[n - 2], src[n - 1]);
         return;
@@ -522,8 +585,9 @@ fn extremum_filter(
     let r = k / 2;
     tmp.resize(w, h);
     dst.resize(w, h);
+    let cpu = Avx2::detect();
     for y in 0..h {
-        row_extremum(src.row(y), tmp.row_mut(y), r, op);
+        row_extremum(cpu, src.row(y), tmp.row_mut(y), r, op);
     }
     let t = tmp.as_slice();
     let d = dst.as_mut_slice();
@@ -628,6 +692,11 @@ pub fn otsu_level(hist: &[u32; 256]) -> u8 {
     let (mut w0, mut sum0) = (0.0f64, 0.0f64);
     let (mut best, mut best_t) = (-1.0f64, 0usize);
     for (t, &c) in hist.iter().enumerate().take(255) {
+        // An empty bin leaves both classes as they were: its variance equals the last bin's,
+        // which cannot be a new (strictly greater) maximum.
+        if c == 0 {
+            continue;
+        }
         w0 += f64::from(c);
         sum0 += t as f64 * f64::from(c);
         let w1 = total - w0;
@@ -883,6 +952,53 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn otsu_level_skipping_empty_bins_equals_the_full_scan() {
+        // Every bin's between-class variance, first maximum: the definition, bin by bin.
+        let full = |hist: &[u32; 256]| -> u8 {
+            let total: f64 = hist.iter().map(|&c| f64::from(c)).sum();
+            let sum_all: f64 = hist
+                .iter()
+                .enumerate()
+                .map(|(i, &c)| i as f64 * f64::from(c))
+                .sum();
+            let (mut w0, mut sum0, mut best, mut best_t) = (0.0, 0.0, -1.0, None);
+            for (t, &c) in hist.iter().enumerate().take(255) {
+                w0 += f64::from(c);
+                sum0 += t as f64 * f64::from(c);
+                let w1 = total - w0;
+                if w0 > 0.0 && w1 > 0.0 {
+                    let d = sum0 / w0 - (sum_all - sum0) / w1;
+                    if w0 * w1 * d * d > best {
+                        (best, best_t) = (w0 * w1 * d * d, Some(t as u8));
+                    }
+                }
+            }
+            best_t.unwrap_or_else(|| hist.iter().rposition(|&c| c > 0).unwrap_or(0) as u8)
+        };
+        let mut seed = 11u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as u32
+        };
+        for case in 0..500 {
+            let mut hist = [0u32; 256];
+            // Sparse histograms (a few occupied bins) and dense ones.
+            let occupied = if case % 2 == 0 {
+                1 + next() % 6
+            } else {
+                40 + next() % 200
+            };
+            for _ in 0..occupied {
+                hist[(next() % 256) as usize] += 1 + next() % 500;
+            }
+            assert_eq!(otsu_level(&hist), full(&hist), "case {case}");
+        }
+        assert_eq!(otsu_level(&[0; 256]), 0);
     }
 
     #[test]
