@@ -7,9 +7,14 @@
 //! order of operations, with no reassociation or fused multiply-adds); the tests run whichever
 //! the machine picks and compare with scalar references. Kernels the compiler would not
 //! vectorise are written with intrinsics beside a portable loop: the SSSE3 channel shuffle, the
-//! SSE2/AVX2 threshold bits and the AVX2 excess sums (identical results), and the AVX2 + FMA
-//! grey-centroid window sums (floating point summed in eight lanes: equal to the portable loop
-//! within 1e-4 relative, tested).
+//! AVX2 3-tap minimum/maximum, the SSE2/AVX2 threshold bits and the AVX2 excess sums (identical
+//! results), and the AVX2 + FMA grey-centroid window sums (floating point summed in eight
+//! lanes: equal to the portable loop within 1e-4 relative, tested).
+//!
+//! A loop that calls kernels on every row checks the CPU once instead: the crate-internal
+//! `Avx2::detect` gives a token only on a CPU with AVX2, and the loop, compiled with AVX2 and
+//! handed the token, calls the `_on` forms of the kernels, which then inline into it (the
+//! frame's opening pass does).
 
 #![allow(
     clippy::needless_range_loop,
