@@ -353,6 +353,14 @@ pub fn open3_from_rgb_into(
     if want_hist.is_some() {
         *s.tables = [[0; 256]; 8];
     }
+    let pass = Open3Pass {
+        src,
+        channel,
+        invert,
+        dst,
+        want_hist,
+        s,
+    };
     // One check of the CPU per frame; the row loop is compiled with AVX2 where it runs on it.
     match Avx2::detect() {
         #[cfg(target_arch = "x86_64")]
@@ -363,42 +371,44 @@ pub fn open3_from_rgb_into(
                 reason = "calling a target_feature function on a CPU with it"
             )]
             unsafe {
-                open3_rows_avx2(cpu, src, channel, invert, dst, want_hist, s);
+                open3_rows_avx2(cpu, pass);
             }
         }
-        cpu => open3_rows(cpu, src, channel, invert, dst, want_hist, s),
+        cpu => open3_rows(cpu, pass),
     }
     if let Some((hh, _)) = hist {
         *hh = merged(&s.tables);
     }
 }
 
+/// The inputs, output and scratch of [`open3_rows`].
+struct Open3Pass<'a> {
+    src: &'a RgbImage,
+    channel: Channel,
+    invert: bool,
+    dst: &'a mut GrayImage,
+    want_hist: Option<HistogramPixels>,
+    s: &'a mut Open3Scratch,
+}
+
 /// [`open3_rows`] compiled with AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn open3_rows_avx2(
-    cpu: Avx2,
-    src: &RgbImage,
-    channel: Channel,
-    invert: bool,
-    dst: &mut GrayImage,
-    want_hist: Option<HistogramPixels>,
-    s: &mut Open3Scratch,
-) {
-    open3_rows(Some(cpu), src, channel, invert, dst, want_hist, s);
+fn open3_rows_avx2(cpu: Avx2, pass: Open3Pass<'_>) {
+    open3_rows(Some(cpu), pass);
 }
 
 /// The rows of [`open3_from_rgb_into`] (scratch sized, `w, h ≥ 3`) on `cpu`'s kernels.
 #[inline(always)]
-fn open3_rows(
-    cpu: Option<Avx2>,
-    src: &RgbImage,
-    channel: Channel,
-    invert: bool,
-    dst: &mut GrayImage,
-    want_hist: Option<HistogramPixels>,
-    s: &mut Open3Scratch,
-) {
+fn open3_rows(cpu: Option<Avx2>, pass: Open3Pass<'_>) {
+    let Open3Pass {
+        src,
+        channel,
+        invert,
+        dst,
+        want_hist,
+        s,
+    } = pass;
     let (w, h) = (src.width(), src.height());
     let rgb = src.as_slice();
     let slot = |y: usize| (y % 3) * w..(y % 3) * w + w;
