@@ -612,7 +612,7 @@ fn extremum_filter(
                 &t[(lo + 1) * w..(lo + 2) * w],
                 &t[hi * w..(hi + 1) * w],
             );
-            crate::kernels::extremum3(a, b, c, out, max);
+            extremum3_on(cpu, a, b, c, out, max);
             continue;
         }
         out.copy_from_slice(&t[lo * w..(lo + 1) * w]);
