@@ -10,6 +10,7 @@ use crate::blobs::{
     blobs_from_gray_into, blobs_weighted_from_gray_into, Blob, BlobScratch, Connectivity, Level,
     Region,
 };
+use crate::kernels::Avx2;
 use crate::preprocess::{
     adaptive_levels_into, gray_from_rgb_into, histogram_of, morphology_in_place,
     open3_from_rgb_into, otsu_level, HistogramPixels, MorphScratch, Open3Scratch, PreprocessConfig,
@@ -316,9 +317,49 @@ fn refine_grey(
     ring: &mut Vec<u8>,
     level: Option<u8>,
 ) -> usize {
+    // One check of the CPU per frame; the loop is compiled with AVX2 and FMA where it runs on
+    // them, its kernels inlined.
+    match Avx2::detect() {
+        #[cfg(target_arch = "x86_64")]
+        Some(cpu) => {
+            // SAFETY: `cpu` exists only on a CPU with AVX2 and FMA.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function on a CPU with it"
+            )]
+            unsafe {
+                refine_grey_avx2(cpu, blobs, gray, ring, level)
+            }
+        }
+        cpu => refine_grey_on(cpu, blobs, gray, ring, level),
+    }
+}
+
+/// [`refine_grey_on`] compiled with AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn refine_grey_avx2(
+    cpu: Avx2,
+    blobs: &mut [Blob],
+    gray: &GrayImage,
+    ring: &mut Vec<u8>,
+    level: Option<u8>,
+) -> usize {
+    refine_grey_on(Some(cpu), blobs, gray, ring, level)
+}
+
+/// [`refine_grey`] on `cpu`'s kernels.
+#[inline(always)]
+fn refine_grey_on(
+    cpu: Option<Avx2>,
+    blobs: &mut [Blob],
+    gray: &GrayImage,
+    ring: &mut Vec<u8>,
+    level: Option<u8>,
+) -> usize {
     let mut left = 0;
     for b in blobs.iter_mut() {
-        match grey_centroid(b, gray, ring, level) {
+        match grey_centroid(cpu, b, gray, ring, level) {
             Some(c) => (b.x_px, b.y_px) = c,
             None => left += 1,
         }
@@ -327,7 +368,9 @@ fn refine_grey(
 }
 
 /// The grey-level centroid of blob `b` ([`Centroid::Grey`]), `None` where it has none.
+#[inline(always)]
 fn grey_centroid(
+    cpu: Option<Avx2>,
     b: &Blob,
     gray: &GrayImage,
     ring: &mut Vec<u8>,
@@ -366,7 +409,7 @@ fn grey_centroid(
         xm,
         ym,
     };
-    let (mid, sxp, syp) = crate::kernels::ring_plane(&sides)?;
+    let (mid, sxp, syp) = crate::kernels::ring_plane_on(cpu, &sides)?;
     // Weights inside the blob's moment ellipse (semi-axes 2·sqrt(λ)) grown by one pixel,
     // q(dx, dy) ≤ 1 for its quadratic form q; coordinates relative to its centre. The centre
     // is the weighted centroid (pixels weighted by their excess over the level; centred on the
@@ -375,7 +418,8 @@ fn grey_centroid(
     let (cx, cy) = match level {
         Some(t) => {
             let (cols, rows) = (bx1 - bx0, by1 - by0);
-            let e = crate::kernels::excess_sums(&data[by0 * width + bx0..], width, cols, rows, t);
+            let window = (&data[by0 * width + bx0..], width, cols, rows);
+            let e = crate::kernels::excess_sums_on(cpu, window, t);
             if e[0] > 0 {
                 let sw = e[0] as f64;
                 (bx0 as f64 + e[1] as f64 / sw, by0 as f64 + e[2] as f64 / sw)
@@ -390,11 +434,9 @@ fn grey_centroid(
     let (wx0, wy0) = (x0 as f32 + xm, y0 as f32 + ym);
     let p0 = mid + sxp * (cx as f32 - wx0) + syp * (cy as f32 - wy0);
     let (xa, ya) = (bx0 - 1, by0 - 1);
-    let [sw, sx, sy] = crate::kernels::ellipse_window_sums(
-        &data[ya * width + xa..],
-        width,
-        bx1 + 1 - xa,
-        by1 + 1 - ya,
+    let [sw, sx, sy] = crate::kernels::ellipse_window_sums_on(
+        cpu,
+        (&data[ya * width + xa..], width, bx1 + 1 - xa, by1 + 1 - ya),
         crate::kernels::EllipseWindow {
             dx0: (xa as f64 - cx) as f32,
             dy0: (ya as f64 - cy) as f32,
