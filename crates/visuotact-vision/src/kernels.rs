@@ -75,9 +75,13 @@ impl Avx2 {
     }
 }
 
-/// `dst[i] = src[3 i + c]`: one channel of interleaved RGB (SSSE3 byte shuffles when the CPU
-/// has them, else the portable loop).
+/// `dst[i] = src[3 i + c]`: one channel of interleaved RGB (AVX2 or SSSE3 byte shuffles when
+/// the CPU has them, else the portable loop).
 pub fn pick_channel(src: &[u8], dst: &mut [u8], c: usize) {
+    if let Some(cpu) = Avx2::detect() {
+        pick_channel_on(Some(cpu), src, dst, c);
+        return;
+    }
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("ssse3") {
@@ -95,19 +99,25 @@ pub fn pick_channel(src: &[u8], dst: &mut [u8], c: usize) {
     pick_channel_portable(src, dst, c);
 }
 
-/// [`pick_channel`] on `cpu`'s kernels (AVX2 implies SSSE3).
+/// [`pick_channel`] on `cpu`'s kernels: with AVX2, 32 pixels a step (the last step
+/// overlapping the one before), SSSE3 and the portable loop for a row under 32 pixels.
 #[inline(always)]
 pub(crate) fn pick_channel_on(cpu: Option<Avx2>, src: &[u8], dst: &mut [u8], c: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         if cpu.is_some() {
+            let n = dst.len().min(src.len() / 3);
             // SAFETY: an `Avx2` exists only on a CPU with AVX2, hence SSSE3.
             #[allow(
                 unsafe_code,
                 reason = "calling a target_feature function on a CPU with it"
             )]
             unsafe {
-                pick_channel_ssse3_then_portable(src, dst, c);
+                if n >= 32 {
+                    shuffle::pick_channel_avx2(&src[..3 * n], &mut dst[..n], c);
+                } else {
+                    pick_channel_ssse3_then_portable(src, dst, c);
+                }
             }
             return;
         }
@@ -166,11 +176,13 @@ pub fn above_bits(src: &[u8], t: u8, bits: &mut [u64]) {
 #[cfg(target_arch = "x86_64")]
 #[allow(
     unsafe_code,
-    reason = "SSE2/SSSE3 intrinsics on bounds-checked 16/48/64-byte chunks"
+    reason = "SSE2/SSSE3/AVX2 intrinsics on bounds-checked 16/32/48/64/96-byte chunks"
 )]
 mod shuffle {
     use std::arch::x86_64::{
-        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_max_epu8, _mm_movemask_epi8, _mm_or_si128,
+        __m128i, __m256i, _mm256_broadcastsi128_si256, _mm256_castsi128_si256,
+        _mm256_inserti128_si256, _mm256_or_si256, _mm256_shuffle_epi8, _mm256_storeu_si256,
+        _mm_cmpeq_epi8, _mm_loadu_si128, _mm_max_epu8, _mm_movemask_epi8, _mm_or_si128,
         _mm_set1_epi8, _mm_shuffle_epi8, _mm_storeu_si128,
     };
 
@@ -201,6 +213,55 @@ mod shuffle {
             m[k / 16][i] = (k % 16) as u8;
         }
         m
+    }
+
+    /// `dst[i] = src[3 i + c]` for `dst.len() ≥ 32` and `src.len() == 3 dst.len()`: 32 pixels
+    /// a step, each 128-bit lane shuffling one 48-byte group with the SSSE3 masks; the last
+    /// step at `dst.len() − 32` (overlapping the one before: it writes the same values).
+    #[target_feature(enable = "avx2")]
+    pub(super) fn pick_channel_avx2(src: &[u8], dst: &mut [u8], c: usize) {
+        let n = dst.len();
+        assert!(n >= 32 && src.len() == 3 * n);
+        let m = masks(c);
+        let mask = |k: usize| {
+            // SAFETY: `m[k]` is 16 bytes.
+            let v = unsafe { _mm_loadu_si128(m[k].as_ptr().cast::<__m128i>()) };
+            _mm256_broadcastsi128_si256(v)
+        };
+        let (ma, mb, mc) = (mask(0), mask(1), mask(2));
+        let step = |i: usize, dst: &mut [u8]| {
+            let s = &src[3 * i..3 * i + 96];
+            // Lane 0 from bytes 16k.., lane 1 from bytes 48 + 16k.. of the 96.
+            let pair = |k: usize| {
+                let (lo, hi) = (&s[16 * k..16 * k + 16], &s[48 + 16 * k..64 + 16 * k]);
+                // SAFETY: `lo` and `hi` are 16 bytes each (bounds-checked slices).
+                unsafe {
+                    _mm256_inserti128_si256::<1>(
+                        _mm256_castsi128_si256(_mm_loadu_si128(lo.as_ptr().cast::<__m128i>())),
+                        _mm_loadu_si128(hi.as_ptr().cast::<__m128i>()),
+                    )
+                }
+            };
+            let a = _mm256_shuffle_epi8(pair(0), ma);
+            let b = _mm256_shuffle_epi8(pair(1), mb);
+            let cc = _mm256_shuffle_epi8(pair(2), mc);
+            let d = &mut dst[i..i + 32];
+            // SAFETY: `d` is 32 bytes (a bounds-checked slice).
+            unsafe {
+                _mm256_storeu_si256(
+                    d.as_mut_ptr().cast::<__m256i>(),
+                    _mm256_or_si256(_mm256_or_si256(a, b), cc),
+                );
+            }
+        };
+        let mut i = 0;
+        while i + 32 <= n {
+            step(i, dst);
+            i += 32;
+        }
+        if i < n {
+            step(n - 32, dst);
+        }
     }
 
     /// `dst[i] = src[3 i + c]` for `dst.len()` a multiple of 16 and `src.len() == 3 dst.len()`.
@@ -1242,12 +1303,18 @@ mod tests {
     fn kernels_match_scalar() {
         let src: Vec<u8> = (0..3 * 131).map(|i| ((i * 37 + 11) % 251) as u8).collect();
         for c in 0..3 {
-            let mut d = vec![0; 131];
-            pick_channel(&src, &mut d, c);
-            assert!(d.iter().enumerate().all(|(i, &v)| v == src[3 * i + c]));
-            let mut e = vec![0; 131];
-            pick_channel_portable(&src, &mut e, c);
-            assert_eq!(d, e);
+            // Under, at and past one or two 32-pixel steps (the overlapping last step).
+            for n in [0, 1, 15, 16, 31, 32, 33, 47, 64, 65, 95, 131] {
+                let mut d = vec![0; n];
+                pick_channel(&src[..3 * n], &mut d, c);
+                assert!(
+                    d.iter().enumerate().all(|(i, &v)| v == src[3 * i + c]),
+                    "{n}"
+                );
+                let mut e = vec![0; n];
+                pick_channel_portable(&src[..3 * n], &mut e, c);
+                assert_eq!(d, e);
+            }
         }
         let mut l = vec![0; 131];
         luma601(&src, &mut l, &mut Vec::new());
