@@ -205,14 +205,26 @@ mod shuffle {
         }
     }
 
-    /// Shuffle masks taking bytes `3 i + c` (i = 0..16) from three consecutive 16-byte loads.
-    fn masks(c: usize) -> [[u8; 16]; 3] {
-        let mut m = [[0x80u8; 16]; 3];
-        for i in 0..16 {
-            let k = 3 * i + c;
-            m[k / 16][i] = (k % 16) as u8;
+    /// Shuffle masks taking bytes `3 i + c` (i = 0..16) from three consecutive 16-byte loads,
+    /// for each channel `c`.
+    const MASKS: [[[u8; 16]; 3]; 3] = {
+        let mut m = [[[0x80u8; 16]; 3]; 3];
+        let mut c = 0;
+        while c < 3 {
+            let mut i = 0;
+            while i < 16 {
+                let k = 3 * i + c;
+                m[c][k / 16][i] = (k % 16) as u8;
+                i += 1;
+            }
+            c += 1;
         }
         m
+    };
+
+    /// The shuffle masks of channel `c` (0, 1 or 2).
+    fn masks(c: usize) -> &'static [[u8; 16]; 3] {
+        &MASKS[c]
     }
 
     /// `dst[i] = src[3 i + c]` for `dst.len() ≥ 32` and `src.len() == 3 dst.len()`: 32 pixels
