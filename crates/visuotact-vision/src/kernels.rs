@@ -828,8 +828,10 @@ mod window {
     use super::{EllipseWindow, RingSides};
 
     /// [`super::ellipse_window_sums`] on AVX2 and FMA; `pixels` holds at least the window's
-    /// rows. A row's tail is read in place (its bytes past the window masked off) while eight
-    /// bytes remain in `pixels`, else copied. `Σ w·dy` is taken per row, as `dy · Σ_row w`.
+    /// rows. A row is taken eight pixels a step; where its length is not a multiple of eight,
+    /// the last step reads the row's last eight pixels in place, the lanes already summed
+    /// masked off (a window under eight columns wide: each row copied into a zeroed step).
+    /// `Σ w·dy` is taken per row, as `dy · Σ_row w`.
     #[target_feature(enable = "avx2,fma")]
     pub(super) fn sums_avx2(
         pixels: &[u8],
@@ -838,56 +840,72 @@ mod window {
         rows: usize,
         e: EllipseWindow,
     ) -> [f64; 3] {
+        if rows == 0 || cols == 0 {
+            return [0.0; 3];
+        }
         let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
         let lane_f = _mm256_cvtepi32_ps(lane);
         let (q11, sxv) = (_mm256_set1_ps(e.q11), _mm256_set1_ps(e.sx));
         let (zero, eight) = (_mm256_setzero_ps(), _mm256_set1_ps(8.0));
         let (mut sw, mut sx, mut sy) = (zero, zero, zero);
-        // Every lane valid; a row's tail masks off the lanes past the window.
-        let all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-        let tail_mask = _mm256_castsi256_ps(_mm256_cmpgt_epi32(
-            _mm256_set1_epi32((cols % 8) as i32),
-            lane,
-        ));
+        // Whole steps at 0, 8, …; then the step at `last`, whose first `seen` lanes the whole
+        // steps took (none where `seen` is 8).
+        let whole = cols / 8;
+        let last = cols.max(8) - 8;
+        let seen = (8 * whole).saturating_sub(last) as i32;
+        let last_valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(lane, _mm256_set1_epi32(seen - 1)));
+        let narrow_valid =
+            _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(cols as i32), lane));
+        let dx_first = _mm256_add_ps(_mm256_set1_ps(e.dx0), lane_f);
+        let dx_last = _mm256_add_ps(_mm256_set1_ps(e.dx0 + last as f32), lane_f);
+        // Every row's `cols` bytes (so every eight-byte step at `c ≤ cols − 8` of a row) lie
+        // inside `pixels`.
+        let window = &pixels[..(rows - 1) * stride + cols];
+        let at = window.as_ptr();
         for r in 0..rows {
-            let row = &pixels[r * stride..r * stride + cols];
             let dyf = e.dy0 + r as f32;
             let bq = _mm256_set1_ps(2.0 * e.q12 * dyf);
             let cq = _mm256_set1_ps(e.q22 * dyf * dyf - 1.0);
             let base = _mm256_set1_ps(e.p0 + e.sy * dyf);
-            let mut dx = _mm256_add_ps(_mm256_set1_ps(e.dx0), lane_f);
+            // The weights of the eight pixels at `ptr` (columns `dx`), 0 outside the ellipse.
+            macro_rules! weights {
+                ($ptr:expr, $dx:expr) => {{
+                    let dx = $dx;
+                    let v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64($ptr.cast())));
+                    // v − (p0 + sy·dy) − sx·dx, not below 0.
+                    let w = _mm256_max_ps(_mm256_fnmadd_ps(sxv, dx, _mm256_sub_ps(v, base)), zero);
+                    let q = _mm256_fmadd_ps(_mm256_fmadd_ps(q11, dx, bq), dx, cq);
+                    _mm256_and_ps(w, _mm256_cmp_ps::<_CMP_LE_OQ>(q, zero))
+                }};
+            }
             // The row's own sums, added to the totals once per row: each row's chain of adds
             // is a few steps long and rows overlap, where one running total over every step
             // would wait on each fused multiply-add's latency.
             let (mut row_w, mut row_x) = (zero, zero);
-            let mut step = |bytes: &[u8; 8], valid: __m256| {
-                // SAFETY: `bytes` is 8 readable bytes; the rest is register arithmetic.
-                let v = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
-                    _mm_loadl_epi64(bytes.as_ptr().cast())
-                }));
-                // v − (p0 + sy·dy) − sx·dx, not below 0.
-                let w = _mm256_max_ps(_mm256_fnmadd_ps(sxv, dx, _mm256_sub_ps(v, base)), zero);
-                let q = _mm256_fmadd_ps(_mm256_fmadd_ps(q11, dx, bq), dx, cq);
-                let inside = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(q, zero), valid);
-                let w = _mm256_and_ps(w, inside);
-                row_w = _mm256_add_ps(row_w, w);
-                row_x = _mm256_fmadd_ps(w, dx, row_x);
-                dx = _mm256_add_ps(dx, eight);
-            };
-            let mut eights = row.chunks_exact(8);
-            for c in &mut eights {
-                step(c.try_into().unwrap_or(&[0; 8]), all);
-            }
-            let tail = eights.remainder();
-            if !tail.is_empty() {
-                let at = r * stride + cols - tail.len();
-                if let Some(bytes) = pixels.get(at..at + 8) {
-                    step(bytes.try_into().unwrap_or(&[0; 8]), tail_mask);
-                } else {
-                    let mut v = [0u8; 8];
-                    v[..tail.len()].copy_from_slice(tail);
-                    step(&v, tail_mask);
+            if cols >= 8 {
+                let mut dx = dx_first;
+                for c in 0..whole {
+                    // SAFETY: bytes `r·stride + 8c .. + 8` with `8c + 8 ≤ cols` lie in `window`.
+                    let w = unsafe { weights!(at.add(r * stride + 8 * c), dx) };
+                    row_w = _mm256_add_ps(row_w, w);
+                    row_x = _mm256_fmadd_ps(w, dx, row_x);
+                    dx = _mm256_add_ps(dx, eight);
                 }
+                if seen < 8 {
+                    // SAFETY: bytes `r·stride + cols − 8 .. + 8` lie in `window`.
+                    let w = unsafe { weights!(at.add(r * stride + last), dx_last) };
+                    let w = _mm256_and_ps(w, last_valid);
+                    row_w = _mm256_add_ps(row_w, w);
+                    row_x = _mm256_fmadd_ps(w, dx_last, row_x);
+                }
+            } else {
+                let mut v = [0u8; 8];
+                v[..cols].copy_from_slice(&window[r * stride..r * stride + cols]);
+                // SAFETY: `v` is 8 bytes.
+                let w = unsafe { weights!(v.as_ptr(), dx_first) };
+                let w = _mm256_and_ps(w, narrow_valid);
+                row_w = w;
+                row_x = _mm256_mul_ps(w, dx_first);
             }
             sw = _mm256_add_ps(sw, row_w);
             sx = _mm256_add_ps(sx, row_x);
