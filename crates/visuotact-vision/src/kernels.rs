@@ -6,15 +6,17 @@
 //! machine. Both copies compute identical results (integer code, or floating point in the same
 //! order of operations, with no reassociation or fused multiply-adds); the tests run whichever
 //! the machine picks and compare with scalar references. Kernels the compiler would not
-//! vectorise are written with intrinsics beside a portable loop: the SSSE3 channel shuffle, the
-//! AVX2 3-tap minimum/maximum, the SSE2/AVX2 threshold bits and the AVX2 excess sums (identical
-//! results), and the AVX2 + FMA grey-centroid window sums (floating point summed in eight
-//! lanes: equal to the portable loop within 1e-4 relative, tested).
+//! vectorise are written with intrinsics beside a portable loop: the SSSE3 and AVX2 channel
+//! shuffles, the AVX2 3-tap minimum/maximum, the SSE2/AVX2 threshold bits, the AVX2 excess sums
+//! and the AVX2 background-ring plane (identical results: the ring's per-lane sums are taken in
+//! the portable loop's lanes and order, tested bit for bit), and the AVX2 + FMA grey-centroid
+//! window sums (floating point summed in eight lanes: equal to the portable loop within 1e-4
+//! relative, tested).
 //!
-//! A loop that calls kernels on every row checks the CPU once instead: the crate-internal
-//! `Avx2::detect` gives a token only on a CPU with AVX2, and the loop, compiled with AVX2 and
-//! handed the token, calls the `_on` forms of the kernels, which then inline into it (the
-//! frame's opening pass does).
+//! A loop that calls kernels many times a frame checks the CPU once instead: the crate-internal
+//! `Avx2::detect` gives a token only on a CPU with AVX2 and FMA, and the loop, compiled with
+//! those features and handed the token, calls the `_on` forms of the kernels, which then inline
+//! into it (the frame's opening pass and the grey-centroid refinement do).
 
 #![allow(
     clippy::needless_range_loop,
