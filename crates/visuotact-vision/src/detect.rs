@@ -319,47 +319,40 @@ fn refine_grey(
 ) -> usize {
     // One check of the CPU per frame; the loop is compiled with AVX2 and FMA where it runs on
     // them, its kernels inlined.
-    match Avx2::detect() {
+    Avx2::dispatch(
+        Refinement {
+            blobs,
+            gray,
+            ring,
+            level,
+        },
         #[cfg(target_arch = "x86_64")]
-        Some(cpu) => {
-            // SAFETY: `cpu` exists only on a CPU with AVX2 and FMA.
-            #[allow(
-                unsafe_code,
-                reason = "calling a target_feature function on a CPU with it"
-            )]
-            unsafe {
-                refine_grey_avx2(cpu, blobs, gray, ring, level)
-            }
-        }
-        cpu => refine_grey_on(cpu, blobs, gray, ring, level),
-    }
+        refine_grey_avx2,
+        refine_grey_on,
+    )
+}
+
+/// The arguments of [`refine_grey`].
+struct Refinement<'a> {
+    blobs: &'a mut [Blob],
+    gray: &'a GrayImage,
+    ring: &'a mut Vec<u8>,
+    level: Option<u8>,
 }
 
 /// [`refine_grey_on`] compiled with AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn refine_grey_avx2(
-    cpu: Avx2,
-    blobs: &mut [Blob],
-    gray: &GrayImage,
-    ring: &mut Vec<u8>,
-    level: Option<u8>,
-) -> usize {
-    refine_grey_on(Some(cpu), blobs, gray, ring, level)
+fn refine_grey_avx2(cpu: Avx2, r: Refinement<'_>) -> usize {
+    refine_grey_on(Some(cpu), r)
 }
 
 /// [`refine_grey`] on `cpu`'s kernels.
 #[inline(always)]
-fn refine_grey_on(
-    cpu: Option<Avx2>,
-    blobs: &mut [Blob],
-    gray: &GrayImage,
-    ring: &mut Vec<u8>,
-    level: Option<u8>,
-) -> usize {
+fn refine_grey_on(cpu: Option<Avx2>, r: Refinement<'_>) -> usize {
     let mut left = 0;
-    for b in blobs.iter_mut() {
-        match grey_centroid(cpu, b, gray, ring, level) {
+    for b in r.blobs.iter_mut() {
+        match grey_centroid(cpu, b, r.gray, r.ring, r.level) {
             Some(c) => (b.x_px, b.y_px) = c,
             None => left += 1,
         }

@@ -75,6 +75,47 @@ impl Avx2 {
         }
         None
     }
+
+    /// The one CPU check of a loop that hands its kernels the token: `avx2(cpu, args)` (a
+    /// function compiled with AVX2 and FMA, nothing more) where the CPU has them, else
+    /// `portable(None, args)`.
+    #[inline(always)]
+    pub(crate) fn dispatch<A, R>(
+        args: A,
+        #[cfg(target_arch = "x86_64")] avx2: unsafe fn(Avx2, A) -> R,
+        portable: fn(Option<Avx2>, A) -> R,
+    ) -> R {
+        match Self::detect() {
+            #[cfg(target_arch = "x86_64")]
+            Some(cpu) => {
+                // SAFETY: `cpu` exists only on a CPU with AVX2 and FMA, all `avx2` requires.
+                #[allow(
+                    unsafe_code,
+                    reason = "calling a target_feature function on a CPU with it"
+                )]
+                unsafe {
+                    avx2(cpu, args)
+                }
+            }
+            cpu => portable(cpu, args),
+        }
+    }
+}
+
+/// Calls `step` at the starts of 32-byte steps over `n ≥ 32` bytes: `0, 32, …` while a whole
+/// step fits, then `n − 32` where bytes remain (that step overlaps the one before; kernels that
+/// write each byte from their inputs alone write the same values twice).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn for_steps_of_32(n: usize, mut step: impl FnMut(usize)) {
+    let mut i = 0;
+    while i + 32 <= n {
+        step(i);
+        i += 32;
+    }
+    if i < n {
+        step(n - 32);
+    }
 }
 
 /// `dst[i] = src[3 i + c]`: one channel of interleaved RGB (AVX2 or SSSE3 byte shuffles when
@@ -268,14 +309,7 @@ mod shuffle {
                 );
             }
         };
-        let mut i = 0;
-        while i + 32 <= n {
-            step(i, dst);
-            i += 32;
-        }
-        if i < n {
-            step(n - 32, dst);
-        }
+        super::for_steps_of_32(n, |i| step(i, dst));
     }
 
     /// `dst[i] = src[3 i + c]` for `dst.len()` a multiple of 16 and `src.len() == 3 dst.len()`.
@@ -483,17 +517,8 @@ pub(crate) fn excess_sums_on(cpu: Option<Avx2>, window: Window<'_>, t: u8) -> [u
         window,
         t,
         #[cfg(target_arch = "x86_64")]
-        |w, t| {
-            // SAFETY: `on_window` calls this only with an `Avx2` (a CPU with AVX2).
-            #[allow(
-                unsafe_code,
-                reason = "calling a target_feature function on a CPU with it"
-            )]
-            unsafe {
-                window::excess_sums_avx2(w.0, w.1, w.2, w.3, t)
-            }
-        },
-        |w, t| excess_sums_portable(w.0, w.1, w.2, w.3, t),
+        window::excess_sums_avx2,
+        excess_sums_portable,
     )
 }
 
@@ -502,14 +527,14 @@ pub(crate) type Window<'a> = (&'a [u8], usize, usize, usize);
 
 /// Runs `avx2` on the window (`pixels` from its first row to the image's end) when `cpu` is
 /// given, else `portable` on exactly its rows; the rows are bounds-checked first either way. An
-/// empty window gives `T::default()`.
+/// empty window gives `T::default()`. `avx2` may require AVX2 and FMA, nothing more.
 #[inline(always)]
 fn on_window<P, T: Default>(
     cpu: Option<Avx2>,
     (pixels, stride, cols, rows): Window<'_>,
     p: P,
-    #[cfg(target_arch = "x86_64")] avx2: impl FnOnce(Window<'_>, P) -> T,
-    portable: impl FnOnce(Window<'_>, P) -> T,
+    #[cfg(target_arch = "x86_64")] avx2: unsafe fn(&[u8], usize, usize, usize, P) -> T,
+    portable: fn(&[u8], usize, usize, usize, P) -> T,
 ) -> T {
     if rows == 0 || cols == 0 {
         return T::default();
@@ -518,11 +543,16 @@ fn on_window<P, T: Default>(
     #[cfg(target_arch = "x86_64")]
     {
         if cpu.is_some() {
-            return avx2((pixels, stride, cols, rows), p);
+            // SAFETY: an `Avx2` exists only on a CPU with AVX2 and FMA, all `avx2` requires.
+            #[allow(
+                unsafe_code,
+                reason = "calling a target_feature function on a CPU with it"
+            )]
+            return unsafe { avx2(pixels, stride, cols, rows, p) };
         }
     }
     let _ = cpu;
-    portable((rows_of, stride, cols, rows), p)
+    portable(rows_of, stride, cols, rows, p)
 }
 
 /// Portable form of [`excess_sums`].
@@ -597,17 +627,8 @@ pub(crate) fn ellipse_window_sums_on(
         window,
         e,
         #[cfg(target_arch = "x86_64")]
-        |w, e| {
-            // SAFETY: `on_window` calls this only with an `Avx2` (a CPU with AVX2 and FMA).
-            #[allow(
-                unsafe_code,
-                reason = "calling a target_feature function on a CPU with it"
-            )]
-            unsafe {
-                window::sums_avx2(w.0, w.1, w.2, w.3, e)
-            }
-        },
-        |w, e| ellipse_window_sums_portable(w.0, w.1, w.2, w.3, e),
+        window::sums_avx2,
+        ellipse_window_sums_portable,
     )
 }
 
@@ -939,14 +960,7 @@ mod window {
             // SAFETY: `d` is 32 bytes (a bounds-checked slice).
             unsafe { _mm256_storeu_si256(d.as_mut_ptr().cast::<__m256i>(), r) };
         };
-        let mut i = 0;
-        while i + 32 <= n {
-            step(i, dst);
-            i += 32;
-        }
-        if i < n {
-            step(n - 32, dst);
-        }
+        super::for_steps_of_32(n, |i| step(i, dst));
     }
 
     /// [`super::above_bits`] on AVX2: `src.len()` a multiple of 64, `bits.len() == src.len() /

@@ -362,20 +362,12 @@ pub fn open3_from_rgb_into(
         s,
     };
     // One check of the CPU per frame; the row loop is compiled with AVX2 where it runs on it.
-    match Avx2::detect() {
+    Avx2::dispatch(
+        pass,
         #[cfg(target_arch = "x86_64")]
-        Some(cpu) => {
-            // SAFETY: `cpu` exists only on a CPU with AVX2.
-            #[allow(
-                unsafe_code,
-                reason = "calling a target_feature function on a CPU with it"
-            )]
-            unsafe {
-                open3_rows_avx2(cpu, pass);
-            }
-        }
-        cpu => open3_rows(cpu, pass),
-    }
+        open3_rows_avx2,
+        open3_rows,
+    );
     if let Some((hh, _)) = hist {
         *hh = merged(&s.tables);
     }
