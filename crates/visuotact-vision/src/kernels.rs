@@ -51,8 +51,8 @@ macro_rules! dispatch {
 }
 
 /// A CPU with AVX2 and FMA, made by [`Avx2::detect`] only after the runtime check: a kernel
-/// handed one runs its AVX2 (and FMA) code without checking again. A row loop compiled with AVX2 that passes
-/// one down to its kernels has them inlined, with no check or call per row.
+/// handed one runs its AVX2 (and FMA) code without checking again. A row loop compiled with
+/// AVX2 that passes one down to its kernels has them inlined, with no check or call per row.
 #[derive(Clone, Copy, Debug)]
 #[cfg_attr(
     not(target_arch = "x86_64"),
@@ -1005,6 +1005,13 @@ mod window {
         // 64-bit lanes: Σ w, Σ w·(block offset), Σ w·r; 32-bit lanes of Σ w·c in the block,
         // widened once per row.
         let (mut sw, mut soff, mut sr, mut sc) = (zero, zero, zero, zero);
+        // The sum of four 64-bit lanes.
+        let lanes = |v: __m256i| -> u64 {
+            let mut a = [0u64; 4];
+            // SAFETY: `a` holds 32 bytes.
+            unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast::<__m256i>(), v) };
+            a.iter().sum()
+        };
         // A window of at most 32 columns whose rows can all be read 32 bytes in place (every
         // box but those at the image's last rows): one masked block per row, no checks.
         if cols <= 32 && rows > 0 && (rows - 1) * stride + 32 <= pixels.len() {
@@ -1025,12 +1032,6 @@ mod window {
                 // SAFETY: `a` holds 32 bytes.
                 unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast::<__m256i>(), v) };
                 a.iter().map(|&x| u64::from(x)).sum()
-            };
-            let lanes = |v: __m256i| -> u64 {
-                let mut a = [0u64; 4];
-                // SAFETY: `a` holds 32 bytes.
-                unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast::<__m256i>(), v) };
-                a.iter().sum()
             };
             return [lanes(sw), lanes32(sc), lanes(sr)];
         }
@@ -1071,12 +1072,6 @@ mod window {
             );
             sc = _mm256_add_epi64(sc, _mm256_cvtepi32_epi64(half));
         }
-        let lanes = |v: __m256i| -> u64 {
-            let mut a = [0u64; 4];
-            // SAFETY: `a` holds 32 bytes.
-            unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast::<__m256i>(), v) };
-            a.iter().sum()
-        };
         [lanes(sw), lanes(soff) + lanes(sc), lanes(sr)]
     }
 
