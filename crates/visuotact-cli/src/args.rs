@@ -246,7 +246,7 @@ pub(crate) struct AlgorithmArg {
     /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
     /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
     /// 70/15/15 split, stopped by the validation subset).
-    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = ["trainlm", "trainbr"])]
+    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = ["trainlm", "trainbr", "adam"])]
     pub(crate) name: String,
     /// Feed the network the K leading principal components of the scaled inputs (kept in the
     /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),

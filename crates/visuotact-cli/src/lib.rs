@@ -10,6 +10,7 @@ mod args;
 mod commands;
 mod files;
 mod print;
+mod progress;
 
 use commands::{
     bench, blobs, calibrate, dataset, demo, eval, export, extract, filter, pattern, predict,

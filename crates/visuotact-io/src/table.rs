@@ -226,8 +226,14 @@ pub(crate) fn cell_number(
     Ok(v)
 }
 
+/// The column a table is keyed by: `frame`, or where a table has none, the first of the other
+/// names data sets give the frame's file (a TacTip data set's `image_name`).
+pub const KEY_COLUMNS: [&str; 5] = ["frame", "image_name", "image", "filename", "file"];
+
 impl KeyedTable {
-    /// Reads `path`; errors name the file, the line and the column.
+    /// Reads `path`; errors name the file, the line and the column. The key is the first of
+    /// [`KEY_COLUMNS`] the header has; a column whose first cell is not a number (a name, a
+    /// note) is left out unless it is one of `text_columns`.
     pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| TableError::new(path, None, format!("cannot read: {e}")))?;
@@ -253,14 +259,33 @@ impl KeyedTable {
             .iter()
             .map(str::to_string)
             .collect();
-        let key_col = header.iter().position(|h| h == "frame").ok_or_else(|| {
-            fail(
-                None,
-                format!("no `frame` column (columns: {})", header.join(", ")),
-            )
-        })?;
+        let key_col = KEY_COLUMNS
+            .iter()
+            .find_map(|k| header.iter().position(|h| h == k))
+            .ok_or_else(|| {
+                fail(
+                    None,
+                    format!(
+                        "no `frame` column (nor {}; columns: {})",
+                        KEY_COLUMNS[1..].join(", "),
+                        header.join(", ")
+                    ),
+                )
+            })?;
+        let records: Vec<csv::StringRecord> = rd
+            .records()
+            .enumerate()
+            .map(|(n, rec)| rec.map_err(|e| fail(Some(n + 2), format!("line {}: {e}", n + 2))))
+            .collect::<Result<_, _>>()?;
+        // A column whose first cell is words, not a number, is a name or a note: left out.
+        let words = |i: usize| {
+            records.first().is_some_and(|r| {
+                let c = r.get(i).unwrap_or("").trim();
+                !c.is_empty() && !c.eq_ignore_ascii_case("nan") && c.parse::<f64>().is_err()
+            })
+        };
         let keep: Vec<usize> = (0..header.len())
-            .filter(|&i| i != key_col && !text_columns.contains(&header[i].as_str()))
+            .filter(|&i| i != key_col && !text_columns.contains(&header[i].as_str()) && !words(i))
             .collect();
         let columns = keep.iter().map(|&i| header[i].clone()).collect();
         let text_at: Vec<Option<usize>> = text_columns
@@ -269,9 +294,8 @@ impl KeyedTable {
             .collect();
         let (mut keys, mut rows, mut text) = (Vec::new(), Vec::new(), Vec::new());
         let mut seen = std::collections::HashMap::new();
-        for (n, rec) in rd.records().enumerate() {
+        for (n, rec) in records.into_iter().enumerate() {
             let line = n + 2;
-            let rec = rec.map_err(|e| fail(Some(line), format!("line {line}: {e}")))?;
             if rec.len() != header.len() {
                 return Err(fail(
                     Some(line),
@@ -331,6 +355,30 @@ impl KeyedTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[test]
+    fn a_data_sets_image_name_keys_it_and_its_name_columns_are_left_out() {
+        let text = "image_name,data_name,pose_2,move_1\nframe_0_0.png,frame_0,0.75,-0.1\nframe_1_0.png,frame_1,-0.3,nan\n";
+        let t = KeyedTable::from_text(text, Path::new("targets.csv"), &[]).unwrap();
+        assert_eq!(t.keys, ["frame_0_0.png", "frame_1_0.png"]);
+        assert_eq!(t.columns, ["pose_2", "move_1"]);
+        assert_eq!(t.rows[0], [0.75, -0.1]);
+        assert!(t.rows[1][1].is_nan());
+        // Words further down a column of numbers are still an error, with the line.
+        let bad = "frame,x_mm\na,1\nb,oops\n";
+        let e = KeyedTable::from_text(bad, Path::new("l.csv"), &[]).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("line 3, column `x_mm`: \"oops\" is not a number"),
+            "{e}"
+        );
+        let none = KeyedTable::from_text("name,x\na,1\n", Path::new("l.csv"), &[]).unwrap_err();
+        assert!(
+            none.to_string()
+                .contains("no `frame` column (nor image_name"),
+            "{none}"
+        );
+    }
+
     #[test]
     fn a_frame_twice_is_an_error_naming_both_lines() {
         let d = std::env::temp_dir().join(format!("visuotact-dup-{}", std::process::id()));

@@ -4,7 +4,7 @@
 //! This is what `visuotact train` and `sweep` run, reachable without the command line:
 //!
 //! ```
-//! use visuotact_nn::fit::{fit, FitConfig, FitData};
+//! use visuotact_nn::fit::{fit, quietly, FitConfig, FitData};
 //! use visuotact_nn::lm::Control;
 //!
 //! // y = 2·a − b on 40 samples; one small network by trainlm.
@@ -14,7 +14,7 @@
 //! let targets = ["y".to_string()];
 //! let data = FitData { x: &x, t: &t, feature_columns: &columns, targets: &targets };
 //! let cfg = FitConfig { hidden: vec![3], ensemble: 1, ..FitConfig::default() };
-//! let model = fit(&data, &cfg, |_, _, _| Control::Continue).unwrap();
+//! let model = fit(&data, &cfg, quietly).unwrap();
 //! assert!((model.predict(&[3.0, 1.0])[0] - 5.0).abs() < 0.05);
 //! ```
 
@@ -26,8 +26,22 @@ use crate::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
 use crate::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 use crate::pca::Projection;
 
-/// Components `auto` keeps for sensors with many inputs.
+/// Components `auto` keeps for sensors with many inputs. Tables of thousands of frames get
+/// their capacity from the wide network ([`InputSet::wide`]) instead: twice as many
+/// components cost Levenberg–Marquardt 2–4 times as much per epoch.
 pub const AUTO_COMPONENTS: usize = 10;
+
+/// From this many training samples a table is large: the wide network ([`InputSet::wide`])
+/// is a candidate, and the input choice holds out one fold instead of cross-validating over
+/// all ([`folds_trained`]).
+pub const LARGE_TABLE: usize = 1000;
+
+/// The wide network's hidden layers ([`InputSet::wide`]).
+pub const WIDE_HIDDEN: [usize; 2] = [64, 64];
+
+/// Principal components that fill a lost marker's features for a network reading the markers'
+/// features themselves ([`crate::model::Model::filler`]).
+pub const FILL_COMPONENTS: usize = 20;
 
 /// The components `auto` keeps for `inputs` marker inputs (`None`: the inputs themselves):
 /// a projection only when there are over twice as many inputs as components.
@@ -133,6 +147,11 @@ pub struct InputSet {
     pub components: Option<usize>,
     /// How many of its trailing columns pass by the projection.
     pub passthrough: usize,
+    /// The wide network: every marker's feature as it is (a lost one filled from
+    /// [`FILL_COMPONENTS`] principal components of the others), [`WIDE_HIDDEN`] hidden units,
+    /// trained by mini-batch Adam ([`crate::adam`]) — capacity that thousands of frames can
+    /// pay for, where Levenberg–Marquardt's `JᵀJ` of so many weights would not.
+    pub wide: bool,
 }
 
 impl InputSet {
@@ -148,6 +167,15 @@ impl InputSet {
     pub fn in_words(&self) -> String {
         let n = self.columns.len();
         match self.components {
+            None if self.wide => format!(
+                "{n} inputs (the markers' {} as they are, lost ones filled from {FILL_COMPONENTS} principal components{})",
+                n - self.passthrough,
+                if self.passthrough > 0 {
+                    format!(", {} more", self.passthrough)
+                } else {
+                    String::new()
+                }
+            ),
             None => n.to_string(),
             Some(k) => format!(
                 "{n} inputs (the markers' {} as {k} principal components{})",
@@ -164,6 +192,7 @@ impl InputSet {
     /// `in → hidden → out (n weights` for the network this set feeds (the caller closes the
     /// parenthesis after adding what it knows, e.g. the algorithm).
     pub fn network_in_words(&self, hidden: &[usize], targets: usize) -> String {
+        let hidden = self.hidden(hidden);
         let sizes = [&[self.network_inputs()][..], hidden, &[targets]].concat();
         let layers: Vec<String> = hidden.iter().map(usize::to_string).collect();
         format!(
@@ -172,6 +201,25 @@ impl InputSet {
             layers.join(" → "),
             Mlp::n_params_for(&sizes)
         )
+    }
+
+    /// The hidden layers of this set's network: [`WIDE_HIDDEN`] for the wide one, else
+    /// `configured`.
+    pub fn hidden<'a>(&self, configured: &'a [usize]) -> &'a [usize] {
+        if self.wide {
+            &WIDE_HIDDEN
+        } else {
+            configured
+        }
+    }
+
+    /// The algorithm of this set's network: Adam for the wide one, else `configured`.
+    pub fn algorithm(&self, configured: Algorithm) -> Algorithm {
+        if self.wide {
+            Algorithm::Adam
+        } else {
+            configured
+        }
     }
 
     /// Every column of a table whose columns are `kinds` (markers' features first), the
@@ -219,6 +267,7 @@ impl InputSet {
             columns: [markers, field, other].concat(),
             components,
             passthrough,
+            wide: false,
         }
     }
 }
@@ -227,20 +276,37 @@ impl InputSet {
 /// choice picked them. With [`FieldInputs::Auto`], the field summary and enough markers'
 /// features for [`auto_field`]: the two together (the markers' projected by `components`)
 /// against the field summary alone — which generalises better depends on the sensor
-/// (docs/benchmarks.md). Otherwise every column, one set.
+/// (docs/benchmarks.md) — and, when `wide` (a large table, see [`wide_candidate`]), every
+/// column into the wide network ([`InputSet::wide`]). Otherwise every column, one set.
 pub fn candidate_inputs(
     kinds: &[ColumnKind],
     components: Option<usize>,
     field: FieldInputs,
+    wide: bool,
 ) -> Vec<InputSet> {
     let all = InputSet::all(kinds, components);
     let markers = kinds.iter().filter(|&&k| k == ColumnKind::Marker).count();
     if field == FieldInputs::Auto && auto_field(markers) && kinds.contains(&ColumnKind::Field) {
         let without_markers = InputSet::keeping(kinds, None, |k| k != ColumnKind::Marker);
-        vec![all, without_markers]
+        let mut sets = vec![all, without_markers];
+        if wide {
+            let mut every = InputSet::keeping(kinds, None, |_| true);
+            every.name = format!("{} into the wide network", every.name);
+            every.wide = true;
+            sets.push(every);
+        }
+        sets
     } else {
         vec![all]
     }
+}
+
+/// Whether the wide network is a candidate for `samples` training samples: from
+/// [`LARGE_TABLE`] on, when training is left to choose (`algorithm` is the default's and the
+/// hidden layers are too).
+pub fn wide_candidate(samples: usize, cfg: &FitConfig) -> bool {
+    let default = FitConfig::default();
+    samples >= LARGE_TABLE && cfg.algorithm == default.algorithm && cfg.hidden == default.hidden
 }
 
 /// Folds of the cross-validation that chooses between input sets.
@@ -285,6 +351,10 @@ pub struct FitConfig {
     /// Networks in the model (1: one; more: an ensemble on other seeds and splits, estimates
     /// their mean with the standard deviation as the spread).
     pub ensemble: usize,
+    /// When the markers' features are not projected: fill a lost marker's features from this
+    /// many principal components of the others ([`crate::model::Model::filler`]); `None`: a
+    /// lost marker is refused.
+    pub fill: Option<usize>,
 }
 
 impl Default for FitConfig {
@@ -300,6 +370,7 @@ impl Default for FitConfig {
             components: None,
             passthrough: 0,
             ensemble: 5,
+            fill: None,
         }
     }
 }
@@ -313,6 +384,11 @@ impl FitConfig {
             passthrough,
             ..Self::default()
         }
+    }
+
+    /// Whether a lost marker's features are filled (projected, or a filler).
+    pub fn fills(&self) -> bool {
+        self.components.is_some() || self.fill.is_some()
     }
 
     /// The source documents' way: trainlm (70/15/15 split, validation stop), every input,
@@ -432,7 +508,7 @@ impl FitData<'_> {
             let bad_input = x.iter().enumerate().find(|&(j, v)| {
                 v.is_infinite()
                     || v.abs() > LARGEST_VALUE
-                    || (v.is_nan() && (cfg.components.is_none() || j >= projected))
+                    || (v.is_nan() && (!cfg.fills() || j >= projected))
             });
             if let Some((j, &value)) = bad_input {
                 return Err(FitError::NotFinite {
@@ -441,7 +517,7 @@ impl FitData<'_> {
                     value,
                     why: if value.abs() > LARGEST_VALUE && value.is_finite() {
                         "beyond ±1e15: not a measurement (scaling would lose every other value)"
-                    } else if cfg.components.is_some() && j < projected {
+                    } else if cfg.fills() && j < projected {
                         "inputs must be finite; a missing marker's feature may be NaN"
                     } else {
                         "inputs that are not projected must be finite"
@@ -586,6 +662,7 @@ fn train_config(cfg: &FitConfig) -> TrainConfig {
     let base = match cfg.algorithm {
         Algorithm::Trainlm => TrainConfig::TRAINLM,
         Algorithm::Trainbr => TrainConfig::TRAINBR,
+        Algorithm::Adam => TrainConfig::ADAM,
     };
     TrainConfig {
         lm: LmConfig {
@@ -626,47 +703,139 @@ fn subset_figures(
         .unzip()
 }
 
-/// Scales, projects, initialises and trains the model's networks; the first network reports
-/// the training figures and takes `progress` (epoch, training MSE, validation MSE — NaN
-/// without a validation subset; returning [`Control::Stop`] stops it). Non-convergence is in
-/// the model's [`TrainingSummary::stop`], not an error.
+/// Where a training is, for progress lines: sent after every epoch of every network, and once
+/// more when a network has finished.
+#[derive(Clone, Copy, Debug)]
+pub struct FitProgress {
+    /// Which network (from 0) of this [`fit`]'s ensemble.
+    pub network: usize,
+    /// Networks in this [`fit`].
+    pub networks: usize,
+    /// Epochs done by this network.
+    pub epoch: usize,
+    /// Its training MSE (scaled targets).
+    pub train_mse: f64,
+    /// Its validation MSE (NaN without a validation subset).
+    pub validation_mse: f64,
+    /// Whether this network has finished (the last call for it).
+    pub finished: bool,
+}
+
+/// A progress callback: may be called from several threads at once (the ensemble's networks
+/// train in parallel); [`Control::Stop`] stops the network that called it.
+pub trait Progress: Fn(&FitProgress) -> Control + Sync {}
+impl<F: Fn(&FitProgress) -> Control + Sync> Progress for F {}
+
+/// No progress wanted.
+pub fn quietly(_: &FitProgress) -> Control {
+    Control::Continue
+}
+
+/// The filler of `xs`' first `markers` columns (scaled) when `cfg` asks for one and they are
+/// not projected, with the rows' lost values filled by it.
+fn fill(
+    mut xs: Vec<Vec<f64>>,
+    markers: usize,
+    cfg: &FitConfig,
+) -> Result<(Option<Projection>, Vec<Vec<f64>>), FitError> {
+    let Some(k) = cfg.fill.filter(|_| cfg.components.is_none() && markers > 0) else {
+        return Ok((None, xs));
+    };
+    let complete: Vec<Vec<f64>> = xs
+        .iter()
+        .filter(|r| r[..markers].iter().all(|v| !v.is_nan()))
+        .map(|r| r[..markers].to_vec())
+        .collect();
+    let k = k.min(markers).min(complete.len().saturating_sub(1)).max(1);
+    let filler = Projection::fit(&complete, k)?;
+    for (row, r) in xs.iter_mut().enumerate() {
+        if !filler.fill_missing(&mut r[..markers]) {
+            return Err(FitError::Projection(crate::pca::ProjectionError(format!(
+                "sample {row} has fewer inputs left than components"
+            ))));
+        }
+    }
+    Ok((Some(filler), xs))
+}
+
+/// Network `i` of `networks` of a model with layer `sizes`, trained on the scaled rows
+/// `xs`, `ts` on its own seed, telling `progress`.
+fn train_network(
+    (xs, ts): (&[Vec<f64>], &[Vec<f64>]),
+    sizes: &[usize],
+    (i, networks): (usize, usize),
+    cfg: &FitConfig,
+    progress: &impl Progress,
+) -> (Mlp, crate::mlp::TrainOutcome) {
+    let seed = cfg.seed.wrapping_add(7919 * i as u64);
+    let mut net = match cfg.algorithm {
+        Algorithm::Adam => Mlp::glorot(sizes, seed),
+        Algorithm::Trainlm | Algorithm::Trainbr => Mlp::nguyen_widrow(sizes, seed),
+    };
+    let member_cfg = TrainConfig {
+        seed,
+        ..train_config(cfg)
+    };
+    let mut last = (0, f64::NAN, f64::NAN);
+    let out = crate::mlp::train(&mut net, xs, ts, &member_cfg, |epoch, tr, va| {
+        last = (epoch, tr, va);
+        progress(&FitProgress {
+            network: i,
+            networks,
+            epoch,
+            train_mse: tr,
+            validation_mse: va,
+            finished: false,
+        })
+    });
+    progress(&FitProgress {
+        network: i,
+        networks,
+        epoch: last.0,
+        train_mse: last.1,
+        validation_mse: last.2,
+        finished: true,
+    });
+    (net, out)
+}
+
+/// Scales, projects (or fills), initialises and trains the model's networks — all of an
+/// ensemble's in parallel — calling `progress` after every epoch of each (returning
+/// [`Control::Stop`] stops that network). The first network reports the training figures.
+/// Non-convergence is in the model's [`TrainingSummary::stop`], not an error.
 pub fn fit(
     data: &FitData<'_>,
     cfg: &FitConfig,
-    progress: impl FnMut(usize, f64, f64) -> Control,
+    progress: impl Progress,
 ) -> Result<Model, FitError> {
     data.validate(cfg)?;
     let (x, t) = (data.x, data.t);
     let input_scaling = MinMax::fit(x);
     let target_scaling = MinMax::fit(t);
     let xs: Vec<Vec<f64>> = x.iter().map(|r| input_scaling.apply(r)).collect();
-    let (projection, xs) = project(xs, data.feature_columns.len() - cfg.passthrough, cfg)?;
+    let markers = data.feature_columns.len() - cfg.passthrough;
+    let (projection, xs) = project(xs, markers, cfg)?;
+    let (filler, xs) = fill(xs, markers, cfg)?;
     let ts: Vec<Vec<f64>> = t.iter().map(|r| target_scaling.apply(r)).collect();
     let mut sizes = vec![projection.as_ref().map_or(data.feature_columns.len(), |p| {
         p.outputs() + cfg.passthrough
     })];
     sizes.extend(&cfg.hidden);
     sizes.push(data.targets.len());
-    let train_cfg = train_config(cfg);
-    let mut net = Mlp::nguyen_widrow(&sizes, cfg.seed);
-    let out = crate::mlp::train(&mut net, &xs, &ts, &train_cfg, progress);
-    // Further members of an ensemble: other initial weights and splits, in parallel.
-    let members: Vec<Mlp> = (1..cfg.ensemble.max(1))
+    let networks = cfg.ensemble.max(1);
+    // Every network on its own seed (and split), in parallel.
+    let mut trained: Vec<(Mlp, crate::mlp::TrainOutcome)> = (0..networks)
         .into_par_iter()
-        .map(|i| {
-            let seed = cfg.seed.wrapping_add(7919 * i as u64);
-            let mut member = Mlp::nguyen_widrow(&sizes, seed);
-            let member_cfg = TrainConfig { seed, ..train_cfg };
-            crate::mlp::train(&mut member, &xs, &ts, &member_cfg, |_, _, _| {
-                Control::Continue
-            });
-            member
-        })
+        .map(|i| train_network((&xs, &ts), &sizes, (i, networks), cfg, &progress))
         .collect();
+    let (net, out) = trained.remove(0);
+    let members: Vec<Mlp> = trained.into_iter().map(|(m, _)| m).collect();
     let figures = |ids: &[usize]| subset_figures(&net, ids, (&xs, &ts), &target_scaling);
     let [(mse0, r0), (mse1, r1), (mse2, r2)] = out.subsets.each_ref().map(|ids| figures(ids));
     let stop = if out.validation_stop {
         "validation".to_string()
+    } else if out.settled {
+        "settled".to_string()
     } else {
         format!("{:?}", out.lm.reason)
     };
@@ -676,12 +845,13 @@ pub fn fit(
         net,
         members,
         input_scaling,
-        passthrough: if projection.is_some() {
+        passthrough: if projection.is_some() || filler.is_some() {
             cfg.passthrough
         } else {
             0
         },
         projection,
+        filler,
         target_scaling,
         feature_columns: data.feature_columns.to_vec(),
         target_columns: data.targets.to_vec(),
@@ -706,19 +876,20 @@ pub fn fit_set(
     data: &FitData<'_>,
     set: &InputSet,
     cfg: &FitConfig,
-    progress: impl FnMut(usize, f64, f64) -> Control,
+    progress: impl Progress,
 ) -> Result<Model, FitError> {
     let everyone: Vec<usize> = (0..data.x.len()).collect();
     fit_rows(data, set, &everyone, cfg, progress)
 }
 
-/// Trains on the samples `rows` of `data`, reading the columns of `set` (`cfg` otherwise).
+/// Trains on the samples `rows` of `data`, reading the columns of `set` (`cfg` otherwise; the
+/// wide set its own network).
 fn fit_rows(
     data: &FitData<'_>,
     set: &InputSet,
     rows: &[usize],
     cfg: &FitConfig,
-    progress: impl FnMut(usize, f64, f64) -> Control,
+    progress: impl Progress,
 ) -> Result<Model, FitError> {
     let x: Vec<Vec<f64>> = rows
         .iter()
@@ -739,24 +910,44 @@ fn fit_rows(
     let set_cfg = FitConfig {
         components: set.components,
         passthrough: set.passthrough,
+        hidden: set.hidden(&cfg.hidden).to_vec(),
+        algorithm: set.algorithm(cfg.algorithm),
+        fill: if set.wide {
+            Some(FILL_COMPONENTS)
+        } else {
+            cfg.fill
+        },
         ..cfg.clone()
     };
     fit(&sub, &set_cfg, progress)
 }
 
+/// How many of `folds` folds the input choice trains for `samples` samples: all of them below
+/// [`LARGE_TABLE`]; from it one (a hold-out of one sample in `folds`, plenty to tell the sets
+/// apart and `folds` times cheaper).
+pub fn folds_trained(samples: usize, folds: usize) -> usize {
+    if samples >= LARGE_TABLE {
+        1
+    } else {
+        folds
+    }
+}
+
 /// Which of `sets` to train on: the one whose `folds`-fold cross-validated error is lowest
-/// (one network per fold, `cfg` otherwise), with every set's score. One set (or too few
-/// samples for the folds): the first, with no scores.
+/// (one network per fold, `cfg` otherwise; on large tables only the first fold, see
+/// [`folds_trained`]), with every set's score. One set (or too few samples for the folds):
+/// the first, with no scores. `progress` numbers the networks over all sets and folds.
 pub fn choose_inputs(
     data: &FitData<'_>,
     cfg: &FitConfig,
     sets: &[InputSet],
     folds: usize,
+    progress: impl Progress,
 ) -> Result<(usize, Vec<InputScore>), FitError> {
     if sets.len() <= 1 || folds < 2 || data.x.len() < 2 * folds {
         return Ok((0, Vec::new()));
     }
-    let mut scores = cross_validated(data, cfg, sets, folds)?;
+    let mut scores = cross_validated(data, cfg, sets, folds, progress)?;
     let best = (0..sets.len())
         .min_by(|&a, &b| scores[a].error.total_cmp(&scores[b].error))
         .unwrap_or(0);
@@ -772,12 +963,12 @@ pub fn fit_choosing(
     cfg: &FitConfig,
     sets: &[InputSet],
     folds: usize,
-    progress: impl FnMut(usize, f64, f64) -> Control,
+    progress: impl Progress,
 ) -> Result<Model, FitError> {
     if sets.is_empty() {
         return fit(data, cfg, progress);
     }
-    let (best, scores) = choose_inputs(data, cfg, sets, folds)?;
+    let (best, scores) = choose_inputs(data, cfg, sets, folds, quietly)?;
     let mut model = fit_set(data, &sets[best], cfg, progress)?;
     model.training.selection = scores;
     Ok(model)
@@ -785,11 +976,14 @@ pub fn fit_choosing(
 
 /// Every set's `folds`-fold cross-validated error: fold k holds out the samples whose place in
 /// a seeded shuffle is k modulo `folds`; every set sees the same folds and initial weights.
+/// Only the first [`folds_trained`] folds are trained; the score is over the samples they hold
+/// out.
 fn cross_validated(
     data: &FitData<'_>,
     cfg: &FitConfig,
     sets: &[InputSet],
     folds: usize,
+    progress: impl Progress,
 ) -> Result<Vec<InputScore>, FitError> {
     let n = data.x.len();
     let [order, _, _] = crate::mlp::random_split(n, [1.0, 0.0, 0.0], cfg.seed ^ 0xF01D);
@@ -801,16 +995,22 @@ fn cross_validated(
         ensemble: 1,
         ..cfg.clone()
     };
+    let trained = folds_trained(n, folds);
     let jobs: Vec<(usize, usize)> = (0..sets.len())
-        .flat_map(|s| (0..folds).map(move |k| (s, k)))
+        .flat_map(|s| (0..trained).map(move |k| (s, k)))
         .collect();
     // Per job, each held-out sample's squared errors per target.
     let errors: Vec<Vec<Vec<f64>>> = jobs
         .par_iter()
-        .map(|&(s, k)| {
+        .enumerate()
+        .map(|(job, &(s, k))| {
             let train: Vec<usize> = (0..n).filter(|&i| fold_of[i] != k).collect();
-            let model = fit_rows(data, &sets[s], &train, &fold_cfg, |_, _, _| {
-                Control::Continue
+            let model = fit_rows(data, &sets[s], &train, &fold_cfg, |p: &FitProgress| {
+                progress(&FitProgress {
+                    network: job,
+                    networks: jobs.len(),
+                    ..*p
+                })
             })?;
             (0..n)
                 .filter(|&i| fold_of[i] == k)
@@ -882,7 +1082,7 @@ mod tests {
             feature_columns: &cols,
             targets: &targets,
         };
-        let err = fit(&data, &FitConfig::default(), |_, _, _| Control::Continue).unwrap_err();
+        let err = fit(&data, &FitConfig::default(), quietly).unwrap_err();
         assert!(
             matches!(&err, FitError::NotFinite { row: 1, column, .. } if column == "m1"),
             "{err}"
@@ -894,7 +1094,7 @@ mod tests {
             t: &t_nan,
             ..data
         };
-        let err = fit(&data, &FitConfig::default(), |_, _, _| Control::Continue).unwrap_err();
+        let err = fit(&data, &FitConfig::default(), quietly).unwrap_err();
         assert!(err.to_string().contains("targets must be finite"), "{err}");
         let short = vec![vec![0.0], vec![1.0, 0.0]];
         let data = FitData {
@@ -902,7 +1102,7 @@ mod tests {
             t: &t,
             ..data
         };
-        let err = fit(&data, &FitConfig::default(), |_, _, _| Control::Continue).unwrap_err();
+        let err = fit(&data, &FitConfig::default(), quietly).unwrap_err();
         assert_eq!(
             err,
             FitError::Width {
@@ -918,7 +1118,7 @@ mod tests {
         };
         let data = FitData { x: &x_ok, ..data };
         assert!(matches!(
-            fit(&data, &bad, |_, _, _| Control::Continue),
+            fit(&data, &bad, quietly),
             Err(FitError::Config(_))
         ));
     }
@@ -942,8 +1142,8 @@ mod tests {
             max_epochs: 50,
             ..FitConfig::default()
         };
-        let a = fit(&data, &cfg, |_, _, _| Control::Continue).unwrap();
-        let b = fit(&data, &cfg, |_, _, _| Control::Continue).unwrap();
+        let a = fit(&data, &cfg, quietly).unwrap();
+        let b = fit(&data, &cfg, quietly).unwrap();
         assert_eq!(a.to_json(), b.to_json());
         assert_eq!(a.networks().count(), 3);
         assert_ne!(a.members[0], a.members[1]);
@@ -994,7 +1194,7 @@ mod tests {
     fn auto_compares_markers_and_field_against_the_field_alone_on_wide_tables() {
         use ColumnKind::{Field, Marker, Other};
         let wide = [vec![Marker; 30], vec![Field; 6], vec![Other]].concat();
-        let sets = candidate_inputs(&wide, Some(10), FieldInputs::Auto);
+        let sets = candidate_inputs(&wide, Some(10), FieldInputs::Auto, false);
         assert_eq!(sets.len(), 2);
         assert_eq!(sets[0].columns, (0..37).collect::<Vec<_>>());
         assert_eq!((sets[0].components, sets[0].passthrough), (Some(10), 7));
@@ -1002,9 +1202,15 @@ mod tests {
         assert_eq!((sets[1].components, sets[1].passthrough), (None, 7));
         assert_eq!(sets[1].name, "the field summary + 1 other inputs");
         // Told what to read, or too few markers for the field summary by default: one set.
-        assert_eq!(candidate_inputs(&wide, Some(10), FieldInputs::Yes).len(), 1);
+        assert_eq!(
+            candidate_inputs(&wide, Some(10), FieldInputs::Yes, false).len(),
+            1
+        );
         let narrow = [vec![Marker; 6], vec![Field; 6]].concat();
-        assert_eq!(candidate_inputs(&narrow, None, FieldInputs::Auto).len(), 1);
+        assert_eq!(
+            candidate_inputs(&narrow, None, FieldInputs::Auto, false).len(),
+            1
+        );
         // Markers' features always come first, whatever the table's order.
         let mixed = [Other, Marker, Field, Marker];
         assert_eq!(InputSet::all(&mixed, None).columns, vec![1, 3, 2, 0]);
@@ -1064,14 +1270,14 @@ mod tests {
         for (expected, signal) in [1, 0].into_iter().zip(signals) {
             let (x, t, columns) = table(signal);
             let kinds = column_kinds(&columns, &["field0", "field1", "field2"]);
-            let sets = candidate_inputs(&kinds, Some(10), FieldInputs::Auto);
+            let sets = candidate_inputs(&kinds, Some(10), FieldInputs::Auto, false);
             let data = FitData {
                 x: &x,
                 t: &t,
                 feature_columns: &columns,
                 targets: &targets,
             };
-            let m = fit_choosing(&data, &cfg, &sets, 4, |_, _, _| Control::Continue).unwrap();
+            let m = fit_choosing(&data, &cfg, &sets, 4, quietly).unwrap();
             let chosen: Vec<bool> = m.training.selection.iter().map(|s| s.chosen).collect();
             assert_eq!(
                 chosen,
@@ -1094,5 +1300,76 @@ mod tests {
             let back = Model::from_json(&m.to_json(), "test").unwrap();
             assert_eq!(back.training.selection, m.training.selection);
         }
+    }
+
+    #[test]
+    fn a_large_table_chooses_the_wide_network_which_fills_lost_markers() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        // 24 markers' features moving on their own (ten components cannot hold them) and a
+        // target that needs three of them.
+        let n = LARGE_TABLE + 100;
+        let mut x: Vec<Vec<f64>> = (0..n)
+            .map(|_| (0..27).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let t: Vec<Vec<f64>> = x
+            .iter()
+            .map(|r: &Vec<f64>| vec![(2.0 * r[0]).sin() + r[1] * r[2]])
+            .collect();
+        for r in x.iter_mut().step_by(17) {
+            r[7] = f64::NAN;
+        }
+        let mut columns: Vec<String> = (0..24).map(|i| format!("m{i:03}_dx_px")).collect();
+        columns.extend(names("field", 3));
+        let kinds = column_kinds(&columns, &["field0", "field1", "field2"]);
+        let cfg = FitConfig {
+            ensemble: 1,
+            ..FitConfig::default()
+        };
+        assert!(wide_candidate(n, &cfg) && !wide_candidate(n - 200, &cfg));
+        let sets = candidate_inputs(&kinds, Some(10), FieldInputs::Auto, true);
+        assert_eq!(
+            sets.iter().map(|s| s.wide).collect::<Vec<_>>(),
+            [false, false, true]
+        );
+        let data = FitData {
+            x: &x,
+            t: &t,
+            feature_columns: &columns,
+            targets: &names("y", 1),
+        };
+        let m = fit_choosing(&data, &cfg, &sets, SELECTION_FOLDS, quietly).unwrap();
+        let chosen: Vec<bool> = m.training.selection.iter().map(|s| s.chosen).collect();
+        assert_eq!(chosen, [false, false, true], "{:?}", m.training.selection);
+        assert_eq!(m.net.sizes, [27, 64, 64, 1]);
+        assert_eq!(m.training.algorithm, "adam");
+        assert!(m.projection.is_none() && m.filler.is_some());
+        // A frame with a lost marker is estimated, and the file reads back the same.
+        let mut row = vec![0.5, -0.5, 0.5, 0.1, 0.2, 0.3, 0.4, 0.0];
+        row.extend(std::iter::repeat_n(0.0, 19));
+        row[7] = f64::NAN;
+        let e = m.estimate(&row).unwrap();
+        let want = 1f64.sin() - 0.25;
+        assert!(
+            (e.values[0] - want).abs() < 0.25,
+            "{} vs {want}",
+            e.values[0]
+        );
+        let back = Model::from_json(&m.to_json(), "test").unwrap();
+        assert_eq!(back.estimate(&row).unwrap().values, e.values);
+    }
+
+    #[test]
+    fn trainbr_settles_when_errors_and_effective_parameters_stop_moving() {
+        let s = crate::mlp::Settle::DEFAULT;
+        let falling: Vec<(f64, f64)> = (0..30).map(|i| (100.0 * 0.9f64.powi(i), 50.0)).collect();
+        assert!(!s.settled(&falling));
+        let flat: Vec<(f64, f64)> = (0..30)
+            .map(|i| (10.0 - 0.001 * f64::from(i), 50.0))
+            .collect();
+        assert!(s.settled(&flat));
+        assert!(!s.settled(&flat[..s.window]), "too short to tell");
+        let gamma_moves: Vec<(f64, f64)> = (0..30).map(|i| (10.0, 40.0 + f64::from(i))).collect();
+        assert!(!s.settled(&gamma_moves));
     }
 }

@@ -5,6 +5,7 @@
 //! [`nist`] reads the NIST StRD nonlinear regression problems it is verified on, [`dual`] gives
 //! exact derivatives of those models by forward-mode automatic differentiation.
 
+pub mod adam;
 pub mod br;
 mod damped;
 pub mod dual;

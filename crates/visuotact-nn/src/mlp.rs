@@ -61,6 +61,24 @@ impl Mlp {
         }
     }
 
+    /// Glorot (Xavier) uniform initialisation, as scikit-learn's `MLPRegressor`: every weight
+    /// and bias of a layer uniform in ±√(6 / (inputs + outputs)); deterministic in `seed`. The
+    /// start for [`crate::adam`], whose wide layers Nguyen–Widrow would saturate.
+    pub fn glorot(sizes: &[usize], seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut params = Vec::with_capacity(Self::n_params_for(sizes));
+        for w in sizes.windows(2) {
+            let bound = (6.0 / (w[0] + w[1]) as f64).sqrt();
+            for _ in 0..w[0] * w[1] + w[1] {
+                params.push(rng.random_range(-bound..bound));
+            }
+        }
+        Self {
+            sizes: sizes.to_vec(),
+            params,
+        }
+    }
+
     /// Outputs for one (scaled) input into `out`; `acts` receives every layer's activations.
     fn forward_into(&self, p: &[f64], x: &[f64], acts: &mut Vec<Vec<f64>>) {
         let layers = self.sizes.len() - 1;
@@ -705,6 +723,9 @@ pub enum Algorithm {
     /// Errors plus weights with the evidence framework's α and β (MATLAB `trainbr`,
     /// [`crate::br`]): no validation subset needed.
     Trainbr,
+    /// Mini-batch Adam with an L2 penalty, stopped on a held-out tenth ([`crate::adam`]): for
+    /// tables too large for Levenberg–Marquardt.
+    Adam,
 }
 
 impl Algorithm {
@@ -713,6 +734,7 @@ impl Algorithm {
         match self {
             Algorithm::Trainlm => "trainlm",
             Algorithm::Trainbr => "trainbr",
+            Algorithm::Adam => "adam",
         }
     }
 
@@ -721,6 +743,7 @@ impl Algorithm {
         match name {
             "trainlm" => Some(Algorithm::Trainlm),
             "trainbr" => Some(Algorithm::Trainbr),
+            "adam" => Some(Algorithm::Adam),
             _ => None,
         }
     }
@@ -743,6 +766,43 @@ pub struct TrainConfig {
     /// accumulating `JᵀJ` over blocks of samples — the path before blocks, kept for
     /// comparisons; the same results to rounding, more memory and time.
     pub whole_jacobian: bool,
+    /// Adam's settings ([`Algorithm::Adam`]; `lm.max_iterations` is its most epochs).
+    pub adam: crate::adam::AdamConfig,
+    /// trainbr: stop once the training error and the effective number of parameters have
+    /// settled (`None`: run to `lm.max_iterations` or another of LM's stops).
+    pub settle: Option<Settle>,
+}
+
+/// When trainbr has settled: over the last `window` epochs the sum of squared errors fell by
+/// less than `tolerance` (relative) and the effective number of parameters γ moved by less
+/// than `tolerance` (relative). More epochs then buy little that held-out frames can see
+/// (docs/benchmarks.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settle {
+    /// Epochs looked back over.
+    pub window: usize,
+    /// Largest relative change that counts as settled.
+    pub tolerance: f64,
+}
+
+impl Settle {
+    /// 2 % over 10 epochs.
+    pub const DEFAULT: Self = Self {
+        window: 10,
+        tolerance: 0.02,
+    };
+
+    /// Whether `history` (per epoch: E_D, γ) has settled at its end.
+    pub fn settled(&self, history: &[(f64, f64)]) -> bool {
+        let n = history.len();
+        if self.window == 0 || n <= self.window {
+            return false;
+        }
+        let (then, now) = (history[n - 1 - self.window], history[n - 1]);
+        let fell = (then.0 - now.0) / then.0.abs().max(f64::MIN_POSITIVE);
+        let moved = (now.1 - then.1).abs() / then.1.abs().max(f64::MIN_POSITIVE);
+        fell < self.tolerance && moved < self.tolerance
+    }
 }
 
 impl TrainConfig {
@@ -754,10 +814,13 @@ impl TrainConfig {
         max_fail: 6,
         seed: 1,
         whole_jacobian: false,
+        adam: crate::adam::AdamConfig::DEFAULT,
+        settle: None,
     };
 
     /// MATLAB's trainbr: μ = 0.005, no validation stop; here every sample trains (a test
-    /// subset can still be asked for with `split`).
+    /// subset can still be asked for with `split`), and it stops once settled
+    /// ([`Settle::DEFAULT`]).
     pub const TRAINBR: Self = Self {
         algorithm: Algorithm::Trainbr,
         lm: crate::br::TRAINBR,
@@ -765,6 +828,24 @@ impl TrainConfig {
         max_fail: 6,
         seed: 1,
         whole_jacobian: false,
+        adam: crate::adam::AdamConfig::DEFAULT,
+        settle: Some(Settle::DEFAULT),
+    };
+
+    /// Mini-batch Adam ([`crate::adam::AdamConfig::DEFAULT`]), a tenth of the samples held
+    /// out to stop it (scikit-learn's `early_stopping`).
+    pub const ADAM: Self = Self {
+        algorithm: Algorithm::Adam,
+        lm: LmConfig {
+            max_iterations: crate::adam::AdamConfig::DEFAULT.max_epochs,
+            ..LmConfig::TRAINLM
+        },
+        split: [0.9, 0.1, 0.0],
+        max_fail: crate::adam::AdamConfig::DEFAULT.patience,
+        seed: 1,
+        whole_jacobian: false,
+        adam: crate::adam::AdamConfig::DEFAULT,
+        settle: None,
     };
 }
 
@@ -789,6 +870,8 @@ pub struct TrainOutcome {
     pub subsets: [Vec<usize>; 3],
     /// trainbr's final α, β and effective number of parameters γ.
     pub evidence: Option<crate::br::Evidence>,
+    /// Whether trainbr stopped because it had settled ([`TrainConfig::settle`]).
+    pub settled: bool,
 }
 
 struct Fit<'a> {
@@ -947,6 +1030,93 @@ fn mse(net: &Mlp, p: &[f64], x: &[&[f64]], t: &[&[f64]]) -> f64 {
     sum / n as f64
 }
 
+/// [`train`] by [`crate::br::minimize_br`] on `fit` (the training rows, from `start`), stopped
+/// when settled ([`TrainConfig::settle`]); no early stopping: the weight penalty regularises
+/// and the last weights are kept.
+fn train_br(
+    net: &mut Mlp,
+    (fit, start): (&mut Fit<'_>, &Mlp),
+    (xs, ts): (&[Rows], &[Rows]),
+    subsets: [Vec<usize>; 3],
+    cfg: &TrainConfig,
+    mut progress: impl FnMut(usize, f64, f64) -> Control,
+) -> TrainOutcome {
+    let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
+    let n_out = start.sizes[start.sizes.len() - 1];
+    let mut history = Vec::new();
+    let mut settled = false;
+    let br = crate::br::minimize_br(fit, &start.params, &cfg.lm, |p| {
+        let train_mse = p.evidence.sse / (xs[0].len() * n_out).max(1) as f64;
+        let v = mse(start, p.params, &xv, &tv);
+        if progress(p.iteration, train_mse, v) == Control::Stop {
+            return Control::Stop;
+        }
+        history.push((p.evidence.sse, p.evidence.gamma));
+        settled = cfg.settle.is_some_and(|s| s.settled(&history));
+        if settled {
+            Control::Stop
+        } else {
+            Control::Continue
+        }
+    });
+    net.params = br.lm.params.clone();
+    let all_mse = [0, 1, 2].map(|k| mse(net, &net.params, &refs(&xs[k]), &refs(&ts[k])));
+    TrainOutcome {
+        best_epoch: br.lm.iterations,
+        lm: br.lm,
+        validation_stop: false,
+        mse: all_mse,
+        subsets,
+        evidence: Some(br.evidence),
+        settled,
+    }
+}
+
+/// [`train`] by [`crate::adam::minimize_adam`] on the subsets' rows `xs`, `ts`.
+fn train_adam(
+    net: &mut Mlp,
+    (xs, ts): (&[Rows], &[Rows]),
+    subsets: [Vec<usize>; 3],
+    cfg: &TrainConfig,
+    mut progress: impl FnMut(usize, f64, f64) -> Control,
+) -> TrainOutcome {
+    use crate::adam::{minimize_adam, AdamConfig, AdamStop, Samples};
+    let (x0, t0, x1, t1) = (refs(&xs[0]), refs(&ts[0]), refs(&xs[1]), refs(&ts[1]));
+    let adam = AdamConfig {
+        max_epochs: cfg.lm.max_iterations,
+        patience: cfg.max_fail,
+        ..cfg.adam
+    };
+    let samples = (Samples { x: &x0, t: &t0 }, Samples { x: &x1, t: &t1 });
+    let out = minimize_adam(net, &net.params, samples, &adam, cfg.seed, |p| {
+        progress(p.epoch, p.train_mse, p.validation_mse)
+    });
+    net.params = out.params.clone();
+    let all_mse = [0, 1, 2].map(|k| mse(net, &net.params, &refs(&xs[k]), &refs(&ts[k])));
+    let reason = match out.stop {
+        AdamStop::Settled | AdamStop::Callback => StopReason::Callback,
+        AdamStop::MaxEpochs => StopReason::MaxIterations,
+        AdamStop::NonFinite => StopReason::NonFinite,
+    };
+    TrainOutcome {
+        lm: LmOutcome {
+            cost: all_mse[0] * (xs[0].len() * net.sizes[net.sizes.len() - 1]) as f64,
+            params: out.params,
+            iterations: out.epochs,
+            evaluations: out.epochs,
+            mu: 0.0,
+            reason,
+            lu_fallbacks: 0,
+        },
+        validation_stop: out.stop == AdamStop::Settled,
+        best_epoch: out.best_epoch,
+        mse: all_mse,
+        subsets,
+        evidence: None,
+        settled: false,
+    }
+}
+
 /// Splits `n` samples at random (seeded) into train / validation / test index lists.
 pub fn random_split(n: usize, split: [f64; 3], seed: u64) -> [Vec<usize>; 3] {
     let mut idx: Vec<usize> = (0..n).collect();
@@ -992,23 +1162,18 @@ pub fn train(
     };
     let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
     let n_out = snapshot.sizes[snapshot.sizes.len() - 1];
+    if cfg.algorithm == Algorithm::Adam {
+        return train_adam(net, (&xs, &ts), subsets, cfg, progress);
+    }
     if cfg.algorithm == Algorithm::Trainbr {
-        // No early stopping: the weight penalty regularises; the last weights are kept.
-        let br = crate::br::minimize_br(&mut fit, &snapshot.params, &cfg.lm, |p| {
-            let train_mse = p.evidence.sse / (xs[0].len() * n_out).max(1) as f64;
-            let v = mse(&snapshot, p.params, &xv, &tv);
-            progress(p.iteration, train_mse, v)
-        });
-        net.params = br.lm.params.clone();
-        let all_mse = [0, 1, 2].map(|k| mse(net, &net.params, &refs(&xs[k]), &refs(&ts[k])));
-        return TrainOutcome {
-            best_epoch: br.lm.iterations,
-            lm: br.lm,
-            validation_stop: false,
-            mse: all_mse,
+        return train_br(
+            net,
+            (&mut fit, &snapshot),
+            (&xs, &ts),
             subsets,
-            evidence: Some(br.evidence),
-        };
+            cfg,
+            progress,
+        );
     }
     let mut best = (f64::INFINITY, net.params.clone(), 0usize);
     let mut fails = 0;
@@ -1046,6 +1211,7 @@ pub fn train(
         mse: all_mse,
         subsets,
         evidence: None,
+        settled: false,
     }
 }
 

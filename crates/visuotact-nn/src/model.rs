@@ -9,7 +9,7 @@ use crate::mlp::{MinMax, Mlp};
 /// Identifies model files.
 pub const MODEL_FORMAT: &str = "visuotact-model";
 /// Current model file version.
-pub const MODEL_VERSION: u32 = 1;
+pub const MODEL_VERSION: u32 = 2;
 
 /// How training went.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -89,6 +89,12 @@ pub struct Model {
     /// before it was kept (the projection read every input).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub passthrough: usize,
+    /// For a network that reads the markers' features themselves (no projection): principal
+    /// components of the scaled markers' features that fill a lost marker's features from the
+    /// markers found ([`crate::pca::Projection::fill_missing`]); the network then reads every
+    /// input. Absent in models written before version 2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub filler: Option<crate::pca::Projection>,
     /// Target scaling.
     pub target_scaling: MinMax,
     /// Feature columns, in input order.
@@ -289,12 +295,18 @@ impl Model {
             if let Some(why) = unfillable(&self.feature_columns, features) {
                 return Err(why);
             }
-            if self.projection.is_none() {
+            if self.projection.is_none() && self.filler.is_none() {
                 return Err(EstimateError::NoProjection { missing });
             }
         }
         let s = scratch;
         self.input_scaling.apply_into(features, &mut s.x);
+        if let (Some(f), None, true) = (&self.filler, &self.projection, missing > 0) {
+            let filled = s.x.len() - self.passthrough.min(s.x.len());
+            if !f.fill_missing(&mut s.x[..filled]) {
+                return Err(EstimateError::TooFewLeft { missing });
+            }
+        }
         match &self.projection {
             Some(p) => {
                 let projected = s.x.len() - self.passthrough.min(s.x.len());
@@ -403,6 +415,16 @@ impl Model {
             }
             None => m.feature_columns.len(),
         };
+        if let Some(f) = &m.filler {
+            if m.projection.is_some()
+                || f.inputs() + m.passthrough != m.feature_columns.len()
+                || f.components.iter().any(|c| c.len() != f.inputs())
+            {
+                return Err(bad(
+                    "inconsistent model (the filler and the feature columns disagree)".to_string(),
+                ));
+            }
+        }
         if s.len() < 2
             || s[0] != net_inputs
             || s[s.len() - 1] != m.target_columns.len()
@@ -468,6 +490,7 @@ pub(crate) mod tests {
             },
             projection: None,
             passthrough: 0,
+            filler: None,
             target_scaling: MinMax {
                 min: vec![0.0; n_out],
                 max: vec![1.0; n_out],

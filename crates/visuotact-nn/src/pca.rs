@@ -146,10 +146,38 @@ impl Projection {
     /// Equal to [`Projection::apply`] on a complete row; `None` when fewer inputs are present
     /// than components.
     pub fn apply_partial(&self, row: &[f64]) -> Option<Vec<f64>> {
-        let present: Vec<usize> = (0..row.len()).filter(|&i| !row[i].is_nan()).collect();
-        if present.len() == row.len() {
+        if row.iter().all(|v| !v.is_nan()) {
             return Some(self.apply(row));
         }
+        self.partial_scores(row)
+            .map(|z| self.score_scaling.apply(&z))
+    }
+
+    /// Fills the missing (NaN) inputs of `row` with their reconstruction from the scores that
+    /// fit the inputs present ([`Projection::apply_partial`]'s): `mean + Σ zₖ·componentₖ`.
+    /// The inputs present are left as they are; `false` (and `row` unchanged) when fewer
+    /// inputs are present than components.
+    pub fn fill_missing(&self, row: &mut [f64]) -> bool {
+        if row.iter().all(|v| !v.is_nan()) {
+            return true;
+        }
+        let Some(z) = self.partial_scores(row) else {
+            return false;
+        };
+        for (i, v) in row.iter_mut().enumerate().filter(|(_, v)| v.is_nan()) {
+            *v = self.mean[i]
+                + z.iter()
+                    .zip(&self.components)
+                    .map(|(zk, c)| zk * c[i])
+                    .sum::<f64>();
+        }
+        true
+    }
+
+    /// The unscaled scores that fit the inputs present of `row` best; `None` when fewer are
+    /// present than components or the fit is not finite.
+    fn partial_scores(&self, row: &[f64]) -> Option<Vec<f64>> {
+        let present: Vec<usize> = (0..row.len()).filter(|&i| !row[i].is_nan()).collect();
         let k = self.outputs();
         if present.len() < k {
             return None;
@@ -169,9 +197,7 @@ impl Projection {
         });
         let z = gram.partial_piv_lu().solve(&rhs);
         let z: Vec<f64> = (0..k).map(|a| z[(a, 0)]).collect();
-        z.iter()
-            .all(|v| v.is_finite())
-            .then(|| self.score_scaling.apply(&z))
+        z.iter().all(|v| v.is_finite()).then_some(z)
     }
 }
 
@@ -256,10 +282,21 @@ mod tests {
             }
         }
         assert_eq!(p.apply_partial(&rows[0]).unwrap(), p.apply(&rows[0]));
+        // The lost inputs themselves come back, the others are left as they are.
+        for r in &rows[5..10] {
+            let mut lost = r.clone();
+            lost[2] = f64::NAN;
+            lost[11] = f64::NAN;
+            assert!(p.fill_missing(&mut lost));
+            for (i, (a, b)) in r.iter().zip(&lost).enumerate() {
+                assert!((a - b).abs() < 1e-9, "input {i}: {a} filled as {b}");
+            }
+        }
         // Fewer inputs present than components: nothing to solve.
         let mut almost = vec![f64::NAN; 12];
         almost[0] = 1.0;
         assert!(p.apply_partial(&almost).is_none());
+        assert!(!p.fill_missing(&mut almost) && almost[1].is_nan());
     }
 
     #[test]

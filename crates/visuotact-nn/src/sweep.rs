@@ -9,8 +9,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::fit::{fit, FitConfig, FitData, FitError};
-use crate::lm::Control;
+use crate::fit::{fit, FitConfig, FitData, FitError, FitProgress, Progress};
 use crate::model::Model;
 
 /// A hidden-size spec that does not parse.
@@ -219,14 +218,15 @@ pub struct Trained {
     pub model: Model,
 }
 
-/// Trains `shard`'s part of the sweep (see [`sweep`]) on every core.
+/// Trains `shard`'s part of the sweep (see [`sweep`]) on every core; `progress` numbers the
+/// networks over the shard's trainings (a training it stops keeps the weights it had).
 pub fn sweep_shard(
     data: &FitData<'_>,
     archs: &[Vec<usize>],
     repeats: usize,
     base: &FitConfig,
     shard: Shard,
-    done: impl Fn() + Sync,
+    progress: impl Progress,
 ) -> Result<Vec<Trained>, FitError> {
     let mine: Vec<(usize, usize)> = jobs(archs.len(), repeats)
         .into_iter()
@@ -235,7 +235,8 @@ pub fn sweep_shard(
         .map(|(_, job)| job)
         .collect();
     mine.par_iter()
-        .map(|&(k, r)| {
+        .enumerate()
+        .map(|(job, &(k, r))| {
             let cfg = FitConfig {
                 hidden: archs[k].clone(),
                 seed: base.seed.wrapping_add(1000 * r as u64 + k as u64),
@@ -243,8 +244,13 @@ pub fn sweep_shard(
                 ensemble: 1,
                 ..base.clone()
             };
-            let m = fit(data, &cfg, |_, _, _| Control::Continue);
-            done();
+            let m = fit(data, &cfg, |p: &FitProgress| {
+                progress(&FitProgress {
+                    network: job,
+                    networks: mine.len(),
+                    ..*p
+                })
+            });
             m.map(|model| Trained {
                 arch: k,
                 repeat: r,
@@ -289,16 +295,16 @@ pub fn sweep_of(archs: &[Vec<usize>], mut trained: Vec<Trained>) -> Sweep {
 }
 
 /// Trains every architecture of `archs` `repeats` times (seed `base.seed + 1000·repeat +
-/// architecture`, validation and test subsets kept) on every core; `done` is called after each
-/// training.
+/// architecture`, validation and test subsets kept) on every core; `progress` follows the
+/// trainings as in [`sweep_shard`].
 pub fn sweep(
     data: &FitData<'_>,
     archs: &[Vec<usize>],
     repeats: usize,
     base: &FitConfig,
-    done: impl Fn() + Sync,
+    progress: impl Progress,
 ) -> Result<Sweep, FitError> {
-    let trained = sweep_shard(data, archs, repeats, base, Shard::ALL, done)?;
+    let trained = sweep_shard(data, archs, repeats, base, Shard::ALL, progress)?;
     Ok(sweep_of(archs, trained))
 }
 

@@ -5,8 +5,7 @@
 use std::sync::OnceLock;
 
 use proptest::prelude::*;
-use visuotact_nn::fit::{fit, FitConfig, FitData};
-use visuotact_nn::lm::Control;
+use visuotact_nn::fit::{fit, quietly, FitConfig, FitData};
 use visuotact_nn::model::Model;
 
 /// A small trained ensemble's file.
@@ -29,9 +28,7 @@ fn model_file() -> &'static str {
             max_epochs: 5,
             ..FitConfig::default()
         };
-        fit(&data, &cfg, |_, _, _| Control::Continue)
-            .unwrap()
-            .to_json()
+        fit(&data, &cfg, quietly).unwrap().to_json()
     })
 }
 

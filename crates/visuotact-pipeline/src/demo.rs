@@ -12,10 +12,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_nn::fit::{
-    candidate_inputs, column_kinds, fit_choosing, FieldInputs, FitConfig, FitData, FitError,
-    InputSet, SELECTION_FOLDS,
+    candidate_inputs, column_kinds, fit_choosing, quietly, wide_candidate, FieldInputs, FitConfig,
+    FitData, FitError, InputSet, SELECTION_FOLDS,
 };
-use visuotact_nn::lm::Control;
 use visuotact_nn::metrics::{target_errors, TargetErrors};
 use visuotact_nn::model::{is_marker_column, EstimateError, Model};
 use visuotact_nn::sweep::{self, Sweep};
@@ -255,7 +254,7 @@ fn train(
         targets: &targets,
     };
     let t0 = Instant::now();
-    let model = fit_choosing(&data, cfg, sets, folds, |_, _, _| Control::Continue)?;
+    let model = fit_choosing(&data, cfg, sets, folds, quietly)?;
     let inputs = inputs_of(&model, (sets, folds));
     Ok(Trained {
         model,
@@ -303,7 +302,7 @@ fn quick_note(a: &DemoConfig) -> String {
 /// [`Defaults`] for `columns` (markers' features first, then the rest); `--quick` trains
 /// [`QUICK_ENSEMBLE`] networks of at most [`QUICK_EPOCHS`] epochs and chooses the inputs by
 /// [`QUICK_FOLDS`] folds — the demo prints how many networks, epochs and folds it used.
-fn default_config(columns: &[String], a: &DemoConfig) -> Defaults {
+fn default_config(columns: &[String], samples: usize, a: &DemoConfig) -> Defaults {
     let markers = columns.iter().filter(|c| is_marker_column(c)).count();
     let mut cfg = FitConfig {
         seed: a.seed,
@@ -319,6 +318,7 @@ fn default_config(columns: &[String], a: &DemoConfig) -> Defaults {
         &column_kinds(columns, &FIELD_COLUMNS),
         cfg.components,
         FieldInputs::Auto,
+        wide_candidate(samples, &cfg),
     );
     Defaults { cfg, sets, folds }
 }
@@ -446,7 +446,7 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
         &paper_config(&[20; 5], a.seed),
         EVERY_COLUMN,
     )?;
-    let defaults = default_config(&columns, a);
+    let defaults = default_config(&columns, xd.len(), a);
     let default = train(
         &xd,
         &td,
@@ -923,9 +923,9 @@ fn cone_table(
         &paper_config(&[20], a.seed),
         EVERY_COLUMN,
     )?;
-    let d = default_config(columns, a);
+    let d = default_config(columns, x.len(), a);
     let default = train(&x, &t, columns, &force, &d.cfg, d.choice())?.model;
-    let dg = default_config(gauge_columns, a);
+    let dg = default_config(gauge_columns, xg.len(), a);
     let default_g = train(&xg, &tg, gauge_columns, &force, &dg.cfg, dg.choice())?.model;
     let repeats: u64 = if a.quick { 2 } else { 5 };
     let archs = one_layer_archs(40, 1);

@@ -426,8 +426,7 @@ impl LiveEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use visuotact_nn::fit::{fit, FitConfig, FitData};
-    use visuotact_nn::lm::Control;
+    use visuotact_nn::fit::{fit, quietly, FitConfig, FitData};
     use visuotact_sim::iats::{render, IatsConfig, Touch};
     use visuotact_vision::calibration::{calibrate, Preset};
 
@@ -458,7 +457,7 @@ mod tests {
             max_epochs: 20,
             ..FitConfig::default()
         };
-        fit(&data, &cfg, |_, _, _| Control::Continue).unwrap()
+        fit(&data, &cfg, quietly).unwrap()
     }
 
     #[test]

@@ -22,10 +22,9 @@ use pyo3::types::{PyDict, PyString};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::{read_image, FrameStream};
 use visuotact_nn::fit::{
-    candidate_inputs, column_kinds, components_from_name, fit_choosing, FieldInputs, FitConfig,
-    FitData, SELECTION_FOLDS,
+    candidate_inputs, column_kinds, components_from_name, fit_choosing, quietly, wide_candidate,
+    FieldInputs, FitConfig, FitData, SELECTION_FOLDS,
 };
-use visuotact_nn::lm::Control;
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
 use visuotact_pipeline::Estimator;
@@ -385,7 +384,7 @@ impl Model {
             hidden: hidden.unwrap_or(auto.hidden.clone()),
             algorithm: Algorithm::from_name(algorithm).ok_or_else(|| {
                 error(format!(
-                    "algorithm {algorithm:?}: expected trainlm or trainbr"
+                    "algorithm {algorithm:?}: expected trainlm, trainbr or adam"
                 ))
             })?,
             components: components_from_name(&components, markers)
@@ -399,6 +398,7 @@ impl Model {
             &column_kinds(&names, &FIELD_COLUMNS),
             cfg.components,
             FieldInputs::from_name(field).unwrap_or(FieldInputs::Auto),
+            wide_candidate(x.len(), &cfg),
         );
         let data = FitData {
             x: &x,
@@ -407,11 +407,7 @@ impl Model {
             targets: &targets,
         };
         let mut m = py
-            .detach(|| {
-                fit_choosing(&data, &cfg, &sets, SELECTION_FOLDS, |_, _, _| {
-                    Control::Continue
-                })
-            })
+            .detach(|| fit_choosing(&data, &cfg, &sets, SELECTION_FOLDS, quietly))
             .map_err(error)?;
         if let Some(s) = sensor {
             m.sensor = Some(

@@ -18,7 +18,7 @@
 //! of labelled presses, train a model on them, then estimate a press it has not seen.
 //!
 //! ```
-//! use visuotact::nn::fit::{fit, FitConfig, FitData};
+//! use visuotact::nn::fit::{fit, quietly, FitConfig, FitData};
 //! use visuotact::nn::lm::Control;
 //! use visuotact::sim::iats::{render, IatsConfig, Touch};
 //! use visuotact::vision::calibration::{calibrate, Preset};
@@ -45,7 +45,7 @@
 //! let targets = ["depth_mm".to_string()];
 //! let data = FitData { x: &x, t: &t, feature_columns: &names, targets: &targets };
 //! let small = FitConfig { hidden: vec![3], ensemble: 1, max_epochs: 200, ..FitConfig::default() };
-//! let model = fit(&data, &small, |_, _, _| Control::Continue).unwrap();
+//! let model = fit(&data, &small, quietly).unwrap();
 //!
 //! // The estimator reads the model's columns from each frame.
 //! let mut est = Estimator::new(Some(sensor), Some(model)).unwrap();

@@ -10,7 +10,6 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use indicatif::{ProgressBar, ProgressStyle};
 use visuotact_nn::fit::{FitConfig, FitData};
 use visuotact_nn::sweep::{
     architectures, merge_parts, mse, scaled_mse, sweep_of, sweep_shard, Shard, Sweep, SweepPart,
@@ -20,6 +19,7 @@ use visuotact_pipeline::table::TrainingTable;
 use visuotact_report::figures::{PerformancePlot, SweepSurface};
 
 use crate::args::{AlgorithmArg, DataArgs};
+use crate::progress::Reporter;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -47,6 +47,9 @@ pub(crate) struct Args {
     /// `run --model …` several times (mean ± standard deviation).
     #[arg(long, value_name = "N", default_value_t = 0)]
     keep: usize,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
     /// Train only this slice of the trainings (K of N, round robin) and write
     /// part-K-of-N.json into the output folder, for `sweep merge`.
     #[arg(long, value_name = "K/N", value_parser = Shard::parse)]
@@ -96,17 +99,6 @@ fn check_memory(
     Ok(())
 }
 
-fn progress_bar(len: u64) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} trainings, {elapsed} elapsed, ~{eta} left",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    bar
-}
-
 /// What must agree between the parts of one sweep.
 fn sweep_id(a: &Args) -> String {
     format!(
@@ -141,7 +133,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let n_jobs = (0..archs.len() * a.repeats)
         .filter(|&j| shard.takes(j))
         .count();
-    let bar = progress_bar(n_jobs as u64);
+    let reporter = Reporter::new(a.quiet);
+    eprintln!("sweep: {n_jobs} trainings");
+    reporter.stage("sweep");
     let t0 = std::time::Instant::now();
     let base = FitConfig {
         seed: a.seed,
@@ -159,9 +153,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     };
     let inputs = components.map_or(feature_columns.len(), |k| k + passthrough);
     check_memory(a, &archs, &base, (inputs, x.len(), targets.len()))?;
-    let trained = sweep_shard(&data, &archs, a.repeats, &base, shard, || bar.inc(1))
-        .map_err(crate::fit_error)?;
-    bar.finish_and_clear();
+    let trained = sweep_shard(&data, &archs, a.repeats, &base, shard, |p: &_| {
+        reporter.training(p)
+    })
+    .map_err(crate::fit_error)?;
+    if reporter.interrupted() {
+        bail!("interrupted (Ctrl-C): nothing written");
+    }
     if a.shard.is_some() {
         return write_part(a, (output, shard), &targets, trained, t0);
     }

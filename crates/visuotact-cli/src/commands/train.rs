@@ -5,16 +5,16 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_nn::fit::{
-    candidate_inputs, choose_inputs, column_kinds, fit_set, FitConfig, FitData, InputScore,
-    InputSet, SELECTION_FOLDS,
+    candidate_inputs, choose_inputs, column_kinds, fit_set, folds_trained, wide_candidate,
+    FitConfig, FitData, InputScore, InputSet, SELECTION_FOLDS,
 };
-use visuotact_nn::lm::Control;
 use visuotact_nn::model::Model;
 use visuotact_pipeline::table::TrainingTable;
 use visuotact_vision::features::FIELD_COLUMNS;
 
 use crate::args::{parse_list, AlgorithmArg, DataArgs, DEFAULT_HIDDEN};
 use crate::fit_error;
+use crate::progress::Reporter;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -43,6 +43,9 @@ pub(crate) struct Args {
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
     sensor: Option<PathBuf>,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -66,11 +69,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         passthrough,
         ..
     } = data;
-    let sets = candidate_inputs(
-        &column_kinds(&feature_columns, &FIELD_COLUMNS),
-        components,
-        a.algorithm.field(),
-    );
     let t0 = std::time::Instant::now();
     let cfg = FitConfig {
         hidden,
@@ -81,48 +79,70 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         components,
         passthrough,
         ensemble: a.ensemble,
+        fill: None,
     };
+    let sets = candidate_inputs(
+        &column_kinds(&feature_columns, &FIELD_COLUMNS),
+        components,
+        a.algorithm.field(),
+        wide_candidate(x.len(), &cfg),
+    );
     let data = FitData {
         x: &x,
         t: &t,
         feature_columns: &feature_columns,
         targets: &targets,
     };
-    let widest = sets.iter().map(InputSet::network_inputs).max().unwrap_or(0);
-    let need = a
-        .algorithm
-        .check_memory((widest, x.len(), targets.len()), &cfg)?;
-    crate::print::memory("this training needs", need);
-    for c in data.constant_targets() {
-        eprintln!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
-    }
-    let (best, selection) = choose(&data, &cfg, &sets)?;
+    check_memory(a, &data, &sets, &cfg)?;
+    let reporter = Reporter::new(a.quiet);
+    let (best, selection) = choose(&data, &cfg, &sets, &reporter)?;
+    interrupted(&reporter)?;
     let set = &sets[best];
     eprintln!(
-        "training {}, {}) on {} frames",
+        "training {}, {}) on {} frames, {} network{}",
         set.network_in_words(&cfg.hidden, targets.len()),
-        a.algorithm.name,
-        x.len()
-    );
-    let mut model = fit_set(&data, set, &cfg, |epoch, train_mse, val_mse| {
-        if epoch % 10 == 0 {
-            if val_mse.is_nan() {
-                eprintln!("epoch {epoch}: mse train {train_mse:.3e} (scaled)");
-            } else {
-                eprintln!(
-                    "epoch {epoch}: mse train {train_mse:.3e}, validation {val_mse:.3e} (scaled)"
-                );
-            }
+        set.algorithm(cfg.algorithm).name(),
+        x.len(),
+        cfg.ensemble,
+        if cfg.ensemble == 1 {
+            ""
+        } else {
+            "s in parallel"
         }
-        Control::Continue
-    })
-    .map_err(fit_error)?;
+    );
+    reporter.stage("training");
+    let mut model = fit_set(&data, set, &cfg, |p: &_| reporter.training(p)).map_err(fit_error)?;
+    interrupted(&reporter)?;
     model.training.selection = selection;
     model.sensor = sensor;
     let json = model.to_checked_json(&a.output.display().to_string())?;
     crate::write_atomically(&a.output, &json)?;
     print_trained(&model, &targets, t0.elapsed().as_secs_f64());
     eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// States the memory the training needs (refused over the limit) and warns of constant
+/// targets.
+fn check_memory(
+    a: &Args,
+    data: &FitData<'_>,
+    sets: &[InputSet],
+    cfg: &FitConfig,
+) -> anyhow::Result<()> {
+    let widest = sets
+        .iter()
+        .filter(|s| !s.wide)
+        .map(InputSet::network_inputs)
+        .max()
+        .unwrap_or(0);
+    let need = a
+        .algorithm
+        .check_memory((widest, data.x.len(), data.targets.len()), cfg)?;
+    crate::print::memory("this training needs", need);
+    for c in data.constant_targets() {
+        eprintln!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
+    }
     Ok(())
 }
 
@@ -135,22 +155,44 @@ fn check_output(a: &Args) -> anyhow::Result<()> {
     Ok(visuotact_io::guard::check_writable(&a.output)?)
 }
 
+/// Refuses to go on after Ctrl-C: nothing is written.
+fn interrupted(reporter: &Reporter) -> anyhow::Result<()> {
+    if reporter.interrupted() {
+        bail!("interrupted (Ctrl-C): no model written");
+    }
+    Ok(())
+}
+
 /// Chooses the input set by cross-validation when there is a choice, saying so.
 fn choose(
     data: &FitData<'_>,
     cfg: &FitConfig,
     sets: &[InputSet],
+    reporter: &Reporter,
 ) -> anyhow::Result<(usize, Vec<InputScore>)> {
     if sets.len() > 1 {
+        let folds = folds_trained(data.x.len(), SELECTION_FOLDS);
         eprintln!(
-            "choosing the inputs by {SELECTION_FOLDS}-fold cross-validation (one network per fold): {}",
+            "choosing the inputs by {}: {}",
+            if folds == SELECTION_FOLDS {
+                format!("{SELECTION_FOLDS}-fold cross-validation (one network per fold)")
+            } else {
+                format!(
+                    "one network each, scored on a fifth of the {} frames held out",
+                    data.x.len()
+                )
+            },
             sets.iter()
                 .map(|s| s.name.as_str())
                 .collect::<Vec<_>>()
                 .join(" or ")
         );
+        reporter.stage("choosing the inputs");
     }
-    let (best, selection) = choose_inputs(data, cfg, sets, SELECTION_FOLDS).map_err(fit_error)?;
+    let (best, selection) = choose_inputs(data, cfg, sets, SELECTION_FOLDS, |p: &_| {
+        reporter.training(p)
+    })
+    .map_err(fit_error)?;
     for score in &selection {
         eprintln!(
             "  {} {}: held-out error / variance {:.3e} (per target {})",

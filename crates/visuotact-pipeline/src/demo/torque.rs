@@ -172,11 +172,11 @@ pub fn cone_torque(a: &DemoConfig) -> Result<TorqueDemo, DemoError> {
         .filter_map(|(r, l)| Some((r.clone()?, vec![l.force_n, l.torque_nmm])))
         .unzip();
     let targets = ["force_n", "torque_nmm"];
-    let d = default_config(&with_t, a);
+    let d = default_config(&with_t, x.len(), a);
     let model = train(&x, &t, &with_t, &targets, &d.cfg, d.choice())?.model;
     let rings_of = |r: &[f64]| -> Vec<f64> { ring_cols.iter().map(|&i| r[i]).collect() };
     let rings_x: Vec<Vec<f64>> = x.iter().map(|r| rings_of(r)).collect();
-    let dr = default_config(&rings, a);
+    let dr = default_config(&rings, rings_x.len(), a);
     let rings_model = train(&rings_x, &t, &rings, &targets, &dr.cfg, dr.choice())?.model;
     let (pick, pick_r) = (
         inputs_of_rows(&model, &with_t)?,
