@@ -230,6 +230,39 @@ pub(crate) fn cell_number(
 /// names data sets give the frame's file (a TacTip data set's `image_name`).
 pub const KEY_COLUMNS: [&str; 5] = ["frame", "image_name", "image", "filename", "file"];
 
+/// Where the key is among `header`'s columns ([`KEY_COLUMNS`]), or why there is none.
+fn key_column(header: &[String]) -> Result<usize, String> {
+    KEY_COLUMNS
+        .iter()
+        .find_map(|k| header.iter().position(|h| h == k))
+        .ok_or_else(|| {
+            format!(
+                "no `frame` column (nor {}; columns: {})",
+                KEY_COLUMNS[1..].join(", "),
+                header.join(", ")
+            )
+        })
+}
+
+/// The columns read as numbers: all but the key, the `text_columns` and those whose `first`
+/// cell is words, not a number (a name or a note).
+fn numeric_columns(
+    header: &[String],
+    key: usize,
+    text_columns: &[&str],
+    first: Option<&csv::StringRecord>,
+) -> Vec<usize> {
+    let words = |i: usize| {
+        first.is_some_and(|r| {
+            let c = r.get(i).unwrap_or("").trim();
+            !c.is_empty() && !c.eq_ignore_ascii_case("nan") && c.parse::<f64>().is_err()
+        })
+    };
+    (0..header.len())
+        .filter(|&i| i != key && !text_columns.contains(&header[i].as_str()) && !words(i))
+        .collect()
+}
+
 impl KeyedTable {
     /// Reads `path`; errors name the file, the line and the column. The key is the first of
     /// [`KEY_COLUMNS`] the header has; a column whose first cell is not a number (a name, a
@@ -259,34 +292,13 @@ impl KeyedTable {
             .iter()
             .map(str::to_string)
             .collect();
-        let key_col = KEY_COLUMNS
-            .iter()
-            .find_map(|k| header.iter().position(|h| h == k))
-            .ok_or_else(|| {
-                fail(
-                    None,
-                    format!(
-                        "no `frame` column (nor {}; columns: {})",
-                        KEY_COLUMNS[1..].join(", "),
-                        header.join(", ")
-                    ),
-                )
-            })?;
+        let key_col = key_column(&header).map_err(|why| fail(None, why))?;
         let records: Vec<csv::StringRecord> = rd
             .records()
             .enumerate()
             .map(|(n, rec)| rec.map_err(|e| fail(Some(n + 2), format!("line {}: {e}", n + 2))))
             .collect::<Result<_, _>>()?;
-        // A column whose first cell is words, not a number, is a name or a note: left out.
-        let words = |i: usize| {
-            records.first().is_some_and(|r| {
-                let c = r.get(i).unwrap_or("").trim();
-                !c.is_empty() && !c.eq_ignore_ascii_case("nan") && c.parse::<f64>().is_err()
-            })
-        };
-        let keep: Vec<usize> = (0..header.len())
-            .filter(|&i| i != key_col && !text_columns.contains(&header[i].as_str()) && !words(i))
-            .collect();
+        let keep = numeric_columns(&header, key_col, text_columns, records.first());
         let columns = keep.iter().map(|&i| header[i].clone()).collect();
         let text_at: Vec<Option<usize>> = text_columns
             .iter()
