@@ -21,6 +21,7 @@ use visuotact_vision::detect::{Centroid, DetectorConfig};
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::options::{DetectorOptions, Purpose, ThresholdChoice};
 use visuotact_vision::preprocess::{Channel, CircleMask, Roi};
+use visuotact_vision::sizing::MarkerSize;
 
 /// Preprocessing and blob-filter options shared by commands that detect markers.
 #[derive(clap::Args, Debug, Clone)]
@@ -174,22 +175,43 @@ impl DetectorArgs {
 
     /// The detector configuration for frames whose first one `first` reads, with `--preset
     /// auto` resolved from it ([`DetectorOptions::preset_for`], saying so when it picks the
-    /// dark-markers preset), for `purpose`. The options are checked before any frame is
-    /// read; an explicit preset never reads one.
+    /// dark-markers preset), for `purpose`; for tracking, the opening and smallest blob sized
+    /// from its markers where no option set them ([`DetectorOptions::sized`]), with the size
+    /// measured. The options are checked before any frame is read.
     pub(crate) fn config_for_frames(
         &self,
         purpose: Purpose,
         first: impl FnOnce() -> Option<RgbImage>,
-    ) -> anyhow::Result<(DetectorConfig, FeatureSet)> {
+    ) -> anyhow::Result<(DetectorConfig, FeatureSet, Option<MarkerSize>)> {
         let o = self.options()?;
-        o.config(Preset::Iats, purpose)?;
-        let preset = o.preset_for(first);
+        // Checked over the preset named, or for auto over either it may pick (an adaptive
+        // window refines dark-markers', not iats').
+        match o.preset {
+            Some(p) => {
+                o.config(p, purpose)?;
+            }
+            None => {
+                if let Err(e) = o.config(Preset::Iats, purpose) {
+                    o.config(Preset::DarkMarkers, purpose).map_err(|_| e)?;
+                }
+            }
+        }
+        let needs_frame = o.preset.is_none() || purpose == Purpose::Tracking;
+        let frame = if needs_frame { first() } else { None };
+        let preset = o.preset_for(|| frame.clone());
         if o.preset.is_none() && preset == Preset::DarkMarkers {
             eprintln!(
                 "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
             );
         }
-        Ok(o.config(preset, purpose)?)
+        let (cfg, features) = o.config(preset, purpose)?;
+        Ok(match (&frame, purpose) {
+            (Some(f), Purpose::Tracking) => {
+                let (cfg, size) = o.sized(cfg, f);
+                (cfg, features, size)
+            }
+            _ => (cfg, features, None),
+        })
     }
 }
 

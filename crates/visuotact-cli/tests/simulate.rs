@@ -473,3 +473,59 @@ fn a_config_file_matches_the_simulator_to_another_sensor() {
     ]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("unknown field `colz`"));
 }
+
+/// Published TacTip data sets' format (128 × 128, binarised, 2–4 px pins ≈ 5 px apart), drawn
+/// variants: `calibrate` with no option numbers every pin visible at rest and `extract` loses
+/// at most 1 % of pin-frames.
+#[test]
+fn tiny_pins_calibrate_with_no_options() {
+    for variant in ["0", "1", "2", "4"] {
+        let d = tmp(&format!("tiny-{variant}"));
+        let sv = &["simulate", "--sensor", "tactip-small", "--variant", variant];
+        let rest = [&sv[..], &["--protocol", "random", "--touches", "30"]].concat();
+        ok(&vt(&[&rest[..], &["--seed", "5", "-o", s(&d)]].concat()));
+        let sensor = d.join("s.json");
+        let err = ok(&vt(&[
+            "calibrate",
+            s(&d.join("reference")),
+            "-o",
+            s(&sensor),
+        ]));
+        assert!(err.contains("no opening"), "{err}");
+        let visible_at_rest = rows(&d.join("truth.csv"))
+            .iter()
+            .filter(|t| t["frame"] == "ref_0000.png" && t["visible"] == "1")
+            .count();
+        let cal: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&sensor).unwrap()).unwrap();
+        let numbered = cal["markers"].as_array().unwrap().len();
+        assert!(
+            numbered >= visible_at_rest && numbered > 250,
+            "variant {variant}: {numbered} numbered, {visible_at_rest} visible at rest"
+        );
+        assert!(cal["marker_size"]["diameter_px"].as_f64().unwrap() < 5.0);
+        let out = d.join("f.csv");
+        let err = ok(&vt(&[
+            "extract",
+            "--sensor",
+            s(&sensor),
+            s(&d.join("frames")),
+            "-o",
+            s(&out),
+            "--max-warnings",
+            "0",
+        ]));
+        let lost: usize = err
+            .split("frames with missing markers (")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{err}"));
+        assert!(
+            lost * 100 <= numbered * 30,
+            "variant {variant}: {lost} of {} pin-frames lost",
+            numbered * 30
+        );
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}

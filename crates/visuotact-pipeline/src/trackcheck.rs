@@ -24,13 +24,14 @@ use visuotact_vision::calibration::{
 use visuotact_vision::detect::{BlobFilter, Centroid, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError};
 use visuotact_vision::layout::{Layout, LayoutChoice};
+use visuotact_vision::options::DetectorOptions;
 use visuotact_vision::preprocess::CircleMask;
 
 /// Why a check could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum CheckError {
     /// No simulated sensor has this name.
-    #[error("unknown sensor {0:?}: expected iats, tactip, gelsight or dots")]
+    #[error("unknown sensor {0:?}: expected iats, tactip, tactip-small, gelsight or dots")]
     UnknownSensor(String),
     /// The protocol is not one of the sensor's.
     #[error("protocol {name:?}: expected {expected}")]
@@ -64,7 +65,7 @@ pub enum SimSensor {
 }
 
 impl SimSensor {
-    /// The sensor called `name` (`iats`, `tactip`, `gelsight`, `dots`), variant `variant`
+    /// The sensor called `name` (`iats`, `tactip`, `tactip-small`, `gelsight`, `dots`), variant `variant`
     /// (0: the preset).
     pub fn named(name: &str, variant: u64) -> Result<Self, CheckError> {
         if name == "iats" {
@@ -256,12 +257,14 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
         .map(|k| render(&c.sensor, &rest(&c.sensor), seed_of(k)))
         .collect::<Result<_, SimError>>()?;
     let ids: Vec<String> = (0..refs.len()).map(|k| format!("ref{k}")).collect();
+    // The opening and smallest blob sized from the markers, as `calibrate` does.
+    let (detector, _) = DetectorOptions::default().sized(c.detector.clone(), &refs[0].0);
     let (cal, _) = calibrate(
         ids.iter()
             .map(String::as_str)
             .zip(refs.iter().map(|r| &r.0)),
         &CalibrationConfig {
-            detector: c.detector.clone(),
+            detector,
             layout: c.layout,
             features: FeatureSet::ALL,
             ..Default::default()

@@ -332,10 +332,16 @@ pub fn crowded(shapes: &[(Option<&ConvexPolygon>, (f64, f64))], clear: f64) -> V
 }
 
 /// Whether a marker's outline has been squeezed to a sliver by the skin's strain (its minor axis
-/// under 2.5 px or 35 % of its rest value `rest`): no longer a blob of its own.
+/// under 35 % of its rest value `rest`, or under 2.5 px — for markers under 4.2 px across at
+/// rest, under 60 % of their rest value): no longer a blob of its own.
 pub fn squeezed(outline: Option<&ConvexPolygon>, rest: Option<&ConvexPolygon>) -> bool {
     let rest_minor = rest.map_or(0.0, ConvexPolygon::minor_axis);
-    outline.is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(2.5))
+    let floor = if rest_minor > 0.0 {
+        2.5f64.min(0.6 * rest_minor)
+    } else {
+        2.5
+    };
+    outline.is_none_or(|p| p.minor_axis() < (0.35 * rest_minor).max(floor))
 }
 
 /// Clears the visibility of every marker within `clear` pixels of another (touching markers

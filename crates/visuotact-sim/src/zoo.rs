@@ -56,16 +56,25 @@ pub enum ZooKind {
     Gelsight,
     /// A flat gel with a random dot pattern.
     Dots,
+    /// The TacTip tip as published data sets store it: 128 × 128, binarised, pins 2–4 px
+    /// (variant N is tactip's variant N on that image).
+    TactipSmall,
 }
 
 impl ZooKind {
     /// Every family.
-    pub const ALL: [ZooKind; 3] = [ZooKind::Tactip, ZooKind::Gelsight, ZooKind::Dots];
+    pub const ALL: [ZooKind; 4] = [
+        ZooKind::Tactip,
+        ZooKind::TactipSmall,
+        ZooKind::Gelsight,
+        ZooKind::Dots,
+    ];
 
     /// The name `simulate --sensor` takes.
     pub fn name(self) -> &'static str {
         match self {
             ZooKind::Tactip => "tactip",
+            ZooKind::TactipSmall => "tactip-small",
             ZooKind::Gelsight => "gelsight",
             ZooKind::Dots => "dots",
         }
@@ -80,6 +89,7 @@ impl ZooKind {
     pub fn preset(self) -> ZooConfig {
         match self {
             ZooKind::Tactip => ZooConfig::TACTIP,
+            ZooKind::TactipSmall => ZooConfig::TACTIP_SMALL,
             ZooKind::Gelsight => ZooConfig::GELSIGHT,
             ZooKind::Dots => ZooConfig::DOTS,
         }
@@ -205,6 +215,24 @@ impl ZooConfig {
         blur_px: 0.7,
     };
 
+    /// [`ZooConfig::TACTIP`] as published TacTip data sets store it: 128 × 128 pixels,
+    /// binarised, ≈ 330 pins 2–4 px across and ≈ 5 px apart.
+    pub const TACTIP_SMALL: Self = Self {
+        camera: Camera {
+            width: 128,
+            height: 128,
+            fx_px: 51.2,
+            fy_px: 51.2,
+            cx_px: 63.5,
+            cy_px: 63.5,
+            k1: -0.1,
+            k2: 0.01,
+        },
+        binarise: true,
+        blur_px: 0.4,
+        ..Self::TACTIP
+    };
+
     /// A GelSight-Mini-like gel: 10 × 8 dark dots 2 mm apart on a bright, unevenly lit gel,
     /// 320×240 like the Mini's stream, 2.5 mm of gel pressed up to 1.5 mm.
     pub const GELSIGHT: Self = Self {
@@ -297,18 +325,28 @@ impl ZooConfig {
     /// | look | white-ish pins on near-black | dark dots on a tinted bright gel, gradient ±0.2, shading 0.3–0.8 | bright or dark dots (half each) |
     ///
     /// Binarised output (`binarise`, as published TacTip data sets) is a setting of its own, not
-    /// drawn: it changes what any centroid can measure (pixel digitisation).
+    /// drawn: it changes what any centroid can measure (pixel digitisation). `tactip-small`
+    /// draws tactip's parameters onto a binarised 128 × 128 image.
     /// | noise σ, vignetting, blur | 1–5, 0.05–0.4, 0.3–1 px | 1–4, 0.1–0.3, 0.4–1 px | 1–5, 0.05–0.3, 0.3–1 px |
     pub fn variant(kind: ZooKind, seed: u64) -> Self {
         let mut c = kind.preset();
         if seed == 0 {
             return c;
         }
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7A00_0000 ^ (kind as u64) << 40);
+        // The small tip draws what the tip draws (only its image differs).
+        let family = match kind {
+            ZooKind::TactipSmall => ZooKind::Tactip,
+            other => other,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7A00_0000 ^ (family as u64) << 40);
         let mut u = |lo: f64, hi: f64| rng.random_range(lo..=hi);
         c.layout_seed = seed;
         match kind {
             ZooKind::Tactip => c.draw_tactip(&mut u),
+            ZooKind::TactipSmall => {
+                c.camera = ZooConfig::TACTIP_SMALL.camera;
+                c.draw_tactip(&mut u);
+            }
             ZooKind::Gelsight => c.draw_gelsight(&mut u),
             ZooKind::Dots => c.draw_dots(&mut u),
         }
@@ -915,10 +953,12 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
             )
         })
         .collect();
-    // Markers that come within the clearance of another are not separate blobs.
+    // Markers that come within the clearance of another are not separate blobs (a binarised
+    // frame's edges are sharp: one pixel of background beyond the blur keeps them apart).
+    let clearance = if cfg.binarise { 1.0 } else { 2.0 } + 2.0 * cfg.blur_px;
     clear_crowded(
         &mut out,
-        2.0 + 2.0 * cfg.blur_px,
+        clearance,
         |m| (m.x_px, m.y_px),
         |m| &mut m.visible,
     );

@@ -221,6 +221,10 @@ pub struct SensorCalibration {
     pub pitch_px: f64,
     /// The reference markers in grid order.
     pub markers: Vec<ReferenceMarker>,
+    /// The markers' size and spacing measured before detection, when the detector's opening
+    /// and smallest area were chosen from them ([`crate::sizing`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub marker_size: Option<crate::sizing::MarkerSize>,
 }
 
 /// Errors from building a calibration.
@@ -487,6 +491,7 @@ where
         grid_cols: numbered.cols,
         pitch_px: pitch,
         markers: reference_markers(&numbered, convention),
+        marker_size: None,
     };
     measure_jitter(&frames, &mut det, &mut cal, &mut report);
     Ok((cal, report))

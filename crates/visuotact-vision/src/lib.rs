@@ -21,6 +21,7 @@ pub mod kernels;
 pub mod layout;
 pub mod options;
 pub mod preprocess;
+pub mod sizing;
 pub mod track;
 
 /// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type).

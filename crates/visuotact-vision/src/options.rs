@@ -25,6 +25,7 @@ use crate::calibration::Preset;
 use crate::detect::{BlobFilter, Centroid, DetectorConfig};
 use crate::features::FeatureSet;
 use crate::preprocess::{Channel, CircleMask, Roi, Threshold};
+use crate::sizing::MarkerSize;
 use crate::ConfigError;
 
 /// How the foreground is separated, as chosen (the adaptive window and offset are separate
@@ -183,6 +184,27 @@ impl DetectorOptions {
             centroid,
         };
         Ok((cfg, base.features))
+    }
+
+    /// `cfg` with the opening and smallest blob that the markers of `frame` call for
+    /// ([`MarkerSize`]) where these options leave them to the preset (an opening the preset
+    /// has is dropped for markers too small for it; an opening it lacks is not added), and
+    /// the size measured (`None`, and `cfg` unchanged, when too few markers are seen).
+    pub fn sized(
+        &self,
+        mut cfg: DetectorConfig,
+        frame: &RgbImage,
+    ) -> (DetectorConfig, Option<MarkerSize>) {
+        let Some(size) = MarkerSize::measure(frame, &cfg) else {
+            return (cfg, None);
+        };
+        if self.open.is_none() && !size.opening() {
+            cfg.preprocess.open = false;
+        }
+        if self.min_area_px.is_none() {
+            cfg.filter.min_area_px = size.min_area_px().min(cfg.filter.max_area_px);
+        }
+        (cfg, Some(size))
     }
 
     /// The threshold chosen over the preset's `base`, with the adaptive window and offset.

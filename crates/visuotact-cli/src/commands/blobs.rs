@@ -32,7 +32,7 @@ pub(crate) struct Args {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // The pixel-mean centroid and whole-frame Otsu of OpenCV, scikit-image and MATLAB by
     // default.
-    let (cfg, _) = a.detector.config_for_frames(Purpose::BlobAnalysis, || {
+    let (cfg, _, _) = a.detector.config_for_frames(Purpose::BlobAnalysis, || {
         FrameStream::open(&a.frames, 25.0)
             .ok()?
             .next()?

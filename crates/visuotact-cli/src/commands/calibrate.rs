@@ -58,9 +58,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Grey-level centroids: the partly covered edge pixels any threshold cuts off carry the
     // sub-pixel position (on the sensor zoo 5–10× less displacement error than the pixel mean).
     // Thin annuli (the cone preset) are steadiest with the grey-weighted centroid.
-    let (detector, preset_features) = a.detector.config_for_frames(Purpose::Tracking, || {
-        open().ok()?.next()?.ok().map(|f| f.image)
-    })?;
+    let (detector, preset_features, size) =
+        a.detector.config_for_frames(Purpose::Tracking, || {
+            open().ok()?.next()?.ok().map(|f| f.image)
+        })?;
     let features = match &a.features {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
@@ -74,7 +75,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         features,
         track: TrackConfig::DEFAULT,
     };
-    let done = calibrate_frames(open, source, &cfg)?;
+    if let Some(size) = &size {
+        eprintln!("{}", size.in_words(&cfg.detector));
+    }
+    let mut done = calibrate_frames(open, source, &cfg)?;
+    done.calibration.marker_size = size;
     write_sensor(a, &done.calibration)?;
     print_calibrated(&done);
     eprintln!("wrote {}", a.output.display());

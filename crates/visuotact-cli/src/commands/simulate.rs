@@ -13,8 +13,9 @@ use visuotact_pipeline::synth::{send_paced, simulate, ConeSession, SimKind, Simu
 pub(crate) struct Args {
     /// Which sensor: iats (seed 000's areal touch sensor), cone (seed 001's inflatable link), or
     /// one of the zoo: tactip (hemispherical tip, hexagonal pins), gelsight (dark-dot grid on a
-    /// bright gel), dots (random dot pattern).
-    #[arg(long, value_parser = ["iats", "cone", "tactip", "gelsight", "dots"])]
+    /// bright gel), dots (random dot pattern), tactip-small (the tip on a binarised 128 × 128
+    /// image, 2–4 px pins, as published data sets).
+    #[arg(long, value_parser = ["iats", "cone", "tactip", "tactip-small", "gelsight", "dots"])]
     sensor: String,
     /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random,
     /// shear.
