@@ -94,15 +94,16 @@ pub fn iats_named(cfg: &IatsConfig, name: &str, n: usize, seed: u64) -> Option<V
 }
 
 /// The names [`zoo_named`] knows.
-pub const ZOO_PROTOCOLS: [&str; 3] = ["grid", "random", "shear"];
+pub const ZOO_PROTOCOLS: [&str; 4] = ["grid", "random", "shear", "drag"];
 
-/// A zoo protocol by name: `grid`, `random` or `shear` (`n` touches from `seed`); `None` for
-/// any other name.
+/// A zoo protocol by name: `grid`, `random`, `shear` or `drag` (`n` touches from `seed`);
+/// `None` for any other name.
 pub fn zoo_named(cfg: &ZooConfig, name: &str, n: usize, seed: u64) -> Option<Vec<ZooTouch>> {
     match name {
         "grid" => Some(zoo_grid(cfg)),
         "random" => Some(zoo_random(cfg, n, seed)),
         "shear" => Some(zoo_shear(cfg, n, seed)),
+        "drag" => Some(zoo_drag(cfg, n, seed)),
         _ => None,
     }
 }
@@ -178,12 +179,41 @@ pub fn zoo_random(cfg: &ZooConfig, n: usize, seed: u64) -> Vec<ZooTouch> {
 /// Random zoo touches that also drag the skin by up to one marker pitch in a random direction
 /// and twist it by up to ±10°.
 pub fn zoo_shear(cfg: &ZooConfig, n: usize, seed: u64) -> Vec<ZooTouch> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EA5_0200);
-    zoo_random(cfg, n, seed)
+    dragged(cfg, zoo_random(cfg, n, seed), 1.0, seed ^ 0x5EA5_0200)
+}
+
+/// Random zoo touches with larger local drags: the skin under the tip dragged by 0.5 to 1.5
+/// marker pitches in a random direction (the drag fades away from the contact, so neighbours
+/// move by different amounts) and twisted by up to ±10° — beyond what a tracker can always
+/// resolve: markers it cannot tell apart must be reported lost, never swapped.
+pub fn zoo_drag(cfg: &ZooConfig, n: usize, seed: u64) -> Vec<ZooTouch> {
+    let touches = dragged(cfg, zoo_random(cfg, n, seed), 1.5, seed ^ 0xD4A6_0300);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xD4A6_0301);
+    touches
+        .into_iter()
+        .map(|mut t| {
+            // At least half a pitch: a third of the drags lie beyond one pitch.
+            let (x, y) = (t.shear_x_mm, t.shear_y_mm);
+            let len = x.hypot(y);
+            let want = cfg.pitch_mm * rng.random_range(0.5..=1.5);
+            if len > 0.0 {
+                t.shear_x_mm = x / len * want;
+                t.shear_y_mm = y / len * want;
+            }
+            t
+        })
+        .collect()
+}
+
+/// `touches` dragged by up to `pitches` marker pitches in a random direction and twisted by
+/// up to ±10°, seeded by `seed`.
+fn dragged(cfg: &ZooConfig, touches: Vec<ZooTouch>, pitches: f64, seed: u64) -> Vec<ZooTouch> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    touches
         .into_iter()
         .map(|mut t| {
             let ang = rng.random_range(0.0..std::f64::consts::TAU);
-            let drag = cfg.pitch_mm * rng.random_range(0.0..=1.0);
+            let drag = cfg.pitch_mm * rng.random_range(0.0..=pitches);
             t.shear_x_mm = drag * ang.cos();
             t.shear_y_mm = drag * ang.sin();
             t.twist_deg = rng.random_range(-10.0..=10.0);
@@ -404,7 +434,7 @@ mod tests {
         );
         assert_eq!(zoo_named(&zoo, "shear", 9, 1), Some(zoo_shear(&zoo, 9, 1)));
         assert_eq!(zoo_named(&zoo, "line", 9, 1), None);
-        assert_eq!(names_listed(&ZOO_PROTOCOLS), "grid, random or shear");
+        assert_eq!(names_listed(&ZOO_PROTOCOLS), "grid, random, shear or drag");
         assert_eq!(names_listed(&["a"]), "a");
         assert_eq!(names_listed(&[]), "");
     }

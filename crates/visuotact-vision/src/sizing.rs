@@ -16,7 +16,7 @@
 //!
 //! // 2 × 2 px white pins every 6 px on black.
 //! let img = RgbImage::from_fn(40, 40, |x, y| {
-//!     let pin = x % 6 < 2 && y % 6 < 2 && (3..37).contains(&x) && (3..37).contains(&y);
+//!     let pin = x % 6 < 2 && y % 6 < 2 && (4..34).contains(&x) && (4..34).contains(&y);
 //!     if pin { [255; 3] } else { [0; 3] }
 //! });
 //! let size = MarkerSize::measure(&img, &Preset::Iats.config().detector).unwrap();

@@ -566,6 +566,13 @@ fn local_motion(
     })
 }
 
+/// A slide into a hole that changes the energy by less than this (in squared spacings, a lost
+/// marker costing 1) leaves its chain's markers in doubt ([`Matching::slide_chains`]).
+const AMBIGUOUS_SLIDE: f64 = 0.5;
+
+/// How far from a hole a free blob leaves the markers between in doubt, in spacings.
+const HOLE_REACH: f64 = 4.0;
+
 /// The working state of one frame's matching.
 struct Matching<'a> {
     reference: &'a TrackReference,
@@ -840,65 +847,182 @@ impl Matching<'_> {
             .map(|(q, _)| q)
     }
 
+    /// Markers without a blob inside the matched region (three or more matched neighbours).
+    fn holes(&self, matched: &[bool]) -> Vec<usize> {
+        (0..matched.len())
+            .filter(|&i| {
+                !matched[i]
+                    && self.reference.neighbours[i]
+                        .iter()
+                        .filter(|&&k| matched[k])
+                        .count()
+                        >= 3
+            })
+            .collect()
+    }
+
+    /// The chains a slide may move into hole `h`: `[h]`, and `[h, k1, k2, …]` (up to seven
+    /// markers) stepping from each matched neighbour `k1` along the lattice step `h → k1`.
+    fn chains_into(&self, h: usize, matched: &[bool]) -> Vec<Vec<usize>> {
+        let mut out = vec![vec![h]];
+        for &k1 in &self.reference.neighbours[h] {
+            if !matched[k1] {
+                continue;
+            }
+            let xh = self.reference.positions[h];
+            let xk = self.reference.positions[k1];
+            let dir = (xk.0 - xh.0, xk.1 - xh.1);
+            if dir.0.hypot(dir.1) > 1.3 * self.reference.spacing_px[h] {
+                continue;
+            }
+            let mut path = vec![h, k1];
+            while path.len() <= 6 {
+                out.push(path.clone());
+                match self.step_from(path[path.len() - 1], dir) {
+                    Some(q) if matched[q] && !path.contains(&q) => path.push(q),
+                    _ => break,
+                }
+            }
+            if path.len() > 6 {
+                out.push(path);
+            }
+        }
+        out
+    }
+
     /// Slides chains of assignments into holes: a marker without a blob inside the matched
     /// region takes its neighbour's blob, that neighbour the next one's along the same lattice
     /// step, and so on (up to six), the last taking a free blob near where its neighbours put
     /// it. A chain is applied when it lowers the energy (residuals around it, and one marker
     /// fewer without a blob); repeated while one helps. This undoes a shift by one lattice step
     /// that the matching followed into a region dragged or pushed by about a pitch.
-    fn slide_chains(&mut self, lost_cost: f64) {
-        let n = self.assignment.len();
+    ///
+    /// Returns the markers left in doubt, among those that moved by half a spacing or more:
+    /// those of a chain ending on a free blob whose slide would change the energy by less than
+    /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
+    /// the chain moved one lattice step as without, and which marker holds which blob cannot
+    /// be told (a drag of more than a pitch) — and those [`Matching::between_holes_and_free_blobs`]
+    /// and [`Matching::holding_a_holes_blob`] find.
+    fn slide_chains(&mut self, lost_cost: f64) -> Vec<usize> {
         for _ in 0..16 {
             let matched = self.matched();
-            let holes: Vec<usize> = (0..n)
-                .filter(|&i| {
-                    !matched[i]
-                        && self.reference.neighbours[i]
-                            .iter()
-                            .filter(|&&k| matched[k])
-                            .count()
-                            >= 3
-                })
-                .collect();
             let mut best: Option<(f64, Vec<usize>, Option<usize>)> = None;
-            for &h in &holes {
-                // The hole itself takes a free blob near where its neighbours put it.
-                if let Some((de, end, _)) = self.try_chain(&[h], lost_cost) {
-                    if end.is_some() && de < -1e-9 && best.as_ref().is_none_or(|b| de < b.0) {
-                        best = Some((de, vec![h], end));
-                    }
-                }
-                for &k1 in &self.reference.neighbours[h] {
-                    if !matched[k1] {
+            for h in self.holes(&matched) {
+                for path in self.chains_into(h, &matched) {
+                    let Some((de, end, out)) = self.try_chain(&path, lost_cost) else {
                         continue;
-                    }
-                    let xh = self.reference.positions[h];
-                    let xk = self.reference.positions[k1];
-                    let dir = (xk.0 - xh.0, xk.1 - xh.1);
-                    if dir.0.hypot(dir.1) > 1.3 * self.reference.spacing_px[h] {
-                        continue;
-                    }
-                    let mut path = vec![h, k1];
-                    while path.len() <= 6 {
-                        // The chain ends at its last marker: it takes a free blob or none.
-                        let last = path[path.len() - 1];
-                        if let Some((de, end, out)) = self.try_chain(&path, lost_cost) {
-                            if (end.is_some() || out)
-                                && de < -1e-9
-                                && best.as_ref().is_none_or(|b| de < b.0)
-                            {
-                                best = Some((de, path.clone(), end));
-                            }
-                        }
-                        match self.step_from(last, dir) {
-                            Some(q) if matched[q] && !path.contains(&q) => path.push(q),
-                            _ => break,
-                        }
+                    };
+                    // The hole alone must take a blob; a longer chain may push its last
+                    // marker out of view.
+                    let ends = end.is_some() || (out && path.len() > 1);
+                    if ends && de < -1e-9 && best.as_ref().is_none_or(|b| de < b.0) {
+                        best = Some((de, path, end));
                     }
                 }
             }
             let Some((_, path, end)) = best else { break };
             self.apply_chain(&path, end);
+        }
+        let matched = self.matched();
+        let holes = self.holes(&matched);
+        let mut doubt = self.between_holes_and_free_blobs(&holes, &matched);
+        doubt.extend(self.holding_a_holes_blob(&holes, &matched));
+        for &h in &holes {
+            for path in self.chains_into(h, &matched) {
+                if path.len() < 2 {
+                    continue;
+                }
+                if let Some((de, Some(_), _)) = self.try_chain(&path, lost_cost) {
+                    if de < AMBIGUOUS_SLIDE {
+                        doubt.extend_from_slice(&path[1..]);
+                    }
+                }
+            }
+        }
+        // A marker that stayed within half a spacing of where it was is not a lattice step off.
+        doubt.retain(|&i| {
+            self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i]
+        });
+        doubt.sort_unstable();
+        doubt.dedup();
+        doubt
+    }
+
+    /// The matched markers in doubt around `holes`: those whose blobs lie on the way from a
+    /// hole (where its neighbours put it) to a free blob within [`HOLE_REACH`] spacings, and
+    /// on the same way from the holes beside it — with holes at one end and spare blobs at the
+    /// other, each blob between may belong to the next marker along (a patch dragged by over a
+    /// pitch and matched one lattice step short).
+    fn between_holes_and_free_blobs(&self, holes: &[usize], matched: &[bool]) -> Vec<usize> {
+        let at: Vec<Option<((f64, f64), f64)>> =
+            holes.iter().map(|&h| self.predict(h, matched)).collect();
+        // (hole, the way from it to a free blob)
+        let mut ways: Vec<(usize, (f64, f64))> = Vec::new();
+        for (k, &h) in holes.iter().enumerate() {
+            let Some((p, scale)) = at[k] else { continue };
+            let reach = HOLE_REACH * self.reference.spacing_px[h] * scale;
+            self.index.near(p, reach, |j, _| {
+                if !self.taken[j] {
+                    ways.push((k, (self.blobs[j].x_px - p.0, self.blobs[j].y_px - p.1)));
+                }
+            });
+        }
+        let mut out = Vec::new();
+        for (k, &h) in holes.iter().enumerate() {
+            let Some((p, scale)) = at[k] else { continue };
+            let s = self.reference.spacing_px[h] * scale;
+            for &(from, v) in &ways {
+                let beside = at[from].is_some_and(|(q, _)| dist(p, q) < 1.5 * s);
+                if from == k || beside {
+                    self.push_on_segment(p, v, 0.5 * s, &mut out);
+                }
+            }
+        }
+        out
+    }
+
+    /// The matched markers holding a blob that fits a hole beside them about as well: the blob
+    /// nearest where a hole's neighbours put it (within the gate) belongs to a neighbour whose
+    /// own prediction is no nearer to it than [`TrackConfig::ambiguity_ratio`] times — the
+    /// blob may be the hole's and the neighbour's own blob elsewhere or gone.
+    fn holding_a_holes_blob(&self, holes: &[usize], matched: &[bool]) -> Vec<usize> {
+        let mut owner: Vec<Option<usize>> = vec![None; self.blobs.len()];
+        for (i, a) in self.assignment.iter().enumerate() {
+            if let Some(j) = *a {
+                owner[j] = Some(i);
+            }
+        }
+        let mut out = Vec::new();
+        for &h in holes {
+            let Some((p, scale)) = self.predict(h, matched) else {
+                continue;
+            };
+            let gate = self.cfg.gate_pitches * self.reference.spacing_px[h] * scale * 1.5;
+            let Some(j) = self.index.nearest(p, gate) else {
+                continue;
+            };
+            let Some(k) = owner[j] else { continue };
+            let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+            let own = self.predict(k, matched).map_or(0.0, |(q, _)| dist(b, q));
+            if own * self.cfg.ambiguity_ratio >= dist(b, p) {
+                out.push(k);
+            }
+        }
+        out
+    }
+
+    /// Pushes the matched markers whose blobs lie within `width` of the segment from `p` along
+    /// `v`.
+    fn push_on_segment(&self, p: (f64, f64), v: (f64, f64), width: f64, out: &mut Vec<usize>) {
+        let len2 = (v.0 * v.0 + v.1 * v.1).max(1e-12);
+        for (i, a) in self.assignment.iter().enumerate() {
+            let Some(j) = *a else { continue };
+            let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+            let t = ((b.0 - p.0) * v.0 + (b.1 - p.1) * v.1) / len2;
+            let on = (p.0 + t * v.0, p.1 + t * v.1);
+            if (0.0..=1.0).contains(&t) && dist(b, on) < width {
+                out.push(i);
+            }
         }
     }
 
@@ -1273,7 +1397,7 @@ pub fn track_with(
         m.grow();
     }
     m.rematch_if_better(&predicted);
-    m.slide_chains(1.0);
+    let doubtful = m.slide_chains(1.0);
 
     m.look_up_unreached(&predicted);
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
@@ -1283,6 +1407,11 @@ pub fn track_with(
         mut on_blob,
     } = m.classify_unmatched(&predicted, usable);
     let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, &mut status);
+    for &i in &doubtful {
+        if status[i] == MarkerStatus::Ok {
+            status[i] = MarkerStatus::Ambiguous;
+        }
+    }
     let mut assignment = m.assignment;
     for i in 0..n {
         // A marker that took a blob cut by the border has left the view.

@@ -17,7 +17,7 @@ pub(crate) struct Args {
     /// image, 2–4 px pins, as published data sets).
     #[arg(long, value_parser = ["iats", "cone", "tactip", "tactip-small", "gelsight", "dots"])]
     sensor: String,
-    /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random,
+    /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random, drag,
     /// shear.
     #[arg(long)]
     protocol: String,
