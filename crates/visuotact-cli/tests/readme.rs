@@ -135,12 +135,24 @@ fn the_tactip_data_set_commands_work_as_written() {
     let o = run(&json, &d, &swap);
     assert!(o.status.success(), "{}", stderr(&o));
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let peer = [("pose_2", 0.165), ("pose_6", 2.07), ("move_1", 0.484), ("move_6", 1.38)];
+    let peer = [
+        ("pose_2", 0.165),
+        ("pose_6", 2.07),
+        ("move_1", 0.484),
+        ("move_6", 1.38),
+    ];
     for t in ev["targets"].as_array().unwrap() {
         let name = t["target"].as_str().unwrap();
         let (_, worst) = peer.iter().find(|(n, _)| *n == name).unwrap();
-        assert_eq!(t["n"].as_u64(), Some(1237), "{name}: every test frame estimated");
+        assert_eq!(
+            t["n"].as_u64(),
+            Some(1237),
+            "{name}: every test frame estimated"
+        );
         let mae = t["mean_abs"].as_f64().unwrap();
-        assert!(mae < *worst, "{name}: mean abs error {mae} against the peer's {worst}");
+        assert!(
+            mae < *worst,
+            "{name}: mean abs error {mae} against the peer's {worst}"
+        );
     }
 }

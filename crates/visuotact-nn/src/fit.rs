@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 use crate::lm::{Control, LmConfig};
 use crate::metrics::target_errors;
-use crate::mlp::{Algorithm, MinMax, Mlp, TrainConfig};
+use crate::mlp::{Algorithm, MinMax, Mlp, Settle, TrainConfig};
 use crate::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 use crate::pca::Projection;
 
@@ -657,19 +657,45 @@ fn project(
     Ok((projection, xs))
 }
 
+/// Networks in the default ensemble for `samples` training samples and the input set chosen:
+/// five, or three Levenberg–Marquardt networks from [`LARGE_TABLE`] samples, where each costs
+/// seconds per network and three were within 2.5 % of five on 1 280 touches of seed 000's
+/// membrane (docs/benchmarks.md). The wide network (Adam) keeps five.
+pub fn ensemble_for(samples: usize, set: &InputSet, cfg: &FitConfig) -> usize {
+    if samples >= LARGE_TABLE && set.algorithm(cfg.algorithm) != Algorithm::Adam {
+        cfg.ensemble.min(3)
+    } else {
+        cfg.ensemble
+    }
+}
+
+/// When trainbr stops early for a table of `samples` samples: from [`LARGE_TABLE`] once
+/// [`Settle::DEFAULT`] (3 % over 10 epochs) holds; below it never — a few hundred touches
+/// train in seconds to LM's own stops, and stopping them early cost 2–17 % of accuracy on the
+/// zoo (docs/benchmarks.md).
+pub fn settle_for(samples: usize) -> Option<Settle> {
+    (samples >= LARGE_TABLE).then_some(Settle::DEFAULT)
+}
+
 /// The trainer's settings for `cfg`: its algorithm's, with its epochs, seed and subsets.
-fn train_config(cfg: &FitConfig) -> TrainConfig {
+fn train_config(cfg: &FitConfig, samples: usize) -> TrainConfig {
     let base = match cfg.algorithm {
         Algorithm::Trainlm => TrainConfig::TRAINLM,
         Algorithm::Trainbr => TrainConfig::TRAINBR,
         Algorithm::Adam => TrainConfig::ADAM,
     };
+    // Adam's epochs are cheap passes that its own stop ends; it keeps its own cap too.
+    let most = match cfg.algorithm {
+        Algorithm::Adam => cfg.max_epochs.min(base.adam.max_epochs),
+        Algorithm::Trainlm | Algorithm::Trainbr => cfg.max_epochs,
+    };
     TrainConfig {
         lm: LmConfig {
-            max_iterations: cfg.max_epochs,
+            max_iterations: most,
             ..base.lm
         },
         seed: cfg.seed,
+        settle: base.settle.and(settle_for(samples)),
         split: if cfg.hold_out {
             TrainConfig::TRAINLM.split
         } else {
@@ -774,7 +800,7 @@ fn train_network(
     };
     let member_cfg = TrainConfig {
         seed,
-        ..train_config(cfg)
+        ..train_config(cfg, xs.len())
     };
     let mut last = (0, f64::NAN, f64::NAN);
     let out = crate::mlp::train(&mut net, xs, ts, &member_cfg, |epoch, tr, va| {

@@ -786,10 +786,10 @@ pub struct Settle {
 }
 
 impl Settle {
-    /// 2 % over 10 epochs.
+    /// 3 % over 10 epochs.
     pub const DEFAULT: Self = Self {
         window: 10,
-        tolerance: 0.02,
+        tolerance: 0.03,
     };
 
     /// Whether `history` (per epoch: E_D, γ) has settled at its end.

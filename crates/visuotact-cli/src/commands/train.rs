@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_nn::fit::{
-    candidate_inputs, choose_inputs, column_kinds, fit_set, folds_trained, wide_candidate,
-    FitConfig, FitData, InputScore, InputSet, SELECTION_FOLDS,
+    candidate_inputs, choose_inputs, column_kinds, ensemble_for, fit_set, folds_trained,
+    wide_candidate, FitConfig, FitData, InputScore, InputSet, SELECTION_FOLDS,
 };
 use visuotact_nn::model::Model;
 use visuotact_pipeline::table::TrainingTable;
@@ -36,10 +36,11 @@ pub(crate) struct Args {
     algorithm: AlgorithmArg,
     /// Train this many networks on other seeds and splits into one model file: estimates are
     /// their mean, with the standard deviation as the spread (`predict` writes `<target>_std`,
-    /// `run` and its dashboard show it). 5 by default: on 280 simulated touches of four sensors
-    /// it cut the contact error by 7–35 % against one network (docs/benchmarks.md).
-    #[arg(long, value_name = "K", default_value_t = FitConfig::default().ensemble)]
-    ensemble: usize,
+    /// `run` and its dashboard show it). By default 5 (on 280 simulated touches of four sensors
+    /// it cut the contact error by 7–35 % against one network), or 3 Levenberg–Marquardt
+    /// networks on tables of 1 000 frames or more (docs/benchmarks.md).
+    #[arg(long, value_name = "K")]
+    ensemble: Option<usize>,
     /// Sensor file to store in the model (the calibration the features came from).
     #[arg(long)]
     sensor: Option<PathBuf>,
@@ -70,7 +71,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ..
     } = data;
     let t0 = std::time::Instant::now();
-    let cfg = FitConfig {
+    let mut cfg = FitConfig {
         hidden,
         seed: a.seed,
         max_epochs: a.max_epochs,
@@ -78,7 +79,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         hold_out: false,
         components,
         passthrough,
-        ensemble: a.ensemble,
+        ensemble: a.ensemble.unwrap_or(FitConfig::default().ensemble),
         fill: None,
     };
     let sets = candidate_inputs(
@@ -98,6 +99,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let (best, selection) = choose(&data, &cfg, &sets, &reporter)?;
     interrupted(&reporter)?;
     let set = &sets[best];
+    if a.ensemble.is_none() {
+        cfg.ensemble = ensemble_for(x.len(), set, &cfg);
+    }
     eprintln!(
         "training {}, {}) on {} frames, {} network{}",
         set.network_in_words(&cfg.hidden, targets.len()),
