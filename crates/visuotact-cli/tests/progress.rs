@@ -1,0 +1,112 @@
+//! Long trainings as a user with a log file sees them: progress lines on a standard error that
+//! is not a terminal, none with `--quiet`, and Ctrl-C stopping cleanly with nothing written.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+mod common;
+use common::*;
+
+/// A table of 1 200 frames of 40 markers' features moving on their own, the field summary,
+/// and a target needing three of them: large enough for the wide network and a few seconds of
+/// training.
+fn table(dir: &Path) -> (PathBuf, PathBuf) {
+    let (features, labels) = (dir.join("f.csv"), dir.join("l.csv"));
+    let mut f = String::from("frame");
+    for m in 0..40 {
+        f.push_str(&format!(",m{m:03}_dx_px"));
+    }
+    f.push_str(",field_rms_px,field_max_px,field_top_px,field_cx_px,field_cy_px,field_spread_px\n");
+    let mut l = String::from("frame,y_mm\n");
+    let mut state = 12345u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    };
+    for k in 0..1200 {
+        let v: Vec<f64> = (0..46).map(|_| next()).collect();
+        let cells: Vec<String> = v.iter().map(|x| format!("{x:.5}")).collect();
+        f.push_str(&format!("f{k},{}\n", cells.join(",")));
+        l.push_str(&format!("f{k},{:.5}\n", (2.0 * v[0]).sin() + v[1] * v[2]));
+    }
+    std::fs::write(&features, f).unwrap();
+    std::fs::write(&labels, l).unwrap();
+    (features, labels)
+}
+
+fn train_args<'a>(f: &'a Path, l: &'a Path, model: &'a Path) -> Vec<&'a str> {
+    vec![
+        "train",
+        "--features",
+        s(f),
+        "--labels",
+        s(l),
+        "--targets",
+        "y_mm",
+        "-o",
+        s(model),
+        "--max-epochs",
+        "40",
+        "--ensemble",
+        "2",
+    ]
+}
+
+#[test]
+fn a_piped_training_prints_progress_and_quiet_silences_it() {
+    let d = fresh_dir("progress");
+    let (f, l) = table(&d);
+    let model = d.join("m.json");
+    let err = ok(&vt(&train_args(&f, &l, &model)));
+    assert!(err.contains("choosing the inputs: started"), "{err}");
+    assert!(err.contains("training: started"), "{err}");
+    assert!(model.is_file());
+    let quiet = d.join("q.json");
+    let mut args = train_args(&f, &l, &quiet);
+    args.push("--quiet");
+    let err = ok(&vt(&args));
+    assert!(
+        !err.contains("started") && !err.contains(": network "),
+        "{err}"
+    );
+    assert!(err.contains("wrote"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn ctrl_c_stops_a_training_and_writes_no_model() {
+    let d = fresh_dir("interrupt");
+    let (f, l) = table(&d);
+    let model = d.join("m.json");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(train_args(&f, &l, &model))
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    // Interrupt once the training has started.
+    for line in lines.by_ref() {
+        if line.unwrap().ends_with(": started") {
+            break;
+        }
+    }
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(1), "{rest:?}");
+    assert!(
+        rest.iter()
+            .any(|l| l.contains("interrupted (Ctrl-C): no model written")),
+        "{rest:?}"
+    );
+    assert!(!model.exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
