@@ -2,12 +2,14 @@
 //! terminal (a log file or a pipe gets the same lines), none with `--quiet`; Ctrl-C asks the
 //! step to stop, and the command then writes nothing.
 
+use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use visuotact_nn::fit::FitProgress;
 use visuotact_nn::lm::Control;
+use visuotact_pipeline::replay::{PassObserver, ReplayError};
 
 /// Time between two progress lines.
 pub(crate) const EVERY: Duration = Duration::from_secs(2);
@@ -83,15 +85,9 @@ impl Reporter {
         } else {
             self.finished.load(Ordering::Relaxed)
         };
-        let now = Instant::now();
-        let Ok(mut s) = self.stage.lock() else {
+        let Some((name, elapsed)) = self.due() else {
             return Control::Continue;
         };
-        if now.duration_since(s.last_line) < EVERY {
-            return Control::Continue;
-        }
-        s.last_line = now;
-        let elapsed = now.duration_since(s.started).as_secs_f64();
         let left = if finished == 0 {
             "time left known after the first network".to_string()
         } else {
@@ -105,7 +101,7 @@ impl Reporter {
         };
         self.line(format_args!(
             "{}: network {} of {}, epoch {}, mse {:.3e}{validation} (scaled); {} done of {}, {} elapsed, {left}",
-            s.name,
+            name,
             p.network + 1,
             p.networks,
             p.epoch,
@@ -115,6 +111,95 @@ impl Reporter {
             seconds(elapsed)
         ));
         Control::Continue
+    }
+}
+
+impl Reporter {
+    /// Whether a line is due (and marks it printed), with the stage's name and elapsed time.
+    fn due(&self) -> Option<(String, f64)> {
+        let now = Instant::now();
+        let mut s = self.stage.lock().ok()?;
+        if now.duration_since(s.last_line) < EVERY {
+            return None;
+        }
+        s.last_line = now;
+        Some((s.name.clone(), now.duration_since(s.started).as_secs_f64()))
+    }
+
+    /// The callback for a pass over frames (or any counted items): a line every [`EVERY`]
+    /// (`done` of `total` items, elapsed, time left when the total is known); stops on Ctrl-C.
+    pub(crate) fn items(&self, done: usize, total: Option<usize>, what: &str) -> ControlFlow<()> {
+        if self.interrupted() {
+            return ControlFlow::Break(());
+        }
+        if let Some((name, elapsed)) = self.due() {
+            let of = match total {
+                Some(t) if done > 0 => format!(
+                    " of {t}, {} elapsed, about {} left",
+                    seconds(elapsed),
+                    seconds(elapsed * t.saturating_sub(done) as f64 / done as f64)
+                ),
+                Some(t) => format!(" of {t}, {} elapsed", seconds(elapsed)),
+                None => format!(", {} elapsed", seconds(elapsed)),
+            };
+            self.line(format_args!("{name}: {done} {what}{of}"));
+        }
+        ControlFlow::Continue(())
+    }
+}
+
+/// A pass over frames seen from the command line: at most `max_warnings` warnings printed (the
+/// rest counted), progress lines and Ctrl-C from the [`Reporter`].
+pub(crate) struct FramePass<'a> {
+    reporter: &'a Reporter,
+    max_warnings: usize,
+    /// Warnings heard, printed or not.
+    pub(crate) warned: usize,
+}
+
+impl<'a> FramePass<'a> {
+    /// A pass reporting to `reporter`, printing the first `max_warnings` warnings.
+    pub(crate) fn new(reporter: &'a Reporter, max_warnings: usize) -> Self {
+        Self {
+            reporter,
+            max_warnings,
+            warned: 0,
+        }
+    }
+
+    /// Says how many warnings were not printed, if any.
+    pub(crate) fn print_unshown(&self) {
+        if self.warned > self.max_warnings && self.max_warnings > 0 {
+            eprintln!(
+                "… {} more warnings not shown",
+                self.warned - self.max_warnings
+            );
+        }
+    }
+}
+
+impl PassObserver for FramePass<'_> {
+    fn warn(&mut self, message: &str) {
+        if self.warned < self.max_warnings {
+            eprintln!("warning: {message}");
+        }
+        self.warned += 1;
+    }
+
+    fn frames_done(&mut self, done: usize, total: Option<usize>) -> ControlFlow<()> {
+        self.reporter.items(done, total, "frames")
+    }
+}
+
+/// A pass's error as the command says it: a pass stopped by Ctrl-C says so and that `output`
+/// was not written.
+pub(crate) fn pass_error(e: ReplayError, output: &std::path::Path) -> anyhow::Error {
+    match e {
+        ReplayError::Stopped { frames } => anyhow::anyhow!(
+            "interrupted (Ctrl-C) after {frames} frames: {} not written",
+            output.display()
+        ),
+        e => e.into(),
     }
 }
 

@@ -1,5 +1,6 @@
-//! Long trainings as a user with a log file sees them: progress lines on a standard error that
-//! is not a terminal, none with `--quiet`, and Ctrl-C stopping cleanly with nothing written.
+//! Long trainings and passes over frames as a user with a log file sees them: progress lines
+//! on a standard error that is not a terminal, none with `--quiet`, and Ctrl-C stopping
+//! cleanly with nothing written.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -81,15 +82,28 @@ fn ctrl_c_stops_a_training_and_writes_no_model() {
     let d = fresh_dir("interrupt");
     let (f, l) = table(&d);
     let model = d.join("m.json");
+    let (code, rest) = interrupt_after_start(&train_args(&f, &l, &model), "choosing the inputs");
+    assert_eq!(code, Some(1), "{rest:?}");
+    assert!(
+        rest.iter()
+            .any(|l| l.contains("interrupted (Ctrl-C): no model written")),
+        "{rest:?}"
+    );
+    assert!(!model.exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Sends Ctrl-C to `args` once its stage `stage` has started; returns the exit code and the
+/// lines printed after.
+fn interrupt_after_start(args: &[&str], stage: &str) -> (Option<i32>, Vec<String>) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
-        .args(train_args(&f, &l, &model))
+        .args(args)
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    // Interrupt once the training has started.
     for line in lines.by_ref() {
-        if line.unwrap().ends_with(": started") {
+        if line.unwrap() == format!("{stage}: started") {
             break;
         }
     }
@@ -100,13 +114,63 @@ fn ctrl_c_stops_a_training_and_writes_no_model() {
         .unwrap()
         .success());
     let rest: Vec<String> = lines.map_while(Result::ok).collect();
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(1), "{rest:?}");
+    (child.wait().unwrap().code(), rest)
+}
+
+/// An extraction over 3 000 frames (one simulated frame linked under 3 000 names): it says
+/// it started, stops on Ctrl-C with exit 1, and leaves neither the table nor a temporary.
+#[test]
+fn ctrl_c_stops_an_extraction_and_writes_no_table() {
+    let d = fresh_dir("interrupt-extract");
+    let session = d.join("session");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "2",
+        "--seed",
+        "3",
+        "-o",
+        s(&session),
+    ]));
+    let sensor = d.join("sensor.json");
+    ok(&vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "-o",
+        s(&sensor),
+    ]));
+    let one = std::fs::read_dir(session.join("frames"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "png"))
+        .unwrap();
+    let frames = d.join("many");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..3000 {
+        std::fs::hard_link(&one, frames.join(format!("f{k:05}.png"))).unwrap();
+    }
+    let out = d.join("f.csv");
+    let args = ["extract", "--sensor", s(&sensor), s(&frames), "-o", s(&out)];
+    let (code, rest) = interrupt_after_start(&args, "extract");
+    assert_eq!(code, Some(1), "{rest:?}");
     assert!(
         rest.iter()
-            .any(|l| l.contains("interrupted (Ctrl-C): no model written")),
+            .any(|l| l.contains("interrupted (Ctrl-C) after") && l.contains("not written")),
         "{rest:?}"
     );
-    assert!(!model.exists());
+    assert!(!out.exists() && !d.join("f.csv.part~").exists());
+    // Uninterrupted and quiet: the table, no progress line.
+    let mut quiet = args.to_vec();
+    quiet.push("--quiet");
+    let err = ok(&vt(&quiet));
+    assert!(
+        !err.contains("started") && err.contains("extracted 3000 frames"),
+        "{err}"
+    );
+    assert!(out.is_file() && !d.join("f.csv.part~").exists());
     let _ = std::fs::remove_dir_all(&d);
 }

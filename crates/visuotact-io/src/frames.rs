@@ -510,6 +510,20 @@ impl FrameStream {
     pub fn inputs(&self) -> &[Input] {
         &self.inputs
     }
+
+    /// How many frames the stream gives, when known before decoding: every image, and each
+    /// video's count where its container announces one (asked of `ffprobe`); `None` when a
+    /// video does not say. Call it before iterating.
+    pub fn expected_frames(&self) -> Option<usize> {
+        let mut n = 0usize;
+        for i in &self.inputs {
+            n += match i {
+                Input::Image(_) => 1,
+                Input::Video(p) => probe_video(p).ok()?.frames?,
+            };
+        }
+        Some(self.limit.map_or(n, |l| n.min(l)))
+    }
 }
 
 impl Iterator for FrameStream {

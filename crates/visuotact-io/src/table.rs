@@ -1,8 +1,10 @@
 //! Per-frame tables written as they are produced: CSV or JSON lines.
 //!
 //! A row is the frame id, numeric cells and one free-text `flags` cell. Non-finite numbers are
-//! missing values: empty in CSV, `null` in JSON. Every row is flushed, so a run that stops early
-//! leaves complete rows behind.
+//! missing values: empty in CSV, `null` in JSON. A table file is written under a temporary name
+//! beside its own (`NAME.part~`) and takes its name only at [`TableWriter::finish`]: a run that
+//! fails or is stopped leaves no torn table under the final name and no temporary behind.
+//! Standard output (`-`) gets every row as it comes.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -47,6 +49,8 @@ pub fn push_csv_row(line: &mut String, frame: &str, values: &[f64], flags: &str)
 pub struct TableWriter {
     out: Box<dyn Write>,
     path: PathBuf,
+    /// The temporary file rows go to until [`TableWriter::finish`] (none for standard output).
+    part: Option<PathBuf>,
     format: TableFormat,
     columns: Vec<String>,
     line: String,
@@ -60,20 +64,30 @@ fn csv_escape(s: &str) -> String {
     }
 }
 
+/// The temporary name a table is written under beside `path`.
+fn part_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".part~");
+    path.with_file_name(name)
+}
+
 impl TableWriter {
-    /// Creates `path` (`-` for standard output) with the given numeric column names.
+    /// Creates `path` (`-` for standard output) with the given numeric column names; the file
+    /// appears under its name at [`TableWriter::finish`].
     pub fn create(path: &Path, format: TableFormat, columns: Vec<String>) -> std::io::Result<Self> {
-        let out: Box<dyn Write> = if path.as_os_str() == "-" {
-            Box::new(std::io::stdout())
+        let (out, part): (Box<dyn Write>, _) = if path.as_os_str() == "-" {
+            (Box::new(std::io::stdout()), None)
         } else {
             if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir)?;
             }
-            Box::new(BufWriter::new(File::create(path)?))
+            let part = part_path(path);
+            (Box::new(BufWriter::new(File::create(&part)?)), Some(part))
         };
         let mut w = Self {
             out,
             path: path.to_path_buf(),
+            part,
             format,
             columns,
             line: String::new(),
@@ -89,6 +103,19 @@ impl TableWriter {
             w.out.flush()?;
         }
         Ok(w)
+    }
+
+    /// Flushes the rows and gives the table its name (over any file of that name).
+    pub fn finish(mut self) -> std::io::Result<()> {
+        self.out.flush()?;
+        // Close the file before the rename.
+        self.out = Box::new(std::io::sink());
+        match self.part.take() {
+            Some(part) => std::fs::rename(&part, &self.path).inspect_err(|_| {
+                let _ = std::fs::remove_file(&part);
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Where the table goes.
@@ -129,7 +156,20 @@ impl TableWriter {
         }
         self.line.push('\n');
         self.out.write_all(self.line.as_bytes())?;
-        self.out.flush()
+        if self.part.is_none() {
+            self.out.flush()?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for TableWriter {
+    /// A table not finished leaves nothing behind.
+    fn drop(&mut self) {
+        if let Some(part) = self.part.take() {
+            self.out = Box::new(std::io::sink());
+            let _ = std::fs::remove_file(part);
+        }
     }
 }
 
@@ -402,6 +442,30 @@ mod tests {
             e.contains("line 4: frame `a` again (first on line 2)"),
             "{e}"
         );
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_table_takes_its_name_only_when_finished() {
+        let d = std::env::temp_dir().join(format!("visuotact-part-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        let p = d.join("t.csv");
+        let part = d.join("t.csv.part~");
+        let mut w = TableWriter::create(&p, TableFormat::Csv, vec!["x".into()]).unwrap();
+        w.write_row("a", &[1.5], "").unwrap();
+        assert!(!p.exists() && part.is_file());
+        w.finish().unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&p).unwrap(),
+            "frame,x,flags\na,1.5,\n"
+        );
+        assert!(!part.exists());
+        // A table dropped unfinished (an error, Ctrl-C) leaves the old file and no temporary.
+        let mut w = TableWriter::create(&p, TableFormat::Csv, vec!["y".into()]).unwrap();
+        w.write_row("b", &[2.0], "").unwrap();
+        drop(w);
+        assert!(!part.exists());
+        assert!(std::fs::read_to_string(&p).unwrap().starts_with("frame,x,"));
         std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -7,7 +7,12 @@
 //! one). Inputs of the model besides the marker features (a pressure gauge's reading) come
 //! from a readings table keyed by frame. [`extract`] writes the feature table of frames,
 //! [`features_table`] keeps it in memory, and [`predict_table`] runs a model over a table.
+//!
+//! Every pass over frames tells a [`PassObserver`] of each frame skipped and of how far it has
+//! come; the observer may stop it, and a stopped pass writes nothing (its table never takes its
+//! name, [`TableWriter::finish`]).
 
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use visuotact_io::frames::{FrameError, FrameStream};
@@ -61,6 +66,12 @@ pub enum ReplayError {
     /// The frames do not open.
     #[error(transparent)]
     Frames(#[from] FrameError),
+    /// The observer stopped the pass.
+    #[error("stopped after {frames} frames: nothing written")]
+    Stopped {
+        /// Frames through when it stopped.
+        frames: usize,
+    },
     /// Writing the output failed.
     #[error("{}: {source}", path.display())]
     Write {
@@ -69,6 +80,46 @@ pub enum ReplayError {
         /// Why.
         source: std::io::Error,
     },
+}
+
+/// What a pass over frames tells its caller: each frame skipped or incomplete, and after every
+/// frame how far it has come (the caller may stop it there). A closure `FnMut(&str)` is an
+/// observer that hears the warnings and never stops.
+pub trait PassObserver {
+    /// A frame skipped or incomplete, in words.
+    fn warn(&mut self, message: &str);
+
+    /// `done` frames of `total` (when known) are through; [`ControlFlow::Break`] stops the pass,
+    /// which then writes nothing and returns [`ReplayError::Stopped`].
+    fn frames_done(&mut self, done: usize, total: Option<usize>) -> ControlFlow<()> {
+        let _ = (done, total);
+        ControlFlow::Continue(())
+    }
+}
+
+impl<F: FnMut(&str)> PassObserver for F {
+    fn warn(&mut self, message: &str) {
+        self(message);
+    }
+}
+
+/// Opens `paths` as one frame stream and how many frames it holds, when known.
+fn open_frames(paths: &[PathBuf], fps: f64) -> Result<(FrameStream, Option<usize>), ReplayError> {
+    let stream = FrameStream::open(paths, fps)?;
+    let total = stream.expected_frames();
+    Ok((stream, total))
+}
+
+/// Tells `obs` that `done` frames of `total` are through; an error when it stops the pass.
+fn through(
+    obs: &mut dyn PassObserver,
+    done: usize,
+    total: Option<usize>,
+) -> Result<(), ReplayError> {
+    match obs.frames_done(done, total) {
+        ControlFlow::Continue(()) => Ok(()),
+        ControlFlow::Break(()) => Err(ReplayError::Stopped { frames: done }),
+    }
 }
 
 /// What a replay did.
@@ -131,12 +182,12 @@ fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, 
     Ok(frames)
 }
 
-/// Replays `est` over `cfg.inputs` (see the module's documentation); `warn` hears of frames
-/// that cannot be read.
+/// Replays `est` over `cfg.inputs` (see the module's documentation); `obs` hears of frames
+/// that cannot be read and of the progress.
 pub fn replay(
     est: &mut Estimator,
     cfg: &ReplayConfig,
-    warn: &mut dyn FnMut(&str),
+    obs: &mut dyn PassObserver,
 ) -> Result<Replayed, ReplayError> {
     let session = (cfg.inputs.len() == 1 && cfg.inputs[0].join("frames.csv").is_file())
         .then(|| cfg.inputs[0].clone());
@@ -154,7 +205,7 @@ pub fn replay(
     };
     let by_key = readings.as_ref().map(|r| r.table.rows_by_key());
     let paths = match &session {
-        Some(s) => session_frames(s, warn)?,
+        Some(s) => session_frames(s, &mut |w: &str| obs.warn(w))?,
         None => cfg.inputs.clone(),
     };
     let targets = est.target_columns();
@@ -168,11 +219,13 @@ pub fn replay(
     let mut done = Replayed::default();
     let mut extra_values = Vec::with_capacity(extra.len());
     let t0 = std::time::Instant::now();
-    for item in FrameStream::open(&paths, cfg.fps)? {
+    let (stream, total) = open_frames(&paths, cfg.fps)?;
+    for (n, item) in stream.enumerate() {
+        through(obs, n, total)?;
         let frame = match item {
             Ok(f) => f,
             Err(e) => {
-                warn(&format!("{e}; skipped"));
+                obs.warn(&format!("{e}; skipped"));
                 continue;
             }
         };
@@ -199,6 +252,7 @@ pub fn replay(
         written.map_err(write_err)?;
         done.frames += 1;
     }
+    out.finish().map_err(write_err)?;
     done.seconds = t0.elapsed().as_secs_f64();
     done.session = session;
     Ok(done)
@@ -218,17 +272,17 @@ pub struct Extracted {
 }
 
 /// Writes the feature table of `frames` (image files, folders, videos at `fps`) to `output`
-/// in `format`: one row per frame ([`crate::schema`]). `warn` hears of every frame skipped
+/// in `format`: one row per frame ([`crate::schema`]). `obs` hears of the progress and of every frame skipped
 /// or with markers not found.
 pub fn extract(
     ex: &mut FeatureExtractor,
     frames: &[PathBuf],
     fps: f64,
     (output, format): (&Path, TableFormat),
-    warn: &mut dyn FnMut(&str),
+    obs: &mut dyn PassObserver,
 ) -> Result<Extracted, ReplayError> {
     let n_markers = ex.calibration().markers.len();
-    let stream = FrameStream::open(frames, fps)?;
+    let (stream, total) = open_frames(frames, fps)?;
     let write_err = |source| ReplayError::Write {
         path: output.to_path_buf(),
         source,
@@ -237,18 +291,19 @@ pub fn extract(
         .map_err(write_err)?;
     let mut done = Extracted::default();
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
-    for item in stream {
+    for (n, item) in stream.enumerate() {
+        through(obs, n, total)?;
         let frame = match item {
             Ok(fr) => fr,
             Err(e) => {
                 done.skipped += 1;
-                warn(&format!("{e}; skipped"));
+                obs.warn(&format!("{e}; skipped"));
                 continue;
             }
         };
         if let Err(e) = ex.extract_into(&frame.image, &mut f) {
             done.skipped += 1;
-            warn(&format!("frame {}: {e}; skipped", frame.id));
+            obs.warn(&format!("frame {}: {e}; skipped", frame.id));
             continue;
         }
         let missing = n_markers - f.found;
@@ -260,7 +315,7 @@ pub fn extract(
             } else {
                 ""
             };
-            warn(&format!(
+            obs.warn(&format!(
                 "frame {}: {missing} of {n_markers} markers not found ({}){what}",
                 frame.id,
                 missing_summary(&f)
@@ -271,23 +326,26 @@ pub fn extract(
             .map_err(write_err)?;
         done.written += 1;
     }
+    out.finish().map_err(write_err)?;
     Ok(done)
 }
 
 /// The features of `frames` (image files, folders, videos at `fps`) as a keyed table, one row
-/// per frame read; `warn` hears of frames skipped.
+/// per frame read; `obs` hears of frames skipped and of the progress.
 pub fn features_table(
     ex: &mut FeatureExtractor,
     frames: &[PathBuf],
     fps: f64,
-    warn: &mut dyn FnMut(&str),
+    obs: &mut dyn PassObserver,
 ) -> Result<KeyedTable, ReplayError> {
     let (mut keys, mut rows) = (Vec::new(), Vec::new());
-    for item in FrameStream::open(frames, fps)? {
+    let (stream, total) = open_frames(frames, fps)?;
+    for (n, item) in stream.enumerate() {
+        through(obs, n, total)?;
         let frame = match item {
             Ok(f) => f,
             Err(e) => {
-                warn(&format!("{e}; skipped"));
+                obs.warn(&format!("{e}; skipped"));
                 continue;
             }
         };
@@ -296,7 +354,7 @@ pub fn features_table(
                 keys.push(frame.id);
                 rows.push(f.values);
             }
-            Err(e) => warn(&format!("frame {}: {e}; skipped", frame.id)),
+            Err(e) => obs.warn(&format!("frame {}: {e}; skipped", frame.id)),
         }
     }
     Ok(KeyedTable {
@@ -358,6 +416,7 @@ pub fn predict_table(
         };
         written.map_err(write_err)?;
     }
+    out.finish().map_err(write_err)?;
     Ok(done)
 }
 
@@ -373,13 +432,13 @@ pub struct BlobsWritten {
 }
 
 /// Writes every blob `det` finds in `frames` to `output` in `format` (one row per blob,
-/// [`crate::schema::BLOB_COLUMNS`]); `warn` hears of frames skipped.
+/// [`crate::schema::BLOB_COLUMNS`]); `obs` hears of frames skipped and of the progress.
 pub fn blobs_table(
     det: &mut Detector,
     conv: MomentConvention,
     frames: &[PathBuf],
     (output, format): (&Path, TableFormat),
-    warn: &mut dyn FnMut(&str),
+    obs: &mut dyn PassObserver,
 ) -> Result<BlobsWritten, ReplayError> {
     let write_err = |source| ReplayError::Write {
         path: output.to_path_buf(),
@@ -389,11 +448,13 @@ pub fn blobs_table(
     let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
     let mut done = BlobsWritten::default();
     let mut blobs = Vec::new();
-    for item in FrameStream::open(frames, 25.0)? {
+    let (stream, total) = open_frames(frames, 25.0)?;
+    for (n, item) in stream.enumerate() {
+        through(obs, n, total)?;
         let f = match item {
             Ok(f) => f,
             Err(e) => {
-                warn(&format!("{e}; skipped"));
+                obs.warn(&format!("{e}; skipped"));
                 done.skipped += 1;
                 continue;
             }
@@ -407,6 +468,7 @@ pub fn blobs_table(
         done.frames += 1;
         done.blobs += blobs.len();
     }
+    out.finish().map_err(write_err)?;
     Ok(done)
 }
 

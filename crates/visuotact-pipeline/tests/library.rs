@@ -53,15 +53,19 @@ fn simulate_calibrate_extract_as_a_library() {
     let frames = [d.join("frames")];
     let mut warnings = Vec::new();
     let out = d.join("features.csv");
-    let done = extract(&mut ex, &frames, 25.0, (&out, TableFormat::Csv), &mut |w| {
-        warnings.push(w.to_string())
-    })
+    let done = extract(
+        &mut ex,
+        &frames,
+        25.0,
+        (&out, TableFormat::Csv),
+        &mut |w: &str| warnings.push(w.to_string()),
+    )
     .unwrap();
     assert_eq!((done.written, done.skipped), (12, 0));
     // The table written and the one kept in memory hold the same numbers.
     let written = KeyedTable::read(&out, &["flags"]).unwrap();
     let mut ex = FeatureExtractor::new(cal.clone(), cal.features).unwrap();
-    let kept = features_table(&mut ex, &frames, 25.0, &mut |_| {}).unwrap();
+    let kept = features_table(&mut ex, &frames, 25.0, &mut |_: &str| {}).unwrap();
     assert_eq!(written.keys, kept.keys);
     let n_lead = visuotact_pipeline::schema::LEAD_COLUMNS.len();
     for (w, k) in written.rows.iter().zip(&kept.rows) {

@@ -346,6 +346,13 @@ impl ZooConfig {
             ZooKind::TactipSmall => {
                 c.camera = ZooConfig::TACTIP_SMALL.camera;
                 c.draw_tactip(&mut u);
+                // A 128-line image is a larger one shrunk about 4×: its blur shrinks with it
+                // (0.3–0.5 px where the tip draws 0.3–1 px), and its pins are 2–4 px across
+                // about 6 px apart as in published sets (0.20–0.30 pitch in radius where the
+                // tip draws 0.25–0.36).
+                c.blur_px = 0.3 + (c.blur_px - 0.3) * (0.2 / 0.7);
+                let radius = c.marker_radius_mm / c.pitch_mm;
+                c.marker_radius_mm = c.pitch_mm * (0.2 + (radius - 0.25) * (0.1 / 0.11));
             }
             ZooKind::Gelsight => c.draw_gelsight(&mut u),
             ZooKind::Dots => c.draw_dots(&mut u),
@@ -903,6 +910,9 @@ const MARKER_VERTICES: usize = 40;
 pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>, ZooMarker)> {
     let cam = &cfg.camera;
     let aperture = cfg.aperture_px();
+    // A marker whose outline keeps this far inside the aperture's edge is drawn whole: 3 px on
+    // a 480-line image, scaled with the image (at least a pixel).
+    let rim_margin_px = (3.0 * cam.height as f64 / 480.0).clamp(1.0, 3.0);
     let rm = cfg.marker_radius_mm;
     let mut out: Vec<(Option<ConvexPolygon>, ZooMarker)> = cfg
         .rest_positions_mm()
@@ -937,7 +947,7 @@ pub fn markers(cfg: &ZooConfig, touch: &ZooTouch) -> Vec<(Option<ConvexPolygon>,
                     && aperture.is_none_or(|((cx, cy), r)| {
                         p.vertices()
                             .iter()
-                            .all(|&(x, y)| (x - cx).hypot(y - cy) < r - 3.0)
+                            .all(|&(x, y)| (x - cx).hypot(y - cy) < r - rim_margin_px)
                     })
             });
             (
@@ -1133,8 +1143,15 @@ mod tests {
                     .unwrap_or_else(|e| panic!("{} {seed}: {e}", kind.name()));
                 let ms = markers(&c, &ZooTouch::default());
                 let visible = ms.iter().filter(|(_, m)| m.visible).count();
+                // On a 128-line image the dome's foreshortened outer rings come within a pixel
+                // of each other and merge, as in published sets: most pins still stand apart.
+                let share = if kind == ZooKind::TactipSmall {
+                    0.75
+                } else {
+                    0.9
+                };
                 assert!(
-                    visible as f64 >= 0.9 * ms.len() as f64 && ms.len() >= 40,
+                    visible as f64 >= share * ms.len() as f64 && ms.len() >= 40,
                     "{} {seed}: {visible} of {} visible at rest",
                     kind.name(),
                     ms.len()

@@ -10,6 +10,7 @@ use visuotact_vision::detect::Detector;
 use visuotact_vision::options::Purpose;
 
 use crate::args::DetectorArgs;
+use crate::progress::{pass_error, FramePass, Reporter};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -27,6 +28,9 @@ pub(crate) struct Args {
     /// Table format: csv or jsonl.
     #[arg(long, default_value = "csv", value_parser = ["csv", "jsonl"])]
     format: String,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -46,8 +50,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         MomentConvention::Pixel
     };
     let format = TableFormat::from_name(&a.format).unwrap_or_default();
-    let warn = &mut |w: &str| eprintln!("warning: {w}");
-    let done = blobs_table(&mut det, conv, &a.frames, (&a.output, format), warn)?;
+    let reporter = Reporter::new(a.quiet);
+    reporter.stage("blobs");
+    let mut pass = FramePass::new(&reporter, usize::MAX);
+    let done = blobs_table(&mut det, conv, &a.frames, (&a.output, format), &mut pass)
+        .map_err(|e| pass_error(e, &a.output))?;
     eprintln!(
         "{} frames, {} blobs, {} frames skipped",
         done.frames, done.blobs, done.skipped

@@ -7,6 +7,8 @@ use visuotact_io::table::TableFormat;
 use visuotact_pipeline::replay::extract;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
+use crate::progress::{pass_error, FramePass, Reporter};
+
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
     /// Sensor file from `calibrate`.
@@ -35,6 +37,9 @@ pub(crate) struct Args {
     /// always comes last.
     #[arg(long, default_value_t = 20)]
     max_warnings: usize,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -56,16 +61,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let mut ex = FeatureExtractor::new(cal, features).map_err(anyhow::Error::msg)?;
     ex.set_temporal_prior(a.temporal);
     let format = TableFormat::from_name(&a.format).unwrap_or_default();
-    let mut warned = 0usize;
-    let done = extract(&mut ex, &a.frames, a.fps, (&a.output, format), &mut |w| {
-        if warned < a.max_warnings {
-            eprintln!("warning: {w}");
-        }
-        warned += 1;
-    })?;
-    if warned > a.max_warnings && a.max_warnings > 0 {
-        eprintln!("… {} more warnings not shown", warned - a.max_warnings);
-    }
+    let reporter = Reporter::new(a.quiet);
+    reporter.stage("extract");
+    let mut pass = FramePass::new(&reporter, a.max_warnings);
+    let done = extract(&mut ex, &a.frames, a.fps, (&a.output, format), &mut pass)
+        .map_err(|e| pass_error(e, &a.output))?;
+    pass.print_unshown();
     eprintln!(
         "extracted {} frames ({} features each), skipped {}; {} frames with missing markers ({} marker-frames)",
         done.written,

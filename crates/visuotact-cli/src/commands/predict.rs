@@ -10,6 +10,7 @@ use visuotact_pipeline::table::{InputSources, Named};
 use visuotact_vision::features::FeatureExtractor;
 
 use crate::args::read_readings;
+use crate::progress::{pass_error, FramePass, Reporter};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -31,6 +32,9 @@ pub(crate) struct Args {
     /// Output table (`-` for standard output).
     #[arg(short, long)]
     output: PathBuf,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -49,9 +53,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         (None, Some(sensor)) => {
             let set = visuotact_pipeline::feature_set_of(&model.feature_columns)?;
             let mut ex = FeatureExtractor::new(crate::load_sensor(sensor)?, set)?;
-            let warn = &mut |w: &str| eprintln!("warning: {w}");
+            let reporter = Reporter::new(a.quiet);
+            reporter.stage("features");
+            let mut pass = FramePass::new(&reporter, usize::MAX);
             (
-                features_table(&mut ex, &a.frames, 25.0, warn)?,
+                features_table(&mut ex, &a.frames, 25.0, &mut pass)
+                    .map_err(|e| pass_error(e, &a.output))?,
                 format!("frames read with {}", sensor.display()),
             )
         }

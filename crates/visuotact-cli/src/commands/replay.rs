@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 use visuotact_pipeline::replay::{replay, ReplayConfig, ReplayError};
 
+use crate::progress::{pass_error, FramePass, Reporter};
+
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
     /// Model from `train` or `sweep`.
@@ -35,6 +37,9 @@ pub(crate) struct Args {
     /// inputs).
     #[arg(long, value_name = "TABLE")]
     readings: Option<PathBuf>,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -54,12 +59,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         fps: a.fps,
         readings: a.readings.clone(),
     };
-    let done = replay(&mut est, &cfg, &mut |w| eprintln!("warning: {w}")).map_err(|e| match e {
+    let reporter = Reporter::new(a.quiet);
+    reporter.stage("replay");
+    let mut pass = FramePass::new(&reporter, usize::MAX);
+    let done = replay(&mut est, &cfg, &mut pass).map_err(|e| match e {
         ReplayError::NoReadings(names) => anyhow::anyhow!(
             "the model {} needs {names} besides the marker features: give --readings TABLE (keyed by frame)",
             a.model.display()
         ),
-        e => e.into(),
+        e => pass_error(e, &a.output),
     })?;
     eprintln!(
         "replayed {} frames in {:.2} s ({:.2} ms per frame, decoding included); {} without an estimate; wrote {}",
