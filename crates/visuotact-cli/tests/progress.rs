@@ -118,9 +118,10 @@ fn interrupt_after_start(args: &[&str], stage: &str) -> (Option<i32>, Vec<String
 }
 
 /// An extraction over 3 000 frames (one simulated frame linked under 3 000 names): it says
-/// it started, stops on Ctrl-C with exit 1, and leaves neither the table nor a temporary.
+/// it started, stops on Ctrl-C with exit 1, and leaves neither the table nor a temporary; so
+/// does the ranking of the same frames for a reference.
 #[test]
-fn ctrl_c_stops_an_extraction_and_writes_no_table() {
+fn ctrl_c_stops_an_extraction_or_a_ranking_and_writes_nothing() {
     let d = fresh_dir("interrupt-extract");
     let session = d.join("session");
     ok(&vt(&[
@@ -172,5 +173,23 @@ fn ctrl_c_stops_an_extraction_and_writes_no_table() {
         "{err}"
     );
     assert!(out.is_file() && !d.join("f.csv.part~").exists());
+    // Ranking the same frames for a reference (`--reference lightest:N`) stops likewise.
+    let ranked = d.join("ranked.json");
+    let args = [
+        "calibrate",
+        "--reference",
+        "lightest:5",
+        s(&frames),
+        "-o",
+        s(&ranked),
+    ];
+    let (code, rest) = interrupt_after_start(&args, "ranking the frames by deformation");
+    assert_eq!(code, Some(1), "{rest:?}");
+    assert!(
+        rest.iter()
+            .any(|l| l.contains("interrupted (Ctrl-C) after ranking")),
+        "{rest:?}"
+    );
+    assert!(!ranked.exists());
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -3,7 +3,10 @@
 //! ([`LightestFinder`], two passes over the frames; the sensor file says so).
 //!
 //! A calibration built from a partial set would be silently different, so any unreadable
-//! frame stops it.
+//! frame stops it. The ranking pass tells a progress callback how far it is after every frame;
+//! the callback may stop it ([`CalibrateError::Stopped`]).
+
+use std::ops::ControlFlow;
 
 use visuotact_image::Frame;
 use visuotact_io::frames::{FrameError, FrameStream};
@@ -51,6 +54,12 @@ pub enum CalibrateError {
     /// No frames.
     #[error("no frames could be read")]
     NoFrames,
+    /// The progress callback stopped the ranking.
+    #[error("stopped after ranking {frames} frames")]
+    Stopped {
+        /// Frames ranked when it stopped.
+        frames: usize,
+    },
     /// The frames do not open.
     #[error(transparent)]
     Frames(#[from] FrameError),
@@ -88,11 +97,14 @@ fn read_all(
     Ok(frames)
 }
 
-/// Calibrates on the frames `open` streams (called once, or twice for the lightest frames).
+/// Calibrates on the frames `open` streams (called once, or twice for the lightest frames);
+/// `progress` hears how many frames of how many (when known) the lightest frames' ranking has
+/// been through, and may stop it.
 pub fn calibrate_frames(
     open: impl Fn() -> Result<FrameStream, FrameError>,
     source: ReferenceSource,
     cfg: &CalibrationConfig,
+    progress: &mut dyn FnMut(usize, Option<usize>) -> ControlFlow<()>,
 ) -> Result<Calibrated, CalibrateError> {
     const READABLE: &str = "calibration frames must all be readable";
     let (frames, selection) = match source {
@@ -100,7 +112,12 @@ pub fn calibrate_frames(
         ReferenceSource::Lightest(n) => {
             // Pass 1 keeps only each frame's blobs; pass 2 reads the chosen frames again.
             let mut finder = LightestFinder::new(cfg)?;
-            for f in open()? {
+            let stream = open()?;
+            let total = stream.expected_frames();
+            for (n, f) in stream.enumerate() {
+                if progress(n, total).is_break() {
+                    return Err(CalibrateError::Stopped { frames: n });
+                }
                 let f = f.map_err(|source| CalibrateError::Unreadable {
                     why: "every frame must be readable to rank them",
                     source,

@@ -40,7 +40,13 @@ fn session(dir: &Path, touches: usize) -> SensorCalibration {
     assert_eq!(done.frames, touches);
     let refs = [dir.join("reference")];
     let open = || FrameStream::open(&refs, 25.0);
-    let c = calibrate_frames(open, ReferenceSource::Still, &Preset::Iats.config()).unwrap();
+    let c = calibrate_frames(
+        open,
+        ReferenceSource::Still,
+        &Preset::Iats.config(),
+        &mut |_, _| std::ops::ControlFlow::Continue(()),
+    )
+    .unwrap();
     assert_eq!((c.frames, c.calibration.markers.len()), (3, 117));
     c.calibration
 }

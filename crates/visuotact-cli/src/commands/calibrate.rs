@@ -4,12 +4,16 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_io::frames::FrameStream;
-use visuotact_pipeline::calibrate::{calibrate_frames, Calibrated, ReferenceSource};
+use visuotact_pipeline::calibrate::{
+    calibrate_frames, CalibrateError, Calibrated, ReferenceSource,
+};
 use visuotact_vision::calibration::CalibrationConfig;
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::Purpose;
 use visuotact_vision::track::TrackConfig;
+
+use crate::progress::Reporter;
 
 use crate::args::DetectorArgs;
 
@@ -40,6 +44,10 @@ pub(crate) struct Args {
     /// Default feature set for `extract`: a list of x, y, area, ecc (default: the preset's).
     #[arg(long)]
     features: Option<String>,
+    /// No progress lines while ranking a data set's frames (by default one every 2 s on
+    /// stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -78,7 +86,26 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if let Some(size) = &size {
         eprintln!("{}", size.in_words(&cfg.detector));
     }
-    let mut done = calibrate_frames(open, source, &cfg)?;
+    // Only the ranking of a data set's frames is long enough to report (and to catch Ctrl-C).
+    let reporter = matches!(source, ReferenceSource::Lightest(_)).then(|| {
+        let r = Reporter::new(a.quiet);
+        r.stage("ranking the frames by deformation");
+        r
+    });
+    let mut progress = |done, total| {
+        reporter
+            .as_ref()
+            .map_or(std::ops::ControlFlow::Continue(()), |r| {
+                r.items(done, total, "frames")
+            })
+    };
+    let mut done = calibrate_frames(open, source, &cfg, &mut progress).map_err(|e| match e {
+        CalibrateError::Stopped { frames } => anyhow::anyhow!(
+            "interrupted (Ctrl-C) after ranking {frames} frames: {} not written",
+            a.output.display()
+        ),
+        e => e.into(),
+    })?;
     done.calibration.marker_size = size;
     write_sensor(a, &done.calibration)?;
     print_calibrated(&done);
