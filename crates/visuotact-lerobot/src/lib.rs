@@ -43,6 +43,9 @@ pub enum LeRobotError {
     /// The output exists already.
     #[error("{}: already exists; choose a new folder", .0.display())]
     Exists(PathBuf),
+    /// The progress callback stopped the export.
+    #[error("stopped after {0} frames: nothing written")]
+    Stopped(usize),
     /// The sessions or settings do not make a data set (the message says why).
     #[error("{0}")]
     Invalid(String),

@@ -1,6 +1,7 @@
 //! The export itself: sessions read, checked against each other, and written as the data
 //! set's files (see the crate's documentation for the layout).
 
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
@@ -228,7 +229,7 @@ fn encode_video(
     dir: &Path,
     cfg: &crate::VideoConfig,
     fps: u32,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<((u32, u32), Vec<Stats>), LeRobotError> {
     let total: usize = eps.iter().map(|e| e.frames.len()).sum();
     let path = dir.join(format!("videos/{IMAGE_KEY}/{FILE_000}.mp4"));
@@ -266,7 +267,9 @@ fn encode_video(
             e.push(img.as_raw())?;
             stats.push_rgb(img.as_raw());
             done += 1;
-            progress(done, total);
+            if progress(done, total).is_break() {
+                return Err(LeRobotError::Stopped(done));
+            }
         }
         per_episode.push(stats);
     }
@@ -459,12 +462,14 @@ fn write_meta(dir: &Path, w: &Written<'_>, cfg: &LeRobotConfig) -> Result<(), Le
 }
 
 /// Exports `sessions` (one episode each, in the order given) into a new LeRobot v3.0 data set
-/// at `out`; `progress(done, total)` hears of each frame encoded.
+/// at `out`; `progress(done, total)` hears of each frame encoded and may stop the export
+/// ([`LeRobotError::Stopped`]). The data set is built in `OUT.part~` and takes its name only
+/// when whole: a failed or stopped export leaves nothing behind.
 pub fn export_lerobot(
     sessions: &[PathBuf],
     out: &Path,
     cfg: &LeRobotConfig,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<LeRobotSummary, LeRobotError> {
     if sessions.is_empty() {
         return Err(LeRobotError::Invalid("no session to export".into()));
@@ -482,6 +487,14 @@ pub fn export_lerobot(
     let fps = fps_of(cfg, &eps)?;
     let mut notes = Vec::new();
     let features = features_of(&eps, fps, &mut notes)?;
+    let final_out = out;
+    let mut part = out.file_name().unwrap_or_default().to_os_string();
+    part.push(".part~");
+    let out = &out.with_file_name(part);
+    // A killed export's leftovers: exports are made again from the sessions, nothing is lost.
+    if out.exists() {
+        std::fs::remove_dir_all(out).map_err(|e| LeRobotError::Io(out.into(), e))?;
+    }
     std::fs::create_dir_all(out).map_err(|e| LeRobotError::Io(out.into(), e))?;
     let result = (|| {
         let video = match &cfg.video {
@@ -504,7 +517,8 @@ pub fn export_lerobot(
             .iter()
             .map(|f| ranges.iter().map(|r| f.stats(r.clone())).collect())
             .collect();
-        write_meta(out, &w, cfg)
+        write_meta(out, &w, cfg)?;
+        std::fs::rename(out, final_out).map_err(|e| LeRobotError::Io(final_out.into(), e))
     })();
     if let Err(e) = result {
         // Nothing half-written stays behind to be mistaken for a data set.
@@ -516,7 +530,7 @@ pub fn export_lerobot(
         names.push(IMAGE_KEY.into());
     }
     Ok(LeRobotSummary {
-        path: out.into(),
+        path: final_out.into(),
         episodes: eps.len(),
         frames: eps.iter().map(|e| e.frames.len()).sum(),
         fps,

@@ -114,15 +114,21 @@ pub fn calibrate_frames(
             let mut finder = LightestFinder::new(cfg)?;
             let stream = open()?;
             let total = stream.expected_frames();
+            let mut seen = 0;
             for (n, f) in stream.enumerate() {
                 if progress(n, total).is_break() {
                     return Err(CalibrateError::Stopped { frames: n });
                 }
+                seen = n + 1;
                 let f = f.map_err(|source| CalibrateError::Unreadable {
                     why: "every frame must be readable to rank them",
                     source,
                 })?;
                 finder.add(&f.id, &f.image)?;
+            }
+            // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder).
+            if progress(seen, total).is_break() {
+                return Err(CalibrateError::Stopped { frames: seen });
             }
             let sel = finder.choose(n)?;
             let frames = read_all(open()?, READABLE, |f| sel.chosen.contains(&f.id))?;

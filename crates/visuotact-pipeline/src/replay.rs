@@ -220,7 +220,9 @@ pub fn replay(
     let mut extra_values = Vec::with_capacity(extra.len());
     let t0 = std::time::Instant::now();
     let (stream, total) = open_frames(&paths, cfg.fps)?;
+    let mut seen = 0;
     for (n, item) in stream.enumerate() {
+        seen = n + 1;
         through(obs, n, total)?;
         let frame = match item {
             Ok(f) => f,
@@ -252,6 +254,8 @@ pub fn replay(
         written.map_err(write_err)?;
         done.frames += 1;
     }
+    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
+    through(obs, seen, total)?;
     out.finish().map_err(write_err)?;
     done.seconds = t0.elapsed().as_secs_f64();
     done.session = session;
@@ -291,7 +295,9 @@ pub fn extract(
         .map_err(write_err)?;
     let mut done = Extracted::default();
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
+    let mut seen = 0;
     for (n, item) in stream.enumerate() {
+        seen = n + 1;
         through(obs, n, total)?;
         let frame = match item {
             Ok(fr) => fr,
@@ -326,6 +332,8 @@ pub fn extract(
             .map_err(write_err)?;
         done.written += 1;
     }
+    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
+    through(obs, seen, total)?;
     out.finish().map_err(write_err)?;
     Ok(done)
 }
@@ -340,7 +348,9 @@ pub fn features_table(
 ) -> Result<KeyedTable, ReplayError> {
     let (mut keys, mut rows) = (Vec::new(), Vec::new());
     let (stream, total) = open_frames(frames, fps)?;
+    let mut seen = 0;
     for (n, item) in stream.enumerate() {
+        seen = n + 1;
         through(obs, n, total)?;
         let frame = match item {
             Ok(f) => f,
@@ -357,6 +367,8 @@ pub fn features_table(
             Err(e) => obs.warn(&format!("frame {}: {e}; skipped", frame.id)),
         }
     }
+    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
+    through(obs, seen, total)?;
     Ok(KeyedTable {
         columns: ex.column_names(),
         text: vec![Vec::new(); rows.len()],
@@ -449,7 +461,9 @@ pub fn blobs_table(
     let mut done = BlobsWritten::default();
     let mut blobs = Vec::new();
     let (stream, total) = open_frames(frames, 25.0)?;
+    let mut seen = 0;
     for (n, item) in stream.enumerate() {
+        seen = n + 1;
         through(obs, n, total)?;
         let f = match item {
             Ok(f) => f,
@@ -468,6 +482,8 @@ pub fn blobs_table(
         done.frames += 1;
         done.blobs += blobs.len();
     }
+    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
+    through(obs, seen, total)?;
     out.finish().map_err(write_err)?;
     Ok(done)
 }

@@ -8,6 +8,7 @@
     reason = "pyo3's macros expand to the C-API glue; this crate writes no unsafe code itself"
 )]
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -698,15 +699,22 @@ fn simulate<'py>(
 
 /// A `progress(done, total)` callback for an export run without the GIL; an exception it
 /// raises is printed, not propagated (the export goes on).
-fn progress_of(cb: Option<Py<PyAny>>) -> impl FnMut(usize, usize) + Send {
+fn progress_of(cb: Option<Py<PyAny>>) -> impl FnMut(usize, usize) -> ControlFlow<()> + Send {
     move |done, total| {
-        if let Some(cb) = &cb {
-            Python::attach(|py| {
+        Python::attach(|py| {
+            // Ctrl-C (KeyboardInterrupt) or a callback that raises stops the export, which
+            // then leaves nothing behind.
+            if py.check_signals().is_err() {
+                return ControlFlow::Break(());
+            }
+            if let Some(cb) = &cb {
                 if let Err(e) = cb.call1(py, (done, total)) {
                     e.print(py);
+                    return ControlFlow::Break(());
                 }
-            });
-        }
+            }
+            ControlFlow::Continue(())
+        })
     }
 }
 

@@ -236,3 +236,26 @@ def test_exports_from_python(dataset, tmp_path):
     assert m["messages"] > m["frames"]
     with pytest.raises(vt.VisuotactError, match="already exists"):
         vt.export_lerobot(sessions, tmp_path / "py")
+
+
+def test_a_stopped_export_leaves_nothing_behind(dataset, tmp_path):
+    """A progress callback that raises (as Ctrl-C would) stops either export after that frame;
+    neither the output nor its temporary name is left, and the export then runs whole."""
+    import visuotact as vt
+
+    _, sessions = dataset
+
+    def stop_at_3(done, total):
+        if done == 3:
+            raise KeyboardInterrupt
+
+    for name, export in [("set", lambda o, cb: vt.export_lerobot(sessions, o, progress=cb)),
+                         ("s.mcap", lambda o, cb: vt.export_mcap(sessions[0], o, progress=cb)),
+                         ("bag", lambda o, cb: vt.export_mcap(sessions[0], o, progress=cb))]:
+        out = tmp_path / name
+        with pytest.raises(vt.VisuotactError, match="stopped after 3 frames: nothing written"):
+            export(out, stop_at_3)
+        assert sorted(p.name for p in tmp_path.iterdir()) == [], name
+        assert export(out, None)["path"] == str(out)
+        assert out.exists() and not (tmp_path / f"{name}.part~").exists()
+        shutil.rmtree(out) if out.is_dir() else out.unlink()

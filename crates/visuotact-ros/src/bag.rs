@@ -6,6 +6,11 @@
 //! the `metadata.yaml` that `ros2 bag play`/`info` and the `rosbags` library need. The file is
 //! chunked and a chunk is closed and flushed every [`BagConfig::flush_every_s`] of stamps, so a
 //! killed run leaves a bag readable up to its last chunk (`mcap recover` rebuilds its index).
+//!
+//! A bag is written under a temporary name beside its own (`OUT.mcap.part~`, `NAME.part~/`)
+//! and takes its name at [`Bag::finish`], so a bag under its final name is always whole. A
+//! killed run's bag stays under the temporary name (what was recorded is not lost) and a new
+//! bag of that name is refused until it is moved; [`Bag::discard`] removes an unfinished one.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -37,7 +42,12 @@ struct Topic {
 /// An open bag.
 pub struct Bag {
     writer: mcap::Writer<BufWriter<File>>,
+    /// The MCAP file being written (inside [`Bag::part`] for a folder).
     file: PathBuf,
+    /// The bag's temporary name (a file or a folder) until it is finished.
+    part: PathBuf,
+    /// The bag's name once finished.
+    target: PathBuf,
     /// The bag folder (rosbag2 layout) when not a lone `.mcap`.
     folder: Option<PathBuf>,
     topics: BTreeMap<String, Topic>,
@@ -51,6 +61,13 @@ pub struct Bag {
     cdr: Vec<u8>,
 }
 
+/// The temporary name a bag at `path` is written under.
+fn part_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".part~");
+    path.with_file_name(name)
+}
+
 impl Bag {
     /// Creates the bag at `path` (see the module's documentation); refuses to replace one.
     pub fn create(path: &Path, cfg: &BagConfig) -> Result<Self, RosError> {
@@ -58,17 +75,18 @@ impl Bag {
         if path.exists() {
             return Err(RosError::Exists(path.to_path_buf()));
         }
+        let part = part_path(path);
+        if part.exists() {
+            return Err(RosError::Unfinished(part));
+        }
         let (file, folder) = if path.extension().is_some_and(|e| e == "mcap") {
-            (path.to_path_buf(), None)
+            (part.clone(), None)
         } else {
-            std::fs::create_dir_all(path).map_err(|e| io(path, e))?;
+            std::fs::create_dir_all(&part).map_err(|e| io(&part, e))?;
             let name = path
                 .file_name()
                 .map_or_else(|| "bag".into(), |n| n.to_string_lossy().into_owned());
-            (
-                path.join(format!("{name}_0.mcap")),
-                Some(path.to_path_buf()),
-            )
+            (part.join(format!("{name}_0.mcap")), Some(part.clone()))
         };
         let out = File::create(&file).map_err(|e| io(&file, e))?;
         let writer = mcap::WriteOptions::new()
@@ -80,6 +98,8 @@ impl Bag {
         Ok(Self {
             writer,
             file,
+            part,
+            target: path.to_path_buf(),
             folder,
             topics: BTreeMap::new(),
             first_ns: None,
@@ -91,7 +111,7 @@ impl Bag {
         })
     }
 
-    /// The MCAP file being written.
+    /// The MCAP file being written (under the bag's temporary name until it is finished).
     pub fn file(&self) -> &Path {
         &self.file
     }
@@ -173,14 +193,29 @@ impl Bag {
     /// path written.
     pub fn finish(mut self) -> Result<PathBuf, RosError> {
         self.writer.finish().map_err(|e| self.mcap_err(e))?;
-        let Some(folder) = self.folder.clone() else {
-            return Ok(self.file);
+        if let Some(folder) = self.folder.clone() {
+            let yaml = self.metadata_yaml();
+            let path = folder.join("metadata.yaml");
+            visuotact_io::session::write_atomically(&path, &yaml)
+                .map_err(|e| RosError::Io(path.clone(), e))?;
+        }
+        if self.target.exists() {
+            return Err(RosError::Exists(self.target.clone()));
+        }
+        std::fs::rename(&self.part, &self.target)
+            .map_err(|e| RosError::Io(self.target.clone(), e))?;
+        Ok(self.target.clone())
+    }
+
+    /// Removes the unfinished bag (a failed or stopped export leaves nothing behind).
+    pub fn discard(self) {
+        let part = self.part.clone();
+        drop(self);
+        let _ = if part.is_dir() {
+            std::fs::remove_dir_all(&part)
+        } else {
+            std::fs::remove_file(&part)
         };
-        let yaml = self.metadata_yaml();
-        let path = folder.join("metadata.yaml");
-        visuotact_io::session::write_atomically(&path, &yaml)
-            .map_err(|e| RosError::Io(path.clone(), e))?;
-        Ok(folder)
     }
 
     /// rosbag2's `metadata.yaml` (version 5, the Humble layout later versions still read).

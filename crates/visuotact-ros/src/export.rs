@@ -6,6 +6,7 @@
 //! session's tables say.
 
 use std::collections::HashMap;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
@@ -253,12 +254,13 @@ fn write_force(
 }
 
 /// Exports `session` into a bag at `out` ([`Bag::create`]); `progress(done, total)` hears of
-/// each frame.
+/// each frame and may stop the export ([`RosError::Stopped`]). A failed or stopped export
+/// leaves nothing behind.
 pub fn export_mcap(
     session: &Path,
     out: &Path,
     cfg: &ExportConfig,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExportSummary, RosError> {
     cfg.ros.validate()?;
     let start_unix_s = cfg.start_unix_s.unwrap_or_else(|| {
@@ -274,13 +276,35 @@ pub fn export_mcap(
     let mut notes = Vec::new();
     let t = read_tables(session, cfg, &mut notes)?;
     let mut bag = Bag::create(out, &cfg.bag)?;
+    if let Err(e) = write_session(&mut bag, session, cfg, (&t, start_unix_s), progress) {
+        bag.discard();
+        return Err(e);
+    }
+    let messages = bag.messages();
+    let path = bag.finish()?;
+    Ok(ExportSummary {
+        path,
+        frames: t.frames.len(),
+        messages,
+        notes,
+    })
+}
+
+/// Writes every frame of `session` (its tables `t`) and the force samples into `bag`.
+fn write_session(
+    bag: &mut Bag,
+    session: &Path,
+    cfg: &ExportConfig,
+    (t, start_unix_s): (&SessionTables, f64),
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
+) -> Result<(), RosError> {
     let (mut next_force, mut markers) = (0, Vec::new());
     let total = t.frames.len();
     for (k, f) in t.frames.iter().enumerate() {
         let (frame, time_s) = (&f.name, f.timestamp_s);
         if let Some(force) = &t.force {
             write_force(
-                &mut bag,
+                bag,
                 (&cfg.ros, start_unix_s),
                 force,
                 &mut next_force,
@@ -292,7 +316,7 @@ pub fn export_mcap(
             .as_ref()
             .map(|e| targets_of(e, frame))
             .unwrap_or_default();
-        let health = markers_of(&t, frame, &mut markers);
+        let health = markers_of(t, frame, &mut markers);
         let png_path = session.join("frames").join(frame);
         let png = if cfg.ros.images && png_path.is_file() {
             Some(std::fs::read(&png_path).map_err(|e| RosError::Io(png_path.clone(), e))?)
@@ -307,24 +331,13 @@ pub fn export_mcap(
             png,
             ..FrameMessages::default()
         };
-        write_frame(&mut bag, &cfg.ros, msgs)?;
-        progress(k + 1, total);
+        write_frame(bag, &cfg.ros, msgs)?;
+        if progress(k + 1, total).is_break() {
+            return Err(RosError::Stopped(k + 1));
+        }
     }
     if let Some(force) = &t.force {
-        write_force(
-            &mut bag,
-            (&cfg.ros, start_unix_s),
-            force,
-            &mut next_force,
-            None,
-        )?;
+        write_force(bag, (&cfg.ros, start_unix_s), force, &mut next_force, None)?;
     }
-    let messages = bag.messages();
-    let path = bag.finish()?;
-    Ok(ExportSummary {
-        path,
-        frames: total,
-        messages,
-        notes,
-    })
+    Ok(())
 }

@@ -37,6 +37,12 @@ pub enum RosError {
     /// The output exists already.
     #[error("{}: already exists; choose a new name", .0.display())]
     Exists(PathBuf),
+    /// An unfinished bag of an earlier run holds the temporary name.
+    #[error("{}: an unfinished bag of an earlier run (readable up to its last chunk; `mcap recover` rebuilds it): move or remove it first", .0.display())]
+    Unfinished(PathBuf),
+    /// The progress callback stopped the export.
+    #[error("stopped after {0} frames: nothing written")]
+    Stopped(usize),
     /// A setting is out of range.
     #[error("{0}")]
     Config(String),

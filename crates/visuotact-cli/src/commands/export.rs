@@ -2,7 +2,9 @@
 //! ([`visuotact_ros::export_mcap`]), `lerobot` a LeRobot v3.0 data set
 //! ([`visuotact_lerobot::export_lerobot`]).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+use crate::progress::Reporter;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -44,6 +46,9 @@ struct Lerobot {
     /// ffmpeg encoder: libsvtav1 (AV1, as LeRobot) or libx264 where AV1 is missing.
     #[arg(long, default_value = "libsvtav1")]
     encoder: String,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -66,6 +71,9 @@ struct Mcap {
     /// Leave the frames out (no CompressedImage topic).
     #[arg(long)]
     no_images: bool,
+    /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -75,13 +83,19 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
 }
 
-fn bar() -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames {elapsed}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    bar
+/// A reporter for an export's frames, its first line printed.
+fn reporter(quiet: bool) -> Reporter {
+    let r = Reporter::new(quiet);
+    r.stage("export");
+    r
+}
+
+/// The error of an export stopped by Ctrl-C.
+fn interrupted(frames: usize, out: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "interrupted (Ctrl-C) after {frames} frames: {} not written",
+        out.display()
+    )
 }
 
 fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
@@ -94,12 +108,14 @@ fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
             ..Default::default()
         }),
     };
-    let bar = bar();
+    let r = reporter(l.quiet);
     let s = visuotact_lerobot::export_lerobot(&l.sessions, &l.output, &cfg, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        r.items(done, Some(total), "frames")
+    })
+    .map_err(|e| match e {
+        visuotact_lerobot::LeRobotError::Stopped(n) => interrupted(n, &l.output),
+        e => e.into(),
     })?;
-    bar.finish_and_clear();
     for n in &s.notes {
         eprintln!("note: {n}");
     }
@@ -121,12 +137,14 @@ fn mcap(m: &Mcap) -> anyhow::Result<()> {
         start_unix_s: m.start_unix_s,
         ..Default::default()
     };
-    let bar = bar();
+    let r = reporter(m.quiet);
     let s = visuotact_ros::export_mcap(&m.session, &m.output, &cfg, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        r.items(done, Some(total), "frames")
+    })
+    .map_err(|e| match e {
+        visuotact_ros::RosError::Stopped(n) => interrupted(n, &m.output),
+        e => e.into(),
     })?;
-    bar.finish_and_clear();
     for n in &s.notes {
         eprintln!("note: {}: {n}", m.session.display());
     }
