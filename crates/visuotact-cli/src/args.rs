@@ -444,12 +444,21 @@ fn column_names(s: &str, what: &str) -> anyhow::Result<Vec<String>> {
     Ok(names)
 }
 
+/// The file or folder a source option names (`video:FILE`, `frames:DIR`, `csv:FILE`), for the
+/// output rule ([`visuotact_io::guard::refuse_outputs_over_inputs`]).
+pub(crate) fn source_path(source: &str) -> Option<&std::path::Path> {
+    ["video:", "frames:", "csv:"]
+        .iter()
+        .find_map(|p| source.strip_prefix(p))
+        .map(std::path::Path::new)
+}
+
 /// A bag written alongside (`run --mcap`, `record --mcap`), with its topics.
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct BagArgs {
     /// Also write an MCAP bag (ROS 2 profile; FILE.mcap or a rosbag2 folder) as frames are
     /// estimated or recorded: estimates, force sensor, markers, diagnostics; closed cleanly at
-    /// the end, readable to its last chunk if killed.
+    /// the end (a killed run's bag stays readable to its last chunk as FILE.mcap.part~).
     #[arg(long, value_name = "FILE.mcap")]
     pub(crate) mcap: Option<PathBuf>,
     /// With --mcap: the frames too (PNG CompressedImage; costs a PNG encoding per frame).

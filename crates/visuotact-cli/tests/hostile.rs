@@ -170,6 +170,90 @@ fn outputs_never_overwrite_inputs() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// The same rule for files inside an input folder and for secondary outputs (`--report`,
+/// `--map`, `--plot`, `--mcap`, `--summary`): nothing is written, the inputs stay as they were.
+#[test]
+fn outputs_never_land_in_input_folders_nor_on_secondary_inputs() {
+    let d = fresh_dir("hostile-inside");
+    let frames = d.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    let frame = frames.join("frame_000000.png");
+    std::fs::write(&frame, b"not really a png").unwrap();
+    let (p, l) = (d.join("p.csv"), d.join("l.csv"));
+    std::fs::write(&p, "frame,x_mm\na,1\n").unwrap();
+    std::fs::write(&l, "frame,x_mm\na,1\n").unwrap();
+    let sensor = d.join("s.json");
+    std::fs::write(&sensor, "{}").unwrap();
+    let model = d.join("m.json");
+    std::fs::write(&model, "{}").unwrap();
+    let source = format!("frames:{}", frames.display());
+    let eval = |opt: &'static str| -> Vec<&str> {
+        vec![
+            "eval",
+            "--predictions",
+            s(&p),
+            "--labels",
+            s(&l),
+            opt,
+            s(&l),
+        ]
+    };
+    let cases: Vec<Vec<&str>> = vec![
+        vec![
+            "extract",
+            "--sensor",
+            s(&sensor),
+            s(&frames),
+            "-o",
+            s(&frame),
+        ],
+        vec!["calibrate", s(&frames), "-o", s(&frame)],
+        vec!["blobs", s(&frames), "-o", s(&frame)],
+        vec!["replay", "--model", s(&model), s(&frames), "-o", s(&frame)],
+        vec![
+            "predict",
+            "--model",
+            s(&model),
+            "--sensor",
+            s(&sensor),
+            s(&frames),
+            "-o",
+            s(&frame),
+        ],
+        eval("--report"),
+        eval("--map"),
+        eval("--plot"),
+        vec![
+            "run",
+            "--model",
+            s(&model),
+            "--source",
+            &source,
+            "--summary",
+            s(&frame),
+        ],
+        vec![
+            "run",
+            "--model",
+            s(&model),
+            "--source",
+            &source,
+            "--sensor",
+            s(&sensor),
+            "--mcap",
+            s(&sensor),
+        ],
+    ];
+    for args in cases {
+        let err = fails(&vt(&args));
+        assert!(err.contains("choose another output"), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read(&frame).unwrap(), b"not really a png");
+    assert_eq!(std::fs::read_to_string(&l).unwrap(), "frame,x_mm\na,1\n");
+    assert_eq!(std::fs::read_to_string(&sensor).unwrap(), "{}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// A feature table (two marker columns) and labels (`x_mm` varying, `fy_n` constant) of 30
 /// frames in `d`; returns their paths and the labels' text.
 fn literal_tables(d: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf, String) {

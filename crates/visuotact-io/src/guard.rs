@@ -47,32 +47,65 @@ fn resolved(p: &Path) -> PathBuf {
     }
 }
 
-/// Refuses to write `output` over one of `inputs` (the same file or folder once paths are
-/// resolved) or over a session's own files when an input is a session folder.
+/// Refuses to write `output` over one of `inputs`: see [`refuse_outputs_over_inputs`].
 pub fn refuse_output_over_input(output: &Path, inputs: &[&Path]) -> Result<(), OutputError> {
-    let out = resolved(output);
-    let refuse = |why: String| {
-        Err(OutputError::OverInput {
-            output: output.to_path_buf(),
-            why,
-        })
-    };
-    if let Some(i) = inputs.iter().find(|i| resolved(i) == out) {
-        return refuse(format!("the output is the input {}", i.display()));
-    }
-    let session_file = |i: &&&Path| {
-        let dir = resolved(i);
-        dir.join("frames.csv").is_file()
-            && out.parent() == Some(dir.as_path())
-            && SESSION_FILES
-                .iter()
-                .any(|f| out.file_name() == Some(f.as_ref()))
-    };
-    if let Some(i) = inputs.iter().find(session_file) {
-        return refuse(format!(
-            "would overwrite the session {}'s own file",
-            i.display()
-        ));
+    refuse_outputs_over_inputs(&[output], inputs)
+}
+
+/// The one rule for every command's outputs, primary and secondary, checked before anything
+/// is written (paths resolved through `..` and symbolic links, `-` for standard output left
+/// out). An output is refused when it
+/// - is one of `inputs`, or lies inside an input folder (a frame folder, a bag folder) — except
+///   inside a session folder, where only the session's own files ([`SESSION_FILES`]) and its
+///   `frames/` are refused, so that results can be kept beside the session;
+/// - is another output, or lies inside one.
+pub fn refuse_outputs_over_inputs(outputs: &[&Path], inputs: &[&Path]) -> Result<(), OutputError> {
+    let outputs: Vec<&Path> = outputs
+        .iter()
+        .copied()
+        .filter(|o| *o != Path::new("-"))
+        .collect();
+    let resolved_inputs: Vec<(PathBuf, &Path)> = inputs.iter().map(|i| (resolved(i), *i)).collect();
+    let resolved_outputs: Vec<PathBuf> = outputs.iter().map(|o| resolved(o)).collect();
+    for (k, (output, out)) in outputs.iter().zip(&resolved_outputs).enumerate() {
+        let refuse = |why: String| {
+            Err(OutputError::OverInput {
+                output: output.to_path_buf(),
+                why,
+            })
+        };
+        for (input, named) in &resolved_inputs {
+            if out == input {
+                return refuse(format!("the output is the input {}", named.display()));
+            }
+            if !out.starts_with(input) || !input.is_dir() {
+                continue;
+            }
+            let inside = out.strip_prefix(input).unwrap_or(out);
+            let session = input.join("frames.csv").is_file();
+            let own = inside.starts_with("frames")
+                || SESSION_FILES.iter().any(|f| inside == Path::new(f));
+            if session && own {
+                return refuse(format!(
+                    "would overwrite the session {}'s own file",
+                    named.display()
+                ));
+            }
+            if !session {
+                return refuse(format!(
+                    "it lies inside the input folder {}",
+                    named.display()
+                ));
+            }
+        }
+        for (other, o) in outputs.iter().zip(&resolved_outputs).take(k) {
+            if out == o || out.starts_with(o) || o.starts_with(out) {
+                return refuse(format!(
+                    "it is, or shares a folder with, the output {}",
+                    other.display()
+                ));
+            }
+        }
     }
     Ok(())
 }
@@ -106,4 +139,52 @@ pub fn available_memory_bytes() -> Option<u64> {
         .parse()
         .ok()?;
     Some(kib * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("visuotact-guard-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn outputs_over_inputs_inside_input_folders_or_over_each_other_are_refused() {
+        let d = dir("rule");
+        let frames = d.join("frames");
+        std::fs::create_dir_all(&frames).unwrap();
+        std::fs::write(frames.join("f0.png"), b"x").unwrap();
+        let labels = d.join("l.csv");
+        std::fs::write(&labels, b"frame\n").unwrap();
+        let refused =
+            |outs: &[&Path], ins: &[&Path]| refuse_outputs_over_inputs(outs, ins).is_err();
+        // A frame in an input folder, by name or through `..`.
+        assert!(refused(&[&frames.join("f0.png")], &[&frames]));
+        assert!(refused(&[&frames.join("../frames/new.csv")], &[&frames]));
+        // A secondary output over an input file, or over the primary output.
+        let out = d.join("p.csv");
+        assert!(refused(&[&out, &labels], &[&frames, &labels]));
+        assert!(refused(&[&out, &out], &[&labels]));
+        // A symbolic link to the input.
+        let link = d.join("link.csv");
+        std::os::unix::fs::symlink(&labels, &link).unwrap();
+        assert!(refused(&[&link], &[&labels]));
+        // Beside the inputs, and standard output, are fine.
+        assert!(!refused(
+            &[&out, &d.join("r.html"), Path::new("-")],
+            &[&frames, &labels]
+        ));
+        // In a session folder: its own files no, a new file yes.
+        let session = d.join("session");
+        std::fs::create_dir_all(session.join("frames")).unwrap();
+        std::fs::write(session.join("frames.csv"), b"frame\n").unwrap();
+        assert!(refused(&[&session.join("labels.csv")], &[&session]));
+        assert!(refused(&[&session.join("frames/x.png")], &[&session]));
+        assert!(!refused(&[&session.join("est.csv")], &[&session]));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
 }

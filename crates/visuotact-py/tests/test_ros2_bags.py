@@ -136,15 +136,16 @@ def test_live_run_into_a_bag(session):
 
 def test_killed_run_leaves_a_bag_readable_to_its_last_chunk(session):
     """SIGKILL mid-run: no summary, an unfinished chunk at the end, but every chunk closed
-    before it (one per second of stamps) streams back whole."""
+    before it (one per second of stamps) streams back whole — from the bag's temporary name
+    (`killed.mcap.part~`): an unfinished bag never takes the name of a whole one."""
     import time
     from mcap.records import Channel, Message
     from mcap.stream_reader import StreamReader
 
     d, _ = session
-    bag = d / "killed.mcap"
+    named, bag = d / "killed.mcap", d / "killed.mcap.part~"
     p = subprocess.Popen([BIN, "run", "--source", "sim:cone", "--sensor", d / "sensor.json",
-                          "--quiet", "--mcap", bag])
+                          "--quiet", "--mcap", named])
     # Killed once the first chunk is on disk (a debug build takes a while to start).
     deadline = time.time() + 180
     while time.time() < deadline and (not bag.exists() or bag.stat().st_size == 0):
@@ -164,6 +165,7 @@ def test_killed_run_leaves_a_bag_readable_to_its_last_chunk(session):
         pass
     assert messages > 0
     assert "/visuotact/contact/active" in channels.values()
+    assert not named.exists()
 
 
 def test_record_writes_the_bag_that_export_writes(session):

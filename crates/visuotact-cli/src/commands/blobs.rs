@@ -34,6 +34,8 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let inputs: Vec<&std::path::Path> = a.frames.iter().map(PathBuf::as_path).collect();
+    visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     // The pixel-mean centroid and whole-frame Otsu of OpenCV, scikit-image and MATLAB by
     // default.
     let (cfg, _, _) = a.detector.config_for_frames(Purpose::BlobAnalysis, || {

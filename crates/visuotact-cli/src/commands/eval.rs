@@ -29,6 +29,11 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let outputs: Vec<&std::path::Path> = [&a.plot, &a.map, &a.report]
+        .into_iter()
+        .filter_map(Option::as_deref)
+        .collect();
+    visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &[&a.predictions, &a.labels])?;
     crate::print::evaluation(
         &a.predictions,
         &a.labels,

@@ -99,6 +99,8 @@ fn interrupted(frames: usize, out: &Path) -> anyhow::Error {
 }
 
 fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
+    let inputs: Vec<&Path> = l.sessions.iter().map(PathBuf::as_path).collect();
+    visuotact_io::guard::refuse_output_over_input(&l.output, &inputs)?;
     let cfg = visuotact_lerobot::LeRobotConfig {
         fps: l.fps,
         task: l.task.clone(),
@@ -131,6 +133,9 @@ fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
 }
 
 fn mcap(m: &Mcap) -> anyhow::Result<()> {
+    let mut inputs = vec![m.session.as_path()];
+    inputs.extend(m.sensor.as_deref());
+    visuotact_io::guard::refuse_output_over_input(&m.output, &inputs)?;
     let cfg = visuotact_ros::ExportConfig {
         ros: m.ros.config(!m.no_images),
         sensor: m.sensor.clone(),

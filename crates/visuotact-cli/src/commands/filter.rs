@@ -25,10 +25,9 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    visuotact_io::guard::refuse_output_over_input(&a.output, &[&a.input])?;
-    if let Some(plot) = &a.plot {
-        visuotact_io::guard::refuse_output_over_input(plot, &[&a.input, &a.output])?;
-    }
+    let mut outputs = vec![a.output.as_path()];
+    outputs.extend(a.plot.as_deref());
+    visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &[&a.input])?;
     let mut table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
     if table.dropped_partial_line {
         eprintln!(

@@ -122,6 +122,13 @@ fn warn(w: &str) {
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let cfg = a.config()?;
+    let mut inputs: Vec<&std::path::Path> = a.model.iter().map(PathBuf::as_path).collect();
+    inputs.extend(a.sensor.as_deref());
+    inputs.extend(crate::args::source_path(&a.source));
+    inputs.extend(a.force.as_deref().and_then(crate::args::source_path));
+    let mut outputs = vec![a.output.as_path()];
+    outputs.extend(a.bag.mcap.as_deref());
+    visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &inputs)?;
     let model = a.model.as_deref().map(crate::load_model).transpose()?;
     let estimator = if a.sensor.is_some() || model.is_some() {
         let mut e = crate::estimator(a.sensor.as_deref(), model)?;

@@ -126,6 +126,14 @@ impl Args {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let cfg = a.run_config()?;
     cfg.validate()?;
+    let mut inputs: Vec<&std::path::Path> = a.model.iter().map(PathBuf::as_path).collect();
+    inputs.extend(a.sensor.as_deref());
+    inputs.extend(crate::args::source_path(&a.source));
+    let outputs: Vec<&std::path::Path> = [&a.summary, &a.bag.mcap]
+        .into_iter()
+        .filter_map(Option::as_deref)
+        .collect();
+    visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &inputs)?;
     // A model file holding an ensemble counts as its networks (the spread is over all).
     let models = a
         .model
