@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+
 fn vt(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_visuotact"))
         .args(args)
@@ -211,12 +213,7 @@ fn unusable_inputs_fail_with_the_reason() {
 
 #[test]
 fn video_input_is_decoded_by_ffmpeg() {
-    let Some(video) = Some(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../../shared/reference/real/gelsight_mini/mini_example.avi"),
-    )
-    .filter(|p| p.is_file()) else {
-        eprintln!("skipping: shared/reference absent");
+    let Some(video) = common::shared_real("gelsight_mini/mini_example.avi") else {
         return;
     };
     let d = tmp("video");

@@ -17,6 +17,11 @@ fn real(rel: &str) -> Option<PathBuf> {
     if p.exists() {
         return Some(p);
     }
+    assert!(
+        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
+        "{} absent and VISUOTACT_REQUIRE_REAL set",
+        p.display()
+    );
     eprintln!("skipping: {} absent", p.display());
     None
 }

@@ -136,12 +136,9 @@ fn simulated_touches_stream_as_json_lines_with_an_ensemble() {
 
 #[test]
 fn gelsight_video_contact_only_during_the_press() {
-    let video = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference/real/gelsight_mini/mini_example.avi");
-    if !video.is_file() {
-        eprintln!("skipped: {} not found", video.display());
+    let Some(video) = shared_real("gelsight_mini/mini_example.avi") else {
         return;
-    }
+    };
     let d = fresh_dir("run-gelsight");
     ok(&vt(&[
         "calibrate",

@@ -9,7 +9,7 @@ use visuotact_nn::nist::{certified_digits, Dataset, NistProblem};
 fn main() {
     let dir = std::env::args()
         .nth(1)
-        .unwrap_or_else(|| "../shared/reference/nist_strd".into());
+        .unwrap_or_else(|| "testdata/reference/nist_strd".into());
     let mut names: Vec<_> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("{dir}: {e}"))
         .filter_map(|e| e.ok().map(|e| e.path()))

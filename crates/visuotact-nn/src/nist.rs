@@ -1,4 +1,4 @@
-//! The NIST StRD nonlinear regression problems (`shared/reference/nist_strd/*.dat`): parser,
+//! The NIST StRD nonlinear regression problems (`testdata/reference/nist_strd/*.dat`): parser,
 //! the 27 models, and the log relative error (certified digits) of a fit.
 
 use faer::Mat;

@@ -2,7 +2,8 @@
 //! (`shared/reference/golden/otsu_cc_regionprops.json`). Tolerance: 1e-6 on every float (the
 //! golden values are doubles printed at full precision; our moments are exact integers divided
 //! once, so the only differences are last-bit rounding in the eigen decomposition).
-//! Skips with a message when `../shared` is absent.
+//! The golden file and its images are in the repository (`testdata/reference`): these tests
+//! always run, except the GelSight frames' (GPL video, read from `../shared/reference/real`).
 
 use std::path::PathBuf;
 
@@ -13,20 +14,27 @@ use visuotact_vision::blobs::{
 };
 use visuotact_vision::preprocess::{histogram, otsu_level};
 
-fn reference_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
+fn golden() -> (PathBuf, Value) {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/reference");
+    let text = std::fs::read_to_string(dir.join("golden/otsu_cc_regionprops.json")).unwrap();
+    (dir, serde_json::from_str(&text).unwrap())
 }
 
-fn golden() -> Option<(PathBuf, Value)> {
-    let dir = reference_dir()?;
-    let text = std::fs::read_to_string(dir.join("golden/otsu_cc_regionprops.json")).unwrap();
-    Some((dir, serde_json::from_str(&text).unwrap()))
+/// The shared real GelSight video (GPL, not in the repository), when present; its absence
+/// fails the test where `VISUOTACT_REQUIRE_REAL` is set.
+fn gelsight_video() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/real/gelsight_mini/mini_example.avi");
+    if p.is_file() {
+        return Some(p);
+    }
+    assert!(
+        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
+        "{} absent and VISUOTACT_REQUIRE_REAL set",
+        p.display()
+    );
+    eprintln!("skipping: {} absent", p.display());
+    None
 }
 
 fn gray_of(path: &std::path::Path) -> GrayImage {
@@ -184,13 +192,13 @@ fn check_image(key: &str, entry: &Value, gray: &GrayImage) {
 
 #[test]
 fn golden_files_images() {
-    let Some((dir, g)) = golden() else { return };
+    let (dir, g) = golden();
     let cases = [
         ("skimage_coins", dir.join("images/coins.png")),
         ("skimage_camera", dir.join("images/camera.png")),
         (
             "9dtact_sensor1_calib_grid",
-            dir.join("real/9dtact/camera_calibration/sample_GRAY.png"),
+            dir.join("9dtact/sample_GRAY.png"),
         ),
     ];
     for (key, path) in cases {
@@ -215,8 +223,10 @@ fn gray_like_opencv(rgb: &visuotact_image::RgbImage) -> GrayImage {
 /// The GelSight Mini frames 0 and 133, decoded by ffmpeg (needs the `ffmpeg` program).
 #[test]
 fn golden_gelsight_frames() {
-    let Some((dir, g)) = golden() else { return };
-    let video = dir.join("real/gelsight_mini/mini_example.avi");
+    let Some(video) = gelsight_video() else {
+        return;
+    };
+    let (_, g) = golden();
     let frames: Vec<_> = visuotact_io::frames::FrameStream::open(&[video], 25.0)
         .unwrap()
         .take_first(134)
@@ -232,7 +242,7 @@ fn golden_gelsight_frames() {
 
 #[test]
 fn golden_histograms_give_golden_otsu() {
-    let Some((_, g)) = golden() else { return };
+    let (_, g) = golden();
     for (key, entry) in g["images"].as_object().unwrap() {
         let mut hist = [0u32; 256];
         for (h, v) in hist
@@ -251,7 +261,7 @@ fn golden_histograms_give_golden_otsu() {
 
 #[test]
 fn skimage_sample_region() {
-    let Some((_, g)) = golden() else { return };
+    let (_, g) = golden();
     let s = &g["skimage_SAMPLE"];
     let rows = s["array"].as_array().unwrap();
     let h = rows.len();

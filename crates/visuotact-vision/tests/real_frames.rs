@@ -28,11 +28,15 @@ use visuotact_vision::track::MarkerStatus;
 fn real_dir() -> Option<PathBuf> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/real");
     if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
+        return Some(p);
     }
+    assert!(
+        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
+        "{} absent and VISUOTACT_REQUIRE_REAL set",
+        p.display()
+    );
+    eprintln!("skipping: {} not found", p.display());
+    None
 }
 
 #[test]

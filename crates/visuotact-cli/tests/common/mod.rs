@@ -117,3 +117,21 @@ pub fn headless(chromium: &str, profile: &Path, extra: &[&str], url: &str) -> Ou
         .output()
         .expect("run chromium")
 }
+
+/// `rel` under the shared real frames (`../shared/reference/real`, not in the repository),
+/// when present; its absence fails the test where `VISUOTACT_REQUIRE_REAL` is set.
+pub fn shared_real(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/real")
+        .join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    assert!(
+        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
+        "{} absent and VISUOTACT_REQUIRE_REAL set",
+        p.display()
+    );
+    eprintln!("skipping: {} absent", p.display());
+    None
+}
