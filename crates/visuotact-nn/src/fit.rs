@@ -468,6 +468,15 @@ pub enum FitError {
     Projection(#[from] crate::pca::ProjectionError),
 }
 
+/// The first name that `names` holds twice.
+fn duplicate(names: &[String]) -> Option<&str> {
+    let mut seen = std::collections::HashSet::new();
+    names
+        .iter()
+        .find(|n| !seen.insert(n.as_str()))
+        .map(String::as_str)
+}
+
 impl FitData<'_> {
     /// Checks shapes and values against `cfg`.
     fn validate(&self, cfg: &FitConfig) -> Result<(), FitError> {
@@ -489,6 +498,24 @@ impl FitData<'_> {
             return Err(FitError::Config(format!(
                 "{} pass-through inputs of {inputs}",
                 cfg.passthrough
+            )));
+        }
+        if cfg.ensemble == 0 {
+            return Err(FitError::Config(
+                "an ensemble of 0 networks: need 1 or more".into(),
+            ));
+        }
+        if cfg.max_epochs == 0 {
+            return Err(FitError::Config(
+                "at most 0 epochs: need 1 or more (0 would keep the random initial weights)".into(),
+            ));
+        }
+        if let Some(name) = duplicate(self.targets) {
+            return Err(FitError::Config(format!("target `{name}` named twice")));
+        }
+        if let Some(name) = duplicate(self.feature_columns) {
+            return Err(FitError::Config(format!(
+                "input column `{name}` named twice"
             )));
         }
         let projected = inputs - cfg.passthrough;
@@ -1147,6 +1174,37 @@ mod tests {
             fit(&data, &bad, quietly),
             Err(FitError::Config(_))
         ));
+        // Settings that would train nothing, and a column named twice.
+        for (bad, why) in [
+            (
+                FitConfig {
+                    ensemble: 0,
+                    ..FitConfig::default()
+                },
+                "ensemble of 0",
+            ),
+            (
+                FitConfig {
+                    max_epochs: 0,
+                    ..FitConfig::default()
+                },
+                "at most 0 epochs",
+            ),
+        ] {
+            let err = fit(&data, &bad, quietly).unwrap_err().to_string();
+            assert!(err.contains(why), "{err}");
+        }
+        let (t2, twice) = (
+            vec![vec![0.0, 0.0], vec![1.0, 1.0]],
+            vec!["y0".to_string(), "y0".to_string()],
+        );
+        let data = FitData {
+            t: &t2,
+            targets: &twice,
+            ..data
+        };
+        let err = fit(&data, &FitConfig::default(), quietly).unwrap_err();
+        assert!(err.to_string().contains("`y0` named twice"), "{err}");
     }
 
     #[test]
