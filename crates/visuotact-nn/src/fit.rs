@@ -478,6 +478,29 @@ fn duplicate(names: &[String]) -> Option<&str> {
 }
 
 impl FitData<'_> {
+    /// Refuses settings that would train nothing, and a column named twice.
+    fn settings_train_something(&self, cfg: &FitConfig) -> Result<(), FitError> {
+        if cfg.ensemble == 0 {
+            return Err(FitError::Config(
+                "an ensemble of 0 networks: need 1 or more".into(),
+            ));
+        }
+        if cfg.max_epochs == 0 {
+            return Err(FitError::Config(
+                "at most 0 epochs: need 1 or more (0 would keep the random initial weights)".into(),
+            ));
+        }
+        if let Some(name) = duplicate(self.targets) {
+            return Err(FitError::Config(format!("target `{name}` named twice")));
+        }
+        if let Some(name) = duplicate(self.feature_columns) {
+            return Err(FitError::Config(format!(
+                "input column `{name}` named twice"
+            )));
+        }
+        Ok(())
+    }
+
     /// Checks shapes and values against `cfg`.
     fn validate(&self, cfg: &FitConfig) -> Result<(), FitError> {
         let (inputs, targets) = (self.feature_columns.len(), self.targets.len());
@@ -500,24 +523,7 @@ impl FitData<'_> {
                 cfg.passthrough
             )));
         }
-        if cfg.ensemble == 0 {
-            return Err(FitError::Config(
-                "an ensemble of 0 networks: need 1 or more".into(),
-            ));
-        }
-        if cfg.max_epochs == 0 {
-            return Err(FitError::Config(
-                "at most 0 epochs: need 1 or more (0 would keep the random initial weights)".into(),
-            ));
-        }
-        if let Some(name) = duplicate(self.targets) {
-            return Err(FitError::Config(format!("target `{name}` named twice")));
-        }
-        if let Some(name) = duplicate(self.feature_columns) {
-            return Err(FitError::Config(format!(
-                "input column `{name}` named twice"
-            )));
-        }
+        self.settings_train_something(cfg)?;
         let projected = inputs - cfg.passthrough;
         for (row, (x, t)) in self.x.iter().zip(self.t).enumerate() {
             for (what, got, expected) in
