@@ -49,6 +49,9 @@ pub enum PipelineError {
     /// A frame's size differs from the calibration's.
     #[error(transparent)]
     FrameSize(#[from] FrameSizeError),
+    /// A setting out of its range (the message names it and the range).
+    #[error("{0}")]
+    Setting(String),
 }
 
 /// The feature set a model's input columns need (the field summary comes with every set; a

@@ -27,6 +27,41 @@ pub struct LiveConfig {
     pub rezero_rate: f64,
 }
 
+impl LiveConfig {
+    /// Refuses settings that mean nothing: a threshold that is not a number or below 0, no
+    /// marker needed for contact, a re-zeroing weight outside 0–1.
+    pub fn validate(&self) -> Result<(), PipelineError> {
+        let bad = |name: &str, v: f64, range: &str| {
+            Err(PipelineError::Setting(format!(
+                "{name} {v}: expected {range}"
+            )))
+        };
+        if !(self.contact_sigmas.is_finite() && self.contact_sigmas >= 0.0) {
+            return bad(
+                "contact_sigmas",
+                self.contact_sigmas,
+                "a number of σ, 0 or more",
+            );
+        }
+        if !(self.contact_min_px.is_finite() && self.contact_min_px >= 0.0) {
+            return bad("contact_min_px", self.contact_min_px, "pixels, 0 or more");
+        }
+        if self.contact_markers == 0 {
+            return Err(PipelineError::Setting(
+                "contact_markers 0: expected 1 or more markers".into(),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.rezero_rate) {
+            return bad(
+                "rezero_rate",
+                self.rezero_rate,
+                "a weight from 0 to 1 per frame",
+            );
+        }
+        Ok(())
+    }
+}
+
 impl Default for LiveConfig {
     /// 5 σ and 0.5 px on 3 markers; re-zeroing at 0.05 per frame.
     fn default() -> Self {
@@ -176,6 +211,7 @@ impl LiveEstimator {
         models: Vec<Model>,
         cfg: &LiveConfig,
     ) -> Result<Self, PipelineError> {
+        cfg.validate()?;
         let names = est.feature_columns();
         let cols = models
             .iter()
@@ -504,5 +540,44 @@ mod tests {
             matches!(&err, PipelineError::Ensemble { model: 2, why } if why.contains("b_mm")),
             "{err}"
         );
+    }
+
+    #[test]
+    fn meaningless_contact_and_rezero_settings_are_refused() {
+        let ok = LiveConfig::default();
+        assert!(ok.validate().is_ok());
+        for (bad, what) in [
+            (
+                LiveConfig {
+                    contact_sigmas: f64::NAN,
+                    ..ok
+                },
+                "contact_sigmas NaN",
+            ),
+            (
+                LiveConfig {
+                    contact_min_px: -1.0,
+                    ..ok
+                },
+                "contact_min_px -1",
+            ),
+            (
+                LiveConfig {
+                    contact_markers: 0,
+                    ..ok
+                },
+                "contact_markers 0",
+            ),
+            (
+                LiveConfig {
+                    rezero_rate: 2.0,
+                    ..ok
+                },
+                "rezero_rate 2",
+            ),
+        ] {
+            let e = bad.validate().unwrap_err().to_string();
+            assert!(e.starts_with(what), "{e}");
+        }
     }
 }

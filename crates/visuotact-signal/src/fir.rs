@@ -204,11 +204,19 @@ fn sinc(x: f64) -> f64 {
     }
 }
 
+/// The longest filter designed: a million taps (at 1 kHz, a 17-minute impulse response).
+pub const MAX_TAPS: usize = 1 << 20;
+
 /// The taps of a windowed-sinc design (scipy `firwin`).
 pub fn firwin(spec: &FirSpec) -> Result<Vec<f64>, FilterError> {
     let n = spec.numtaps;
     if n == 0 {
         return Err(FilterError::Design("numtaps must be at least 1".into()));
+    }
+    if n > MAX_TAPS {
+        return Err(FilterError::Design(format!(
+            "numtaps {n} is beyond the limit of {MAX_TAPS}"
+        )));
     }
     let nyq = match spec.fs_hz {
         Some(fs) if fs.is_finite() && fs > 0.0 => fs / 2.0,
@@ -624,6 +632,12 @@ mod kernel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_filter_beyond_the_tap_limit_is_an_error_not_an_abort() {
+        let e = firwin(&FirSpec::lowpass(usize::MAX, 20.0, 1000.0)).unwrap_err();
+        assert!(e.to_string().contains("beyond the limit of 1048576"), "{e}");
+    }
 
     #[test]
     fn padding_names_parse() {
