@@ -184,34 +184,13 @@ impl DetectorArgs {
         first: impl FnOnce() -> Option<RgbImage>,
     ) -> anyhow::Result<(DetectorConfig, FeatureSet, Option<MarkerSize>)> {
         let o = self.options()?;
-        // Checked over the preset named, or for auto over either it may pick (an adaptive
-        // window refines dark-markers', not iats').
-        match o.preset {
-            Some(p) => {
-                o.config(p, purpose)?;
-            }
-            None => {
-                if let Err(e) = o.config(Preset::Iats, purpose) {
-                    o.config(Preset::DarkMarkers, purpose).map_err(|_| e)?;
-                }
-            }
-        }
-        let needs_frame = o.preset.is_none() || purpose == Purpose::Tracking;
-        let frame = if needs_frame { first() } else { None };
-        let preset = o.preset_for(|| frame.clone());
-        if o.preset.is_none() && preset == Preset::DarkMarkers {
+        let c = o.config_for_frames(purpose, first)?;
+        if o.preset.is_none() && c.preset == Preset::DarkMarkers {
             eprintln!(
                 "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
             );
         }
-        let (cfg, features) = o.config(preset, purpose)?;
-        Ok(match (&frame, purpose) {
-            (Some(f), Purpose::Tracking) => {
-                let (cfg, size) = o.sized(cfg, f);
-                (cfg, features, size)
-            }
-            _ => (cfg, features, None),
-        })
+        Ok((c.detector, c.features, c.size))
     }
 }
 

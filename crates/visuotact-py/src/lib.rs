@@ -148,17 +148,21 @@ impl Sensor {
                 ))
             })?),
         };
-        let preset = o.preset_for(|| Some(first.clone()));
-        let (detector, features) = o.config(preset, Purpose::Tracking).map_err(error)?;
+        // As `visuotact calibrate` chooses: the preset, and the markers' size from the first
+        // frame.
+        let chosen = o
+            .config_for_frames(Purpose::Tracking, || Some(first.clone()))
+            .map_err(error)?;
         let cfg = visuotact_vision::calibration::CalibrationConfig {
             layout: LayoutChoice::parse(layout).map_err(error)?,
-            detector,
-            features,
-            ..preset.config()
+            detector: chosen.detector,
+            features: chosen.features,
+            ..chosen.preset.config()
         };
-        let (cal, _) = py
+        let (mut cal, _) = py
             .detach(|| calibrate(ids.iter().map(String::as_str).zip(images.iter()), &cfg))
             .map_err(error)?;
+        cal.marker_size = chosen.size;
         Self::from_calibration(cal)
     }
 

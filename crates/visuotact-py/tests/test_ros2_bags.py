@@ -177,7 +177,7 @@ def test_record_writes_the_bag_that_export_writes(session):
     d, _ = session
     s, live, later = d / "recorded", d / "recorded.mcap", d / "exported.mcap"
     # 2 fps: a debug build keeps up (the simulated camera drops frames it cannot make in time).
-    cli("record", "-o", s, "--source", "sim:cone", "--press-s", "2", "--rest-s", "0.2", "--fps", "2",
+    cli("record", "-o", s, "--source", "sim:cone", "--press-s", "4", "--rest-s", "0.2", "--fps", "2",
         "--references", "0", "--force", "udp:127.0.0.1:0", "--force-rate-hz", "500",
         "--sensor", d / "sensor.json", "--save-frames", "--mcap", live, "--mcap-images",
         "--namespace", "/cone")

@@ -122,6 +122,19 @@ pub struct DetectorOptions {
     pub circle: Option<CircleMask>,
 }
 
+/// What [`DetectorOptions::config_for_frames`] chose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameConfig {
+    /// The preset (for `auto`, the one the first frame called for).
+    pub preset: Preset,
+    /// The detector.
+    pub detector: DetectorConfig,
+    /// The preset's feature set.
+    pub features: FeatureSet,
+    /// The markers' size in the first frame, when measured (tracking only).
+    pub size: Option<MarkerSize>,
+}
+
 impl DetectorOptions {
     /// The preset: the one chosen, or for `auto` the one `first` frame calls for (markers
     /// darker than the skin: [`Preset::DarkMarkers`]; else, or without a frame,
@@ -184,6 +197,43 @@ impl DetectorOptions {
             centroid,
         };
         Ok((cfg, base.features))
+    }
+
+    /// Everything the options give for frames whose first is `first` (called at most once):
+    /// the options are checked over the preset named, or for `auto` over either preset it may
+    /// pick (an adaptive window refines dark-markers', not iats'); the preset chosen, its
+    /// detector and features, and — for tracking — the opening and smallest blob sized from the
+    /// markers of the first frame ([`DetectorOptions::sized`]). `calibrate` on the command line
+    /// and `Sensor.calibrate` in Python both choose this way.
+    pub fn config_for_frames(
+        &self,
+        purpose: Purpose,
+        first: impl FnOnce() -> Option<RgbImage>,
+    ) -> Result<FrameConfig, ConfigError> {
+        match self.preset {
+            Some(p) => {
+                self.config(p, purpose)?;
+            }
+            None => {
+                if let Err(e) = self.config(Preset::Iats, purpose) {
+                    self.config(Preset::DarkMarkers, purpose).map_err(|_| e)?;
+                }
+            }
+        }
+        let needs_frame = self.preset.is_none() || purpose == Purpose::Tracking;
+        let frame = if needs_frame { first() } else { None };
+        let preset = self.preset_for(|| frame.clone());
+        let (detector, features) = self.config(preset, purpose)?;
+        let (detector, size) = match (&frame, purpose) {
+            (Some(f), Purpose::Tracking) => self.sized(detector, f),
+            _ => (detector, None),
+        };
+        Ok(FrameConfig {
+            preset,
+            detector,
+            features,
+            size,
+        })
     }
 
     /// `cfg` with the opening and smallest blob that the markers of `frame` call for
