@@ -5,25 +5,12 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+use common::shared_real as real;
+
 fn readme() -> String {
     std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../README.md"))
         .expect("README.md")
-}
-
-fn real(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference/real")
-        .join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    assert!(
-        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
-        "{} absent and VISUOTACT_REQUIRE_REAL set",
-        p.display()
-    );
-    eprintln!("skipping: {} absent", p.display());
-    None
 }
 
 fn tmp(name: &str) -> PathBuf {
