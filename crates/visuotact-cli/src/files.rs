@@ -11,14 +11,14 @@ use visuotact_vision::calibration::{ReferenceInfo, SensorCalibration};
 
 /// Reads a sensor file, naming it in errors.
 pub(crate) fn load_sensor(path: &Path) -> anyhow::Result<SensorCalibration> {
-    let text = std::fs::read_to_string(path)
+    let text = visuotact_io::read::text_of_file(path)
         .map_err(|e| anyhow::anyhow!("{}: cannot read sensor file: {e}", path.display()))?;
     SensorCalibration::from_json(&text, &path.display().to_string()).map_err(anyhow::Error::msg)
 }
 
 /// Reads a model file, naming it in errors.
 pub(crate) fn load_model(path: &Path) -> anyhow::Result<Model> {
-    let text = std::fs::read_to_string(path)
+    let text = visuotact_io::read::text_of_file(path)
         .with_context(|| format!("{}: cannot read model file", path.display()))?;
     Model::from_json(&text, &path.display().to_string()).map_err(anyhow::Error::msg)
 }

@@ -206,7 +206,7 @@ impl ForceTable {
     /// Reads a force CSV; errors name the file, line and column. A last line without a line end
     /// (a recorder stopped mid-row) is left out and reported in `dropped_partial_line`.
     pub fn read(path: &std::path::Path) -> Result<Self, TableError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::read::text_of_file(path)
             .map_err(|e| TableError::new(path, None, format!("cannot read: {e}")))?;
         Self::from_text(&text, path)
     }

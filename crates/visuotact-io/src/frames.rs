@@ -177,15 +177,40 @@ pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
 /// Decodes one image file into RGB.
 pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
     let frame = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| FrameError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let img = image::load_from_memory(&bytes)
-        .map_err(|e| FrameError::Decode {
-            frame: frame.clone(),
-            message: e.to_string(),
-        })?
+    let bytes =
+        crate::read::bytes_of_file(path, crate::read::MAX_IMAGE_BYTES).map_err(|source| {
+            FrameError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?;
+    let decode_err = |message: String| FrameError::Decode {
+        frame: frame.clone(),
+        message,
+    };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| decode_err(e.to_string()))?;
+    // The size the header claims is checked before anything is allocated (a small file can
+    // claim gigapixels).
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| decode_err(e.to_string()))?;
+    if u64::from(w) * u64::from(h) > crate::read::MAX_IMAGE_PIXELS {
+        return Err(decode_err(format!(
+            "{w}×{h} pixels, beyond the limit of {} pixels",
+            crate::read::MAX_IMAGE_PIXELS
+        )));
+    }
+    reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| decode_err(e.to_string()))?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(4 * crate::read::MAX_IMAGE_PIXELS * 2);
+    reader.limits(limits);
+    let img = reader
+        .decode()
+        .map_err(|e| decode_err(e.to_string()))?
         .into_rgb8();
     let (w, h) = img.dimensions();
     RgbImage::from_vec(w as usize, h as usize, img.into_raw()).map_err(|e| FrameError::Decode {
@@ -646,5 +671,58 @@ mod natural_order_tests {
                 "image_100.png"
             ]
         );
+    }
+}
+
+#[cfg(test)]
+mod limit_tests {
+    use super::*;
+
+    /// CRC-32 (IEEE), as PNG chunks carry it.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = 0xffff_ffffu32;
+        for &b in bytes {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 == 1 {
+                    (c >> 1) ^ 0xedb8_8320
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+
+    fn chunk(kind: &[u8], data: &[u8]) -> Vec<u8> {
+        let mut out = (data.len() as u32).to_be_bytes().to_vec();
+        let body = [kind, data].concat();
+        out.extend(&body);
+        out.extend(crc32(&body).to_be_bytes());
+        out
+    }
+
+    /// A 100 000 × 100 000 PNG header with no pixel data (a decompression bomb's shape):
+    /// refused from its header, naming the limit, before a pixel is allocated.
+    #[test]
+    fn an_image_claiming_too_many_pixels_is_refused_before_decoding() {
+        let mut ihdr = 100_000u32.to_be_bytes().to_vec();
+        ihdr.extend(100_000u32.to_be_bytes());
+        ihdr.extend([8, 2, 0, 0, 0]);
+        let png = [
+            b"\x89PNG\r\n\x1a\n".to_vec(),
+            chunk(b"IHDR", &ihdr),
+            // An empty zlib stream: nothing to inflate.
+            chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0, 0, 0, 0, 1]),
+            chunk(b"IEND", &[]),
+        ]
+        .concat();
+        let d = std::env::temp_dir().join(format!("visuotact-bomb-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("bomb.png");
+        std::fs::write(&p, png).unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(e.contains("100000×100000 pixels, beyond the limit"), "{e}");
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }

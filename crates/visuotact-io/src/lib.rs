@@ -12,6 +12,7 @@ pub mod force;
 pub mod frames;
 pub mod guard;
 pub mod queue;
+pub mod read;
 pub mod session;
 pub mod source;
 pub mod table;

@@ -233,7 +233,7 @@ impl AppendLog {
             |e: std::io::Error| std::io::Error::new(e.kind(), format!("{}: {e}", path.display()));
         let mut kept = String::new();
         let file = if resume && path.exists() {
-            let text = std::fs::read_to_string(path).map_err(err)?;
+            let text = crate::read::text_of_file(path).map_err(err)?;
             let (complete, _) = crate::table::complete_lines(&text);
             let first = complete.lines().next().unwrap_or("");
             if !complete.is_empty() && first != header {

@@ -308,7 +308,7 @@ impl KeyedTable {
     /// [`KEY_COLUMNS`] the header has; a column whose first cell is not a number (a name, a
     /// note) is left out unless it is one of `text_columns`.
     pub fn read(path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::read::text_of_file(path)
             .map_err(|e| TableError::new(path, None, format!("cannot read: {e}")))?;
         Self::from_text(&text, path, text_columns)
     }

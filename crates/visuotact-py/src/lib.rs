@@ -169,7 +169,7 @@ impl Sensor {
     /// Reads a sensor file written by `visuotact calibrate` or [`Sensor.save`].
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Self> {
-        let text = std::fs::read_to_string(&path)
+        let text = visuotact_io::read::text_of_file(&path)
             .map_err(|e| error(format!("{}: cannot read sensor file: {e}", path.display())))?;
         Self::from_calibration(
             SensorCalibration::from_json(&text, &path.display().to_string()).map_err(error)?,
@@ -426,7 +426,7 @@ impl Model {
     /// Reads a model file written by `visuotact train` or [`Model.save`].
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Self> {
-        let text = std::fs::read_to_string(&path)
+        let text = visuotact_io::read::text_of_file(&path)
             .map_err(|e| error(format!("{}: cannot read model: {e}", path.display())))?;
         Ok(Self {
             m: NnModel::from_json(&text, &path.display().to_string()).map_err(error)?,

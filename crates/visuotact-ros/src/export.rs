@@ -179,7 +179,8 @@ fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibrat
     let Some(path) = path else {
         return Ok(None);
     };
-    let text = std::fs::read_to_string(&path).map_err(|e| RosError::Io(path.clone(), e))?;
+    let text =
+        visuotact_io::read::text_of_file(&path).map_err(|e| RosError::Io(path.clone(), e))?;
     SensorCalibration::from_json(&text, &path.display().to_string())
         .map(Some)
         .map_err(|e| RosError::Config(e.to_string()))

@@ -68,8 +68,8 @@ fn overrides(a: &Args) -> anyhow::Result<Option<serde_json::Map<String, serde_js
     let Some(p) = &a.config else {
         return Ok(None);
     };
-    let text =
-        std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+    let text = visuotact_io::read::text_of_file(p)
+        .with_context(|| format!("{}: cannot read", p.display()))?;
     match serde_json::from_str(&text) {
         Ok(serde_json::Value::Object(m)) => Ok(Some(m)),
         Ok(_) => bail!("{}: expected a JSON object of settings", p.display()),

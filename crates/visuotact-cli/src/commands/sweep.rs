@@ -206,8 +206,8 @@ fn write_part(
 pub(crate) fn merge(m: &MergeArgs) -> anyhow::Result<()> {
     let mut parts = Vec::new();
     for p in &m.parts {
-        let text =
-            std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+        let text = visuotact_io::read::text_of_file(p)
+            .with_context(|| format!("{}: cannot read", p.display()))?;
         let part: SweepPart = serde_json::from_str(&text)
             .with_context(|| format!("{}: not a sweep part", p.display()))?;
         parts.push((p.display().to_string(), part));
