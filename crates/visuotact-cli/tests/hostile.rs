@@ -108,6 +108,19 @@ fn nothing_done_is_an_error() {
         err.contains("a.png"),
         "the unreadable frame is named: {err}"
     );
+    // No empty session is left to refuse the corrected run; a zero duration is refused first.
+    assert!(!d.join("rec").exists());
+    let err = fails(&vt(&[
+        "record",
+        "--source",
+        "sim:cone",
+        "--duration-s",
+        "0",
+        "-o",
+        s(&d.join("rec")),
+    ]));
+    assert!(err.contains("positive duration"), "{err}");
+    assert!(!d.join("rec").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -289,7 +289,7 @@ pub fn record_observed(
         _ => None,
     };
     let force_input = ForceInput::open(cfg)?;
-    check(cfg)?;
+    let created = check(cfg)?;
     let mut tables = Tables::open(cfg, estimator.as_ref(), rig.as_ref())?;
     let mut summary = RecordSummary {
         started_unix_s: started_unix_s(cfg),
@@ -348,10 +348,16 @@ pub fn record_observed(
     summary.duration_s = clock.elapsed().as_secs_f64();
     // The first real error is the one reported (a full disk fails the frame before the
     // description): the description is still attempted, its own failure then secondary.
-    let described = describe(cfg, result.is_ok(), &summary);
+    // Complete only when something was recorded as asked.
+    let described = describe(cfg, result.is_ok() && summary.written > 0, &summary);
     result?;
     described?;
     if summary.written == 0 {
+        // A session this run made and filled with nothing goes again, so that the corrected
+        // run is not refused for it.
+        if created && !cfg.resume {
+            let _ = std::fs::remove_dir_all(&cfg.output);
+        }
         return Err(RecordError::NothingRecorded(if cfg.resume {
             format!(
                 "the session already holds {} frames and the source gave no later one",
@@ -387,6 +393,11 @@ fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
     check(seconds("sync_every_s", cfg.sync_every_s).map(drop))?;
     if let Some(d) = cfg.duration_s {
         check(seconds("duration_s", d).map(drop))?;
+        if d == 0.0 {
+            return Err(RecordError::Config(
+                "duration_s 0: a recording needs a positive duration".into(),
+            ));
+        }
     }
     if cfg.max_frames == Some(0) {
         return Err(RecordError::Config("max_frames must be at least 1".into()));
@@ -395,8 +406,8 @@ fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
 }
 
 /// The session folder: refused when it holds a session and `resume` was not asked for (or
-/// the other way round), then created and probed for space.
-fn check(cfg: &RecordConfig) -> Result<(), RecordError> {
+/// the other way round), then created and probed for space. Returns whether this run made it.
+fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
     let out = &cfg.output;
     let exists = holds_session(out);
     if exists && !cfg.resume {
@@ -423,7 +434,7 @@ fn check(cfg: &RecordConfig) -> Result<(), RecordError> {
     if cfg.save_frames {
         std::fs::create_dir_all(out.join("frames"))?;
     }
-    Ok(())
+    Ok(created)
 }
 
 fn rig_of(cfg: &RecordConfig, kind: &str) -> Result<SimRig, RecordError> {
