@@ -81,7 +81,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     // Beyond the fastest tactile cameras the timestamps stop meaning anything.
     if !(a.fps > 0.0 && a.fps <= 10_000.0) {
         bail!(
-            "--fps must be a frame rate above 0 and at most 10000 per second, got {}",
+            "--fps must be a positive frame rate of at most 10000 per second, got {}",
             a.fps
         );
     }
