@@ -121,6 +121,35 @@ fn nothing_done_is_an_error() {
     ]));
     assert!(err.contains("positive duration"), "{err}");
     assert!(!d.join("rec").exists());
+    // A feature table with a header only: no estimate table, an error.
+    let (features, labels, _) = literal_tables(&d);
+    let model = d.join("m.json");
+    ok(&vt(&[
+        "train",
+        "--features",
+        s(&features),
+        "--labels",
+        s(&labels),
+        "--targets",
+        "x_mm",
+        "-o",
+        s(&model),
+        "--quiet",
+    ]));
+    let header = d.join("header.csv");
+    std::fs::write(&header, "frame,m000_dx_px,m000_dy_px\n").unwrap();
+    let out = d.join("p.csv");
+    let err = fails(&vt(&[
+        "predict",
+        "--model",
+        s(&model),
+        "--features",
+        s(&header),
+        "-o",
+        s(&out),
+    ]));
+    assert!(err.contains("no row to estimate"), "{err}");
+    assert!(!out.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 

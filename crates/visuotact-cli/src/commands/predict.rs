@@ -64,6 +64,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         }
         (None, None) => bail!("give --features TABLE, or --sensor SENSOR FRAMES..."),
     };
+    if f.keys.is_empty() {
+        bail!(
+            "{source}: no row to estimate (a header only, or no frame could be read): {} not written",
+            a.output.display()
+        );
+    }
     let readings = read_readings(a.readings.as_deref())?;
     let r_name = a.readings.as_ref().map(|p| p.display().to_string());
     let sources = InputSources::new(
