@@ -123,27 +123,7 @@ fn interrupt_after_start(args: &[&str], stage: &str) -> (Option<i32>, Vec<String
 #[test]
 fn ctrl_c_stops_an_extraction_or_a_ranking_and_writes_nothing() {
     let d = fresh_dir("interrupt-extract");
-    let session = d.join("session");
-    ok(&vt(&[
-        "simulate",
-        "--sensor",
-        "iats",
-        "--protocol",
-        "random",
-        "--touches",
-        "2",
-        "--seed",
-        "3",
-        "-o",
-        s(&session),
-    ]));
-    let sensor = d.join("sensor.json");
-    ok(&vt(&[
-        "calibrate",
-        s(&session.join("reference")),
-        "-o",
-        s(&sensor),
-    ]));
+    let (session, sensor, _) = iats_features(&d, "2", "3");
     let one = std::fs::read_dir(session.join("frames"))
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -154,7 +134,7 @@ fn ctrl_c_stops_an_extraction_or_a_ranking_and_writes_nothing() {
     for k in 0..3000 {
         std::fs::hard_link(&one, frames.join(format!("f{k:05}.png"))).unwrap();
     }
-    let out = d.join("f.csv");
+    let out = d.join("many.csv");
     let args = ["extract", "--sensor", s(&sensor), s(&frames), "-o", s(&out)];
     let (code, rest) = interrupt_after_start(&args, "extract");
     assert_eq!(code, Some(1), "{rest:?}");
@@ -163,7 +143,7 @@ fn ctrl_c_stops_an_extraction_or_a_ranking_and_writes_nothing() {
             .any(|l| l.contains("interrupted (Ctrl-C) after") && l.contains("not written")),
         "{rest:?}"
     );
-    assert!(!out.exists() && !d.join("f.csv.part~").exists());
+    assert!(!out.exists() && !d.join("many.csv.part~").exists());
     // Uninterrupted and quiet: the table, no progress line.
     let mut quiet = args.to_vec();
     quiet.push("--quiet");
@@ -172,7 +152,7 @@ fn ctrl_c_stops_an_extraction_or_a_ranking_and_writes_nothing() {
         !err.contains("started") && err.contains("extracted 3000 frames"),
         "{err}"
     );
-    assert!(out.is_file() && !d.join("f.csv.part~").exists());
+    assert!(out.is_file() && !d.join("many.csv.part~").exists());
     // Ranking the same frames for a reference (`--reference lightest:N`) stops likewise.
     let ranked = d.join("ranked.json");
     let args = [

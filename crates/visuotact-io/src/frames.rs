@@ -191,25 +191,22 @@ pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
         .with_guessed_format()
         .map_err(|e| decode_err(e.to_string()))?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(4 * crate::read::MAX_IMAGE_PIXELS * 2);
+    reader.limits(limits);
+    let decoder = reader
+        .into_decoder()
+        .map_err(|e| decode_err(e.to_string()))?;
     // The size the header claims is checked before anything is allocated (a small file can
     // claim gigapixels).
-    let (w, h) = reader
-        .into_dimensions()
-        .map_err(|e| decode_err(e.to_string()))?;
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
     if u64::from(w) * u64::from(h) > crate::read::MAX_IMAGE_PIXELS {
         return Err(decode_err(format!(
             "{w}×{h} pixels, beyond the limit of {} pixels",
             crate::read::MAX_IMAGE_PIXELS
         )));
     }
-    reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
-        .with_guessed_format()
-        .map_err(|e| decode_err(e.to_string()))?;
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(4 * crate::read::MAX_IMAGE_PIXELS * 2);
-    reader.limits(limits);
-    let img = reader
-        .decode()
+    let img = image::DynamicImage::from_decoder(decoder)
         .map_err(|e| decode_err(e.to_string()))?
         .into_rgb8();
     let (w, h) = img.dimensions();

@@ -110,6 +110,14 @@ pub fn refuse_outputs_over_inputs(outputs: &[&Path], inputs: &[&Path]) -> Result
     Ok(())
 }
 
+/// The temporary name an output at `path` is written under until it is whole (`NAME.part~`
+/// beside it): tables, bags and data sets take their name only when finished.
+pub fn part_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".part~");
+    path.with_file_name(name)
+}
+
 /// Checks that `output` can be written before any work: its folder is created and a probe
 /// written and removed beside it (`-`, standard output, always can).
 pub fn check_writable(output: &Path) -> Result<(), OutputError> {

@@ -64,13 +64,6 @@ fn csv_escape(s: &str) -> String {
     }
 }
 
-/// The temporary name a table is written under beside `path`.
-fn part_path(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".part~");
-    path.with_file_name(name)
-}
-
 impl TableWriter {
     /// Creates `path` (`-` for standard output) with the given numeric column names; the file
     /// appears under its name at [`TableWriter::finish`].
@@ -81,7 +74,7 @@ impl TableWriter {
             if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir)?;
             }
-            let part = part_path(path);
+            let part = crate::guard::part_path(path);
             (Box::new(BufWriter::new(File::create(&part)?)), Some(part))
         };
         let mut w = Self {

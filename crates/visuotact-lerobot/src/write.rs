@@ -488,9 +488,7 @@ pub fn export_lerobot(
     let mut notes = Vec::new();
     let features = features_of(&eps, fps, &mut notes)?;
     let final_out = out;
-    let mut part = out.file_name().unwrap_or_default().to_os_string();
-    part.push(".part~");
-    let out = &out.with_file_name(part);
+    let out = &visuotact_io::guard::part_path(out);
     // A killed export's leftovers: exports are made again from the sessions, nothing is lost.
     if out.exists() {
         std::fs::remove_dir_all(out).map_err(|e| LeRobotError::Io(out.into(), e))?;

@@ -15,6 +15,7 @@
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
+use visuotact_image::Frame;
 use visuotact_io::frames::{FrameError, FrameStream};
 use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
@@ -103,22 +104,37 @@ impl<F: FnMut(&str)> PassObserver for F {
     }
 }
 
-/// Opens `paths` as one frame stream and how many frames it holds, when known.
-fn open_frames(paths: &[PathBuf], fps: f64) -> Result<(FrameStream, Option<usize>), ReplayError> {
-    let stream = FrameStream::open(paths, fps)?;
-    let total = stream.expected_frames();
-    Ok((stream, total))
+/// The frames of a pass: before each frame, and once more when they run out (Ctrl-C also ends
+/// a video's decoder), the observer hears how far the pass is and may stop it.
+struct Pass {
+    stream: FrameStream,
+    total: Option<usize>,
+    done: usize,
 }
 
-/// Tells `obs` that `done` frames of `total` are through; an error when it stops the pass.
-fn through(
-    obs: &mut dyn PassObserver,
-    done: usize,
-    total: Option<usize>,
-) -> Result<(), ReplayError> {
-    match obs.frames_done(done, total) {
-        ControlFlow::Continue(()) => Ok(()),
-        ControlFlow::Break(()) => Err(ReplayError::Stopped { frames: done }),
+impl Pass {
+    /// `paths` as one frame stream, with how many frames it holds when known.
+    fn open(paths: &[PathBuf], fps: f64) -> Result<Self, ReplayError> {
+        let stream = FrameStream::open(paths, fps)?;
+        let total = stream.expected_frames();
+        Ok(Self {
+            stream,
+            total,
+            done: 0,
+        })
+    }
+
+    /// The next frame, after telling `obs`; [`ReplayError::Stopped`] when it stops the pass.
+    fn next(
+        &mut self,
+        obs: &mut dyn PassObserver,
+    ) -> Result<Option<Result<Frame, FrameError>>, ReplayError> {
+        if obs.frames_done(self.done, self.total).is_break() {
+            return Err(ReplayError::Stopped { frames: self.done });
+        }
+        let item = self.stream.next();
+        self.done += usize::from(item.is_some());
+        Ok(item)
     }
 }
 
@@ -219,11 +235,8 @@ pub fn replay(
     let mut done = Replayed::default();
     let mut extra_values = Vec::with_capacity(extra.len());
     let t0 = std::time::Instant::now();
-    let (stream, total) = open_frames(&paths, cfg.fps)?;
-    let mut seen = 0;
-    for (n, item) in stream.enumerate() {
-        seen = n + 1;
-        through(obs, n, total)?;
+    let mut pass = Pass::open(&paths, cfg.fps)?;
+    while let Some(item) = pass.next(obs)? {
         let frame = match item {
             Ok(f) => f,
             Err(e) => {
@@ -254,8 +267,6 @@ pub fn replay(
         written.map_err(write_err)?;
         done.frames += 1;
     }
-    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
-    through(obs, seen, total)?;
     out.finish().map_err(write_err)?;
     done.seconds = t0.elapsed().as_secs_f64();
     done.session = session;
@@ -286,7 +297,7 @@ pub fn extract(
     obs: &mut dyn PassObserver,
 ) -> Result<Extracted, ReplayError> {
     let n_markers = ex.calibration().markers.len();
-    let (stream, total) = open_frames(frames, fps)?;
+    let mut pass = Pass::open(frames, fps)?;
     let write_err = |source| ReplayError::Write {
         path: output.to_path_buf(),
         source,
@@ -295,10 +306,7 @@ pub fn extract(
         .map_err(write_err)?;
     let mut done = Extracted::default();
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
-    let mut seen = 0;
-    for (n, item) in stream.enumerate() {
-        seen = n + 1;
-        through(obs, n, total)?;
+    while let Some(item) = pass.next(obs)? {
         let frame = match item {
             Ok(fr) => fr,
             Err(e) => {
@@ -332,8 +340,6 @@ pub fn extract(
             .map_err(write_err)?;
         done.written += 1;
     }
-    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
-    through(obs, seen, total)?;
     out.finish().map_err(write_err)?;
     Ok(done)
 }
@@ -347,11 +353,8 @@ pub fn features_table(
     obs: &mut dyn PassObserver,
 ) -> Result<KeyedTable, ReplayError> {
     let (mut keys, mut rows) = (Vec::new(), Vec::new());
-    let (stream, total) = open_frames(frames, fps)?;
-    let mut seen = 0;
-    for (n, item) in stream.enumerate() {
-        seen = n + 1;
-        through(obs, n, total)?;
+    let mut pass = Pass::open(frames, fps)?;
+    while let Some(item) = pass.next(obs)? {
         let frame = match item {
             Ok(f) => f,
             Err(e) => {
@@ -367,8 +370,6 @@ pub fn features_table(
             Err(e) => obs.warn(&format!("frame {}: {e}; skipped", frame.id)),
         }
     }
-    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
-    through(obs, seen, total)?;
     Ok(KeyedTable {
         columns: ex.column_names(),
         text: vec![Vec::new(); rows.len()],
@@ -460,11 +461,8 @@ pub fn blobs_table(
     let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
     let mut done = BlobsWritten::default();
     let mut blobs = Vec::new();
-    let (stream, total) = open_frames(frames, 25.0)?;
-    let mut seen = 0;
-    for (n, item) in stream.enumerate() {
-        seen = n + 1;
-        through(obs, n, total)?;
+    let mut pass = Pass::open(frames, 25.0)?;
+    while let Some(item) = pass.next(obs)? {
         let f = match item {
             Ok(f) => f,
             Err(e) => {
@@ -482,8 +480,6 @@ pub fn blobs_table(
         done.frames += 1;
         done.blobs += blobs.len();
     }
-    // A stop heard as the frames ran out (Ctrl-C also ends a video's decoder) still stops.
-    through(obs, seen, total)?;
     out.finish().map_err(write_err)?;
     Ok(done)
 }

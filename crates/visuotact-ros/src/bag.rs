@@ -61,13 +61,6 @@ pub struct Bag {
     cdr: Vec<u8>,
 }
 
-/// The temporary name a bag at `path` is written under.
-fn part_path(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".part~");
-    path.with_file_name(name)
-}
-
 impl Bag {
     /// Creates the bag at `path` (see the module's documentation); refuses to replace one.
     pub fn create(path: &Path, cfg: &BagConfig) -> Result<Self, RosError> {
@@ -75,7 +68,7 @@ impl Bag {
         if path.exists() {
             return Err(RosError::Exists(path.to_path_buf()));
         }
-        let part = part_path(path);
+        let part = visuotact_io::guard::part_path(path);
         if part.exists() {
             return Err(RosError::Unfinished(part));
         }
