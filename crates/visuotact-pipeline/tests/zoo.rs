@@ -13,8 +13,8 @@ use visuotact_pipeline::trackcheck::{
 use visuotact_vision::detect::Centroid;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 
-fn run(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> CheckReport {
-    check(&CheckConfig {
+fn config(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> CheckConfig {
+    CheckConfig {
         sensor,
         protocol: protocol.to_string(),
         touches,
@@ -23,8 +23,11 @@ fn run(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> CheckRep
         detector: sensor.detector(Centroid::Grey),
         layout: LayoutChoice::Auto,
         motion_limit_pitches: MOTION_LIMIT_PITCHES,
-    })
-    .unwrap()
+    }
+}
+
+fn run(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> CheckReport {
+    check(&config(sensor, protocol, touches, seed)).unwrap()
 }
 
 fn assert_tracked(what: &str, r: &CheckReport, max_err_px: f64) {
@@ -201,21 +204,38 @@ fn the_temporal_prior_follows_a_drag_built_up_past_the_order_free_limit() {
 
 /// Local drags of 0.5–1.5 pitch on top of the press (protocol `drag`): where the tracker can
 /// no longer tell which blob is whose, a marker must be reported lost or ambiguous rather than
-/// given its neighbour's blob. Measured here: tactip variants 1–3 on touch seed 1 lose a few
-/// markers in frames whose motion exceeds 1.5 pitches and swap none (9 swapped before the
-/// tracker kept markers in doubt lost); the drag protocol on every sensor is still short of
-/// no swap at all (docs/benchmarks.md).
+/// given its neighbour's blob, and no visible marker may be lost in a frame that moved by under
+/// one pitch. The runs are the sensors' worst on the drag protocol before markers around gaps
+/// in a moving field were put in doubt (tactip variant 4: 36 and 24 wrong identities on seeds 1
+/// and 2; dots 2 and 3: 3 and 4; tactip-small 5: 24), beside tactip variants 1–3 and the
+/// GelSight-like grid. Still short: tactip-small variant 4 on seed 1 keeps one, gelsight
+/// variant 1 four and six on seeds 1 and 2, where the whole dragged patch lags a step and no
+/// marker seems to move a full pitch (docs/benchmarks.md).
 #[test]
-fn tip_drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
-    for variant in 1..=3 {
-        let sensor = SimSensor::named("tactip", variant).unwrap();
-        let r = run(sensor, "drag", 40, 1);
-        assert_eq!(r.wrong, 0, "tactip variant {variant}: {:#?}", r.examples);
-        assert_eq!(
-            r.lost, r.beyond_lost,
-            "tactip variant {variant}: {:#?}",
-            r.examples
-        );
+fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
+    let runs = [
+        ("tactip", 1, 1),
+        ("tactip", 2, 1),
+        ("tactip", 3, 1),
+        ("tactip", 4, 1),
+        ("tactip", 4, 2),
+        ("tactip-small", 5, 1),
+        ("dots", 2, 1),
+        ("dots", 3, 2),
+        ("gelsight", 2, 1),
+        ("gelsight", 3, 2),
+    ];
+    for (name, variant, seed) in runs {
+        let sensor = SimSensor::named(name, variant).unwrap();
+        let r = check(&CheckConfig {
+            motion_limit_pitches: 1.0,
+            ..config(sensor, "drag", 40, seed)
+        })
+        .unwrap();
+        let what = format!("{name} variant {variant}, seed {seed}");
+        assert_eq!(r.wrong, 0, "{what}: {:#?}", r.examples);
+        assert_eq!(r.lost, r.beyond_lost, "{what}: {:#?}", r.examples);
+        assert!(r.beyond_frames > 0, "{what}: no frame moved beyond a pitch");
     }
 }
 

@@ -36,6 +36,10 @@ pub(crate) struct Args {
     /// Binarise the zoo sensor's output (black and white frames, as published TacTip data).
     #[arg(long)]
     binarise: bool,
+    /// Frames where a visible marker moves farther than this, in pitches, are also counted
+    /// apart (the `beyond_*` columns).
+    #[arg(long, default_value_t = MOTION_LIMIT_PITCHES)]
+    motion_limit: f64,
     /// Print the first problems found.
     #[arg(long)]
     verbose: bool,
@@ -56,6 +60,12 @@ pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    if !(a.motion_limit.is_finite() && a.motion_limit > 0.0) {
+        bail!(
+            "--motion-limit {}: expected a positive number of pitches",
+            a.motion_limit
+        );
+    }
     let centroid = match a.centroid.as_str() {
         "grey" => Centroid::Grey,
         "weighted" => Centroid::Weighted,
@@ -86,7 +96,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             references: a.references,
             detector,
             layout: LayoutChoice::Auto,
-            motion_limit_pitches: MOTION_LIMIT_PITCHES,
+            motion_limit_pitches: a.motion_limit,
         };
         let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
         println!(
