@@ -1487,9 +1487,8 @@ fn doubt_around_gaps(
 ) -> Vec<usize> {
     let held = |k: usize| m.assignment[k].is_some() && status[k] == MarkerStatus::Ok;
     let moved_a_step = |k: usize| {
-        held(k)
-            && (m.disp[k].0 - shift.0).hypot(m.disp[k].1 - shift.1)
-                >= FRAME_MOTION * reference.spacing_px[k]
+        let step = FRAME_MOTION * reference.spacing_px[k];
+        held(k) && dist_sq(m.disp[k], shift) >= step * step
     };
     if !(0..status.len()).any(moved_a_step) {
         return Vec::new();

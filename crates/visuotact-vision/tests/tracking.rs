@@ -68,16 +68,26 @@ fn check_frame(
             "{what}: marker {k} {:?}",
             f.status[k]
         );
-        let x = m.x_px + f.values[4 * k];
-        let y = m.y_px + f.values[4 * k + 1];
-        let err = (x - t.cx_px).hypot(y - t.cy_px);
-        assert!(
-            err < 0.3,
-            "{what}: marker {k} at ({x:.2},{y:.2}), truth ({:.2},{:.2})",
-            t.cx_px,
-            t.cy_px
-        );
+        assert_at_truth(&f, m, k, t, what);
     }
+}
+
+/// Marker `k`'s measured position (its reference `m` plus its displacement in `f`) lies within
+/// 0.3 px of the drawn ellipse `t`'s centre.
+fn assert_at_truth(
+    f: &visuotact_vision::features::FrameFeatures,
+    m: &visuotact_vision::calibration::ReferenceMarker,
+    k: usize,
+    t: visuotact_sim::render::Ellipse,
+    what: &str,
+) {
+    let (x, y) = (m.x_px + f.values[4 * k], m.y_px + f.values[4 * k + 1]);
+    assert!(
+        (x - t.cx_px).hypot(y - t.cy_px) < 0.3,
+        "{what}: marker {k} at ({x:.2}, {y:.2}), truth ({:.2}, {:.2})",
+        t.cx_px,
+        t.cy_px
+    );
 }
 
 #[test]
@@ -369,14 +379,7 @@ fn a_gap_in_a_field_dragged_under_a_pitch_is_one_lost_marker() {
                 in_doubt += 1;
                 continue;
             }
-            let t = truth[k].ellipse;
-            let (x, y) = (m.x_px + f.values[4 * k], m.y_px + f.values[4 * k + 1]);
-            assert!(
-                (x - t.cx_px).hypot(y - t.cy_px) < 0.3,
-                "{what}: marker {k} at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
-                t.cx_px,
-                t.cy_px
-            );
+            assert_at_truth(&f, m, k, truth[k].ellipse, &what);
         }
         eprintln!("{what}: {in_doubt} markers in doubt");
     }
