@@ -582,6 +582,9 @@ mod tests {
         let e = ForceTable::read(&p).unwrap_err();
         assert_eq!(e.line, Some(3));
         assert!(e.to_string().contains("line 3, column `fz_n`"), "{e}");
+        // Saved by a spreadsheet, with a byte-order mark: the first column is still found.
+        std::fs::write(&p, b"\xEF\xBB\xBFtimestamp_s,fz_n\n0.0,1\n0.001,2\n").unwrap();
+        assert_eq!(ForceTable::read(&p).unwrap().timestamp_s, vec![0.0, 0.001]);
         std::fs::write(&p, "time,fz_n\n").unwrap();
         assert!(ForceTable::read(&p)
             .unwrap_err()

@@ -52,15 +52,24 @@ pub fn bytes_of_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// The text of `path` ([`bytes_of_file`] with [`MAX_TEXT_BYTES`]), which must be UTF-8.
+/// The text of `path` ([`bytes_of_file`] with [`MAX_TEXT_BYTES`]), which must be UTF-8. A
+/// byte-order mark at its start (spreadsheet programs write one into CSV files) is not part of
+/// the text: every table, sensor and model reader sees its first column's name as written.
 pub fn text_of_file(path: &Path) -> std::io::Result<String> {
-    String::from_utf8(bytes_of_file(path, MAX_TEXT_BYTES)?).map_err(|e| {
+    let mut bytes = bytes_of_file(path, MAX_TEXT_BYTES)?;
+    if bytes.starts_with(UTF8_BOM) {
+        bytes.drain(..UTF8_BOM.len());
+    }
+    String::from_utf8(bytes).map_err(|e| {
         std::io::Error::new(
             std::io::ErrorKind::InvalidData,
             format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
         )
     })
 }
+
+/// The UTF-8 encoding of U+FEFF, the byte-order mark.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 
 #[cfg(test)]
 mod tests {
@@ -73,6 +82,9 @@ mod tests {
         let f = d.join("t.csv");
         std::fs::write(&f, "frame,x\n").unwrap();
         assert_eq!(text_of_file(&f).unwrap(), "frame,x\n");
+        // As a spreadsheet saves it: the byte-order mark is not part of the first column's name.
+        std::fs::write(&f, b"\xEF\xBB\xBFtime_s,fz_n\n0,1\n").unwrap();
+        assert_eq!(text_of_file(&f).unwrap(), "time_s,fz_n\n0,1\n");
         let e = bytes_of_file(&f, 4).unwrap_err().to_string();
         assert!(e.contains("beyond the limit of 4 bytes"), "{e}");
         let e = text_of_file(&d).unwrap_err().to_string();
