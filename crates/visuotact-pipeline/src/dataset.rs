@@ -346,9 +346,12 @@ fn extract(
         path: dir.to_path_buf(),
         why: e.to_string(),
     })?;
+    let mut markerless = 0usize;
     for item in stream {
         match item {
             Ok(frame) => match est.features(&frame.image) {
+                // No marker of the sensor found: a row of empty cells trains nothing.
+                Ok(f) if f.found == 0 => markerless += 1,
                 Ok(f) => {
                     out.insert(frame.id, f.values.clone());
                 }
@@ -356,6 +359,21 @@ fn extract(
             },
             Err(e) => notes.push(format!("{e}; skipped")),
         }
+    }
+    if out.is_empty() && markerless > 0 {
+        return Err(DatasetError::Missing {
+            path: dir.to_path_buf(),
+            what: format!(
+                "the sensor file finds none of its markers in any of the {markerless} frames: \
+                 expected the sensor calibrated on this session's camera"
+            ),
+        });
+    }
+    if markerless > 0 {
+        notes.push(format!(
+            "{}: {markerless} frames with none of the sensor's markers; skipped",
+            dir.display()
+        ));
     }
     Ok((cols, out))
 }
@@ -434,6 +452,43 @@ mod tests {
         std::fs::write(d.join("labels.csv"), "frame,x_mm\nf0.png,1\n").unwrap();
         let err = build(std::slice::from_ref(&d), None, &DatasetConfig::default()).unwrap_err();
         assert!(err.to_string().contains("give a sensor file"), "{err}");
+        let _ = std::fs::remove_dir_all(d);
+    }
+
+    /// A sensor file from another camera finds none of its markers in the session's frames:
+    /// an error naming the folder, not a table of empty rows; frames without a marker beside
+    /// ones with markers are left out with a note.
+    #[test]
+    fn a_sensor_that_finds_no_marker_is_refused() {
+        use visuotact_sim::pattern::{render_grid, GridPattern};
+        use visuotact_vision::calibration::{calibrate, Preset};
+        let pattern = GridPattern::IATS;
+        let rest = render_grid(&pattern, None, 1).0;
+        let (sensor, _) = calibrate([("rest", &rest)], &Preset::Iats.config()).unwrap();
+        let d = session_dir("no-marker");
+        std::fs::remove_file(d.join("features.csv")).unwrap();
+        std::fs::remove_file(d.join("force.csv")).unwrap();
+        std::fs::write(d.join("labels.csv"), "frame,x_mm\nf0.png,1\nf1.png,2\n").unwrap();
+        std::fs::create_dir_all(d.join("frames")).unwrap();
+        let dark = visuotact_image::RgbImage::new(rest.width(), rest.height());
+        for k in 0..5 {
+            visuotact_io::frames::write_png(&d.join(format!("frames/f{k}.png")), &dark).unwrap();
+        }
+        let cfg = DatasetConfig::default();
+        let err = build(std::slice::from_ref(&d), Some(&sensor), &cfg).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("none of its markers in any of the 5 frames"),
+            "{err}"
+        );
+        visuotact_io::frames::write_png(&d.join("frames/f0.png"), &rest).unwrap();
+        let ds = build(std::slice::from_ref(&d), Some(&sensor), &cfg).unwrap();
+        assert_eq!(ds.keys, vec!["f0.png".to_string()]);
+        assert!(
+            ds.notes.iter().any(|n| n.contains("4 frames with none")),
+            "{:?}",
+            ds.notes
+        );
         let _ = std::fs::remove_dir_all(d);
     }
 }
