@@ -1543,18 +1543,28 @@ fn alone_beside_doubt(
     (0..m.assignment.len())
         .filter(|&i| held(i) && !in_doubt(i))
         .filter(|&i| {
-            let near = NEIGHBOUR_STEP * reference.spacing_px[i];
-            let mut steps = reference.neighbours[i]
-                .iter()
-                .filter(|&&k| dist_sq(m.anchors[k], m.anchors[i]) <= near * near)
-                .peekable();
-            steps.peek().is_some() && steps.all(|&k| !held(k) || in_doubt(k))
+            let mut steps = lattice_steps(reference, &m.anchors, i).peekable();
+            steps.peek().is_some() && steps.all(|k| !held(k) || in_doubt(k))
         })
         .collect()
 }
 
 /// A lattice step, in spacings: the neighbours of a marker that are this close.
 const NEIGHBOUR_STEP: f64 = 1.3;
+
+/// The neighbours of `i` a lattice step away (within [`NEIGHBOUR_STEP`] of its spacing) at
+/// `anchors`.
+fn lattice_steps<'r>(
+    reference: &'r TrackReference,
+    anchors: &'r [(f64, f64)],
+    i: usize,
+) -> impl Iterator<Item = usize> + 'r {
+    let near = NEIGHBOUR_STEP * reference.spacing_px[i];
+    reference.neighbours[i]
+        .iter()
+        .copied()
+        .filter(move |&k| dist_sq(anchors[k], anchors[i]) <= near * near)
+}
 
 /// The motion around gap `g` when it is a gap (see [`doubt_around_gaps`]): the largest motion
 /// of its matched neighbours a lattice step away, in spacings, and the direction of their mean
@@ -1569,12 +1579,8 @@ fn gap_motion(
 ) -> Option<(f64, (f64, f64))> {
     // Its nearest neighbours only: a marker at the edge of the view has matched markers two
     // steps inwards, but is not inside the field.
-    let near = NEIGHBOUR_STEP * reference.spacing_px[g];
     let (mut all, mut count, mut max, mut sum) = (0usize, 0usize, 0.0f64, (0.0, 0.0));
-    for &k in &reference.neighbours[g] {
-        if dist_sq(m.anchors[k], m.anchors[g]) > near * near {
-            continue;
-        }
+    for k in lattice_steps(reference, &m.anchors, g) {
         all += 1;
         if held(k) {
             let d = (m.disp[k].0 - shift.0, m.disp[k].1 - shift.1);
