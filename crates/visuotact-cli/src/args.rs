@@ -186,7 +186,7 @@ impl DetectorArgs {
         let o = self.options()?;
         let c = o.config_for_frames(purpose, first)?;
         if o.preset.is_none() && c.preset == Preset::DarkMarkers {
-            eprintln!(
+            note!(
                 "markers darker than the skin: preset dark-markers (--preset iats for the bright-marker one)"
             );
         }
@@ -390,7 +390,7 @@ impl DataArgs {
         };
         let j = training_table_from_files(files, &cfg)?;
         for note in &j.notes {
-            eprintln!("{note}");
+            note!("{note}");
         }
         Ok((targets, j))
     }

@@ -6,6 +6,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+// First: the line macros are in scope in every module below.
+#[macro_use]
+mod say;
 mod args;
 mod commands;
 mod files;
@@ -143,18 +146,23 @@ where
         Command::Cameras => {
             let list = visuotact_io::camera::list_devices();
             if list.is_empty() {
-                println!("no V4L2 cameras (/sys/class/video4linux is empty)");
+                say!("no V4L2 cameras (/sys/class/video4linux is empty)");
             }
             for (dev, name) in list {
-                println!("{dev}\t{name}");
+                say!("{dev}\t{name}");
             }
             Ok(())
         }
     };
+    // Output that did not arrive is not a success.
+    let result = result.and_then(|()| match say::stdout_failure() {
+        Some(e) => Err(anyhow::anyhow!("cannot write to standard output: {e}")),
+        None => Ok(()),
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", message(&e));
+            note!("error: {}", message(&e));
             ExitCode::FAILURE
         }
     }

@@ -30,13 +30,13 @@ fn evaluation_report(
         labels.display().to_string(),
     );
     evaluation_page(e, (&names.0, &names.1), &run)?.write(path)?;
-    eprintln!("wrote {}", path.display());
+    note!("wrote {}", path.display());
     Ok(())
 }
 
 /// States a training's memory estimate before it starts.
 pub(crate) fn memory(what: &str, bytes: u64) {
-    eprintln!(
+    note!(
         "memory: {what} about {} MiB at the peak",
         bytes.div_ceil(1 << 20)
     );
@@ -55,7 +55,7 @@ pub(crate) fn evaluation(
     let t0 = std::time::Instant::now();
     let e = evaluate_files(predictions, labels)?;
     for note in &e.notes {
-        eprintln!("note: {note}");
+        note!("note: {note}");
     }
     if let Some(path) = plot {
         let panels: Vec<Panel> = e
@@ -64,7 +64,7 @@ pub(crate) fn evaluation(
             .map(|t| (t.errors.target.clone(), t.points.clone(), t.errors.r))
             .collect();
         visuotact_report::save(&RegressionPlot(&panels), path)?;
-        eprintln!("wrote {}", path.display());
+        note!("wrote {}", path.display());
     }
     if let Some(path) = map {
         let Some(d) = e.distance_mm else {
@@ -79,7 +79,7 @@ pub(crate) fn evaluation(
             distance_mean_mm: d.mean,
         };
         visuotact_report::save(&figure, path)?;
-        eprintln!("wrote {}", path.display());
+        note!("wrote {}", path.display());
     }
     if let Some(path) = report {
         evaluation_report(&e, (predictions, labels), path, t0.elapsed().as_secs_f64())?;
@@ -90,15 +90,22 @@ pub(crate) fn evaluation(
             "targets": figures,
             "distance_mm": e.distance_mm,
         });
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        say!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    println!(
+    say!(
         "{:<12} {:>6} {:>11} {:>8} {:>10} {:>10} {:>8} {:>9}",
-        "target", "n", "mse", "R", "mean |e|", "max |e|", "MPE %", "acc. %"
+        "target",
+        "n",
+        "mse",
+        "R",
+        "mean |e|",
+        "max |e|",
+        "MPE %",
+        "acc. %"
     );
     for f in &figures {
-        println!(
+        say!(
             "{:<12} {:>6} {:>11.4e} {:>8.5} {:>10.4} {:>10.4} {:>8.2} {:>9.2}",
             f.target,
             f.n,
@@ -111,12 +118,13 @@ pub(crate) fn evaluation(
         );
     }
     if let Some(d) = e.distance_mm {
-        println!(
+        say!(
             "distance D (x, y): mean {:.3} mm, max {:.3} mm",
-            d.mean, d.max
+            d.mean,
+            d.max
         );
     }
-    println!(
+    say!(
         "MPE and accuracy over samples with |target| ≥ {:.0} % of the largest |target|",
         100.0 * visuotact_nn::metrics::MPE_FLOOR_FRACTION
     );

@@ -70,7 +70,7 @@ impl Reporter {
 
     fn line(&self, args: std::fmt::Arguments<'_>) {
         if !self.quiet {
-            eprintln!("{args}");
+            note!("{args}");
         }
     }
 
@@ -170,7 +170,7 @@ impl<'a> FramePass<'a> {
     /// Says how many warnings were not printed, if any.
     pub(crate) fn print_unshown(&self) {
         if self.warned > self.max_warnings && self.max_warnings > 0 {
-            eprintln!(
+            note!(
                 "… {} more warnings not shown",
                 self.warned - self.max_warnings
             );
@@ -181,7 +181,7 @@ impl<'a> FramePass<'a> {
 impl PassObserver for FramePass<'_> {
     fn warn(&mut self, message: &str) {
         if self.warned < self.max_warnings {
-            eprintln!("warning: {message}");
+            note!("warning: {message}");
         }
         self.warned += 1;
     }

@@ -316,18 +316,20 @@ pub fn spawn(
         wanted: format!("{req:?}"),
         offered: format!("{offered:?}"),
     })?;
-    eprintln!(
+    warn_line(format_args!(
         "camera {dev}: {:?} {}×{} at {fps} fps",
         fmt.pixel, fmt.width, fmt.height
-    );
+    ));
     let dev = dev.to_string();
     Ok(std::thread::spawn(move || {
         let mut k = 0u64;
         while !stop.load(Ordering::Relaxed) && k < max {
             match capture_once(&dev, fmt, fps, &queue, &stop, clock, &mut k, max) {
                 Ok(()) if stop.load(Ordering::Relaxed) || k >= max => break,
-                Ok(()) => eprintln!("warning: camera {dev} stopped sending; re-opening"),
-                Err(e) => eprintln!("warning: camera {dev}: {e}; re-opening"),
+                Ok(()) => warn_line(format_args!(
+                    "warning: camera {dev} stopped sending; re-opening"
+                )),
+                Err(e) => warn_line(format_args!("warning: camera {dev}: {e}; re-opening")),
             }
             std::thread::sleep(Duration::from_secs(1));
         }
@@ -406,7 +408,9 @@ fn capture_once(
                 for jpeg in split.push(&buf[..n]) {
                     match rgb_from_mjpeg(&jpeg) {
                         Ok(img) => push(img, k),
-                        Err(e) => eprintln!("warning: camera {dev}: {e}; frame skipped"),
+                        Err(e) => {
+                            warn_line(format_args!("warning: camera {dev}: {e}; frame skipped"))
+                        }
                     }
                 }
             }
@@ -427,6 +431,13 @@ fn capture_once(
     let _ = child.kill();
     let _ = child.wait();
     Ok(())
+}
+
+/// A line to stderr, dropped when stderr cannot take it (a full disk): `eprintln!` would
+/// panic and end the caller's run.
+fn warn_line(args: std::fmt::Arguments<'_>) {
+    use std::io::Write as _;
+    let _ = writeln!(std::io::stderr().lock(), "{args}");
 }
 
 #[cfg(test)]

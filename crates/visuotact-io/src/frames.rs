@@ -288,6 +288,14 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, FrameError> {
         .map_err(|e| tool_missing(path, "ffprobe", &e))?;
     let text = String::from_utf8_lossy(&out.stdout);
     let err = String::from_utf8_lossy(&out.stderr);
+    video_info_from_probe(path, &text, &err)
+}
+
+/// The size, rate and frame count of `path` from `ffprobe`'s `key=value` lines (`text`) and
+/// its messages (`err`): a stream without a size, a zero size or one over
+/// [`crate::read::MAX_IMAGE_PIXELS`] per frame is refused, a rate that does not parse is
+/// 25 fps.
+pub fn video_info_from_probe(path: &Path, text: &str, err: &str) -> Result<VideoInfo, FrameError> {
     let field = |k: &str| {
         text.lines().find_map(|l| {
             l.strip_prefix(k)
@@ -323,6 +331,16 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, FrameError> {
         .unwrap_or(25.0);
     if width == 0 || height == 0 {
         return Err(bad("zero frame size"));
+    }
+    let pixels = (width as u64).checked_mul(height as u64);
+    if pixels.is_none_or(|p| p > crate::read::MAX_IMAGE_PIXELS) {
+        return Err(FrameError::Video {
+            path: path.to_path_buf(),
+            message: format!(
+                "frames of {width}×{height}: over the limit of {} pixels a frame",
+                crate::read::MAX_IMAGE_PIXELS
+            ),
+        });
     }
     let frames = field("nb_frames").and_then(|v| v.parse().ok());
     Ok(VideoInfo {
@@ -721,5 +739,36 @@ mod limit_tests {
         let e = read_image(&p).unwrap_err().to_string();
         assert!(e.contains("100000×100000 pixels, beyond the limit"), "{e}");
         std::fs::remove_dir_all(&d).unwrap();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn probes_of_impossible_frame_sizes_are_refused_by_name() {
+        let p = Path::new("v.mp4");
+        let ok = video_info_from_probe(
+            p,
+            "width=640\nheight=480\navg_frame_rate=30000/1001\nnb_frames=12\n",
+            "",
+        )
+        .unwrap();
+        assert_eq!((ok.width, ok.height, ok.frames), (640, 480, Some(12)));
+        assert!((ok.fps - 29.97).abs() < 0.01, "{}", ok.fps);
+        let odd_rate = video_info_from_probe(p, "width=4\nheight=2\navg_frame_rate=0/0\n", "");
+        assert_eq!(odd_rate.unwrap().fps, 25.0);
+        for (text, why) in [
+            ("width=4294967296\nheight=4294967296\n", "over the limit"),
+            ("width=18446744073709551615\nheight=2\n", "over the limit"),
+            ("width=100000\nheight=100000\n", "over the limit"),
+            ("width=0\nheight=10\n", "zero frame size"),
+            ("height=10\n", "no video stream"),
+            ("width=-3\nheight=10\n", "no video stream"),
+        ] {
+            let e = video_info_from_probe(p, text, "").unwrap_err().to_string();
+            assert!(e.contains("v.mp4") && e.contains(why), "{text:?}: {e}");
+        }
     }
 }

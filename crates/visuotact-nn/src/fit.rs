@@ -468,6 +468,9 @@ pub enum FitError {
     Projection(#[from] crate::pca::ProjectionError),
 }
 
+/// Most networks in one ensemble.
+pub const MAX_ENSEMBLE: usize = 1000;
+
 /// The first name that `names` holds twice.
 fn duplicate(names: &[String]) -> Option<&str> {
     let mut seen = std::collections::HashSet::new();
@@ -484,6 +487,13 @@ impl FitData<'_> {
             return Err(FitError::Config(
                 "an ensemble of 0 networks: need 1 or more".into(),
             ));
+        }
+        if cfg.ensemble > MAX_ENSEMBLE {
+            return Err(FitError::Config(format!(
+                "an ensemble of {} networks: at most {MAX_ENSEMBLE} (beyond a few, more networks \
+                 no longer lower the error; each costs a training and a model file's weights)",
+                cfg.ensemble
+            )));
         }
         if cfg.max_epochs == 0 {
             return Err(FitError::Config(

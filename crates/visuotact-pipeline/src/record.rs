@@ -402,6 +402,22 @@ fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
     if cfg.max_frames == Some(0) {
         return Err(RecordError::Config("max_frames must be at least 1".into()));
     }
+    if cfg.references > crate::synth::MAX_REFERENCES {
+        return Err(RecordError::Config(format!(
+            "references {}: a simulated rig writes at most {} reference frames",
+            cfg.references,
+            crate::synth::MAX_REFERENCES
+        )));
+    }
+    // The simulated touch rig draws its touches up front.
+    let sim = matches!(SourceSpec::parse(&cfg.source), SourceSpec::Sim(_));
+    if sim && cfg.max_frames.is_some_and(|n| n > crate::synth::MAX_FRAMES) {
+        return Err(RecordError::Config(format!(
+            "max_frames {}: a simulated rig records at most {} frames",
+            cfg.max_frames.unwrap_or_default(),
+            crate::synth::MAX_FRAMES
+        )));
+    }
     Ok(())
 }
 

@@ -13,12 +13,14 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use rayon::prelude::*;
 use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::camera::{CameraError, CameraRequest};
 use visuotact_io::frames::{FrameError, FrameStream};
 use visuotact_io::queue::{median_p99, Captured, LatestQueue};
 use visuotact_io::source::SourceSpec;
+use visuotact_sim::rig::LiveFrames;
 use visuotact_sim::SimError;
 
 use crate::live::{LiveEstimate, LiveEstimator, LiveFrame, MarkerView};
@@ -43,9 +45,18 @@ pub struct RunConfig {
     pub queue: usize,
     /// Simulated sources: seed.
     pub seed: u64,
-    /// Simulated sources: distinct frames rendered up front and cycled.
+    /// Simulated sources: distinct frames cycled (the first [`SIM_FRAMES_UP_FRONT`] rendered
+    /// before the run starts, the rest as they come round; at most [`MAX_SIM_FRAMES`]).
     pub sim_frames: usize,
 }
+
+/// Simulated frames rendered before a live run starts; later ones of a longer loop are
+/// rendered as the loop reaches them, so memory stays bounded (about 240 MB for seed 000's
+/// 640 × 480 frames).
+pub const SIM_FRAMES_UP_FRONT: usize = 256;
+
+/// Most distinct frames a simulated source loops over.
+pub const MAX_SIM_FRAMES: usize = 1_000_000;
 
 impl Default for RunConfig {
     fn default() -> Self {
@@ -71,6 +82,12 @@ impl RunConfig {
             return Err(RunError::Config(
                 "max_frames, queue and sim_frames must be at least 1".into(),
             ));
+        }
+        if self.sim_frames > MAX_SIM_FRAMES {
+            return Err(RunError::Config(format!(
+                "sim_frames {}: a simulated source loops over at most {MAX_SIM_FRAMES} frames",
+                self.sim_frames
+            )));
         }
         self.duration_s
             .map(|d| crate::seconds("duration_s", d))
@@ -221,7 +238,8 @@ pub fn rss_kib() -> Option<u64> {
 
 /// A frame source, opened (simulated frames rendered, files found) but not started.
 enum Source {
-    Sim(Vec<(String, Arc<RgbImage>)>),
+    /// The loop and its first frames, rendered.
+    Sim(Box<LiveFrames>, Vec<(String, Arc<RgbImage>)>),
     Camera(String),
     Stream(Box<FrameStream>),
 }
@@ -230,11 +248,12 @@ impl Source {
     fn open(cfg: &RunConfig) -> Result<Self, RunError> {
         Ok(match SourceSpec::parse(&cfg.source) {
             SourceSpec::Sim(kind) => {
-                let frames = visuotact_sim::rig::live_frames(&kind, cfg.sim_frames, cfg.seed)?
-                    .into_iter()
-                    .map(|(id, img)| (id, Arc::new(img)))
-                    .collect();
-                Self::Sim(frames)
+                let frames = LiveFrames::new(&kind, cfg.sim_frames, cfg.seed)?;
+                let first = (0..frames.len().min(SIM_FRAMES_UP_FRONT))
+                    .into_par_iter()
+                    .map(|k| frames.frame(k).map(|(id, img)| (id, Arc::new(img))))
+                    .collect::<Result<_, _>>()?;
+                Self::Sim(Box::new(frames), first)
             }
             SourceSpec::Camera(dev) => Self::Camera(dev),
             SourceSpec::Frames(path) => {
@@ -260,14 +279,25 @@ impl Source {
         };
         let max = cfg.max_frames.unwrap_or(u64::MAX);
         Ok(match self {
-            Self::Sim(frames) => std::thread::spawn(move || {
+            Self::Sim(frames, first) => std::thread::spawn(move || {
                 let mut k = 0u64;
                 while k < max && !stop.load(Ordering::Relaxed) {
-                    feed.pace(k);
-                    let (id, img) = &frames[(k % frames.len() as u64) as usize];
+                    let at = (k % frames.len() as u64) as usize;
                     // A camera's driver or decoder writes each frame just before it is
                     // delivered; so does the simulated camera (a copy, not a shared buffer).
-                    feed.push(format!("{id}#{k}"), k, Arc::new(RgbImage::clone(img)));
+                    let (id, img) = match first.get(at) {
+                        Some((id, img)) => (id.clone(), RgbImage::clone(img)),
+                        None => match frames.frame(at) {
+                            Ok(f) => f,
+                            Err(e) => {
+                                warn(&format!("simulated frame {at}: {e}; skipped"));
+                                k += 1;
+                                continue;
+                            }
+                        },
+                    };
+                    feed.pace(k);
+                    feed.push(format!("{id}#{k}"), k, Arc::new(img));
                     k += 1;
                 }
                 feed.queue.close();

@@ -157,6 +157,33 @@ pub struct Simulated {
     pub force: Vec<ForceSample>,
 }
 
+/// Most frames one simulated session holds (touches, or the cone's press frames): 11 hours at
+/// 25 fps, and about as many files as one folder should hold.
+pub const MAX_FRAMES: usize = 1_000_000;
+
+/// Most no-contact reference frames one simulated session holds.
+pub const MAX_REFERENCES: usize = 10_000;
+
+/// Most force samples one simulated stream holds (kept in memory, 56 bytes each): about 2.8
+/// hours at the JR3's 1 kHz.
+pub const MAX_FORCE_SAMPLES: usize = 10_000_000;
+
+/// `Err` naming `setting` when `count` (a float product, possibly infinite) exceeds `limit`.
+fn check_count(setting: &str, count: f64, limit: usize, unit: &str) -> Result<(), SimulateError> {
+    if count.is_finite() && count <= limit as f64 {
+        Ok(())
+    } else {
+        let asked = if count < 1e15 {
+            format!("{count:.0}")
+        } else {
+            format!("{count:.3e}")
+        };
+        Err(SimulateError::Config(format!(
+            "{setting} asks for {asked} {unit}; at most {limit} are simulated in one session"
+        )))
+    }
+}
+
 /// Writes the session `cfg` describes.
 pub fn simulate(cfg: &SimulateConfig) -> Result<Simulated, SimulateError> {
     if !(cfg.fps.is_finite() && cfg.fps > 0.0) {
@@ -165,6 +192,13 @@ pub fn simulate(cfg: &SimulateConfig) -> Result<Simulated, SimulateError> {
             cfg.fps
         )));
     }
+    check_count("touches", cfg.touches as f64, MAX_FRAMES, "frames")?;
+    check_count(
+        "references",
+        cfg.references as f64,
+        MAX_REFERENCES,
+        "reference frames",
+    )?;
     match cfg.sensor {
         SimKind::Iats => simulate_iats(cfg),
         SimKind::Cone if cfg.variant != 0 => Err(SimulateError::Config(
@@ -237,14 +271,20 @@ fn write_references(
     fps: f64,
     render: impl Fn(usize) -> Result<(RgbImage, Vec<TruthRow>), SimulateError> + Sync,
 ) -> Result<(), SimulateError> {
-    let imgs: Vec<(RgbImage, Vec<TruthRow>)> = (0..n)
-        .into_par_iter()
-        .map(&render)
-        .collect::<Result<_, _>>()?;
-    for (k, (img, truth)) in imgs.iter().enumerate() {
-        let name = format!("ref_{k:04}.png");
-        write_png(&w.reference_path(&name), img)?;
-        w.add_reference(&name, k, k as f64 / fps, truth)?;
+    for start in (0..n).step_by(BATCH) {
+        let end = (start + BATCH).min(n);
+        let rows: Vec<(String, Vec<TruthRow>)> = (start..end)
+            .into_par_iter()
+            .map(|k| {
+                let (img, truth) = render(k)?;
+                let name = format!("ref_{k:04}.png");
+                write_png(&w.reference_path(&name), &img)?;
+                Ok((name, truth))
+            })
+            .collect::<Result<_, SimulateError>>()?;
+        for (k, (name, truth)) in (start..end).zip(rows) {
+            w.add_reference(&name, k, k as f64 / fps, &truth)?;
+        }
     }
     Ok(())
 }
@@ -487,7 +527,15 @@ fn simulate_cone(a: &SimulateConfig) -> Result<Simulated, SimulateError> {
     };
     jr3_cfg.validate()?;
     let t0 = a.references as f64 / a.fps;
-    let n = (a.cone.duration_s * a.fps).round() as usize;
+    let frames = (a.cone.duration_s * a.fps).round();
+    check_count("duration_s × fps", frames, MAX_FRAMES, "frames")?;
+    check_count(
+        "(references / fps + duration_s) × force_rate_hz",
+        ((t0 + a.cone.duration_s) * jr3_cfg.rate_hz).round(),
+        MAX_FORCE_SAMPLES,
+        "force samples",
+    )?;
+    let n = frames as usize;
     let mut w = SessionWriter::create(&a.output, &CONE_LABELS, true, true)?;
     write_references(&mut w, a.references, a.fps, |k| {
         let t = k as f64 / a.fps;
@@ -611,6 +659,9 @@ pub fn pattern_presses(pattern: &GridPattern, n: usize, max_drag: f64, seed: u64
         .collect()
 }
 
+/// Most touch frames [`write_pattern`] writes (a benchmark's frames, one folder).
+pub const MAX_PATTERN_TOUCHES: usize = 100_000;
+
 /// Writes a pattern series ([`GridPattern::IATS`]): rest frames, touch frames and the
 /// presses behind them.
 pub fn write_pattern(cfg: &PatternConfig) -> Result<(), SimulateError> {
@@ -625,6 +676,13 @@ pub fn write_pattern(cfg: &PatternConfig) -> Result<(), SimulateError> {
             cfg.max_drag
         )));
     }
+    check_count("rest", cfg.rest as f64, MAX_REFERENCES, "rest frames")?;
+    check_count(
+        "touches",
+        cfg.touches as f64,
+        MAX_PATTERN_TOUCHES,
+        "touch frames",
+    )?;
     let pattern = GridPattern::IATS;
     let (rest_dir, touch_dir) = (cfg.output.join("rest"), cfg.output.join("touch"));
     for d in [&rest_dir, &touch_dir] {

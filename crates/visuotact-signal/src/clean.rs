@@ -100,6 +100,22 @@ pub enum CleanError {
     /// The timestamps are not finite and increasing.
     #[error(transparent)]
     Time(#[from] AlignError),
+    /// The timestamps leave a gap too wide to fill ([`MAX_GRID_PER_SAMPLE`]).
+    #[error(
+        "the timestamps jump from {from_s} s to {to_s} s at sample {sample} (counting from 0), \
+         {periods:.3e} sample periods: a clock jump or timestamps in another unit? \
+         Split the table there or fix its time column"
+    )]
+    Gap {
+        /// The sample after the gap (0-based).
+        sample: usize,
+        /// The time before the gap, s.
+        from_s: f64,
+        /// The time after it, s.
+        to_s: f64,
+        /// Its width in median sample periods.
+        periods: f64,
+    },
     /// The samples do not cover the grid.
     #[error("force samples do not cover a uniform grid; are the timestamps in seconds?")]
     NotUniform,
@@ -114,6 +130,27 @@ pub enum CleanError {
     /// The bias could not be estimated.
     #[error("bias: {0}")]
     Bias(#[from] BiasError),
+}
+
+/// The uniform grid holds at most this many points per recorded sample: a stream with a
+/// longer gap (a clock jump, timestamps in another unit) is refused rather than interpolated
+/// over millions of invented samples.
+pub const MAX_GRID_PER_SAMPLE: usize = 8;
+
+/// [`CleanError::Gap`] at the widest gap of `t_s`, with the median period `period_s`.
+fn gap_error(t_s: &[f64], period_s: f64) -> CleanError {
+    let (row, width) = t_s
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((0, 0.0));
+    CleanError::Gap {
+        sample: row + 1,
+        from_s: t_s[row],
+        to_s: t_s.get(row + 1).copied().unwrap_or(t_s[row]),
+        periods: width / period_s,
+    }
 }
 
 /// Cleans `channels` sampled at `t_s` (strictly increasing seconds; each channel as long as
@@ -132,7 +169,11 @@ pub fn clean(
     let mut dt: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
     dt.sort_by(f64::total_cmp);
     let (t0, t1) = (t_s[0], t_s[n - 1]);
-    let len = ((t1 - t0) / dt[dt.len() / 2]).round() as usize + 1;
+    let grid = ((t1 - t0) / dt[dt.len() / 2]).round();
+    if !(grid.is_finite() && grid < (MAX_GRID_PER_SAMPLE * n) as f64) {
+        return Err(gap_error(t_s, dt[dt.len() / 2]));
+    }
+    let len = grid as usize + 1;
     // The grid spans exactly the first to the last sample.
     let period = (t1 - t0) / (len - 1).max(1) as f64;
     let rate_hz = 1.0 / period;

@@ -55,6 +55,14 @@ impl Camera {
                 self.width, self.height
             )));
         }
+        if self.width > crate::MAX_CAMERA_SIDE_PX || self.height > crate::MAX_CAMERA_SIDE_PX {
+            return Err(crate::SimError(format!(
+                "camera size {}×{} exceeds the simulator's limit of {} px a side",
+                self.width,
+                self.height,
+                crate::MAX_CAMERA_SIDE_PX
+            )));
+        }
         if !(self.fx_px > 0.0 && self.fy_px > 0.0) {
             return Err(crate::SimError(
                 "camera focal lengths must be positive".to_string(),

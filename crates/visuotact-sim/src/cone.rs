@@ -132,6 +132,7 @@ impl ConeConfig {
                 self.t_marker_mm
             )));
         }
+        crate::check_blur_px(self.blur_px)?;
         for z in self.ring_heights_mm {
             if !(z > self.ring_width_mm && z < self.length_mm) {
                 return Err(crate::SimError(format!(

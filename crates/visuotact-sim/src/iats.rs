@@ -146,6 +146,13 @@ impl IatsConfig {
                 self.cols, self.rows
             )));
         }
+        if self.cols > 200 || self.rows > 200 {
+            return Err(crate::SimError(format!(
+                "at most 200 × 200 markers, got {} × {}",
+                self.cols, self.rows
+            )));
+        }
+        crate::check_blur_px(self.blur_px)?;
         for (name, v) in [
             ("span_x_mm", self.span_x_mm),
             ("span_y_mm", self.span_y_mm),

@@ -5,6 +5,10 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
+/// Fastest sample rate simulated, Hz: beyond the fastest six-axis sensors (8 kHz), and a
+/// bound on the stream's length.
+pub const MAX_RATE_HZ: f64 = 100_000.0;
+
 /// Sensor parameters.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -39,9 +43,9 @@ impl Jr3Config {
 
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), crate::SimError> {
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= MAX_RATE_HZ) {
             return Err(crate::SimError(format!(
-                "force sample rate must be positive, got {} Hz",
+                "force sample rate must be positive and at most {MAX_RATE_HZ} Hz, got {} Hz",
                 self.rate_hz
             )));
         }

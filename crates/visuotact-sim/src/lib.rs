@@ -15,6 +15,25 @@
 #[error("{0}")]
 pub struct SimError(pub String);
 
+/// Largest image side the simulator draws, pixels: a 4K camera. Beyond it one frame's
+/// canvases alone need gigabytes.
+pub const MAX_CAMERA_SIDE_PX: usize = 4096;
+
+/// Largest optical blur, pixels (Gaussian σ). A blur this wide already smears a marker over
+/// its neighbours; wider ones only cost time (the taps grow with σ).
+pub const MAX_BLUR_PX: f64 = 25.0;
+
+/// Checks an optical blur σ: finite, ≥ 0 and at most [`MAX_BLUR_PX`].
+pub fn check_blur_px(blur_px: f64) -> Result<(), SimError> {
+    if blur_px.is_finite() && (0.0..=MAX_BLUR_PX).contains(&blur_px) {
+        Ok(())
+    } else {
+        Err(SimError(format!(
+            "blur_px must be in 0..{MAX_BLUR_PX} px (Gaussian σ), got {blur_px}"
+        )))
+    }
+}
+
 pub mod camera;
 pub mod cone;
 pub mod iats;

@@ -50,57 +50,103 @@ pub fn cone_labels(
 /// The frames a simulated camera loops over in a live run (`visuotact run --source sim:KIND`):
 /// `n` (at least 2) frames of seed 000's sensor (`iats`: 40 % without contact, then random
 /// touches) or seed 001's cone (`cone`: 30 % at rest, then one press and release), named
-/// `KIND_NNNN`, each frame's noise from [`frame_seed`], rendered in parallel. Unknown kinds say what is expected.
+/// `KIND_NNNN`, each frame's noise from [`frame_seed`], rendered on demand by
+/// [`LiveFrames::frame`] — so a long loop costs no memory. Unknown kinds say what is expected.
+pub struct LiveFrames {
+    scene: LiveScene,
+    n: usize,
+    seed: u64,
+}
+
+/// What a [`LiveFrames`] draws.
+enum LiveScene {
+    Iats {
+        cfg: IatsConfig,
+        touches: Vec<Touch>,
+    },
+    Cone {
+        cfg: ConeConfig,
+        press: ConePress,
+    },
+}
+
+impl LiveFrames {
+    /// The loop of `n` (at least 2) frames of sensor `kind` (`iats` or `cone`).
+    pub fn new(kind: &str, n: usize, seed: u64) -> Result<Self, SimError> {
+        let n = n.max(2);
+        let scene = match kind {
+            "iats" => {
+                let cfg = IatsConfig::SEED000;
+                let touches = crate::protocol::iats_random(&cfg, n, seed);
+                LiveScene::Iats { cfg, touches }
+            }
+            "cone" => LiveScene::Cone {
+                cfg: ConeConfig::SEED001,
+                press: ConePress {
+                    duration_s: 1.0,
+                    ..ConePress::SEED001
+                },
+            },
+            other => {
+                return Err(crate::SimError(format!(
+                    "sim:{other}: expected sim:iats or sim:cone"
+                )))
+            }
+        };
+        Ok(Self { scene, n, seed })
+    }
+
+    /// Frames in the loop.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Never: a loop holds at least 2 frames.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Frame `k` of the loop (`k < len()`) and its name.
+    pub fn frame(&self, k: usize) -> Result<(String, RgbImage), SimError> {
+        let (n, noise) = (self.n, frame_seed(self.seed, k as u64));
+        match &self.scene {
+            LiveScene::Iats { cfg, touches } => {
+                let t = if k < n * 2 / 5 {
+                    Touch::default()
+                } else {
+                    touches[k]
+                };
+                let img = crate::iats::render(cfg, &t, noise)?.0;
+                Ok((format!("iats_{k:04}"), img))
+            }
+            LiveScene::Cone { cfg, press } => {
+                let u = k as f64 / n as f64;
+                let load = if u < 0.3 {
+                    ConeLoad::none(cfg.pressure_kpa)
+                } else {
+                    ConeLoad {
+                        pressure_kpa: cfg.pressure_kpa,
+                        ..press.load_at(cfg, (u - 0.3) / 0.7, 0.0)
+                    }
+                };
+                let img = crate::cone::render(cfg, &load, noise)?.0;
+                Ok((format!("cone_{k:04}"), img))
+            }
+        }
+    }
+}
+
+/// Every frame of [`LiveFrames::new`]`(kind, n, seed)`, rendered in parallel.
 pub fn live_frames(
     kind: &str,
     n: usize,
     seed: u64,
 ) -> Result<Vec<(String, RgbImage)>, crate::SimError> {
-    let n = n.max(2);
-    match kind {
-        "iats" => {
-            let cfg = IatsConfig::SEED000;
-            let touches = crate::protocol::iats_random(&cfg, n, seed);
-            (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    let t = if k < n * 2 / 5 {
-                        Touch::default()
-                    } else {
-                        touches[k]
-                    };
-                    let img = crate::iats::render(&cfg, &t, frame_seed(seed, k as u64))?.0;
-                    Ok((format!("iats_{k:04}"), img))
-                })
-                .collect()
-        }
-        "cone" => {
-            let cfg = ConeConfig::SEED001;
-            let press = ConePress {
-                duration_s: 1.0,
-                ..ConePress::SEED001
-            };
-            (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    let u = k as f64 / n as f64;
-                    let load = if u < 0.3 {
-                        ConeLoad::none(cfg.pressure_kpa)
-                    } else {
-                        ConeLoad {
-                            pressure_kpa: cfg.pressure_kpa,
-                            ..press.load_at(&cfg, (u - 0.3) / 0.7, 0.0)
-                        }
-                    };
-                    let img = crate::cone::render(&cfg, &load, frame_seed(seed, k as u64))?.0;
-                    Ok((format!("cone_{k:04}"), img))
-                })
-                .collect()
-        }
-        other => Err(crate::SimError(format!(
-            "sim:{other}: expected sim:iats or sim:cone"
-        ))),
-    }
+    let frames = LiveFrames::new(kind, n, seed)?;
+    (0..frames.len())
+        .into_par_iter()
+        .map(|k| frames.frame(k))
+        .collect()
 }
 
 /// A simulated rig for recording: frames on a real-time clock and the truth behind them.

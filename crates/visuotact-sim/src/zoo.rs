@@ -507,14 +507,13 @@ impl ZooConfig {
                 return Err(crate::SimError(format!("{name} must be positive, got {v}")));
             }
         }
-        for (name, v) in [
-            ("position_jitter_mm", self.position_jitter_mm),
-            ("blur_px", self.blur_px),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(crate::SimError(format!("{name} must be ≥ 0, got {v}")));
-            }
+        if !(self.position_jitter_mm.is_finite() && self.position_jitter_mm >= 0.0) {
+            return Err(crate::SimError(format!(
+                "position_jitter_mm must be ≥ 0, got {}",
+                self.position_jitter_mm
+            )));
         }
+        crate::check_blur_px(self.blur_px)?;
         if !(self.radial_coupling.is_finite() && self.radial_coupling.abs() <= 1.0) {
             return Err(crate::SimError(format!(
                 "radial_coupling must be in −1..1, got {}",

@@ -577,6 +577,10 @@ pub fn track_reference(
     r
 }
 
+/// Most markers a sensor file may list: far beyond any published sensor (a 331-pin TacTip,
+/// a few thousand random dots), and a bound on the tracker's work per frame.
+pub const MAX_MARKERS: usize = 100_000;
+
 /// Why a sensor file does not load.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{source_name}: {why}")]
@@ -611,6 +615,24 @@ impl SensorCalibration {
         if cal.markers.is_empty() {
             return Err(bad("the sensor file lists no markers".to_string()));
         }
+        let n = cal.markers.len();
+        if n > MAX_MARKERS {
+            return Err(bad(format!(
+                "{n} markers: over the limit of {MAX_MARKERS} a sensor"
+            )));
+        }
+        let mut ids = std::collections::HashSet::with_capacity(n);
+        for m in &cal.markers {
+            if !ids.insert(m.id) {
+                return Err(bad(format!("marker id {} is listed twice", m.id)));
+            }
+            if let Some(k) = m.neighbours.iter().find(|&&k| k as usize >= n) {
+                return Err(bad(format!(
+                    "marker {} names neighbour {k}, but the file lists {n} markers",
+                    m.id
+                )));
+            }
+        }
         let (w, h) = (cal.image_width, cal.image_height);
         if !(1..=100_000).contains(&w) || !(1..=100_000).contains(&h) {
             return Err(bad(format!(
@@ -635,6 +657,15 @@ impl SensorCalibration {
             .preprocess
             .validate()
             .map_err(|e| bad(e.to_string()))?;
+        if let Some(r) = cal.detector.preprocess.roi {
+            if r.x.saturating_add(r.width) > w || r.y.saturating_add(r.height) > h {
+                return Err(bad(format!(
+                    "region of interest {}×{} at ({}, {}) reaches outside the {w}×{h} image",
+                    r.width, r.height, r.x, r.y
+                )));
+            }
+        }
+        cal.track.validate().map_err(|e| bad(e.to_string()))?;
         Ok(cal)
     }
 

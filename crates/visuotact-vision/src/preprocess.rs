@@ -142,6 +142,9 @@ pub struct Roi {
     pub height: usize,
 }
 
+/// Largest morphology window, pixels: wider than any marker a camera resolves.
+pub const MAX_MORPH_SIZE: usize = 255;
+
 /// Every preprocessing setting; stored in the sensor calibration file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -232,6 +235,20 @@ impl PreprocessConfig {
                 }
             }
             _ => {}
+        }
+        if self.morph_size > MAX_MORPH_SIZE {
+            return Err(crate::ConfigError(format!(
+                "morphology size {} is over the limit of {MAX_MORPH_SIZE} px",
+                self.morph_size
+            )));
+        }
+        if let Some(r) = self.roi {
+            if r.width == 0 || r.height == 0 {
+                return Err(crate::ConfigError(format!(
+                    "region of interest of {} × {} px holds no pixel",
+                    r.width, r.height
+                )));
+            }
         }
         if let Some(c) = self.circle {
             if c.radius_px.is_nan()

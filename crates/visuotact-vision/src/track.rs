@@ -123,6 +123,36 @@ impl TrackConfig {
     };
 }
 
+impl TrackConfig {
+    /// Checks the settings: every reach positive and finite, the ratios above 1 (a ratio of
+    /// 1 or less would call every match ambiguous or every blob merged).
+    pub fn validate(&self) -> Result<(), crate::ConfigError> {
+        for (name, v) in [
+            ("search_pitches", self.search_pitches),
+            ("gate_pitches", self.gate_pitches),
+            ("verify_pitches", self.verify_pitches),
+            ("reassign_pitches", self.reassign_pitches),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 100.0) {
+                return Err(crate::ConfigError(format!(
+                    "tracker {name} must be in (0, 100] spacings, got {v}"
+                )));
+            }
+        }
+        for (name, v) in [
+            ("ambiguity_ratio", self.ambiguity_ratio),
+            ("merged_area_ratio", self.merged_area_ratio),
+        ] {
+            if !(v.is_finite() && v > 1.0) {
+                return Err(crate::ConfigError(format!(
+                    "tracker {name} must be a finite ratio above 1, got {v}"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Default for TrackConfig {
     fn default() -> Self {
         Self::DEFAULT

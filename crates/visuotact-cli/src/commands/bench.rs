@@ -49,7 +49,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         found += out.found;
     }
     let [median, p90] = visuotact_io::queue::percentiles(&mut us, [0.5, 0.9]);
-    println!(
+    say!(
         "median_us={median:.1} p90_us={p90:.1} fps={:.0} frames={} passes={} size={}x{} markers_found_mean={:.1}",
         1e6 / median,
         frames.len(),

@@ -57,9 +57,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let mut pass = FramePass::new(&reporter, usize::MAX);
     let done = blobs_table(&mut det, conv, &a.frames, (&a.output, format), &mut pass)
         .map_err(|e| pass_error(e, &a.output))?;
-    eprintln!(
+    note!(
         "{} frames, {} blobs, {} frames skipped",
-        done.frames, done.blobs, done.skipped
+        done.frames,
+        done.blobs,
+        done.skipped
     );
     if done.frames == 0 {
         anyhow::bail!("no frame could be read");

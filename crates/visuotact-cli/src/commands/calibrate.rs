@@ -84,7 +84,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         track: TrackConfig::DEFAULT,
     };
     if let Some(size) = &size {
-        eprintln!("{}", size.in_words(&cfg.detector));
+        note!("{}", size.in_words(&cfg.detector));
     }
     // Only the ranking of a data set's frames is long enough to report (and to catch Ctrl-C).
     let reporter = matches!(source, ReferenceSource::Lightest(_)).then(|| {
@@ -109,7 +109,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     done.calibration.marker_size = size;
     write_sensor(a, &done.calibration)?;
     print_calibrated(&done);
-    eprintln!("wrote {}", a.output.display());
+    note!("wrote {}", a.output.display());
     Ok(())
 }
 
@@ -126,7 +126,7 @@ fn print_calibrated(done: &Calibrated) {
         .level
         .map_or("adaptive".to_string(), |t| format!("{t}"));
     let shape = cal.layout_in_words();
-    eprintln!(
+    note!(
         "calibrated {} markers ({}: {shape}, pitch {:.1} px) from {} frames of {}×{}; threshold {level}; {} blobs, {} off the layout",
         cal.markers.len(),
         cal.layout.name(),
@@ -143,25 +143,25 @@ fn print_calibrated(done: &Calibrated) {
         } else {
             ""
         };
-        eprintln!("reference from {}{note}", sel.in_words());
+        note!("reference from {}{note}", sel.in_words());
     }
     let mut jitter: Vec<f64> = cal.markers.iter().filter_map(|m| m.jitter_px).collect();
     jitter.sort_by(f64::total_cmp);
     if let Some(&worst) = jitter.last() {
         let median = jitter[jitter.len() / 2];
-        eprintln!(
+        note!(
             "marker jitter over the calibration frames: median {median:.3} px, worst {worst:.3} px"
         );
         if median > 0.5 && selection.is_none() {
-            eprintln!("warning: the calibration frames differ by {median:.2} px at the median marker: were they still and free of contact? (--reference lightest:N for a data set with none)");
+            note!("warning: the calibration frames differ by {median:.2} px at the median marker: were they still and free of contact? (--reference lightest:N for a data set with none)");
         }
     }
     let never = cal.markers.iter().filter(|m| m.jitter_px.is_none()).count();
     if never > 0 {
-        eprintln!("warning: {never} markers were not matched in any single calibration frame (only in their mean)");
+        note!("warning: {never} markers were not matched in any single calibration frame (only in their mean)");
     }
     for (id, n) in report.missing_per_frame.iter().take(10) {
-        eprintln!("warning: frame {id}: {n} markers not found in this still frame");
+        note!("warning: frame {id}: {n} markers not found in this still frame");
     }
 }
 

@@ -43,7 +43,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     };
     let ds = build(&a.sessions, sensor.as_ref(), &cfg)?;
     for note in &ds.notes {
-        eprintln!("note: {note}");
+        note!("note: {note}");
     }
     let write = |name: &str, cols: &[String], rows: &[Vec<f64>]| -> anyhow::Result<()> {
         let mut text = format!("frame,{}\n", cols.join(","));
@@ -59,7 +59,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     };
     write("features.csv", &ds.feature_columns, &ds.features)?;
     write("labels.csv", &ds.label_columns, &ds.labels)?;
-    eprintln!(
+    note!(
         "wrote {} rows to {}/features.csv and labels.csv",
         ds.keys.len(),
         a.output.display()

@@ -28,25 +28,25 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         quick: a.quick,
         seed: a.seed,
     };
-    println!("== Seed 000: image-based areal touch sensor (117 markers, 60 × 45 mm) ==");
+    say!("== Seed 000: image-based areal touch sensor (117 markers, 60 × 45 mm) ==");
     let iats = demo::iats(&cfg)?;
     let iats_s = t_all.elapsed().as_secs_f64();
-    print!("{}", iats_text(&iats));
-    println!("\n== Seed 001: inflatable link (cone, three annuli, JR3 force) ==");
+    say_part!("{}", iats_text(&iats));
+    say!("\n== Seed 001: inflatable link (cone, three annuli, JR3 force) ==");
     let cone = demo::cone(&cfg)?;
-    print!("{}", cone_text(&cone));
+    say_part!("{}", cone_text(&cone));
     let t_rotation = Instant::now();
-    println!("\n== Seed 001 with rotation (Table 5.2) ==");
+    say!("\n== Seed 001 with rotation (Table 5.2) ==");
     let rotation = demo::cone_rotation(&cfg)?;
-    print!("{}", rotation_text(&rotation));
+    say_part!("{}", rotation_text(&rotation));
     let rotation_s = t_rotation.elapsed().as_secs_f64();
     let t_torque = Instant::now();
-    println!("\n== Seed 001's future work: torque from the T-shaped marker ==");
+    say!("\n== Seed 001's future work: torque from the T-shaped marker ==");
     let torque = demo::cone_torque(&cfg)?;
-    print!("{}", torque_text(&torque));
+    say_part!("{}", torque_text(&torque));
     let torque_s = t_torque.elapsed().as_secs_f64();
     let total_s = t_all.elapsed().as_secs_f64();
-    println!("\ndemo finished in {total_s:.0} s");
+    say!("\ndemo finished in {total_s:.0} s");
     if let Some(path) = &a.report {
         let run = RunInfo {
             settings: vec![
@@ -86,7 +86,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             ],
         };
         demo_page(&iats, (&cone, &rotation, &torque), &run)?.write(path)?;
-        eprintln!("wrote {}", path.display());
+        note!("wrote {}", path.display());
     }
     Ok(())
 }

@@ -119,9 +119,9 @@ fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
         e => e.into(),
     })?;
     for n in &s.notes {
-        eprintln!("note: {n}");
+        note!("note: {n}");
     }
-    eprintln!(
+    note!(
         "wrote {} ({} episodes, {} frames at {} fps; {})",
         s.path.display(),
         s.episodes,
@@ -151,9 +151,9 @@ fn mcap(m: &Mcap) -> anyhow::Result<()> {
         e => e.into(),
     })?;
     for n in &s.notes {
-        eprintln!("note: {}: {n}", m.session.display());
+        note!("note: {}: {n}", m.session.display());
     }
-    eprintln!(
+    note!(
         "wrote {} ({} frames, {} messages)",
         s.path.display(),
         s.frames,

@@ -67,7 +67,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let done = extract(&mut ex, &a.frames, a.fps, (&a.output, format), &mut pass)
         .map_err(|e| pass_error(e, &a.output))?;
     pass.print_unshown();
-    eprintln!(
+    note!(
         "extracted {} frames ({} features each), skipped {}; {} frames with missing markers ({} marker-frames)",
         done.written,
         features.per_marker() * n_markers,
@@ -76,7 +76,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         done.lost
     );
     if let Some(note) = crate::reference_note(&ex.calibration().reference) {
-        eprintln!("note: {note}");
+        note!("note: {note}");
     }
     if done.written == 0 {
         bail!("no frame could be processed");

@@ -30,7 +30,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &[&a.input])?;
     let mut table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
     if table.dropped_partial_line {
-        eprintln!(
+        note!(
             "note: {}: an unfinished last line was left out",
             a.input.display()
         );
@@ -52,7 +52,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         text.push('\n');
     }
     crate::write_atomically(&a.output, &text)?;
-    eprintln!(
+    note!(
         "{} samples at {:.1} Hz ({} missing filled, {} repeats dropped); low-pass {} taps at {} Hz",
         p.t.len(),
         p.rate_hz,
@@ -65,7 +65,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         let periods = b.periods(0.5);
         let first = b.at(p.t[0]);
         let last = b.at(p.t[p.t.len() - 1]);
-        eprintln!(
+        note!(
             "bias from {} no-contact periods: fz {:.4} N at the start, {:.4} N at the end",
             periods.len(),
             first[2],
@@ -81,8 +81,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             bias: p.bias.as_ref(),
         };
         visuotact_report::save(&ForcePlot(record), path)?;
-        eprintln!("wrote {}", path.display());
+        note!("wrote {}", path.display());
     }
-    eprintln!("wrote {}", a.output.display());
+    note!("wrote {}", a.output.display());
     Ok(())
 }

@@ -41,7 +41,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         seed: a.seed,
     })?;
     let pattern = GridPattern::IATS;
-    eprintln!(
+    note!(
         "wrote {} rest and {} touch frames ({}×{}, {} markers) to {}",
         a.rest,
         a.touches,

@@ -97,6 +97,6 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     } else {
         String::new()
     };
-    eprintln!("{written} estimates{filled_note}, {missing} frames without");
+    note!("{written} estimates{filled_note}, {missing} frames without");
     Ok(())
 }

@@ -117,7 +117,7 @@ impl Args {
 }
 
 fn warn(w: &str) {
-    eprintln!("warning: {w}");
+    note!("warning: {w}");
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
@@ -168,11 +168,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             // way.
             let _ = std::fs::remove_file(&path).or_else(|_| std::fs::remove_dir_all(&path));
         } else {
-            eprintln!("wrote {} ({n} messages)", path.display());
+            note!("wrote {} ({n} messages)", path.display());
         }
     }
     let s = recorded?;
-    eprintln!(
+    note!(
         "recorded {} frames ({} dropped, {} unreadable) into {} in {:.1} s",
         s.written,
         s.dropped,
@@ -181,7 +181,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         s.duration_s
     );
     if let Some(s) = s.force_packets {
-        eprintln!(
+        note!(
             "force: {} packets, {} kept, {} malformed, {} duplicates, {} reordered, {} lost, {} implausible",
             s.packets, s.kept, s.malformed, s.duplicates, s.reordered, s.lost, s.rejected
         );

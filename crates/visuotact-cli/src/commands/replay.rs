@@ -69,7 +69,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ),
         e => pass_error(e, &a.output),
     })?;
-    eprintln!(
+    note!(
         "replayed {} frames in {:.2} s ({:.2} ms per frame, decoding included); {} without an estimate; wrote {}",
         done.frames,
         done.seconds,

@@ -86,7 +86,8 @@ pub(crate) struct Args {
     /// Simulated sources: seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Simulated sources: distinct frames rendered up front and cycled.
+    /// Simulated sources: distinct frames cycled (the first 256 rendered before the run starts,
+    /// later ones as the loop reaches them).
     #[arg(long, default_value_t = 100)]
     sim_frames: usize,
     /// Write the run's summary (latency, drops, counts) as JSON to this file.
@@ -181,7 +182,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         sinks.push(d);
     }
     let mut summary = visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut sinks, |w| {
-        eprintln!("warning: {w}")
+        note!("warning: {w}")
     })?;
     drop(sinks);
     drop(stdout);
@@ -230,17 +231,17 @@ fn ros_sinks(a: &Args) -> anyhow::Result<(Option<McapSink>, Option<DdsSink>)> {
 fn finish_ros_sinks(mcap: Option<McapSink>, dds: Option<DdsSink>) -> anyhow::Result<()> {
     if let Some(m) = mcap {
         let (path, n) = m.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
-        eprintln!("wrote {} ({n} messages)", path.display());
+        note!("wrote {} ({n} messages)", path.display());
     }
     if let Some(d) = dds {
         let n = d.finish().map_err(|e| anyhow::anyhow!("--ros2 {e}"))?;
-        eprintln!("published {n} messages over DDS");
+        note!("published {n} messages over DDS");
     }
     Ok(())
 }
 
 fn print_summary(summary: &visuotact_pipeline::runner::RunSummary) {
-    eprintln!(
+    note!(
         "{} frames captured, {} estimated ({} with contact), {} dropped in {:.1} s; latency median {:.3} ms, p99 {:.3} ms; processing median {:.3} ms, p99 {:.3} ms; UDP errors {}, WebSocket messages dropped {}",
         summary.frames_captured,
         summary.frames_estimated,

@@ -123,7 +123,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         }
         (_, e) => e.into(),
     })?;
-    eprintln!(
+    note!(
         "wrote {} reference and {} frames to {} in {:.1} s",
         a.references,
         done.frames,
@@ -132,7 +132,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     );
     if let Some(sock) = socket {
         let refused = send_paced(&sock, &cfg.force_layout, &done.force, a.force_rate_hz);
-        eprintln!(
+        note!(
             "sent {} force packets ({refused} refused by the receiver)",
             done.force.len()
         );

@@ -134,7 +134,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .filter(|&j| shard.takes(j))
         .count();
     let reporter = Reporter::new(a.quiet);
-    eprintln!("sweep: {n_jobs} trainings");
+    note!("sweep: {n_jobs} trainings");
     reporter.stage("sweep");
     let t0 = std::time::Instant::now();
     let base = FitConfig {
@@ -165,7 +165,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
     let s = sweep_of(&archs, trained);
     write_outputs(output, a.keep, &s, &targets)?;
-    eprintln!(
+    note!(
         "{} trainings of {} architectures in {:.1} s",
         s.models.len(),
         archs.len(),
@@ -192,7 +192,7 @@ fn write_part(
     };
     let path = output.join(format!("part-{}-of-{}.json", shard.index, shard.count));
     crate::write_atomically(&path, &serde_json::to_string(&part)?)?;
-    eprintln!(
+    note!(
         "shard {}/{}: {n} trainings in {:.1} s; wrote {}",
         shard.index,
         shard.count,
@@ -219,7 +219,7 @@ pub(crate) fn merge(m: &MergeArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{}: cannot create folder", m.output.display()))?;
     let s = sweep_of(&archs, trained);
     write_outputs(&m.output, m.keep, &s, &targets)?;
-    eprintln!(
+    note!(
         "merged {} parts: {} trainings",
         m.parts.len(),
         s.models.len()
@@ -247,7 +247,7 @@ fn write_outputs(
                 .join(format!("model_{}.json", k + 1));
             crate::write_atomically(&p, &m.to_checked_json(&p.display().to_string())?)?;
         }
-        eprintln!(
+        note!(
             "kept the {} best networks in {}/ensemble/",
             keep.min(ranked.len()),
             output.display()
@@ -272,14 +272,14 @@ fn write_outputs(
         };
         visuotact_report::save_both(&surface, &output.join("surface")).context("surface plot")?;
     }
-    eprintln!(
+    note!(
         "best (by scaled validation MSE {:.4e}): hidden {:?}, validation MSE {:.4e}, test MSE {:.4e} (target units)",
         scaled_mse(best, 1),
         &best.net.sizes[1..best.net.sizes.len() - 1],
         mse(best, 1),
         mse(best, 2)
     );
-    eprintln!(
+    note!(
         "wrote {}/sweep.csv, best_model.json, performance.svg, performance.png{}",
         output.display(),
         if two_layers {

@@ -87,7 +87,7 @@ pub(crate) fn write_scripts(
         crate::write_atomically(&p, text)?;
         make_executable(&p)?;
     }
-    eprintln!(
+    note!(
         "wrote {0}/sweep.sbatch ({n} shards, {cpus} CPUs each), {0}/merge.sbatch and {0}/submit.sh; run {0}/submit.sh on the cluster's login node",
         out.display()
     );

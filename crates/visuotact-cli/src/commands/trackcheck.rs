@@ -71,7 +71,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         "weighted" => Centroid::Weighted,
         _ => Centroid::Binary,
     };
-    println!(
+    say!(
         "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong"
     );
     let (mut lost, mut wrong) = (0, 0);
@@ -99,7 +99,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             motion_limit_pitches: a.motion_limit,
         };
         let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
-        println!(
+        say!(
             "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}",
             a.sensor,
             r.layout.map_or("-", Layout::name),
@@ -120,14 +120,14 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         );
         if a.verbose {
             for e in &r.examples {
-                println!("  {e}");
+                say!("  {e}");
             }
         }
         lost += r.lost + r.uncalibrated;
         wrong += r.wrong;
     }
     if lost + wrong > 0 {
-        eprintln!("{lost} visible marker-frames lost or uncalibrated, {wrong} wrong identities");
+        note!("{lost} visible marker-frames lost or uncalibrated, {wrong} wrong identities");
     }
     Ok(())
 }

@@ -102,7 +102,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if a.ensemble.is_none() {
         cfg.ensemble = ensemble_for(x.len(), set, &cfg);
     }
-    eprintln!(
+    note!(
         "training {}, {}) on {} frames, {} network{}",
         set.network_in_words(&cfg.hidden, targets.len()),
         set.algorithm(cfg.algorithm).name(),
@@ -122,7 +122,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let json = model.to_checked_json(&a.output.display().to_string())?;
     crate::write_atomically(&a.output, &json)?;
     print_trained(&model, &targets, t0.elapsed().as_secs_f64());
-    eprintln!("wrote {}", a.output.display());
+    note!("wrote {}", a.output.display());
     Ok(())
 }
 
@@ -145,7 +145,7 @@ fn check_memory(
         .check_memory((widest, data.x.len(), data.targets.len()), cfg)?;
     crate::print::memory("this training needs", need);
     for c in data.constant_targets() {
-        eprintln!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
+        note!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
     }
     Ok(())
 }
@@ -176,7 +176,7 @@ fn choose(
 ) -> anyhow::Result<(usize, Vec<InputScore>)> {
     if sets.len() > 1 {
         let folds = folds_trained(data.x.len(), SELECTION_FOLDS);
-        eprintln!(
+        note!(
             "choosing the inputs by {}: {}",
             if folds == SELECTION_FOLDS {
                 format!("{SELECTION_FOLDS}-fold cross-validation (one network per fold)")
@@ -198,7 +198,7 @@ fn choose(
     })
     .map_err(fit_error)?;
     for score in &selection {
-        eprintln!(
+        note!(
             "  {} {}: held-out error / variance {:.3e} (per target {})",
             if score.chosen { "chose" } else { "     " },
             score.inputs,
@@ -218,12 +218,16 @@ fn choose(
 /// How training went: epochs, why it stopped, and each target's figures per subset.
 fn print_trained(model: &Model, targets: &[String], secs: f64) {
     let tr = &model.training;
-    eprintln!(
+    note!(
         "trained ({}) in {:.2} s: {} epochs (best {}), stopped by {}",
-        tr.algorithm, secs, tr.epochs, tr.best_epoch, tr.stop
+        tr.algorithm,
+        secs,
+        tr.epochs,
+        tr.best_epoch,
+        tr.stop
     );
     if let Some(e) = &tr.evidence {
-        eprintln!(
+        note!(
             "  effective parameters γ {:.1} of {} (α {:.3e}, β {:.3e})",
             e.gamma,
             model.net.params.len(),
@@ -241,7 +245,7 @@ fn print_trained(model: &Model, targets: &[String], secs: f64) {
         })
     };
     for (j, name) in targets.iter().enumerate() {
-        eprintln!(
+        note!(
             "  {name}: mse train {}, validation {}, test {}; R train {}, validation {}, test {}",
             cell(&tr.mse[0], j, false),
             cell(&tr.mse[1], j, false),

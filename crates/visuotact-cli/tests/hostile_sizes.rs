@@ -1,0 +1,326 @@
+//! Hostile inputs, sizes and streams: every count, size, rate and duration is bounded before
+//! anything is allocated or written (an error naming the setting and its limit, never an abort,
+//! a hang or gigabytes on disk), sensor files that describe no sensor are refused when read,
+//! and a standard stream that cannot be written is never a panic.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use common::{fails, fresh_dir, ok, s, vt};
+
+/// Runs `visuotact args`, expecting exit 1 with every one of `names` in its message and
+/// nothing at `out`.
+fn refused(args: &[&str], names: &[&str], out: &Path) {
+    let err = fails(&vt(args));
+    for n in names {
+        assert!(err.contains(n), "{args:?}: {n:?} not in {err}");
+    }
+    assert!(!out.exists(), "{args:?} left {}", out.display());
+}
+
+/// The issue's aborts and hangs: `simulate --touches 1e12` (abort), a cone press of 1e300 s
+/// (407 MB written before a timeout), a 1e12 Hz force sensor, `--references 1e12`, `pattern
+/// --touches 1e8`, a 100 000² camera, a blur of a million pixels or a negative one, a million
+/// rows of markers, `run --sim-frames 2e7`, `train --ensemble 1e11` (abort after the memory
+/// check).
+#[test]
+fn simulated_counts_sizes_and_rates_are_bounded_before_anything_is_written() {
+    let d = fresh_dir("hostile-sizes");
+    let out = d.join("out");
+    let o = s(&out);
+    let sim = |extra: &[&'static str]| [&["simulate", "-o", o][..], extra].concat();
+    let iats = ["--sensor", "iats", "--protocol", "random", "--touches", "2"];
+    let cone = ["--sensor", "cone", "--protocol", "press"];
+    refused(
+        &sim(&[
+            "--sensor",
+            "iats",
+            "--protocol",
+            "random",
+            "--touches",
+            "1000000000000",
+        ]),
+        &["touches", "1000000"],
+        &out,
+    );
+    refused(
+        &sim(&[&iats[..], &["--references", "1000000000000"]].concat()),
+        &["references", "10000"],
+        &out,
+    );
+    refused(
+        &sim(&[&cone[..], &["--duration-s", "1e300"]].concat()),
+        &["duration_s × fps", "1000000"],
+        &out,
+    );
+    refused(
+        &sim(&[&cone[..], &["--force-rate-hz", "1e12"]].concat()),
+        &["force sample rate", "100000 Hz"],
+        &out,
+    );
+    // 2.8 hours of a 1 kHz stream are kept in memory: a longer press is refused.
+    refused(
+        &sim(&[&cone[..], &["--duration-s", "20000", "--fps", "1"]].concat()),
+        &["force_rate_hz", "10000000 are simulated"],
+        &out,
+    );
+    for (name, settings, says) in [
+        (
+            "camera",
+            r#"{"camera":{"width":100000,"height":100000}}"#,
+            "4096 px a side",
+        ),
+        ("blur", r#"{"blur_px":1e6}"#, "blur_px must be in 0..25"),
+        ("negative-blur", r#"{"blur_px":-3}"#, "got -3"),
+        ("rows", r#"{"rows":1000000}"#, "at most 200 × 200 markers"),
+    ] {
+        let config = d.join(format!("{name}.json"));
+        std::fs::write(&config, settings).unwrap();
+        refused(
+            &[&["simulate", "-o", o][..], &iats, &["--config", s(&config)]].concat(),
+            &[says],
+            &out,
+        );
+    }
+    refused(
+        &["pattern", "--touches", "100000000", "-o", o],
+        &["touches", "100000"],
+        &out,
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The same for recording, live runs and training.
+#[test]
+fn recording_live_and_training_counts_are_bounded_first() {
+    let d = fresh_dir("hostile-sizes-live");
+    let out = d.join("out");
+    let o = s(&out);
+    refused(
+        &[
+            "record",
+            "--source",
+            "sim:iats",
+            "--references",
+            "1000000000000",
+            "-o",
+            o,
+        ],
+        &["references", "10000"],
+        &out,
+    );
+    refused(
+        &[
+            "run",
+            "--source",
+            "sim:iats",
+            "--sensor",
+            "none.json",
+            "--sim-frames",
+            "20000000",
+        ],
+        &["sim_frames", "1000000"],
+        &out,
+    );
+    let (session, _, features) = common::iats_features(&d, "20", "1");
+    let model = d.join("m.json");
+    refused(
+        &[
+            "train",
+            "--features",
+            s(&features),
+            "--labels",
+            s(&session.join("labels.csv")),
+            "--targets",
+            "x_mm",
+            "--ensemble",
+            "100000000000",
+            "-o",
+            s(&model),
+        ],
+        &["ensemble of 100000000000", "at most 1000"],
+        &model,
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A force table whose clock jumps to 1e9 s (an abort allocating 8 TB for the uniform grid)
+/// is refused, naming the jump.
+#[test]
+fn a_force_table_whose_clock_jumps_is_refused_naming_the_jump() {
+    let d = fresh_dir("hostile-clock-jump");
+    let mut text = String::from("timestamp_s,fx_n,fy_n,fz_n\n");
+    for i in 0..1000 {
+        let t = if i < 500 { 0.0 } else { 1e9 } + i as f64 * 0.001;
+        text.push_str(&format!("{t},0,0,{}\n", i % 7));
+    }
+    let force = d.join("force.csv");
+    std::fs::write(&force, &text).unwrap();
+    let out = d.join("clean.csv");
+    refused(
+        &["filter", s(&force), "-o", s(&out)],
+        &[
+            "force.csv",
+            "jump from 0.499 s to 1000000000.5 s",
+            "sample 500",
+        ],
+        &out,
+    );
+    assert_eq!(std::fs::read_to_string(&force).unwrap(), text);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A sensor file's name, an edit that spoils it and what the refusal says.
+type SensorEdit = (&'static str, fn(&mut serde_json::Value), &'static str);
+
+/// Sensor files that describe no sensor: two markers with one id, a neighbour that is not
+/// there, a 0 × 0 region of interest, a zero tracking gate, more markers than any sensor
+/// (10⁶ markers hung `extract`).
+#[test]
+fn sensor_files_that_describe_no_sensor_are_refused_when_read() {
+    let d = fresh_dir("hostile-sensor-files");
+    let (session, sensor, _) = common::iats_features(&d, "2", "1");
+    let text = std::fs::read_to_string(&sensor).unwrap();
+    let base: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let edits: [SensorEdit; 5] = [
+        (
+            "twice",
+            |v| v["markers"][1]["id"] = serde_json::json!(0),
+            "marker id 0 is listed twice",
+        ),
+        (
+            "neighbour",
+            |v| v["markers"][0]["neighbours"] = serde_json::json!([5000]),
+            "names neighbour 5000",
+        ),
+        (
+            "roi",
+            |v| {
+                v["detector"]["preprocess"]["roi"] =
+                    serde_json::json!({"x": 10, "y": 10, "width": 0, "height": 0})
+            },
+            "region of interest of 0 × 0 px",
+        ),
+        (
+            "gate",
+            |v| v["track"]["gate_pitches"] = serde_json::json!(0),
+            "gate_pitches must be in (0, 100]",
+        ),
+        (
+            "many",
+            |v| {
+                let m = v["markers"][0].clone();
+                let many: Vec<serde_json::Value> = (0..100_001)
+                    .map(|k| {
+                        let mut m = m.clone();
+                        m["id"] = serde_json::json!(k);
+                        m["neighbours"] = serde_json::json!([]);
+                        m
+                    })
+                    .collect();
+                v["markers"] = serde_json::Value::Array(many);
+            },
+            "100001 markers: over the limit of 100000",
+        ),
+    ];
+    for (name, edit, says) in edits {
+        let mut v = base.clone();
+        edit(&mut v);
+        let bad = d.join(format!("{name}.json"));
+        std::fs::write(&bad, v.to_string()).unwrap();
+        let out = d.join(format!("{name}.csv"));
+        refused(
+            &[
+                "extract",
+                "--sensor",
+                s(&bad),
+                s(&session.join("frames")),
+                "-o",
+                s(&out),
+            ],
+            &[&format!("{name}.json"), says],
+            &out,
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// `run --sim-frames` longer than what is rendered up front streams the rest: every frame is
+/// estimated, none dropped.
+#[test]
+fn a_long_simulated_loop_is_rendered_as_it_plays() {
+    let d = fresh_dir("hostile-sim-loop");
+    let (_, sensor, _) = common::iats_features(&d, "2", "1");
+    let err = ok(&vt(&[
+        "run",
+        "--source",
+        "sim:iats",
+        "--sensor",
+        s(&sensor),
+        "--sim-frames",
+        "300",
+        "--max-frames",
+        "300",
+        "--unpaced",
+        "--quiet",
+    ]));
+    assert!(err.contains("300 frames captured, 300 estimated"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// `visuotact args` with stdout and stderr sent to `/dev/full` (every write: ENOSPC).
+#[cfg(target_os = "linux")]
+fn vt_into_full_streams(args: &[&str], stdout_full: bool) -> std::process::Output {
+    let full = || {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
+    let mut c = Command::new(env!("CARGO_BIN_EXE_visuotact"));
+    c.args(args).stderr(Stdio::from(full()));
+    if stdout_full {
+        c.stdout(Stdio::from(full()));
+    } else {
+        c.stdout(Stdio::piped());
+    }
+    c.output().expect("run visuotact")
+}
+
+/// A full disk under stderr (exit 101: `eprintln!` panics) no longer ends a run: the session
+/// is written whole. Standard output that cannot be written is an error (exit 1), not a panic
+/// and not a silent success.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_stream_that_cannot_be_written_is_never_a_panic() {
+    let d = fresh_dir("hostile-full-streams");
+    let session = d.join("session");
+    let args = [
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "2",
+        "-o",
+        s(&session),
+    ];
+    let o = vt_into_full_streams(&args, false);
+    assert_eq!(o.status.code(), Some(0));
+    let sensor = d.join("sensor.json");
+    let o = vt_into_full_streams(
+        &["calibrate", s(&session.join("reference")), "-o", s(&sensor)],
+        true,
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert!(sensor.exists());
+    let o = vt_into_full_streams(
+        &["check-tracking", "--sensor", "iats", "--touches", "2"],
+        true,
+    );
+    assert_eq!(o.status.code(), Some(1), "stdout into a full disk");
+    std::fs::remove_dir_all(&d).unwrap();
+}
