@@ -323,3 +323,88 @@ fn filter_removes_noise_and_a_drifting_bias() {
     assert!(d.join("f.png").is_file());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// `--resume` continues only the recording that made the session: a description that does not
+/// parse, another source, or a missing sensor is refused before anything is written (was: 300
+/// frames appended to another session's table; `features.csv` short of the frames while
+/// `session.json` said complete; a failed resume marking the session complete).
+#[test]
+fn resume_refuses_a_session_it_did_not_record() {
+    let d = fresh_dir("resume-mismatch");
+    let (session, sensor, _) = common::iats_features(&d, "6", "1");
+    let frames = session.join("frames");
+    let rec = d.join("rec");
+    let first = [
+        "record",
+        "--source",
+        s(&frames),
+        "--sensor",
+        s(&sensor),
+        "--max-frames",
+        "3",
+        "-o",
+        s(&rec),
+    ];
+    ok(&vt(&first));
+    let tables = ["session.json", "frames.csv", "features.csv"];
+    let before: Vec<Vec<u8>> = tables
+        .iter()
+        .map(|t| std::fs::read(rec.join(t)).unwrap())
+        .collect();
+    let unchanged = |case: &str| {
+        for (t, b) in tables.iter().zip(&before) {
+            assert_eq!(
+                &std::fs::read(rec.join(t)).unwrap(),
+                b,
+                "{case}: {t} changed"
+            );
+        }
+    };
+    // Without the sensor the first run used.
+    let err = fails(&vt(&[
+        "record",
+        "--source",
+        s(&frames),
+        "--resume",
+        "-o",
+        s(&rec),
+    ]));
+    assert!(
+        err.contains("cannot resume") && err.contains("sensor was"),
+        "{err}"
+    );
+    unchanged("no sensor");
+    // Another source.
+    let other = d.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::copy(frames.join("frame_000000.png"), other.join("a.png")).unwrap();
+    let err = fails(&vt(&[
+        "record",
+        "--source",
+        s(&other),
+        "--sensor",
+        s(&sensor),
+        "--resume",
+        "-o",
+        s(&rec),
+    ]));
+    assert!(err.contains("source was"), "{err}");
+    unchanged("another source");
+    // A description that does not parse.
+    let described = rec.join("session.json");
+    std::fs::write(&described, &before[0][..before[0].len() / 2]).unwrap();
+    let resume = [&first[..], &["--resume"]].concat();
+    let err = fails(&vt(&resume));
+    assert!(err.contains("not a session description"), "{err}");
+    std::fs::write(&described, &before[0]).unwrap();
+    unchanged("corrupt description");
+    // The same settings go on where the first run stopped.
+    let resume: Vec<&str> = resume
+        .into_iter()
+        .filter(|a| *a != "--max-frames" && *a != "3")
+        .collect();
+    ok(&vt(&resume));
+    let rows = std::fs::read_to_string(rec.join("features.csv")).unwrap();
+    assert_eq!(rows.lines().count(), 1 + 6, "{rows}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

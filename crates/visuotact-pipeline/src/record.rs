@@ -432,6 +432,9 @@ fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
     if cfg.resume && !exists {
         return Err(RecordError::NothingToResume(out.clone()));
     }
+    if cfg.resume {
+        resumable(cfg)?;
+    }
     let created = !out.exists();
     std::fs::create_dir_all(out).map_err(|e| {
         std::io::Error::new(
@@ -451,6 +454,92 @@ fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
         std::fs::create_dir_all(out.join("frames"))?;
     }
     Ok(created)
+}
+
+/// A session may be resumed only by the recording that made it: its `session.json` must read
+/// as a session description, and name the same source, force source, sensor and model files
+/// and frame saving as `cfg` — else the new rows would join another recording's (or, without
+/// the sensor, leave `features.csv` short of the frames).
+fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
+    let path = cfg.output.join("session.json");
+    let refuse =
+        |why: String| RecordError::Config(format!("{}: cannot resume: {why}", path.display()));
+    let text = visuotact_io::read::text_of_file(&path).map_err(|e| refuse(e.to_string()))?;
+    let d: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| refuse(format!("not a session description ({e})")))?;
+    if d["format"] != SESSION_FORMAT {
+        return Err(refuse(format!(
+            "its format is {}, not {SESSION_FORMAT:?}",
+            d["format"]
+        )));
+    }
+    let same_file = |was: &serde_json::Value, now: &Option<PathBuf>| match (was.as_str(), now) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            let a = Path::new(a);
+            a == b
+                || a.canonicalize()
+                    .ok()
+                    .is_some_and(|a| b.canonicalize().ok() == Some(a))
+        }
+        _ => false,
+    };
+    let force = cfg.force.as_ref().map(|f| match f {
+        ForceSource::Udp(a) => format!("udp:{a}"),
+        ForceSource::Csv(p) => format!("csv:{}", p.display()),
+    });
+    let shown = |v: &serde_json::Value| {
+        v.as_str()
+            .map_or_else(|| "none".to_string(), str::to_string)
+    };
+    let differ: Vec<String> = [
+        (
+            "source",
+            d["source"].as_str() == Some(cfg.source.as_str()),
+            shown(&d["source"]),
+            cfg.source.clone(),
+        ),
+        (
+            "force",
+            d["force"].as_str() == force.as_deref(),
+            shown(&d["force"]),
+            force.clone().unwrap_or_else(|| "none".into()),
+        ),
+        (
+            "sensor",
+            same_file(&d["sensor_file"], &cfg.sensor_file),
+            shown(&d["sensor_file"]),
+            cfg.sensor_file
+                .as_ref()
+                .map_or_else(|| "none".into(), |p| p.display().to_string()),
+        ),
+        (
+            "model",
+            same_file(&d["model_file"], &cfg.model_file),
+            shown(&d["model_file"]),
+            cfg.model_file
+                .as_ref()
+                .map_or_else(|| "none".into(), |p| p.display().to_string()),
+        ),
+        (
+            "save-frames",
+            d["frames_saved"].as_bool() == Some(cfg.save_frames),
+            d["frames_saved"].to_string(),
+            cfg.save_frames.to_string(),
+        ),
+    ]
+    .into_iter()
+    .filter(|(_, same, _, _)| !same)
+    .map(|(name, _, was, now)| format!("{name} was {was}, now {now}"))
+    .collect();
+    if differ.is_empty() {
+        Ok(())
+    } else {
+        Err(refuse(format!(
+            "it was recorded with other settings ({}); resume with the first run's",
+            differ.join("; ")
+        )))
+    }
 }
 
 fn rig_of(cfg: &RecordConfig, kind: &str) -> Result<SimRig, RecordError> {
