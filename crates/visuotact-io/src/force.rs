@@ -118,6 +118,23 @@ impl ForceLayout {
         if fields.is_empty() {
             return Err(PacketError("the force layout is empty".to_string()));
         }
+        for (k, f) in fields.iter().enumerate() {
+            if fields[..k].contains(f) {
+                return Err(PacketError(format!(
+                    "the force layout names {} twice",
+                    f.name()
+                )));
+            }
+        }
+        let times = fields
+            .iter()
+            .filter(|f| matches!(f, ForceField::Timestamp | ForceField::Counter))
+            .count();
+        if times != 1 {
+            return Err(PacketError(format!(
+                "the force layout must name one time field (timestamp_s or counter), got {times}"
+            )));
+        }
         Ok(Self { fields })
     }
 
@@ -329,8 +346,10 @@ pub struct ReceiveStats {
     /// Samples missing from the time span covered, at the expected rate (when it is known).
     pub lost: u64,
     /// Well-formed samples that cannot be real, dropped: a time before 0 or beyond
-    /// [`PLAUSIBLE_TIME_S`], more than [`LATE_S`] behind the stream or [`AHEAD_S`] ahead of it,
-    /// or a force or torque beyond [`PLAUSIBLE_LOAD`].
+    /// [`PLAUSIBLE_TIME_S`], more than [`LATE_S`] behind the stream or [`AHEAD_S`] ahead of it
+    /// (the stream's time: the median of the last [`STREAM_WINDOW`] plausible samples' times,
+    /// so no single packet — the first included — decides it), or a force or torque beyond
+    /// [`PLAUSIBLE_LOAD`].
     pub rejected: u64,
 }
 
@@ -338,10 +357,17 @@ pub struct ReceiveStats {
 pub const PLAUSIBLE_TIME_S: f64 = 1e10;
 /// The largest plausible force (N) or torque (N·m) of a tactile sensor's reference.
 pub const PLAUSIBLE_LOAD: f64 = 1e5;
-/// How far behind the newest sample a late one may arrive and still be kept, s.
+/// How far behind the stream's time a late sample may arrive and still be kept, s.
 pub const LATE_S: f64 = 1.0;
-/// How far ahead of the newest sample the next may jump and still be kept, s.
+/// How far ahead of the stream's time a sample may be and still be kept, s.
 pub const AHEAD_S: f64 = 60.0;
+/// The stream's time is the median of this many recent plausible samples' times.
+pub const STREAM_WINDOW: usize = 31;
+/// The first samples are held until this many have come, so that the median can outvote a
+/// wild first packet (at most [`HOLD_S`] when the sender is slow).
+pub const WARMUP_SAMPLES: usize = 5;
+/// Longest a sample is held during the warm-up, s.
+pub const HOLD_S: f64 = 0.5;
 
 /// Whether a sample's numbers can be real ([`ReceiveStats::rejected`], without the stream).
 pub fn plausible(s: &ForceSample) -> bool {
@@ -359,6 +385,15 @@ pub struct ForceReceiver {
     recent: std::collections::HashSet<u64>,
     recent_order: std::collections::VecDeque<u64>,
     span: Option<(f64, f64)>,
+    /// The last [`STREAM_WINDOW`] plausible samples' times.
+    times: std::collections::VecDeque<f64>,
+    /// Samples held during the warm-up, with their arrival times, and since when.
+    held: Vec<(ForceSample, f64)>,
+    held_since: Option<std::time::Instant>,
+    /// Whether the warm-up is over.
+    warm: bool,
+    /// Judged samples not yet returned.
+    ready: std::collections::VecDeque<Received>,
     buf: Vec<u8>,
 }
 
@@ -393,6 +428,11 @@ impl ForceReceiver {
             recent: Default::default(),
             recent_order: Default::default(),
             span: None,
+            times: Default::default(),
+            held: Vec::new(),
+            held_since: None,
+            warm: false,
+            ready: Default::default(),
             buf: vec![0; 65536],
         })
     }
@@ -411,11 +451,23 @@ impl ForceReceiver {
     ) -> std::io::Result<Option<Received>> {
         let deadline = std::time::Instant::now() + timeout;
         loop {
+            if let Some(r) = self.ready.pop_front() {
+                return Ok(Some(r));
+            }
             let left = deadline.saturating_duration_since(std::time::Instant::now());
+            // A slow or short stream: held samples wait at most HOLD_S.
+            let hold_left = self
+                .held_since
+                .map(|t| std::time::Duration::from_secs_f64(HOLD_S).saturating_sub(t.elapsed()));
+            if hold_left.is_some_and(|h| h.is_zero()) {
+                self.release_held();
+                continue;
+            }
             if left.is_zero() {
                 return Ok(None);
             }
-            self.socket.set_read_timeout(Some(left))?;
+            let wait = hold_left.map_or(left, |h| h.min(left));
+            self.socket.set_read_timeout(Some(wait))?;
             let n = match self.socket.recv(&mut self.buf) {
                 Ok(n) => n,
                 Err(e)
@@ -424,7 +476,7 @@ impl ForceReceiver {
                         std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
                     ) =>
                 {
-                    return Ok(None)
+                    continue
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
                 // ICMP errors from an earlier send on some systems: not ours to fail on.
@@ -442,18 +494,57 @@ impl ForceReceiver {
                     sample.timestamp_s /= rate;
                 }
             }
-            if let Some(s) = self.accept(sample) {
-                return Ok(Some(Received { sample: s, recv_s }));
+            if !plausible(&sample) {
+                self.stats.rejected += 1;
+                continue;
             }
+            self.times.push_back(sample.timestamp_s);
+            if self.times.len() > STREAM_WINDOW {
+                self.times.pop_front();
+            }
+            if !self.warm && self.times.len() < WARMUP_SAMPLES {
+                self.held.push((sample, recv_s));
+                self.held_since.get_or_insert_with(std::time::Instant::now);
+                continue;
+            }
+            self.release_held();
+            self.judge(sample, recv_s);
         }
     }
 
-    /// Counts a decoded sample as kept, rejected, repeated or reordered.
+    /// Ends the warm-up: the held samples are judged by the stream's time so far.
+    fn release_held(&mut self) {
+        self.warm = true;
+        self.held_since = None;
+        for (s, recv_s) in std::mem::take(&mut self.held) {
+            self.judge(s, recv_s);
+        }
+    }
+
+    /// Queues `s` for return when [`ForceReceiver::accept`] keeps it.
+    fn judge(&mut self, s: ForceSample, recv_s: f64) {
+        if let Some(sample) = self.accept(s) {
+            self.ready.push_back(Received { sample, recv_s });
+        }
+    }
+
+    /// The stream's time: the lower median of the recent plausible samples' times.
+    fn stream_time(&self) -> Option<f64> {
+        let mut t: Vec<f64> = self.times.iter().copied().collect();
+        if t.is_empty() {
+            return None;
+        }
+        let k = (t.len() - 1) / 2;
+        Some(*t.select_nth_unstable_by(k, f64::total_cmp).1)
+    }
+
+    /// Counts a decoded, plausible sample as kept, rejected (far from the stream's time),
+    /// repeated or reordered.
     fn accept(&mut self, s: ForceSample) -> Option<ForceSample> {
         let in_stream = self
-            .span
-            .is_none_or(|(_, hi)| s.timestamp_s >= hi - LATE_S && s.timestamp_s <= hi + AHEAD_S);
-        if !(plausible(&s) && in_stream) {
+            .stream_time()
+            .is_none_or(|m| s.timestamp_s >= m - LATE_S && s.timestamp_s <= m + AHEAD_S);
+        if !in_stream {
             self.stats.rejected += 1;
             return None;
         }
@@ -566,6 +657,70 @@ mod tests {
             ),
             (99, 95, 3, 1, 1, 5)
         );
+    }
+
+    #[test]
+    fn layouts_name_one_time_field_and_each_axis_once() {
+        for (bad, says) in [
+            ("fx,fy,fz", "one time field"),
+            ("timestamp_s,counter,fz", "one time field"),
+            ("timestamp_s,fx,fx_n", "names fx_n twice"),
+        ] {
+            let e = ForceLayout::parse(bad).unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+        assert!(ForceLayout::parse("fz,counter").is_ok());
+    }
+
+    /// Sends `times` (seconds) as packets of the default layout to a fresh receiver and
+    /// returns the times it kept, in order, and its counts.
+    fn received_times(times: &[f64]) -> (Vec<f64>, ReceiveStats) {
+        let mut rx =
+            ForceReceiver::bind("127.0.0.1:0", ForceLayout::default(), Some(1000.0)).unwrap();
+        let addr = rx.local_addr().unwrap();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let layout = ForceLayout::default();
+        for &t in times {
+            let s = ForceSample {
+                timestamp_s: t,
+                values: [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+            };
+            tx.send_to(&layout.encode(&s, 0), addr).unwrap();
+        }
+        let mut got = Vec::new();
+        while let Some(r) = rx
+            .recv(std::time::Duration::from_millis(700), || 0.0)
+            .unwrap()
+        {
+            got.push(r.sample.timestamp_s);
+        }
+        (got, rx.stats())
+    }
+
+    #[test]
+    fn a_wild_packet_first_or_later_never_decides_the_stream() {
+        let genuine: Vec<f64> = (0..100).map(|k| 10.0 + k as f64 / 1000.0).collect();
+        // Stamped 5e9 s (plausible as a UNIX time) or 100 s ahead, first or in the middle:
+        // every genuine sample is kept and only the wild one refused.
+        for wild in [5e9, 110.0] {
+            for at in [0, 50] {
+                let mut times = genuine.clone();
+                times.insert(at, wild);
+                let (got, s) = received_times(&times);
+                assert_eq!(got, genuine, "wild {wild} at {at}: {s:?}");
+                assert_eq!((s.kept, s.rejected, s.lost), (100, 1, 0), "{wild} at {at}");
+            }
+        }
+        // A sender whose clock restarts: the stream follows it after half a window.
+        let mut times = genuine.clone();
+        times.extend((0..100).map(|k| k as f64 / 1000.0));
+        let (got, s) = received_times(&times);
+        assert_eq!(got.len() as u64 + s.rejected, 200, "{s:?}");
+        assert!(s.rejected <= STREAM_WINDOW as u64 / 2 + 1, "{s:?}");
+        assert_eq!(got.last(), Some(&0.099));
+        // A stream shorter than the warm-up still arrives (after HOLD_S).
+        let (got, _) = received_times(&[1.0, 1.001]);
+        assert_eq!(got, vec![1.0, 1.001]);
     }
 
     #[test]
