@@ -324,3 +324,79 @@ fn a_stream_that_cannot_be_written_is_never_a_panic() {
     assert_eq!(o.status.code(), Some(1), "stdout into a full disk");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// What used to pass in silence: `record --sensor` over frames the sensor cannot process
+/// (exit 0, no feature row), `dataset --latency-s nan`, a dangling link named like a frame
+/// (left out without a word).
+#[test]
+fn what_was_accepted_in_silence_is_said() {
+    let d = fresh_dir("hostile-silent");
+    let (session, sensor, _) = common::iats_features(&d, "2", "1");
+    let small = d.join("small");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "tactip-small",
+        "--protocol",
+        "random",
+        "--touches",
+        "2",
+        "-o",
+        s(&small),
+    ]));
+    let rec = d.join("rec");
+    let err = fails(&vt(&[
+        "record",
+        "--source",
+        s(&small.join("frames")),
+        "--sensor",
+        s(&sensor),
+        "-o",
+        s(&rec),
+    ]));
+    assert!(
+        err.contains("expected 640×480") && err.contains("processed none of the 2 frames"),
+        "{err}"
+    );
+    let described = std::fs::read_to_string(rec.join("session.json")).unwrap();
+    assert!(described.contains("\"complete\": false"), "{described}");
+    let out = d.join("ds");
+    refused(
+        &[
+            "dataset",
+            s(&session),
+            "--sensor",
+            s(&sensor),
+            "--latency-s",
+            "nan",
+            "-o",
+            s(&out),
+        ],
+        &["latency_s must be within ±10 s"],
+        &out,
+    );
+    let frames = d.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..2 {
+        let name = format!("frame_{k:06}.png");
+        std::fs::copy(session.join("frames").join(&name), frames.join(&name)).unwrap();
+    }
+    #[cfg(unix)]
+    std::os::unix::fs::symlink("/nonexistent/x.png", frames.join("frame_000002.png")).unwrap();
+    #[cfg(unix)]
+    {
+        let err = ok(&vt(&[
+            "extract",
+            "--sensor",
+            s(&sensor),
+            s(&frames),
+            "-o",
+            s(&d.join("f2.csv")),
+        ]));
+        assert!(
+            err.contains("frame_000002.png") && err.contains("skipped 1"),
+            "{err}"
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

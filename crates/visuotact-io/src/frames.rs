@@ -105,7 +105,9 @@ pub fn expand_inputs(paths: &[PathBuf]) -> Result<Vec<Input>, FrameError> {
                     source,
                 })?
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| f.is_file() && IMAGE_EXT.contains(&ext_of(f).as_str()))
+                // Every image name but a folder's: a dangling link or a pipe named like a
+                // frame is read, fails and is reported by name, not passed over in silence.
+                .filter(|f| !f.is_dir() && IMAGE_EXT.contains(&ext_of(f).as_str()))
                 .collect();
             if files.is_empty() {
                 return Err(FrameError::EmptyFolder(p.clone()));

@@ -33,6 +33,26 @@ pub struct DatasetConfig {
     pub clean: CleanConfig,
 }
 
+impl DatasetConfig {
+    /// Checks the times: a latency within ±10 s (a camera's or force sensor's delay is
+    /// milliseconds; NaN would label nothing), a gap limit from 0 to 10 s.
+    pub fn validate(&self) -> Result<(), DatasetError> {
+        if !(self.latency_s.is_finite() && self.latency_s.abs() <= 10.0) {
+            return Err(DatasetError::Config(format!(
+                "latency_s must be within ±10 s, got {}",
+                self.latency_s
+            )));
+        }
+        if !(self.max_gap_s.is_finite() && (0.0..=10.0).contains(&self.max_gap_s)) {
+            return Err(DatasetError::Config(format!(
+                "max_gap_s must be in 0..10 s, got {}",
+                self.max_gap_s
+            )));
+        }
+        Ok(())
+    }
+}
+
 impl Default for DatasetConfig {
     /// No latency correction, gaps up to 50 ms bridged, [`CleanConfig::default`].
     fn default() -> Self {
@@ -93,6 +113,9 @@ pub enum DatasetError {
         /// What to do about it.
         hint: &'static str,
     },
+    /// A setting is out of range.
+    #[error("{0}")]
+    Config(String),
     /// A force record could not be cleaned.
     #[error("{}: {source}", path.display())]
     Force {
@@ -128,6 +151,7 @@ pub fn build(
     sensor: Option<&SensorCalibration>,
     cfg: &DatasetConfig,
 ) -> Result<Dataset, DatasetError> {
+    cfg.validate()?;
     let many = sessions.len() > 1;
     let mut out = Dataset::default();
     for (i, s) in sessions.iter().enumerate() {

@@ -180,6 +180,13 @@ pub enum RecordError {
     /// The recording ended without a frame written (the session says so too).
     #[error("nothing recorded: {0}")]
     NothingRecorded(String),
+    /// Frames were recorded but the sensor processed none of them (a sensor of another
+    /// camera); the frames stay in the session, which is not marked complete.
+    #[error(
+        "the sensor processed none of the {0} frames recorded (each is named in a warning); \
+         frames.csv keeps them, features.csv has no row"
+    )]
+    NothingEstimated(usize),
 }
 
 /// What a recording did.
@@ -349,9 +356,17 @@ pub fn record_observed(
     // The first real error is the one reported (a full disk fails the frame before the
     // description): the description is still attempted, its own failure then secondary.
     // Complete only when something was recorded as asked.
-    let described = describe(cfg, result.is_ok() && summary.written > 0, &summary);
+    let none_estimated = estimator.is_some() && summary.written > 0 && tables.processed == 0;
+    let described = describe(
+        cfg,
+        result.is_ok() && summary.written > 0 && !none_estimated,
+        &summary,
+    );
     result?;
     described?;
+    if none_estimated {
+        return Err(RecordError::NothingEstimated(summary.written));
+    }
     if summary.written == 0 {
         // A session this run made and filled with nothing goes again, so that the corrected
         // run is not refused for it.
@@ -644,6 +659,8 @@ struct Tables {
     /// The last frame's rows (empty: none written).
     feature_row: Vec<f64>,
     estimate_row: Vec<f64>,
+    /// Frames of this run the estimator processed.
+    processed: usize,
 }
 
 impl Tables {
@@ -702,6 +719,7 @@ impl Tables {
             estimate_cols,
             feature_row: Vec::new(),
             estimate_row: Vec::new(),
+            processed: 0,
         })
     }
 
@@ -763,6 +781,7 @@ impl Tables {
                 return Ok(());
             }
         };
+        self.processed += 1;
         if let Some(log) = self.features.as_mut() {
             feature_row_into(&mut self.feature_row, f.timestamp_s, n_markers, features);
             self.line.clear();

@@ -65,11 +65,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         let periods = b.periods(0.5);
         let first = b.at(p.t[0]);
         let last = b.at(p.t[p.t.len() - 1]);
+        // The force axes the table has (contact is detected on them), start → end.
+        let drift: Vec<String> = (0..3)
+            .filter(|&k| table.present[k])
+            .map(|k| format!("{} {:.4} → {:.4} N", &AXES[k][..2], first[k], last[k]))
+            .collect();
         note!(
-            "bias from {} no-contact periods: fz {:.4} N at the start, {:.4} N at the end",
+            "bias from {} no-contact periods (start → end): {}",
             periods.len(),
-            first[2],
-            last[2]
+            drift.join(", ")
         );
     }
     if let Some(path) = &a.plot {
