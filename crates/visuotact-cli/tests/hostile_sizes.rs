@@ -400,3 +400,42 @@ fn what_was_accepted_in_silence_is_said() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Exports say when a session's recording did not complete, and refuse a `session.json` that
+/// does not read (was: exported without a word, the description's fields silently ignored).
+#[test]
+fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
+    let d = fresh_dir("hostile-export-incomplete");
+    let (session, _, _) = common::iats_features(&d, "2", "1");
+    let rec = d.join("rec");
+    ok(&vt(&[
+        "record",
+        "--source",
+        s(&session.join("frames")),
+        "--max-frames",
+        "2",
+        "-o",
+        s(&rec),
+    ]));
+    let described = rec.join("session.json");
+    let text = std::fs::read_to_string(&described).unwrap();
+    std::fs::write(
+        &described,
+        text.replace("\"complete\": true", "\"complete\": false"),
+    )
+    .unwrap();
+    let bag = d.join("a.mcap");
+    let err = ok(&vt(&["export", "mcap", s(&rec), "-o", s(&bag)]));
+    assert!(
+        err.contains("did not complete (2 frames recorded)"),
+        "{err}"
+    );
+    std::fs::write(&described, "{\"fps\": ").unwrap();
+    let bag = d.join("b.mcap");
+    refused(
+        &["export", "mcap", s(&rec), "-o", s(&bag)],
+        &["session.json: not a session description"],
+        &bag,
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

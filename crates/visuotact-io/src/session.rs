@@ -424,8 +424,171 @@ pub fn frame_index(dir: &Path) -> Result<Vec<IndexedFrame>, TableError> {
         .collect())
 }
 
-/// A session's description (`session.json`), when it is there and reads as JSON.
-pub fn description(dir: &Path) -> Option<serde_json::Value> {
-    let text = std::fs::read_to_string(dir.join("session.json")).ok()?;
-    serde_json::from_str(&text).ok()
+/// What a session's `session.json` says, as the tools that read sessions use it. Every field
+/// is optional — `simulate` and `record` write different sets, and older sessions lack some —
+/// but one that is there has the right type and a possible value.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SessionDescription {
+    /// The camera's frame rate, frames per second.
+    pub fps: Option<f64>,
+    /// The frame source `record` was given (`sim:iats`, a folder, a camera).
+    pub source: Option<String>,
+    /// The force source (`udp:ADDR`, `csv:PATH`).
+    pub force: Option<String>,
+    /// The sensor file the recording's estimator was built from.
+    pub sensor_file: Option<PathBuf>,
+    /// The model file the recording's estimator was built from.
+    pub model_file: Option<PathBuf>,
+    /// Whether `record` kept every frame in `frames/`.
+    pub frames_saved: Option<bool>,
+    /// Whether the recording did all it was asked.
+    pub complete: Option<bool>,
+    /// Frames after the references.
+    pub frames: Option<u64>,
+    /// The session clock's zero as UNIX time, s.
+    pub started_unix_s: Option<f64>,
+    /// The whole object, for fields this struct does not name.
+    pub raw: serde_json::Map<String, serde_json::Value>,
+}
+
+/// Why a `session.json` does not read.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{source_name}: {why}")]
+pub struct DescriptionError {
+    /// The file (or what the text came from).
+    pub source_name: String,
+    /// What is wrong with it.
+    pub why: String,
+}
+
+impl SessionDescription {
+    /// Parses a description's text; `source` names it in errors.
+    pub fn from_json(text: &str, source: &str) -> Result<Self, DescriptionError> {
+        let bad = |why: String| DescriptionError {
+            source_name: source.to_string(),
+            why,
+        };
+        let raw = match serde_json::from_str(text) {
+            Ok(serde_json::Value::Object(m)) => m,
+            Ok(_) => return Err(bad("expected a JSON object".into())),
+            Err(e) => return Err(bad(format!("not a session description: {e}"))),
+        };
+        if let Some(f) = raw.get("format") {
+            if f != SESSION_FORMAT {
+                return Err(bad(format!("format is {f}, expected {SESSION_FORMAT:?}")));
+            }
+        }
+        let text_of = |k: &str| match raw.get(k) {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(serde_json::Value::String(v)) => Ok(Some(v.clone())),
+            Some(v) => Err(bad(format!("{k} is {v}, expected a string"))),
+        };
+        let bool_of = |k: &str| match raw.get(k) {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(serde_json::Value::Bool(v)) => Ok(Some(*v)),
+            Some(v) => Err(bad(format!("{k} is {v}, expected true or false"))),
+        };
+        let number_of = |k: &str, ok: &dyn Fn(f64) -> bool, expected: &str| match raw.get(k) {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(v) => match v.as_f64().filter(|x| ok(*x)) {
+                Some(x) => Ok(Some(x)),
+                None => Err(bad(format!("{k} is {v}, expected {expected}"))),
+            },
+        };
+        let frames = match raw.get("frames") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(v) => Some(
+                v.as_u64()
+                    .ok_or_else(|| bad(format!("frames is {v}, expected a count")))?,
+            ),
+        };
+        Ok(Self {
+            fps: number_of(
+                "fps",
+                &|x| x.is_finite() && x > 0.0 && x <= 1e4,
+                "a frame rate in (0, 10000]",
+            )?,
+            source: text_of("source")?,
+            force: text_of("force")?,
+            sensor_file: text_of("sensor_file")?.map(PathBuf::from),
+            model_file: text_of("model_file")?.map(PathBuf::from),
+            frames_saved: bool_of("frames_saved")?,
+            complete: bool_of("complete")?,
+            frames,
+            started_unix_s: number_of(
+                "started_unix_s",
+                &|x| x.is_finite() && (0.0..=crate::force::PLAUSIBLE_TIME_S).contains(&x),
+                "a UNIX time in seconds",
+            )?,
+            raw,
+        })
+    }
+
+    /// The description of the session in `dir`: `Ok(None)` when it has no `session.json`.
+    pub fn read(dir: &Path) -> Result<Option<Self>, DescriptionError> {
+        let path = dir.join("session.json");
+        if !path.exists() {
+            return Ok(None);
+        }
+        let name = path.display().to_string();
+        let text = crate::read::text_of_file(&path).map_err(|e| DescriptionError {
+            source_name: name.clone(),
+            why: e.to_string(),
+        })?;
+        Self::from_json(&text, &name).map(Some)
+    }
+
+    /// A line for an export's notes when the session is not whole: `record` stopped before it
+    /// did all it was asked (killed, a full disk, a source that failed).
+    pub fn incomplete_note(&self) -> Option<String> {
+        (self.complete == Some(false)).then(|| {
+            format!(
+                "session.json says the recording did not complete ({} frames recorded)",
+                self.frames
+                    .map_or_else(|| "unknown".into(), |n| n.to_string())
+            )
+        })
+    }
+}
+
+#[cfg(test)]
+mod description_tests {
+    use super::*;
+
+    #[test]
+    fn descriptions_read_typed_fields_and_refuse_wrong_ones_by_name() {
+        let d = SessionDescription::from_json(
+            r#"{"format":"visuotact-session","fps":25,"source":"sim:iats","sensor_file":"s.json",
+                "model_file":null,"frames_saved":true,"complete":false,"frames":12,
+                "started_unix_s":1.7e9,"seed":3}"#,
+            "session.json",
+        )
+        .unwrap();
+        assert_eq!(d.fps, Some(25.0));
+        assert_eq!(d.sensor_file, Some(PathBuf::from("s.json")));
+        assert_eq!((&d.model_file, d.frames_saved), (&None, Some(true)));
+        assert_eq!((d.complete, d.frames), (Some(false), Some(12)));
+        assert_eq!(d.raw["seed"], 3);
+        assert!(d.incomplete_note().unwrap().contains("12 frames"));
+        assert_eq!(SessionDescription::from_json("{}", "s").unwrap().fps, None);
+        for (text, says) in [
+            (r#"{"fps":"x""#, "not a session description"),
+            ("[1]", "expected a JSON object"),
+            (r#"{"format":"other"}"#, "format is"),
+            (r#"{"fps":0}"#, "fps is 0"),
+            (r#"{"fps":1e300}"#, "fps is"),
+            (r#"{"complete":"yes"}"#, "expected true or false"),
+            (r#"{"frames":-1}"#, "expected a count"),
+            (r#"{"source":7}"#, "expected a string"),
+            (r#"{"started_unix_s":-5}"#, "UNIX time"),
+        ] {
+            let e = SessionDescription::from_json(text, "a/session.json")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("a/session.json: ") && e.contains(says),
+                "{text}: {e}"
+            );
+        }
+    }
 }

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
-use visuotact_io::session::{description, frame_index, IndexedFrame};
+use visuotact_io::session::{frame_index, IndexedFrame, SessionDescription};
 use visuotact_io::table::KeyedTable;
 
 use crate::LeRobotError;
@@ -36,6 +36,8 @@ pub struct Episode {
     pub force: Option<Vec<[f64; 6]>>,
     /// The session's frame rate as `session.json` gives it.
     pub fps: Option<f64>,
+    /// Said when `session.json` reports the recording did not complete.
+    pub incomplete: Option<String>,
 }
 
 fn aligned(
@@ -119,7 +121,12 @@ impl Episode {
         } else {
             None
         };
-        let fps = description(dir).and_then(|v| v["fps"].as_f64());
+        let described =
+            SessionDescription::read(dir).map_err(|e| LeRobotError::Invalid(e.to_string()))?;
+        let fps = described.as_ref().and_then(|d| d.fps);
+        let incomplete = described
+            .and_then(|d| d.incomplete_note())
+            .map(|n| format!("{}: {n}", dir.display()));
         Ok(Self {
             dir: dir.to_path_buf(),
             features: aligned(dir, "features.csv", &frames, &["timestamp_s"])?,
@@ -127,6 +134,7 @@ impl Episode {
             frames,
             force,
             fps,
+            incomplete,
         })
     }
 

@@ -27,7 +27,8 @@ use visuotact_io::force::{ForceLayout, ForceReceiver, ForceSample, ForceTable, R
 use visuotact_io::frames::{write_png, FrameError, FrameStream};
 use visuotact_io::queue::{Captured, LatestQueue};
 use visuotact_io::session::{
-    probe_writable, write_atomically, AppendLog, SESSION_FORMAT, SESSION_VERSION,
+    probe_writable, write_atomically, AppendLog, SessionDescription, SESSION_FORMAT,
+    SESSION_VERSION,
 };
 use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row, TableError};
@@ -394,9 +395,11 @@ fn started_unix_s(cfg: &RecordConfig) -> f64 {
     if !cfg.resume {
         return now;
     }
-    visuotact_io::session::description(&cfg.output)
-        .and_then(|v| v["started_unix_s"].as_f64())
-        .filter(|t| t.is_finite() && *t > 0.0)
+    SessionDescription::read(&cfg.output)
+        .ok()
+        .flatten()
+        .and_then(|d| d.started_unix_s)
+        .filter(|t| *t > 0.0)
         .unwrap_or(now)
 }
 
@@ -476,22 +479,13 @@ fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
 /// and frame saving as `cfg` — else the new rows would join another recording's (or, without
 /// the sensor, leave `features.csv` short of the frames).
 fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
-    let path = cfg.output.join("session.json");
-    let refuse =
-        |why: String| RecordError::Config(format!("{}: cannot resume: {why}", path.display()));
-    let text = visuotact_io::read::text_of_file(&path).map_err(|e| refuse(e.to_string()))?;
-    let d: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| refuse(format!("not a session description ({e})")))?;
-    if d["format"] != SESSION_FORMAT {
-        return Err(refuse(format!(
-            "its format is {}, not {SESSION_FORMAT:?}",
-            d["format"]
-        )));
-    }
-    let same_file = |was: &serde_json::Value, now: &Option<PathBuf>| match (was.as_str(), now) {
+    let refuse = |why: String| RecordError::Config(format!("cannot resume: {why}"));
+    let d = SessionDescription::read(&cfg.output)
+        .map_err(|e| refuse(e.to_string()))?
+        .ok_or_else(|| refuse(format!("{} has no session.json", cfg.output.display())))?;
+    let same_file = |was: &Option<PathBuf>, now: &Option<PathBuf>| match (was, now) {
         (None, None) => true,
         (Some(a), Some(b)) => {
-            let a = Path::new(a);
             a == b
                 || a.canonicalize()
                     .ok()
@@ -499,47 +493,40 @@ fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
         }
         _ => false,
     };
+    let shown = |v: &Option<String>| v.clone().unwrap_or_else(|| "none".into());
+    let path_shown = |p: &Option<PathBuf>| {
+        p.as_ref()
+            .map_or_else(|| "none".into(), |p| p.display().to_string())
+    };
     let force = cfg.force.as_ref().map(|f| match f {
         ForceSource::Udp(a) => format!("udp:{a}"),
         ForceSource::Csv(p) => format!("csv:{}", p.display()),
     });
-    let shown = |v: &serde_json::Value| {
-        v.as_str()
-            .map_or_else(|| "none".to_string(), str::to_string)
-    };
     let differ: Vec<String> = [
         (
             "source",
-            d["source"].as_str() == Some(cfg.source.as_str()),
-            shown(&d["source"]),
+            d.source.as_deref() == Some(cfg.source.as_str()),
+            shown(&d.source),
             cfg.source.clone(),
         ),
-        (
-            "force",
-            d["force"].as_str() == force.as_deref(),
-            shown(&d["force"]),
-            force.clone().unwrap_or_else(|| "none".into()),
-        ),
+        ("force", d.force == force, shown(&d.force), shown(&force)),
         (
             "sensor",
-            same_file(&d["sensor_file"], &cfg.sensor_file),
-            shown(&d["sensor_file"]),
-            cfg.sensor_file
-                .as_ref()
-                .map_or_else(|| "none".into(), |p| p.display().to_string()),
+            same_file(&d.sensor_file, &cfg.sensor_file),
+            path_shown(&d.sensor_file),
+            path_shown(&cfg.sensor_file),
         ),
         (
             "model",
-            same_file(&d["model_file"], &cfg.model_file),
-            shown(&d["model_file"]),
-            cfg.model_file
-                .as_ref()
-                .map_or_else(|| "none".into(), |p| p.display().to_string()),
+            same_file(&d.model_file, &cfg.model_file),
+            path_shown(&d.model_file),
+            path_shown(&cfg.model_file),
         ),
         (
             "save-frames",
-            d["frames_saved"].as_bool() == Some(cfg.save_frames),
-            d["frames_saved"].to_string(),
+            d.frames_saved == Some(cfg.save_frames),
+            d.frames_saved
+                .map_or_else(|| "unknown".into(), |b| b.to_string()),
             cfg.save_frames.to_string(),
         ),
     ]
@@ -551,7 +538,8 @@ fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
         Ok(())
     } else {
         Err(refuse(format!(
-            "it was recorded with other settings ({}); resume with the first run's",
+            "{}: it was recorded with other settings ({}); resume with the first run's",
+            cfg.output.join("session.json").display(),
             differ.join("; ")
         )))
     }

@@ -10,7 +10,7 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
-use visuotact_io::session::{description, frame_index, IndexedFrame};
+use visuotact_io::session::{frame_index, IndexedFrame, SessionDescription};
 use visuotact_io::table::KeyedTable;
 use visuotact_pipeline::live::{Health, TargetEstimate};
 use visuotact_vision::calibration::SensorCalibration;
@@ -168,12 +168,18 @@ fn optional_table(
     Ok(Some(KeyedTable::read(&p, text)?))
 }
 
+/// The session's description (`None`: it has no `session.json`); one that does not read is
+/// an error naming it.
+fn described(session: &Path) -> Result<Option<SessionDescription>, RosError> {
+    SessionDescription::read(session).map_err(|e| RosError::Config(e.to_string()))
+}
+
 /// The sensor file the export was given or the session names.
 fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibration>, RosError> {
     let path = match &cfg.sensor {
         Some(p) => Some(p.clone()),
-        None => description(session)
-            .and_then(|v| v["sensor_file"].as_str().map(PathBuf::from))
+        None => described(session)?
+            .and_then(|d| d.sensor_file)
             .filter(|p| p.is_file()),
     };
     let Some(path) = path else {
@@ -264,9 +270,11 @@ pub fn export_mcap(
     progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExportSummary, RosError> {
     cfg.ros.validate()?;
+    let description = described(session)?;
     let start_unix_s = cfg.start_unix_s.unwrap_or_else(|| {
-        description(session)
-            .and_then(|v| v["started_unix_s"].as_f64())
+        description
+            .as_ref()
+            .and_then(|d| d.started_unix_s)
             .unwrap_or(0.0)
     });
     if !start_unix_s.is_finite() || start_unix_s < 0.0 {
@@ -274,7 +282,10 @@ pub fn export_mcap(
             "start_unix_s {start_unix_s}: expected a UNIX time in seconds, 0 or more"
         )));
     }
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = description
+        .and_then(|d| d.incomplete_note())
+        .into_iter()
+        .collect();
     let t = read_tables(session, cfg, &mut notes)?;
     let mut bag = Bag::create(out, &cfg.bag)?;
     if let Err(e) = write_session(&mut bag, session, cfg, (&t, start_unix_s), progress) {
