@@ -439,3 +439,35 @@ fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// `--ros-network` on an address this machine does not have (TEST-NET-1, never assigned) or on
+/// the unspecified address published to nobody in silence; now refused before the run.
+#[test]
+fn ros_on_an_address_the_machine_lacks_is_refused() {
+    let d = fresh_dir("hostile-ros-network");
+    let (_, sensor, _) = common::iats_features(&d, "2", "1");
+    for (addr, says) in [
+        (
+            "192.0.2.1",
+            "no network interface of this machine has that address",
+        ),
+        ("0.0.0.0", "the unspecified address"),
+    ] {
+        let err = fails(&vt(&[
+            "run",
+            "--source",
+            "sim:iats",
+            "--sensor",
+            s(&sensor),
+            "--ros2",
+            "--ros-network",
+            addr,
+            "--max-frames",
+            "3",
+            "--unpaced",
+            "--quiet",
+        ]));
+        assert!(err.contains(addr) && err.contains(says), "{err}");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

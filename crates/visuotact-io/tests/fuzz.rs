@@ -1,11 +1,17 @@
 //! Bounded fuzzing on stable Rust (proptest, seeded, a few hundred cases per parser): every
 //! parser that takes outside bytes — force packets, CSV tables and force tables from disk, the
-//! MJPEG stream splitter, the V4L2 format listing, raw YUYV and JPEG frames — returns a value
+//! MJPEG stream splitter, the V4L2 format listing, raw YUYV and JPEG frames, `ffprobe`'s
+//! answer and session descriptions — returns a value
 //! or an error for any input, never panics, and keeps its promises on what it returns.
+
+use std::path::Path;
 
 use proptest::prelude::*;
 use visuotact_io::camera::{parse_formats, rgb_from_mjpeg, rgb_from_yuyv, MjpegSplitter};
 use visuotact_io::force::{plausible, ForceLayout, ForceTable};
+use visuotact_io::frames::video_info_from_probe;
+use visuotact_io::read::MAX_IMAGE_PIXELS;
+use visuotact_io::session::SessionDescription;
 use visuotact_io::table::KeyedTable;
 
 fn config() -> ProptestConfig {
@@ -106,6 +112,49 @@ proptest! {
     fn yuyv_frames(bytes in prop::collection::vec(any::<u8>(), 0..256), w in 0usize..20, h in 0usize..20) {
         if let Ok(img) = rgb_from_yuyv(&bytes, w, h) {
             prop_assert_eq!((img.width(), img.height()), (w, h));
+        }
+    }
+
+    #[test]
+    fn video_probes(text in "((width|height|avg_frame_rate|r_frame_rate|nb_frames)=(-?[0-9]{0,21}(/[0-9]{0,4})?|N/A)\n){0,6}") {
+        match video_info_from_probe(Path::new("v.mp4"), &text, "") {
+            Ok(v) => {
+                prop_assert!(v.width > 0 && v.height > 0);
+                prop_assert!((v.width as u64) * (v.height as u64) <= MAX_IMAGE_PIXELS);
+                prop_assert!(v.fps.is_finite() && v.fps > 0.0);
+            }
+            Err(e) => prop_assert!(e.to_string().contains("v.mp4")),
+        }
+    }
+
+    #[test]
+    fn session_descriptions(
+        keys in prop::collection::vec(
+            prop_oneof![
+                Just("fps"), Just("source"), Just("complete"), Just("frames"),
+                Just("started_unix_s"), Just("sensor_file"), Just("format"),
+            ],
+            0..6,
+        ),
+        values in prop::collection::vec(
+            prop_oneof![
+                Just("0"), Just("-1"), Just("25"), Just("1e300"), Just("true"), Just("null"),
+                Just("\"x\""), Just("[1]"), Just("{}"), Just("\"visuotact-session\""),
+            ],
+            0..6,
+        ),
+        cut in 0usize..200,
+    ) {
+        let body: Vec<String> =
+            keys.iter().zip(&values).map(|(k, v)| format!("\"{k}\":{v}")).collect();
+        let text = format!("{{{}}}", body.join(","));
+        let text = &text[..cut.min(text.len())];
+        match SessionDescription::from_json(text, "s.json") {
+            Ok(d) => {
+                prop_assert!(d.fps.is_none_or(|f| f.is_finite() && f > 0.0));
+                prop_assert!(d.started_unix_s.is_none_or(|t| t.is_finite() && t >= 0.0));
+            }
+            Err(e) => prop_assert!(e.to_string().starts_with("s.json: ")),
         }
     }
 }

@@ -117,6 +117,26 @@ pub struct DdsPublisher {
     pub messages: u64,
 }
 
+/// `ip` must be one interface's address on this machine (binding a socket to it tells): an
+/// address the machine does not have would publish to nobody, in silence.
+fn check_interface(ip: IpAddr) -> Result<(), RosError> {
+    if ip.is_unspecified() || ip.is_multicast() {
+        return Err(RosError::Config(format!(
+            "network {ip}: name one network interface's address, not {}",
+            if ip.is_multicast() {
+                "a multicast group"
+            } else {
+                "the unspecified address"
+            }
+        )));
+    }
+    std::net::UdpSocket::bind((ip, 0)).map(drop).map_err(|e| {
+        RosError::Config(format!(
+            "network {ip}: no network interface of this machine has that address ({e})"
+        ))
+    })
+}
+
 fn dds_err(e: impl std::fmt::Display) -> RosError {
     RosError::Dds(e.to_string())
 }
@@ -125,6 +145,7 @@ impl DdsPublisher {
     /// A participant in `cfg.domain_id` on loopback (or `cfg.network`).
     pub fn new(cfg: &DdsConfig) -> Result<Self, RosError> {
         let only: IpAddr = cfg.network.unwrap_or(IpAddr::from([127, 0, 0, 1]));
+        check_interface(only)?;
         let participant = DomainParticipantBuilder::new(cfg.domain_id)
             .with_only_networks([only])
             .same_host_loopback(true)
