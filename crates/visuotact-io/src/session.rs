@@ -205,7 +205,7 @@ impl SessionWriter {
             obj.insert("version".into(), SESSION_VERSION.into());
         }
         let text = serde_json::to_string_pretty(&description).map_err(std::io::Error::other)?;
-        std::fs::write(self.dir.join("session.json"), text + "\n")
+        write_atomically(&self.dir.join("session.json"), &(text + "\n"))
     }
 }
 
@@ -350,9 +350,16 @@ pub fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| named(dir, e))?;
     }
-    let tmp = path.with_extension("tmp~");
-    std::fs::write(&tmp, text).map_err(|e| named(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| named(path, e))
+    // NAME.part~ beside it (one per target: `a.json` and `a.csv` never share one), removed
+    // when the write or the rename fails, so a failure leaves nothing behind.
+    let tmp = crate::guard::part_path(path);
+    let done = std::fs::write(&tmp, text)
+        .map_err(|e| named(&tmp, e))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| named(path, e)));
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
 }
 
 #[cfg(test)]
@@ -554,6 +561,27 @@ impl SessionDescription {
 #[cfg(test)]
 mod description_tests {
     use super::*;
+
+    #[test]
+    fn a_failed_atomic_write_leaves_neither_a_part_nor_a_torn_file() {
+        let d = std::env::temp_dir().join(format!("vt-atomic-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(d.join("busy").join("inside")).unwrap();
+        // The target is a folder: the rename fails after the temporary was written.
+        let e = write_atomically(&d.join("busy"), "text").unwrap_err();
+        assert!(e.to_string().contains("busy"), "{e}");
+        let left: Vec<_> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, vec![std::ffi::OsString::from("busy")]);
+        // Two targets differing only in extension do not share a temporary.
+        write_atomically(&d.join("a.json"), "1").unwrap();
+        write_atomically(&d.join("a.csv"), "2").unwrap();
+        assert_eq!(std::fs::read_to_string(d.join("a.json")).unwrap(), "1");
+        assert_eq!(std::fs::read_to_string(d.join("a.csv")).unwrap(), "2");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
 
     #[test]
     fn descriptions_read_typed_fields_and_refuse_wrong_ones_by_name() {

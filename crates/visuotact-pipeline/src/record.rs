@@ -354,14 +354,26 @@ pub fn record_observed(
     tables.sync()?;
     summary.frames = tables.first_index + summary.written;
     summary.duration_s = clock.elapsed().as_secs_f64();
-    // The first real error is the one reported (a full disk fails the frame before the
-    // description): the description is still attempted, its own failure then secondary.
-    // Complete only when something was recorded as asked.
     let none_estimated = estimator.is_some() && summary.written > 0 && tables.processed == 0;
+    conclude(cfg, result, &summary, none_estimated, created)?;
+    Ok(summary)
+}
+
+/// The end of a recording: `session.json` says how it went, and an error says what went
+/// wrong. The first real error is the one reported (a full disk fails the frame before the
+/// description): the description is still attempted, its own failure then secondary.
+/// Complete only when something was recorded as asked.
+fn conclude(
+    cfg: &RecordConfig,
+    result: Result<(), RecordError>,
+    summary: &RecordSummary,
+    none_estimated: bool,
+    created: bool,
+) -> Result<(), RecordError> {
     let described = describe(
         cfg,
         result.is_ok() && summary.written > 0 && !none_estimated,
-        &summary,
+        summary,
     );
     result?;
     described?;
@@ -383,7 +395,7 @@ pub fn record_observed(
             "the source gave no frame".to_string()
         }));
     }
-    Ok(summary)
+    Ok(())
 }
 
 /// The session clock's zero as UNIX time: now; when resuming, the first run's value from its
@@ -952,7 +964,7 @@ struct ForceSide {
 /// table is reported first.
 enum ForceInput {
     None,
-    Udp(ForceReceiver),
+    Udp(Box<ForceReceiver>),
     Csv(ForceTable),
 }
 
@@ -960,11 +972,11 @@ impl ForceInput {
     fn open(cfg: &RecordConfig) -> Result<Self, RecordError> {
         Ok(match &cfg.force {
             None => Self::None,
-            Some(ForceSource::Udp(addr)) => Self::Udp(ForceReceiver::bind(
+            Some(ForceSource::Udp(addr)) => Self::Udp(Box::new(ForceReceiver::bind(
                 addr,
                 cfg.force_layout.clone(),
                 Some(cfg.force_rate_hz),
-            )?),
+            )?)),
             Some(ForceSource::Csv(p)) => Self::Csv(ForceTable::read(p)?),
         })
     }
@@ -991,7 +1003,7 @@ impl ForceSide {
                 let bound = rx.local_addr()?.to_string();
                 let (log, _) = AppendLog::open(&path, FORCE_HEADER, cfg.resume, sync)?;
                 let on = (clock, t_offset, side.stop.clone());
-                side.receiver = Some(spawn_receiver(rx, log, on, observer));
+                side.receiver = Some(spawn_receiver(*rx, log, on, observer));
                 if let Some(r) = rig {
                     let t_end = r
                         .total_s(cfg.fps)

@@ -178,8 +178,8 @@ impl Sensor {
 
     /// Writes the sensor file.
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        std::fs::write(&path, self.est.calibration().to_json())
-            .map_err(|e| error(format!("{}: cannot write: {e}", path.display())))
+        visuotact_io::session::write_atomically(&path, &self.est.calibration().to_json())
+            .map_err(|e| error(e.to_string()))
     }
 
     /// The sensor file's JSON text.
@@ -439,8 +439,7 @@ impl Model {
             .m
             .to_checked_json(&path.display().to_string())
             .map_err(error)?;
-        std::fs::write(&path, json)
-            .map_err(|e| error(format!("{}: cannot write: {e}", path.display())))
+        visuotact_io::session::write_atomically(&path, &json).map_err(|e| error(e.to_string()))
     }
 
     /// The model file's JSON text.
