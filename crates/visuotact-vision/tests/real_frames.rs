@@ -31,8 +31,10 @@ fn real_dir() -> Option<PathBuf> {
         return Some(p);
     }
     assert!(
-        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
-        "{} absent and VISUOTACT_REQUIRE_REAL set",
+        ["VISUOTACT_REQUIRE_DATA", "VISUOTACT_REQUIRE_REAL"]
+            .iter()
+            .all(|v| std::env::var_os(v).is_none_or(|x| x.is_empty() || x == "0")),
+        "{} absent and VISUOTACT_REQUIRE_DATA set",
         p.display()
     );
     eprintln!("skipping: {} not found", p.display());

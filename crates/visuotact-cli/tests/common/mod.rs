@@ -119,7 +119,7 @@ pub fn headless(chromium: &str, profile: &Path, extra: &[&str], url: &str) -> Ou
 }
 
 /// `rel` under the shared real frames (`../shared/reference/real`, not in the repository),
-/// when present; its absence fails the test where `VISUOTACT_REQUIRE_REAL` is set.
+/// when present; its absence fails the test where `VISUOTACT_REQUIRE_DATA` (or `VISUOTACT_REQUIRE_REAL`) is set.
 pub fn shared_real(rel: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../../shared/reference/real")
@@ -128,8 +128,10 @@ pub fn shared_real(rel: &str) -> Option<PathBuf> {
         return Some(p);
     }
     assert!(
-        std::env::var_os("VISUOTACT_REQUIRE_REAL").is_none(),
-        "{} absent and VISUOTACT_REQUIRE_REAL set",
+        ["VISUOTACT_REQUIRE_DATA", "VISUOTACT_REQUIRE_REAL"]
+            .iter()
+            .all(|v| std::env::var_os(v).is_none_or(|x| x.is_empty() || x == "0")),
+        "{} absent and VISUOTACT_REQUIRE_DATA set",
         p.display()
     );
     eprintln!("skipping: {} absent", p.display());
