@@ -237,8 +237,43 @@ struct Rendered {
     truth: Vec<TruthRow>,
 }
 
-/// Renders `count` frames with `render(k)` in parallel batches, writing PNGs as they come and
-/// the CSV rows in order.
+/// Renders `count` frames with `render(k)` in parallel batches of [`BATCH`], writing each PNG
+/// at `path(k)` as it comes and handing `row(k, what render gave)` the frames in order, so
+/// memory holds one batch whatever the count.
+fn write_batched<R: Send>(
+    count: usize,
+    path: impl Fn(usize) -> std::path::PathBuf + Sync,
+    render: impl Fn(usize) -> Result<(RgbImage, R), SimulateError> + Sync,
+    mut row: impl FnMut(usize, R) -> Result<(), SimulateError>,
+) -> Result<(), SimulateError> {
+    for start in (0..count).step_by(BATCH) {
+        let end = (start + BATCH).min(count);
+        let rows: Vec<R> = (start..end)
+            .into_par_iter()
+            .map(|k| {
+                let (img, r) = render(k)?;
+                write_png(&path(k), &img)?;
+                Ok(r)
+            })
+            .collect::<Result<_, SimulateError>>()?;
+        for (k, r) in (start..end).zip(rows) {
+            row(k, r)?;
+        }
+    }
+    Ok(())
+}
+
+/// A frame's file name in `frames/`.
+fn frame_name(k: usize) -> String {
+    format!("frame_{k:06}.png")
+}
+
+/// A reference frame's file name in `reference/`.
+fn reference_name(k: usize) -> String {
+    format!("ref_{k:04}.png")
+}
+
+/// `count` touch frames after `first_index` references, their labels and truth.
 fn write_frames(
     w: &mut SessionWriter,
     count: usize,
@@ -246,47 +281,38 @@ fn write_frames(
     fps: f64,
     render: impl Fn(usize) -> Result<(RgbImage, Rendered), SimulateError> + Sync,
 ) -> Result<(), SimulateError> {
-    for start in (0..count).step_by(BATCH) {
-        let end = (start + BATCH).min(count);
-        let rows: Vec<(String, Rendered)> = (start..end)
-            .into_par_iter()
-            .map(|k| {
-                let (img, r) = render(k)?;
-                let name = format!("frame_{k:06}.png");
-                write_png(&w.frame_path(&name), &img)?;
-                Ok((name, r))
-            })
-            .collect::<Result<_, SimulateError>>()?;
-        for (k, (name, r)) in (start..end).zip(rows) {
+    let frames = w.frame_path("");
+    write_batched(
+        count,
+        |k| frames.join(frame_name(k)),
+        render,
+        |k, r| {
             let index = first_index + k;
-            w.add_frame(&name, index, index as f64 / fps, &r.labels, &r.truth)?;
-        }
-    }
-    Ok(())
+            Ok(w.add_frame(
+                &frame_name(k),
+                index,
+                index as f64 / fps,
+                &r.labels,
+                &r.truth,
+            )?)
+        },
+    )
 }
 
+/// `n` no-contact reference frames and their truth.
 fn write_references(
     w: &mut SessionWriter,
     n: usize,
     fps: f64,
     render: impl Fn(usize) -> Result<(RgbImage, Vec<TruthRow>), SimulateError> + Sync,
 ) -> Result<(), SimulateError> {
-    for start in (0..n).step_by(BATCH) {
-        let end = (start + BATCH).min(n);
-        let rows: Vec<(String, Vec<TruthRow>)> = (start..end)
-            .into_par_iter()
-            .map(|k| {
-                let (img, truth) = render(k)?;
-                let name = format!("ref_{k:04}.png");
-                write_png(&w.reference_path(&name), &img)?;
-                Ok((name, truth))
-            })
-            .collect::<Result<_, SimulateError>>()?;
-        for (k, (name, truth)) in (start..end).zip(rows) {
-            w.add_reference(&name, k, k as f64 / fps, &truth)?;
-        }
-    }
-    Ok(())
+    let refs = w.reference_path("");
+    write_batched(
+        n,
+        |k| refs.join(reference_name(k)),
+        render,
+        |k, truth| Ok(w.add_reference(&reference_name(k), k, k as f64 / fps, &truth)?),
+    )
 }
 
 /// Truth rows from (x, y, area, fully in view, visible) per marker.
