@@ -10,7 +10,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use visuotact_io::force::ForceTable;
+use visuotact_io::force::{ForceTable, AXES};
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableError};
 use visuotact_nn::model::is_marker_column;
@@ -298,6 +298,22 @@ fn labels_from_force(
             path.display()
         ));
     }
+    // Only the force axes the record has: an absent one is not a measured zero.
+    let axes: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
+    if axes.is_empty() {
+        return Err(DatasetError::Missing {
+            path: path.to_path_buf(),
+            what: "no force column (fx_n, fy_n or fz_n)".into(),
+        });
+    }
+    if axes.len() < 3 {
+        let names: Vec<&str> = axes.iter().map(|&k| AXES[k]).collect();
+        notes.push(format!(
+            "{}: only {} recorded: force_n is their magnitude, the other axes are no labels",
+            path.display(),
+            names.join(", ")
+        ));
+    }
     // Sender clock → recorder clock.
     let offset = table.recv_s.as_ref().map_or(0.0, |r| {
         r.iter()
@@ -321,14 +337,16 @@ fn labels_from_force(
         source,
     })?;
     let magnitude: Vec<f64> = (0..c.t.len())
-        .map(|i| (0..3).map(|k| c.clean[k][i].powi(2)).sum::<f64>().sqrt())
+        .map(|i| {
+            axes.iter()
+                .map(|&k| c.clean[k][i].powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
         .collect();
-    let cols = [
-        rs.apply(&magnitude),
-        rs.apply(&c.clean[0]),
-        rs.apply(&c.clean[1]),
-        rs.apply(&c.clean[2]),
-    ];
+    let cols: Vec<Vec<Option<f64>>> = std::iter::once(rs.apply(&magnitude))
+        .chain(axes.iter().map(|&k| rs.apply(&c.clean[k])))
+        .collect();
     if rs.missing() > 0 {
         notes.push(format!(
             "{}: {} frames outside the force record or in a gap get no label",
@@ -338,16 +356,15 @@ fn labels_from_force(
     }
     let mut m = HashMap::new();
     for (i, (k, _)) in frames.iter().enumerate() {
-        if let (Some(f), Some(x), Some(y), Some(z)) =
-            (cols[0][i], cols[1][i], cols[2][i], cols[3][i])
-        {
-            m.insert(k.clone(), vec![f, x, y, z]);
+        if let Some(row) = cols.iter().map(|c| c[i]).collect::<Option<Vec<f64>>>() {
+            m.insert(k.clone(), row);
         }
     }
     Ok((
-        ["force_n", "fx_n", "fy_n", "fz_n"]
+        std::iter::once("force_n")
+            .chain(axes.iter().map(|&k| AXES[k]))
             .map(String::from)
-            .to_vec(),
+            .collect(),
         m,
     ))
 }
@@ -430,6 +447,38 @@ mod tests {
         }
         std::fs::write(d.join("force.csv"), force).unwrap();
         d
+    }
+
+    #[test]
+    fn a_force_record_without_some_axes_labels_only_those_it_has() {
+        let d = session_dir("axes");
+        let mut force = String::from("timestamp_s,fz_n\n");
+        for i in 0..5000 {
+            let t = f64::from(i) / 1000.0;
+            force.push_str(&format!("{t},{t}\n"));
+        }
+        std::fs::write(d.join("force.csv"), force).unwrap();
+        let cfg = DatasetConfig {
+            clean: CleanConfig {
+                bias: visuotact_signal::clean::BiasRemoval::None,
+                ..CleanConfig::default()
+            },
+            ..DatasetConfig::default()
+        };
+        let ds = build(std::slice::from_ref(&d), None, &cfg).unwrap();
+        assert_eq!(ds.label_columns, ["force_n", "fz_n"]);
+        assert!((ds.labels[2][1] - 2.0).abs() < 1e-3, "{:?}", ds.labels[2]);
+        assert!(
+            ds.notes.iter().any(|n| n.contains("only fz_n recorded")),
+            "{:?}",
+            ds.notes
+        );
+        std::fs::write(d.join("force.csv"), "timestamp_s,tz_nm\n0,1\n").unwrap();
+        let e = build(std::slice::from_ref(&d), None, &cfg)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no force column"), "{e}");
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
