@@ -148,3 +148,52 @@ fn the_tactip_data_set_commands_work_as_written() {
         );
     }
 }
+
+/// The README's "your sensor in four commands", as written, on a simulated membrane session:
+/// its rest frames, touch frames and labels under the README's names, the camera swapped for
+/// the touch frames (no camera here) and the live run bounded.
+#[test]
+fn the_four_commands_work_as_written() {
+    let text = readme();
+    let block = text
+        .split("## Your sensor in four commands")
+        .nth(1)
+        .and_then(|s| s.split("```sh").nth(1))
+        .and_then(|s| s.split("```").next())
+        .expect("the four commands' block");
+    let lines: Vec<&str> = block
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or("").trim())
+        .filter(|l| l.starts_with("visuotact "))
+        .collect();
+    assert_eq!(lines.len(), 4, "{block}");
+    let d = tmp("four");
+    let session = d.join("session");
+    let sim = run(
+        "visuotact simulate --sensor iats --protocol random --touches 40 -o session",
+        &d,
+        &[],
+    );
+    assert!(sim.status.success(), "{}", stderr(&sim));
+    std::fs::rename(session.join("reference"), d.join("rest_frames")).unwrap();
+    std::fs::rename(session.join("frames"), d.join("touch_frames")).unwrap();
+    std::fs::rename(session.join("labels.csv"), d.join("labels.csv")).unwrap();
+    for line in &lines[..3] {
+        let o = run(line, &d, &[]);
+        assert!(o.status.success(), "{line}: {}", stderr(&o));
+    }
+    let live = lines[3]
+        .replace("camera:/dev/video0", "touch_frames")
+        .replace(
+            "--serve",
+            "--serve 127.0.0.1:0 --max-frames 40 --unpaced --quiet",
+        );
+    let o = run(&live, &d, &[]);
+    assert!(o.status.success(), "{live}: {}", stderr(&o));
+    assert!(
+        stderr(&o).contains("40 frames captured, 40 estimated"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
