@@ -1,5 +1,5 @@
 //! The figures of the command line and the reports, each a [`Figure`] over plain data: the
-//! regression plot and the contact map of an evaluation (seed 000 Fig. 10), a force record
+//! regression plot and the contact map of an evaluation (the membrane paper's Fig. 10), a force record
 //! before and after cleaning, and an architecture sweep's performance against network size
 //! (seed 001 Figs. 4.8/4.11/4.13).
 
@@ -313,7 +313,7 @@ impl PerformancePlot<'_> {
     }
 }
 
-/// A two-layer sweep's mean test MSE over both layer sizes as a heat map (seed 001 Fig. 4.13's
+/// A two-layer sweep's mean test MSE over both layer sizes as a heat map (the cone paper's Fig. 4.13's
 /// surface seen from above): one cell per architecture, coloured by log₁₀ of the error (dark
 /// blue lowest, yellow highest), the best cell ringed, and a colour bar.
 pub struct SweepSurface<'a> {

@@ -103,7 +103,7 @@ fn force_regressions(page: &mut Page, table: &str, rows: &[ConeRow]) -> Result<(
     Ok(())
 }
 
-/// Seed 001 with rotation: Table 5.2, the sweeps' figures (Figs. 4.11 and 4.13) and the rows'
+/// The inflatable cone with rotation: Table 5.2, the sweeps' figures (Figs. 4.11 and 4.13) and the rows'
 /// regressions.
 fn rotation_section(page: &mut Page, d: &RotationDemo) -> Result<(), ReportError> {
     page.heading(3, "With rotation: Table 5.2, beside the paper");
@@ -112,7 +112,7 @@ fn rotation_section(page: &mut Page, d: &RotationDemo) -> Result<(), ReportError
         page.figure(
             &format!(
                 "With rotation, one hidden layer of 1..100 neurons × {} trainings, inputs {} \
-                 (seed 001 Fig. 4.11): mean and best test MSE (N²); best {} neurons",
+                 (the cone paper's Fig. 4.11): mean and best test MSE (N²); best {} neurons",
                 d.repeats, s.inputs, s.hidden[0]
             ),
             &PerformancePlot {
@@ -124,7 +124,7 @@ fn rotation_section(page: &mut Page, d: &RotationDemo) -> Result<(), ReportError
     for s in &d.two_layer {
         page.figure(
             &format!(
-                "With rotation, two hidden layers of 1..20 × 1..20 neurons, inputs {} (seed 001 \
+                "With rotation, two hidden layers of 1..20 × 1..20 neurons, inputs {} (the cone paper's \
                  Fig. 4.13 seen from above): mean test MSE (N²), the best cell ringed",
                 s.best.inputs
             ),
@@ -150,7 +150,7 @@ pub fn demo_page(
     );
     page.heading(
         2,
-        "Seed 000: image-based areal touch sensor (117 markers, 60 × 45 mm)",
+        "The 117-marker membrane: image-based areal touch sensor (117 markers, 60 × 45 mm)",
     );
     page.heading(
         3,
@@ -159,7 +159,7 @@ pub fn demo_page(
     page.preformatted(&iats_text(iats));
     page.figure(
         &format!(
-            "Contact map of the {} random touches (seed 000 Fig. 10): actual contact points \
+            "Contact map of the {} random touches (the membrane paper's Fig. 10): actual contact points \
              (rings) and visuotact's estimates (discs), joined; radius ∝ depth. Mean D {:.3} mm.",
             iats.random_points.len(),
             iats.distance_mm.0
@@ -176,14 +176,14 @@ pub fn demo_page(
     )?;
     page.heading(
         2,
-        "Seed 001: inflatable link (cone, three annuli, JR3 force)",
+        "The inflatable cone: inflatable link (cone, three annuli, JR3 force)",
     );
     page.heading(3, "Table 5.1, beside the paper");
     page.preformatted(&cone_text(cone));
     for s in &cone.sweeps {
         page.figure(
             &format!(
-                "Sweep of 1..40 hidden neurons × {} trainings, inputs {} (seed 001 Fig. 4.8): \
+                "Sweep of 1..40 hidden neurons × {} trainings, inputs {} (the cone paper's Fig. 4.8): \
                  mean and best test MSE (N²); best {} neurons, {:.1} s",
                 cone.repeats, s.inputs, s.hidden[0], s.secs
             ),
@@ -197,7 +197,7 @@ pub fn demo_page(
     rotation_section(&mut page, rotation)?;
     page.heading(
         3,
-        "Torque from the T-shaped marker (seed 001's future work)",
+        "Torque from the T-shaped marker (the cone paper's future work)",
     );
     page.preformatted(&torque_text(torque));
     let r = torque.errors.get(1).map_or(f64::NAN, |e| e.r);

@@ -30,7 +30,7 @@ fn iats_training(out: &mut String, d: &IatsDemo) {
         d.markers, d.grid_touches, d.complete_frames, d.setup_s
     );
     let _ = writeln!(out,
-        "seed 000's network: 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt (trainlm): {} epochs in {:.1} s (seed 000: 13 h 20 min)",
+        "the paper's network: 351 → 20 → 20 → 20 → 20 → 20 → 3 by Levenberg–Marquardt (trainlm): {} epochs in {:.1} s (the paper: 13 h 20 min)",
         d.paper.model.training.epochs, d.paper.train_s
     );
     let m = &d.default.model;
@@ -119,7 +119,7 @@ fn random(out: &mut String, d: &IatsDemo) {
         "  D:     mean {dmean:.3} mm, max {dmax:.3} mm   | paper: up to 3.24 mm (Table 2)"
     );
     let _ = writeln!(out,
-        "  seed 000's network on the {} of them with every marker found: D mean {:.3} mm, max {:.3} mm, depth mean {:.3} mm",
+        "  the paper's network on the {} of them with every marker found: D mean {:.3} mm, max {:.3} mm, depth mean {:.3} mm",
         d.paper_frames, d.paper_distance_mm.0, d.paper_distance_mm.1, d.paper_depth_mm
     );
 }
@@ -223,7 +223,7 @@ pub fn rotation_text(d: &RotationDemo) -> String {
     text
 }
 
-/// Seed 001's future work: torque from the T-shaped marker.
+/// The inflatable cone's future work: torque from the T-shaped marker.
 pub fn torque_text(d: &TorqueDemo) -> String {
     let mut text = String::new();
     let out = &mut text;
@@ -254,7 +254,7 @@ pub fn torque_text(d: &TorqueDemo) -> String {
     }
     let _ = writeln!(
         out,
-        "  (no paper figure: seed 001 planned torque as future work)"
+        "  (no paper figure: the cone paper planned torque as future work)"
     );
     text
 }

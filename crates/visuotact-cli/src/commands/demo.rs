@@ -28,20 +28,20 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         quick: a.quick,
         seed: a.seed,
     };
-    say!("== Seed 000: image-based areal touch sensor (117 markers, 60 × 45 mm) ==");
+    say!("== The 117-marker membrane: image-based areal touch sensor (117 markers, 60 × 45 mm) ==");
     let iats = demo::iats(&cfg)?;
     let iats_s = t_all.elapsed().as_secs_f64();
     say_part!("{}", iats_text(&iats));
-    say!("\n== Seed 001: inflatable link (cone, three annuli, JR3 force) ==");
+    say!("\n== The inflatable cone: inflatable link (cone, three annuli, JR3 force) ==");
     let cone = demo::cone(&cfg)?;
     say_part!("{}", cone_text(&cone));
     let t_rotation = Instant::now();
-    say!("\n== Seed 001 with rotation (Table 5.2) ==");
+    say!("\n== The inflatable cone with rotation (Table 5.2) ==");
     let rotation = demo::cone_rotation(&cfg)?;
     say_part!("{}", rotation_text(&rotation));
     let rotation_s = t_rotation.elapsed().as_secs_f64();
     let t_torque = Instant::now();
-    say!("\n== Seed 001's future work: torque from the T-shaped marker ==");
+    say!("\n== The inflatable cone's future work: torque from the T-shaped marker ==");
     let torque = demo::cone_torque(&cfg)?;
     say_part!("{}", torque_text(&torque));
     let torque_s = t_torque.elapsed().as_secs_f64();
@@ -60,28 +60,28 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
                 ("threads".into(), rayon::current_num_threads().to_string()),
             ],
             timings_s: vec![
-                ("seed 000: simulate and calibrate".into(), iats.setup_s),
-                ("seed 000: paper's network".into(), iats.paper.train_s),
-                ("seed 000: default".into(), iats.default.train_s),
-                ("seed 000 in all".into(), iats_s),
-                ("seed 001: one 6 → 20 → 1".into(), cone.one_network.train_s),
+                ("membrane: simulate and calibrate".into(), iats.setup_s),
+                ("membrane: paper's network".into(), iats.paper.train_s),
+                ("membrane: default".into(), iats.default.train_s),
+                ("membrane in all".into(), iats_s),
+                ("cone: one 6 → 20 → 1".into(), cone.one_network.train_s),
                 (
-                    "seed 001: sweep, rings".into(),
+                    "cone: sweep, rings".into(),
                     cone.sweeps.first().map_or(0.0, |s| s.secs),
                 ),
                 (
-                    "seed 001: sweep, rings + gauge".into(),
+                    "cone: sweep, rings + gauge".into(),
                     cone.sweeps.get(1).map_or(0.0, |s| s.secs),
                 ),
                 (
-                    "seed 001 in all".into(),
+                    "cone in all".into(),
                     total_s - iats_s - rotation_s - torque_s,
                 ),
                 (
-                    "seed 001 with rotation: sweeps and Table 5.2".into(),
+                    "cone with rotation: sweeps and Table 5.2".into(),
                     rotation_s,
                 ),
-                ("seed 001: torque from the T".into(), torque_s),
+                ("cone: torque from the T".into(), torque_s),
                 ("demo".into(), total_s),
             ],
         };

@@ -18,7 +18,7 @@ pub(crate) struct Args {
     /// PNG by the file's extension.
     #[arg(long, value_name = "FILE.svg|FILE.png")]
     plot: Option<PathBuf>,
-    /// Also draw the contact map (seed 000 Fig. 10): actual and estimated contact points
+    /// Also draw the contact map (the membrane paper's Fig. 10): actual and estimated contact points
     /// (`x_mm`, `y_mm`), joined, circle size ∝ depth (`depth_mm`, when present); SVG or PNG.
     #[arg(long, value_name = "FILE.svg|FILE.png")]
     map: Option<PathBuf>,

@@ -2,7 +2,7 @@
 //! as it goes ([`visuotact_pipeline::record`]).
 //!
 //! Sources: `frames:DIR` or `video:FILE` (or bare paths), and the simulated rigs `sim:cone`
-//! (seed 001's link pressed and released, its JR3 streaming over UDP to `--force`) and
+//! (the inflatable cone pressed and released, its JR3 streaming over UDP to `--force`) and
 //! `sim:iats` (random touches), paced in real time. Force: `udp:HOST:PORT` (packed
 //! little-endian f64, `--force-layout`) or `csv:FILE`.
 //!

@@ -11,7 +11,7 @@ use visuotact_pipeline::synth::{send_paced, simulate, ConeSession, SimKind, Simu
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// Which sensor: iats (seed 000's areal touch sensor), cone (seed 001's inflatable link), or
+    /// Which sensor: iats (the 117-marker membrane of the areal touch sensor paper), cone (the inflatable cone measuring force), or
     /// one of the zoo: tactip (hemispherical tip, hexagonal pins), gelsight (dark-dot grid on a
     /// bright gel), dots (random dot pattern), tactip-small (the tip on a binarised 128 × 128
     /// image, 2–4 px pins, as published data sets).
