@@ -1,6 +1,16 @@
 //! The `visuotact` command line: parses arguments and calls the library crates. `main` only
 //! calls [`run`]; each subcommand lives in `commands/` and returns `anyhow::Result`, printed
 //! once here as `error: …` with exit code 1 (2 for usage errors).
+//!
+//! ## Modules and what each owns
+//!
+//! the `visuotact` command line, `commands/<name>.rs` per subcommand (`demo`, `calibrate`,
+//! `extract`, `blobs`, `bench`, `simulate`, `check-tracking`, `train`, `sweep`, `predict`,
+//! `eval`, `pattern`, `filter`, `record`, `dataset`, `replay`, `run`, `cameras`): options → the
+//! library's config → one library call → printed result. Shared option groups in `args`
+//! (detection, force cleaning, training), file loading in `files`, shared printing in `print`,
+//! progress lines and Ctrl-C for long steps in `progress`; command modules never import each
+//! other
 
 use std::process::ExitCode;
 
@@ -14,6 +24,7 @@ mod commands;
 mod files;
 mod print;
 mod progress;
+mod slurm;
 
 use commands::{
     bench, blobs, calibrate, dataset, demo, eval, export, extract, filter, pattern, predict,

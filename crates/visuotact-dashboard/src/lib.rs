@@ -5,6 +5,12 @@
 //! latest frame, `GET /info` image size, targets and markers, `POST /rezero`. The estimator
 //! never waits for a client: each client has a small queue of its own, and a message that does
 //! not fit (the client reads too slowly) is dropped for that client and counted.
+//!
+//! ## Modules and what each owns
+//!
+//! the live dashboard: one page embedded in the binary, estimates over a WebSocket (each client
+//! its own small queue, drops counted), the latest frame as JPEG, a re-zero button; axum on a
+//! tokio thread of its own; `DashboardError`
 
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};

@@ -9,6 +9,11 @@
 //! let img = GrayImage::from_vec(3, 2, vec![0, 1, 2, 3, 4, 5]).unwrap();
 //! assert_eq!(img.get(2, 1), 5);
 //! ```
+//!
+//! ## Modules and what each owns
+//!
+//! `GrayImage`, `RgbImage` (row-major, pixel centres at integers) and `Frame` (id, index,
+//! timestamp)
 
 use thiserror::Error;
 

@@ -6,6 +6,18 @@
 //! JSON lines, flushing as it goes. [`session`] writes session folders (frames, labels, force),
 //! and [`force`] defines the force/torque packet layout shared by senders and receivers.
 //! [`camera`] captures V4L2 cameras into the drop-oldest [`queue`] live runs read.
+//!
+//! ## Modules and what each owns
+//!
+//! frame sources (image files, folders, videos through `ffmpeg`), per-frame tables (CSV, JSON
+//! lines; readers drop an unfinished last line), session folders and the crash-safe
+//! `AppendLog`, the force/torque packet layout, the UDP `ForceReceiver` (counts malformed,
+//! repeated, reordered and lost packets), force CSV tables, `camera` (V4L2 through ffmpeg's
+//! v4l2 input: format negotiation, MJPEG splitting and decoding, YUYV conversion, re-opening;
+//! `CameraError`), `queue` (the drop-oldest `LatestQueue` and the `Captured` frame a live run
+//! carries), `guard` (the one output rule: no output on or inside an input, nor on another
+//! output), `read` (bounded reads: regular files only, size and decoded-pixel limits); tables
+//! are written as `NAME.part~` and renamed when whole
 
 pub mod camera;
 pub mod force;

@@ -14,6 +14,14 @@
 //! A table a session lacks is left out of every episode (said in [`LeRobotSummary::notes`]);
 //! sessions whose tables have different columns are refused. Numbers a table does not have
 //! for a frame are NaN, as in visuotact's own tables.
+//!
+//! ## Modules and what each owns
+//!
+//! Sessions as LeRobot v3.0 data sets: `episode` (a session's frames with its tables aligned,
+//! force interpolated at frame times), `table` (REQUIRED Parquet columns and fixed-shape lists
+//! through the `parquet` crate's low-level writer — no Arrow), `video` (ffmpeg fed raw RGB,
+//! SVT-AV1 as LeRobot), `stats` (min/max/mean/std/count, Chan's merge), `export_lerobot` (data,
+//! episodes, tasks, info.json, stats.json). Depends on io only; no clap
 
 pub mod episode;
 pub mod stats;

@@ -22,6 +22,14 @@ pub struct SpecError {
     pub why: &'static str,
 }
 
+/// A shard spec that does not parse.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("shard {spec:?}: expected K/N with 1 ≤ K ≤ N, e.g. 3/10")]
+pub struct ShardError {
+    /// The spec given.
+    pub spec: String,
+}
+
 fn range(spec: &str, s: &str) -> Result<Vec<usize>, SpecError> {
     let bad = |why| SpecError {
         spec: spec.to_string(),
@@ -190,14 +198,15 @@ impl Shard {
     pub const ALL: Self = Self { index: 1, count: 1 };
 
     /// Parses `K/N` (1 ≤ K ≤ N).
-    pub fn parse(s: &str) -> Result<Self, String> {
-        let (k, n) = s
-            .split_once('/')
-            .ok_or_else(|| format!("shard {s:?}: expected K/N, e.g. 3/10"))?;
+    pub fn parse(s: &str) -> Result<Self, ShardError> {
+        let bad = || ShardError {
+            spec: s.to_string(),
+        };
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
         let parse = |v: &str| v.trim().parse::<usize>().ok();
         match (parse(k), parse(n)) {
             (Some(index), Some(count)) if index >= 1 && index <= count => Ok(Self { index, count }),
-            _ => Err(format!("shard {s:?}: expected K/N with 1 ≤ K ≤ N")),
+            _ => Err(bad()),
         }
     }
 
@@ -329,29 +338,37 @@ pub struct SweepPart {
 /// The format name of a [`SweepPart`] file.
 pub const PART_FORMAT: &str = "visuotact-sweep-part";
 
+/// Sweep parts that do not make one sweep (the message names the part or the shards).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct MergeError(pub String);
+
 /// Checks that `parts` are every shard of one sweep, once each, and gives their trainings.
-pub fn merge_parts(parts: Vec<(String, SweepPart)>) -> Result<Vec<Trained>, String> {
+pub fn merge_parts(parts: Vec<(String, SweepPart)>) -> Result<Vec<Trained>, MergeError> {
     let Some((first_name, first)) = parts.first() else {
-        return Err("no part to merge".into());
+        return Err(MergeError("no part to merge".into()));
     };
     let (sweep, count) = (first.sweep.clone(), first.shard.count);
     let mut seen = vec![None::<&str>; count];
     for (name, p) in &parts {
         if p.format != PART_FORMAT {
-            return Err(format!("{name}: not a sweep part (format {:?})", p.format));
+            return Err(MergeError(format!(
+                "{name}: not a sweep part (format {:?})",
+                p.format
+            )));
         }
         if p.sweep != sweep || p.shard.count != count {
-            return Err(format!(
+            return Err(MergeError(format!(
                 "{name}: from another sweep than {first_name} ({} of {} shards, {} against {})",
                 p.sweep, p.shard.count, sweep, count
-            ));
+            )));
         }
         let slot = &mut seen[p.shard.index - 1];
         if let Some(other) = slot {
-            return Err(format!(
+            return Err(MergeError(format!(
                 "{name}: shard {}/{count} again (also {other})",
                 p.shard.index
-            ));
+            )));
         }
         *slot = Some(name);
     }
@@ -360,7 +377,10 @@ pub fn merge_parts(parts: Vec<(String, SweepPart)>) -> Result<Vec<Trained>, Stri
         .map(|k| format!("{k}/{count}"))
         .collect();
     if !missing.is_empty() {
-        return Err(format!("shards missing: {}", missing.join(", ")));
+        return Err(MergeError(format!(
+            "shards missing: {}",
+            missing.join(", ")
+        )));
     }
     Ok(parts.into_iter().flat_map(|(_, p)| p.trained).collect())
 }
@@ -446,10 +466,10 @@ mod tests {
         let ok = merge_parts(vec![part(2, 2, "a"), part(1, 2, "a")]).unwrap();
         assert_eq!(ok.len(), 2);
         let e = merge_parts(vec![part(1, 3, "a"), part(3, 3, "a")]).unwrap_err();
-        assert!(e.contains("shards missing: 2/3"), "{e}");
+        assert!(e.0.contains("shards missing: 2/3"), "{e}");
         let e = merge_parts(vec![part(1, 2, "a"), part(1, 2, "a")]).unwrap_err();
-        assert!(e.contains("again"), "{e}");
+        assert!(e.0.contains("again"), "{e}");
         let e = merge_parts(vec![part(1, 2, "a"), part(2, 2, "b")]).unwrap_err();
-        assert!(e.contains("another sweep"), "{e}");
+        assert!(e.0.contains("another sweep"), "{e}");
     }
 }

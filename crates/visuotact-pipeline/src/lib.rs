@@ -23,6 +23,31 @@
 //! let rms = f.values[columns.iter().position(|c| c == "field_rms_px").unwrap()];
 //! assert!(rms > 0.5);
 //! ```
+//!
+//! ## Modules and what each owns
+//!
+//! `estimator` (`Estimator`: frame → features (markers' and the field summary) → the model's
+//! estimate, with reusable buffers (`estimate_into`); the model's input columns mapped to the
+//! feature vector, extra inputs given per frame, a typed `PipelineError`), `live`
+//! (`LiveEstimator`: the no-contact baseline and re-zeroing, the contact rule, marker health
+//! and an ensemble over model files, by a `LiveConfig`; `LiveEstimate`, the line every live
+//! output sends), `runner` (the live runner: source thread → drop-oldest queue →
+//! `LiveEstimator` → `Sink`s (`LineSink`, `UdpSink`; the dashboard is one); `RunConfig`,
+//! `RunSummary` with latency percentiles), `record` (the recorder: frames, simulated rigs,
+//! camera and UDP/CSV force → a crash-safe, resumable session folder; `RecordConfig`,
+//! `RecordSummary`, `RecordError`), `replay` (a model over recorded frames as the live loop
+//! would; feature, blob and prediction tables), `calibrate` (calibration from frame files:
+//! still or the lightest frames), `schema` (the feature and blob tables' columns and rows),
+//! `synth` (simulated session folders with truth, pattern series, paced UDP force),
+//! `trackcheck` (simulated sensors tracked in memory against the simulator's truth), `demo`
+//! (both papers' experiments as report structs: seed 000's Table 3, seed 001's Tables 5.1 and
+//! 5.2 with their sweeps, and, in `demo::torque`, the torque from the T-shaped marker),
+//! `dataset` (recorded sessions → one training table: features joined with cleaned, resampled
+//! force labels; `clean_table`; `DatasetConfig`, `DatasetError`), `table` (a feature table
+//! joined with labels on `frame`, inputs picked by name from it or a readings table, lost
+//! markers kept, left out or refused; `JoinError`), `evaluation` (estimates against labels:
+//! figures per target, contact distance D, plot and map points). No clap, axum or tokio: the
+//! CLI, the Python package and live runners call it
 
 pub mod calibrate;
 pub mod dataset;

@@ -3,6 +3,13 @@
 //! arrays or image paths; features, labels and estimates are `float64` arrays. Errors are
 //! `visuotact.VisuotactError` with the library's message. The GIL is released while frames
 //! are processed and networks trained. Type stubs: `visuotact.pyi`.
+//!
+//! ## Modules and what each owns
+//!
+//! the Python package `visuotact` (pyo3 + maturin, abi3 ≥ 3.10): `Sensor` (calibrate, load,
+//! extract), `Features`, `Model` (train, load, predict with the ensemble's spread), `live`,
+//! `filtfilt`, `simulate`, `VisuotactError`; type stubs `visuotact.pyi`; pytest in `tests/`
+//! against the CLI and scipy
 #![allow(
     unsafe_code,
     reason = "pyo3's macros expand to the C-API glue; this crate writes no unsafe code itself"

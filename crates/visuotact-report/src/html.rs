@@ -33,8 +33,8 @@ pub fn escape(s: &str) -> String {
     out
 }
 
-/// A figure drawn as an SVG document.
-pub fn svg_of(figure: &impl Figure) -> Result<String, String> {
+/// A figure drawn as an SVG document (plotters' message when it cannot be).
+pub(crate) fn svg_of(figure: &impl Figure) -> Result<String, String> {
     register_font();
     let (w, h) = figure.size();
     let mut svg = String::new();

@@ -4,6 +4,14 @@
 //! of one figure are the same drawing. Text uses DejaVu Sans embedded in the binary (licence in
 //! `assets/fonts/LICENSE-DejaVu.txt`), so PNGs need no system fonts. The figures of the
 //! command line live in [`figures`]; estimators compute, this crate draws.
+//!
+//! ## Modules and what each owns
+//!
+//! figures as SVG or PNG with an embedded font (`Figure`, `save`: regression plots, the contact
+//! map, force records, sweep performance and surface), text tables (`tables`: the demo's
+//! experiments laid out as the papers' tables), self-contained HTML pages (`html::Page`:
+//! tables, inline SVG figures, no script or outside file) and the report pages of `demo
+//! --report` and `eval --report` (`pages`). Estimators compute; this crate draws
 
 use std::path::{Path, PathBuf};
 

@@ -4,6 +4,17 @@
 //! ([`sink::McapSink`]), while recording ([`sink::McapRecorder`]) or from a recorded session ([`export::export_mcap`]). Nothing of ROS
 //! needs to be installed; the bags read in `ros2 bag`, Foxglove, RViz (played back), the
 //! `rosbags` library and `mcap` + `mcap-ros2-support`.
+//!
+//! ## Modules and what each owns
+//!
+//! ROS 2 without ROS: `cdr` (XCDR1 little-endian), `msg` (WrenchStamped, PointStamped, Bool,
+//! PointCloud2, CompressedImage, DiagnosticArray with their `ros2msg` schemas), `bag` (MCAP
+//! with the ROS 2 profile: one file or a rosbag2 folder with `metadata.yaml`; chunks flushed
+//! every second of stamps), `topics` (the documented topic mapping under a namespace), `sink`
+//! (`McapSink`, a live runner `Sink`; `McapRecorder`, a recording's `RecordObserver`), `dds`
+//! (feature `dds`, default: `DdsSink` publishes the topics live with RustDDS, ROS 2 names and
+//! default QoS, loopback unless told an interface), `export` (a session folder → a bag, values
+//! copied from its tables). Depends on pipeline; no clap
 
 pub mod bag;
 pub mod cdr;

@@ -3,6 +3,16 @@
 //! ([`fir::filtfilt`]), bias estimation from no-contact periods with drift ([`bias`]), and
 //! resampling onto frame timestamps ([`align`]); [`clean`] puts them together for a force
 //! record.
+//!
+//! ## Modules and what each owns
+//!
+//! `fir` (windowed-sinc design equal to scipy `firwin`; `lfilter`, `lfilter_zi`; zero-phase
+//! `filtfilt` with odd/even/constant/no padding and scipy or MATLAB pad length; blocked
+//! convolution with a runtime AVX copy), `bias` (no-contact windows detected or given, drifting
+//! bias interpolated between them), `align` (linear resampling onto frame times with a latency
+//! offset, no bridging of gaps), `clean` (a force record on a uniform grid, low-passed and
+//! debiased: `CleanConfig`, `BiasRemoval`; option parsers `Padding::from_name`,
+//! `PadLen::parse`, `BiasRemoval::parse`)
 
 pub mod align;
 pub mod bias;

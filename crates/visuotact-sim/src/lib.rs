@@ -8,6 +8,21 @@
 //!
 //! This is the test-pattern generator the vision pipeline is checked against; the sensor
 //! physics of the two seed sensors builds on it.
+//!
+//! ## Modules and what each owns
+//!
+//! `camera` (pinhole + radial distortion), `render` (anti-aliased ellipses and convex polygons
+//! with exact area/centroid, blur), `iats` (seed 000's clamped membrane under a spherical tip,
+//! with drag), `cone` (seed 001's inflated cone bent and shortened by a force, pressure drift),
+//! `jr3` (6-axis force/torque stream with noise and drifting bias), `protocol` (grid, random,
+//! shear, line, press, press-rotate; zoo grid, random, shear, drag), `pattern` (simple marker
+//! grids for vision tests), `zoo` (sensors the pipeline was not written for: a TacTip-like dome
+//! with a hexagonal pin array (also `tactip-small`, as published data sets store it: 128 × 128
+//! binarised), a GelSight-like dark-dot grid on a shaded gel, random dots; every parameter
+//! drawn from documented ranges per variant; truth with visibility), `rig` (one seed mixer
+//! `frame_seed` for every simulated frame, the cone's label row with its pressure gauge, the
+//! looping simulated camera of a live run, `SimRig`: the recorder's simulated cone and membrane
+//! with their labels)
 
 /// Settings a simulated sensor cannot be drawn with, or a touch it cannot take; the message
 /// says which and why.

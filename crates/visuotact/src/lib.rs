@@ -72,6 +72,12 @@
 //! # Ok(())
 //! # }
 //! ```
+//!
+//! ## Modules and what each owns
+//!
+//! the layers above in one crate (`image`, `vision`, `nn`, `pipeline`, `report`, `signal`,
+//! `io`, `sim`) with the common types at its root and a crate-level example going frame →
+//! estimate; what a Rust program or a ROS node depends on
 
 pub use visuotact_image as image;
 pub use visuotact_io as io;

@@ -18,6 +18,5 @@ pub(crate) mod replay;
 pub(crate) mod run;
 pub(crate) mod simulate;
 pub(crate) mod sweep;
-pub(crate) mod sweep_slurm;
 pub(crate) mod trackcheck;
 pub(crate) mod train;

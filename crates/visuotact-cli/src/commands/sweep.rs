@@ -114,7 +114,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         bail!("--repeats must be at least 1");
     }
     if let Some(n) = a.slurm {
-        return crate::commands::sweep_slurm::write_scripts(output, n, a.slurm_cpus, a.keep);
+        return crate::slurm::write_scripts(output, n, a.slurm_cpus, a.keep);
     }
     let (targets, data) = a.data.load(a.algorithm.field(), |n| {
         matches!(a.algorithm.components(n), Ok(Some(_)))
@@ -214,7 +214,7 @@ pub(crate) fn merge(m: &MergeArgs) -> anyhow::Result<()> {
     }
     let (hidden, targets) = (parts[0].1.hidden.clone(), parts[0].1.targets.clone());
     let archs = architectures(&hidden).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let trained = merge_parts(parts).map_err(|e| anyhow::anyhow!(e))?;
+    let trained = merge_parts(parts)?;
     std::fs::create_dir_all(&m.output)
         .with_context(|| format!("{}: cannot create folder", m.output.display()))?;
     let s = sweep_of(&archs, trained);

@@ -1,0 +1,114 @@
+//! ARCHITECTURE.md's checkable claims, checked: a row per crate and a crate per row, rows of at
+//! most 25 words, the command line's source under the line count it states, no public function
+//! returning `Result<_, String>`, and no command module importing another.
+
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Every `.rs` file under `dir`, recursively.
+fn rust_files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(rust_files(&p));
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+    out
+}
+
+fn architecture() -> String {
+    std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap()
+}
+
+#[test]
+fn the_crate_table_has_a_short_row_per_crate() {
+    let text = architecture();
+    let rows: Vec<(String, usize)> = text
+        .lines()
+        .filter(|l| l.starts_with("| `visuotact"))
+        .map(|l| {
+            let cells: Vec<&str> = l.split(" | ").collect();
+            let name = cells[0]
+                .trim_start_matches("| ")
+                .trim_matches('`')
+                .to_string();
+            let words = cells
+                .last()
+                .unwrap()
+                .trim_end_matches(" |")
+                .split_whitespace()
+                .count();
+            (name, words)
+        })
+        .collect();
+    let mut crates: Vec<String> = std::fs::read_dir(root().join("crates"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    crates.sort();
+    let mut named: Vec<String> = rows.iter().map(|(n, _)| n.clone()).collect();
+    named.sort();
+    assert_eq!(named, crates, "ARCHITECTURE.md's rows against crates/");
+    for (name, words) in &rows {
+        assert!(*words <= 25, "{name}: {words} words");
+    }
+}
+
+#[test]
+fn the_command_line_stays_under_its_stated_size() {
+    let text = architecture();
+    let stated: usize = text
+        .split("the CLI's source stays under ")
+        .nth(1)
+        .and_then(|s| s.split('k').next())
+        .and_then(|n| n.trim().parse().ok())
+        .expect("ARCHITECTURE.md states the CLI's size as `stays under Nk`");
+    let lines: usize = rust_files(&root().join("crates/visuotact-cli/src"))
+        .iter()
+        .map(|p| std::fs::read_to_string(p).unwrap().lines().count())
+        .sum();
+    assert!(
+        lines < stated * 1000,
+        "{lines} lines, stated under {stated}k"
+    );
+}
+
+#[test]
+fn no_public_function_returns_a_string_error() {
+    let mut found = Vec::new();
+    for file in rust_files(&root().join("crates")) {
+        if file.components().any(|c| c.as_os_str() == "tests") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&file).unwrap();
+        // A signature may span lines: look from each `pub fn` to its body or `;`.
+        for (at, _) in text.match_indices("pub fn ") {
+            let sig = &text[at..];
+            let end = sig.find(['{', ';']).unwrap_or(sig.len());
+            let sig: String = sig[..end].split_whitespace().collect::<Vec<_>>().join(" ");
+            if sig.contains("Result<") && sig.trim_end().ends_with(", String>") {
+                found.push(format!("{}: {sig}", file.display()));
+            }
+        }
+    }
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+#[test]
+fn command_modules_never_import_each_other() {
+    let dir = root().join("crates/visuotact-cli/src/commands");
+    for file in rust_files(&dir) {
+        let text = std::fs::read_to_string(&file).unwrap();
+        for line in text.lines().map(str::trim) {
+            let imports = line.contains("crate::commands::")
+                || (line.contains("super::") && line != "use super::*;");
+            assert!(!imports, "{}: {line}", file.display());
+        }
+    }
+}
