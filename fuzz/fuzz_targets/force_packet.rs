@@ -9,8 +9,8 @@ fuzz_target!(|data: &[u8]| {
     let layouts = [
         "counter,fx,fy,fz,tx,ty,tz",
         "timestamp_s,fx,fy,fz",
-        "fz",
-        "timestamp_s,counter,fz,tz",
+        "counter,fz",
+        "timestamp_s,fz,tz",
     ];
     let Some((&pick, packet)) = data.split_first() else {
         return;
