@@ -15,7 +15,7 @@ static STDOUT_FAILURE: Mutex<Option<std::io::Error>> = Mutex::new(None);
 /// A line to stderr, dropped if stderr cannot take it.
 macro_rules! note {
     ($($arg:tt)*) => {
-        $crate::say::to_stderr(format_args!("{}\n", format_args!($($arg)*)))
+        visuotact_io::stderr_line(format_args!($($arg)*))
     };
 }
 
@@ -31,11 +31,6 @@ macro_rules! say_part {
     ($($arg:tt)*) => {
         $crate::say::to_stdout(format_args!($($arg)*))
     };
-}
-
-/// Writes `args` to stderr; an error is dropped (there is nowhere left to say it).
-pub(crate) fn to_stderr(args: fmt::Arguments<'_>) {
-    let _ = std::io::stderr().lock().write_fmt(args);
 }
 
 /// Writes `args` to stdout, keeping the first error.

@@ -89,7 +89,7 @@ impl Dashboard {
                 addr: addr.to_string(),
             })?;
         if !sock.ip().is_loopback() {
-            warn_line(format_args!(
+            visuotact_io::stderr_line(format_args!(
                 "warning: the dashboard on {sock} is reachable from other machines"
             ));
         }
@@ -133,12 +133,12 @@ impl Dashboard {
                     let _ = stop_rx.await;
                 });
                 if let Err(e) = serve.await {
-                    warn_line(format_args!("warning: dashboard: {e}"));
+                    visuotact_io::stderr_line(format_args!("warning: dashboard: {e}"));
                 }
             });
             rt.shutdown_background();
         });
-        warn_line(format_args!("dashboard on http://{bound}/"));
+        visuotact_io::stderr_line(format_args!("dashboard on http://{bound}/"));
         Ok(Self {
             shared,
             shutdown: Some(stop_tx),
@@ -308,11 +308,4 @@ async fn rezero(State(s): State<Arc<Shared>>) -> Json<serde_json::Value> {
     s.rezero.store(true, Ordering::Relaxed);
     let n = s.rezero_count.fetch_add(1, Ordering::Relaxed) + 1;
     Json(serde_json::json!({ "rezero": n }))
-}
-
-/// A line to stderr, dropped when stderr cannot take it (a full disk): `eprintln!` would
-/// panic and end the caller's run.
-fn warn_line(args: std::fmt::Arguments<'_>) {
-    use std::io::Write as _;
-    let _ = writeln!(std::io::stderr().lock(), "{args}");
 }

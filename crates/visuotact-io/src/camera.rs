@@ -316,7 +316,7 @@ pub fn spawn(
         wanted: format!("{req:?}"),
         offered: format!("{offered:?}"),
     })?;
-    warn_line(format_args!(
+    crate::stderr_line(format_args!(
         "camera {dev}: {:?} {}×{} at {fps} fps",
         fmt.pixel, fmt.width, fmt.height
     ));
@@ -326,10 +326,12 @@ pub fn spawn(
         while !stop.load(Ordering::Relaxed) && k < max {
             match capture_once(&dev, fmt, fps, &queue, &stop, clock, &mut k, max) {
                 Ok(()) if stop.load(Ordering::Relaxed) || k >= max => break,
-                Ok(()) => warn_line(format_args!(
+                Ok(()) => crate::stderr_line(format_args!(
                     "warning: camera {dev} stopped sending; re-opening"
                 )),
-                Err(e) => warn_line(format_args!("warning: camera {dev}: {e}; re-opening")),
+                Err(e) => {
+                    crate::stderr_line(format_args!("warning: camera {dev}: {e}; re-opening"))
+                }
             }
             std::thread::sleep(Duration::from_secs(1));
         }
@@ -408,9 +410,9 @@ fn capture_once(
                 for jpeg in split.push(&buf[..n]) {
                     match rgb_from_mjpeg(&jpeg) {
                         Ok(img) => push(img, k),
-                        Err(e) => {
-                            warn_line(format_args!("warning: camera {dev}: {e}; frame skipped"))
-                        }
+                        Err(e) => crate::stderr_line(format_args!(
+                            "warning: camera {dev}: {e}; frame skipped"
+                        )),
                     }
                 }
             }
@@ -431,13 +433,6 @@ fn capture_once(
     let _ = child.kill();
     let _ = child.wait();
     Ok(())
-}
-
-/// A line to stderr, dropped when stderr cannot take it (a full disk): `eprintln!` would
-/// panic and end the caller's run.
-fn warn_line(args: std::fmt::Arguments<'_>) {
-    use std::io::Write as _;
-    let _ = writeln!(std::io::stderr().lock(), "{args}");
 }
 
 #[cfg(test)]

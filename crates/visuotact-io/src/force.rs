@@ -387,6 +387,8 @@ pub struct ForceReceiver {
     span: Option<(f64, f64)>,
     /// The last [`STREAM_WINDOW`] plausible samples' times.
     times: std::collections::VecDeque<f64>,
+    /// Scratch for their median (no allocation per packet).
+    sorted: Vec<f64>,
     /// Samples held during the warm-up, with their arrival times, and since when.
     held: Vec<(ForceSample, f64)>,
     held_since: Option<std::time::Instant>,
@@ -429,6 +431,7 @@ impl ForceReceiver {
             recent_order: Default::default(),
             span: None,
             times: Default::default(),
+            sorted: Vec::with_capacity(STREAM_WINDOW),
             held: Vec::new(),
             held_since: None,
             warm: false,
@@ -529,13 +532,11 @@ impl ForceReceiver {
     }
 
     /// The stream's time: the lower median of the recent plausible samples' times.
-    fn stream_time(&self) -> Option<f64> {
-        let mut t: Vec<f64> = self.times.iter().copied().collect();
-        if t.is_empty() {
-            return None;
-        }
-        let k = (t.len() - 1) / 2;
-        Some(*t.select_nth_unstable_by(k, f64::total_cmp).1)
+    fn stream_time(&mut self) -> Option<f64> {
+        self.sorted.clear();
+        self.sorted.extend(self.times.iter().copied());
+        let k = self.sorted.len().checked_sub(1)? / 2;
+        Some(*self.sorted.select_nth_unstable_by(k, f64::total_cmp).1)
     }
 
     /// Counts a decoded, plausible sample as kept, rejected (far from the stream's time),

@@ -49,3 +49,10 @@ pub enum Error {
     #[error(transparent)]
     Table(#[from] table::TableError),
 }
+
+/// A line to stderr, dropped when stderr cannot take it (a full disk, a closed stream):
+/// `eprintln!` would panic and end the caller's run over a message.
+pub fn stderr_line(args: std::fmt::Arguments<'_>) {
+    use std::io::Write as _;
+    let _ = writeln!(std::io::stderr().lock(), "{args}");
+}

@@ -49,6 +49,16 @@ pub enum ForceSource {
     Csv(PathBuf),
 }
 
+impl std::fmt::Display for ForceSource {
+    /// `udp:HOST:PORT` or `csv:FILE`, as [`ForceSource::parse`] reads it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Udp(a) => write!(f, "udp:{a}"),
+            Self::Csv(p) => write!(f, "csv:{}", p.display()),
+        }
+    }
+}
+
 impl ForceSource {
     /// Parses `udp:HOST:PORT` or `csv:FILE`.
     pub fn parse(s: &str) -> Result<Self, RecordError> {
@@ -510,10 +520,7 @@ fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
         p.as_ref()
             .map_or_else(|| "none".into(), |p| p.display().to_string())
     };
-    let force = cfg.force.as_ref().map(|f| match f {
-        ForceSource::Udp(a) => format!("udp:{a}"),
-        ForceSource::Csv(p) => format!("csv:{}", p.display()),
-    });
+    let force = cfg.force.as_ref().map(ForceSource::to_string);
     let differ: Vec<String> = [
         (
             "source",
@@ -600,10 +607,7 @@ fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(),
         recorded_by: format!("visuotact {} record", env!("CARGO_PKG_VERSION")),
         source: &cfg.source,
         fps: cfg.fps,
-        force: cfg.force.as_ref().map(|f| match f {
-            ForceSource::Udp(a) => format!("udp:{a}"),
-            ForceSource::Csv(p) => format!("csv:{}", p.display()),
-        }),
+        force: cfg.force.as_ref().map(ForceSource::to_string),
         force_layout: cfg.force_layout.to_string(),
         force_rate_hz: cfg.force_rate_hz,
         force_clock: "timestamp_s is the force sender's clock; recv_s the recorder's",

@@ -53,7 +53,7 @@ fn register_font() {
     ONCE.call_once(|| {
         // The font is a fixed, known-good file; failing to parse it would be a build defect.
         if plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_err() {
-            warn_line(format_args!(
+            visuotact_io::stderr_line(format_args!(
                 "warning: embedded DejaVu Sans did not load; plot text will be missing"
             ));
         }
@@ -140,13 +140,6 @@ pub fn finite_range(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)>
 pub fn padded((lo, hi): (f64, f64), fraction: f64) -> (f64, f64) {
     let pad = fraction * (hi - lo).max(1e-9 * hi.abs().max(1.0));
     (lo - pad, hi + pad)
-}
-
-/// A line to stderr, dropped when stderr cannot take it (a full disk): `eprintln!` would
-/// panic and end the caller's run.
-fn warn_line(args: std::fmt::Arguments<'_>) {
-    use std::io::Write as _;
-    let _ = writeln!(std::io::stderr().lock(), "{args}");
 }
 
 #[cfg(test)]
