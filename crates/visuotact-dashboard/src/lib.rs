@@ -2,7 +2,9 @@
 //! pushed over a WebSocket, the latest frame as JPEG, and a re-zero button.
 //!
 //! Routes: `GET /` the page, `GET /ws` estimates (JSON text messages), `GET /frame.jpg` the
-//! latest frame, `GET /info` image size, targets and markers, `POST /rezero`. The estimator
+//! latest frame (`?after=N` waits, up to 2 s, for a frame newer than number N; the response's
+//! `x-frame` header numbers it), `GET /info` image size, targets and markers, `POST /rezero`.
+//! The estimator
 //! never waits for a client: each client has a small queue of its own, and a message that does
 //! not fit (the client reads too slowly) is dropped for that client and counted.
 //!
@@ -17,7 +19,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::extract::State;
+use axum::extract::{RawQuery, State};
 use axum::http::header;
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
@@ -56,9 +58,15 @@ const PAGE: &str = include_str!("../assets/dashboard.html");
 /// Messages a client may have waiting before new ones are dropped for it.
 const CLIENT_QUEUE: usize = 8;
 
+/// How long `/frame.jpg?after=N` waits for a newer frame before it answers with what it has.
+const FRAME_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 struct Shared {
     clients_tx: Mutex<Vec<mpsc::Sender<Arc<str>>>>,
-    frame: Mutex<Option<Arc<RgbImage>>>,
+    /// The latest frame and its number (1, 2, … as published).
+    frame: Mutex<Option<(u64, Arc<RgbImage>)>>,
+    /// The latest frame's number, for requests waiting on a newer one.
+    frame_seq: tokio::sync::watch::Sender<u64>,
     rezero: AtomicBool,
     rezero_count: AtomicU64,
     rezero_applied: AtomicU64,
@@ -102,6 +110,7 @@ impl Dashboard {
         let shared = Arc::new(Shared {
             clients_tx: Mutex::new(Vec::new()),
             frame: Mutex::new(None),
+            frame_seq: tokio::sync::watch::Sender::new(0),
             rezero: AtomicBool::new(false),
             rezero_count: AtomicU64::new(0),
             rezero_applied: AtomicU64::new(0),
@@ -178,7 +187,9 @@ impl Dashboard {
             return;
         }
         if let Ok(mut f) = self.shared.frame.lock() {
-            *f = Some(img.clone());
+            let seq = f.as_ref().map_or(0, |(k, _)| *k) + 1;
+            *f = Some((seq, img.clone()));
+            self.shared.frame_seq.send_replace(seq);
         }
         let markers = serde_json::to_string(&markers).unwrap_or_else(|_| "null".into());
         let text: Arc<str> = Arc::from(format!(
@@ -265,9 +276,24 @@ async fn client(mut socket: WebSocket, s: Arc<Shared>) {
     s.clients.fetch_sub(1, Ordering::Relaxed);
 }
 
-async fn frame(State(s): State<Arc<Shared>>) -> Response {
+/// The number N of a query `after=N`, if it has one.
+fn after_from_query(query: Option<&str>) -> Option<u64> {
+    query?
+        .split('&')
+        .find_map(|kv| kv.strip_prefix("after="))?
+        .parse()
+        .ok()
+}
+
+async fn frame(State(s): State<Arc<Shared>>, RawQuery(query): RawQuery) -> Response {
+    if let Some(after) = after_from_query(query.as_deref()) {
+        // A client that has frame N asks for the next one: answer when it exists (the page
+        // then shows each frame once instead of polling the same one again).
+        let mut seq = s.frame_seq.subscribe();
+        let _ = tokio::time::timeout(FRAME_WAIT, seq.wait_for(|&k| k > after)).await;
+    }
     let img = s.frame.lock().ok().and_then(|f| f.clone());
-    let Some(img) = img else {
+    let Some((seq, img)) = img else {
         return (axum::http::StatusCode::NO_CONTENT, "").into_response();
     };
     let jpeg = tokio::task::spawn_blocking(move || {
@@ -286,8 +312,9 @@ async fn frame(State(s): State<Arc<Shared>>) -> Response {
     match jpeg {
         Ok(Ok(bytes)) => (
             [
-                (header::CONTENT_TYPE, "image/jpeg"),
-                (header::CACHE_CONTROL, "no-store"),
+                (header::CONTENT_TYPE, "image/jpeg".to_string()),
+                (header::CACHE_CONTROL, "no-store".to_string()),
+                (header::HeaderName::from_static("x-frame"), seq.to_string()),
             ],
             bytes,
         )
@@ -308,4 +335,18 @@ async fn rezero(State(s): State<Arc<Shared>>) -> Json<serde_json::Value> {
     s.rezero.store(true, Ordering::Relaxed);
     let n = s.rezero_count.fetch_add(1, Ordering::Relaxed) + 1;
     Json(serde_json::json!({ "rezero": n }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::after_from_query;
+
+    #[test]
+    fn the_frame_number_is_read_from_the_query() {
+        assert_eq!(after_from_query(Some("after=17")), Some(17));
+        assert_eq!(after_from_query(Some("t=3&after=0")), Some(0));
+        assert_eq!(after_from_query(Some("after=-1")), None);
+        assert_eq!(after_from_query(Some("t=3")), None);
+        assert_eq!(after_from_query(None), None);
+    }
 }

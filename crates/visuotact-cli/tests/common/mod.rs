@@ -118,6 +118,137 @@ pub fn headless(chromium: &str, profile: &Path, extra: &[&str], url: &str) -> Ou
         .expect("run chromium")
 }
 
+/// Opens `url` in headless Chromium and evaluates the JavaScript expression `expr` (which must
+/// give a string) in the page every 200 ms of real time, through the DevTools protocol, until
+/// `done` holds for its value or `limit` passes; returns the last value. Real time, not
+/// `--virtual-time-budget`: a page fed by a WebSocket sees as many messages as the server sent
+/// in that time, however loaded the machine.
+pub fn headless_watch(
+    chromium: &str,
+    profile: &Path,
+    url: &str,
+    expr: &str,
+    done: impl Fn(&str) -> bool,
+    limit: std::time::Duration,
+) -> String {
+    let _ = std::fs::remove_file(profile.join("DevToolsActivePort"));
+    let user_dir = format!("--user-data-dir={}", profile.display());
+    let mut browser = Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--remote-debugging-port=0",
+            user_dir.as_str(),
+            url,
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("run chromium");
+    let start = std::time::Instant::now();
+    let mut last = String::new();
+    let outcome = (|| -> Result<(), String> {
+        let page = devtools_page(profile, start, limit)?;
+        let (mut ws, _) = tungstenite::connect(page.as_str()).map_err(|e| e.to_string())?;
+        for id in 1.. {
+            let ask = serde_json::json!({
+                "id": id,
+                "method": "Runtime.evaluate",
+                "params": {"expression": expr, "returnByValue": true},
+            });
+            ws.send(tungstenite::Message::text(ask.to_string()))
+                .map_err(|e| e.to_string())?;
+            // Events may come first; the answer carries our id.
+            let reply = loop {
+                let m = ws.read().map_err(|e| e.to_string())?;
+                let Ok(v) = serde_json::from_str::<serde_json::Value>(m.to_text().unwrap_or(""))
+                else {
+                    continue;
+                };
+                if v["id"] == id {
+                    break v;
+                }
+            };
+            if let Some(v) = reply["result"]["result"]["value"].as_str() {
+                last = v.to_string();
+            }
+            if done(&last) || start.elapsed() > limit {
+                return Ok(());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(200));
+        }
+        Ok(())
+    })();
+    let _ = browser.kill();
+    let _ = browser.wait();
+    if let Err(e) = outcome {
+        panic!("DevTools: {e} (last value {last:?})");
+    }
+    last
+}
+
+/// The DevTools WebSocket address of the page Chromium opened (from the port it writes into
+/// its profile and its `/json/list`).
+fn devtools_page(
+    profile: &Path,
+    start: std::time::Instant,
+    limit: std::time::Duration,
+) -> Result<String, String> {
+    use std::io::{Read, Write};
+    while start.elapsed() < limit {
+        let port = std::fs::read_to_string(profile.join("DevToolsActivePort"))
+            .ok()
+            .and_then(|t| t.lines().next().and_then(|p| p.trim().parse::<u16>().ok()));
+        if let Some(port) = port {
+            if let Ok(mut tcp) = std::net::TcpStream::connect(("127.0.0.1", port)) {
+                // HTTP/1.1 (Chromium drops 1.0 requests) on a connection it keeps open: the
+                // body ends at its Content-Length.
+                // The page addresses it answers are built from the Host header.
+                let ask = format!("GET /json/list HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n");
+                let _ = tcp.write_all(ask.as_bytes());
+                let _ = tcp.set_read_timeout(Some(std::time::Duration::from_secs(2)));
+                let mut bytes = Vec::new();
+                let mut chunk = [0u8; 4096];
+                let body = loop {
+                    let text = String::from_utf8_lossy(&bytes).into_owned();
+                    if let Some((head, body)) = text.split_once("\r\n\r\n") {
+                        let length = head.lines().find_map(|l| {
+                            let (k, v) = l.split_once(':')?;
+                            k.eq_ignore_ascii_case("content-length")
+                                .then(|| v.trim().parse::<usize>().ok())?
+                        });
+                        if length.is_some_and(|n| body.len() >= n) {
+                            break body.to_string();
+                        }
+                    }
+                    match tcp.read(&mut chunk) {
+                        Ok(n) if n > 0 => bytes.extend_from_slice(&chunk[..n]),
+                        _ => break String::new(),
+                    }
+                };
+                let body = body.as_str();
+                if let Ok(serde_json::Value::Array(targets)) = serde_json::from_str(body) {
+                    if let Some(ws) = targets
+                        .iter()
+                        .find(|t| t["type"] == "page")
+                        .and_then(|t| t["webSocketDebuggerUrl"].as_str())
+                    {
+                        return Ok(ws.to_string());
+                    }
+                }
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    Err("Chromium opened no page with a DevTools address in time".into())
+}
+
 /// `rel` under the shared real frames (`../shared/reference/real`, not in the repository),
 /// when present; its absence fails the test where `VISUOTACT_REQUIRE_DATA` (or `VISUOTACT_REQUIRE_REAL`) is set.
 pub fn shared_real(rel: &str) -> Option<PathBuf> {
