@@ -112,3 +112,46 @@ fn command_modules_never_import_each_other() {
         }
     }
 }
+
+#[test]
+fn the_pipeline_needs_the_simulator_only_for_simulated_sources() {
+    let manifest =
+        std::fs::read_to_string(root().join("crates/visuotact-pipeline/Cargo.toml")).unwrap();
+    let deps = manifest
+        .split("[dependencies]")
+        .nth(1)
+        .and_then(|d| d.split("\n[").next())
+        .unwrap();
+    let sim: Vec<&str> = deps
+        .lines()
+        .filter(|l| l.starts_with("visuotact-sim"))
+        .collect();
+    assert_eq!(sim.len(), 1, "{deps}");
+    assert!(sim[0].contains("optional = true"), "{}", sim[0]);
+    assert!(manifest.contains("sim = [\"dep:visuotact-sim\"]"));
+    // Nothing in the pipeline names the simulator outside a `sim`-gated place or a test.
+    for f in rust_files(&root().join("crates/visuotact-pipeline/src")) {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        let (code, _tests) = text.split_once("#[cfg(test)]").unwrap_or((&text, ""));
+        if name == "rig.rs" || name == "lib.rs" {
+            continue; // rig.rs holds the gated rigs; lib.rs names it in its doc example
+        }
+        for (k, line) in code.lines().enumerate() {
+            if line.contains("visuotact_sim") {
+                // The gate is the item's attribute, at most two attributes above.
+                let gated = code
+                    .lines()
+                    .skip(k.saturating_sub(3))
+                    .take(k - k.saturating_sub(3) + 1)
+                    .any(|l| l.contains("feature = \"sim\""));
+                assert!(
+                    gated,
+                    "{}:{}: the simulator outside a `sim`-gated item: {line}",
+                    f.display(),
+                    k + 1
+                );
+            }
+        }
+    }
+}

@@ -200,6 +200,30 @@ impl ForceLayout {
     }
 }
 
+/// Sends samples as UDP packets in `layout`, paced at `rate_hz` (a force sensor's stream, as
+/// `simulate --udp` sends it); returns how many the receiver refused (a
+/// receiver that is not listening yet refuses datagrams on loopback).
+pub fn send_paced(
+    sock: &std::net::UdpSocket,
+    layout: &ForceLayout,
+    samples: &[ForceSample],
+    rate_hz: f64,
+) -> usize {
+    let start = std::time::Instant::now();
+    let mut refused = 0usize;
+    for (i, s) in samples.iter().enumerate() {
+        let due = std::time::Duration::from_secs_f64(i as f64 / rate_hz);
+        let now = start.elapsed();
+        if due > now + std::time::Duration::from_micros(500) {
+            std::thread::sleep(due - now);
+        }
+        if sock.send(&layout.encode(s, i as u64)).is_err() {
+            refused += 1;
+        }
+    }
+    refused
+}
+
 /// Force samples read from a CSV file: `timestamp_s` and any of `fx_n … tz_nm` (absent axes
 /// read as 0), plus `recv_s` (receive time on the recorder's clock) when `record` wrote it.
 #[derive(Clone, Debug, PartialEq)]

@@ -10,6 +10,10 @@
 //! assert_eq!(SourceSpec::parse("camera:/dev/video2"), SourceSpec::Camera("/dev/video2".into()));
 //! assert_eq!(SourceSpec::parse("video:a.mp4"), SourceSpec::Frames(PathBuf::from("a.mp4")));
 //! assert_eq!(SourceSpec::parse("session/frames"), SourceSpec::Frames(PathBuf::from("session/frames")));
+//! // As text again, the way it parses; from a string with `parse` or `into`.
+//! assert_eq!(SourceSpec::Sim("cone".into()).to_string(), "sim:cone");
+//! let s: SourceSpec = "camera:/dev/video0".parse().unwrap();
+//! assert_eq!(s, SourceSpec::from("camera:/dev/video0"));
 //! ```
 
 use std::path::PathBuf;
@@ -39,5 +43,49 @@ impl SourceSpec {
             .or_else(|| s.strip_prefix("video:"))
             .unwrap_or(s);
         Self::Frames(PathBuf::from(path))
+    }
+}
+
+/// Parsing never fails: anything that is not `sim:` or `camera:` is a path.
+impl std::str::FromStr for SourceSpec {
+    type Err = std::convert::Infallible;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Ok(Self::parse(s))
+    }
+}
+
+impl From<&str> for SourceSpec {
+    fn from(s: &str) -> Self {
+        Self::parse(s)
+    }
+}
+
+impl From<String> for SourceSpec {
+    fn from(s: String) -> Self {
+        Self::parse(&s)
+    }
+}
+
+/// As [`SourceSpec::parse`] reads it: `sim:KIND`, `camera:DEVICE`, or the path (a path that
+/// itself starts with `sim:` or `camera:` is written `frames:PATH`).
+impl std::fmt::Display for SourceSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Sim(kind) => write!(f, "sim:{kind}"),
+            Self::Camera(dev) => write!(f, "camera:{dev}"),
+            Self::Frames(path) => {
+                let p = path.display().to_string();
+                if p.starts_with("sim:")
+                    || p.starts_with("camera:")
+                    || p.starts_with("frames:")
+                    || p.starts_with("video:")
+                {
+                    write!(f, "frames:{p}")
+                } else {
+                    write!(f, "{p}")
+                }
+            }
+        }
     }
 }

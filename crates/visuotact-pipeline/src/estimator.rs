@@ -4,9 +4,17 @@
 //! one estimator, so the same frame gives the same numbers in each. Buffers are kept between
 //! frames: after the first frame, [`Estimator::process_with`] does not allocate for the
 //! features.
+//!
+//! The short way in: [`Estimator::from_sensor`] (features only) or [`Estimator::from_model`]
+//! (a model holding its sensor), [`Estimator::with_model`] to add or change the model, and
+//! [`Estimator::estimate`], whose [`Estimate`] is read by name (`e.get("depth_mm")`). The
+//! other forms serve the live loop (`estimate_into`, no allocation) and tables (`process`,
+//! rows in column order).
 
 use visuotact_image::RgbImage;
-use visuotact_nn::model::{is_marker_column, Estimate, EstimateError, EstimateScratch, Model};
+use visuotact_nn::model::{
+    is_marker_column, Estimate as ModelOutput, EstimateError, EstimateScratch, Model,
+};
 use visuotact_vision::calibration::SensorCalibration;
 use visuotact_vision::features::{
     is_field_column, FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError,
@@ -79,10 +87,97 @@ pub fn feature_set_of(columns: &[String]) -> Result<FeatureSet, PipelineError> {
 }
 
 /// The model's estimate of a frame, or why it has none.
-pub type ModelEstimate = Result<Estimate, EstimateError>;
+pub type ModelEstimate = Result<ModelOutput, EstimateError>;
 
 /// A frame's features and, with a model, the inputs filled or why there is no estimate.
 pub type FrameEstimate<'a> = (&'a FrameFeatures, Option<Result<usize, EstimateError>>);
+
+/// One target of an [`Estimate`]: its name, value and, for an ensemble, its spread.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TargetValue {
+    /// The target's column name, with its unit (`depth_mm`, `force_n`).
+    pub name: String,
+    /// The estimate, in the target's unit (an ensemble's mean).
+    pub value: f64,
+    /// The standard deviation over an ensemble's networks; `None` for one network.
+    pub spread: Option<f64>,
+}
+
+/// One frame read by [`Estimator::estimate`]: the model's targets by name (none without a
+/// model, or when the model could not estimate this frame — [`Estimate::no_estimate`] says
+/// why) and how many markers were found.
+///
+/// ```
+/// use visuotact_pipeline::{Estimate, TargetValue};
+///
+/// let e = Estimate::new(
+///     vec![TargetValue { name: "depth_mm".into(), value: 2.5, spread: Some(0.1) }],
+///     117,
+///     117,
+/// );
+/// assert_eq!(e.get("depth_mm"), Some(2.5));
+/// assert_eq!(e.spread("depth_mm"), Some(0.1));
+/// assert_eq!(e.get("force_n"), None);
+/// for t in &e {
+///     println!("{} = {} ± {:?}", t.name, t.value, t.spread);
+/// }
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    targets: Vec<TargetValue>,
+    /// Markers found in the frame.
+    pub markers_found: usize,
+    /// Markers in the sensor's calibration.
+    pub markers: usize,
+    /// Why the model gave no estimate for this frame (`None` when it did, or without a model).
+    pub no_estimate: Option<EstimateError>,
+}
+
+impl Estimate {
+    /// An estimate of these targets from a frame where `markers_found` of `markers` were found.
+    pub fn new(targets: Vec<TargetValue>, markers_found: usize, markers: usize) -> Self {
+        Self {
+            targets,
+            markers_found,
+            markers,
+            no_estimate: None,
+        }
+    }
+
+    /// The value of target `name`, if the model estimates it and did for this frame.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.target(name).map(|t| t.value)
+    }
+
+    /// The ensemble's spread of target `name` (`None` for one network or an unknown name).
+    pub fn spread(&self, name: &str) -> Option<f64> {
+        self.target(name).and_then(|t| t.spread)
+    }
+
+    /// Target `name` whole.
+    pub fn target(&self, name: &str) -> Option<&TargetValue> {
+        self.targets.iter().find(|t| t.name == name)
+    }
+
+    /// The targets, in the model's order.
+    pub fn iter(&self) -> std::slice::Iter<'_, TargetValue> {
+        self.targets.iter()
+    }
+
+    /// Whether there is no value (no model, or none for this frame).
+    pub fn is_empty(&self) -> bool {
+        self.targets.is_empty()
+    }
+}
+
+impl<'a> IntoIterator for &'a Estimate {
+    type Item = &'a TargetValue;
+    type IntoIter = std::slice::Iter<'a, TargetValue>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.targets.iter()
+    }
+}
 
 /// Where one of the model's inputs comes from.
 #[derive(Clone, Copy, Debug)]
@@ -119,6 +214,53 @@ impl Estimator {
             Some(c) => Err(PipelineError::NotAMarkerInput { column: c.clone() }),
             None => Ok(est),
         }
+    }
+
+    /// Features from `sensor`, no model yet ([`Estimator::with_model`] adds one).
+    pub fn from_sensor(sensor: SensorCalibration) -> Result<Self, PipelineError> {
+        Self::new(Some(sensor), None)
+    }
+
+    /// Features and estimates from a model that holds its sensor's calibration (`visuotact
+    /// train --sensor` stores it); [`PipelineError::NoSensor`] when it holds none.
+    pub fn from_model(model: Model) -> Result<Self, PipelineError> {
+        Self::new(None, Some(model))
+    }
+
+    /// This estimator's sensor with `model` estimating (replacing any model it had).
+    pub fn with_model(self, model: Model) -> Result<Self, PipelineError> {
+        let mut est = Self::new(Some(self.ex.calibration().clone()), Some(model))?;
+        est.set_temporal_prior(self.ex.temporal_prior());
+        Ok(est)
+    }
+
+    /// One frame's estimate, read by name ([`Estimate::get`]). `Err` only when the frame
+    /// cannot be read (its size is not the calibration's); a frame the model cannot estimate
+    /// (too many markers lost) gives an empty estimate with the reason.
+    pub fn estimate(&mut self, img: &RgbImage) -> Result<Estimate, PipelineError> {
+        let mut out = ModelOutput::default();
+        let (f, got) = self.estimate_into(img, &[], &mut out)?;
+        let mut e = Estimate::new(Vec::new(), f.found, self.n_markers);
+        let Some(model) = self.model() else {
+            return Ok(e);
+        };
+        match got {
+            Some(Ok(_)) => {
+                e.targets = model
+                    .target_columns
+                    .iter()
+                    .enumerate()
+                    .map(|(j, name)| TargetValue {
+                        name: name.clone(),
+                        value: out.values[j],
+                        spread: out.spread.get(j).copied(),
+                    })
+                    .collect();
+            }
+            Some(Err(why)) => e.no_estimate = Some(why),
+            None => {}
+        }
+        Ok(e)
     }
 
     /// As [`Estimator::new`], also for a model with inputs besides the marker features; their
@@ -250,7 +392,7 @@ impl Estimator {
         extra: &[f64],
     ) -> Result<(&FrameFeatures, Option<Vec<f64>>), PipelineError> {
         let (f, e) = self.estimate_with(img, extra)?;
-        Ok((f, e.and_then(Result::ok).map(Estimate::into_row)))
+        Ok((f, e.and_then(Result::ok).map(ModelOutput::into_row)))
     }
 
     /// As [`Estimator::process_with`], the estimate whole (values, spread, inputs filled) or
@@ -260,7 +402,7 @@ impl Estimator {
         img: &RgbImage,
         extra: &[f64],
     ) -> Result<(&FrameFeatures, Option<ModelEstimate>), PipelineError> {
-        let mut e = Estimate::default();
+        let mut e = ModelOutput::default();
         let (_, got) = self.estimate_into(img, extra, &mut e)?;
         Ok((&self.features, got.map(|r| r.map(|_| e))))
     }
@@ -272,7 +414,7 @@ impl Estimator {
         &mut self,
         img: &RgbImage,
         extra: &[f64],
-        out: &mut Estimate,
+        out: &mut ModelOutput,
     ) -> Result<FrameEstimate<'_>, PipelineError> {
         self.ex.extract_into(img, &mut self.features)?;
         let got = match &self.model {

@@ -8,12 +8,13 @@
 //! use visuotact_sim::iats::{render, IatsConfig, Touch};
 //! use visuotact_vision::calibration::{calibrate, Preset};
 //!
-//! // Calibrate on two simulated contact-free frames of seed 000's sensor, then read a press.
+//! // Calibrate on two simulated contact-free frames of the 117-marker membrane, then read a
+//! // press.
 //! let cfg = IatsConfig::SEED000;
 //! let rest: Vec<_> = (0..2).map(|k| render(&cfg, &Touch::default(), k).unwrap().0).collect();
 //! let (sensor, _) =
 //!     calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
-//! let mut est = Estimator::new(Some(sensor), None).unwrap();
+//! let mut est = Estimator::from_sensor(sensor).unwrap();
 //! let press = Touch { x_mm: 30.0, y_mm: 22.0, depth_mm: 3.0, ..Touch::default() };
 //! let frame = render(&cfg, &press, 7).unwrap().0;
 //! let columns = est.feature_columns();
@@ -38,10 +39,6 @@
 //! `RecordSummary`, `RecordError`), `replay` (a model over recorded frames as the live loop
 //! would; feature, blob and prediction tables), `calibrate` (calibration from frame files:
 //! still or the lightest frames), `schema` (the feature and blob tables' columns and rows),
-//! `synth` (simulated session folders with truth, pattern series, paced UDP force),
-//! `trackcheck` (simulated sensors tracked in memory against the simulator's truth), `demo`
-//! (both papers' experiments as report structs: seed 000's Table 3, seed 001's Tables 5.1 and
-//! 5.2 with their sweeps, and, in `demo::torque`, the torque from the T-shaped marker),
 //! `dataset` (recorded sessions → one training table: features joined with cleaned, resampled
 //! force labels; `clean_table`; `DatasetConfig`, `DatasetError`), `table` (a feature table
 //! joined with labels on `frame`, inputs picked by name from it or a readings table, lost
@@ -51,19 +48,17 @@
 
 pub mod calibrate;
 pub mod dataset;
-pub mod demo;
 pub mod estimator;
 pub mod evaluation;
 pub mod live;
 pub mod record;
 pub mod replay;
+mod rig;
 pub mod runner;
 pub mod schema;
-pub mod synth;
 pub mod table;
-pub mod trackcheck;
 
-pub use estimator::{feature_set_of, Estimator, PipelineError};
+pub use estimator::{feature_set_of, Estimate, Estimator, PipelineError, TargetValue};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};
 pub use visuotact_io::queue::{self, Captured, LatestQueue};
 
@@ -95,15 +90,9 @@ pub enum Error {
     /// [`calibrate::CalibrateError`].
     #[error(transparent)]
     Calibrate(#[from] calibrate::CalibrateError),
-    /// [`trackcheck::CheckError`].
-    #[error(transparent)]
-    Check(#[from] trackcheck::CheckError),
     /// [`dataset::DatasetError`].
     #[error(transparent)]
     Dataset(#[from] dataset::DatasetError),
-    /// [`demo::DemoError`].
-    #[error(transparent)]
-    Demo(#[from] demo::DemoError),
     /// [`evaluation::EvaluationError`].
     #[error(transparent)]
     Evaluation(#[from] evaluation::EvaluationError),
@@ -122,7 +111,4 @@ pub enum Error {
     /// [`runner::RunError`].
     #[error(transparent)]
     Run(#[from] runner::RunError),
-    /// [`synth::SimulateError`].
-    #[error(transparent)]
-    Simulate(#[from] synth::SimulateError),
 }

@@ -164,6 +164,17 @@ pub struct LiveEstimate {
     pub dropped_frames: u64,
 }
 
+impl LiveEstimate {
+    /// The value of target `name` (`depth_mm`), if estimated for this frame (targets are
+    /// empty without contact).
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.targets
+            .iter()
+            .find(|t| t.name == name)
+            .map(|t| t.value)
+    }
+}
+
 /// Marker drawing data for the dashboard: position, displacement from the baseline, status.
 #[derive(Clone, Debug, Serialize)]
 pub struct MarkerView {

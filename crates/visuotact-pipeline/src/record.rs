@@ -20,6 +20,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::camera::{CameraError, CameraRequest};
@@ -33,9 +34,6 @@ use visuotact_io::session::{
 use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row, TableError};
 use visuotact_nn::model::Estimate;
-use visuotact_sim::jr3::{Jr3, Jr3Config};
-use visuotact_sim::rig::{frame_seed, SimRig};
-use visuotact_sim::SimError;
 
 use crate::schema::{feature_columns, feature_row_into, flags_of};
 use crate::{rate, seconds, Estimator};
@@ -100,8 +98,9 @@ impl Default for ConeRigConfig {
 pub struct RecordConfig {
     /// Session folder to write.
     pub output: PathBuf,
-    /// Frame source, as [`SourceSpec::parse`] reads it (kept verbatim in `session.json`).
-    pub source: String,
+    /// Frame source (`"sim:cone".into()`, or [`SourceSpec::parse`] of what a user wrote);
+    /// `session.json` keeps it as text.
+    pub source: SourceSpec,
     /// Frame rate of image folders and of the simulated camera, frames per second.
     pub fps: f64,
     /// Stop after this many seconds.
@@ -177,8 +176,9 @@ pub enum RecordError {
     #[error(transparent)]
     Camera(#[from] CameraError),
     /// The simulated rig refused its settings.
+    #[cfg(feature = "sim")]
     #[error(transparent)]
-    Sim(#[from] SimError),
+    Sim(#[from] visuotact_sim::SimError),
     /// The force table does not read.
     #[error(transparent)]
     ForceTable(#[from] TableError),
@@ -302,8 +302,8 @@ pub fn record_observed(
     // Everything that can be checked is checked before anything is created: a corrected
     // re-run is never refused for a folder a failed one left behind.
     validate(cfg)?;
-    let rig = match SourceSpec::parse(&cfg.source) {
-        SourceSpec::Sim(kind) => Some(rig_of(cfg, &kind)?),
+    let rig = match &cfg.source {
+        SourceSpec::Sim(kind) => Some(rig_of(cfg, kind)?),
         _ => None,
     };
     let force_input = ForceInput::open(cfg)?;
@@ -442,23 +442,7 @@ fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
     if cfg.max_frames == Some(0) {
         return Err(RecordError::Config("max_frames must be at least 1".into()));
     }
-    if cfg.references > crate::synth::MAX_REFERENCES {
-        return Err(RecordError::Config(format!(
-            "references {}: a simulated rig writes at most {} reference frames",
-            cfg.references,
-            crate::synth::MAX_REFERENCES
-        )));
-    }
-    // The simulated touch rig draws its touches up front.
-    let sim = matches!(SourceSpec::parse(&cfg.source), SourceSpec::Sim(_));
-    if sim && cfg.max_frames.is_some_and(|n| n > crate::synth::MAX_FRAMES) {
-        return Err(RecordError::Config(format!(
-            "max_frames {}: a simulated rig records at most {} frames",
-            cfg.max_frames.unwrap_or_default(),
-            crate::synth::MAX_FRAMES
-        )));
-    }
-    Ok(())
+    crate::rig::check_limits(cfg)
 }
 
 /// The session folder: refused when it holds a session and `resume` was not asked for (or
@@ -524,9 +508,9 @@ fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
     let differ: Vec<String> = [
         (
             "source",
-            d.source.as_deref() == Some(cfg.source.as_str()),
+            d.source.as_deref().map(SourceSpec::parse).as_ref() == Some(&cfg.source),
             shown(&d.source),
-            cfg.source.clone(),
+            cfg.source.to_string(),
         ),
         ("force", d.force == force, shown(&d.force), shown(&force)),
         (
@@ -564,16 +548,25 @@ fn resumable(cfg: &RecordConfig) -> Result<(), RecordError> {
     }
 }
 
-fn rig_of(cfg: &RecordConfig, kind: &str) -> Result<SimRig, RecordError> {
+#[cfg(feature = "sim")]
+fn rig_of(cfg: &RecordConfig, kind: &str) -> Result<Rig, RecordError> {
     Ok(match kind {
-        "cone" => SimRig::cone(cfg.cone.press_s, cfg.cone.max_force_n, cfg.cone.rest_s)?,
-        "iats" => SimRig::iats(cfg.max_frames.unwrap_or(200).max(1), cfg.seed),
+        "cone" => Rig::cone(cfg.cone.press_s, cfg.cone.max_force_n, cfg.cone.rest_s)?,
+        "iats" => Rig::iats(cfg.max_frames.unwrap_or(200).max(1), cfg.seed),
         other => {
             return Err(RecordError::Config(format!(
                 "source sim:{other}: expected sim:cone or sim:iats"
             )))
         }
     })
+}
+
+#[cfg(not(feature = "sim"))]
+fn rig_of(_: &RecordConfig, kind: &str) -> Result<Rig, RecordError> {
+    Err(RecordError::Config(format!(
+        "source sim:{kind}: {}",
+        crate::rig::NO_SIMULATOR
+    )))
 }
 
 /// `session.json`: the settings, whether the recording completed, and its counts.
@@ -583,7 +576,7 @@ fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(),
         format: &'a str,
         version: u32,
         recorded_by: String,
-        source: &'a str,
+        source: String,
         fps: f64,
         force: Option<String>,
         force_layout: String,
@@ -605,7 +598,7 @@ fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(),
         format: SESSION_FORMAT,
         version: SESSION_VERSION,
         recorded_by: format!("visuotact {} record", env!("CARGO_PKG_VERSION")),
-        source: &cfg.source,
+        source: cfg.source.to_string(),
         fps: cfg.fps,
         force: cfg.force.as_ref().map(ForceSource::to_string),
         force_layout: cfg.force_layout.to_string(),
@@ -628,7 +621,7 @@ fn describe(cfg: &RecordConfig, complete: bool, s: &RecordSummary) -> Result<(),
 }
 
 /// Simulated rigs write their no-contact references first.
-fn write_references(cfg: &RecordConfig, rig: &SimRig) -> Result<(), RecordError> {
+fn write_references(cfg: &RecordConfig, rig: &Rig) -> Result<(), RecordError> {
     if cfg.resume || cfg.references == 0 {
         return Ok(());
     }
@@ -671,7 +664,7 @@ impl Tables {
     fn open(
         cfg: &RecordConfig,
         est: Option<&Estimator>,
-        rig: Option<&SimRig>,
+        rig: Option<&Rig>,
     ) -> Result<Self, RecordError> {
         let sync = seconds("sync_every_s", cfg.sync_every_s).map_err(RecordError::Config)?;
         let open = |name: &str, header: &str| {
@@ -854,20 +847,23 @@ enum Next {
 /// The frame side: a simulated rig on the recorder's clock, files, or a camera capturing on
 /// its own thread into a drop-oldest queue (timestamped on arrival).
 enum Frames {
-    Sim { rig: SimRig, clock: Instant },
-    Stream(FrameStream),
+    Sim { rig: Box<Rig>, clock: Instant },
+    Stream(Box<FrameStream>),
     Camera(Arc<LatestQueue<Captured>>, JoinHandle<u64>),
 }
 
 impl Frames {
     fn open(
         cfg: &RecordConfig,
-        rig: Option<SimRig>,
+        rig: Option<Rig>,
         clock: Instant,
         stop: &Arc<AtomicBool>,
     ) -> Result<Self, RecordError> {
-        Ok(match (rig, SourceSpec::parse(&cfg.source)) {
-            (Some(rig), _) => Self::Sim { rig, clock },
+        Ok(match (rig, cfg.source.clone()) {
+            (Some(rig), _) => Self::Sim {
+                rig: Box::new(rig),
+                clock,
+            },
             (None, SourceSpec::Camera(dev)) => {
                 let q = Arc::new(LatestQueue::new(4));
                 let h = visuotact_io::camera::spawn(
@@ -881,9 +877,10 @@ impl Frames {
                 )?;
                 Self::Camera(q, h)
             }
-            (None, SourceSpec::Frames(path)) => {
-                Self::Stream(FrameStream::open(std::slice::from_ref(&path), cfg.fps)?)
-            }
+            (None, SourceSpec::Frames(path)) => Self::Stream(Box::new(FrameStream::open(
+                std::slice::from_ref(&path),
+                cfg.fps,
+            )?)),
             (None, SourceSpec::Sim(kind)) => {
                 return Err(RecordError::Config(format!("source sim:{kind}: no rig")))
             }
@@ -990,7 +987,7 @@ impl ForceSide {
     fn start(
         cfg: &RecordConfig,
         input: ForceInput,
-        rig: Option<&SimRig>,
+        rig: Option<&Rig>,
         (clock, t_offset): (Instant, f64),
         (stop, observer): (&Arc<AtomicBool>, Option<SharedObserver>),
     ) -> Result<Self, RecordError> {
@@ -1061,79 +1058,6 @@ impl ForceSide {
         };
         Ok((stats, sent))
     }
-}
-
-/// Where and when the simulated JR3 streams.
-struct Jr3Stream<'a> {
-    /// Destination address.
-    addr: &'a str,
-    layout: ForceLayout,
-    rate_hz: f64,
-    seed: u64,
-    /// Time zero of the rig.
-    clock: Instant,
-    /// First and last sample times, s.
-    t_from: f64,
-    t_end: f64,
-}
-
-/// Sends the simulated JR3 stream of the cone rig, paced in real time, until `stop`.
-fn spawn_jr3(
-    rig: &SimRig,
-    j: Jr3Stream<'_>,
-    stop: Arc<AtomicBool>,
-) -> Result<Option<JoinHandle<u64>>, RecordError> {
-    let SimRig::Cone { cfg, press, rest_s } = rig else {
-        return Ok(None);
-    };
-    let (cfg, press, rest_s) = (*cfg, *press, *rest_s);
-    let sock = std::net::UdpSocket::bind("127.0.0.1:0")?;
-    sock.connect(j.addr).map_err(|e| {
-        std::io::Error::new(
-            e.kind(),
-            format!("simulated force sensor: cannot address {}: {e}", j.addr),
-        )
-    })?;
-    let jr3_cfg = Jr3Config {
-        rate_hz: j.rate_hz,
-        ..Jr3Config::JR3_1KHZ
-    };
-    jr3_cfg.validate()?;
-    let Jr3Stream {
-        layout,
-        rate_hz,
-        seed,
-        clock,
-        t_from,
-        t_end,
-        ..
-    } = j;
-    Ok(Some(std::thread::spawn(move || {
-        let mut jr3 = Jr3::new(jr3_cfg, seed ^ 0x4A33);
-        let mut sent = 0u64;
-        let mut i = (t_from * rate_hz).ceil() as u64;
-        loop {
-            let t = i as f64 / rate_hz;
-            if t > t_end || stop.load(Ordering::Relaxed) {
-                break;
-            }
-            let due = Duration::from_secs_f64(t);
-            let now = clock.elapsed();
-            if due > now + Duration::from_micros(300) {
-                std::thread::sleep(due - now);
-            }
-            let load = SimRig::cone_load(&cfg, &press, rest_s, t);
-            let s = ForceSample {
-                timestamp_s: t,
-                values: jr3.sample(load.components_n()),
-            };
-            if sock.send(&layout.encode(&s, i)).is_ok() {
-                sent += 1;
-            }
-            i += 1;
-        }
-        sent
-    })))
 }
 
 /// Receives force packets into `force.csv` until `stop`.

@@ -13,6 +13,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+#[cfg(feature = "sim")]
 use rayon::prelude::*;
 use serde::Serialize;
 use visuotact_image::RgbImage;
@@ -20,16 +21,16 @@ use visuotact_io::camera::{CameraError, CameraRequest};
 use visuotact_io::frames::{FrameError, FrameStream};
 use visuotact_io::queue::{median_p99, Captured, LatestQueue};
 use visuotact_io::source::SourceSpec;
+#[cfg(feature = "sim")]
 use visuotact_sim::rig::LiveFrames;
-use visuotact_sim::SimError;
 
 use crate::live::{LiveEstimate, LiveEstimator, LiveFrame, MarkerView};
 
 /// Where frames come from and how fast.
 #[derive(Clone, Debug)]
 pub struct RunConfig {
-    /// Frame source, as [`SourceSpec::parse`] reads it.
-    pub source: String,
+    /// Frame source (`"sim:iats".into()`, or [`SourceSpec::parse`] of what a user wrote).
+    pub source: SourceSpec,
     /// Frame rate of simulated cameras and image sequences, frames per second.
     pub fps: f64,
     /// The camera's size and format.
@@ -103,8 +104,9 @@ pub enum RunError {
     #[error("{0}")]
     Config(String),
     /// The simulated source refused its settings.
+    #[cfg(feature = "sim")]
     #[error("source {0}")]
-    Sim(#[from] SimError),
+    Sim(#[from] visuotact_sim::SimError),
     /// Frames could not be opened.
     #[error(transparent)]
     Frames(#[from] FrameError),
@@ -239,6 +241,7 @@ pub fn rss_kib() -> Option<u64> {
 /// A frame source, opened (simulated frames rendered, files found) but not started.
 enum Source {
     /// The loop and its first frames, rendered.
+    #[cfg(feature = "sim")]
     Sim(Box<LiveFrames>, Vec<(String, Arc<RgbImage>)>),
     Camera(String),
     Stream(Box<FrameStream>),
@@ -246,7 +249,15 @@ enum Source {
 
 impl Source {
     fn open(cfg: &RunConfig) -> Result<Self, RunError> {
-        Ok(match SourceSpec::parse(&cfg.source) {
+        Ok(match cfg.source.clone() {
+            #[cfg(not(feature = "sim"))]
+            SourceSpec::Sim(kind) => {
+                return Err(RunError::Config(format!(
+                    "source sim:{kind}: {}",
+                    crate::rig::NO_SIMULATOR
+                )))
+            }
+            #[cfg(feature = "sim")]
             SourceSpec::Sim(kind) => {
                 let frames = LiveFrames::new(&kind, cfg.sim_frames, cfg.seed)?;
                 let first = (0..frames.len().min(SIM_FRAMES_UP_FRONT))
@@ -279,6 +290,7 @@ impl Source {
         };
         let max = cfg.max_frames.unwrap_or(u64::MAX);
         Ok(match self {
+            #[cfg(feature = "sim")]
             Self::Sim(frames, first) => std::thread::spawn(move || {
                 let mut k = 0u64;
                 while k < max && !stop.load(Ordering::Relaxed) {
@@ -398,7 +410,7 @@ pub fn run(
     queue.close();
     let captured = capture.join().map_err(|_| RunError::Capture)?;
     if captured == 0 {
-        return Err(RunError::NoFrames(cfg.source.clone()));
+        return Err(RunError::NoFrames(cfg.source.to_string()));
     }
     Ok(stats.summary(captured, queue.dropped(), clock))
 }
@@ -497,4 +509,23 @@ fn estimate_one(
         }
     }
     flow
+}
+
+#[cfg(all(test, not(feature = "sim")))]
+mod tests {
+    use super::{RunConfig, Source};
+
+    #[test]
+    fn a_simulated_source_is_refused_without_the_simulator() {
+        let cfg = RunConfig {
+            source: "sim:iats".into(),
+            ..RunConfig::default()
+        };
+        let err = Source::open(&cfg).err().unwrap();
+        assert!(
+            err.to_string()
+                .contains("sim:iats: this build has no simulator"),
+            "{err}"
+        );
+    }
 }

@@ -8,10 +8,10 @@
 //! ## Modules and what each owns
 //!
 //! figures as SVG or PNG with an embedded font (`Figure`, `save`: regression plots, the contact
-//! map, force records, sweep performance and surface), text tables (`tables`: the demo's
-//! experiments laid out as the papers' tables), self-contained HTML pages (`html::Page`:
-//! tables, inline SVG figures, no script or outside file) and the report pages of `demo
-//! --report` and `eval --report` (`pages`). Estimators compute; this crate draws
+//! map, force records, sweep performance and surface), self-contained HTML pages (`html::Page`:
+//! tables, inline SVG figures, no script or outside file) and the report page of `eval
+//! --report` with the sections every report page shares (`pages`). The demo's tables and page
+//! live with the demo in `visuotact-experiments`. Estimators compute; this crate draws
 
 use std::path::{Path, PathBuf};
 
@@ -21,7 +21,6 @@ use plotters::prelude::*;
 pub mod figures;
 pub mod html;
 pub mod pages;
-pub mod tables;
 
 /// Why a figure could not be drawn or written.
 #[derive(Debug, thiserror::Error)]

@@ -38,6 +38,13 @@ pub const MAX_CAMERA_SIDE_PX: usize = 4096;
 /// its neighbours; wider ones only cost time (the taps grow with σ).
 pub const MAX_BLUR_PX: f64 = 25.0;
 
+/// Most frames one simulated session holds (touches, or the cone's press frames): 11 hours at
+/// 25 fps, and about as many files as one folder should hold.
+pub const MAX_FRAMES: usize = 1_000_000;
+
+/// Most no-contact reference frames one simulated session holds.
+pub const MAX_REFERENCES: usize = 10_000;
+
 /// Checks an optical blur σ: finite, ≥ 0 and at most [`MAX_BLUR_PX`].
 pub fn check_blur_px(blur_px: f64) -> Result<(), SimError> {
     if blur_px.is_finite() && (0.0..=MAX_BLUR_PX).contains(&blur_px) {

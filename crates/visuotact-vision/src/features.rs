@@ -330,6 +330,11 @@ impl FeatureExtractor {
         self.prior.clear();
     }
 
+    /// Whether tracking starts from the last frame ([`FeatureExtractor::set_temporal_prior`]).
+    pub fn temporal_prior(&self) -> bool {
+        self.temporal
+    }
+
     /// Where markers can be seen: the image, or its region of interest, cut to the circular
     /// mask if there is one.
     pub fn view(&self) -> View {

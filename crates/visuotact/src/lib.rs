@@ -19,9 +19,9 @@
 //!
 //! ```
 //! use visuotact::nn::fit::{fit, quietly, FitConfig, FitData};
-//! use visuotact::nn::lm::Control;
 //! use visuotact::sim::iats::{render, IatsConfig, Touch};
 //! use visuotact::vision::calibration::{calibrate, Preset};
+//! use visuotact::vision::features::FIELD_COLUMNS;
 //! use visuotact::Estimator;
 //!
 //! let cfg = IatsConfig::SEED000;
@@ -29,10 +29,13 @@
 //! let rest = [frame(&Touch::default(), 1), frame(&Touch::default(), 2)];
 //! let (sensor, _) = calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
 //!
-//! // Presses at the centre, 0.5 to 4 mm deep: the field summary's columns as inputs.
-//! let mut est = Estimator::new(Some(sensor.clone()), None).unwrap();
+//! // Presses at the centre, 0.5 to 4 mm deep; the inputs: the field summary's columns.
+//! let mut est = Estimator::from_sensor(sensor).unwrap();
 //! let columns = est.feature_columns();
-//! let field: Vec<usize> = (0..columns.len()).filter(|&i| columns[i].starts_with("field_")).collect();
+//! let field: Vec<usize> = FIELD_COLUMNS
+//!     .iter()
+//!     .map(|name| columns.iter().position(|c| c == name).unwrap())
+//!     .collect();
 //! let (mut x, mut t) = (Vec::new(), Vec::new());
 //! for k in 0..8 {
 //!     let depth_mm = 0.5 + 0.5 * k as f64;
@@ -41,18 +44,19 @@
 //!     x.push(field.iter().map(|&i| f.values[i]).collect::<Vec<f64>>());
 //!     t.push(vec![depth_mm]);
 //! }
-//! let names: Vec<String> = field.iter().map(|&i| columns[i].clone()).collect();
+//! let names: Vec<String> = FIELD_COLUMNS.iter().map(|c| c.to_string()).collect();
 //! let targets = ["depth_mm".to_string()];
 //! let data = FitData { x: &x, t: &t, feature_columns: &names, targets: &targets };
 //! let small = FitConfig { hidden: vec![3], ensemble: 1, max_epochs: 200, ..FitConfig::default() };
 //! let model = fit(&data, &small, quietly).unwrap();
 //!
-//! // The estimator reads the model's columns from each frame.
-//! let mut est = Estimator::new(Some(sensor), Some(model)).unwrap();
+//! // The estimator reads the model's columns from each frame; the estimate is read by name.
+//! let mut est = est.with_model(model).unwrap();
 //! let press = Touch { x_mm: 30.0, y_mm: 22.5, depth_mm: 2.25, ..Touch::default() };
-//! let (_, estimate) = est.process(&frame(&press, 99)).unwrap();
-//! let depth_mm = estimate.unwrap()[0];
+//! let estimate = est.estimate(&frame(&press, 99)).unwrap();
+//! let depth_mm = estimate.get("depth_mm").unwrap();
 //! assert!((depth_mm - 2.25).abs() < 0.15, "{depth_mm}");
+//! assert_eq!(estimate.markers_found, 117);
 //! ```
 //!
 //! A live runner on a camera, each estimate a JSON line on standard output (the README's
@@ -65,7 +69,7 @@
 //! use visuotact::{Estimator, LiveConfig, LiveEstimator};
 //!
 //! let sensor = visuotact::SensorCalibration::from_json(&std::fs::read_to_string("sensor.json")?, "sensor.json")?;
-//! let mut live = LiveEstimator::new(Estimator::new(Some(sensor), None)?, vec![], &LiveConfig::default())?;
+//! let mut live = LiveEstimator::new(Estimator::from_sensor(sensor)?, vec![], &LiveConfig::default())?;
 //! let cfg = RunConfig { source: "camera:/dev/video0".into(), ..RunConfig::default() };
 //! let mut out = LineSink(std::io::stdout());
 //! run(&mut live, &cfg, &Arc::new(AtomicBool::new(false)), &mut [&mut out], |w| eprintln!("{w}"))?;
@@ -79,18 +83,24 @@
 //! `io`, `sim`) with the common types at its root and a crate-level example going frame →
 //! estimate; what a Rust program or a ROS node depends on
 
+#[cfg(feature = "dashboard")]
+pub use visuotact_dashboard as dashboard;
 pub use visuotact_image as image;
 pub use visuotact_io as io;
+#[cfg(feature = "lerobot")]
 pub use visuotact_lerobot as lerobot;
 pub use visuotact_nn as nn;
 pub use visuotact_pipeline as pipeline;
+#[cfg(feature = "report")]
 pub use visuotact_report as report;
+#[cfg(feature = "ros")]
 pub use visuotact_ros as ros;
 pub use visuotact_signal as signal;
+#[cfg(feature = "sim")]
 pub use visuotact_sim as sim;
 pub use visuotact_vision as vision;
 
 pub use visuotact_pipeline::record::{record, RecordConfig};
 pub use visuotact_pipeline::runner::{RunConfig, Sink};
-pub use visuotact_pipeline::{Estimator, LiveConfig, LiveEstimator, PipelineError};
+pub use visuotact_pipeline::{Estimate, Estimator, LiveConfig, LiveEstimator, PipelineError};
 pub use visuotact_vision::calibration::{Preset, SensorCalibration};

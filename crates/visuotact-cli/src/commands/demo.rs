@@ -1,12 +1,13 @@
 //! `visuotact demo`: both source documents' experiments end to end on the simulator
-//! ([`visuotact_pipeline::demo`]), printed beside the papers' numbers.
+//! ([`visuotact_experiments::demo`]), printed beside the papers' numbers.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
-use visuotact_pipeline::demo::{self, DemoConfig};
-use visuotact_report::pages::{demo_page, RunInfo};
-use visuotact_report::tables::{cone_text, iats_text, rotation_text, torque_text};
+use visuotact_experiments::demo::{self, DemoConfig};
+use visuotact_experiments::pages::demo_page;
+use visuotact_experiments::tables::{cone_text, iats_text, rotation_text, torque_text};
+use visuotact_report::pages::RunInfo;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {

@@ -1,10 +1,10 @@
 //! `visuotact pattern`: marker-grid test frames with exact truth
-//! ([`visuotact_pipeline::synth::write_pattern`]).
+//! ([`visuotact_experiments::synth::write_pattern`]).
 
 use std::path::PathBuf;
 
 use anyhow::bail;
-use visuotact_pipeline::synth::{write_pattern, PatternConfig};
+use visuotact_experiments::synth::{write_pattern, PatternConfig};
 use visuotact_sim::pattern::GridPattern;
 
 #[derive(clap::Args, Debug)]

@@ -92,7 +92,7 @@ impl Args {
     fn config(&self) -> anyhow::Result<RecordConfig> {
         Ok(RecordConfig {
             output: self.output.clone(),
-            source: self.source.clone(),
+            source: self.source.as_str().into(),
             fps: self.fps,
             duration_s: self.duration_s,
             max_frames: self.max_frames,

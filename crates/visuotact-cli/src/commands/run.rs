@@ -107,7 +107,7 @@ impl Args {
 
     fn run_config(&self) -> anyhow::Result<RunConfig> {
         Ok(RunConfig {
-            source: self.source.clone(),
+            source: self.source.as_str().into(),
             fps: self.fps,
             camera: CameraRequest::parse(
                 self.camera_size.as_deref(),

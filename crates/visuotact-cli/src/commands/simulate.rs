@@ -1,13 +1,14 @@
 //! `visuotact simulate`: a session folder of simulated frames with exact ground truth
-//! ([`visuotact_pipeline::synth`]).
+//! ([`visuotact_experiments::synth`]).
 
 use std::net::UdpSocket;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use visuotact_experiments::synth::{simulate, ConeSession, SimKind, SimulateConfig};
+use visuotact_io::force::send_paced;
 use visuotact_io::force::ForceLayout;
-use visuotact_pipeline::synth::{send_paced, simulate, ConeSession, SimKind, SimulateConfig};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -118,7 +119,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         overrides: overrides(a)?,
     };
     let done = simulate(&cfg).map_err(|e| match (&a.config, e) {
-        (Some(p), e @ visuotact_pipeline::synth::SimulateError::Overrides { .. }) => {
+        (Some(p), e @ visuotact_experiments::synth::SimulateError::Overrides { .. }) => {
             anyhow::anyhow!("{}: {e}", p.display())
         }
         (_, e) => e.into(),

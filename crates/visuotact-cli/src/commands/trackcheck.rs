@@ -1,8 +1,8 @@
-//! `visuotact check-tracking`: [`visuotact_pipeline::trackcheck`] over sensor variants, one
+//! `visuotact check-tracking`: [`visuotact_experiments::trackcheck`] over sensor variants, one
 //! table row per variant.
 
 use anyhow::{bail, Context};
-use visuotact_pipeline::trackcheck::{check, CheckConfig, SimSensor, MOTION_LIMIT_PITCHES};
+use visuotact_experiments::trackcheck::{check, CheckConfig, SimSensor, MOTION_LIMIT_PITCHES};
 use visuotact_vision::detect::Centroid;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::options::ThresholdChoice;

@@ -157,12 +157,7 @@ pub struct Simulated {
     pub force: Vec<ForceSample>,
 }
 
-/// Most frames one simulated session holds (touches, or the cone's press frames): 11 hours at
-/// 25 fps, and about as many files as one folder should hold.
-pub const MAX_FRAMES: usize = 1_000_000;
-
-/// Most no-contact reference frames one simulated session holds.
-pub const MAX_REFERENCES: usize = 10_000;
+pub use visuotact_sim::{MAX_FRAMES, MAX_REFERENCES};
 
 /// Most force samples one simulated stream holds (kept in memory, 56 bytes each): about 2.8
 /// hours at the JR3's 1 kHz.
@@ -743,27 +738,4 @@ pub fn write_pattern(cfg: &PatternConfig) -> Result<(), SimulateError> {
         &cfg.output.join("truth.csv"),
         &truth,
     )?)
-}
-
-/// Sends samples as UDP packets at their own rate; returns how many the receiver refused (a
-/// receiver that is not listening yet refuses datagrams on loopback).
-pub fn send_paced(
-    sock: &std::net::UdpSocket,
-    layout: &ForceLayout,
-    samples: &[ForceSample],
-    rate_hz: f64,
-) -> usize {
-    let start = std::time::Instant::now();
-    let mut refused = 0usize;
-    for (i, s) in samples.iter().enumerate() {
-        let due = std::time::Duration::from_secs_f64(i as f64 / rate_hz);
-        let now = start.elapsed();
-        if due > now + std::time::Duration::from_micros(500) {
-            std::thread::sleep(due - now);
-        }
-        if sock.send(&layout.encode(s, i as u64)).is_err() {
-            refused += 1;
-        }
-    }
-    refused
 }

@@ -1,9 +1,9 @@
-//! Seconds per epoch and peak memory of seed 000's network (351 → 5 × 20 → 3, trainlm, the
+//! Seconds per epoch and peak memory of the 117-marker membrane paper's network (351 → 5 × 20 → 3, trainlm, the
 //! 70/15/15 split) on `FRAMES` simulated IATS touches: each frame's features are the true
 //! displacement and area change of its 117 markers from the simulator (`iats::markers`,
 //! no rendering), its targets the touch's x, y and depth.
 //!
-//! `cargo run --release -p visuotact-pipeline --example train_scaling -- FRAMES [EPOCHS]
+//! `cargo run --release -p visuotact-experiments --example train_scaling -- FRAMES [EPOCHS]
 //! [--whole-jacobian]` prints the memory estimate, each epoch's training MSE (17 digits, to
 //! compare the two paths), the median seconds per epoch and the peak resident memory
 //! (VmHWM). `--whole-jacobian` holds the whole Jacobian as before blocks.

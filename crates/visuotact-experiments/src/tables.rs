@@ -3,8 +3,8 @@
 
 use std::fmt::Write as _;
 
+use crate::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo, SweepBest, TorqueDemo};
 use visuotact_nn::metrics::TargetErrors;
-use visuotact_pipeline::demo::{ConeDemo, ConeRow, IatsDemo, RotationDemo, SweepBest, TorqueDemo};
 use visuotact_sim::protocol::PressureGauge;
 
 /// Seed 000's experiment: the trainings, Table 3 and the random touches beside the paper.

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
+use visuotact_experiments::synth::{simulate, SimKind, SimulateConfig};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat};
@@ -15,7 +16,6 @@ use visuotact_pipeline::live::MarkerView;
 use visuotact_pipeline::record::{record, RecordConfig};
 use visuotact_pipeline::replay::{extract, features_table};
 use visuotact_pipeline::runner::{run, RunConfig, Sink};
-use visuotact_pipeline::synth::{simulate, SimKind, SimulateConfig};
 use visuotact_pipeline::{Estimator, LiveConfig, LiveEstimate, LiveEstimator};
 use visuotact_vision::calibration::{Preset, SensorCalibration};
 use visuotact_vision::features::FeatureExtractor;

@@ -7,7 +7,7 @@
 //! motion stays within `MOTION_LIMIT_PITCHES` (frames beyond it are counted apart), and the
 //! mean displacement error is at most 0.05 px on grey-level frames.
 
-use visuotact_pipeline::trackcheck::{
+use visuotact_experiments::trackcheck::{
     check, CheckConfig, CheckReport, SimSensor, MOTION_LIMIT_PITCHES,
 };
 use visuotact_vision::detect::Centroid;

@@ -1,0 +1,35 @@
+//! The experiments around the estimator, all on the simulator: what `visuotact demo`,
+//! `simulate`, `pattern` and `check-tracking` run. The estimator itself (`visuotact-pipeline`)
+//! needs none of this; a program that only estimates does not depend on this crate.
+//!
+//! ## Modules and what each owns
+//!
+//! `demo` (both papers' experiments as report structs: the 117-marker membrane's Table 3 and
+//! random touches, the inflatable cone's Tables 5.1 and 5.2 with their sweeps, and, in
+//! `demo::torque`, the torque from the T-shaped marker; `DemoConfig`, `DemoError`), `tables`
+//! (those experiments laid out as the papers' tables, as text), `pages` (the HTML report page of
+//! `demo --report`), `synth` (simulated session folders with exact truth, grid-pattern series;
+//! `SimulateConfig`, `SimulateError`), `trackcheck` (simulated sensors tracked in memory against
+//! the simulator's per-marker truth: lost markers, wrong identities, displacement error;
+//! `CheckConfig`, `CheckReport`)
+
+pub mod demo;
+pub mod pages;
+pub mod synth;
+pub mod tables;
+pub mod trackcheck;
+
+/// Any error of this crate: each module's error converts into it.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// [`trackcheck::CheckError`].
+    #[error(transparent)]
+    Check(#[from] trackcheck::CheckError),
+    /// [`demo::DemoError`].
+    #[error(transparent)]
+    Demo(#[from] demo::DemoError),
+    /// [`synth::SimulateError`].
+    #[error(transparent)]
+    Simulate(#[from] synth::SimulateError),
+}
