@@ -3,6 +3,7 @@
 //! ([`AlgorithmArg`]) and the training data ([`DataArgs`]).
 
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 
 use anyhow::{bail, Context};
 use visuotact_image::RgbImage;
@@ -29,7 +30,7 @@ pub(crate) struct DetectorArgs {
     /// Starting settings: auto (iats for markers brighter than the skin, dark-markers for
     /// darker ones, told from the first frame), iats (green, open, Otsu), cone (luma, open,
     /// fixed 0.25), dark-markers (luma, inverted, open, adaptive).
-    #[arg(long, default_value = "auto", value_parser = ["auto", "iats", "cone", "dark-markers"])]
+    #[arg(long, default_value = "auto", value_parser = clap::builder::PossibleValuesParser::new(Preset::CHOICES))]
     pub(crate) preset: String,
     /// Channel: green, luma601, mean, red, blue.
     #[arg(long)]
@@ -77,8 +78,8 @@ pub(crate) struct DetectorArgs {
     /// Blob centroid: binary (pixel mean, as OpenCV; `blobs`' default), weighted (by grey level
     /// above the threshold) or grey (grey-level centroid of the marker and its edge over a
     /// fitted background; `calibrate`'s default).
-    #[arg(long, value_parser = ["binary", "weighted", "grey"])]
-    centroid: Option<String>,
+    #[arg(long, value_parser = choice::<Centroid>(Centroid::NAMES))]
+    centroid: Option<Centroid>,
     /// Pixel connectivity: 8 or 4.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(4..=8))]
     connectivity: u8,
@@ -158,11 +159,7 @@ impl DetectorArgs {
             min_area_px: self.min_area,
             max_area_px: self.max_area,
             keep_border: self.keep_border,
-            centroid: self.centroid.as_deref().map(|c| match c {
-                "weighted" => Centroid::Weighted,
-                "grey" => Centroid::Grey,
-                _ => Centroid::Binary,
-            }),
+            centroid: self.centroid,
             connectivity: if self.connectivity == 4 {
                 Connectivity::Four
             } else {
@@ -207,8 +204,8 @@ pub(crate) struct ForceArgs {
     #[arg(long, default_value = "hamming")]
     window: String,
     /// Padding at the ends: odd (scipy and MATLAB), even, constant, none.
-    #[arg(long, default_value = "odd", value_parser = ["odd", "even", "constant", "none"])]
-    padding: String,
+    #[arg(long, default_value = "odd", value_parser = choice::<Padding>(Padding::NAMES))]
+    padding: Padding,
     /// Padding length: scipy (3·taps), matlab (3·(taps − 1)) or a number of samples.
     #[arg(long, default_value = "scipy")]
     padlen: String,
@@ -229,8 +226,7 @@ impl ForceArgs {
             taps: self.taps,
             window: Window::parse(&self.window)?,
             filtfilt: FiltFiltOptions {
-                // clap allows only the four names.
-                padding: Padding::from_name(&self.padding).unwrap_or(Padding::Odd),
+                padding: self.padding,
                 padlen: PadLen::parse(&self.padlen)
                     .map_err(|e| anyhow::anyhow!("--padlen: {e}"))?,
             },
@@ -240,6 +236,21 @@ impl ForceArgs {
     }
 }
 
+/// Clap's parser for one of a library type's named choices: its `NAMES` are the possible
+/// values (listed in `--help`, a near miss suggested), each read by the type's `FromStr`; the
+/// list lives once, beside the type.
+pub(crate) fn choice<T>(
+    names: &'static [&'static str],
+) -> impl clap::builder::TypedValueParser<Value = T>
+where
+    T: FromStr + Clone + Send + Sync + 'static,
+    T::Err: std::fmt::Display,
+{
+    clap::builder::TypedValueParser::try_map(clap::builder::PossibleValuesParser::new(names), |s| {
+        s.parse::<T>().map_err(|e| e.to_string())
+    })
+}
+
 /// The training objective and input reduction, shared by `train` and `sweep`.
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct AlgorithmArg {
@@ -247,8 +258,8 @@ pub(crate) struct AlgorithmArg {
     /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
     /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
     /// 70/15/15 split, stopped by the validation subset).
-    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = ["trainlm", "trainbr", "adam"])]
-    pub(crate) name: String,
+    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = choice::<Algorithm>(Algorithm::NAMES))]
+    pub(crate) name: Algorithm,
     /// Feed the network the K leading principal components of the scaled inputs (kept in the
     /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),
     /// 0 (the inputs themselves) or K.
@@ -264,8 +275,8 @@ pub(crate) struct AlgorithmArg {
     /// scikit-learn peer, and where both rules were measured it matched the better one,
     /// docs/benchmarks.md), yes (beside the markers' features), only (instead of them), or
     /// no. Tables extracted before the field summary existed have none.
-    #[arg(long, value_name = "auto|yes|only|no", default_value = "auto", value_parser = ["auto", "yes", "only", "no"])]
-    pub(crate) field: String,
+    #[arg(long, default_value = "auto", value_parser = choice::<FieldInputs>(FieldInputs::NAMES))]
+    pub(crate) field: FieldInputs,
     /// Refuse a training that needs more memory than this, GiB (default: the memory available
     /// when it starts).
     #[arg(long, value_name = "GIB")]
@@ -277,12 +288,12 @@ pub(crate) const DEFAULT_HIDDEN: &str = "20";
 
 impl AlgorithmArg {
     pub(crate) fn algorithm(&self) -> Algorithm {
-        Algorithm::from_name(&self.name).unwrap_or_default()
+        self.name
     }
 
     /// Whether the field summary is an input.
     pub(crate) fn field(&self) -> FieldInputs {
-        FieldInputs::from_name(&self.field).unwrap_or(FieldInputs::Auto)
+        self.field
     }
 
     /// Refuses a training whose estimated peak memory exceeds `--max-memory-gib` (default: the

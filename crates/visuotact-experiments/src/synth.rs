@@ -35,7 +35,14 @@ pub enum SimKind {
     Zoo(ZooKind),
 }
 
+visuotact_image::names_from_str!(SimKind, "simulated sensor");
+
 impl SimKind {
+    /// The names [`SimKind::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] =
+        &["iats", "cone", "tactip", "tactip-small", "gelsight", "dots"];
+
     /// `iats`, `cone`, or a zoo sensor's name.
     pub fn from_name(name: &str) -> Option<Self> {
         match name {

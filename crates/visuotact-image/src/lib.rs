@@ -13,9 +13,63 @@
 //! ## Modules and what each owns
 //!
 //! `GrayImage`, `RgbImage` (row-major, pixel centres at integers) and `Frame` (id, index,
-//! timestamp)
+//! timestamp); `UnknownName` and `names_from_str!`, how every crate's named choices (presets,
+//! algorithms, paddings) read from text
 
 use thiserror::Error;
+
+/// A name that is not one of a setting's choices: what `FromStr` gives for every named choice
+/// of the visuotact crates (a preset, an algorithm, a padding), with the names it takes.
+///
+/// ```
+/// use visuotact_image::UnknownName;
+/// let e = UnknownName { what: "padding", given: "odd2".into(), expected: &["odd", "even"] };
+/// assert_eq!(e.to_string(), "\"odd2\" is not a padding: expected one of odd, even");
+/// ```
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[error("{given:?} is not a {what}: expected one of {}", expected.join(", "))]
+pub struct UnknownName {
+    /// What the setting is, in words.
+    pub what: &'static str,
+    /// The text given.
+    pub given: String,
+    /// The names it takes (each also what the type's `name()` writes).
+    pub expected: &'static [&'static str],
+}
+
+/// `FromStr` for a type with `from_name(&str) -> Option<Self>` and a `NAMES` list: an unknown
+/// name is an [`UnknownName`] naming `$what` and listing `NAMES`.
+#[macro_export]
+macro_rules! names_from_str {
+    ($t:ty, $what:literal) => {
+        impl ::std::str::FromStr for $t {
+            type Err = $crate::UnknownName;
+
+            fn from_str(s: &str) -> Result<Self, Self::Err> {
+                <$t>::from_name(s).ok_or_else(|| $crate::UnknownName {
+                    what: $what,
+                    given: s.to_string(),
+                    expected: <$t>::NAMES,
+                })
+            }
+        }
+    };
+}
+
+/// `FromStr` for a type with `parse(&str) -> Result<Self, E>`: `"…".parse::<T>()` reads what
+/// the command line reads.
+#[macro_export]
+macro_rules! from_str_by_parse {
+    ($t:ty, $e:ty) => {
+        impl ::std::str::FromStr for $t {
+            type Err = $e;
+
+            fn from_str(s: &str) -> Result<Self, Self::Err> {
+                <$t>::parse(s)
+            }
+        }
+    };
+}
 
 /// Errors from building images out of raw buffers.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]

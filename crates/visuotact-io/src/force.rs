@@ -39,7 +39,22 @@ pub enum ForceField {
     Tz,
 }
 
+visuotact_image::names_from_str!(ForceField, "force packet field");
+
 impl ForceField {
+    /// The names [`ForceField::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &[
+        "timestamp_s",
+        "counter",
+        "fx_n",
+        "fy_n",
+        "fz_n",
+        "tx_nm",
+        "ty_nm",
+        "tz_nm",
+    ];
+
     /// Name used in files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
@@ -103,6 +118,8 @@ impl std::fmt::Display for ForceLayout {
         f.write_str(&names.join(","))
     }
 }
+
+visuotact_image::from_str_by_parse!(ForceLayout, PacketError);
 
 impl ForceLayout {
     /// Parses a comma-separated field list, e.g. `counter,fx,fy,fz,tx,ty,tz`.

@@ -20,7 +20,13 @@ pub enum TableFormat {
     Jsonl,
 }
 
+visuotact_image::names_from_str!(TableFormat, "table format");
+
 impl TableFormat {
+    /// The names [`TableFormat::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["csv", "jsonl"];
+
     /// Parses `csv` or `jsonl`.
     pub fn from_name(s: &str) -> Option<Self> {
         match s {

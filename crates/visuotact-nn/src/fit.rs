@@ -71,7 +71,13 @@ pub enum FieldInputs {
     Only,
 }
 
+visuotact_image::names_from_str!(FieldInputs, "field-summary choice");
+
 impl FieldInputs {
+    /// The names [`FieldInputs::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["auto", "yes", "only", "no"];
+
     /// The choice called `name` (`auto`, `no`, `yes`, `only`).
     pub fn from_name(name: &str) -> Option<Self> {
         match name {

@@ -728,7 +728,13 @@ pub enum Algorithm {
     Adam,
 }
 
+visuotact_image::names_from_str!(Algorithm, "training algorithm");
+
 impl Algorithm {
+    /// The names [`Algorithm::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["trainlm", "trainbr", "adam"];
+
     /// Name on the command line and in model files.
     pub const fn name(self) -> &'static str {
         match self {

@@ -193,6 +193,8 @@ pub struct Shard {
     pub count: usize,
 }
 
+visuotact_image::from_str_by_parse!(Shard, ShardError);
+
 impl Shard {
     /// The whole sweep as one shard.
     pub const ALL: Self = Self { index: 1, count: 1 };

@@ -24,6 +24,8 @@ pub enum ReferenceSource {
     Lightest(usize),
 }
 
+visuotact_image::from_str_by_parse!(ReferenceSource, CalibrateError);
+
 impl ReferenceSource {
     /// Parses `still` or `lightest:N` (N ≥ 1).
     pub fn parse(s: &str) -> Result<Self, CalibrateError> {

@@ -37,7 +37,7 @@
 //! `RunSummary` with latency percentiles), `record` (the recorder: frames, simulated rigs,
 //! camera and UDP/CSV force → a crash-safe, resumable session folder; `RecordConfig`,
 //! `RecordSummary`, `RecordError`), `replay` (a model over recorded frames as the live loop
-//! would; feature, blob and prediction tables), `calibrate` (calibration from frame files:
+//! would), `extract` (feature, blob and prediction tables of frames), `calibrate` (calibration from frame files:
 //! still or the lightest frames), `schema` (the feature and blob tables' columns and rows),
 //! `dataset` (recorded sessions → one training table: features joined with cleaned, resampled
 //! force labels; `clean_table`; `DatasetConfig`, `DatasetError`), `table` (a feature table
@@ -50,6 +50,7 @@ pub mod calibrate;
 pub mod dataset;
 pub mod estimator;
 pub mod evaluation;
+pub mod extract;
 pub mod live;
 pub mod record;
 pub mod replay;

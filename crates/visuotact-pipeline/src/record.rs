@@ -57,6 +57,8 @@ impl std::fmt::Display for ForceSource {
     }
 }
 
+visuotact_image::from_str_by_parse!(ForceSource, RecordError);
+
 impl ForceSource {
     /// Parses `udp:HOST:PORT` or `csv:FILE`.
     pub fn parse(s: &str) -> Result<Self, RecordError> {

@@ -63,6 +63,8 @@ pub enum Window {
     },
 }
 
+visuotact_image::from_str_by_parse!(Window, FilterError);
+
 impl Window {
     /// Parses `hamming`, `hann`, `rectangular` (or `boxcar`), `kaiser:BETA`.
     pub fn parse(s: &str) -> Result<Self, FilterError> {
@@ -413,7 +415,13 @@ impl Default for FiltFiltOptions {
     }
 }
 
+visuotact_image::names_from_str!(Padding, "padding");
+
 impl Padding {
+    /// The names [`Padding::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["odd", "even", "constant", "none"];
+
     /// Parses `odd` (scipy and MATLAB), `even`, `constant` or `none`.
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
@@ -425,6 +433,8 @@ impl Padding {
         }
     }
 }
+
+visuotact_image::from_str_by_parse!(PadLen, FilterError);
 
 impl PadLen {
     /// Parses `scipy` (3·taps), `matlab` (3·(taps − 1)) or a number of samples.

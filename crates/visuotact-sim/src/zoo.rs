@@ -61,7 +61,13 @@ pub enum ZooKind {
     TactipSmall,
 }
 
+visuotact_image::names_from_str!(ZooKind, "zoo sensor");
+
 impl ZooKind {
+    /// The names [`ZooKind::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["tactip", "tactip-small", "gelsight", "dots"];
+
     /// Every family.
     pub const ALL: [ZooKind; 4] = [
         ZooKind::Tactip,

@@ -89,6 +89,22 @@ pub enum MomentConvention {
     Matlab,
 }
 
+visuotact_image::names_from_str!(MomentConvention, "moment convention");
+
+impl MomentConvention {
+    /// The names [`MomentConvention::from_name`] and `FromStr` read.
+    pub const NAMES: &'static [&'static str] = &["pixel", "matlab"];
+
+    /// `pixel` or `matlab`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "pixel" => Some(Self::Pixel),
+            "matlab" => Some(Self::Matlab),
+            _ => None,
+        }
+    }
+}
+
 /// Shape figures derived from the second moments.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shape {

@@ -125,7 +125,16 @@ pub enum Preset {
     DarkMarkers,
 }
 
+visuotact_image::names_from_str!(Preset, "preset");
+
 impl Preset {
+    /// What a user may choose: `auto` ([`Preset::for_frame`]) or a preset's name.
+    pub const CHOICES: &'static [&'static str] = &["auto", "iats", "cone", "dark-markers"];
+
+    /// The names [`Preset::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["iats", "cone", "dark-markers"];
+
     /// Every preset, in the order `--preset` lists them.
     pub const ALL: [Preset; 3] = [Preset::Iats, Preset::Cone, Preset::DarkMarkers];
 

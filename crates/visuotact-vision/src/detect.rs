@@ -80,6 +80,32 @@ pub enum Centroid {
     Grey,
 }
 
+visuotact_image::names_from_str!(Centroid, "centroid");
+
+impl Centroid {
+    /// The names [`Centroid::from_name`] and `FromStr` read, as [`Centroid::name`] writes them.
+    pub const NAMES: &'static [&'static str] = &["binary", "weighted", "grey"];
+
+    /// `binary`, `weighted` or `grey`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Binary => "binary",
+            Self::Weighted => "weighted",
+            Self::Grey => "grey",
+        }
+    }
+
+    /// The centroid called `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "binary" => Some(Self::Binary),
+            "weighted" => Some(Self::Weighted),
+            "grey" => Some(Self::Grey),
+            _ => None,
+        }
+    }
+}
+
 /// Preprocessing plus blob filter: everything needed to turn a frame into marker blobs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default)]

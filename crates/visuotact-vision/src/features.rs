@@ -29,6 +29,8 @@ pub struct FeatureSet {
     pub eccentricity: bool,
 }
 
+visuotact_image::from_str_by_parse!(FeatureSet, ConfigError);
+
 impl FeatureSet {
     /// Seed 000: area, x, y.
     pub const IATS: Self = Self {

@@ -95,7 +95,13 @@ pub enum LayoutChoice {
     Only(Layout),
 }
 
+visuotact_image::from_str_by_parse!(LayoutChoice, crate::ConfigError);
+
 impl LayoutChoice {
+    /// The names [`LayoutChoice::parse`] and `FromStr` read: `auto`, then every layout's.
+    pub const NAMES: &'static [&'static str] =
+        &["auto", "grid", "hex", "dot-rings", "irregular", "rings"];
+
     /// Parses `auto` or a layout name.
     pub fn parse(s: &str) -> Result<Self, crate::ConfigError> {
         if s == "auto" {

@@ -42,6 +42,8 @@ pub enum ThresholdChoice {
     Fixed(f64),
 }
 
+visuotact_image::from_str_by_parse!(ThresholdChoice, ConfigError);
+
 impl ThresholdChoice {
     /// Parses `otsu`, `otsu-sampled`, `adaptive` or a level in 0..1.
     pub fn parse(s: &str) -> Result<Self, ConfigError> {

@@ -55,7 +55,13 @@ pub enum Channel {
     Blue,
 }
 
+visuotact_image::names_from_str!(Channel, "channel");
+
 impl Channel {
+    /// The names [`Channel::from_name`] and `FromStr` read (each is also what `name` writes,
+    /// where the type has one).
+    pub const NAMES: &'static [&'static str] = &["green", "luma601", "mean", "red", "blue"];
+
     /// All channels, for listing in help texts.
     pub const ALL: [Channel; 5] = [
         Channel::Green,

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::TableFormat;
-use visuotact_pipeline::replay::blobs_table;
+use visuotact_pipeline::extract::blobs_table;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
 use visuotact_vision::options::Purpose;
@@ -23,11 +23,11 @@ pub(crate) struct Args {
     #[command(flatten)]
     detector: DetectorArgs,
     /// Shape convention: pixel (scikit-image, OpenCV) or matlab (regionprops, +1/12).
-    #[arg(long, default_value = "pixel", value_parser = ["pixel", "matlab"])]
-    moments: String,
+    #[arg(long, default_value = "pixel", value_parser = crate::args::choice::<MomentConvention>(MomentConvention::NAMES))]
+    moments: MomentConvention,
     /// Table format: csv or jsonl.
-    #[arg(long, default_value = "csv", value_parser = ["csv", "jsonl"])]
-    format: String,
+    #[arg(long, default_value = "csv", value_parser = crate::args::choice::<TableFormat>(TableFormat::NAMES))]
+    format: TableFormat,
     /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
     #[arg(long, short)]
     quiet: bool,
@@ -46,12 +46,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             .map(|f| f.image)
     })?;
     let mut det = Detector::new(cfg).map_err(anyhow::Error::msg)?;
-    let conv = if a.moments == "matlab" {
-        MomentConvention::Matlab
-    } else {
-        MomentConvention::Pixel
-    };
-    let format = TableFormat::from_name(&a.format).unwrap_or_default();
+    let conv = a.moments;
+    let format = a.format;
     let reporter = Reporter::new(a.quiet);
     reporter.stage("blobs");
     let mut pass = FramePass::new(&reporter, usize::MAX);

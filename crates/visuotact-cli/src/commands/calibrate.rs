@@ -34,8 +34,8 @@ pub(crate) struct Args {
     /// Marker layout: auto (recognised: concentric annuli, rectangular grid, hexagonal/staggered
     /// array, rings of dots, irregular pattern), or one of grid, hex, dot-rings, irregular,
     /// rings, refused when it does not fit the markers.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "grid", "hex", "dot-rings", "irregular", "rings"])]
-    layout: String,
+    #[arg(long, default_value = "auto", value_parser = crate::args::choice::<LayoutChoice>(LayoutChoice::NAMES))]
+    layout: LayoutChoice,
     /// Where the reference comes from: `still` (the mean of the frames given, which must be
     /// free of contact) or `lightest:N` (the N frames of the data set with the smallest
     /// deformation, for data sets with no contact-free frame; the sensor file says so).
@@ -74,7 +74,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         Some(f) => FeatureSet::parse(f).map_err(|e| anyhow::anyhow!("--features: {e}"))?,
         None => preset_features,
     };
-    let layout = LayoutChoice::parse(&a.layout).map_err(anyhow::Error::msg)?;
+    let layout = a.layout;
     let source =
         ReferenceSource::parse(&a.reference).map_err(|e| anyhow::anyhow!("--reference: {e}"))?;
     let cfg = CalibrationConfig {

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_io::table::TableFormat;
-use visuotact_pipeline::replay::extract;
+use visuotact_pipeline::extract::extract;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 use crate::progress::{pass_error, FramePass, Reporter};
@@ -28,8 +28,8 @@ pub(crate) struct Args {
     #[arg(long)]
     temporal: bool,
     /// Table format: csv or jsonl.
-    #[arg(long, default_value = "csv", value_parser = ["csv", "jsonl"])]
-    format: String,
+    #[arg(long, default_value = "csv", value_parser = crate::args::choice::<TableFormat>(TableFormat::NAMES))]
+    format: TableFormat,
     /// Frame rate for image sequences (timestamps), frames per second.
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
@@ -60,7 +60,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let n_markers = cal.markers.len();
     let mut ex = FeatureExtractor::new(cal, features).map_err(anyhow::Error::msg)?;
     ex.set_temporal_prior(a.temporal);
-    let format = TableFormat::from_name(&a.format).unwrap_or_default();
+    let format = a.format;
     let reporter = Reporter::new(a.quiet);
     reporter.stage("extract");
     let mut pass = FramePass::new(&reporter, a.max_warnings);

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_io::table::KeyedTable;
-use visuotact_pipeline::replay::{features_table, predict_table, Predicted};
+use visuotact_pipeline::extract::{features_table, predict_table, Predicted};
 use visuotact_pipeline::table::{InputSources, Named};
 use visuotact_vision::features::FeatureExtractor;
 

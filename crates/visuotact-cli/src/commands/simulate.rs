@@ -16,8 +16,8 @@ pub(crate) struct Args {
     /// one of the zoo: tactip (hemispherical tip, hexagonal pins), gelsight (dark-dot grid on a
     /// bright gel), dots (random dot pattern), tactip-small (the tip on a binarised 128 × 128
     /// image, 2–4 px pins, as published data sets).
-    #[arg(long, value_parser = ["iats", "cone", "tactip", "tactip-small", "gelsight", "dots"])]
-    sensor: String,
+    #[arg(long, value_parser = crate::args::choice::<SimKind>(SimKind::NAMES))]
+    sensor: SimKind,
     /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random, drag,
     /// shear.
     #[arg(long)]
@@ -74,7 +74,11 @@ fn overrides(a: &Args) -> anyhow::Result<Option<serde_json::Map<String, serde_js
     match serde_json::from_str(&text) {
         Ok(serde_json::Value::Object(m)) => Ok(Some(m)),
         Ok(_) => bail!("{}: expected a JSON object of settings", p.display()),
-        Err(e) => bail!("{}: not a {} sensor model: {e}", p.display(), a.sensor),
+        Err(e) => bail!(
+            "{}: not a {} sensor model: {e}",
+            p.display(),
+            a.sensor.name()
+        ),
     }
 }
 
@@ -86,7 +90,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             a.fps
         );
     }
-    if a.variant != 0 && a.sensor == "cone" {
+    if a.variant != 0 && a.sensor == SimKind::Cone {
         bail!("--variant applies to iats and the zoo sensors (tactip, gelsight, dots)");
     }
     let t_start = Instant::now();
@@ -102,7 +106,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         None => None,
     };
     let cfg = SimulateConfig {
-        sensor: SimKind::from_name(&a.sensor).context("unknown sensor")?,
+        sensor: a.sensor,
         protocol: a.protocol.clone(),
         variant: a.variant,
         seed: a.seed,

@@ -28,8 +28,8 @@ pub(crate) struct Args {
     #[arg(long, default_value_t = 10)]
     references: usize,
     /// Centroids: grey (calibrate's default), weighted or binary.
-    #[arg(long, default_value = "grey", value_parser = ["binary", "weighted", "grey"])]
-    centroid: String,
+    #[arg(long, default_value = "grey", value_parser = crate::args::choice::<Centroid>(Centroid::NAMES))]
+    centroid: Centroid,
     /// Threshold over the sensor's preset: otsu, otsu-sampled, adaptive or a level in 0..1.
     #[arg(long)]
     threshold: Option<String>,
@@ -66,11 +66,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             a.motion_limit
         );
     }
-    let centroid = match a.centroid.as_str() {
-        "grey" => Centroid::Grey,
-        "weighted" => Centroid::Weighted,
-        _ => Centroid::Binary,
-    };
+    let centroid = a.centroid;
     say!(
         "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong"
     );

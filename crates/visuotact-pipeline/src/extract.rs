@@ -1,0 +1,230 @@
+//! Tables of frames: [`extract`] writes the feature table of frames (image files, folders,
+//! videos), [`features_table`] keeps it in memory, [`predict_table`] runs a model over a feature
+//! table, and [`blobs_table`] writes every blob of every frame. Each is one pass over the frames
+//! ([`crate::replay::Pass`]): its observer hears of each frame skipped and may stop it, and a
+//! stopped pass writes nothing.
+
+use std::path::{Path, PathBuf};
+
+use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
+use visuotact_nn::model::Model;
+use visuotact_vision::blobs::MomentConvention;
+use visuotact_vision::detect::Detector;
+use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
+
+use crate::replay::{Pass, PassObserver, ReplayError};
+use crate::schema::{
+    blob_row, feature_columns, feature_row_into, flags_of, missing_summary, BLOB_COLUMNS,
+};
+use crate::table::InputSources;
+
+/// What an extraction did.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Extracted {
+    /// Rows written.
+    pub written: usize,
+    /// Frames skipped (unreadable, or of another size).
+    pub skipped: usize,
+    /// Frames with markers not found.
+    pub incomplete: usize,
+    /// Marker-frames not found, in all.
+    pub lost: usize,
+}
+
+/// Writes the feature table of `frames` (image files, folders, videos at `fps`) to `output`
+/// in `format`: one row per frame ([`crate::schema`]). `obs` hears of the progress and of every frame skipped
+/// or with markers not found.
+pub fn extract(
+    ex: &mut FeatureExtractor,
+    frames: &[PathBuf],
+    fps: f64,
+    (output, format): (&Path, TableFormat),
+    obs: &mut dyn PassObserver,
+) -> Result<Extracted, ReplayError> {
+    let n_markers = ex.calibration().markers.len();
+    let mut pass = Pass::open(frames, fps)?;
+    let write_err = |source| ReplayError::Write {
+        path: output.to_path_buf(),
+        source,
+    };
+    let mut out = TableWriter::create(output, format, feature_columns(&ex.column_names()))
+        .map_err(write_err)?;
+    let mut done = Extracted::default();
+    let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
+    while let Some(item) = pass.next(obs)? {
+        let frame = match item {
+            Ok(fr) => fr,
+            Err(e) => {
+                done.skipped += 1;
+                obs.warn(&format!("{e}; skipped"));
+                continue;
+            }
+        };
+        if let Err(e) = ex.extract_into(&frame.image, &mut f) {
+            done.skipped += 1;
+            obs.warn(&format!("frame {}: {e}; skipped", frame.id));
+            continue;
+        }
+        let missing = n_markers - f.found;
+        if missing > 0 {
+            done.incomplete += 1;
+            done.lost += missing;
+            let what = if missing * 2 >= n_markers {
+                "; half or more: is the skin in view?"
+            } else {
+                ""
+            };
+            obs.warn(&format!(
+                "frame {}: {missing} of {n_markers} markers not found ({}){what}",
+                frame.id,
+                missing_summary(&f)
+            ));
+        }
+        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f);
+        out.write_row(&frame.id, &row, &flags_of(&f))
+            .map_err(write_err)?;
+        done.written += 1;
+    }
+    out.finish().map_err(write_err)?;
+    Ok(done)
+}
+
+/// The features of `frames` (image files, folders, videos at `fps`) as a keyed table, one row
+/// per frame read; `obs` hears of frames skipped and of the progress.
+pub fn features_table(
+    ex: &mut FeatureExtractor,
+    frames: &[PathBuf],
+    fps: f64,
+    obs: &mut dyn PassObserver,
+) -> Result<KeyedTable, ReplayError> {
+    let (mut keys, mut rows) = (Vec::new(), Vec::new());
+    let mut pass = Pass::open(frames, fps)?;
+    while let Some(item) = pass.next(obs)? {
+        let frame = match item {
+            Ok(f) => f,
+            Err(e) => {
+                obs.warn(&format!("{e}; skipped"));
+                continue;
+            }
+        };
+        match ex.extract(&frame.image) {
+            Ok(f) => {
+                keys.push(frame.id);
+                rows.push(f.values);
+            }
+            Err(e) => obs.warn(&format!("frame {}: {e}; skipped", frame.id)),
+        }
+    }
+    Ok(KeyedTable {
+        columns: ex.column_names(),
+        text: vec![Vec::new(); rows.len()],
+        keys,
+        rows,
+        dropped_partial_line: false,
+    })
+}
+
+/// What [`predict_table`] wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Predicted {
+    /// Rows with an estimate.
+    pub written: usize,
+    /// Rows without (NaN, the reason in the flags).
+    pub missing: usize,
+    /// Of the estimates, rows with lost markers filled.
+    pub filled: usize,
+}
+
+/// Estimates every row of `keys` with `model` from `sources` into the CSV at `output` (the
+/// model's estimate columns; an ensemble's spreads too). Lost markers are filled by a model on
+/// principal components; a missing reading, too many lost markers or a model without
+/// components gives no estimate rather than a wrong one, with the reason in the flags.
+pub fn predict_table(
+    model: &Model,
+    sources: &InputSources<'_>,
+    keys: &[String],
+    output: &Path,
+) -> Result<Predicted, ReplayError> {
+    let write_err = |source| ReplayError::Write {
+        path: output.to_path_buf(),
+        source,
+    };
+    let columns = model.estimate_columns();
+    let nan = vec![f64::NAN; columns.len()];
+    let mut out = TableWriter::create(output, TableFormat::Csv, columns).map_err(write_err)?;
+    let mut done = Predicted::default();
+    let mut x = Vec::with_capacity(model.feature_columns.len());
+    for (r, key) in keys.iter().enumerate() {
+        sources.row_into(r, &mut x);
+        let written = match model.estimate(&x) {
+            Ok(e) => {
+                done.written += 1;
+                let note = if e.filled > 0 {
+                    done.filled += 1;
+                    format!("filled {} inputs", e.filled)
+                } else {
+                    String::new()
+                };
+                out.write_row(key, &e.into_row(), &note)
+            }
+            Err(why) => {
+                done.missing += 1;
+                out.write_row(key, &nan, &why.to_string())
+            }
+        };
+        written.map_err(write_err)?;
+    }
+    out.finish().map_err(write_err)?;
+    Ok(done)
+}
+
+/// What [`blobs_table`] wrote.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BlobsWritten {
+    /// Frames detected.
+    pub frames: usize,
+    /// Blobs written.
+    pub blobs: usize,
+    /// Frames that could not be read.
+    pub skipped: usize,
+}
+
+/// Writes every blob `det` finds in `frames` to `output` in `format` (one row per blob,
+/// [`crate::schema::BLOB_COLUMNS`]); `obs` hears of frames skipped and of the progress.
+pub fn blobs_table(
+    det: &mut Detector,
+    conv: MomentConvention,
+    frames: &[PathBuf],
+    (output, format): (&Path, TableFormat),
+    obs: &mut dyn PassObserver,
+) -> Result<BlobsWritten, ReplayError> {
+    let write_err = |source| ReplayError::Write {
+        path: output.to_path_buf(),
+        source,
+    };
+    let columns = BLOB_COLUMNS.iter().map(|s| s.to_string()).collect();
+    let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
+    let mut done = BlobsWritten::default();
+    let mut blobs = Vec::new();
+    let mut pass = Pass::open(frames, 25.0)?;
+    while let Some(item) = pass.next(obs)? {
+        let f = match item {
+            Ok(f) => f,
+            Err(e) => {
+                obs.warn(&format!("{e}; skipped"));
+                done.skipped += 1;
+                continue;
+            }
+        };
+        let d = det.detect_into(&f.image, &mut blobs);
+        let level = d.level.map_or(f64::NAN, f64::from);
+        for (k, b) in blobs.iter().enumerate() {
+            let row = blob_row(k, b, conv, level, f.timestamp_s);
+            out.write_row(&f.id, &row, "").map_err(write_err)?;
+        }
+        done.frames += 1;
+        done.blobs += blobs.len();
+    }
+    out.finish().map_err(write_err)?;
+    Ok(done)
+}
