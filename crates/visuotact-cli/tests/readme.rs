@@ -197,3 +197,19 @@ fn the_four_commands_work_as_written() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// The README's install command is the one the test command runs (and then runs the binary
+/// it installed), so it stays true.
+#[test]
+fn the_install_command_is_the_one_the_test_command_runs() {
+    let install = "cargo install --path crates/visuotact-cli";
+    assert!(
+        readme().contains(&format!("{install}      #")),
+        "README lacks {install}"
+    );
+    let script =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/test"))
+            .unwrap();
+    assert!(script.contains("cargo install --path crates/visuotact-cli --locked"));
+    assert!(script.contains("target/install-check/bin/visuotact --version"));
+}
