@@ -1,8 +1,8 @@
 //! Tables of frames: [`extract`] writes the feature table of frames (image files, folders,
 //! videos), [`features_table`] keeps it in memory, [`predict_table`] runs a model over a feature
 //! table, and [`blobs_table`] writes every blob of every frame. Each is one pass over the frames
-//! ([`crate::replay::Pass`]): its observer hears of each frame skipped and may stop it, and a
-//! stopped pass writes nothing.
+//! whose [`PassObserver`] hears of each frame skipped and may stop it; a stopped pass writes
+//! nothing.
 
 use std::path::{Path, PathBuf};
 

@@ -3,10 +3,35 @@
 //! without it there are none — [`Rig`] has no value, a `sim:` source is refused with
 //! [`NO_SIMULATOR`], and the recorder carries no simulator.
 
+use std::time::Instant;
+
+use visuotact_io::force::ForceLayout;
+
 /// Why a `sim:` source is refused in a build without the simulator.
-#[cfg_attr(feature = "sim", allow(dead_code))] // reason: read only without the `sim` feature
+#[cfg_attr(
+    feature = "sim",
+    allow(dead_code, reason = "read only without the `sim` feature")
+)]
 pub(crate) const NO_SIMULATOR: &str =
     "this build has no simulator (visuotact-pipeline's `sim` feature is off)";
+
+/// Where and when the simulated JR3 streams (`sim:cone` with a UDP force source).
+#[cfg_attr(
+    not(feature = "sim"),
+    allow(dead_code, reason = "read only where a simulator exists")
+)]
+pub(crate) struct Jr3Stream<'a> {
+    /// Destination address.
+    pub(crate) addr: &'a str,
+    pub(crate) layout: ForceLayout,
+    pub(crate) rate_hz: f64,
+    pub(crate) seed: u64,
+    /// Time zero of the rig.
+    pub(crate) clock: Instant,
+    /// First and last sample times, s.
+    pub(crate) t_from: f64,
+    pub(crate) t_end: f64,
+}
 
 #[cfg(feature = "sim")]
 pub(crate) use with_sim::*;
@@ -18,14 +43,15 @@ mod with_sim {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     use std::thread::JoinHandle;
-    use std::time::{Duration, Instant};
+    use std::time::Duration;
 
-    use visuotact_io::force::{ForceLayout, ForceSample};
+    use visuotact_io::force::ForceSample;
     use visuotact_io::source::SourceSpec;
     use visuotact_sim::jr3::{Jr3, Jr3Config};
     pub(crate) use visuotact_sim::rig::{frame_seed, SimRig as Rig};
     use visuotact_sim::{MAX_FRAMES, MAX_REFERENCES};
 
+    use super::Jr3Stream;
     use crate::record::{RecordConfig, RecordError};
 
     /// The simulated rigs' limits on a recording's settings.
@@ -46,20 +72,6 @@ mod with_sim {
             )));
         }
         Ok(())
-    }
-
-    /// Where and when the simulated JR3 streams.
-    pub(crate) struct Jr3Stream<'a> {
-        /// Destination address.
-        pub(crate) addr: &'a str,
-        pub(crate) layout: ForceLayout,
-        pub(crate) rate_hz: f64,
-        pub(crate) seed: u64,
-        /// Time zero of the rig.
-        pub(crate) clock: Instant,
-        /// First and last sample times, s.
-        pub(crate) t_from: f64,
-        pub(crate) t_end: f64,
     }
 
     /// Sends the simulated JR3 stream of the cone rig, paced in real time, until `stop`.
@@ -127,11 +139,10 @@ mod without_sim {
     use std::sync::atomic::AtomicBool;
     use std::sync::Arc;
     use std::thread::JoinHandle;
-    use std::time::Instant;
 
     use visuotact_image::RgbImage;
-    use visuotact_io::force::ForceLayout;
 
+    use super::Jr3Stream;
     use crate::record::{RecordConfig, RecordError};
 
     /// No limits to check: without a simulator a `sim:` source is refused and no reference
@@ -169,18 +180,6 @@ mod without_sim {
     /// A frame's seed; only a rig reads it, and there is none.
     pub(crate) fn frame_seed(seed: u64, _: u64) -> u64 {
         seed
-    }
-
-    /// Where and when a simulated JR3 would stream.
-    #[allow(dead_code)] // reason: the fields are read only where a simulator exists
-    pub(crate) struct Jr3Stream<'a> {
-        pub(crate) addr: &'a str,
-        pub(crate) layout: ForceLayout,
-        pub(crate) rate_hz: f64,
-        pub(crate) seed: u64,
-        pub(crate) clock: Instant,
-        pub(crate) t_from: f64,
-        pub(crate) t_end: f64,
     }
 
     pub(crate) fn spawn_jr3(

@@ -97,8 +97,17 @@ pub fn chromium() -> Option<&'static str> {
 /// Runs `chromium` headless on `url` with a private profile under `profile` and no network
 /// side traffic, `extra` flags before the address (e.g. `--dump-dom`).
 pub fn headless(chromium: &str, profile: &Path, extra: &[&str], url: &str) -> Output {
-    let profile = format!("--user-data-dir={}", profile.display());
-    let mut args = vec![
+    Command::new(chromium)
+        .args(chromium_args(profile, extra, url))
+        .stderr(Stdio::null())
+        .output()
+        .expect("run chromium")
+}
+
+/// Headless Chromium's arguments: no sandbox, GPU, network chatter or first-run screens, the
+/// profile in `profile`, then `extra` and `url`.
+fn chromium_args(profile: &Path, extra: &[&str], url: &str) -> Vec<String> {
+    let mut args: Vec<String> = [
         "--headless",
         "--no-sandbox",
         "--disable-gpu",
@@ -107,15 +116,13 @@ pub fn headless(chromium: &str, profile: &Path, extra: &[&str], url: &str) -> Ou
         "--disable-background-networking",
         "--disable-component-update",
         "--disable-sync",
-        profile.as_str(),
-    ];
-    args.extend_from_slice(extra);
-    args.push(url);
-    Command::new(chromium)
-        .args(&args)
-        .stderr(Stdio::null())
-        .output()
-        .expect("run chromium")
+    ]
+    .map(String::from)
+    .to_vec();
+    args.push(format!("--user-data-dir={}", profile.display()));
+    args.extend(extra.iter().map(|a| a.to_string()));
+    args.push(url.to_string());
+    args
 }
 
 /// Opens `url` in headless Chromium and evaluates the JavaScript expression `expr` (which must
@@ -132,21 +139,8 @@ pub fn headless_watch(
     limit: std::time::Duration,
 ) -> String {
     let _ = std::fs::remove_file(profile.join("DevToolsActivePort"));
-    let user_dir = format!("--user-data-dir={}", profile.display());
     let mut browser = Command::new(chromium)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--remote-debugging-port=0",
-            user_dir.as_str(),
-            url,
-        ])
+        .args(chromium_args(profile, &["--remote-debugging-port=0"], url))
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()

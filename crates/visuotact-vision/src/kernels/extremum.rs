@@ -5,7 +5,7 @@ use super::Avx2;
 
 /// `dst[i] = min(a[i], b[i], c[i])` (or max): the 3-tap step of a separable filter. AVX2 when
 /// the CPU has it and there are at least 32 bytes (the last 32 are taken again, overlapping, so
-/// no byte takes a scalar tail), else [`extremum3_portable`].
+/// no byte takes a scalar tail), else the portable loop.
 pub fn extremum3(a: &[u8], b: &[u8], c: &[u8], dst: &mut [u8], max: bool) {
     extremum3_on(Avx2::detect(), a, b, c, dst, max);
 }
