@@ -40,6 +40,16 @@ fn column(p: &Path, name: &str) -> Vec<(String, f64)> {
         .collect()
 }
 
+/// The frames a simulated recording of `due` frames kept: with those it dropped they make
+/// `due`, and at most a quarter were dropped.
+fn frames_of(session: &serde_json::Value, due: u64) -> usize {
+    let kept = session["frames"].as_u64().unwrap();
+    let dropped = session["frames_dropped"].as_u64().unwrap();
+    assert_eq!(kept + dropped, due, "{session}");
+    assert!(4 * dropped <= due, "{session}");
+    kept as usize
+}
+
 #[test]
 fn record_dataset_train_replay_on_the_simulated_cone() {
     let d = fresh_dir("record");
@@ -61,11 +71,17 @@ fn record_dataset_train_replay_on_the_simulated_cone() {
         "-o",
         s(&a),
     ]));
-    assert!(err.contains("recorded 81 frames"), "{err}");
     assert!(err.contains("0 malformed, 0 duplicates"), "{err}");
     let session: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(a.join("session.json")).unwrap()).unwrap();
     assert_eq!(session["complete"], true);
+    // 81 frames are due; the paced camera drops the ones it is over a period late for (a
+    // loaded machine), and says so.
+    let recorded = frames_of(&session, 81);
+    assert!(
+        err.contains(&format!("recorded {recorded} frames")),
+        "{err}"
+    );
     assert!(session["force_packets"]["kept"].as_u64().unwrap() > 7500);
 
     ok(&vt(&[
@@ -90,7 +106,7 @@ fn record_dataset_train_replay_on_the_simulated_cone() {
         .into_iter()
         .collect();
     let got = column(&d.join("ds/labels.csv"), "force_n");
-    assert!(got.len() >= 79, "{} labelled frames", got.len());
+    assert!(got.len() + 2 >= recorded, "{} labelled frames", got.len());
     let errs: Vec<f64> = got.iter().map(|(k, v)| v - truth[k]).collect();
     let mean_abs = errs.iter().map(|e| e.abs()).sum::<f64>() / errs.len() as f64;
     let max_abs = errs.iter().fold(0.0f64, |m, e| m.max(e.abs()));
@@ -142,10 +158,16 @@ fn record_dataset_train_replay_on_the_simulated_cone() {
         "-o",
         s(&d.join("replay.csv")),
     ]));
-    assert!(err.contains("replayed 41 frames"), "{err}");
+    let session_b: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(b.join("session.json")).unwrap()).unwrap();
+    let recorded_b = frames_of(&session_b, 41);
+    assert!(
+        err.contains(&format!("replayed {recorded_b} frames")),
+        "{err}"
+    );
     let live = rows(&b.join("estimates.csv"));
     let replayed = rows(&d.join("replay.csv"));
-    assert_eq!(live.len(), 41);
+    assert_eq!(live.len(), recorded_b);
     assert_eq!(
         live, replayed,
         "replay must give the live estimates exactly"
