@@ -51,15 +51,7 @@ pub fn extract(
         .map_err(write_err)?;
     let mut done = Extracted::default();
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
-    while let Some(item) = pass.next(obs)? {
-        let frame = match item {
-            Ok(fr) => fr,
-            Err(e) => {
-                done.skipped += 1;
-                obs.warn(&format!("{e}; skipped"));
-                continue;
-            }
-        };
+    while let Some(frame) = pass.next(obs)? {
         if let Err(e) = ex.extract_into(&frame.image, &mut f) {
             done.skipped += 1;
             obs.warn(&format!("frame {}: {e}; skipped", frame.id));
@@ -85,6 +77,7 @@ pub fn extract(
             .map_err(write_err)?;
         done.written += 1;
     }
+    done.skipped += pass.unreadable;
     out.finish().map_err(write_err)?;
     Ok(done)
 }
@@ -99,14 +92,7 @@ pub fn features_table(
 ) -> Result<KeyedTable, ReplayError> {
     let (mut keys, mut rows) = (Vec::new(), Vec::new());
     let mut pass = Pass::open(frames, fps)?;
-    while let Some(item) = pass.next(obs)? {
-        let frame = match item {
-            Ok(f) => f,
-            Err(e) => {
-                obs.warn(&format!("{e}; skipped"));
-                continue;
-            }
-        };
+    while let Some(frame) = pass.next(obs)? {
         match ex.extract(&frame.image) {
             Ok(f) => {
                 keys.push(frame.id);
@@ -207,15 +193,7 @@ pub fn blobs_table(
     let mut done = BlobsWritten::default();
     let mut blobs = Vec::new();
     let mut pass = Pass::open(frames, 25.0)?;
-    while let Some(item) = pass.next(obs)? {
-        let f = match item {
-            Ok(f) => f,
-            Err(e) => {
-                obs.warn(&format!("{e}; skipped"));
-                done.skipped += 1;
-                continue;
-            }
-        };
+    while let Some(f) = pass.next(obs)? {
         let d = det.detect_into(&f.image, &mut blobs);
         let level = d.level.map_or(f64::NAN, f64::from);
         for (k, b) in blobs.iter().enumerate() {
@@ -225,6 +203,7 @@ pub fn blobs_table(
         done.frames += 1;
         done.blobs += blobs.len();
     }
+    done.skipped = pass.unreadable;
     out.finish().map_err(write_err)?;
     Ok(done)
 }

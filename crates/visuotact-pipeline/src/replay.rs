@@ -100,6 +100,8 @@ pub(crate) struct Pass {
     stream: FrameStream,
     total: Option<usize>,
     done: usize,
+    /// Frames that did not read (skipped, each told to the observer).
+    pub(crate) unreadable: usize,
 }
 
 impl Pass {
@@ -111,20 +113,34 @@ impl Pass {
             stream,
             total,
             done: 0,
+            unreadable: 0,
         })
     }
 
-    /// The next frame, after telling `obs`; [`ReplayError::Stopped`] when it stops the pass.
+    /// The next frame that reads, after telling `obs` how far the pass is;
+    /// [`ReplayError::Stopped`] when it stops the pass. A frame that does not read is told to
+    /// `obs`, counted in [`Pass::unreadable`] and passed over.
     pub(crate) fn next(
         &mut self,
         obs: &mut dyn PassObserver,
-    ) -> Result<Option<Result<Frame, FrameError>>, ReplayError> {
-        if obs.frames_done(self.done, self.total).is_break() {
-            return Err(ReplayError::Stopped { frames: self.done });
+    ) -> Result<Option<Frame>, ReplayError> {
+        loop {
+            if obs.frames_done(self.done, self.total).is_break() {
+                return Err(ReplayError::Stopped { frames: self.done });
+            }
+            match self.stream.next() {
+                None => return Ok(None),
+                Some(Ok(frame)) => {
+                    self.done += 1;
+                    return Ok(Some(frame));
+                }
+                Some(Err(e)) => {
+                    self.done += 1;
+                    self.unreadable += 1;
+                    obs.warn(&format!("{e}; skipped"));
+                }
+            }
         }
-        let item = self.stream.next();
-        self.done += usize::from(item.is_some());
-        Ok(item)
     }
 }
 
@@ -226,14 +242,7 @@ pub fn replay(
     let mut extra_values = Vec::with_capacity(extra.len());
     let t0 = std::time::Instant::now();
     let mut pass = Pass::open(&paths, cfg.fps)?;
-    while let Some(item) = pass.next(obs)? {
-        let frame = match item {
-            Ok(f) => f,
-            Err(e) => {
-                obs.warn(&format!("{e}; skipped"));
-                continue;
-            }
-        };
+    while let Some(frame) = pass.next(obs)? {
         extra_values.clear();
         if let (Some(r), Some(by_key)) = (&readings, &by_key) {
             let row = by_key.get(frame.id.as_str()).map(|&i| &r.table.rows[i]);
