@@ -14,6 +14,8 @@
 //! assert_eq!(SourceSpec::Sim("cone".into()).to_string(), "sim:cone");
 //! let s: SourceSpec = "camera:/dev/video0".parse().unwrap();
 //! assert_eq!(s, SourceSpec::from("camera:/dev/video0"));
+//! let odd = SourceSpec::Frames(PathBuf::from("sim:folder"));
+//! assert_eq!(SourceSpec::parse(&odd.to_string()), odd);
 //! ```
 
 use std::path::PathBuf;
@@ -67,8 +69,8 @@ impl From<String> for SourceSpec {
     }
 }
 
-/// As [`SourceSpec::parse`] reads it: `sim:KIND`, `camera:DEVICE`, or the path (a path that
-/// itself starts with `sim:` or `camera:` is written `frames:PATH`).
+/// As [`SourceSpec::parse`] reads it back: `sim:KIND`, `camera:DEVICE`, or the path — written
+/// `frames:PATH` where the bare path would read as something else (`sim:x`, `video:y`).
 impl std::fmt::Display for SourceSpec {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -76,14 +78,10 @@ impl std::fmt::Display for SourceSpec {
             Self::Camera(dev) => write!(f, "camera:{dev}"),
             Self::Frames(path) => {
                 let p = path.display().to_string();
-                if p.starts_with("sim:")
-                    || p.starts_with("camera:")
-                    || p.starts_with("frames:")
-                    || p.starts_with("video:")
-                {
-                    write!(f, "frames:{p}")
-                } else {
+                if Self::parse(&p) == *self {
                     write!(f, "{p}")
+                } else {
+                    write!(f, "frames:{p}")
                 }
             }
         }

@@ -20,7 +20,6 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::camera::{CameraError, CameraRequest};
@@ -35,6 +34,7 @@ use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row, TableError};
 use visuotact_nn::model::Estimate;
 
+use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use crate::schema::{feature_columns, feature_row_into, flags_of};
 use crate::{rate, seconds, Estimator};
 

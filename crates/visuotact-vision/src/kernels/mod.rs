@@ -1,18 +1,18 @@
 //! Pixel kernels with runtime CPU dispatch.
 //!
-//! Each kernel is written once as plain safe Rust that the compiler vectorises, and compiled
-//! twice: for the baseline target (SSE2 on x86-64) and with AVX2 and FMA enabled. One
-//! mechanism chooses between them: the crate-internal `Avx2` token, which exists only after
-//! `std`'s runtime check found both on the running CPU; nothing is pinned to the build
-//! machine. The portable forms are crate-private (the tests compare the two). Both copies compute identical results (integer code, or floating point in the same
-//! order of operations, with no reassociation or fused multiply-adds); the tests run whichever
-//! the machine picks and compare with scalar references. Kernels the compiler would not
-//! vectorise are written with intrinsics beside a portable loop: the AVX2 (and, for short rows,
-//! SSSE3) channel shuffles, the AVX2 3-tap minimum/maximum, the SSE2/AVX2 threshold bits, the AVX2 excess sums
-//! and the AVX2 background-ring plane (identical results: the ring's per-lane sums are taken in
-//! the portable loop's lanes and order, tested bit for bit), and the AVX2 + FMA grey-centroid
-//! window sums (floating point summed in eight lanes: equal to the portable loop within 1e-4
-//! relative, tested).
+//! Each kernel is written once as plain safe Rust that the compiler vectorises, and compiled twice:
+//! for the baseline target (SSE2 on x86-64) and with AVX2 and FMA enabled. One mechanism chooses
+//! between them: the crate-internal `Avx2` token, which exists only after `std`'s runtime check
+//! found both on the running CPU; nothing is pinned to the build machine. The portable forms are
+//! crate-private (the tests compare the two). Both copies compute identical results (integer code,
+//! or floating point in the same order of operations, with no reassociation or fused
+//! multiply-adds); the tests run whichever the machine picks and compare with scalar references.
+//! Kernels the compiler would not vectorise are written with intrinsics beside a portable loop: the
+//! AVX2 (and, for short rows, SSSE3) channel shuffles, the AVX2 3-tap minimum/maximum, the
+//! SSE2/AVX2 threshold bits, the AVX2 excess sums and the AVX2 background-ring plane (identical
+//! results: the ring's per-lane sums are taken in the portable loop's lanes and order, tested bit
+//! for bit), and the AVX2 + FMA grey-centroid window sums (floating point summed in eight lanes:
+//! equal to the portable loop within 1e-4 relative, tested).
 //!
 //! One file per operation: `channel` (one channel of RGB, exact luma), `threshold` (bytes and
 //! bits above a level), `extremum` (3-tap minimum or maximum), `excess` (a window's excess
