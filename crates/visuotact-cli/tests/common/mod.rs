@@ -173,12 +173,21 @@ pub fn headless_watch(
                 last = v.to_string();
             }
             if done(&last) || start.elapsed() > limit {
+                // Closed this way Chromium ends all its processes before it exits, so the
+                // profile folder is no longer written once `wait` returns.
+                let close = serde_json::json!({"id": 0, "method": "Browser.close"});
+                let _ = ws.send(tungstenite::Message::text(close.to_string()));
                 return Ok(());
             }
             std::thread::sleep(std::time::Duration::from_millis(200));
         }
         Ok(())
     })();
+    // A browser that did not close within 10 s is killed.
+    let closing = std::time::Instant::now();
+    while matches!(browser.try_wait(), Ok(None)) && closing.elapsed().as_secs() < 10 {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
     let _ = browser.kill();
     let _ = browser.wait();
     if let Err(e) = outcome {
