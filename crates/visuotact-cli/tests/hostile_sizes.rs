@@ -184,7 +184,12 @@ fn sensor_files_that_describe_no_sensor_are_refused_when_read() {
     let (session, sensor, _) = common::iats_features(&d, "2", "1");
     let text = std::fs::read_to_string(&sensor).unwrap();
     let base: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let edits: [SensorEdit; 5] = [
+    let edits: [SensorEdit; 6] = [
+        (
+            "scale",
+            |v| v["scale"] = serde_json::json!({"mm_per_px": -0.1, "pitch_mm": 2.5}),
+            "scale: mm_per_px -0.1 and pitch_mm 2.5 must be positive",
+        ),
         (
             "twice",
             |v| v["markers"][1]["id"] = serde_json::json!(0),

@@ -849,3 +849,165 @@ fn sharded_sweep_equals_the_single_machine(d: &Path, f: &Path, l: &Path, sw: &Pa
         "one-layer sweeps have no surface"
     );
 }
+
+/// `calibrate --pitch-mm`: the sensor file holds the scale (pitch mm / pitch px), `extract`
+/// writes each length in millimetres beside the pixels (× scale, areas × scale²), `train`
+/// trains on the millimetres (the model's inputs are named so), `predict` from frames
+/// estimates with that sensor, and a sensor without a scale is refused naming `--pitch-mm`.
+#[test]
+fn a_pitch_in_mm_gives_features_and_models_in_millimetres() {
+    let d = fresh_dir("pitch-mm");
+    let (session, sensor_px, _) = iats_features(&d, "40", "5");
+    let sensor = d.join("sensor-mm.json");
+    let said = ok(&vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "--pitch-mm",
+        "5",
+        "-o",
+        s(&sensor),
+    ]));
+    assert!(said.contains("scale: "), "{said}");
+    let cal: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&sensor).unwrap()).unwrap();
+    let scale = cal["scale"]["mm_per_px"].as_f64().unwrap();
+    assert!((scale * cal["pitch_px"].as_f64().unwrap() - 5.0).abs() < 1e-9);
+    let bad = fails(&vt(&[
+        "calibrate",
+        s(&session.join("reference")),
+        "--pitch-mm=-1",
+        "-o",
+        s(&d.join("never.json")),
+    ]));
+    assert!(
+        bad.contains("--pitch-mm") && bad.contains("positive"),
+        "{bad}"
+    );
+    assert!(!d.join("never.json").exists());
+
+    let f = d.join("f-mm.csv");
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&session.join("frames")),
+        "-o",
+        s(&f),
+    ]));
+    let text = std::fs::read_to_string(&f).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let mut checked = 0;
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        for (px, mm, k) in [
+            ("m060_dx_px", "m060_dx_mm", scale),
+            ("m060_dy_px", "m060_dy_mm", scale),
+            ("m060_darea_px", "m060_darea_mm2", scale * scale),
+            ("field_rms_px", "field_rms_mm", scale),
+        ] {
+            let (a, b) = (cells[col(px)], cells[col(mm)]);
+            if a.is_empty() {
+                assert!(b.is_empty(), "{px} empty but {mm} {b}");
+                continue;
+            }
+            let (a, b): (f64, f64) = (a.parse().unwrap(), b.parse().unwrap());
+            assert!(
+                (b - a * k).abs() <= 1e-9 * (1.0 + b.abs()),
+                "{px} {a} → {mm} {b}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 100, "{checked}");
+
+    let model = d.join("m.json");
+    let said = ok(&vt(&[
+        "train",
+        "--features",
+        s(&f),
+        "--labels",
+        s(&session.join("labels.csv")),
+        "--targets",
+        "x_mm",
+        "--sensor",
+        s(&sensor),
+        "--ensemble",
+        "1",
+        "-o",
+        s(&model),
+    ]));
+    assert!(said.contains("displacements in millimetres"), "{said}");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let inputs: Vec<&str> = m["feature_columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    assert!(
+        !inputs.is_empty() && inputs.iter().all(|c| c.ends_with("_mm")),
+        "{inputs:?}"
+    );
+
+    // From frames with the model's sensor: the same estimates as from the table.
+    let (p_table, p_frames) = (d.join("p-table.csv"), d.join("p-frames.csv"));
+    ok(&predict(&model, s(&p_table), &["--features", s(&f)]));
+    ok(&predict(
+        &model,
+        s(&p_frames),
+        &["--sensor", s(&sensor), s(&session.join("frames"))],
+    ));
+    assert_eq!(
+        std::fs::read_to_string(&p_table).unwrap(),
+        std::fs::read_to_string(&p_frames).unwrap()
+    );
+    // A sensor without a scale cannot measure the model's millimetres.
+    let p = d.join("never.csv");
+    let bad = fails(&predict(
+        &model,
+        s(&p),
+        &["--sensor", s(&sensor_px), s(&session.join("frames"))],
+    ));
+    assert!(
+        bad.contains("--pitch-mm") && bad.contains(&format!("`{}`", inputs[0])),
+        "{bad}"
+    );
+    assert!(!p.exists());
+
+    // The markers' own displacements in mm as inputs (`--field yes`): from frames too.
+    let model = d.join("m-markers.json");
+    ok(&vt(&[
+        "train",
+        "--features",
+        s(&f),
+        "--labels",
+        s(&session.join("labels.csv")),
+        "--targets",
+        "x_mm",
+        "--sensor",
+        s(&sensor),
+        "--field",
+        "yes",
+        "--ensemble",
+        "1",
+        "-o",
+        s(&model),
+    ]));
+    let m = std::fs::read_to_string(&model).unwrap();
+    assert!(m.contains("\"m000_dx_mm\"") && m.contains("\"m000_darea_mm2\""));
+    assert!(!m.contains("_dx_px\""));
+    ok(&predict(&model, s(&p_table), &["--features", s(&f)]));
+    ok(&predict(
+        &model,
+        s(&p_frames),
+        &["--sensor", s(&sensor), s(&session.join("frames"))],
+    ));
+    assert_eq!(
+        std::fs::read_to_string(&p_table).unwrap(),
+        std::fs::read_to_string(&p_frames).unwrap()
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -381,7 +381,9 @@ fn extract(
             path: dir.to_path_buf(),
             what: e.to_string(),
         })?;
-    let cols = est.feature_columns();
+    let mm = est.mm_columns().clone();
+    let mut cols = est.feature_columns();
+    cols.extend(mm.names().iter().cloned());
     let mut out = HashMap::new();
     let stream = FrameStream::open(&[dir.to_path_buf()], 25.0).map_err(|e| DatasetError::Read {
         path: dir.to_path_buf(),
@@ -394,7 +396,9 @@ fn extract(
                 // No marker of the sensor found: a row of empty cells trains nothing.
                 Ok(f) if f.found == 0 => markerless += 1,
                 Ok(f) => {
-                    out.insert(frame.id, f.values.clone());
+                    let mut row = f.values.clone();
+                    mm.values_into(&f.values, &mut row);
+                    out.insert(frame.id, row);
                 }
                 Err(e) => notes.push(format!("frame {}: {e}; skipped", frame.id)),
             },

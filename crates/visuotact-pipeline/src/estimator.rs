@@ -17,7 +17,8 @@ use visuotact_nn::model::{
 };
 use visuotact_vision::calibration::SensorCalibration;
 use visuotact_vision::features::{
-    is_field_column, FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError,
+    is_field_column, px_twin, FeatureExtractor, FeatureSet, FrameFeatures, FrameSizeError,
+    MmColumns,
 };
 
 /// Why an estimator could not be built or a frame not processed.
@@ -32,6 +33,12 @@ pub enum PipelineError {
     /// The model needs an input frames cannot give.
     #[error("the model needs the input `{column}`, which is not a marker feature: frames alone cannot give it (estimate with a table that has it: `predict --features F --readings TABLE` or `replay --readings TABLE`)")]
     NotAMarkerInput {
+        /// The input's column name.
+        column: String,
+    },
+    /// The model takes displacements in millimetres and the sensor has no scale.
+    #[error("the model takes `{column}` in millimetres, but the sensor file has no scale: calibrate it with --pitch-mm (the distance between neighbouring markers on the skin, docs/calibration.md)")]
+    NoScale {
         /// The input's column name.
         column: String,
     },
@@ -68,9 +75,9 @@ pub fn feature_set_of(columns: &[String]) -> Result<FeatureSet, PipelineError> {
     let mut kinds: Vec<&str> = Vec::new();
     for c in columns.iter().filter(|c| !is_field_column(c)) {
         let kind = match c.get(5..) {
-            Some("dx_px") if is_marker_column(c) => "x",
-            Some("dy_px") if is_marker_column(c) => "y",
-            Some("darea_px") if is_marker_column(c) => "area",
+            Some("dx_px" | "dx_mm") if is_marker_column(c) => "x",
+            Some("dy_px" | "dy_mm") if is_marker_column(c) => "y",
+            Some("darea_px" | "darea_mm2") if is_marker_column(c) => "area",
             Some("decc") if is_marker_column(c) => "ecc",
             _ => {
                 return Err(PipelineError::NotAMarkerInput { column: c.clone() });
@@ -84,6 +91,15 @@ pub fn feature_set_of(columns: &[String]) -> Result<FeatureSet, PipelineError> {
         kinds.extend(["x", "y"]);
     }
     FeatureSet::parse(&kinds.join(",")).map_err(PipelineError::Features)
+}
+
+/// [`PipelineError::NoScale`] when any of `columns` (a model's inputs) is in millimetres and
+/// `cal` has no scale to measure it.
+pub fn require_scale(cal: &SensorCalibration, columns: &[String]) -> Result<(), PipelineError> {
+    match columns.iter().find(|c| px_twin(c).is_some()) {
+        Some(c) if cal.mm_per_px().is_none() => Err(PipelineError::NoScale { column: c.clone() }),
+        _ => Ok(()),
+    }
 }
 
 /// The model's estimate of a frame, or why it has none.
@@ -182,8 +198,9 @@ impl<'a> IntoIterator for &'a Estimate {
 /// Where one of the model's inputs comes from.
 #[derive(Clone, Copy, Debug)]
 enum Input {
-    /// This position of the frame's feature vector.
-    Feature(usize),
+    /// This position of the frame's feature vector, times this factor (1, or the sensor's
+    /// scale for an input in millimetres).
+    Feature(usize, f64),
     /// This position of the extra inputs given with the frame.
     Extra(usize),
 }
@@ -198,6 +215,8 @@ pub struct Estimator {
     x: Vec<f64>,
     scratch: EstimateScratch,
     n_markers: usize,
+    /// The millimetre twins of the feature columns (none without a scale).
+    mm: MmColumns,
 }
 
 impl Estimator {
@@ -292,19 +311,22 @@ impl Estimator {
         let model = match model {
             Some(m) => {
                 let names = ex.column_names();
+                let cal = ex.calibration();
                 let cols = m
                     .feature_columns
                     .iter()
                     .map(|c| match extra_inputs.iter().position(|e| e == c) {
                         Some(j) => Ok(Input::Extra(j)),
-                        None => feature_index(&names, c).map(Input::Feature),
+                        None => feature_index(cal, &names, c).map(|(i, k)| Input::Feature(i, k)),
                     })
                     .collect::<Result<_, _>>()?;
                 Some((m, cols))
             }
             None => None,
         };
+        let mm = MmColumns::of_sensor(ex.calibration(), &ex.column_names());
         Ok(Self {
+            mm,
             ex,
             model,
             extra_inputs,
@@ -318,6 +340,12 @@ impl Estimator {
     /// Feature column names, in extraction order.
     pub fn feature_columns(&self) -> Vec<String> {
         self.ex.column_names()
+    }
+
+    /// The millimetre twins of [`Estimator::feature_columns`] that tables carry after them
+    /// (none when the sensor has no scale).
+    pub fn mm_columns(&self) -> &MmColumns {
+        &self.mm
     }
 
     /// The model's inputs that come with each frame rather than from it.
@@ -359,12 +387,14 @@ impl Estimator {
         self.n_markers
     }
 
-    /// Where each of `m`'s inputs sits in this estimator's feature vector.
-    pub fn columns_of(&self, m: &Model) -> Result<Vec<usize>, PipelineError> {
+    /// Where each of `m`'s inputs sits in this estimator's feature vector, and the factor
+    /// that converts it (1, or the sensor's scale for an input in millimetres).
+    pub fn columns_of(&self, m: &Model) -> Result<Vec<(usize, f64)>, PipelineError> {
         let names = self.ex.column_names();
+        let cal = self.ex.calibration();
         m.feature_columns
             .iter()
-            .map(|c| feature_index(&names, c))
+            .map(|c| feature_index(cal, &names, c))
             .collect()
     }
 
@@ -421,7 +451,7 @@ impl Estimator {
             Some((m, cols)) => {
                 self.x.clear();
                 self.x.extend(cols.iter().map(|&c| match c {
-                    Input::Feature(i) => self.features.values[i],
+                    Input::Feature(i, k) => self.features.values[i] * k,
                     Input::Extra(j) => extra.get(j).copied().unwrap_or(f64::NAN),
                 }));
                 // Lost markers filled (models on principal components); a missing reading or
@@ -434,14 +464,27 @@ impl Estimator {
     }
 }
 
-/// Where feature `c` sits among `names`.
-fn feature_index(names: &[String], c: &str) -> Result<usize, PipelineError> {
-    names
-        .iter()
-        .position(|n| n == c)
-        .ok_or_else(|| PipelineError::UnknownFeature {
-            column: c.to_string(),
-        })
+/// Where feature `c` sits among `names` (a feature vector in pixels) and the factor that
+/// converts it: 1, or for a column in millimetres its pixel twin's position and `cal`'s scale
+/// (squared for an area).
+fn feature_index(
+    cal: &SensorCalibration,
+    names: &[String],
+    c: &str,
+) -> Result<(usize, f64), PipelineError> {
+    let at = |c: &str| names.iter().position(|n| n == c);
+    if let Some(i) = at(c) {
+        return Ok((i, 1.0));
+    }
+    let unknown = || PipelineError::UnknownFeature {
+        column: c.to_string(),
+    };
+    let (px, power) = px_twin(c).ok_or_else(unknown)?;
+    let i = at(&px).ok_or_else(unknown)?;
+    let scale = cal.mm_per_px().ok_or_else(|| PipelineError::NoScale {
+        column: c.to_string(),
+    })?;
+    Ok((i, scale.powi(power)))
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@ use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 use visuotact_nn::model::Model;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
-use visuotact_vision::features::{FeatureExtractor, FrameFeatures};
+use visuotact_vision::features::{FeatureExtractor, FrameFeatures, MmColumns};
 
 use crate::replay::{Pass, PassObserver, ReplayError};
 use crate::schema::{
@@ -47,8 +47,10 @@ pub fn extract(
         path: output.to_path_buf(),
         source,
     };
-    let mut out = TableWriter::create(output, format, feature_columns(&ex.column_names()))
-        .map_err(write_err)?;
+    let names = ex.column_names();
+    let mm = MmColumns::of_sensor(ex.calibration(), &names);
+    let mut out =
+        TableWriter::create(output, format, feature_columns(&names, &mm)).map_err(write_err)?;
     let mut done = Extracted::default();
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
     while let Some(frame) = pass.next(obs)? {
@@ -72,7 +74,7 @@ pub fn extract(
                 missing_summary(&f)
             ));
         }
-        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f);
+        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f, &mm);
         out.write_row(&frame.id, &row, &flags_of(&f))
             .map_err(write_err)?;
         done.written += 1;
@@ -91,18 +93,24 @@ pub fn features_table(
     obs: &mut dyn PassObserver,
 ) -> Result<KeyedTable, ReplayError> {
     let (mut keys, mut rows) = (Vec::new(), Vec::new());
+    let mut columns = ex.column_names();
+    let mm = MmColumns::of_sensor(ex.calibration(), &columns);
     let mut pass = Pass::open(frames, fps)?;
     while let Some(frame) = pass.next(obs)? {
         match ex.extract(&frame.image) {
             Ok(f) => {
                 keys.push(frame.id);
-                rows.push(f.values);
+                let mut row = Vec::with_capacity(f.values.len() + mm.names().len());
+                row.extend_from_slice(&f.values);
+                mm.values_into(&f.values, &mut row);
+                rows.push(row);
             }
             Err(e) => obs.warn(&format!("frame {}: {e}; skipped", frame.id)),
         }
     }
+    columns.extend(mm.names().iter().cloned());
     Ok(KeyedTable {
-        columns: ex.column_names(),
+        columns,
         text: vec![Vec::new(); rows.len()],
         keys,
         rows,

@@ -196,7 +196,7 @@ pub struct LiveEstimator {
     rest_px: Vec<(f64, f64)>,
     est: Estimator,
     ensemble: Vec<Model>,
-    cols: Vec<Vec<usize>>,
+    cols: Vec<Vec<(usize, f64)>>,
     baseline: Vec<f64>,
     jitter: Vec<f64>,
     /// Indices of each marker's dx and dy in the feature vector.
@@ -430,7 +430,7 @@ impl LiveEstimator {
         let mut networks = 0usize;
         for ((m, cols), scratch) in self.ensemble.iter().zip(&self.cols).zip(&mut self.scratch) {
             self.x.clear();
-            self.x.extend(cols.iter().map(|&c| self.zeroed[c]));
+            self.x.extend(cols.iter().map(|&(c, k)| self.zeroed[c] * k));
             if self.x.iter().any(|v| v.is_infinite()) {
                 return Vec::new();
             }

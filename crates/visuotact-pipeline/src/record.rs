@@ -37,6 +37,7 @@ use visuotact_nn::model::Estimate;
 use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use crate::schema::{feature_columns, feature_row_into, flags_of};
 use crate::{rate, seconds, Estimator};
+use visuotact_vision::features::MmColumns;
 
 /// Where force samples come from.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -657,6 +658,8 @@ struct Tables {
     estimate_cols: Vec<String>,
     /// The last frame's rows (empty: none written).
     feature_row: Vec<f64>,
+    /// The millimetre twins of the features (none without a sensor scale).
+    mm: MmColumns,
     estimate_row: Vec<f64>,
     /// Frames of this run the estimator processed.
     processed: usize,
@@ -684,7 +687,9 @@ impl Tables {
             .filter_map(|l| l.split(',').nth(2)?.parse::<f64>().ok())
             .fold(f64::NEG_INFINITY, f64::max);
         let with_frame = |cols: &[String]| format!("frame,{},flags", cols.join(","));
-        let feature_cols = est.map_or_else(Vec::new, |e| feature_columns(&e.feature_columns()));
+        let feature_cols = est.map_or_else(Vec::new, |e| {
+            feature_columns(&e.feature_columns(), e.mm_columns())
+        });
         let features = est
             .map(|_| open("features.csv", &with_frame(&feature_cols)))
             .transpose()?
@@ -717,6 +722,7 @@ impl Tables {
             feature_cols,
             estimate_cols,
             feature_row: Vec::new(),
+            mm: est.map(|e| e.mm_columns().clone()).unwrap_or_default(),
             estimate_row: Vec::new(),
             processed: 0,
         })
@@ -782,7 +788,13 @@ impl Tables {
         };
         self.processed += 1;
         if let Some(log) = self.features.as_mut() {
-            feature_row_into(&mut self.feature_row, f.timestamp_s, n_markers, features);
+            feature_row_into(
+                &mut self.feature_row,
+                f.timestamp_s,
+                n_markers,
+                features,
+                &self.mm,
+            );
             self.line.clear();
             push_csv_row(
                 &mut self.line,

@@ -3,7 +3,7 @@
 //! `flags` cell naming the markers not found (`m012:lost;m013:merged`).
 
 use visuotact_vision::blobs::{Blob, MomentConvention};
-use visuotact_vision::features::FrameFeatures;
+use visuotact_vision::features::{FrameFeatures, MmColumns};
 use visuotact_vision::track::MarkerStatus;
 
 /// Leading columns before the per-marker features.
@@ -16,17 +16,27 @@ pub const LEAD_COLUMNS: [&str; 6] = [
     "shift_y_px",
 ];
 
-/// The feature table's header after the frame column: the [`LEAD_COLUMNS`], then `features`.
-pub fn feature_columns(features: &[String]) -> Vec<String> {
+/// The feature table's header after the frame column: the [`LEAD_COLUMNS`], then `features`
+/// (the feature vector's, in pixels), then their millimetre twins `mm` (none for a sensor
+/// without a scale).
+pub fn feature_columns(features: &[String], mm: &MmColumns) -> Vec<String> {
     LEAD_COLUMNS
         .iter()
         .map(|s| s.to_string())
         .chain(features.iter().cloned())
+        .chain(mm.names().iter().cloned())
         .collect()
 }
 
-/// One feature-table row into `row`: the [`LEAD_COLUMNS`] values, then the marker features.
-pub fn feature_row_into(row: &mut Vec<f64>, timestamp_s: f64, n_markers: usize, f: &FrameFeatures) {
+/// One feature-table row into `row`: the [`LEAD_COLUMNS`] values, the marker features, then
+/// their millimetre twins `mm`.
+pub fn feature_row_into(
+    row: &mut Vec<f64>,
+    timestamp_s: f64,
+    n_markers: usize,
+    f: &FrameFeatures,
+    mm: &MmColumns,
+) {
     row.clear();
     row.extend_from_slice(&[
         timestamp_s,
@@ -37,6 +47,7 @@ pub fn feature_row_into(row: &mut Vec<f64>, timestamp_s: f64, n_markers: usize, 
         f.shift_px.1,
     ]);
     row.extend_from_slice(&f.values);
+    mm.values_into(&f.values, row);
 }
 
 /// A short account of the markers not found in a frame: counts by status, then the first few
@@ -146,8 +157,18 @@ mod tests {
         let mut row = Vec::new();
         f.found = 0;
         f.values = vec![1.5, -2.0];
-        feature_row_into(&mut row, 0.25, 8, &f);
+        let none = MmColumns::default();
+        feature_row_into(&mut row, 0.25, 8, &f, &none);
         assert_eq!(row, [0.25, 0.0, 8.0, 0.0, 0.0, 0.0, 1.5, -2.0]);
-        assert_eq!(feature_columns(&["a".into()]).len(), 7);
+        assert_eq!(feature_columns(&["a".into()], &none).len(), 7);
+        // A sensor at 0.5 mm/px: the displacement's twin follows the pixel columns.
+        let cols = ["m000_dx_px".to_string(), "m000_decc".to_string()];
+        let mm = MmColumns::new(&cols, 0.5);
+        assert_eq!(
+            feature_columns(&cols, &mm)[6..],
+            ["m000_dx_px", "m000_decc", "m000_dx_mm"]
+        );
+        feature_row_into(&mut row, 0.25, 8, &f, &mm);
+        assert_eq!(row[6..], [1.5, -2.0, 0.75]);
     }
 }

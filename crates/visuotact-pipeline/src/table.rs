@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use visuotact_io::table::KeyedTable;
 use visuotact_nn::fit::FieldInputs;
 use visuotact_nn::model::{is_marker_column, unfillable};
-use visuotact_vision::features::FIELD_COLUMNS;
+use visuotact_vision::features::{is_mm_column, mm_twin, FIELD_COLUMNS, FIELD_COLUMNS_MM};
 
 /// A table and the name its errors give it (a path, or "frames read with S").
 #[derive(Clone, Copy, Debug)]
@@ -210,10 +210,23 @@ fn input_names(
     notes: &mut Vec<String>,
 ) -> Result<Vec<String>, JoinError> {
     let f = features.table;
+    // A sensor with a scale wrote every length twice, in pixels and in millimetres: train on
+    // the millimetres (comparable between sensors of one design), unitless features as they are.
+    let in_mm = f
+        .columns
+        .iter()
+        .any(|c| is_marker_column(c) && is_mm_column(c));
+    let other_unit = |c: &str| {
+        if in_mm {
+            mm_twin(c).is_some()
+        } else {
+            is_mm_column(c)
+        }
+    };
     let mut names: Vec<String> = f
         .columns
         .iter()
-        .filter(|c| is_marker_column(c))
+        .filter(|c| is_marker_column(c) && !other_unit(c))
         .cloned()
         .collect();
     if names.is_empty() {
@@ -221,9 +234,20 @@ fn input_names(
             features: features.name.to_string(),
         });
     }
-    let has_field = FIELD_COLUMNS.iter().all(|c| f.column(c).is_some());
+    if in_mm {
+        notes.push(format!(
+            "note: {} has displacements in millimetres (a sensor with a scale): the inputs are those ({} …), and the model needs a sensor with a scale",
+            features.name, names[0]
+        ));
+    }
+    let field_columns = if in_mm {
+        FIELD_COLUMNS_MM
+    } else {
+        FIELD_COLUMNS
+    };
+    let has_field = field_columns.iter().all(|c| f.column(c).is_some());
     let field = cfg.field.resolve(names.len());
-    let field_names = FIELD_COLUMNS.iter().map(|c| (*c).to_string());
+    let field_names = field_columns.iter().map(|c| (*c).to_string());
     match field {
         FieldInputs::No => {}
         FieldInputs::Only if !has_field => {

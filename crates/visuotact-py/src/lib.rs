@@ -37,7 +37,7 @@ use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
 use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
-use visuotact_vision::features::{is_field_column, FrameFeatures, FIELD_COLUMNS};
+use visuotact_vision::features::{is_field_column, FrameFeatures, FIELD_COLUMNS, FIELD_COLUMNS_MM};
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::Purpose;
 
@@ -407,7 +407,7 @@ impl Model {
             ..auto
         };
         let sets = candidate_inputs(
-            &column_kinds(&names, &FIELD_COLUMNS),
+            &column_kinds(&names, &[FIELD_COLUMNS, FIELD_COLUMNS_MM].concat()),
             cfg.components,
             FieldInputs::from_name(field).unwrap_or(FieldInputs::Auto),
             wide_candidate(x.len(), &cfg),

@@ -234,6 +234,64 @@ pub struct SensorCalibration {
     /// and smallest area were chosen from them ([`crate::sizing`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub marker_size: Option<crate::sizing::MarkerSize>,
+    /// Millimetres per pixel on the skin, when the markers' pitch in millimetres was given
+    /// ([`SensorCalibration::set_pitch_mm`]): feature tables then carry displacements in
+    /// millimetres beside the pixels, comparable between sensors of one design.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<PixelScale>,
+}
+
+/// The skin's scale in the image: from the markers' pitch measured in millimetres on the skin
+/// and in pixels in the reference.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PixelScale {
+    /// Millimetres per pixel (`pitch_mm / pitch_px`).
+    pub mm_per_px: f64,
+    /// The pitch given, millimetres.
+    pub pitch_mm: f64,
+}
+
+impl PixelScale {
+    /// Why a scale read from a file is not one (a length that is not positive), or `None`.
+    fn invalid(self) -> Option<String> {
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        (!(ok(self.mm_per_px) && ok(self.pitch_mm))).then(|| {
+            format!(
+                "scale: mm_per_px {} and pitch_mm {} must be positive",
+                self.mm_per_px, self.pitch_mm
+            )
+        })
+    }
+}
+
+impl SensorCalibration {
+    /// Sets the scale from the distance between neighbouring markers on the skin, in
+    /// millimetres: the same distance as [`SensorCalibration::pitch_px`] (nearest
+    /// neighbours; for annuli, the smallest gap between ring radii). Refused unless it is a
+    /// positive length.
+    pub fn set_pitch_mm(&mut self, pitch_mm: f64) -> Result<(), crate::ConfigError> {
+        if !(pitch_mm.is_finite() && pitch_mm > 0.0) {
+            return Err(crate::ConfigError(format!(
+                "marker pitch {pitch_mm} mm: expected a positive length in millimetres"
+            )));
+        }
+        if !(self.pitch_px.is_finite() && self.pitch_px > 0.0) {
+            return Err(crate::ConfigError(format!(
+                "the calibration's marker pitch is {} px: no scale can be taken from it",
+                self.pitch_px
+            )));
+        }
+        self.scale = Some(PixelScale {
+            mm_per_px: pitch_mm / self.pitch_px,
+            pitch_mm,
+        });
+        Ok(())
+    }
+
+    /// Millimetres per pixel, when the sensor has a scale.
+    pub fn mm_per_px(&self) -> Option<f64> {
+        self.scale.map(|s| s.mm_per_px)
+    }
 }
 
 /// Errors from building a calibration.
@@ -501,6 +559,7 @@ where
         pitch_px: pitch,
         markers: reference_markers(&numbered, convention),
         marker_size: None,
+        scale: None,
     };
     measure_jitter(&frames, &mut det, &mut cal, &mut report);
     Ok((cal, report))
@@ -650,6 +709,9 @@ impl SensorCalibration {
         }
         if !(cal.pitch_px.is_finite() && cal.pitch_px > 0.0) {
             return Err(bad(format!("pitch_px {} must be positive", cal.pitch_px)));
+        }
+        if let Some(why) = cal.scale.and_then(PixelScale::invalid) {
+            return Err(bad(why));
         }
         let outside = |m: &ReferenceMarker| {
             !(m.area_px.is_finite()

@@ -134,9 +134,125 @@ pub const FIELD_COLUMNS: [&str; 6] = [
     "field_spread_px",
 ];
 
-/// Whether a column is one of the [`FIELD_COLUMNS`].
+/// Whether a column is one of the [`FIELD_COLUMNS`] or their millimetre twins
+/// ([`FIELD_COLUMNS_MM`]).
 pub fn is_field_column(c: &str) -> bool {
-    FIELD_COLUMNS.contains(&c)
+    FIELD_COLUMNS.contains(&c) || FIELD_COLUMNS_MM.contains(&c)
+}
+
+/// The millimetre twins of [`FIELD_COLUMNS`], for a sensor with a scale
+/// ([`SensorCalibration::mm_per_px`]).
+pub const FIELD_COLUMNS_MM: [&str; 6] = [
+    "field_rms_mm",
+    "field_max_mm",
+    "field_top_mm",
+    "field_cx_mm",
+    "field_cy_mm",
+    "field_spread_mm",
+];
+
+/// Pixel column suffixes with a length unit, their millimetre twins, and the power of the scale
+/// that converts one into the other.
+const MM_TWINS: [(&str, &str, i32); 3] = [
+    ("_dx_px", "_dx_mm", 1),
+    ("_dy_px", "_dy_mm", 1),
+    ("_darea_px", "_darea_mm2", 2),
+];
+
+/// The millimetre twin of a feature column in pixels and the power of the scale that converts
+/// it: `m017_dx_px` → (`m017_dx_mm`, 1), `m017_darea_px` → (`m017_darea_mm2`, 2),
+/// `field_rms_px` → (`field_rms_mm`, 1); `None` for a column without a length unit (`decc`).
+///
+/// ```
+/// use visuotact_vision::features::mm_twin;
+/// assert_eq!(mm_twin("m017_darea_px"), Some(("m017_darea_mm2".to_string(), 2)));
+/// assert_eq!(mm_twin("m017_decc"), None);
+/// ```
+pub fn mm_twin(column: &str) -> Option<(String, i32)> {
+    if let Some(i) = FIELD_COLUMNS.iter().position(|c| *c == column) {
+        return Some((FIELD_COLUMNS_MM[i].to_string(), 1));
+    }
+    if !is_marker_name(column) {
+        return None;
+    }
+    MM_TWINS.iter().find_map(|(px, mm, power)| {
+        column
+            .strip_suffix(px)
+            .map(|stem| (format!("{stem}{mm}"), *power))
+    })
+}
+
+/// The pixel column a millimetre column is measured from, and the power of the scale that
+/// converts it (the inverse of [`mm_twin`]); `None` for a column not in millimetres.
+pub fn px_twin(column: &str) -> Option<(String, i32)> {
+    if let Some(i) = FIELD_COLUMNS_MM.iter().position(|c| *c == column) {
+        return Some((FIELD_COLUMNS[i].to_string(), 1));
+    }
+    if !is_marker_name(column) {
+        return None;
+    }
+    MM_TWINS.iter().find_map(|(px, mm, power)| {
+        column
+            .strip_suffix(mm)
+            .map(|stem| (format!("{stem}{px}"), *power))
+    })
+}
+
+/// Whether a column's name is a marker's (`m017_…`).
+fn is_marker_name(c: &str) -> bool {
+    let b = c.as_bytes();
+    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
+}
+
+/// Whether a feature column is in millimetres (`m017_dx_mm`, `m017_darea_mm2`,
+/// `field_rms_mm`): a table with such columns trains a model on them.
+pub fn is_mm_column(c: &str) -> bool {
+    px_twin(c).is_some()
+}
+
+/// The millimetre columns of a sensor with a scale: which feature value (in pixels) each one
+/// converts, and by what factor (the scale for lengths, its square for areas). Tables written
+/// by `extract` and `record` carry them after the pixel columns; the feature vector itself
+/// stays in pixels.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MmColumns {
+    names: Vec<String>,
+    sources: Vec<(usize, f64)>,
+}
+
+impl MmColumns {
+    /// The twins of `columns` (a feature vector's names, in pixels) at `mm_per_px`.
+    pub fn new(columns: &[String], mm_per_px: f64) -> Self {
+        let mut out = Self::default();
+        for (i, c) in columns.iter().enumerate() {
+            if let Some((name, power)) = mm_twin(c) {
+                out.names.push(name);
+                out.sources.push((i, mm_per_px.powi(power)));
+            }
+        }
+        out
+    }
+
+    /// The twins for `cal`'s feature vector `columns`: none when the sensor has no scale.
+    pub fn of_sensor(cal: &SensorCalibration, columns: &[String]) -> Self {
+        cal.mm_per_px()
+            .map_or_else(Self::default, |s| Self::new(columns, s))
+    }
+
+    /// The columns' names.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Appends the millimetre values of a feature vector `px_values` (in the order of the
+    /// columns it was made from) to `out`.
+    pub fn values_into(&self, px_values: &[f64], out: &mut Vec<f64>) {
+        out.extend(
+            self.sources
+                .iter()
+                .map(|&(i, k)| px_values.get(i).map_or(f64::NAN, |v| v * k)),
+        );
+    }
 }
 
 /// How many of the largest displacements [`FieldSummary::top_px`] averages.

@@ -44,6 +44,11 @@ pub(crate) struct Args {
     /// Default feature set for `extract`: a list of x, y, area, ecc (default: the preset's).
     #[arg(long)]
     features: Option<String>,
+    /// The distance between neighbouring markers on the skin, millimetres (the nearest
+    /// neighbours; for annuli, the gap between ring radii): the sensor file stores millimetres
+    /// per pixel, and feature tables carry displacements in mm beside px (docs/calibration.md).
+    #[arg(long, value_name = "MM")]
+    pitch_mm: Option<f64>,
     /// No progress lines while ranking a data set's frames (by default one every 2 s on
     /// stderr, also when it is not a terminal).
     #[arg(long, short)]
@@ -53,6 +58,11 @@ pub(crate) struct Args {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     if a.first == Some(0) {
         bail!("--first must be at least 1");
+    }
+    if let Some(p) = a.pitch_mm {
+        if !(p.is_finite() && p > 0.0) {
+            bail!("--pitch-mm {p}: expected the distance between neighbouring markers, a positive number of millimetres");
+        }
     }
     let inputs: Vec<&std::path::Path> = a.frames.iter().map(PathBuf::as_path).collect();
     visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
@@ -107,6 +117,11 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         e => e.into(),
     })?;
     done.calibration.marker_size = size;
+    if let Some(p) = a.pitch_mm {
+        done.calibration
+            .set_pitch_mm(p)
+            .map_err(|e| anyhow::anyhow!("--pitch-mm: {e}"))?;
+    }
     write_sensor(a, &done.calibration)?;
     print_calibrated(&done);
     note!("wrote {}", a.output.display());
@@ -137,6 +152,14 @@ fn print_calibrated(done: &Calibrated) {
         report.raw_blobs,
         report.off_grid.len()
     );
+    if let Some(s) = cal.scale {
+        note!(
+            "scale: {:.5} mm per px (pitch {} mm over {:.2} px): feature tables carry displacements in mm beside px",
+            s.mm_per_px,
+            s.pitch_mm,
+            cal.pitch_px
+        );
+    }
     if let Some(sel) = &selection {
         let note = if cal.reference.under_contact {
             " — taken under contact: features are relative to a lightly pressed skin"

@@ -52,7 +52,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ),
         (None, Some(sensor)) => {
             let set = visuotact_pipeline::feature_set_of(&model.feature_columns)?;
-            let mut ex = FeatureExtractor::new(crate::load_sensor(sensor)?, set)?;
+            let cal = crate::load_sensor(sensor)?;
+            visuotact_pipeline::estimator::require_scale(&cal, &model.feature_columns)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", sensor.display()))?;
+            let mut ex = FeatureExtractor::new(cal, set)?;
             let reporter = Reporter::new(a.quiet);
             reporter.stage("features");
             let mut pass = FramePass::new(&reporter, usize::MAX);

@@ -10,7 +10,7 @@ use visuotact_nn::fit::{
 };
 use visuotact_nn::model::Model;
 use visuotact_pipeline::table::TrainingTable;
-use visuotact_vision::features::FIELD_COLUMNS;
+use visuotact_vision::features::{FIELD_COLUMNS, FIELD_COLUMNS_MM};
 
 use crate::args::{parse_list, AlgorithmArg, DataArgs, DEFAULT_HIDDEN};
 use crate::fit_error;
@@ -83,7 +83,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         fill: None,
     };
     let sets = candidate_inputs(
-        &column_kinds(&feature_columns, &FIELD_COLUMNS),
+        &column_kinds(
+            &feature_columns,
+            &[FIELD_COLUMNS, FIELD_COLUMNS_MM].concat(),
+        ),
         components,
         a.algorithm.field(),
         wide_candidate(x.len(), &cfg),
