@@ -260,3 +260,114 @@ fn slow_and_vanishing_websocket_clients_do_not_slow_the_estimator() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// `run --sensors run.toml`: two simulated sensors (one with a model, one with contact and
+/// health only) at 25 fps each in one run: no frame dropped, each sensor's JSON lines named
+/// and numbered by its own source, never mixed, its own summary, and both namespaces in the
+/// bag.
+#[test]
+fn two_sensors_in_one_run_keep_their_own_frames_outputs_and_summaries() {
+    let d = fresh_dir("run-two");
+    let m = iats_model(&d);
+    let plan = d.join("run.toml");
+    std::fs::write(
+        &plan,
+        format!(
+            "[[sensor]]\nname = \"left\"\nsource = \"sim:iats\"\nmodel = [{:?}]\n\n\
+             [[sensor]]\nname = \"right\"\nsource = \"sim:iats\"\nsensor = {:?}\n",
+            s(&m),
+            s(&d.join("sensor.json"))
+        ),
+    )
+    .unwrap();
+    let (bag, summary) = (d.join("run.mcap"), d.join("summary.json"));
+    let o = vt(&[
+        "run",
+        "--sensors",
+        s(&plan),
+        "--sim-frames",
+        "20",
+        "--fps",
+        "25",
+        "--max-frames",
+        "50",
+        // Slack for a loaded 2-core test machine (the other tests run beside this one).
+        "--queue",
+        "8",
+        "--mcap",
+        s(&bag),
+        "--summary",
+        s(&summary),
+    ]);
+    let err = ok(&o);
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    for (k, name) in ["left", "right"].iter().enumerate() {
+        let sum = &summary["sensors"][k];
+        assert_eq!(sum["name"], *name);
+        assert_eq!(sum["frames_captured"], 50, "{err}");
+        assert_eq!(sum["frames_dropped"], 0, "{err}");
+        assert_eq!(sum["frames_estimated"], 50, "{err}");
+        let mine: Vec<&serde_json::Value> = lines.iter().filter(|e| e["sensor"] == *name).collect();
+        let index: Vec<u64> = mine.iter().map(|e| e["index"].as_u64().unwrap()).collect();
+        assert_eq!(index, (0..50).collect::<Vec<u64>>(), "{name}");
+        assert!(mine
+            .iter()
+            .all(|e| e["health"]["ok"].as_u64().unwrap() > 100));
+        // Only the left sensor has a model: targets on its touches, none on the right's.
+        let with_targets = mine
+            .iter()
+            .filter(|e| !e["targets"].as_array().unwrap().is_empty())
+            .count();
+        if k == 0 {
+            assert!(with_targets > 10, "{with_targets}");
+        } else {
+            assert_eq!(with_targets, 0);
+            assert!(mine.iter().any(|e| e["contact"] == true));
+        }
+    }
+    assert_eq!(lines.len(), 100);
+    let bytes = std::fs::read(&bag).unwrap();
+    // A channel's topic is written as its length (u32, little-endian), then its bytes.
+    let has = |t: &str| {
+        let mut key = u32::try_from(t.len()).unwrap().to_le_bytes().to_vec();
+        key.extend_from_slice(t.as_bytes());
+        bytes.windows(key.len()).any(|w| w == key)
+    };
+    for topic in [
+        "/visuotact/left/contact",
+        "/visuotact/left/markers",
+        "/visuotact/right/markers",
+        "/visuotact/right/contact/active",
+    ] {
+        assert!(has(topic), "{topic} not in the bag");
+    }
+    // The right sensor estimates nothing: no contact point of its own.
+    assert!(!has("/visuotact/right/contact"));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A run file that names one sensor twice, a name no topic can carry, or a misspelt key is
+/// refused, naming the file.
+#[test]
+fn run_files_with_bad_sensor_names_or_keys_are_refused() {
+    let d = fresh_dir("run-file-bad");
+    let plan = d.join("run.toml");
+    for (text, says) in [
+        (
+            "[[sensor]]\nname = \"a\"\nsource = \"sim:iats\"\n[[sensor]]\nname = \"a\"\nsource = \"sim:iats\"\n",
+            "given twice",
+        ),
+        ("[[sensor]]\nname = \"left finger\"\nsource = \"sim:iats\"\n", "letters, digits and _"),
+        ("[[sensor]]\nname = \"a\"\nsorce = \"sim:iats\"\n", "unknown field"),
+    ] {
+        std::fs::write(&plan, text).unwrap();
+        let e = fails(&vt(&["run", "--sensors", s(&plan), "--max-frames", "2"]));
+        assert!(e.contains(says) && e.contains("run.toml"), "{e}");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -34,7 +34,9 @@
 //! and an ensemble over model files, by a `LiveConfig`; `LiveEstimate`, the line every live
 //! output sends), `runner` (the live runner: source thread → drop-oldest queue →
 //! `LiveEstimator` → `Sink`s (`LineSink`, `UdpSink`; the dashboard is one); `RunConfig`,
-//! `RunSummary` with latency percentiles), `record` (the recorder: frames, simulated rigs,
+//! `RunSummary` with latency percentiles), `several` (several sensors in one run: a runner
+//! thread each, every estimate named by its sensor into one set of sinks; `RunFile`, the
+//! `run --sensors` TOML's typed form), `record` (the recorder: frames, simulated rigs,
 //! camera and UDP/CSV force → a crash-safe, resumable session folder; `RecordConfig`,
 //! `RecordSummary`, `RecordError`), `replay` (a model over recorded frames as the live loop
 //! would), `extract` (feature, blob and prediction tables of frames), `calibrate` (calibration from frame files:
@@ -57,6 +59,7 @@ pub mod replay;
 mod rig;
 pub mod runner;
 pub mod schema;
+pub mod several;
 pub mod table;
 
 pub use estimator::{feature_set_of, Estimate, Estimator, PipelineError, TargetValue};

@@ -142,6 +142,10 @@ impl LiveFrame {
 /// datagram, a WebSocket message).
 #[derive(Clone, Debug, Serialize)]
 pub struct LiveEstimate {
+    /// The sensor's name in a run of several ([`crate::runner::run_several`]): every output
+    /// keeps each sensor's estimates under its own name. Absent for a single sensor.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<String>,
     /// The frame's name.
     pub frame: String,
     /// Its place in the source.
@@ -207,6 +211,8 @@ pub struct LiveEstimator {
     zeroed: Vec<f64>,
     /// This frame's marker statuses.
     status: Vec<MarkerStatus>,
+    /// The sensor's name in a run of several.
+    name: Option<String>,
     /// The ensemble's input row (kept between frames).
     x: Vec<f64>,
     /// Each model's estimation buffers (kept between frames).
@@ -281,10 +287,21 @@ impl LiveEstimator {
             },
             zeroed: Vec::new(),
             status: Vec::new(),
+            name: None,
             x: Vec::new(),
             scratch: vec![EstimateScratch::default(); models.len()],
             ensemble: models,
         })
+    }
+
+    /// Names the sensor: its estimates carry the name ([`LiveEstimate::sensor`]).
+    pub fn set_sensor_name(&mut self, name: &str) {
+        self.name = Some(name.to_string());
+    }
+
+    /// The sensor's name, when it has one.
+    pub fn sensor_name(&self) -> Option<&str> {
+        self.name.as_deref()
     }
 
     /// The targets estimated (empty without a model).

@@ -474,6 +474,7 @@ fn estimate_one(
         }
     };
     let e = LiveEstimate {
+        sensor: live.sensor_name().map(str::to_string),
         frame: cap.id,
         index: cap.index,
         timestamp_s: cap.timestamp_s,

@@ -30,7 +30,7 @@ use visuotact_pipeline::runner::Sink;
 use visuotact_pipeline::LiveEstimate;
 
 use crate::msg::RosMessage;
-use crate::topics::{ns_from_s, write_frame, MarkerPoint, Publish, RosConfig};
+use crate::topics::{ns_from_s, write_frame, MarkerPoint, Publish, RosConfig, SensorConfigs};
 use crate::RosError;
 
 /// Where and how the live topics are published.
@@ -212,7 +212,7 @@ impl Publish for DdsPublisher {
 /// wall clock like [`crate::McapSink`].
 pub struct DdsSink {
     out: DdsPublisher,
-    cfg: RosConfig,
+    cfg: SensorConfigs,
     origin_ns: u64,
     markers: Vec<MarkerPoint>,
     error: Option<RosError>,
@@ -224,7 +224,7 @@ impl DdsSink {
         cfg.ros.validate()?;
         Ok(Self {
             out: DdsPublisher::new(cfg)?,
-            cfg: cfg.ros.clone(),
+            cfg: SensorConfigs::new(cfg.ros.clone()),
             origin_ns: crate::sink::unix_now_ns(),
             markers: Vec::new(),
             error: None,
@@ -252,15 +252,16 @@ impl Sink for DdsSink {
         markers: Option<&[MarkerView]>,
         image: &Arc<RgbImage>,
     ) -> ControlFlow<()> {
+        let cfg = self.cfg.get(e.sensor.as_deref());
         let frame = crate::sink::live_frame(
-            &self.cfg,
+            cfg,
             self.origin_ns + ns_from_s(e.timestamp_s),
             e,
             markers,
             image,
             &mut self.markers,
         )
-        .and_then(|f| write_frame(&mut self.out, &self.cfg, f));
+        .and_then(|f| write_frame(&mut self.out, cfg, f));
         match frame {
             Ok(()) => ControlFlow::Continue(()),
             Err(err) => {

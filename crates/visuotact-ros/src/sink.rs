@@ -18,13 +18,13 @@ use visuotact_vision::calibration::SensorCalibration;
 
 use crate::bag::{Bag, BagConfig};
 use crate::export::{targets_from_row, MarkerColumns};
-use crate::topics::{ns_from_s, write_frame, FrameMessages, MarkerPoint, RosConfig};
+use crate::topics::{ns_from_s, write_frame, FrameMessages, MarkerPoint, RosConfig, SensorConfigs};
 use crate::RosError;
 
 /// Writes a live run's estimates into an MCAP bag.
 pub struct McapSink {
     bag: Bag,
-    cfg: RosConfig,
+    cfg: SensorConfigs,
     origin_ns: u64,
     markers: Vec<MarkerPoint>,
     error: Option<RosError>,
@@ -37,7 +37,7 @@ impl McapSink {
         let origin_ns = unix_now_ns();
         Ok(Self {
             bag: Bag::create(path, bag)?,
-            cfg,
+            cfg: SensorConfigs::new(cfg),
             origin_ns,
             markers: Vec::new(),
             error: None,
@@ -61,8 +61,9 @@ impl McapSink {
         image: &RgbImage,
     ) -> Result<(), RosError> {
         let stamp_ns = self.origin_ns + ns_from_s(e.timestamp_s);
-        let frame = live_frame(&self.cfg, stamp_ns, e, markers, image, &mut self.markers)?;
-        write_frame(&mut self.bag, &self.cfg, frame)
+        let cfg = self.cfg.get(e.sensor.as_deref());
+        let frame = live_frame(cfg, stamp_ns, e, markers, image, &mut self.markers)?;
+        write_frame(&mut self.bag, cfg, frame)
     }
 }
 

@@ -72,6 +72,50 @@ impl RosConfig {
     pub fn topic(&self, suffix: &str) -> String {
         format!("{}/{suffix}", self.namespace)
     }
+
+    /// The configuration of sensor `name` in a run of several: its topics under `NS/name`,
+    /// its frame `frame_id_name`.
+    pub fn for_sensor(&self, name: &str) -> Self {
+        Self {
+            namespace: format!("{}/{name}", self.namespace),
+            frame_id: format!("{}_{name}", self.frame_id),
+            images: self.images,
+        }
+    }
+}
+
+/// The configuration of each sensor a live sink has seen (made once per name): the base for
+/// estimates without a sensor name, [`RosConfig::for_sensor`] for those with one.
+#[derive(Clone, Debug)]
+pub struct SensorConfigs {
+    base: RosConfig,
+    named: Vec<(String, RosConfig)>,
+}
+
+impl SensorConfigs {
+    /// Every sensor under `base`.
+    pub fn new(base: RosConfig) -> Self {
+        Self {
+            base,
+            named: Vec::new(),
+        }
+    }
+
+    /// The configuration for an estimate of `sensor`.
+    pub fn get(&mut self, sensor: Option<&str>) -> &RosConfig {
+        let Some(name) = sensor else {
+            return &self.base;
+        };
+        let at = match self.named.iter().position(|(n, _)| n == name) {
+            Some(k) => k,
+            None => {
+                self.named
+                    .push((name.to_string(), self.base.for_sensor(name)));
+                self.named.len() - 1
+            }
+        };
+        &self.named[at].1
+    }
 }
 
 /// One marker of the cloud.

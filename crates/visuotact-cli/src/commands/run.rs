@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
+use visuotact_pipeline::several::{check_sensor_names, run_several, NamedSensor, RunFile};
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
 use visuotact_ros::{BagConfig, DdsConfig, DdsSink, McapSink};
 
@@ -24,8 +25,16 @@ pub(crate) struct Args {
     #[arg(long)]
     temporal: bool,
     /// sim:iats, sim:cone, video:FILE, frames:DIR (or a path), camera:/dev/videoN.
-    #[arg(long)]
-    source: String,
+    #[arg(long, required_unless_present = "sensors")]
+    source: Option<String>,
+    /// Several sensors in one run (a gripper's fingers): a TOML file with one `[[sensor]]`
+    /// table each (`name`, `source`, and `sensor`, `model` files as the options say; paths
+    /// relative to the working folder). Each sensor has its own source, queue and thread;
+    /// JSON lines and UDP carry `"sensor": NAME`, bag and DDS topics go under NS/NAME, and
+    /// the summary is per sensor. The other options apply to every sensor (simulated sources
+    /// take seeds --seed, --seed + 1, …).
+    #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["source", "sensor", "model", "serve"])]
+    sensors: Option<PathBuf>,
     /// Frame rate of simulated cameras and image sequences, frames per second.
     #[arg(long, default_value_t = 25.0)]
     fps: f64,
@@ -107,7 +116,7 @@ impl Args {
 
     fn run_config(&self) -> anyhow::Result<RunConfig> {
         Ok(RunConfig {
-            source: self.source.as_str().into(),
+            source: self.source.as_deref().unwrap_or_default().into(),
             fps: self.fps,
             camera: CameraRequest::parse(
                 self.camera_size.as_deref(),
@@ -125,11 +134,14 @@ impl Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    if let Some(file) = &a.sensors {
+        return several(a, file);
+    }
     let cfg = a.run_config()?;
     cfg.validate()?;
     let mut inputs: Vec<&std::path::Path> = a.model.iter().map(PathBuf::as_path).collect();
     inputs.extend(a.sensor.as_deref());
-    inputs.extend(crate::args::source_path(&a.source));
+    inputs.extend(a.source.as_deref().and_then(crate::args::source_path));
     let outputs: Vec<&std::path::Path> = [&a.summary, &a.bag.mcap]
         .into_iter()
         .filter_map(Option::as_deref)
@@ -255,4 +267,110 @@ fn print_summary(summary: &visuotact_pipeline::runner::RunSummary) {
         summary.udp_send_errors,
         summary.websocket_messages_dropped
     );
+}
+
+/// `run --sensors FILE`: every sensor of the run file at once, into the same outputs.
+fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(file)
+        .map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
+    let plan: RunFile =
+        toml::from_str(&text).map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
+    if plan.sensor.is_empty() {
+        anyhow::bail!(
+            "--sensors {}: no [[sensor]] table (each needs name and source)",
+            file.display()
+        );
+    }
+    let mut inputs: Vec<&std::path::Path> = vec![file];
+    for s in &plan.sensor {
+        inputs.extend(s.model.iter().map(PathBuf::as_path));
+        inputs.extend(s.sensor.as_deref());
+        inputs.extend(crate::args::source_path(&s.source));
+    }
+    let outputs: Vec<&std::path::Path> = [&a.summary, &a.bag.mcap]
+        .into_iter()
+        .filter_map(Option::as_deref)
+        .collect();
+    visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &inputs)?;
+    let mut sensors = named_sensors(a, file, &plan)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
+    }
+    let mut udp = a
+        .udp
+        .as_deref()
+        .map(UdpSink::connect)
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
+    let (mut mcap, mut dds) = ros_sinks(a)?;
+    let mut stdout =
+        (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
+    let mut sinks: Vec<&mut dyn Sink> = Vec::new();
+    if let Some(s) = stdout.as_mut() {
+        sinks.push(s);
+    }
+    if let Some(s) = udp.as_mut() {
+        sinks.push(s);
+    }
+    if let Some(m) = mcap.as_mut() {
+        sinks.push(m);
+    }
+    if let Some(d) = dds.as_mut() {
+        sinks.push(d);
+    }
+    let mut summaries = run_several(&mut sensors, &stop, &mut sinks, |w| note!("warning: {w}"))?;
+    drop(sinks);
+    drop(stdout);
+    finish_ros_sinks(mcap, dds)?;
+    for s in &mut summaries {
+        s.summary.udp_send_errors = udp.as_ref().map_or(0, |u| u.errors);
+        note!("sensor {}:", s.name);
+        print_summary(&s.summary);
+    }
+    if let Some(p) = &a.summary {
+        let json = serde_json::json!({ "sensors": summaries });
+        crate::write_atomically(p, &serde_json::to_string_pretty(&json)?)?;
+    }
+    Ok(())
+}
+
+/// The sensors of run file `plan` (read from `file`), each with its estimator and source; an
+/// error names the file and the sensor.
+fn named_sensors(
+    a: &Args,
+    file: &std::path::Path,
+    plan: &RunFile,
+) -> anyhow::Result<Vec<NamedSensor>> {
+    let names: Vec<&str> = plan.sensor.iter().map(|s| s.name.as_str()).collect();
+    check_sensor_names(&names).map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
+    let mut sensors = Vec::with_capacity(plan.sensor.len());
+    for (k, s) in plan.sensor.iter().enumerate() {
+        let at = |e: &dyn std::fmt::Display| {
+            anyhow::anyhow!("--sensors {}: sensor {:?}: {e}", file.display(), s.name)
+        };
+        let models = s
+            .model
+            .iter()
+            .map(|p| crate::load_model(p))
+            .collect::<anyhow::Result<Vec<_>>>()
+            .map_err(|e| at(&e))?;
+        let mut est =
+            crate::estimator(s.sensor.as_deref(), models.first().cloned()).map_err(|e| at(&e))?;
+        est.set_temporal_prior(a.temporal);
+        let live = LiveEstimator::new(est, models, &a.live_config()).map_err(|e| at(&e))?;
+        let cfg = RunConfig {
+            source: s.source.as_str().into(),
+            seed: a.seed.wrapping_add(k as u64),
+            ..a.run_config()?
+        };
+        cfg.validate().map_err(|e| at(&e))?;
+        sensors.push(NamedSensor {
+            name: s.name.clone(),
+            live,
+            cfg,
+        });
+    }
+    Ok(sensors)
 }

@@ -1,0 +1,218 @@
+//! Several sensors in one run (a gripper's two fingers): each sensor keeps its own source,
+//! capture queue, estimator and thread — [`crate::runner::run`] as for one sensor, so the
+//! frames of two sources never meet — and every estimate, named by its sensor
+//! ([`LiveEstimate::sensor`]), reaches the one set of sinks from the calling thread. Each
+//! sensor's summary is its own (frames, drops, latency: per-sensor health).
+//!
+//! A sink that asks to re-zero re-zeroes every sensor; a sink that breaks, `stop`, or the end
+//! of every source ends the run.
+
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, SyncSender};
+use std::sync::Arc;
+
+use serde::Serialize;
+use visuotact_image::RgbImage;
+
+use crate::live::{LiveEstimate, LiveEstimator, MarkerView};
+use crate::runner::{run, RunConfig, RunError, RunSummary, Sink};
+
+/// One sensor of a run of several.
+pub struct NamedSensor {
+    /// Its name: the `sensor` of its JSON lines, its namespace in bags and DDS topics. Letters,
+    /// digits and `_`, starting with a letter.
+    pub name: String,
+    /// Its estimator (sensor file and models).
+    pub live: LiveEstimator,
+    /// Its source and limits.
+    pub cfg: RunConfig,
+}
+
+/// A sensor's part of a run of several.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct SensorSummary {
+    /// The sensor's name.
+    pub name: String,
+    /// Its frames, drops and latency.
+    #[serde(flatten)]
+    pub summary: RunSummary,
+}
+
+/// Checks a sensor's name: letters, digits and `_`, starting with a letter (a ROS name).
+pub fn check_sensor_name(name: &str) -> Result<(), RunError> {
+    let mut chars = name.chars();
+    let ok = chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if ok {
+        Ok(())
+    } else {
+        Err(RunError::Config(format!(
+            "sensor name {name:?}: expected letters, digits and _, starting with a letter (it names the sensor's topics)"
+        )))
+    }
+}
+
+/// Checks every name ([`check_sensor_name`]) and that none is given twice.
+pub fn check_sensor_names(names: &[&str]) -> Result<(), RunError> {
+    for (k, name) in names.iter().enumerate() {
+        check_sensor_name(name)?;
+        if names[..k].contains(name) {
+            return Err(RunError::Config(format!(
+                "sensor name {name:?} is given twice: every sensor needs its own"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// One estimate on its way from a sensor's thread to the sinks.
+type Message = (LiveEstimate, String, Option<Vec<MarkerView>>, Arc<RgbImage>);
+
+/// The sink of one sensor's thread: forwards every estimate to the calling thread.
+struct Forward {
+    tx: SyncSender<Message>,
+    markers: bool,
+    rezero: Arc<AtomicBool>,
+}
+
+impl Sink for Forward {
+    fn wants_markers(&self) -> bool {
+        self.markers
+    }
+
+    fn take_rezero(&mut self) -> bool {
+        self.rezero.swap(false, Ordering::Relaxed)
+    }
+
+    fn send(
+        &mut self,
+        estimate: &LiveEstimate,
+        json: &str,
+        markers: Option<&[MarkerView]>,
+        image: &Arc<RgbImage>,
+    ) -> ControlFlow<()> {
+        let m = (
+            estimate.clone(),
+            json.to_string(),
+            markers.map(<[MarkerView]>::to_vec),
+            image.clone(),
+        );
+        match self.tx.send(m) {
+            Ok(()) => ControlFlow::Continue(()),
+            Err(_) => ControlFlow::Break(()),
+        }
+    }
+}
+
+/// Runs every sensor of `sensors` at once until each source ends, a limit is reached, `stop`
+/// is set or a sink breaks; each sensor's estimates carry its name. `warn` hears of frames
+/// skipped, prefixed by the sensor's name. The first sensor's error, if any, ends the run
+/// (the others are stopped).
+pub fn run_several(
+    sensors: &mut [NamedSensor],
+    stop: &Arc<AtomicBool>,
+    sinks: &mut [&mut dyn Sink],
+    warn: impl Fn(&str) + Send + Clone + 'static,
+) -> Result<Vec<SensorSummary>, RunError> {
+    if sensors.is_empty() {
+        return Err(RunError::Config("no sensor to run".into()));
+    }
+    let names: Vec<&str> = sensors.iter().map(|s| s.name.as_str()).collect();
+    check_sensor_names(&names)?;
+    for s in sensors.iter() {
+        s.cfg.validate()?;
+    }
+    let markers = sinks.iter().any(|s| s.wants_markers());
+    let rezero: Vec<Arc<AtomicBool>> = sensors
+        .iter()
+        .map(|_| Arc::new(AtomicBool::new(false)))
+        .collect();
+    let names: Vec<String> = sensors.iter().map(|s| s.name.clone()).collect();
+    let (tx, rx) = sync_channel::<Message>(64);
+    std::thread::scope(|scope| {
+        let threads: Vec<_> = sensors
+            .iter_mut()
+            .zip(&rezero)
+            .map(|(s, rz)| {
+                let NamedSensor { name, live, cfg } = s;
+                live.set_sensor_name(name);
+                let mut forward = Forward {
+                    tx: tx.clone(),
+                    markers,
+                    rezero: rz.clone(),
+                };
+                let (stop, warn, prefix) = (stop.clone(), warn.clone(), name.clone());
+                scope.spawn(move || {
+                    let said = move |w: &str| warn(&format!("{prefix}: {w}"));
+                    let r = run(live, cfg, &stop, &mut [&mut forward], said);
+                    if r.is_err() {
+                        stop.store(true, Ordering::Relaxed);
+                    }
+                    r
+                })
+            })
+            .collect();
+        drop(tx);
+        // Until every sensor's thread has ended (each holds a sender).
+        for (estimate, json, views, image) in rx {
+            if sinks.iter_mut().any(|s| s.take_rezero()) {
+                rezero.iter().for_each(|r| r.store(true, Ordering::Relaxed));
+                sinks.iter_mut().for_each(|s| s.rezero_applied());
+            }
+            for s in sinks.iter_mut() {
+                if s.send(&estimate, &json, views.as_deref(), &image)
+                    .is_break()
+                {
+                    stop.store(true, Ordering::Relaxed);
+                }
+            }
+        }
+        names
+            .into_iter()
+            .zip(threads)
+            .map(|(name, t)| {
+                let summary = t.join().map_err(|_| RunError::Capture)??;
+                Ok(SensorSummary { name, summary })
+            })
+            .collect()
+    })
+}
+
+/// A run file (`run --sensors run.toml`): one `[[sensor]]` table per sensor.
+///
+/// ```toml
+/// [[sensor]]
+/// name = "left"
+/// source = "sim:iats"
+///
+/// [[sensor]]
+/// name = "right"
+/// source = "camera:/dev/video2"
+/// sensor = "right.json"
+/// model = ["right_model.json"]
+/// ```
+#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunFile {
+    /// The sensors, in order.
+    #[serde(default)]
+    pub sensor: Vec<SensorEntry>,
+}
+
+/// One sensor of a run file. Paths are as on the command line (relative to the working
+/// folder).
+#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorEntry {
+    /// Its name ([`check_sensor_name`]).
+    pub name: String,
+    /// Its source, as `run --source` reads it (`sim:iats`, `camera:/dev/video2`, …).
+    pub source: String,
+    /// Its sensor file (default: the one stored in its first model).
+    #[serde(default)]
+    pub sensor: Option<std::path::PathBuf>,
+    /// Its model files (several: one ensemble); none: contact and marker health only.
+    #[serde(default)]
+    pub model: Vec<std::path::PathBuf>,
+}
