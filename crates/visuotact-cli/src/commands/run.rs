@@ -156,50 +156,21 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let mut est = crate::estimator(a.sensor.as_deref(), models.first().cloned())?;
     est.set_temporal_prior(a.temporal);
     let mut live = LiveEstimator::new(est, models, &a.live_config())?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
-    }
-    let mut udp = a
-        .udp
-        .as_deref()
-        .map(UdpSink::connect)
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
-    let mut dashboard = match &a.serve {
+    let stop = stop_on_ctrl_c();
+    let dashboard = match &a.serve {
         Some(addr) => Some(
             visuotact_dashboard::Dashboard::start(addr, live.calibration(), live.target_names())
                 .map_err(|e| anyhow::anyhow!("--serve {e}"))?,
         ),
         None => None,
     };
-    let (mut mcap, mut dds) = ros_sinks(a)?;
-    let mut stdout =
-        (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
-    let mut sinks: Vec<&mut dyn Sink> = Vec::new();
-    if let Some(s) = stdout.as_mut() {
-        sinks.push(s);
-    }
-    if let Some(s) = udp.as_mut() {
-        sinks.push(s);
-    }
-    if let Some(d) = dashboard.as_mut() {
-        sinks.push(d);
-    }
-    if let Some(m) = mcap.as_mut() {
-        sinks.push(m);
-    }
-    if let Some(d) = dds.as_mut() {
-        sinks.push(d);
-    }
-    let mut summary = visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut sinks, |w| {
-        note!("warning: {w}")
-    })?;
-    drop(sinks);
-    drop(stdout);
-    finish_ros_sinks(mcap, dds)?;
-    summary.udp_send_errors = udp.map_or(0, |u| u.errors);
+    let mut out = Outputs::open(a, dashboard)?;
+    let mut summary =
+        visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut out.sinks(), |w| {
+            note!("warning: {w}")
+        })?;
+    let (udp_errors, dashboard) = out.finish()?;
+    summary.udp_send_errors = udp_errors;
     summary.websocket_messages_dropped = dashboard.as_ref().map_or(0, |d| d.dropped());
     print_summary(&summary);
     if let Some(p) = &a.summary {
@@ -293,39 +264,14 @@ fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
         .collect();
     visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &inputs)?;
     let mut sensors = named_sensors(a, file, &plan)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
-    }
-    let mut udp = a
-        .udp
-        .as_deref()
-        .map(UdpSink::connect)
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
-    let (mut mcap, mut dds) = ros_sinks(a)?;
-    let mut stdout =
-        (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
-    let mut sinks: Vec<&mut dyn Sink> = Vec::new();
-    if let Some(s) = stdout.as_mut() {
-        sinks.push(s);
-    }
-    if let Some(s) = udp.as_mut() {
-        sinks.push(s);
-    }
-    if let Some(m) = mcap.as_mut() {
-        sinks.push(m);
-    }
-    if let Some(d) = dds.as_mut() {
-        sinks.push(d);
-    }
-    let mut summaries = run_several(&mut sensors, &stop, &mut sinks, |w| note!("warning: {w}"))?;
-    drop(sinks);
-    drop(stdout);
-    finish_ros_sinks(mcap, dds)?;
+    let stop = stop_on_ctrl_c();
+    let mut out = Outputs::open(a, None)?;
+    let mut summaries = run_several(&mut sensors, &stop, &mut out.sinks(), |w| {
+        note!("warning: {w}")
+    })?;
+    let (udp_errors, _) = out.finish()?;
     for s in &mut summaries {
-        s.summary.udp_send_errors = udp.as_ref().map_or(0, |u| u.errors);
+        s.summary.udp_send_errors = udp_errors;
         note!("sensor {}:", s.name);
         print_summary(&s.summary);
     }
@@ -373,4 +319,73 @@ fn named_sensors(
         });
     }
     Ok(sensors)
+}
+
+/// A flag that Ctrl-C sets: the run then ends cleanly.
+fn stop_on_ctrl_c() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    stop
+}
+
+/// Where a run's estimates go: JSON lines on standard output (unless `--quiet`), `--udp`,
+/// the dashboard, `--mcap` and `--ros2`.
+struct Outputs {
+    stdout: Option<LineSink<std::io::BufWriter<std::io::StdoutLock<'static>>>>,
+    udp: Option<UdpSink>,
+    dashboard: Option<visuotact_dashboard::Dashboard>,
+    mcap: Option<McapSink>,
+    dds: Option<DdsSink>,
+}
+
+impl Outputs {
+    /// The outputs `a` asks for, with `dashboard` when one is served.
+    fn open(a: &Args, dashboard: Option<visuotact_dashboard::Dashboard>) -> anyhow::Result<Self> {
+        let udp = a
+            .udp
+            .as_deref()
+            .map(UdpSink::connect)
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
+        let (mcap, dds) = ros_sinks(a)?;
+        let stdout =
+            (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
+        Ok(Self {
+            stdout,
+            udp,
+            dashboard,
+            mcap,
+            dds,
+        })
+    }
+
+    /// Every output as a sink of the runner.
+    fn sinks(&mut self) -> Vec<&mut dyn Sink> {
+        let mut sinks: Vec<&mut dyn Sink> = Vec::new();
+        if let Some(s) = self.stdout.as_mut() {
+            sinks.push(s);
+        }
+        if let Some(s) = self.udp.as_mut() {
+            sinks.push(s);
+        }
+        if let Some(d) = self.dashboard.as_mut() {
+            sinks.push(d);
+        }
+        if let Some(m) = self.mcap.as_mut() {
+            sinks.push(m);
+        }
+        if let Some(d) = self.dds.as_mut() {
+            sinks.push(d);
+        }
+        sinks
+    }
+
+    /// Flushes standard output and closes the bag and the DDS participant: the UDP datagrams
+    /// that could not be sent, and the dashboard (still serving).
+    fn finish(self) -> anyhow::Result<(u64, Option<visuotact_dashboard::Dashboard>)> {
+        drop(self.stdout);
+        finish_ros_sinks(self.mcap, self.dds)?;
+        Ok((self.udp.map_or(0, |u| u.errors), self.dashboard))
+    }
 }
