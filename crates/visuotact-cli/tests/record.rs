@@ -241,13 +241,20 @@ fn a_killed_recording_keeps_its_rows_and_resumes() {
     let mut resume = args.to_vec();
     resume.push("--resume");
     ok(&vt(&resume));
+    // 5 s and the last frame at 10 fps: 51 frames due. The paced simulated camera drops a
+    // frame it is a period late for (a loaded test machine), so up to a quarter may be gone;
+    // the rest keep their own numbers, in order, each once.
     let all = rows(&d.join("frames.csv"));
-    assert_eq!(all.len(), 51, "5 s and the last frame at 10 fps");
-    for (i, (name, r)) in all.iter().enumerate() {
-        assert_eq!(
-            (name.as_str(), r[0].as_str()),
-            (format!("frame_{i:06}.png").as_str(), i.to_string().as_str())
+    assert!((39..=51).contains(&all.len()), "{} frames", all.len());
+    let mut last: Option<usize> = None;
+    for (name, r) in &all {
+        let k: usize = r[0].parse().unwrap();
+        assert_eq!(name, &format!("frame_{k:06}.png"));
+        assert!(
+            last.is_none_or(|l| l < k) && k <= 50,
+            "{name} after {last:?}"
         );
+        last = Some(k);
     }
     let session: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("session.json")).unwrap()).unwrap();

@@ -142,7 +142,7 @@ impl LiveFrame {
 /// datagram, a WebSocket message).
 #[derive(Clone, Debug, Serialize)]
 pub struct LiveEstimate {
-    /// The sensor's name in a run of several ([`crate::runner::run_several`]): every output
+    /// The sensor's name in a run of several ([`crate::several::run_several`]): every output
     /// keeps each sensor's estimates under its own name. Absent for a single sensor.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sensor: Option<String>,

@@ -708,8 +708,16 @@ impl Tables {
             })
             .transpose()?
             .map(|(log, _)| log);
+        // A resumed session goes on after its last frame's number (frames dropped before
+        // the stop leave gaps: counting the kept rows would number a frame twice).
+        let first_index = kept
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.split(',').nth(1)?.parse::<usize>().ok())
+            .max()
+            .map_or(frames.lines(), |last| (last + 1).max(frames.lines()));
         Ok(Self {
-            first_index: frames.lines(),
+            first_index,
             frames,
             features,
             estimates,
