@@ -9,8 +9,9 @@
 
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{sync_channel, SyncSender};
+use std::sync::mpsc::{sync_channel, RecvTimeoutError, SyncSender};
 use std::sync::Arc;
+use std::time::Duration;
 
 use serde::Serialize;
 use visuotact_image::RgbImage;
@@ -129,12 +130,19 @@ pub fn run_several(
         .map(|_| Arc::new(AtomicBool::new(false)))
         .collect();
     let names: Vec<String> = sensors.iter().map(|s| s.name.clone()).collect();
+    // Each sensor stops on its own flag (a runner sets its flag when its source ends, which
+    // must not end the others); `stop`, a breaking sink or a failed sensor sets them all.
+    let own_stop: Vec<Arc<AtomicBool>> = sensors
+        .iter()
+        .map(|_| Arc::new(AtomicBool::new(false)))
+        .collect();
+    let failed = Arc::new(AtomicBool::new(false));
     let (tx, rx) = sync_channel::<Message>(64);
     std::thread::scope(|scope| {
         let threads: Vec<_> = sensors
             .iter_mut()
-            .zip(&rezero)
-            .map(|(s, rz)| {
+            .zip(rezero.iter().zip(&own_stop))
+            .map(|(s, (rz, own))| {
                 let NamedSensor { name, live, cfg } = s;
                 live.set_sensor_name(name);
                 let mut forward = Forward {
@@ -142,30 +150,43 @@ pub fn run_several(
                     markers,
                     rezero: rz.clone(),
                 };
-                let (stop, warn, prefix) = (stop.clone(), warn.clone(), name.clone());
+                let (own, failed) = (own.clone(), failed.clone());
+                let (warn, prefix) = (warn.clone(), name.clone());
                 scope.spawn(move || {
                     let said = move |w: &str| warn(&format!("{prefix}: {w}"));
-                    let r = run(live, cfg, &stop, &mut [&mut forward], said);
+                    let r = run(live, cfg, &own, &mut [&mut forward], said);
                     if r.is_err() {
-                        stop.store(true, Ordering::Relaxed);
+                        failed.store(true, Ordering::Relaxed);
                     }
                     r
                 })
             })
             .collect();
         drop(tx);
-        // Until every sensor's thread has ended (each holds a sender).
-        for (estimate, json, views, image) in rx {
-            if sinks.iter_mut().any(|s| s.take_rezero()) {
-                rezero.iter().for_each(|r| r.store(true, Ordering::Relaxed));
-                sinks.iter_mut().for_each(|s| s.rezero_applied());
-            }
-            for s in sinks.iter_mut() {
-                if s.send(&estimate, &json, views.as_deref(), &image)
-                    .is_break()
-                {
-                    stop.store(true, Ordering::Relaxed);
+        // Until every sensor's thread has ended (each holds a sender); a stop is passed on
+        // within a tenth of a second.
+        loop {
+            match rx.recv_timeout(Duration::from_millis(100)) {
+                Ok((estimate, json, views, image)) => {
+                    if sinks.iter_mut().any(|s| s.take_rezero()) {
+                        rezero.iter().for_each(|r| r.store(true, Ordering::Relaxed));
+                        sinks.iter_mut().for_each(|s| s.rezero_applied());
+                    }
+                    for s in sinks.iter_mut() {
+                        if s.send(&estimate, &json, views.as_deref(), &image)
+                            .is_break()
+                        {
+                            stop.store(true, Ordering::Relaxed);
+                        }
+                    }
                 }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if stop.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed) {
+                own_stop
+                    .iter()
+                    .for_each(|s| s.store(true, Ordering::Relaxed));
             }
         }
         names
