@@ -14,7 +14,8 @@
 //!
 //! `GrayImage`, `RgbImage` (row-major, pixel centres at integers) and `Frame` (id, index,
 //! timestamp); `UnknownName` and `names_from_str!`, how every crate's named choices (presets,
-//! algorithms, paddings) read from text
+//! algorithms, paddings) read from text; `is_marker_column`, the feature tables' per-marker
+//! column names
 
 use thiserror::Error;
 
@@ -307,4 +308,17 @@ pub struct Frame {
     pub timestamp_s: f64,
     /// The pixels.
     pub image: RgbImage,
+}
+
+/// Whether a feature column is a marker's: `m`, three digits, `_` (`m017_dx_px`,
+/// `m017_dx_mm`), the names feature tables give each marker's values.
+///
+/// ```
+/// use visuotact_image::is_marker_column;
+/// assert!(is_marker_column("m017_dx_px"));
+/// assert!(!is_marker_column("field_rms_px") && !is_marker_column("gauge_kpa"));
+/// ```
+pub fn is_marker_column(c: &str) -> bool {
+    let b = c.as_bytes();
+    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
 }

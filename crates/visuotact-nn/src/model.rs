@@ -170,10 +170,7 @@ pub struct ModelFileError {
 
 /// Whether a feature column is a marker's (`m017_dx_px`): a lost marker can be filled from the
 /// markers found, another input (a gauge's reading) cannot.
-pub fn is_marker_column(c: &str) -> bool {
-    let b = c.as_bytes();
-    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
-}
+pub use visuotact_image::is_marker_column;
 
 /// Why a row of `columns` with missing (NaN) inputs cannot be filled — a missing input that is
 /// not a marker's, or over [`MAX_MISSING_FRACTION`] of the inputs missing — or `None` when it

@@ -169,39 +169,34 @@ const MM_TWINS: [(&str, &str, i32); 3] = [
 /// assert_eq!(mm_twin("m017_decc"), None);
 /// ```
 pub fn mm_twin(column: &str) -> Option<(String, i32)> {
-    if let Some(i) = FIELD_COLUMNS.iter().position(|c| *c == column) {
-        return Some((FIELD_COLUMNS_MM[i].to_string(), 1));
-    }
-    if !is_marker_name(column) {
-        return None;
-    }
-    MM_TWINS.iter().find_map(|(px, mm, power)| {
-        column
-            .strip_suffix(px)
-            .map(|stem| (format!("{stem}{mm}"), *power))
-    })
+    twin(column, true)
 }
 
 /// The pixel column a millimetre column is measured from, and the power of the scale that
 /// converts it (the inverse of [`mm_twin`]); `None` for a column not in millimetres.
 pub fn px_twin(column: &str) -> Option<(String, i32)> {
-    if let Some(i) = FIELD_COLUMNS_MM.iter().position(|c| *c == column) {
-        return Some((FIELD_COLUMNS[i].to_string(), 1));
-    }
-    if !is_marker_name(column) {
-        return None;
-    }
-    MM_TWINS.iter().find_map(|(px, mm, power)| {
-        column
-            .strip_suffix(mm)
-            .map(|stem| (format!("{stem}{px}"), *power))
-    })
+    twin(column, false)
 }
 
-/// Whether a column's name is a marker's (`m017_…`).
-fn is_marker_name(c: &str) -> bool {
-    let b = c.as_bytes();
-    b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
+/// A column's twin in the other unit ([`mm_twin`] when `to_mm`, else [`px_twin`]).
+fn twin(column: &str, to_mm: bool) -> Option<(String, i32)> {
+    let (from, to) = if to_mm {
+        (&FIELD_COLUMNS, &FIELD_COLUMNS_MM)
+    } else {
+        (&FIELD_COLUMNS_MM, &FIELD_COLUMNS)
+    };
+    if let Some(i) = from.iter().position(|c| *c == column) {
+        return Some((to[i].to_string(), 1));
+    }
+    if !visuotact_image::is_marker_column(column) {
+        return None;
+    }
+    MM_TWINS.iter().find_map(|&(px, mm, power)| {
+        let (from, to) = if to_mm { (px, mm) } else { (mm, px) };
+        column
+            .strip_suffix(from)
+            .map(|stem| (format!("{stem}{to}"), power))
+    })
 }
 
 /// Whether a feature column is in millimetres (`m017_dx_mm`, `m017_darea_mm2`,
