@@ -167,7 +167,7 @@ pub struct CheckReport {
     pub err_p99_px: f64,
     /// Largest, pixels.
     pub err_max_px: f64,
-    /// The first few problems, for the record: `frame k: marker m lost (depth d)`.
+    /// The first few problems, wrong identities first, for the record: `frame k: marker m …`.
     pub examples: Vec<String>,
     /// The largest motion of a visible marker in any frame, pitches.
     pub max_motion_pitches: f64,
@@ -322,6 +322,8 @@ impl CheckReport {
     fn add(&mut self, per_frame: Vec<FrameCheck>, motion_limit_pitches: f64) {
         let report = self;
         let mut errs: Vec<f64> = Vec::new();
+        // Wrong identities are the worst problem: they are listed first.
+        let mut wrong_examples: Vec<String> = Vec::new();
         for fc in per_frame {
             report.max_motion_pitches = report.max_motion_pitches.max(fc.max_motion);
             if fc.max_motion > motion_limit_pitches {
@@ -334,12 +336,21 @@ impl CheckReport {
             report.wrong += fc.wrong;
             report.ok_not_visible += fc.ok_not_visible;
             errs.extend(fc.errs);
+            for e in fc.wrong_examples {
+                if wrong_examples.len() < 10 {
+                    wrong_examples.push(e);
+                }
+            }
             for e in fc.examples {
                 if report.examples.len() < 10 {
                     report.examples.push(e);
                 }
             }
         }
+        let others = std::mem::take(&mut report.examples);
+        report.examples = wrong_examples;
+        let room = 10usize.saturating_sub(report.examples.len());
+        report.examples.extend(others.into_iter().take(room));
         errs.sort_by(f64::total_cmp);
         if !errs.is_empty() {
             report.err_mean_px = errs.iter().sum::<f64>() / errs.len() as f64;
@@ -375,6 +386,7 @@ struct FrameCheck {
     ok_not_visible: usize,
     errs: Vec<f64>,
     examples: Vec<String>,
+    wrong_examples: Vec<String>,
 }
 
 fn frame_check(
@@ -424,7 +436,7 @@ fn frame_check(
             .any(|(j, o)| j != t && (x - o.0).hypot(y - o.1) < own);
         if nearer || own > 0.5 * cal.pitch_px {
             out.wrong += 1;
-            out.examples.push(format!(
+            out.wrong_examples.push(format!(
                 "frame {k} (depth {depth_mm:.2} mm, motion up to {max_disp:.2} pitch): marker {i} measured at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
                 now[t].0, now[t].1
             ));
