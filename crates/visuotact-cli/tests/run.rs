@@ -64,15 +64,20 @@ fn serving(
         .spawn()
         .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
+    let url = word_after(&mut err, "dashboard on ");
+    (child, err, url)
+}
+
+/// Reads standard error up to the line starting with `prefix`: the word after it.
+fn word_after(err: &mut BufReader<std::process::ChildStderr>, prefix: &str) -> String {
     let mut line = String::new();
-    let url = loop {
+    loop {
         line.clear();
         assert!(err.read_line(&mut line).unwrap() > 0, "run ended early");
-        if let Some(u) = line.trim().strip_prefix("dashboard on ") {
-            break u.to_string();
+        if let Some(rest) = line.trim().strip_prefix(prefix) {
+            return rest.split_whitespace().next().unwrap().to_string();
         }
-    };
-    (child, err, url)
+    }
 }
 
 #[test]
@@ -370,4 +375,235 @@ fn run_files_with_bad_sensor_names_or_keys_are_refused() {
         assert!(e.contains(says) && e.contains("run.toml"), "{e}");
     }
     std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Little-endian CDR reader for the two messages the Foxglove test decodes; offsets count
+/// from after the 4-byte encapsulation header, as CDR alignment does.
+struct Cdr<'a>(&'a [u8], usize);
+
+impl<'a> Cdr<'a> {
+    fn new(data: &'a [u8]) -> Self {
+        assert_eq!(&data[..2], &[0, 1], "CDR little-endian encapsulation");
+        Cdr(&data[4..], 0)
+    }
+    fn take(&mut self, n: usize) -> &'a [u8] {
+        self.1 = self.1.next_multiple_of(n.min(8));
+        let out = &self.0[self.1..self.1 + n];
+        self.1 += n;
+        out
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.take(4).try_into().unwrap())
+    }
+    fn f64(&mut self) -> f64 {
+        f64::from_le_bytes(self.take(8).try_into().unwrap())
+    }
+    fn string(&mut self) -> String {
+        let n = self.u32() as usize;
+        let b = &self.0[self.1..self.1 + n];
+        self.1 += n;
+        String::from_utf8(b[..n - 1].to_vec()).unwrap()
+    }
+}
+
+/// A message received from the Foxglove server: its topic, log time and CDR.
+struct Received {
+    topic: String,
+    log_ns: u64,
+    cdr: Vec<u8>,
+}
+
+/// Connects to a Foxglove WebSocket server at `url` as a client (the SDK's own protocol types),
+/// subscribes to the channels of `wanted` (topic, schema) as they are advertised, checking their
+/// encoding, and returns every message until the server closes.
+fn foxglove_messages(url: &str, wanted: &[(&str, &str)]) -> Vec<Received> {
+    use foxglove::ws_protocol::client::{Subscribe, Subscription};
+    use foxglove::ws_protocol::server::ServerMessage;
+    use foxglove::ws_protocol::JsonMessage;
+    use tungstenite::client::IntoClientRequest;
+
+    let mut request = url.into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+    let (mut ws, _) = tungstenite::connect(request).unwrap();
+    // Subscription k + 1 is `topics[k]`.
+    let mut topics: Vec<String> = Vec::new();
+    let mut got = Vec::new();
+    let mut server_info = false;
+    while let Ok(msg) = ws.read() {
+        let parsed = match &msg {
+            tungstenite::Message::Text(t) => ServerMessage::parse_json(t.as_str()),
+            tungstenite::Message::Binary(b) => ServerMessage::parse_binary(b),
+            _ => continue,
+        };
+        match parsed.unwrap() {
+            ServerMessage::ServerInfo(_) => server_info = true,
+            ServerMessage::Advertise(a) => {
+                let mut subs = Vec::new();
+                for c in &a.channels {
+                    let Some((_, schema)) = wanted.iter().find(|w| w.0 == c.topic) else {
+                        continue;
+                    };
+                    assert_eq!(c.schema_name, *schema);
+                    assert_eq!(c.encoding, "cdr");
+                    assert_eq!(c.schema_encoding.as_deref(), Some("ros2msg"));
+                    topics.push(c.topic.to_string());
+                    let id = u32::try_from(topics.len()).unwrap();
+                    subs.push(Subscription::new(id, c.id));
+                }
+                if !subs.is_empty() {
+                    let text = Subscribe::new(subs).to_string();
+                    ws.send(tungstenite::Message::Text(text.into())).unwrap();
+                }
+            }
+            ServerMessage::MessageData(md) => got.push(Received {
+                topic: topics[md.subscription_id as usize - 1].clone(),
+                log_ns: md.log_time,
+                cdr: md.data.into_owned(),
+            }),
+            _ => {}
+        }
+    }
+    assert!(server_info, "no serverInfo from {url}");
+    got
+}
+
+/// A decoded `geometry_msgs/msg/PointStamped` and its log time.
+struct ContactPoint {
+    log_ns: u64,
+    stamp_ns: u64,
+    frame: String,
+    xyz_m: [f64; 3],
+}
+
+impl ContactPoint {
+    fn decode(r: &Received) -> Self {
+        let mut c = Cdr::new(&r.cdr);
+        let (sec, nanosec) = (u64::from(c.u32()), u64::from(c.u32()));
+        let frame = c.string();
+        Self {
+            log_ns: r.log_ns,
+            stamp_ns: sec * 1_000_000_000 + nanosec,
+            frame,
+            xyz_m: [c.f64(), c.f64(), c.f64()],
+        }
+    }
+}
+
+/// `run --foxglove`: a WebSocket client speaking the Foxglove protocol subscribes to the
+/// contact point and the contact rule, and every message it decodes equals the JSON line of
+/// its frame: the stamp, the point in metres, the rule.
+#[test]
+fn foxglove_clients_receive_the_estimates_live() {
+    let d = fresh_dir("run-foxglove");
+    let m = iats_model(&d);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args([
+            "run",
+            "--model",
+            s(&m),
+            "--source",
+            "sim:iats",
+            "--sim-frames",
+            "20",
+            "--fps",
+            "25",
+            "--duration-s",
+            "6",
+            "--foxglove",
+            "127.0.0.1:0",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let url = word_after(&mut err, "foxglove: serving ");
+    // Standard output is read on its own thread so that the run never blocks on it.
+    let stdout = child.stdout.take().unwrap();
+    let lines = std::thread::spawn(move || {
+        BufReader::new(stdout)
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(&l.unwrap()).unwrap())
+            .collect::<Vec<_>>()
+    });
+    let got = foxglove_messages(
+        &url,
+        &[
+            ("/visuotact/contact", "geometry_msgs/msg/PointStamped"),
+            ("/visuotact/contact/active", "std_msgs/msg/Bool"),
+        ],
+    );
+    let status = child.wait().unwrap();
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    assert!(status.success(), "{rest}");
+    assert!(rest.contains("messages to Foxglove"), "{rest}");
+    assert_foxglove_equals_lines(&got, &lines.join().unwrap());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Every contact point and contact rule received over Foxglove equals the JSON line of its
+/// frame (found by its stamp), and most frames were received.
+fn assert_foxglove_equals_lines(got: &[Received], lines: &[serde_json::Value]) {
+    let ns = |e: &serde_json::Value| (e["timestamp_s"].as_f64().unwrap() * 1e9).round() as u64;
+    let target = |e: &serde_json::Value, name: &str| {
+        e["targets"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["name"] == name)
+            .map(|t| t["value"].as_f64().unwrap())
+    };
+    let points: Vec<ContactPoint> = got
+        .iter()
+        .filter(|g| g.topic == "/visuotact/contact")
+        .map(ContactPoint::decode)
+        .collect();
+    let rules: Vec<&Received> = got
+        .iter()
+        .filter(|g| g.topic == "/visuotact/contact/active")
+        .collect();
+    assert!(points.len() >= 10, "{} contact points", points.len());
+    assert!(rules.len() >= 50, "{} contact rules", rules.len());
+    // The wall-clock origin of the stamps, from the first point and the line with its values.
+    let p0 = &points[0];
+    let first = lines
+        .iter()
+        .find(|e| {
+            target(e, "x_mm") == Some(p0.xyz_m[0] * 1000.0)
+                && target(e, "y_mm") == Some(p0.xyz_m[1] * 1000.0)
+        })
+        .expect("a JSON line with the first point's values");
+    let origin = p0.log_ns - ns(first);
+    let line_at = |t: u64| {
+        lines
+            .iter()
+            .find(|e| ns(e) + origin == t)
+            .unwrap_or_else(|| panic!("no JSON line stamped {t}"))
+    };
+    for p in &points {
+        assert_eq!(p.stamp_ns, p.log_ns);
+        assert_eq!(p.frame, "visuotact");
+        let e = line_at(p.log_ns);
+        assert_eq!(p.xyz_m[0], target(e, "x_mm").unwrap() / 1000.0);
+        assert_eq!(p.xyz_m[1], target(e, "y_mm").unwrap() / 1000.0);
+        assert_eq!(p.xyz_m[2], -target(e, "depth_mm").unwrap() / 1000.0);
+    }
+    for r in &rules {
+        let e = line_at(r.log_ns);
+        assert_eq!(r.cdr.len(), 5);
+        assert_eq!(
+            r.cdr[4] == 1,
+            e["contact"].as_bool().unwrap(),
+            "frame {}",
+            e["index"]
+        );
+    }
+    eprintln!(
+        "foxglove: {} contact points and {} contact rules decoded, all equal to their JSON lines",
+        points.len(),
+        rules.len()
+    );
 }

@@ -15,8 +15,6 @@
 
 use std::collections::HashMap;
 use std::net::IpAddr;
-use std::ops::ControlFlow;
-use std::sync::Arc;
 
 use rustdds::no_key::{DataWriter, SerializerAdapter};
 use rustdds::policy::{Durability, History, Reliability};
@@ -24,13 +22,10 @@ use rustdds::{
     DomainParticipant, DomainParticipantBuilder, Publisher, QosPolicies, QosPolicyBuilder,
     RepresentationIdentifier, TopicKind,
 };
-use visuotact_image::RgbImage;
-use visuotact_pipeline::live::MarkerView;
-use visuotact_pipeline::runner::Sink;
-use visuotact_pipeline::LiveEstimate;
 
 use crate::msg::RosMessage;
-use crate::topics::{ns_from_s, write_frame, MarkerPoint, Publish, RosConfig, SensorConfigs};
+use crate::sink::LiveSink;
+use crate::topics::{Publish, RosConfig};
 use crate::RosError;
 
 /// Where and how the live topics are published.
@@ -208,66 +203,22 @@ impl Publish for DdsPublisher {
     }
 }
 
-/// A live run's estimates published over DDS: a [`Sink`] of the live runner, stamped on the
-/// wall clock like [`crate::McapSink`].
-pub struct DdsSink {
-    out: DdsPublisher,
-    cfg: SensorConfigs,
-    origin_ns: u64,
-    markers: Vec<MarkerPoint>,
-    error: Option<RosError>,
-}
+/// A live run's estimates published over DDS: a [`Sink`](visuotact_pipeline::runner::Sink)
+/// of the live runner, stamped on the wall clock like [`crate::McapSink`].
+pub type DdsSink = LiveSink<DdsPublisher>;
 
-impl DdsSink {
+impl LiveSink<DdsPublisher> {
     /// Joins the domain; stamps count from now.
     pub fn create(cfg: &DdsConfig) -> Result<Self, RosError> {
         cfg.ros.validate()?;
-        Ok(Self {
-            out: DdsPublisher::new(cfg)?,
-            cfg: SensorConfigs::new(cfg.ros.clone()),
-            origin_ns: crate::sink::unix_now_ns(),
-            markers: Vec::new(),
-            error: None,
-        })
+        Self::new(DdsPublisher::new(cfg)?, cfg.ros.clone())
     }
 
     /// Leaves the domain: the messages published, or the run's first error.
     pub fn finish(self) -> Result<u64, RosError> {
-        match self.error {
-            Some(e) => Err(e),
-            None => Ok(self.out.messages),
-        }
-    }
-}
-
-impl Sink for DdsSink {
-    fn wants_markers(&self) -> bool {
-        true
-    }
-
-    fn send(
-        &mut self,
-        e: &LiveEstimate,
-        _json: &str,
-        markers: Option<&[MarkerView]>,
-        image: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        let cfg = self.cfg.get(e.sensor.as_deref());
-        let frame = crate::sink::live_frame(
-            cfg,
-            self.origin_ns + ns_from_s(e.timestamp_s),
-            e,
-            markers,
-            image,
-            &mut self.markers,
-        )
-        .and_then(|f| write_frame(&mut self.out, cfg, f));
-        match frame {
-            Ok(()) => ControlFlow::Continue(()),
-            Err(err) => {
-                self.error = Some(err);
-                ControlFlow::Break(())
-            }
+        match self.into_parts() {
+            (_, Some(e)) => Err(e),
+            (out, None) => Ok(out.messages),
         }
     }
 }

@@ -1,9 +1,10 @@
 //! visuotact in the robot's world: each frame's estimate, contact, markers, image and health
 //! as standard ROS 2 messages ([`msg`], CDR-encoded by [`cdr`]) on documented topics
 //! ([`topics`]), written to MCAP bags with the ROS 2 profile ([`bag`]) — live from a run
-//! ([`sink::McapSink`]), while recording ([`sink::McapRecorder`]) or from a recorded session ([`export::export_mcap`]). Nothing of ROS
-//! needs to be installed; the bags read in `ros2 bag`, Foxglove, RViz (played back), the
-//! `rosbags` library and `mcap` + `mcap-ros2-support`.
+//! ([`sink::McapSink`]), while recording ([`sink::McapRecorder`]) or from a recorded session
+//! ([`export::export_mcap`]) — or live over DDS and to the Foxglove app. Nothing of ROS needs
+//! to be installed; the bags read in `ros2 bag`, Foxglove, RViz (played back), the `rosbags`
+//! library and `mcap` + `mcap-ros2-support`.
 //!
 //! ## Modules and what each owns
 //!
@@ -11,16 +12,21 @@
 //! PointCloud2, CompressedImage, DiagnosticArray with their `ros2msg` schemas), `bag` (MCAP
 //! with the ROS 2 profile: one file or a rosbag2 folder with `metadata.yaml`; chunks flushed
 //! every second of stamps), `topics` (the documented topic mapping under a namespace), `sink`
-//! (`McapSink`, a live runner `Sink`; `McapRecorder`, a recording's `RecordObserver`), `dds`
+//! (`LiveSink`, a live runner `Sink` into any target, `McapSink` the one into a bag;
+//! `McapRecorder`, a recording's `RecordObserver`), `dds`
 //! (feature `dds`, default: `DdsSink` publishes the topics live with RustDDS, ROS 2 names and
-//! default QoS, loopback unless told an interface), `export` (a session folder → a bag, values
-//! copied from its tables). Depends on pipeline; no clap
+//! default QoS, loopback unless told an interface), `foxglove` (feature `foxglove`, default:
+//! `FoxgloveSink` serves the same topics live to the Foxglove app over its WebSocket protocol
+//! with the official `foxglove` crate, CDR with `ros2msg` schemas), `export` (a session folder
+//! → a bag, values copied from its tables). Depends on pipeline; no clap
 
 pub mod bag;
 pub mod cdr;
 #[cfg(feature = "dds")]
 pub mod dds;
 pub mod export;
+#[cfg(feature = "foxglove")]
+pub mod foxglove;
 pub mod msg;
 pub mod sink;
 pub mod topics;
@@ -33,7 +39,9 @@ pub use bag::{Bag, BagConfig};
 #[cfg(feature = "dds")]
 pub use dds::{DdsConfig, DdsSink};
 pub use export::{export_mcap, ExportConfig, ExportSummary};
-pub use sink::{McapRecorder, McapSink};
+#[cfg(feature = "foxglove")]
+pub use foxglove::{FoxgloveConfig, FoxgloveSink};
+pub use sink::{LiveSink, McapRecorder, McapSink};
 pub use topics::RosConfig;
 
 /// Errors of the ROS 2 outputs.

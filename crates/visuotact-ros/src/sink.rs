@@ -1,7 +1,8 @@
-//! Live into a bag: [`McapSink`] is a [`Sink`] of the live runner that writes each estimate
-//! as ROS 2 messages ([`crate::topics`]), stamped on the wall clock (the time the sink was
-//! made plus the run's capture time); [`McapRecorder`] does the same for a recording, from the
-//! session's rows as they are written.
+//! Live into a bag or any other ROS 2 target: [`LiveSink`] is a [`Sink`] of the live runner
+//! that publishes each estimate as ROS 2 messages ([`crate::topics`]), stamped on the wall
+//! clock (the time the sink was made plus the run's capture time); [`McapSink`] is the one
+//! into a bag. [`McapRecorder`] does the same for a recording, from the session's rows as they
+//! are written.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -18,40 +19,44 @@ use visuotact_vision::calibration::SensorCalibration;
 
 use crate::bag::{Bag, BagConfig};
 use crate::export::{targets_from_row, MarkerColumns};
-use crate::topics::{ns_from_s, write_frame, FrameMessages, MarkerPoint, RosConfig, SensorConfigs};
+use crate::topics::{
+    ns_from_s, write_frame, FrameMessages, MarkerPoint, Publish, RosConfig, SensorConfigs,
+};
 use crate::RosError;
 
-/// Writes a live run's estimates into an MCAP bag.
-pub struct McapSink {
-    bag: Bag,
+/// A live run's estimates as ROS 2 messages ([`crate::topics`]) into any [`Publish`] target —
+/// a bag ([`McapSink`]), DDS ([`crate::DdsSink`]), Foxglove ([`crate::FoxgloveSink`]) —
+/// stamped on the wall clock: the time the sink was made plus the run's capture time. The
+/// first error stops the run and is returned by the target's `finish`.
+pub struct LiveSink<P> {
+    out: P,
     cfg: SensorConfigs,
     origin_ns: u64,
     markers: Vec<MarkerPoint>,
     error: Option<RosError>,
 }
 
-impl McapSink {
-    /// A bag at `path` ([`Bag::create`]); stamps count from now.
-    pub fn create(path: &Path, cfg: RosConfig, bag: &BagConfig) -> Result<Self, RosError> {
+impl<P: Publish> LiveSink<P> {
+    /// Publishes to `out` under `cfg` (checked); stamps count from now.
+    pub fn new(out: P, cfg: RosConfig) -> Result<Self, RosError> {
         cfg.validate()?;
-        let origin_ns = unix_now_ns();
         Ok(Self {
-            bag: Bag::create(path, bag)?,
+            out,
             cfg: SensorConfigs::new(cfg),
-            origin_ns,
+            origin_ns: unix_now_ns(),
             markers: Vec::new(),
             error: None,
         })
     }
 
-    /// Closes the bag; the first write error of the run, if any, instead.
-    pub fn finish(self) -> Result<(PathBuf, u64), RosError> {
-        let n = self.bag.messages();
-        let path = self.bag.finish()?;
-        match self.error {
-            Some(e) => Err(e),
-            None => Ok((path, n)),
-        }
+    /// The target.
+    pub fn target(&self) -> &P {
+        &self.out
+    }
+
+    /// The target, and the run's first error if there was one.
+    pub fn into_parts(self) -> (P, Option<RosError>) {
+        (self.out, self.error)
     }
 
     fn write(
@@ -63,7 +68,29 @@ impl McapSink {
         let stamp_ns = self.origin_ns + ns_from_s(e.timestamp_s);
         let cfg = self.cfg.get(e.sensor.as_deref());
         let frame = live_frame(cfg, stamp_ns, e, markers, image, &mut self.markers)?;
-        write_frame(&mut self.bag, cfg, frame)
+        write_frame(&mut self.out, cfg, frame)
+    }
+}
+
+/// Writes a live run's estimates into an MCAP bag.
+pub type McapSink = LiveSink<Bag>;
+
+impl LiveSink<Bag> {
+    /// A bag at `path` ([`Bag::create`]); stamps count from now.
+    pub fn create(path: &Path, cfg: RosConfig, bag: &BagConfig) -> Result<Self, RosError> {
+        cfg.validate()?;
+        Self::new(Bag::create(path, bag)?, cfg)
+    }
+
+    /// Closes the bag; the first write error of the run, if any, instead.
+    pub fn finish(self) -> Result<(PathBuf, u64), RosError> {
+        let (bag, error) = self.into_parts();
+        let n = bag.messages();
+        let path = bag.finish()?;
+        match error {
+            Some(e) => Err(e),
+            None => Ok((path, n)),
+        }
     }
 }
 
@@ -114,7 +141,7 @@ pub(crate) fn live_frame<'a>(
     })
 }
 
-impl Sink for McapSink {
+impl<P: Publish> Sink for LiveSink<P> {
     fn wants_markers(&self) -> bool {
         true
     }

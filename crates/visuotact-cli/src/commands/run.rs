@@ -9,7 +9,7 @@ use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
 use visuotact_pipeline::several::{check_sensor_names, run_several, NamedSensor, RunFile};
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
-use visuotact_ros::{BagConfig, DdsConfig, DdsSink, McapSink};
+use visuotact_ros::{BagConfig, DdsConfig, DdsSink, FoxgloveConfig, FoxgloveSink, McapSink};
 
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct Args {
@@ -75,6 +75,14 @@ pub(crate) struct Args {
     /// With --ros2: publish on this interface's address (e.g. 192.168.1.20) instead of loopback.
     #[arg(long, value_name = "ADDR")]
     ros_network: Option<std::net::IpAddr>,
+    /// Serve the same topics live to the Foxglove app (Open connection → Foxglove WebSocket,
+    /// ws://ADDR) with the official Foxglove SDK; loopback port 8765 by default, port 0 picks
+    /// a free one (printed).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = visuotact_ros::FoxgloveConfig::DEFAULT_ADDR)]
+    foxglove: Option<std::net::SocketAddr>,
+    /// With --foxglove: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
+    #[arg(long, requires = "foxglove")]
+    foxglove_images: bool,
     /// Frames the capture queue holds before dropping the oldest.
     #[arg(long, default_value_t = 2)]
     queue: usize,
@@ -330,13 +338,14 @@ fn stop_on_ctrl_c() -> Arc<AtomicBool> {
 }
 
 /// Where a run's estimates go: JSON lines on standard output (unless `--quiet`), `--udp`,
-/// the dashboard, `--mcap` and `--ros2`.
+/// the dashboard, `--mcap`, `--ros2` and `--foxglove`.
 struct Outputs {
     stdout: Option<LineSink<std::io::BufWriter<std::io::StdoutLock<'static>>>>,
     udp: Option<UdpSink>,
     dashboard: Option<visuotact_dashboard::Dashboard>,
     mcap: Option<McapSink>,
     dds: Option<DdsSink>,
+    foxglove: Option<FoxgloveSink>,
 }
 
 impl Outputs {
@@ -349,6 +358,23 @@ impl Outputs {
             .transpose()
             .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
         let (mcap, dds) = ros_sinks(a)?;
+        let foxglove = a
+            .foxglove
+            .map(|addr| {
+                FoxgloveSink::create(&FoxgloveConfig {
+                    ros: a.bag.ros.config(a.foxglove_images),
+                    addr,
+                    ..FoxgloveConfig::default()
+                })
+            })
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("--foxglove {e}"))?;
+        if let Some(f) = &foxglove {
+            note!(
+                "foxglove: serving ws://{} (Foxglove: Open connection → Foxglove WebSocket)",
+                f.addr()
+            );
+        }
         let stdout =
             (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
         Ok(Self {
@@ -357,6 +383,7 @@ impl Outputs {
             dashboard,
             mcap,
             dds,
+            foxglove,
         })
     }
 
@@ -378,6 +405,9 @@ impl Outputs {
         if let Some(d) = self.dds.as_mut() {
             sinks.push(d);
         }
+        if let Some(f) = self.foxglove.as_mut() {
+            sinks.push(f);
+        }
         sinks
     }
 
@@ -386,6 +416,10 @@ impl Outputs {
     fn finish(self) -> anyhow::Result<(u64, Option<visuotact_dashboard::Dashboard>)> {
         drop(self.stdout);
         finish_ros_sinks(self.mcap, self.dds)?;
+        if let Some(f) = self.foxglove {
+            let n = f.finish().map_err(|e| anyhow::anyhow!("--foxglove {e}"))?;
+            note!("served {n} messages to Foxglove");
+        }
         Ok((self.udp.map_or(0, |u| u.errors), self.dashboard))
     }
 }

@@ -1,0 +1,192 @@
+//! Live to the Foxglove app: the same topics and messages as the bags ([`crate::topics`]),
+//! served over the Foxglove WebSocket protocol by the official `foxglove` crate's server, so
+//! that Foxglove's "Open connection → Foxglove WebSocket" shows the estimates, the contact,
+//! the marker cloud, the health and (when asked) the frames live.
+//!
+//! Each topic is one channel with message encoding `cdr` and its `ros2msg` schema — what an
+//! MCAP bag with the ROS 2 profile holds — so a panel reads the live run exactly as it reads a
+//! bag; each message is logged with its stamp as the log time. A channel is advertised when
+//! its first message is published. The server listens on loopback (127.0.0.1:8765, Foxglove's
+//! default) unless told another address; every client gets its own queue of
+//! [`FoxgloveConfig::backlog`] messages, and a slow client loses its oldest messages, never
+//! slowing the estimator.
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use foxglove::{
+    Context, PartialMetadata, RawChannel, Schema, WebSocketServer, WebSocketServerHandle,
+};
+
+use crate::msg::RosMessage;
+use crate::sink::LiveSink;
+use crate::topics::{Publish, RosConfig};
+use crate::RosError;
+
+/// Where and how the live topics are served.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FoxgloveConfig {
+    /// Topics and frames.
+    pub ros: RosConfig,
+    /// Address to listen on (port 0: any free port, see [`FoxglovePublisher::addr`]).
+    pub addr: SocketAddr,
+    /// Messages queued per client before its oldest are dropped.
+    pub backlog: usize,
+}
+
+impl FoxgloveConfig {
+    /// Foxglove's default address on loopback.
+    pub const DEFAULT_ADDR: &'static str = "127.0.0.1:8765";
+}
+
+impl Default for FoxgloveConfig {
+    fn default() -> Self {
+        Self {
+            ros: RosConfig {
+                images: false,
+                ..RosConfig::default()
+            },
+            addr: SocketAddr::from(([127, 0, 0, 1], 8765)),
+            backlog: 1024,
+        }
+    }
+}
+
+/// A Foxglove WebSocket server with one raw channel per topic, made on first use.
+pub struct FoxglovePublisher {
+    context: Arc<Context>,
+    server: Option<WebSocketServerHandle>,
+    addr: SocketAddr,
+    channels: HashMap<String, (&'static str, Arc<RawChannel>)>,
+    buf: Vec<u8>,
+    /// Messages published.
+    pub messages: u64,
+}
+
+impl FoxglovePublisher {
+    /// Starts the server on `cfg.addr` (its own runtime threads).
+    pub fn start(cfg: &FoxgloveConfig) -> Result<Self, RosError> {
+        if cfg.backlog == 0 {
+            return Err(RosError::Config(
+                "Foxglove backlog must hold at least one message".into(),
+            ));
+        }
+        let context = Context::new();
+        let server = WebSocketServer::new()
+            .name("visuotact")
+            .context(&context)
+            .bind(cfg.addr.ip().to_string(), cfg.addr.port())
+            .message_backlog_size(cfg.backlog)
+            .start_blocking()
+            .map_err(|e| RosError::Config(format!("Foxglove server on {}: {e}", cfg.addr)))?;
+        let addr = SocketAddr::new(cfg.addr.ip(), server.port());
+        Ok(Self {
+            context,
+            server: Some(server),
+            addr,
+            channels: HashMap::new(),
+            buf: Vec::new(),
+            messages: 0,
+        })
+    }
+
+    /// The address the server listens on (the port chosen when 0 was asked).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Clients connected now.
+    pub fn clients(&self) -> usize {
+        self.server
+            .as_ref()
+            .map_or(0, WebSocketServerHandle::client_count)
+    }
+
+    /// Stops the server, letting its clients' tasks end.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+
+    fn shutdown(&mut self) {
+        for (_, c) in self.channels.values() {
+            c.close();
+        }
+        if let Some(s) = self.server.take() {
+            s.stop().wait_blocking();
+        }
+    }
+
+    fn channel<M: RosMessage>(&mut self, topic: &str) -> Result<&Arc<RawChannel>, RosError> {
+        if !self.channels.contains_key(topic) {
+            let schema = Schema::new(M::NAME, "ros2msg", M::DEFINITION.as_bytes());
+            let channel = self
+                .context
+                .channel_builder(topic)
+                .message_encoding("cdr")
+                .schema(schema)
+                .build_raw()
+                .map_err(|e| RosError::Config(format!("Foxglove channel {topic}: {e}")))?;
+            self.channels.insert(topic.to_string(), (M::NAME, channel));
+        }
+        match self.channels.get(topic) {
+            Some((name, c)) if *name == M::NAME => Ok(c),
+            Some((name, _)) => Err(RosError::TopicType {
+                topic: topic.to_string(),
+                was: name,
+                now: M::NAME,
+            }),
+            None => Err(RosError::Config(format!("topic {topic}: no channel"))),
+        }
+    }
+}
+
+impl Drop for FoxglovePublisher {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+impl Publish for FoxglovePublisher {
+    fn publish<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        stamp_ns: u64,
+        msg: &M,
+    ) -> Result<(), RosError> {
+        let buf = msg.to_cdr_in(std::mem::take(&mut self.buf));
+        let channel = self.channel::<M>(topic)?;
+        channel.log_with_meta(&buf, PartialMetadata::with_log_time(stamp_ns));
+        self.buf = buf;
+        self.messages += 1;
+        Ok(())
+    }
+}
+
+/// A live run's estimates served to Foxglove: a [`Sink`](visuotact_pipeline::runner::Sink)
+/// of the live runner, stamped on the wall clock like [`crate::McapSink`].
+pub type FoxgloveSink = LiveSink<FoxglovePublisher>;
+
+impl LiveSink<FoxglovePublisher> {
+    /// Starts the server; stamps count from now.
+    pub fn create(cfg: &FoxgloveConfig) -> Result<Self, RosError> {
+        cfg.ros.validate()?;
+        Self::new(FoxglovePublisher::start(cfg)?, cfg.ros.clone())
+    }
+
+    /// The address the server listens on.
+    pub fn addr(&self) -> SocketAddr {
+        self.target().addr()
+    }
+
+    /// Stops the server: the messages published, or the run's first error.
+    pub fn finish(self) -> Result<u64, RosError> {
+        let (out, error) = self.into_parts();
+        let n = out.messages;
+        out.stop();
+        match error {
+            Some(e) => Err(e),
+            None => Ok(n),
+        }
+    }
+}
