@@ -166,6 +166,10 @@ pub struct LiveEstimate {
     pub health: Health,
     /// Frames dropped by the capture queue so far.
     pub dropped_frames: u64,
+    /// The sensor's scale (`calibrate --pitch-mm`), for outputs that give the markers'
+    /// displacements in millimetres too; not in the JSON line.
+    #[serde(skip)]
+    pub mm_per_px: Option<f64>,
 }
 
 impl LiveEstimate {

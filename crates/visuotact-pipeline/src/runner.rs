@@ -485,6 +485,7 @@ fn estimate_one(
         targets,
         health,
         dropped_frames: queue.dropped(),
+        mm_per_px: live.calibration().mm_per_px(),
     };
     stats.latency_ms.push(e.latency_ms);
     stats.processing_ms.push(e.processing_ms);

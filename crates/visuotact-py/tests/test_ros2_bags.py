@@ -134,6 +134,47 @@ def test_live_run_into_a_bag(session):
     assert sum(m.channel.topic == "/diagnostics" for m in msgs) == 8
 
 
+def cloud_points(cloud):
+    """(dx, dy, status, dx_mm, dy_mm) per point, the mm ones None without those fields."""
+    import struct
+    off = {f.name: f.offset for f in cloud.fields}
+    data = bytes(cloud.data)
+    out = []
+    for k in range(cloud.width):
+        at = k * cloud.point_step
+        f32 = lambda name: struct.unpack_from("<f", data, at + off[name])[0] if name in off else None
+        out.append((f32("dx"), f32("dy"), data[at + off["status"]], f32("dx_mm"), f32("dy_mm")))
+    return out
+
+
+def test_a_scaled_sensor_puts_millimetres_in_the_marker_cloud(session):
+    """`calibrate --pitch-mm`: the bag's marker cloud (export and live) carries dx_mm, dy_mm
+    beside the pixels, equal to them times the sensor's mm per pixel (float32)."""
+    import json
+    d, s = session
+    sensor = d / "sensor_mm.json"
+    cli("calibrate", s / "reference", "--pitch-mm", "3.5", "-o", sensor)
+    scale = json.loads(sensor.read_text())["scale"]["mm_per_px"]
+    bag = d / "scaled.mcap"
+    cli("export", "mcap", s, "-o", bag, "--namespace", "/cone", "--sensor", sensor)
+    live = d / "scaled_live.mcap"
+    cli("run", "--source", "sim:cone", "--sensor", sensor, "--max-frames", "4", "--unpaced",
+        "--quiet", "--mcap", live)
+    for path, topic in [(bag, "/cone/markers"), (live, "/visuotact/markers")]:
+        clouds = [m.ros_msg for m in read_ros2_messages(str(path)) if m.channel.topic == topic]
+        assert clouds, path
+        moved = 0
+        for cloud in clouds:
+            names = [f.name for f in cloud.fields]
+            assert names == ["x", "y", "z", "dx", "dy", "status", "dx_mm", "dy_mm"], names
+            for dx, dy, status, dx_mm, dy_mm in cloud_points(cloud):
+                if status == 0:
+                    assert abs(dx_mm - dx * scale) <= 1e-6 * max(1.0, abs(dx * scale))
+                    assert abs(dy_mm - dy * scale) <= 1e-6 * max(1.0, abs(dy * scale))
+                    moved += abs(dx) > 0.1
+        assert moved > 0 or path == live, "no marker moved in the press"
+
+
 def test_killed_run_leaves_a_bag_readable_to_its_last_chunk(session):
     """SIGKILL mid-run: no summary, an unfinished chunk at the end, but every chunk closed
     before it (one per second of stamps) streams back whole — from the bag's temporary name

@@ -71,6 +71,7 @@ pub struct MarkerColumns {
     markers: Vec<MarkerColumn>,
     n_found: Option<usize>,
     n_markers: Option<usize>,
+    mm_per_px: Option<f64>,
 }
 
 impl MarkerColumns {
@@ -93,7 +94,13 @@ impl MarkerColumns {
                 .collect(),
             n_found: col("n_found"),
             n_markers: col("n_markers"),
+            mm_per_px: cal.mm_per_px(),
         }
+    }
+
+    /// The sensor's scale (`calibrate --pitch-mm`), if it has one.
+    pub fn mm_per_px(&self) -> Option<f64> {
+        self.mm_per_px
     }
 
     /// Whether there are markers to publish.
@@ -339,6 +346,7 @@ fn write_session(
             stamp_ns: ns_from_s(start_unix_s + time_s),
             targets: &targets,
             markers: (health.is_some() && !t.markers.is_empty()).then_some(&markers[..]),
+            mm_per_px: t.markers.mm_per_px(),
             health: health.as_ref().map(|h| (h, Vec::new())),
             png,
             ..FrameMessages::default()

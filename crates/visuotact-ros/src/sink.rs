@@ -136,6 +136,7 @@ pub(crate) fn live_frame<'a>(
         contact: Some(e.contact),
         measured: None,
         markers: markers.map(|_| &cloud[..]),
+        mm_per_px: e.mm_per_px,
         png,
         health: Some((&e.health, values)),
     })
@@ -226,6 +227,7 @@ impl McapRecorder {
             stamp_ns: ns_from_s(self.origin_unix_s + row.timestamp_s),
             targets: &targets,
             markers: has_cloud.then_some(&self.cloud[..]),
+            mm_per_px: self.columns.as_ref().and_then(MarkerColumns::mm_per_px),
             health: health.as_ref().map(|h| (h, Vec::new())),
             png,
             ..FrameMessages::default()

@@ -6,7 +6,7 @@
 //! | `NS/ft_sensor/wrench` | `geometry_msgs/msg/WrenchStamped` | the measured force/torque sensor (a session's `force.csv`), same axes |
 //! | `NS/contact` | `geometry_msgs/msg/PointStamped` | the estimated contact in metres: x = `x_mm`/1000, y = `y_mm`/1000, z = −`depth_mm`/1000 (NaN without depth); published when x and y are estimated |
 //! | `NS/contact/active` | `std_msgs/msg/Bool` | the contact rule (live runs) |
-//! | `NS/markers` | `sensor_msgs/msg/PointCloud2` | one point per marker: `x`, `y`, `z` (= 0) its reference position and `dx`, `dy` its displacement, image pixels, `float32`; `status` `uint8` (0 found, 1 lost) |
+//! | `NS/markers` | `sensor_msgs/msg/PointCloud2` | one point per marker: `x`, `y`, `z` (= 0) its reference position and `dx`, `dy` its displacement, image pixels, `float32`; `status` `uint8` (0 found, 1 lost); with a scaled sensor (`calibrate --pitch-mm`) also `dx_mm`, `dy_mm` (`float32`, millimetres) |
 //! | `NS/image/compressed` | `sensor_msgs/msg/CompressedImage` | the frame, PNG |
 //! | `/diagnostics` | `diagnostic_msgs/msg/DiagnosticArray` | marker health: one status named `NS: markers`, level OK, WARN (markers lost or filled, reference under contact) or ERROR (none found) |
 //!
@@ -146,6 +146,8 @@ pub struct FrameMessages<'a> {
     pub measured: Option<[f64; 6]>,
     /// Marker cloud.
     pub markers: Option<&'a [MarkerPoint]>,
+    /// The sensor's scale: the marker cloud then also carries its displacements in mm.
+    pub mm_per_px: Option<f64>,
     /// The frame, PNG-encoded.
     pub png: Option<Vec<u8>>,
     /// Marker health and the figures to report with it.
@@ -176,41 +178,58 @@ pub fn contact_from_targets(targets: &[TargetEstimate]) -> Option<[f64; 3]> {
     Some([x / 1000.0, y / 1000.0, z / 1000.0])
 }
 
-/// The marker cloud's point layout: x, y, z, dx, dy as `float32`, status as `uint8`.
-fn cloud_fields() -> Vec<PointField> {
+/// The marker cloud's point layout: x, y, z, dx, dy as `float32`, status as `uint8`; with a
+/// scale, dx_mm and dy_mm as `float32` after the status's padding.
+fn cloud_fields(scaled: bool) -> Vec<PointField> {
     let f = |name: &str, offset, datatype| PointField {
         name: name.into(),
         offset,
         datatype,
         count: 1,
     };
-    vec![
+    let mut fields = vec![
         f("x", 0, FLOAT32),
         f("y", 4, FLOAT32),
         f("z", 8, FLOAT32),
         f("dx", 12, FLOAT32),
         f("dy", 16, FLOAT32),
         f("status", 20, UINT8),
-    ]
+    ];
+    if scaled {
+        fields.push(f("dx_mm", CLOUD_POINT_STEP, FLOAT32));
+        fields.push(f("dy_mm", CLOUD_POINT_STEP + 4, FLOAT32));
+    }
+    fields
 }
 
-/// Bytes per marker point.
+/// Bytes per marker point (without a scale; with one, 8 more for dx_mm and dy_mm).
 pub const CLOUD_POINT_STEP: u32 = 24;
 
-/// The marker cloud message.
-pub fn marker_cloud(header: Header, markers: &[MarkerPoint]) -> PointCloud2 {
-    let mut data = Vec::with_capacity(markers.len() * CLOUD_POINT_STEP as usize);
+/// The marker cloud message; with the sensor's scale (`mm_per_px`), each point also carries
+/// its displacement in millimetres.
+pub fn marker_cloud(
+    header: Header,
+    markers: &[MarkerPoint],
+    mm_per_px: Option<f64>,
+) -> PointCloud2 {
+    let point_step = CLOUD_POINT_STEP + if mm_per_px.is_some() { 8 } else { 0 };
+    let mut data = Vec::with_capacity(markers.len() * point_step as usize);
     for m in markers {
         for v in [m.x_px, m.y_px, 0.0, m.dx_px, m.dy_px] {
             data.extend_from_slice(&v.to_le_bytes());
         }
         data.extend_from_slice(&[u8::from(!m.found), 0, 0, 0]);
+        if let Some(s) = mm_per_px {
+            for v in [m.dx_px, m.dy_px] {
+                data.extend_from_slice(&((f64::from(v) * s) as f32).to_le_bytes());
+            }
+        }
     }
     PointCloud2 {
         header,
         width: u32::try_from(markers.len()).unwrap_or(u32::MAX),
-        fields: cloud_fields(),
-        point_step: CLOUD_POINT_STEP,
+        fields: cloud_fields(mm_per_px.is_some()),
+        point_step,
         data,
         is_dense: markers.iter().all(|m| m.found),
     }
@@ -304,7 +323,7 @@ pub fn write_frame<P: Publish>(
         bag.publish(&cfg.topic("contact/active"), at, &Bool(c))?;
     }
     if let Some(markers) = f.markers {
-        let m = marker_cloud(Header::at_ns(at, &image_frame), markers);
+        let m = marker_cloud(Header::at_ns(at, &image_frame), markers, f.mm_per_px);
         bag.publish(&cfg.topic("markers"), at, &m)?;
     }
     if let Some(png) = f.png {
@@ -331,5 +350,68 @@ pub fn ns_from_s(s: f64) -> u64 {
         (s * 1e9).round() as u64
     } else {
         0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn f32_at(data: &[u8], at: usize) -> f32 {
+        f32::from_le_bytes(data[at..at + 4].try_into().unwrap())
+    }
+
+    /// Without a scale the cloud keeps its pixel layout; with one, each point gains dx_mm and
+    /// dy_mm (pixels × mm per pixel) after the status, and a lost marker's stay NaN.
+    #[test]
+    fn a_scaled_sensor_gives_the_marker_cloud_millimetres() {
+        let markers = [
+            MarkerPoint {
+                x_px: 10.0,
+                y_px: 20.0,
+                dx_px: 2.5,
+                dy_px: -4.0,
+                found: true,
+            },
+            MarkerPoint {
+                x_px: 30.0,
+                y_px: 40.0,
+                dx_px: f32::NAN,
+                dy_px: f32::NAN,
+                found: false,
+            },
+        ];
+        let plain = marker_cloud(Header::at_ns(0, "f"), &markers, None);
+        let names: Vec<&str> = plain.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["x", "y", "z", "dx", "dy", "status"]);
+        assert_eq!((plain.point_step, plain.data.len()), (24, 48));
+        let scaled = marker_cloud(Header::at_ns(0, "f"), &markers, Some(0.1));
+        let names: Vec<(&str, u32)> = scaled
+            .fields
+            .iter()
+            .map(|f| (f.name.as_str(), f.offset))
+            .collect();
+        assert_eq!(
+            names,
+            [
+                ("x", 0),
+                ("y", 4),
+                ("z", 8),
+                ("dx", 12),
+                ("dy", 16),
+                ("status", 20),
+                ("dx_mm", 24),
+                ("dy_mm", 28)
+            ]
+        );
+        assert_eq!((scaled.point_step, scaled.data.len()), (32, 64));
+        let d = &scaled.data;
+        assert_eq!((f32_at(d, 12), f32_at(d, 16)), (2.5, -4.0));
+        assert_eq!((f32_at(d, 24), f32_at(d, 28)), (0.25, -0.4));
+        assert_eq!((d[20], d[52]), (0, 1));
+        assert!(f32_at(d, 32 + 24).is_nan() && f32_at(d, 32 + 28).is_nan());
+        // The pixel part of each point is the same bytes as without the scale.
+        assert_eq!(&d[..24], &plain.data[..24]);
+        assert_eq!(&d[32..56], &plain.data[24..48]);
     }
 }
