@@ -16,7 +16,7 @@ use visuotact_pipeline::live::{Health, TargetEstimate};
 use visuotact_vision::calibration::SensorCalibration;
 
 use crate::bag::{Bag, BagConfig};
-use crate::topics::{ns_from_s, write_frame, FrameMessages, MarkerPoint, RosConfig};
+use crate::topics::{ns_from_s, FrameMessages, FrameTarget, MarkerPoint, RosConfig};
 use crate::RosError;
 
 /// How a session is exported.
@@ -245,8 +245,8 @@ fn markers_of(t: &SessionTables, frame: &str, out: &mut Vec<MarkerPoint>) -> Opt
 }
 
 /// Writes the force samples stamped before `until_s` (all with `None`), from `next` on.
-fn write_force(
-    bag: &mut Bag,
+fn write_force<W: FrameTarget>(
+    bag: &mut W,
     (ros, start_unix_s): (&RosConfig, f64),
     force: &ForceTable,
     next: &mut usize,
@@ -261,10 +261,76 @@ fn write_force(
             measured: Some(force.values[*next]),
             ..FrameMessages::default()
         };
-        write_frame(bag, ros, frame)?;
+        bag.write_frame(ros, frame)?;
         *next += 1;
     }
     Ok(())
+}
+
+/// A session read for export: its tables, its start as UNIX time and what it lacks. Written
+/// into a bag by [`export_mcap`], or into any other [`FrameTarget`] by [`SessionExport::write_to`].
+pub struct SessionExport {
+    session: PathBuf,
+    tables: SessionTables,
+    start_unix_s: f64,
+    notes: Vec<String>,
+}
+
+impl SessionExport {
+    /// Reads `session`'s tables (and the sensor file for the markers) under `cfg`.
+    pub fn read(session: &Path, cfg: &ExportConfig) -> Result<Self, RosError> {
+        cfg.ros.validate()?;
+        let description = described(session)?;
+        let start_unix_s = cfg.start_unix_s.unwrap_or_else(|| {
+            description
+                .as_ref()
+                .and_then(|d| d.started_unix_s)
+                .unwrap_or(0.0)
+        });
+        if !start_unix_s.is_finite() || start_unix_s < 0.0 {
+            return Err(RosError::Config(format!(
+                "start_unix_s {start_unix_s}: expected a UNIX time in seconds, 0 or more"
+            )));
+        }
+        let mut notes: Vec<String> = description
+            .and_then(|d| d.incomplete_note())
+            .into_iter()
+            .collect();
+        let tables = read_tables(session, cfg, &mut notes)?;
+        Ok(Self {
+            session: session.to_path_buf(),
+            tables,
+            start_unix_s,
+            notes,
+        })
+    }
+
+    /// Frames in the session.
+    pub fn frames(&self) -> usize {
+        self.tables.frames.len()
+    }
+
+    /// Parts of the session that are not there (said, not an error).
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// Writes every frame and force sample into `target`, in time order; `progress(done,
+    /// total)` hears of each frame and may stop ([`RosError::Stopped`]).
+    pub fn write_to<W: FrameTarget>(
+        &self,
+        target: &mut W,
+        cfg: &ExportConfig,
+        progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
+    ) -> Result<(), RosError> {
+        write_session(
+            target,
+            &self.session,
+            cfg,
+            (&self.tables, self.start_unix_s),
+            progress,
+        )
+    }
 }
 
 /// Exports `session` into a bag at `out` ([`Bag::create`]); `progress(done, total)` hears of
@@ -276,26 +342,9 @@ pub fn export_mcap(
     cfg: &ExportConfig,
     progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
 ) -> Result<ExportSummary, RosError> {
-    cfg.ros.validate()?;
-    let description = described(session)?;
-    let start_unix_s = cfg.start_unix_s.unwrap_or_else(|| {
-        description
-            .as_ref()
-            .and_then(|d| d.started_unix_s)
-            .unwrap_or(0.0)
-    });
-    if !start_unix_s.is_finite() || start_unix_s < 0.0 {
-        return Err(RosError::Config(format!(
-            "start_unix_s {start_unix_s}: expected a UNIX time in seconds, 0 or more"
-        )));
-    }
-    let mut notes: Vec<String> = description
-        .and_then(|d| d.incomplete_note())
-        .into_iter()
-        .collect();
-    let t = read_tables(session, cfg, &mut notes)?;
+    let plan = SessionExport::read(session, cfg)?;
     let mut bag = Bag::create(out, &cfg.bag)?;
-    if let Err(e) = write_session(&mut bag, session, cfg, (&t, start_unix_s), progress) {
+    if let Err(e) = plan.write_to(&mut bag, cfg, progress) {
         bag.discard();
         return Err(e);
     }
@@ -303,15 +352,15 @@ pub fn export_mcap(
     let path = bag.finish()?;
     Ok(ExportSummary {
         path,
-        frames: t.frames.len(),
+        frames: plan.frames(),
         messages,
-        notes,
+        notes: plan.notes,
     })
 }
 
 /// Writes every frame of `session` (its tables `t`) and the force samples into `bag`.
-fn write_session(
-    bag: &mut Bag,
+fn write_session<W: FrameTarget>(
+    bag: &mut W,
     session: &Path,
     cfg: &ExportConfig,
     (t, start_unix_s): (&SessionTables, f64),
@@ -344,6 +393,7 @@ fn write_session(
         };
         let msgs = FrameMessages {
             stamp_ns: ns_from_s(start_unix_s + time_s),
+            index: Some(k as u64),
             targets: &targets,
             markers: (health.is_some() && !t.markers.is_empty()).then_some(&markers[..]),
             mm_per_px: t.markers.mm_per_px(),
@@ -351,7 +401,7 @@ fn write_session(
             png,
             ..FrameMessages::default()
         };
-        write_frame(bag, &cfg.ros, msgs)?;
+        bag.write_frame(&cfg.ros, msgs)?;
         if progress(k + 1, total).is_break() {
             return Err(RosError::Stopped(k + 1));
         }

@@ -38,11 +38,11 @@ use image::ImageEncoder;
 pub use bag::{Bag, BagConfig};
 #[cfg(feature = "dds")]
 pub use dds::{DdsConfig, DdsSink};
-pub use export::{export_mcap, ExportConfig, ExportSummary};
+pub use export::{export_mcap, ExportConfig, ExportSummary, SessionExport};
 #[cfg(feature = "foxglove")]
 pub use foxglove::{FoxgloveConfig, FoxgloveSink};
 pub use sink::{LiveSink, McapRecorder, McapSink};
-pub use topics::RosConfig;
+pub use topics::{FrameMessages, FrameTarget, MarkerPoint, RosConfig};
 
 /// Errors of the ROS 2 outputs.
 #[derive(Debug, thiserror::Error)]
@@ -84,6 +84,9 @@ pub enum RosError {
     /// A frame could not be encoded.
     #[error("encoding a frame as PNG: {0}")]
     Encode(String),
+    /// Another frame target (a Rerun recording) failed.
+    #[error("{0}")]
+    Target(String),
 }
 
 /// A frame as PNG bytes.

@@ -20,12 +20,13 @@ use visuotact_vision::calibration::SensorCalibration;
 use crate::bag::{Bag, BagConfig};
 use crate::export::{targets_from_row, MarkerColumns};
 use crate::topics::{
-    ns_from_s, write_frame, FrameMessages, MarkerPoint, Publish, RosConfig, SensorConfigs,
+    ns_from_s, write_frame, FrameMessages, FrameTarget, MarkerPoint, RosConfig, SensorConfigs,
 };
 use crate::RosError;
 
-/// A live run's estimates as ROS 2 messages ([`crate::topics`]) into any [`Publish`] target —
-/// a bag ([`McapSink`]), DDS ([`crate::DdsSink`]), Foxglove ([`crate::FoxgloveSink`]) —
+/// A live run's estimates as ROS 2 messages ([`crate::topics`]) into any [`FrameTarget`] —
+/// a bag ([`McapSink`]), DDS ([`crate::DdsSink`]), Foxglove ([`crate::FoxgloveSink`]), a
+/// Rerun recording (crate `visuotact-rerun`) —
 /// stamped on the wall clock: the time the sink was made plus the run's capture time. The
 /// first error stops the run and is returned by the target's `finish`.
 pub struct LiveSink<P> {
@@ -36,7 +37,7 @@ pub struct LiveSink<P> {
     error: Option<RosError>,
 }
 
-impl<P: Publish> LiveSink<P> {
+impl<P: FrameTarget> LiveSink<P> {
     /// Publishes to `out` under `cfg` (checked); stamps count from now.
     pub fn new(out: P, cfg: RosConfig) -> Result<Self, RosError> {
         cfg.validate()?;
@@ -68,7 +69,7 @@ impl<P: Publish> LiveSink<P> {
         let stamp_ns = self.origin_ns + ns_from_s(e.timestamp_s);
         let cfg = self.cfg.get(e.sensor.as_deref());
         let frame = live_frame(cfg, stamp_ns, e, markers, image, &mut self.markers)?;
-        write_frame(&mut self.out, cfg, frame)
+        self.out.write_frame(cfg, frame)
     }
 }
 
@@ -132,6 +133,7 @@ pub(crate) fn live_frame<'a>(
     ];
     Ok(FrameMessages {
         stamp_ns,
+        index: Some(e.index),
         targets: &e.targets,
         contact: Some(e.contact),
         measured: None,
@@ -142,7 +144,7 @@ pub(crate) fn live_frame<'a>(
     })
 }
 
-impl<P: Publish> Sink for LiveSink<P> {
+impl<P: FrameTarget> Sink for LiveSink<P> {
     fn wants_markers(&self) -> bool {
         true
     }

@@ -138,6 +138,8 @@ pub struct MarkerPoint {
 pub struct FrameMessages<'a> {
     /// Nanoseconds since the UNIX epoch.
     pub stamp_ns: u64,
+    /// The frame's place in its run or session (`None` for a force sample between frames).
+    pub index: Option<u64>,
     /// Estimated targets (`fx_n`, `x_mm`, `depth_mm`, …).
     pub targets: &'a [TargetEstimate],
     /// The contact rule's verdict (live).
@@ -289,6 +291,19 @@ impl Publish for Bag {
         msg: &M,
     ) -> Result<(), RosError> {
         self.write(topic, stamp_ns, msg)
+    }
+}
+
+/// Where whole frames go: every [`Publish`] target as ROS 2 messages ([`write_frame`]), or
+/// another format that takes a frame's parts as they are (a Rerun recording).
+pub trait FrameTarget {
+    /// Writes one frame's parts under `cfg`'s namespace.
+    fn write_frame(&mut self, cfg: &RosConfig, frame: FrameMessages<'_>) -> Result<(), RosError>;
+}
+
+impl<P: Publish> FrameTarget for P {
+    fn write_frame(&mut self, cfg: &RosConfig, frame: FrameMessages<'_>) -> Result<(), RosError> {
+        write_frame(self, cfg, frame)
     }
 }
 

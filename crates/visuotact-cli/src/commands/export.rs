@@ -1,5 +1,6 @@
 //! `visuotact export`: sessions into the robot's formats — `mcap` writes a ROS 2 bag
-//! ([`visuotact_ros::export_mcap`]), `lerobot` a LeRobot v3.0 data set
+//! ([`visuotact_ros::export_mcap`]), `rerun` a Rerun recording
+//! ([`visuotact_rerun::export_rerun`]), `lerobot` a LeRobot v3.0 data set
 //! ([`visuotact_lerobot::export_lerobot`]).
 
 use std::path::{Path, PathBuf};
@@ -17,6 +18,10 @@ enum Format {
     /// A session folder → an MCAP bag with the ROS 2 profile (estimates as WrenchStamped and
     /// PointStamped, force sensor, marker cloud, frames, diagnostics; topics in README "ROS 2").
     Mcap(Mcap),
+    /// A session folder → a Rerun recording (FILE.rrd): frames, markers coloured by status
+    /// with displacement arrows, estimates, force and health as time series on the `frame`
+    /// and `capture_time` timelines (docs/cli.md "Rerun").
+    Rerun(Mcap),
     /// Session folders → a LeRobot v3.0 data set, one episode per session (Parquet data with
     /// the tactile features, estimates and force as observation.* columns, the frames as MP4
     /// through ffmpeg, meta/info.json, episodes, tasks, stats; README "Data sets").
@@ -55,8 +60,8 @@ struct Lerobot {
 struct Mcap {
     /// Session folder (from `record` or `simulate`).
     session: PathBuf,
-    /// FILE.mcap for one file; any other name for a rosbag2 bag folder (NAME/NAME_0.mcap and
-    /// metadata.yaml, as `ros2 bag play` reads it).
+    /// mcap: FILE.mcap for one file, any other name for a rosbag2 bag folder (NAME/NAME_0.mcap
+    /// and metadata.yaml, as `ros2 bag play` reads it); rerun: FILE.rrd.
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
@@ -68,7 +73,7 @@ struct Mcap {
     /// start `record` wrote in session.json; without one 0, the session's own seconds).
     #[arg(long)]
     start_unix_s: Option<f64>,
-    /// Leave the frames out (no CompressedImage topic).
+    /// Leave the frames out (no CompressedImage topic, no Rerun image).
     #[arg(long)]
     no_images: bool,
     /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
@@ -79,6 +84,7 @@ struct Mcap {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     match &a.format {
         Format::Mcap(m) => mcap(m),
+        Format::Rerun(m) => rerun(m),
         Format::Lerobot(l) => lerobot(l),
     }
 }
@@ -132,16 +138,38 @@ fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn mcap(m: &Mcap) -> anyhow::Result<()> {
+/// The export's settings, its output checked not to overwrite an input.
+fn session_export(m: &Mcap) -> anyhow::Result<visuotact_ros::ExportConfig> {
     let mut inputs = vec![m.session.as_path()];
     inputs.extend(m.sensor.as_deref());
     visuotact_io::guard::refuse_output_over_input(&m.output, &inputs)?;
-    let cfg = visuotact_ros::ExportConfig {
+    Ok(visuotact_ros::ExportConfig {
         ros: m.ros.config(!m.no_images),
         sensor: m.sensor.clone(),
         start_unix_s: m.start_unix_s,
         ..Default::default()
-    };
+    })
+}
+
+fn rerun(m: &Mcap) -> anyhow::Result<()> {
+    let cfg = session_export(m)?;
+    let r = reporter(m.quiet);
+    let s = visuotact_rerun::export_rerun(&m.session, &m.output, &cfg, &mut |done, total| {
+        r.items(done, Some(total), "frames")
+    })
+    .map_err(|e| match e {
+        visuotact_ros::RosError::Stopped(n) => interrupted(n, &m.output),
+        e => e.into(),
+    })?;
+    for n in &s.notes {
+        note!("note: {}: {n}", m.session.display());
+    }
+    note!("wrote {} ({} frames)", s.path.display(), s.frames);
+    Ok(())
+}
+
+fn mcap(m: &Mcap) -> anyhow::Result<()> {
+    let cfg = session_export(m)?;
     let r = reporter(m.quiet);
     let s = visuotact_ros::export_mcap(&m.session, &m.output, &cfg, &mut |done, total| {
         r.items(done, Some(total), "frames")

@@ -83,6 +83,13 @@ pub(crate) struct Args {
     /// With --foxglove: the frames too (PNG CompressedImage; costs a PNG encoding per frame).
     #[arg(long, requires = "foxglove")]
     foxglove_images: bool,
+    /// Log to Rerun: FILE.rrd writes a recording, HOST:PORT streams to a running viewer
+    /// (`rerun`; 127.0.0.1:9876 when no value is given).
+    #[arg(long, value_name = "ADDR|FILE.rrd", num_args = 0..=1, default_missing_value = visuotact_rerun::DEFAULT_VIEWER_ADDR)]
+    rerun: Option<String>,
+    /// With --rerun: the frames too (PNG; costs a PNG encoding per frame).
+    #[arg(long, requires = "rerun")]
+    rerun_images: bool,
     /// Frames the capture queue holds before dropping the oldest.
     #[arg(long, default_value_t = 2)]
     queue: usize,
@@ -338,7 +345,7 @@ fn stop_on_ctrl_c() -> Arc<AtomicBool> {
 }
 
 /// Where a run's estimates go: JSON lines on standard output (unless `--quiet`), `--udp`,
-/// the dashboard, `--mcap`, `--ros2` and `--foxglove`.
+/// the dashboard, `--mcap`, `--ros2`, `--foxglove` and `--rerun`.
 struct Outputs {
     stdout: Option<LineSink<std::io::BufWriter<std::io::StdoutLock<'static>>>>,
     udp: Option<UdpSink>,
@@ -346,6 +353,7 @@ struct Outputs {
     mcap: Option<McapSink>,
     dds: Option<DdsSink>,
     foxglove: Option<FoxgloveSink>,
+    rerun: Option<visuotact_rerun::RerunSink>,
 }
 
 impl Outputs {
@@ -375,6 +383,17 @@ impl Outputs {
                 f.addr()
             );
         }
+        let rerun = a
+            .rerun
+            .as_deref()
+            .map(|o| {
+                visuotact_rerun::rerun_sink(
+                    visuotact_rerun::RerunOutput::parse(o),
+                    a.bag.ros.config(a.rerun_images),
+                )
+            })
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("--rerun {e}"))?;
         let stdout =
             (!a.quiet).then(|| LineSink(std::io::BufWriter::new(std::io::stdout().lock())));
         Ok(Self {
@@ -384,6 +403,7 @@ impl Outputs {
             mcap,
             dds,
             foxglove,
+            rerun,
         })
     }
 
@@ -408,6 +428,9 @@ impl Outputs {
         if let Some(f) = self.foxglove.as_mut() {
             sinks.push(f);
         }
+        if let Some(r) = self.rerun.as_mut() {
+            sinks.push(r);
+        }
         sinks
     }
 
@@ -419,6 +442,10 @@ impl Outputs {
         if let Some(f) = self.foxglove {
             let n = f.finish().map_err(|e| anyhow::anyhow!("--foxglove {e}"))?;
             note!("served {n} messages to Foxglove");
+        }
+        if let Some(r) = self.rerun {
+            let n = visuotact_rerun::finish_sink(r).map_err(|e| anyhow::anyhow!("--rerun {e}"))?;
+            note!("logged {n} frames to Rerun");
         }
         Ok((self.udp.map_or(0, |u| u.errors), self.dashboard))
     }

@@ -1,0 +1,268 @@
+//! visuotact in [Rerun](https://rerun.io): a live run (`run --rerun`) or a recorded session
+//! (`export rerun`) as a Rerun recording — an `.rrd` file or a viewer over gRPC — through the
+//! official `rerun` crate (0.24, the version LeRobot pins its viewer to).
+//!
+//! ## What is logged
+//!
+//! Under the run's namespace `NS` (`/visuotact`, or `/visuotact/NAME` per sensor of a run of
+//! several), on two timelines: `frame` (the frame's index) and `capture_time` (its stamp, on the
+//! wall clock for a live run, the session's start plus its seconds for an export):
+//!
+//! | entity | archetype | content |
+//! |---|---|---|
+//! | `NS/image` | `EncodedImage` | the frame, PNG (live with `--rerun-images`; export: the saved frame) |
+//! | `NS/image/markers` | `Points2D` | each marker where it is now (reference + displacement), pixels; green found, red lost (at its reference position) |
+//! | `NS/image/displacement` | `Arrows2D` | each found marker's displacement from its reference position, pixels |
+//! | `NS/estimate/NAME` | `Scalars` | each estimated target (`x_mm`, `depth_mm`, `fz_n`, …) |
+//! | `NS/force/AXIS` | `Scalars` | the force/torque sensor (`fx_n` … `tz_nm`), each sample at its own time (no `frame`) |
+//! | `NS/contact` | `Scalars` | the live contact rule, 1 or 0 |
+//! | `NS/health/found`, `NS/health/lost` | `Scalars` | markers found and lost |
+//!
+//! The parts are the frame parts every other output writes ([`FrameMessages`]): the values
+//! are those of the JSON lines, the bags and the session's tables. Test:
+//! `crates/visuotact-cli/tests/rerun.rs` reads the files back with the `rerun-sdk` Python
+//! package's dataframe API and compares them with the session tables.
+//!
+//! ## Modules and what each owns
+//!
+//! One file: [`RerunTarget`] (a [`FrameTarget`]: frame parts → Rerun archetypes), the live
+//! sink [`RerunSink`] and [`export_rerun`]. Depends on ros (frame parts, session export) and
+//! pipeline; no clap.
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+
+use rerun::{Arrows2D, Color, EncodedImage, Points2D, RecordingStream, Scalars};
+use visuotact_ros::export::ExportConfig;
+use visuotact_ros::sink::LiveSink;
+use visuotact_ros::topics::WRENCH_TARGETS;
+use visuotact_ros::{FrameMessages, FrameTarget, RosConfig, RosError, SessionExport};
+
+/// The application id the recordings carry.
+pub const APPLICATION_ID: &str = "visuotact";
+
+/// The viewer's default gRPC address (`rerun` listens here when started without options).
+pub const DEFAULT_VIEWER_ADDR: &str = "127.0.0.1:9876";
+
+/// Where a recording goes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RerunOutput {
+    /// An `.rrd` file.
+    File(PathBuf),
+    /// A running viewer at `HOST:PORT` (gRPC).
+    Viewer(String),
+}
+
+impl RerunOutput {
+    /// `FILE.rrd` is a file; anything else (`HOST:PORT`, empty for the default) a viewer.
+    pub fn parse(s: &str) -> Self {
+        if Path::new(s)
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("rrd"))
+        {
+            RerunOutput::File(PathBuf::from(s))
+        } else if s.is_empty() {
+            RerunOutput::Viewer(DEFAULT_VIEWER_ADDR.to_string())
+        } else {
+            RerunOutput::Viewer(s.to_string())
+        }
+    }
+}
+
+fn target_err(e: impl std::fmt::Display) -> RosError {
+    RosError::Target(format!("Rerun: {e}"))
+}
+
+/// A Rerun recording stream taking frame parts.
+pub struct RerunTarget {
+    rec: RecordingStream,
+    output: RerunOutput,
+    /// Frames logged.
+    pub frames: u64,
+}
+
+impl RerunTarget {
+    /// A recording into `output`: a new `.rrd` file (an existing one is refused) or a viewer.
+    pub fn open(output: RerunOutput) -> Result<Self, RosError> {
+        let builder = rerun::RecordingStreamBuilder::new(APPLICATION_ID);
+        let rec = match &output {
+            RerunOutput::File(p) => {
+                if p.exists() {
+                    return Err(RosError::Exists(p.clone()));
+                }
+                builder
+                    .save(p)
+                    .map_err(|e| target_err(format!("{}: {e}", p.display())))?
+            }
+            RerunOutput::Viewer(addr) => builder
+                .connect_grpc_opts(
+                    format!("rerun+http://{addr}/proxy"),
+                    rerun::default_flush_timeout(),
+                )
+                .map_err(|e| target_err(format!("viewer at {addr}: {e}")))?,
+        };
+        Ok(Self {
+            rec,
+            output,
+            frames: 0,
+        })
+    }
+
+    /// Where the recording goes.
+    pub fn output(&self) -> &RerunOutput {
+        &self.output
+    }
+
+    /// Flushes and closes the recording: the file is whole once this returns.
+    pub fn finish(self) -> Result<u64, RosError> {
+        self.rec.flush_blocking();
+        self.rec.disconnect();
+        if let RerunOutput::File(p) = &self.output {
+            let ok = std::fs::metadata(p).is_ok_and(|m| m.len() > 0);
+            if !ok {
+                return Err(target_err(format!("{}: nothing was written", p.display())));
+            }
+        }
+        Ok(self.frames)
+    }
+
+    fn log(&self, path: String, what: &impl rerun::AsComponents) -> Result<(), RosError> {
+        self.rec.log(path, what).map_err(target_err)
+    }
+}
+
+/// Green for a found marker, red for a lost one (RGB).
+const FOUND: [u8; 3] = [40, 200, 80];
+const LOST: [u8; 3] = [230, 50, 50];
+
+fn colour([r, g, b]: [u8; 3]) -> Color {
+    Color::from_rgb(r, g, b)
+}
+
+impl FrameTarget for RerunTarget {
+    fn write_frame(&mut self, cfg: &RosConfig, f: FrameMessages<'_>) -> Result<(), RosError> {
+        let ns = cfg.namespace.trim_end_matches('/');
+        match f.index {
+            Some(k) => self
+                .rec
+                .set_time_sequence("frame", i64::try_from(k).unwrap_or(i64::MAX)),
+            None => self.rec.disable_timeline("frame"),
+        }
+        self.rec.set_timestamp_nanos_since_epoch(
+            "capture_time",
+            i64::try_from(f.stamp_ns).unwrap_or(i64::MAX),
+        );
+        if let Some(png) = f.png {
+            self.log(
+                format!("{ns}/image"),
+                &EncodedImage::from_file_contents(png),
+            )?;
+        }
+        if let Some(markers) = f.markers {
+            let at = markers.iter().map(|m| {
+                if m.found {
+                    (m.x_px + m.dx_px, m.y_px + m.dy_px)
+                } else {
+                    (m.x_px, m.y_px)
+                }
+            });
+            let colours = markers
+                .iter()
+                .map(|m| colour(if m.found { FOUND } else { LOST }));
+            self.log(
+                format!("{ns}/image/markers"),
+                &Points2D::new(at).with_colors(colours).with_radii([2.0]),
+            )?;
+            let found = markers.iter().filter(|m| m.found);
+            self.log(
+                format!("{ns}/image/displacement"),
+                &Arrows2D::from_vectors(found.clone().map(|m| (m.dx_px, m.dy_px)))
+                    .with_origins(found.map(|m| (m.x_px, m.y_px)))
+                    .with_colors([colour(FOUND)]),
+            )?;
+        }
+        for t in f.targets {
+            self.log(
+                format!("{ns}/estimate/{}", t.name),
+                &Scalars::single(t.value),
+            )?;
+        }
+        if let Some(w) = f.measured {
+            for (axis, v) in WRENCH_TARGETS.iter().zip(w) {
+                if v.is_finite() {
+                    self.log(format!("{ns}/force/{axis}"), &Scalars::single(v))?;
+                }
+            }
+        }
+        if let Some(c) = f.contact {
+            self.log(
+                format!("{ns}/contact"),
+                &Scalars::single(f64::from(u8::from(c))),
+            )?;
+        }
+        if let Some((h, _)) = &f.health {
+            self.log(format!("{ns}/health/found"), &Scalars::single(h.ok as f64))?;
+            self.log(format!("{ns}/health/lost"), &Scalars::single(h.lost as f64))?;
+        }
+        if f.index.is_some() {
+            self.frames += 1;
+        }
+        Ok(())
+    }
+}
+
+/// A live run's estimates logged to Rerun: a [`Sink`](visuotact_pipeline::runner::Sink) of
+/// the live runner, stamped on the wall clock like [`visuotact_ros::McapSink`].
+pub type RerunSink = LiveSink<RerunTarget>;
+
+/// A live run into `output` under `cfg` (`cfg.images`: the frames too, PNG-encoded).
+pub fn rerun_sink(output: RerunOutput, cfg: RosConfig) -> Result<RerunSink, RosError> {
+    LiveSink::new(RerunTarget::open(output)?, cfg)
+}
+
+/// Closes a live run's recording: frames logged, or the run's first error.
+pub fn finish_sink(sink: RerunSink) -> Result<u64, RosError> {
+    let (target, error) = sink.into_parts();
+    let n = target.finish()?;
+    match error {
+        Some(e) => Err(e),
+        None => Ok(n),
+    }
+}
+
+/// What an export wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RerunExport {
+    /// The `.rrd` file.
+    pub path: PathBuf,
+    /// Frames logged.
+    pub frames: u64,
+    /// Parts of the session that were not there.
+    pub notes: Vec<String>,
+}
+
+/// Exports `session` into a new `.rrd` file at `out`, the parts `export mcap` writes
+/// ([`SessionExport`]); `progress(done, total)` may stop it ([`RosError::Stopped`]). A failed
+/// or stopped export removes the file.
+pub fn export_rerun(
+    session: &Path,
+    out: &Path,
+    cfg: &ExportConfig,
+    progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
+) -> Result<RerunExport, RosError> {
+    let plan = SessionExport::read(session, cfg)?;
+    let mut target = RerunTarget::open(RerunOutput::File(out.to_path_buf()))?;
+    let written = plan.write_to(&mut target, cfg, progress);
+    let closed = target.finish();
+    match written.and(closed) {
+        Ok(frames) => Ok(RerunExport {
+            path: out.to_path_buf(),
+            frames,
+            notes: plan.notes().to_vec(),
+        }),
+        Err(e) => {
+            let _ = std::fs::remove_file(out);
+            Err(e)
+        }
+    }
+}
