@@ -266,6 +266,23 @@ fn slow_and_vanishing_websocket_clients_do_not_slow_the_estimator() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A run file in `d` with two simulated IATS sensors: `left` with model `m`, `right` with
+/// `d/sensor.json` only.
+fn two_sensor_plan(d: &Path, m: &Path) -> PathBuf {
+    let plan = d.join("run.toml");
+    std::fs::write(
+        &plan,
+        format!(
+            "[[sensor]]\nname = \"left\"\nsource = \"sim:iats\"\nmodel = [{:?}]\n\n\
+             [[sensor]]\nname = \"right\"\nsource = \"sim:iats\"\nsensor = {:?}\n",
+            s(m),
+            s(&d.join("sensor.json"))
+        ),
+    )
+    .unwrap();
+    plan
+}
+
 /// `run --sensors run.toml`: two simulated sensors (one with a model, one with contact and
 /// health only) at 25 fps each in one run: no frame dropped, each sensor's JSON lines named
 /// and numbered by its own source, never mixed, its own summary, and both namespaces in the
@@ -274,17 +291,7 @@ fn slow_and_vanishing_websocket_clients_do_not_slow_the_estimator() {
 fn two_sensors_in_one_run_keep_their_own_frames_outputs_and_summaries() {
     let d = fresh_dir("run-two");
     let m = iats_model(&d);
-    let plan = d.join("run.toml");
-    std::fs::write(
-        &plan,
-        format!(
-            "[[sensor]]\nname = \"left\"\nsource = \"sim:iats\"\nmodel = [{:?}]\n\n\
-             [[sensor]]\nname = \"right\"\nsource = \"sim:iats\"\nsensor = {:?}\n",
-            s(&m),
-            s(&d.join("sensor.json"))
-        ),
-    )
-    .unwrap();
+    let plan = two_sensor_plan(&d, &m);
     let (bag, summary) = (d.join("run.mcap"), d.join("summary.json"));
     let o = vt(&[
         "run",
@@ -606,4 +613,98 @@ fn assert_foxglove_equals_lines(got: &[Received], lines: &[serde_json::Value]) {
         points.len(),
         rules.len()
     );
+}
+
+/// A plain HTTP/1.1 GET on loopback: the response's head (status line and headers) and body.
+fn http_get(addr: &str, path: &str) -> (String, Vec<u8>) {
+    use std::io::{Read, Write};
+    let mut c = std::net::TcpStream::connect(addr).unwrap();
+    write!(
+        c,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut all = Vec::new();
+    c.read_to_end(&mut all).unwrap();
+    let split = all.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
+    let head = String::from_utf8_lossy(&all[..split]).to_string();
+    (head, all[split + 4..].to_vec())
+}
+
+/// `run --sensors … --serve`: one dashboard for both sensors. `/info` lists them with their
+/// own targets, the WebSocket carries both sensors' estimates under their names (with the
+/// markers once a client watches), and each sensor has its own latest frame.
+#[test]
+fn one_dashboard_shows_every_sensor_of_a_run_under_its_name() {
+    let d = fresh_dir("run-two-dashboard");
+    let m = iats_model(&d);
+    let plan = two_sensor_plan(&d, &m);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args([
+            "run",
+            "--sensors",
+            s(&plan),
+            "--sim-frames",
+            "20",
+            "--fps",
+            "25",
+            "--duration-s",
+            "6",
+            "--quiet",
+            "--serve",
+            "127.0.0.1:0",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let url = word_after(&mut err, "dashboard on ");
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    let (head, body) = http_get(addr, "/info");
+    assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+    let info: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let names: Vec<&str> = info["sensors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["left", "right"]);
+    assert_eq!(info["sensors"][0]["targets"].as_array().unwrap().len(), 3);
+    assert!(info["sensors"][1]["targets"].as_array().unwrap().is_empty());
+    let (mut ws, _) = tungstenite::connect(format!("ws://{addr}/ws")).unwrap();
+    let mut seen = std::collections::BTreeMap::<String, usize>::new();
+    for _ in 0..200 {
+        let msg: serde_json::Value =
+            serde_json::from_str(ws.read().unwrap().to_text().unwrap()).unwrap();
+        if msg["markers"].is_array() {
+            let name = msg["estimate"]["sensor"].as_str().unwrap().to_string();
+            *seen.entry(name).or_default() += 1;
+        }
+        if seen.len() == 2 && seen.values().all(|&n| n >= 5) {
+            break;
+        }
+    }
+    assert_eq!(
+        seen.keys().collect::<Vec<_>>(),
+        ["left", "right"],
+        "{seen:?}"
+    );
+    assert!(seen.values().all(|&n| n >= 5), "{seen:?}");
+    for name in ["left", "right"] {
+        let (head, body) = http_get(addr, &format!("/frame.jpg?after=0&sensor={name}"));
+        assert!(head.starts_with("HTTP/1.1 200"), "{name}: {head}");
+        assert!(
+            head.contains("image/jpeg") && head.contains("x-frame"),
+            "{head}"
+        );
+        assert_eq!(&body[..2], &[0xFF, 0xD8], "{name}: not a JPEG");
+    }
+    let (head, _) = http_get(addr, "/frame.jpg?sensor=middle");
+    assert!(head.starts_with("HTTP/1.1 204"), "{head}");
+    drop(ws);
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    assert!(child.wait().unwrap().success(), "{rest}");
+    std::fs::remove_dir_all(&d).unwrap();
 }

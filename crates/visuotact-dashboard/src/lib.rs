@@ -4,6 +4,9 @@
 //! Routes: `GET /` the page, `GET /ws` estimates (JSON text messages), `GET /frame.jpg` the
 //! latest frame (`?after=N` waits, up to 2 s, for a frame newer than number N; the response's
 //! `x-frame` header numbers it), `GET /info` image size, targets and markers, `POST /rezero`.
+//! Several sensors of one run ([`Dashboard::start_several`]) each keep their own namespace:
+//! `/info` lists them under `sensors`, every estimate carries its `sensor`, `/frame.jpg?sensor=NAME`
+//! is that sensor's latest frame, and the page shows one sensor at a time with a choice of them.
 //! The estimator
 //! never waits for a client: each client has a small queue of its own, and a message that does
 //! not fit (the client reads too slowly) is dropped for that client and counted.
@@ -14,6 +17,7 @@
 //! its own small queue, drops counted), the latest frame as JPEG, a re-zero button; axum on a
 //! tokio thread of its own; `DashboardError`
 
+use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -42,6 +46,9 @@ pub enum DashboardError {
     /// The server's runtime could not start.
     #[error("cannot start the dashboard's runtime: {0}")]
     Runtime(std::io::Error),
+    /// A dashboard of several sensors was given none.
+    #[error("no sensor to show")]
+    NoSensor,
     /// Nothing can listen there.
     #[error("{addr}: cannot listen: {source}")]
     Listen {
@@ -63,8 +70,9 @@ const FRAME_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
 struct Shared {
     clients_tx: Mutex<Vec<mpsc::Sender<Arc<str>>>>,
-    /// The latest frame and its number (1, 2, … as published).
-    frame: Mutex<Option<(u64, Arc<RgbImage>)>>,
+    /// Each sensor's latest frame and its number (1, 2, … as published, over all sensors);
+    /// a single sensor's under "".
+    frame: Mutex<HashMap<String, (u64, Arc<RgbImage>)>>,
     /// The latest frame's number, for requests waiting on a newer one.
     frame_seq: tokio::sync::watch::Sender<u64>,
     rezero: AtomicBool,
@@ -73,6 +81,26 @@ struct Shared {
     clients: AtomicUsize,
     dropped: AtomicU64,
     info: serde_json::Value,
+}
+
+/// One sensor of a run of several, as the dashboard shows it.
+pub struct DashboardSensor<'a> {
+    /// The sensor's name (its namespace in every output).
+    pub name: &'a str,
+    /// Its calibration (image size, markers).
+    pub calibration: &'a SensorCalibration,
+    /// The targets its model estimates.
+    pub targets: Vec<String>,
+}
+
+/// What `/info` says of one sensor.
+fn sensor_info(cal: &SensorCalibration, targets: &[String]) -> serde_json::Value {
+    serde_json::json!({
+        "width": cal.image_width,
+        "height": cal.image_height,
+        "targets": targets,
+        "markers": cal.markers.len(),
+    })
 }
 
 /// A running dashboard server.
@@ -89,6 +117,31 @@ impl Dashboard {
         cal: &SensorCalibration,
         targets: Vec<String>,
     ) -> Result<Self, DashboardError> {
+        Self::serve(addr, sensor_info(cal, &targets))
+    }
+
+    /// Serves the sensors of one run of several (`run --sensors`) on `addr`: `/info` gives
+    /// the first sensor's fields and every sensor under `sensors` (with its `name`).
+    pub fn start_several(
+        addr: &str,
+        sensors: &[DashboardSensor<'_>],
+    ) -> Result<Self, DashboardError> {
+        let first = sensors.first().ok_or(DashboardError::NoSensor)?;
+        let mut info = sensor_info(first.calibration, &first.targets);
+        let all: Vec<serde_json::Value> = sensors
+            .iter()
+            .map(|s| {
+                let mut i = sensor_info(s.calibration, &s.targets);
+                i["name"] = serde_json::Value::from(s.name);
+                i
+            })
+            .collect();
+        info["sensors"] = serde_json::Value::from(all);
+        Self::serve(addr, info)
+    }
+
+    /// Serves on `addr` from a thread of its own, `/info` answering `info`.
+    fn serve(addr: &str, info: serde_json::Value) -> Result<Self, DashboardError> {
         // Host names too (`localhost:8080`): the first address they resolve to.
         let sock: SocketAddr = std::net::ToSocketAddrs::to_socket_addrs(addr)
             .ok()
@@ -101,15 +154,9 @@ impl Dashboard {
                 "warning: the dashboard on {sock} is reachable from other machines"
             ));
         }
-        let info = serde_json::json!({
-            "width": cal.image_width,
-            "height": cal.image_height,
-            "targets": targets,
-            "markers": cal.markers.len(),
-        });
         let shared = Arc::new(Shared {
             clients_tx: Mutex::new(Vec::new()),
-            frame: Mutex::new(None),
+            frame: Mutex::new(HashMap::new()),
             frame_seq: tokio::sync::watch::Sender::new(0),
             rezero: AtomicBool::new(false),
             rezero_count: AtomicU64::new(0),
@@ -175,10 +222,12 @@ impl Dashboard {
         self.shared.dropped.load(Ordering::Relaxed)
     }
 
-    /// Sends an estimate to every client and keeps the frame for `/frame.jpg`.
-    /// `estimate_json` is the estimate as already serialised for the other outputs.
+    /// Sends an estimate to every client and keeps the frame for `/frame.jpg` (under
+    /// `sensor`'s name in a run of several). `estimate_json` is the estimate as already
+    /// serialised for the other outputs.
     pub fn publish(
         &self,
+        sensor: Option<&str>,
         estimate_json: &str,
         markers: Option<&[MarkerView]>,
         img: &Arc<RgbImage>,
@@ -187,8 +236,8 @@ impl Dashboard {
             return;
         }
         if let Ok(mut f) = self.shared.frame.lock() {
-            let seq = f.as_ref().map_or(0, |(k, _)| *k) + 1;
-            *f = Some((seq, img.clone()));
+            let seq = *self.shared.frame_seq.borrow() + 1;
+            f.insert(sensor.unwrap_or_default().to_string(), (seq, img.clone()));
             self.shared.frame_seq.send_replace(seq);
         }
         let markers = serde_json::to_string(&markers).unwrap_or_else(|_| "null".into());
@@ -237,12 +286,12 @@ impl visuotact_pipeline::runner::Sink for Dashboard {
 
     fn send(
         &mut self,
-        _: &visuotact_pipeline::LiveEstimate,
+        e: &visuotact_pipeline::LiveEstimate,
         json: &str,
         markers: Option<&[MarkerView]>,
         image: &Arc<RgbImage>,
     ) -> std::ops::ControlFlow<()> {
-        self.publish(json, markers, image);
+        self.publish(e.sensor.as_deref(), json, markers, image);
         std::ops::ControlFlow::Continue(())
     }
 }
@@ -276,23 +325,35 @@ async fn client(mut socket: WebSocket, s: Arc<Shared>) {
     s.clients.fetch_sub(1, Ordering::Relaxed);
 }
 
+/// The value of `key` in a query `a=1&key=value`, if it has one.
+fn query_value<'q>(query: Option<&'q str>, key: &str) -> Option<&'q str> {
+    query?.split('&').find_map(|kv| {
+        kv.split_once('=')
+            .filter(|(k, _)| *k == key)
+            .map(|(_, v)| v)
+    })
+}
+
 /// The number N of a query `after=N`, if it has one.
 fn after_from_query(query: Option<&str>) -> Option<u64> {
-    query?
-        .split('&')
-        .find_map(|kv| kv.strip_prefix("after="))?
-        .parse()
-        .ok()
+    query_value(query, "after")?.parse().ok()
+}
+
+/// The latest frame of `sensor` ("" for a single sensor) and its number.
+fn latest(s: &Shared, sensor: &str) -> Option<(u64, Arc<RgbImage>)> {
+    s.frame.lock().ok()?.get(sensor).cloned()
 }
 
 async fn frame(State(s): State<Arc<Shared>>, RawQuery(query): RawQuery) -> Response {
+    let sensor = query_value(query.as_deref(), "sensor").unwrap_or_default();
     if let Some(after) = after_from_query(query.as_deref()) {
         // A client that has frame N asks for the next one: answer when it exists (the page
         // then shows each frame once instead of polling the same one again).
         let mut seq = s.frame_seq.subscribe();
-        let _ = tokio::time::timeout(FRAME_WAIT, seq.wait_for(|&k| k > after)).await;
+        let newer = |_: &u64| latest(&s, sensor).is_some_and(|(k, _)| k > after);
+        let _ = tokio::time::timeout(FRAME_WAIT, seq.wait_for(newer)).await;
     }
-    let img = s.frame.lock().ok().and_then(|f| f.clone());
+    let img = latest(&s, sensor);
     let Some((seq, img)) = img else {
         return (axum::http::StatusCode::NO_CONTENT, "").into_response();
     };
@@ -339,10 +400,17 @@ async fn rezero(State(s): State<Arc<Shared>>) -> Json<serde_json::Value> {
 
 #[cfg(test)]
 mod tests {
-    use super::after_from_query;
+    use super::{after_from_query, query_value};
 
     #[test]
     fn the_frame_number_is_read_from_the_query() {
+        assert_eq!(
+            query_value(Some("after=3&sensor=left"), "sensor"),
+            Some("left")
+        );
+        assert_eq!(query_value(Some("sensor=right"), "sensor"), Some("right"));
+        assert_eq!(query_value(Some("after=3"), "sensor"), None);
+        assert_eq!(after_from_query(Some("sensor=a&after=5")), Some(5));
         assert_eq!(after_from_query(Some("after=17")), Some(17));
         assert_eq!(after_from_query(Some("t=3&after=0")), Some(0));
         assert_eq!(after_from_query(Some("after=-1")), None);

@@ -73,13 +73,14 @@ type Message = (LiveEstimate, String, Option<Vec<MarkerView>>, Arc<RgbImage>);
 /// The sink of one sensor's thread: forwards every estimate to the calling thread.
 struct Forward {
     tx: SyncSender<Message>,
-    markers: bool,
+    /// Whether some sink wants the markers now (a dashboard only while a client watches).
+    markers: Arc<AtomicBool>,
     rezero: Arc<AtomicBool>,
 }
 
 impl Sink for Forward {
     fn wants_markers(&self) -> bool {
-        self.markers
+        self.markers.load(Ordering::Relaxed)
     }
 
     fn take_rezero(&mut self) -> bool {
@@ -124,7 +125,7 @@ pub fn run_several(
     for s in sensors.iter() {
         s.cfg.validate()?;
     }
-    let markers = sinks.iter().any(|s| s.wants_markers());
+    let markers = Arc::new(AtomicBool::new(sinks.iter().any(|s| s.wants_markers())));
     let rezero: Vec<Arc<AtomicBool>> = sensors
         .iter()
         .map(|_| Arc::new(AtomicBool::new(false)))
@@ -147,7 +148,7 @@ pub fn run_several(
                 live.set_sensor_name(name);
                 let mut forward = Forward {
                     tx: tx.clone(),
-                    markers,
+                    markers: markers.clone(),
                     rezero: rz.clone(),
                 };
                 let (own, failed) = (own.clone(), failed.clone());
@@ -183,6 +184,7 @@ pub fn run_several(
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
             }
+            markers.store(sinks.iter().any(|s| s.wants_markers()), Ordering::Relaxed);
             if stop.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed) {
                 own_stop
                     .iter()

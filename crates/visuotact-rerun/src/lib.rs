@@ -211,8 +211,8 @@ impl FrameTarget for RerunTarget {
     }
 }
 
-/// A live run's estimates logged to Rerun: a [`Sink`](visuotact_pipeline::runner::Sink) of
-/// the live runner, stamped on the wall clock like [`visuotact_ros::McapSink`].
+/// A live run's estimates logged to Rerun: a [`LiveSink`] (a `Sink` of the live runner),
+/// stamped on the wall clock like [`visuotact_ros::McapSink`].
 pub type RerunSink = LiveSink<RerunTarget>;
 
 /// A live run into `output` under `cfg` (`cfg.images`: the frames too, PNG-encoded).

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use visuotact_dashboard::DashboardSensor;
 use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
 use visuotact_pipeline::several::{check_sensor_names, run_several, NamedSensor, RunFile};
@@ -30,10 +31,10 @@ pub(crate) struct Args {
     /// Several sensors in one run (a gripper's fingers): a TOML file with one `[[sensor]]`
     /// table each (`name`, `source`, and `sensor`, `model` files as the options say; paths
     /// relative to the working folder). Each sensor has its own source, queue and thread;
-    /// JSON lines and UDP carry `"sensor": NAME`, bag and DDS topics go under NS/NAME, and
-    /// the summary is per sensor. The other options apply to every sensor (simulated sources
+    /// JSON lines and UDP carry `"sensor": NAME`, bag, DDS, Foxglove and Rerun topics go
+    /// under NS/NAME, the dashboard offers a choice of sensors, and the summary is per sensor. The other options apply to every sensor (simulated sources
     /// take seeds --seed, --seed + 1, …).
-    #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["source", "sensor", "model", "serve"])]
+    #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["source", "sensor", "model"])]
     sensors: Option<PathBuf>,
     /// Frame rate of simulated cameras and image sequences, frames per second.
     #[arg(long, default_value_t = 25.0)]
@@ -280,7 +281,24 @@ fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
     visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &inputs)?;
     let mut sensors = named_sensors(a, file, &plan)?;
     let stop = stop_on_ctrl_c();
-    let mut out = Outputs::open(a, None)?;
+    let dashboard = match &a.serve {
+        Some(addr) => {
+            let shown: Vec<DashboardSensor<'_>> = sensors
+                .iter()
+                .map(|s| DashboardSensor {
+                    name: &s.name,
+                    calibration: s.live.calibration(),
+                    targets: s.live.target_names(),
+                })
+                .collect();
+            Some(
+                visuotact_dashboard::Dashboard::start_several(addr, &shown)
+                    .map_err(|e| anyhow::anyhow!("--serve {e}"))?,
+            )
+        }
+        None => None,
+    };
+    let mut out = Outputs::open(a, dashboard)?;
     let mut summaries = run_several(&mut sensors, &stop, &mut out.sinks(), |w| {
         note!("warning: {w}")
     })?;
