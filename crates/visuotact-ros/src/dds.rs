@@ -25,7 +25,7 @@ use rustdds::{
 
 use crate::msg::RosMessage;
 use crate::sink::LiveSink;
-use crate::topics::{Publish, RosConfig};
+use crate::topics::{typed_entry, Publish, RosConfig};
 use crate::RosError;
 
 /// Where and how the live topics are published.
@@ -174,15 +174,7 @@ impl DdsPublisher {
                 .map_err(dds_err)?;
             self.writers.insert(topic.to_string(), (M::NAME, w));
         }
-        match self.writers.get(topic) {
-            Some((name, w)) if *name == M::NAME => Ok(w),
-            Some((name, _)) => Err(RosError::TopicType {
-                topic: topic.to_string(),
-                was: name,
-                now: M::NAME,
-            }),
-            None => Err(RosError::Config(format!("topic {topic}: no writer"))),
-        }
+        typed_entry(&self.writers, topic, M::NAME)
     }
 }
 

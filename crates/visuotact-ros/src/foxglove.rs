@@ -21,7 +21,7 @@ use foxglove::{
 
 use crate::msg::RosMessage;
 use crate::sink::LiveSink;
-use crate::topics::{Publish, RosConfig};
+use crate::topics::{typed_entry, Publish, RosConfig};
 use crate::RosError;
 
 /// Where and how the live topics are served.
@@ -129,15 +129,7 @@ impl FoxglovePublisher {
                 .map_err(|e| RosError::Config(format!("Foxglove channel {topic}: {e}")))?;
             self.channels.insert(topic.to_string(), (M::NAME, channel));
         }
-        match self.channels.get(topic) {
-            Some((name, c)) if *name == M::NAME => Ok(c),
-            Some((name, _)) => Err(RosError::TopicType {
-                topic: topic.to_string(),
-                was: name,
-                now: M::NAME,
-            }),
-            None => Err(RosError::Config(format!("topic {topic}: no channel"))),
-        }
+        typed_entry(&self.channels, topic, M::NAME)
     }
 }
 

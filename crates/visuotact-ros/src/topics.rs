@@ -272,6 +272,26 @@ pub fn health_status(
     }
 }
 
+/// The entry made for `topic` in a table of per-topic writers or channels, checked to carry
+/// type `name`: one topic, one type.
+pub(crate) fn typed_entry<'a, T>(
+    table: &'a std::collections::HashMap<String, (&'static str, T)>,
+    topic: &str,
+    name: &'static str,
+) -> Result<&'a T, RosError> {
+    match table.get(topic) {
+        Some((was, t)) if *was == name => Ok(t),
+        Some((was, _)) => Err(RosError::TopicType {
+            topic: topic.to_string(),
+            was,
+            now: name,
+        }),
+        None => Err(RosError::Config(format!(
+            "topic {topic}: nothing made for it"
+        ))),
+    }
+}
+
 /// Where messages go: a bag ([`Bag`]) or live DDS writers ([`crate::dds::DdsPublisher`]).
 pub trait Publish {
     /// Publishes `msg` on `topic`, stamped `stamp_ns` (nanoseconds since the UNIX epoch).
