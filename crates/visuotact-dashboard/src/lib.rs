@@ -237,7 +237,14 @@ impl Dashboard {
         }
         if let Ok(mut f) = self.shared.frame.lock() {
             let seq = *self.shared.frame_seq.borrow() + 1;
-            f.insert(sensor.unwrap_or_default().to_string(), (seq, img.clone()));
+            let name = sensor.unwrap_or_default();
+            // Each sensor's name is allocated once, not per frame.
+            match f.get_mut(name) {
+                Some(slot) => *slot = (seq, img.clone()),
+                None => {
+                    f.insert(name.to_string(), (seq, img.clone()));
+                }
+            }
             self.shared.frame_seq.send_replace(seq);
         }
         let markers = serde_json::to_string(&markers).unwrap_or_else(|_| "null".into());

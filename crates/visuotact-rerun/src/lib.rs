@@ -222,12 +222,7 @@ pub fn rerun_sink(output: RerunOutput, cfg: RosConfig) -> Result<RerunSink, RosE
 
 /// Closes a live run's recording: frames logged, or the run's first error.
 pub fn finish_sink(sink: RerunSink) -> Result<u64, RosError> {
-    let (target, error) = sink.into_parts();
-    let n = target.finish()?;
-    match error {
-        Some(e) => Err(e),
-        None => Ok(n),
-    }
+    sink.finish_with(RerunTarget::finish)
 }
 
 /// What an export wrote.

@@ -208,9 +208,6 @@ impl LiveSink<DdsPublisher> {
 
     /// Leaves the domain: the messages published, or the run's first error.
     pub fn finish(self) -> Result<u64, RosError> {
-        match self.into_parts() {
-            (_, Some(e)) => Err(e),
-            (out, None) => Ok(out.messages),
-        }
+        self.finish_with(|out| Ok(out.messages))
     }
 }

@@ -173,12 +173,10 @@ impl LiveSink<FoxglovePublisher> {
 
     /// Stops the server: the messages published, or the run's first error.
     pub fn finish(self) -> Result<u64, RosError> {
-        let (out, error) = self.into_parts();
-        let n = out.messages;
-        out.stop();
-        match error {
-            Some(e) => Err(e),
-            None => Ok(n),
-        }
+        self.finish_with(|out| {
+            let n = out.messages;
+            out.stop();
+            Ok(n)
+        })
     }
 }

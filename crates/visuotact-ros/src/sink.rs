@@ -55,9 +55,17 @@ impl<P: FrameTarget> LiveSink<P> {
         &self.out
     }
 
-    /// The target, and the run's first error if there was one.
-    pub fn into_parts(self) -> (P, Option<RosError>) {
-        (self.out, self.error)
+    /// Closes the target with `close`, then gives the run's first error if there was one,
+    /// else what `close` returned (the target is closed either way).
+    pub fn finish_with<T>(
+        self,
+        close: impl FnOnce(P) -> Result<T, RosError>,
+    ) -> Result<T, RosError> {
+        let closed = close(self.out);
+        match self.error {
+            Some(e) => Err(e),
+            None => closed,
+        }
     }
 
     fn write(
@@ -85,13 +93,10 @@ impl LiveSink<Bag> {
 
     /// Closes the bag; the first write error of the run, if any, instead.
     pub fn finish(self) -> Result<(PathBuf, u64), RosError> {
-        let (bag, error) = self.into_parts();
-        let n = bag.messages();
-        let path = bag.finish()?;
-        match error {
-            Some(e) => Err(e),
-            None => Ok((path, n)),
-        }
+        self.finish_with(|bag| {
+            let n = bag.messages();
+            Ok((bag.finish()?, n))
+        })
     }
 }
 

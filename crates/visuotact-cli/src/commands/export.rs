@@ -151,19 +151,29 @@ fn session_export(m: &Mcap) -> anyhow::Result<visuotact_ros::ExportConfig> {
     })
 }
 
+/// An export's error; Ctrl-C says what was not written.
+fn ros_error(e: visuotact_ros::RosError, m: &Mcap) -> anyhow::Error {
+    match e {
+        visuotact_ros::RosError::Stopped(n) => interrupted(n, &m.output),
+        e => e.into(),
+    }
+}
+
+/// What the session lacked, one note each.
+fn session_notes(m: &Mcap, notes: &[String]) {
+    for n in notes {
+        note!("note: {}: {n}", m.session.display());
+    }
+}
+
 fn rerun(m: &Mcap) -> anyhow::Result<()> {
     let cfg = session_export(m)?;
     let r = reporter(m.quiet);
     let s = visuotact_rerun::export_rerun(&m.session, &m.output, &cfg, &mut |done, total| {
         r.items(done, Some(total), "frames")
     })
-    .map_err(|e| match e {
-        visuotact_ros::RosError::Stopped(n) => interrupted(n, &m.output),
-        e => e.into(),
-    })?;
-    for n in &s.notes {
-        note!("note: {}: {n}", m.session.display());
-    }
+    .map_err(|e| ros_error(e, m))?;
+    session_notes(m, &s.notes);
     note!("wrote {} ({} frames)", s.path.display(), s.frames);
     Ok(())
 }
@@ -174,13 +184,8 @@ fn mcap(m: &Mcap) -> anyhow::Result<()> {
     let s = visuotact_ros::export_mcap(&m.session, &m.output, &cfg, &mut |done, total| {
         r.items(done, Some(total), "frames")
     })
-    .map_err(|e| match e {
-        visuotact_ros::RosError::Stopped(n) => interrupted(n, &m.output),
-        e => e.into(),
-    })?;
-    for n in &s.notes {
-        note!("note: {}: {n}", m.session.display());
-    }
+    .map_err(|e| ros_error(e, m))?;
+    session_notes(m, &s.notes);
     note!(
         "wrote {} ({} frames, {} messages)",
         s.path.display(),

@@ -32,7 +32,8 @@ pub(crate) struct Args {
     /// table each (`name`, `source`, and `sensor`, `model` files as the options say; paths
     /// relative to the working folder). Each sensor has its own source, queue and thread;
     /// JSON lines and UDP carry `"sensor": NAME`, bag, DDS, Foxglove and Rerun topics go
-    /// under NS/NAME, the dashboard offers a choice of sensors, and the summary is per sensor. The other options apply to every sensor (simulated sources
+    /// under NS/NAME, the dashboard offers a choice of sensors, and the summary is per
+    /// sensor. The other options apply to every sensor (simulated sources
     /// take seeds --seed, --seed + 1, …).
     #[arg(long, value_name = "FILE.toml", conflicts_with_all = ["source", "sensor", "model"])]
     sensors: Option<PathBuf>,
