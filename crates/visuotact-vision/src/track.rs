@@ -950,7 +950,7 @@ impl Matching<'_> {
     /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
     /// the chain moved one lattice step as without, and which marker holds which blob cannot
     /// be told (a drag of more than a pitch) — and those [`Matching::between_holes_and_free_blobs`]
-    /// and [`Matching::holding_a_holes_blob`] find.
+    /// (however little they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
     fn slide_chains(&mut self, lost_cost: f64) -> Vec<usize> {
         for _ in 0..16 {
             let matched = self.matched();
@@ -973,8 +973,8 @@ impl Matching<'_> {
         }
         let matched = self.matched();
         let holes = self.holes(&matched);
-        let mut doubt = self.between_holes_and_free_blobs(&holes, &matched);
-        doubt.extend(self.holding_a_holes_blob(&holes, &matched));
+        let on_the_way = self.between_holes_and_free_blobs(&holes, &matched);
+        let mut doubt = self.holding_a_holes_blob(&holes, &matched);
         for &h in &holes {
             for path in self.chains_into(h, &matched) {
                 if path.len() < 2 {
@@ -987,10 +987,13 @@ impl Matching<'_> {
                 }
             }
         }
-        // A marker that stayed within half a spacing of where it was is not a lattice step off.
+        // A marker that stayed within half a spacing of where it was is not a lattice step off
+        // — unless it lies between a hole and a free blob: matched a lattice step short, a
+        // patch dragged by over a pitch seems to have barely moved.
         doubt.retain(|&i| {
             self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i]
         });
+        doubt.extend(on_the_way);
         doubt.sort_unstable();
         doubt.dedup();
         doubt
