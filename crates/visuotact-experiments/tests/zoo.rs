@@ -210,8 +210,8 @@ fn the_temporal_prior_follows_a_drag_built_up_past_the_order_free_limit() {
 /// and 2; dots 2 and 3: 3 and 4; tactip-small 5: 24), beside tactip variants 1–3 and the
 /// GelSight-like grid, variant 1 on seed 1 among them: there the dragged patch was matched a
 /// lattice step short, the markers between the hole it left and the free blob of a squeezed
-/// marker seeming to move under half a pitch (4 wrong identities before such markers were put
-/// in doubt whatever their apparent motion). Still short: seed 2 of that variant keeps six (a
+/// marker seeming to move under half a pitch (4 wrong identities before such markers, moved
+/// towards the free blob, were put in doubt however little they moved). Still short: seed 2 of that variant keeps six (a
 /// merged pair at the front instead of a free blob), tactip-small variant 4 on seed 1 one, in
 /// a frame moved by 2.3 pitches (docs/benchmarks.md).
 #[test]

@@ -607,6 +607,10 @@ fn local_motion(
 /// marker costing 1) leaves its chain's markers in doubt ([`Matching::slide_chains`]).
 const AMBIGUOUS_SLIDE: f64 = 0.5;
 
+/// A marker between a hole and a free blob that moved towards the blob by this many spacings
+/// stays in doubt however little it moved ([`Matching::slide_chains`]).
+const DRAGGED_TOWARDS: f64 = 0.2;
+
 /// How far from a hole a free blob leaves the markers between in doubt, in spacings.
 const HOLE_REACH: f64 = 4.0;
 
@@ -975,6 +979,7 @@ impl Matching<'_> {
         let holes = self.holes(&matched);
         let on_the_way = self.between_holes_and_free_blobs(&holes, &matched);
         let mut doubt = self.holding_a_holes_blob(&holes, &matched);
+        doubt.extend(on_the_way.iter().map(|&(i, _)| i));
         for &h in &holes {
             for path in self.chains_into(h, &matched) {
                 if path.len() < 2 {
@@ -988,12 +993,17 @@ impl Matching<'_> {
             }
         }
         // A marker that stayed within half a spacing of where it was is not a lattice step off
-        // — unless it lies between a hole and a free blob: matched a lattice step short, a
-        // patch dragged by over a pitch seems to have barely moved.
+        // — unless it lies between a hole and a free blob and moved towards the blob by
+        // [`DRAGGED_TOWARDS`]: matched a lattice step short, a patch dragged by over a pitch
+        // seems to have moved little.
+        let dragged = |i: usize| {
+            on_the_way
+                .iter()
+                .any(|&(k, along)| k == i && along >= DRAGGED_TOWARDS)
+        };
         doubt.retain(|&i| {
-            self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i]
+            self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i] || dragged(i)
         });
-        doubt.extend(on_the_way);
         doubt.sort_unstable();
         doubt.dedup();
         doubt
@@ -1003,8 +1013,9 @@ impl Matching<'_> {
     /// hole (where its neighbours put it) to a free blob within [`HOLE_REACH`] spacings, and
     /// on the same way from the holes beside it — with holes at one end and spare blobs at the
     /// other, each blob between may belong to the next marker along (a patch dragged by over a
-    /// pitch and matched one lattice step short).
-    fn between_holes_and_free_blobs(&self, holes: &[usize], matched: &[bool]) -> Vec<usize> {
+    /// pitch and matched one lattice step short). Each with how far it moved along that way,
+    /// in spacings.
+    fn between_holes_and_free_blobs(&self, holes: &[usize], matched: &[bool]) -> Vec<(usize, f64)> {
         let at: Vec<Option<((f64, f64), f64)>> =
             holes.iter().map(|&h| self.predict(h, matched)).collect();
         // (hole, the way from it to a free blob)
@@ -1063,8 +1074,14 @@ impl Matching<'_> {
     }
 
     /// Pushes the matched markers whose blobs lie within `width` of the segment from `p` along
-    /// `v`.
-    fn push_on_segment(&self, p: (f64, f64), v: (f64, f64), width: f64, out: &mut Vec<usize>) {
+    /// `v`, each with its displacement along `v` in spacings.
+    fn push_on_segment(
+        &self,
+        p: (f64, f64),
+        v: (f64, f64),
+        width: f64,
+        out: &mut Vec<(usize, f64)>,
+    ) {
         let len2 = (v.0 * v.0 + v.1 * v.1).max(1e-12);
         for (i, a) in self.assignment.iter().enumerate() {
             let Some(j) = *a else { continue };
@@ -1072,7 +1089,9 @@ impl Matching<'_> {
             let t = ((b.0 - p.0) * v.0 + (b.1 - p.1) * v.1) / len2;
             let on = (p.0 + t * v.0, p.1 + t * v.1);
             if (0.0..=1.0).contains(&t) && dist(b, on) < width {
-                out.push(i);
+                let d = self.disp[i];
+                let along = (d.0 * v.0 + d.1 * v.1) / len2.sqrt() / self.reference.spacing_px[i];
+                out.push((i, along));
             }
         }
     }
