@@ -115,19 +115,32 @@ fn binarised_tactip_frames_are_tracked_at_the_digitisation_floor() {
     }
 }
 
-#[test]
-fn the_temporal_prior_follows_a_drag_built_up_past_the_order_free_limit() {
-    use visuotact_sim::zoo::{render, ZooConfig, ZooTouch};
+/// Visible markers a tracker got wrong in one frame: not `ok`, or 0.5 px or more from the
+/// truth.
+#[derive(Debug, Default)]
+struct Followed {
+    /// Largest true motion of a visible marker, in pitches.
+    motion_pitches: f64,
+    /// With the temporal prior, frame after frame.
+    temporal: Vec<String>,
+    /// Each frame on its own.
+    order_free: usize,
+}
+
+/// Calibrates `cfg` from five rest frames and tracks the touches in order, with the temporal
+/// prior and order-free, against the simulator's truth.
+fn follow(
+    cfg: &visuotact_sim::zoo::ZooConfig,
+    touches: &[visuotact_sim::zoo::ZooTouch],
+) -> Vec<Followed> {
+    use visuotact_sim::zoo::{render, ZooTouch};
     use visuotact_vision::calibration::{calibrate, CalibrationConfig};
     use visuotact_vision::features::{FeatureExtractor, FeatureSet};
     use visuotact_vision::track::MarkerStatus;
 
-    // A GelSight-like gel pressed 1 mm and dragged in 24 steps to 1.65 pitches: the region
-    // under the tip ends beyond what frames in any order allow.
-    let cfg = ZooConfig::GELSIGHT;
-    let sensor = SimSensor::Zoo(cfg);
+    let sensor = SimSensor::Zoo(*cfg);
     let rest: Vec<_> = (0..5)
-        .map(|k| render(&cfg, &ZooTouch::default(), 50 + k).unwrap())
+        .map(|k| render(cfg, &ZooTouch::default(), 50 + k).unwrap())
         .collect();
     let ids: Vec<String> = (0..5).map(|k| format!("r{k}")).collect();
     let (cal, _) = calibrate(
@@ -160,46 +173,110 @@ fn the_temporal_prior_follows_a_drag_built_up_past_the_order_free_limit() {
     let mut temporal = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
     temporal.set_temporal_prior(true);
     let mut order_free = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
-    let (mut max_motion, mut free_wrong) = (0.0f64, 0);
-    for step in 0..=24 {
-        let drag = 1.65 * cfg.pitch_mm * step as f64 / 24.0;
-        let touch = ZooTouch {
-            x_mm: 0.5,
-            y_mm: 0.3,
-            depth_mm: 1.0,
-            shear_x_mm: drag,
-            ..ZooTouch::default()
-        };
-        let (img, truth) = render(&cfg, &touch, 100 + step).unwrap();
+    let mut out = Vec::new();
+    for (step, touch) in touches.iter().enumerate() {
+        let (img, truth) = render(cfg, touch, 100 + step as u64).unwrap();
         let f = temporal.extract(&img).unwrap();
         let g = order_free.extract(&img).unwrap();
+        let mut o = Followed::default();
         for (i, m) in cal.markers.iter().enumerate() {
             let t = &truth[pair[i]];
             if !t.visible {
                 continue;
             }
-            max_motion = max_motion.max(
+            o.motion_pitches = o.motion_pitches.max(
                 (t.x_px - truth0[pair[i]].x_px).hypot(t.y_px - truth0[pair[i]].y_px) / cal.pitch_px,
             );
-            assert_eq!(f.status[i], MarkerStatus::Ok, "step {step}: marker {i}");
-            let (x, y) = (m.x_px + f.values[4 * i], m.y_px + f.values[4 * i + 1]);
-            assert!(
-                (x - t.x_px).hypot(y - t.y_px) < 0.5,
-                "step {step}: marker {i} at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
-                t.x_px,
-                t.y_px
-            );
-            let (gx, gy) = (m.x_px + g.values[4 * i], m.y_px + g.values[4 * i + 1]);
-            if g.status[i] != MarkerStatus::Ok || (gx - t.x_px).hypot(gy - t.y_px) >= 0.5 {
-                free_wrong += 1;
-            }
+            let off = |f: &visuotact_vision::features::FrameFeatures| {
+                let (x, y) = (m.x_px + f.values[4 * i], m.y_px + f.values[4 * i + 1]);
+                (f.status[i] != MarkerStatus::Ok || (x - t.x_px).hypot(y - t.y_px) >= 0.5).then(
+                    || {
+                        format!(
+                            "marker {i} {} at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
+                            f.status[i].name(),
+                            t.x_px,
+                            t.y_px
+                        )
+                    },
+                )
+            };
+            o.temporal.extend(off(&f));
+            o.order_free += usize::from(off(&g).is_some());
         }
+        out.push(o);
     }
+    out
+}
+
+#[test]
+fn the_temporal_prior_follows_a_drag_built_up_past_the_order_free_limit() {
+    use visuotact_sim::zoo::{ZooConfig, ZooTouch};
+    // A GelSight-like gel pressed 1 mm and dragged in 24 steps to 1.65 pitches: the region
+    // under the tip ends beyond what frames in any order allow.
+    let cfg = ZooConfig::GELSIGHT;
+    let touches: Vec<ZooTouch> = (0..=24)
+        .map(|step| ZooTouch {
+            x_mm: 0.5,
+            y_mm: 0.3,
+            depth_mm: 1.0,
+            shear_x_mm: 1.65 * cfg.pitch_mm * f64::from(step) / 24.0,
+            ..ZooTouch::default()
+        })
+        .collect();
+    let frames = follow(&cfg, &touches);
+    for (step, f) in frames.iter().enumerate() {
+        assert!(f.temporal.is_empty(), "step {step}: {:#?}", f.temporal);
+    }
+    let motion = frames.iter().map(|f| f.motion_pitches).fold(0.0, f64::max);
+    assert!(motion > MOTION_LIMIT_PITCHES, "motion {motion:.2} pitch");
+    let free: usize = frames.iter().map(|f| f.order_free).sum();
+    eprintln!("order-free tracking on the same frames: {free} marker-frames wrong or lost");
+}
+
+/// The drag that order-free matching takes a lattice step short (the one frame of
+/// `scripts/drag-matrix` with six wrong identities left: gelsight variant 1, seed 2, frame 5;
+/// two rows dragged left by 1.55 pitches, the front pair merged into one blob of ordinary size),
+/// built up as a video would show it — pressed in 6 frames, then dragged and twisted in 24 —
+/// is followed with every visible marker its own with the temporal prior (`--temporal`).
+#[test]
+fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() {
+    use visuotact_sim::zoo::{ZooConfig, ZooKind, ZooTouch};
+    let cfg = ZooConfig::variant(ZooKind::Gelsight, 1);
+    let goal = ZooTouch {
+        x_mm: 0.743,
+        y_mm: -4.957,
+        depth_mm: 0.646,
+        shear_x_mm: -2.655,
+        shear_y_mm: 0.223,
+        twist_deg: -3.181,
+    };
+    let touches: Vec<ZooTouch> = (0..=30)
+        .map(|step| {
+            let press = (f64::from(step) / 6.0).min(1.0);
+            let drag = ((f64::from(step) - 6.0) / 24.0).clamp(0.0, 1.0);
+            ZooTouch {
+                depth_mm: goal.depth_mm * press,
+                shear_x_mm: goal.shear_x_mm * drag,
+                shear_y_mm: goal.shear_y_mm * drag,
+                twist_deg: goal.twist_deg * drag,
+                ..goal
+            }
+        })
+        .collect();
+    let frames = follow(&cfg, &touches);
+    for (step, f) in frames.iter().enumerate() {
+        assert!(f.temporal.is_empty(), "step {step}: {:#?}", f.temporal);
+    }
+    let last = frames.last().unwrap();
     assert!(
-        max_motion > MOTION_LIMIT_PITCHES,
-        "motion {max_motion:.2} pitch"
+        last.motion_pitches > 1.5,
+        "motion {:.2} pitch",
+        last.motion_pitches
     );
-    eprintln!("order-free tracking on the same frames: {free_wrong} marker-frames wrong or lost");
+    eprintln!(
+        "order-free on the last frame: {} visible markers wrong or lost",
+        last.order_free
+    );
 }
 
 /// Local drags of 0.5–1.5 pitch on top of the press (protocol `drag`): where the tracker can
