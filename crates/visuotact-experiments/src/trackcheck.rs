@@ -133,6 +133,10 @@ pub struct CheckConfig {
     /// Frames where some visible marker moves farther than this, in pitches, are also counted
     /// apart (`beyond_*`): order-free tracking is specified up to this motion.
     pub motion_limit_pitches: f64,
+    /// 0: every frame tracked on its own (order-free). N > 0: each touch is built up from rest
+    /// in N frames — pressed over the first third, then dragged and twisted — and followed
+    /// with the temporal prior, as `--temporal` follows a video; every frame is checked.
+    pub followed_steps: usize,
 }
 
 /// The motion up to which order-free tracking must keep every visible marker, in pitches.
@@ -188,6 +192,38 @@ enum AnyTouch {
 }
 
 impl AnyTouch {
+    /// The touch built up from rest in `n` frames: the press over the first third, then the
+    /// drag and twist; the last frame is the touch itself.
+    fn built_up(&self, n: usize) -> Vec<AnyTouch> {
+        let pressing = (n / 3).max(1) as f64;
+        (1..=n)
+            .map(|k| {
+                let k = k as f64;
+                let press = (k / pressing).min(1.0);
+                let drag = if n as f64 > pressing {
+                    ((k - pressing) / (n as f64 - pressing)).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                };
+                match self {
+                    AnyTouch::Iats(t) => AnyTouch::Iats(Touch {
+                        depth_mm: t.depth_mm * press,
+                        shear_x_mm: t.shear_x_mm * drag,
+                        shear_y_mm: t.shear_y_mm * drag,
+                        ..*t
+                    }),
+                    AnyTouch::Zoo(t) => AnyTouch::Zoo(ZooTouch {
+                        depth_mm: t.depth_mm * press,
+                        shear_x_mm: t.shear_x_mm * drag,
+                        shear_y_mm: t.shear_y_mm * drag,
+                        twist_deg: t.twist_deg * drag,
+                        ..*t
+                    }),
+                }
+            })
+            .collect()
+    }
+
     fn depth_mm(&self) -> f64 {
         match self {
             AnyTouch::Iats(t) => t.depth_mm,
@@ -289,8 +325,44 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
         .filter(|(t, k)| t.3 && !**k)
         .count();
     let touches = touches(c)?;
-    report.frames = touches.len();
     let first = c.references.max(1) as u64;
+    if c.followed_steps > 0 {
+        let n = c.followed_steps;
+        report.frames = touches.len() * n;
+        // Touches in parallel, each followed frame by frame by its own extractor.
+        let per_touch: Vec<Vec<FrameCheck>> = touches
+            .par_iter()
+            .enumerate()
+            .map(|(k, t)| -> Result<Vec<FrameCheck>, CheckError> {
+                let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::ALL)?;
+                ex.set_temporal_prior(true);
+                t.built_up(n)
+                    .iter()
+                    .enumerate()
+                    .map(|(s, step)| {
+                        let frame = k * n + s;
+                        let (img, truth) = render(&c.sensor, step, seed_of(first + frame as u64))?;
+                        let f = ex.extract(&img)?;
+                        Ok(frame_check(
+                            &cal,
+                            &pairing,
+                            rest_truth,
+                            &truth,
+                            &f,
+                            frame,
+                            step.depth_mm(),
+                        ))
+                    })
+                    .collect()
+            })
+            .collect::<Result<_, CheckError>>()?;
+        report.add(
+            per_touch.into_iter().flatten().collect(),
+            c.motion_limit_pitches,
+        );
+        return Ok(report);
+    }
+    report.frames = touches.len();
     // Frames in parallel batches, each thread with its own extractor.
     let per_frame: Vec<FrameCheck> = touches
         .par_iter()

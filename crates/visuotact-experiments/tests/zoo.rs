@@ -23,6 +23,7 @@ fn config(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> Check
         detector: sensor.detector(Centroid::Grey),
         layout: LayoutChoice::Auto,
         motion_limit_pitches: MOTION_LIMIT_PITCHES,
+        followed_steps: 0,
     }
 }
 
@@ -331,4 +332,21 @@ fn tiny_pins_are_tracked() {
         assert_eq!(r.layout, Some(Layout::Hex));
         assert_tracked(&format!("tactip-small variant {variant}"), &r, 0.2);
     }
+}
+
+/// `check-tracking --followed N`: every touch is built up from rest in N frames and followed
+/// with the temporal prior, each frame checked against the truth.
+#[test]
+fn followed_checks_build_each_touch_up_frame_by_frame() {
+    let sensor = SimSensor::named("tactip", 1).unwrap();
+    let r = check(&CheckConfig {
+        followed_steps: 6,
+        ..config(sensor, "shear", 6, 3)
+    })
+    .unwrap();
+    assert_eq!(r.frames, 36);
+    assert!(r.visible > 30 * r.calibrated, "{} visible", r.visible);
+    assert_eq!(r.wrong, 0, "{:#?}", r.examples);
+    assert_eq!(r.lost, r.beyond_lost, "{:#?}", r.examples);
+    assert!(r.err_mean_px < 0.05, "mean error {:.3} px", r.err_mean_px);
 }

@@ -40,6 +40,11 @@ pub(crate) struct Args {
     /// apart (the `beyond_*` columns).
     #[arg(long, default_value_t = MOTION_LIMIT_PITCHES)]
     motion_limit: f64,
+    /// Build each touch up from rest in N frames (pressed over the first third, then dragged)
+    /// and follow them with the temporal prior, as `--temporal` on a video; 0: every frame on
+    /// its own.
+    #[arg(long, default_value_t = 0)]
+    followed: usize,
     /// Print the first problems found.
     #[arg(long)]
     verbose: bool,
@@ -93,6 +98,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             detector,
             layout: LayoutChoice::Auto,
             motion_limit_pitches: a.motion_limit,
+            followed_steps: a.followed,
         };
         let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
         say!(
