@@ -325,68 +325,89 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
         .filter(|(t, k)| t.3 && !**k)
         .count();
     let touches = touches(c)?;
-    let first = c.references.max(1) as u64;
-    if c.followed_steps > 0 {
-        let n = c.followed_steps;
-        report.frames = touches.len() * n;
-        // Touches in parallel, each followed frame by frame by its own extractor.
+    let run = Run {
+        c,
+        cal: &cal,
+        pairing: &pairing,
+        rest: rest_truth,
+        first: c.references.max(1) as u64,
+    };
+    let per_frame = if c.followed_steps > 0 {
+        report.frames = touches.len() * c.followed_steps;
+        run.followed(&touches)?
+    } else {
+        report.frames = touches.len();
+        run.order_free(&touches)?
+    };
+    report.add(per_frame, c.motion_limit_pitches);
+    Ok(report)
+}
+
+/// What tracking the touches of one check needs.
+struct Run<'a> {
+    c: &'a CheckConfig,
+    cal: &'a SensorCalibration,
+    pairing: &'a [Option<usize>],
+    rest: &'a Truth,
+    /// Seed index of the first touch frame (after the rest frames).
+    first: u64,
+}
+
+impl Run<'_> {
+    fn check_frame(
+        &self,
+        ex: &mut FeatureExtractor,
+        touch: &AnyTouch,
+        frame: usize,
+    ) -> Result<FrameCheck, CheckError> {
+        let seed = visuotact_sim::rig::frame_seed(self.c.seed, self.first + frame as u64);
+        let (img, truth) = render(&self.c.sensor, touch, seed)?;
+        let f = ex.extract(&img)?;
+        Ok(frame_check(
+            self.cal,
+            self.pairing,
+            self.rest,
+            &truth,
+            &f,
+            frame,
+            touch.depth_mm(),
+        ))
+    }
+
+    /// Every frame on its own, in parallel batches, each thread with its own extractor.
+    fn order_free(&self, touches: &[AnyTouch]) -> Result<Vec<FrameCheck>, CheckError> {
+        touches
+            .par_iter()
+            .enumerate()
+            .map_init(
+                || FeatureExtractor::new(self.cal.clone(), FeatureSet::ALL),
+                |ex, (k, t)| {
+                    let ex = ex.as_mut().map_err(|e| e.clone())?;
+                    self.check_frame(ex, t, k)
+                },
+            )
+            .collect()
+    }
+
+    /// Each touch built up in `followed_steps` frames and followed with the temporal prior;
+    /// touches in parallel, each with its own extractor.
+    fn followed(&self, touches: &[AnyTouch]) -> Result<Vec<FrameCheck>, CheckError> {
+        let n = self.c.followed_steps;
         let per_touch: Vec<Vec<FrameCheck>> = touches
             .par_iter()
             .enumerate()
             .map(|(k, t)| -> Result<Vec<FrameCheck>, CheckError> {
-                let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::ALL)?;
+                let mut ex = FeatureExtractor::new(self.cal.clone(), FeatureSet::ALL)?;
                 ex.set_temporal_prior(true);
                 t.built_up(n)
                     .iter()
                     .enumerate()
-                    .map(|(s, step)| {
-                        let frame = k * n + s;
-                        let (img, truth) = render(&c.sensor, step, seed_of(first + frame as u64))?;
-                        let f = ex.extract(&img)?;
-                        Ok(frame_check(
-                            &cal,
-                            &pairing,
-                            rest_truth,
-                            &truth,
-                            &f,
-                            frame,
-                            step.depth_mm(),
-                        ))
-                    })
+                    .map(|(s, step)| self.check_frame(&mut ex, step, k * n + s))
                     .collect()
             })
             .collect::<Result<_, CheckError>>()?;
-        report.add(
-            per_touch.into_iter().flatten().collect(),
-            c.motion_limit_pitches,
-        );
-        return Ok(report);
+        Ok(per_touch.into_iter().flatten().collect())
     }
-    report.frames = touches.len();
-    // Frames in parallel batches, each thread with its own extractor.
-    let per_frame: Vec<FrameCheck> = touches
-        .par_iter()
-        .enumerate()
-        .map_init(
-            || FeatureExtractor::new(cal.clone(), FeatureSet::ALL),
-            |ex, (k, t)| -> Result<FrameCheck, CheckError> {
-                let ex = ex.as_mut().map_err(|e| e.clone())?;
-                let (img, truth) = render(&c.sensor, t, seed_of(first + k as u64))?;
-                let f = ex.extract(&img)?;
-                Ok(frame_check(
-                    &cal,
-                    &pairing,
-                    rest_truth,
-                    &truth,
-                    &f,
-                    k,
-                    t.depth_mm(),
-                ))
-            },
-        )
-        .collect::<Result<_, CheckError>>()?;
-    report.add(per_frame, c.motion_limit_pitches);
-    Ok(report)
 }
 
 impl CheckReport {
