@@ -457,6 +457,13 @@ fn foxglove_messages(url: &str, wanted: &[(&str, &str)]) -> Vec<Received> {
                     assert_eq!(c.schema_encoding.as_deref(), Some("ros2msg"));
                     topics.push(c.topic.to_string());
                     let id = u32::try_from(topics.len()).unwrap();
+                    // Said on failure: which channels were advertised when.
+                    eprintln!(
+                        "foxglove client: {} (channel {}) advertised after {} messages, subscribed as {id}",
+                        c.topic,
+                        c.id,
+                        got.len()
+                    );
                     subs.push(Subscription::new(id, c.id));
                 }
                 if !subs.is_empty() {
