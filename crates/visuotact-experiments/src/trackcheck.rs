@@ -206,19 +206,8 @@ impl AnyTouch {
                     1.0
                 };
                 match self {
-                    AnyTouch::Iats(t) => AnyTouch::Iats(Touch {
-                        depth_mm: t.depth_mm * press,
-                        shear_x_mm: t.shear_x_mm * drag,
-                        shear_y_mm: t.shear_y_mm * drag,
-                        ..*t
-                    }),
-                    AnyTouch::Zoo(t) => AnyTouch::Zoo(ZooTouch {
-                        depth_mm: t.depth_mm * press,
-                        shear_x_mm: t.shear_x_mm * drag,
-                        shear_y_mm: t.shear_y_mm * drag,
-                        twist_deg: t.twist_deg * drag,
-                        ..*t
-                    }),
+                    AnyTouch::Iats(t) => AnyTouch::Iats(t.partway(press, drag)),
+                    AnyTouch::Zoo(t) => AnyTouch::Zoo(t.partway(press, drag)),
                 }
             })
             .collect()

@@ -255,13 +255,7 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
         .map(|step| {
             let press = (f64::from(step) / 6.0).min(1.0);
             let drag = ((f64::from(step) - 6.0) / 24.0).clamp(0.0, 1.0);
-            ZooTouch {
-                depth_mm: goal.depth_mm * press,
-                shear_x_mm: goal.shear_x_mm * drag,
-                shear_y_mm: goal.shear_y_mm * drag,
-                twist_deg: goal.twist_deg * drag,
-                ..goal
-            }
+            goal.partway(press, drag)
         })
         .collect();
     let frames = follow(&cfg, &touches);
@@ -289,9 +283,10 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// GelSight-like grid, variant 1 on seed 1 among them: there the dragged patch was matched a
 /// lattice step short, the markers between the hole it left and the free blob of a squeezed
 /// marker seeming to move under half a pitch (4 wrong identities before such markers, moved
-/// towards the free blob, were put in doubt however little they moved). Still short: seed 2 of that variant keeps six (a
-/// merged pair at the front instead of a free blob), tactip-small variant 4 on seed 1 one, in
-/// a frame moved by 2.3 pitches (docs/benchmarks.md).
+/// towards the free blob, were put in doubt however little they moved). Still short: seed 2
+/// of that variant keeps six (a merged pair at the front instead of a free blob),
+/// tactip-small variant 4 on seed 1 one, in a frame moved by 2.3 pitches
+/// (docs/benchmarks.md).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [

@@ -208,6 +208,17 @@ pub struct Touch {
 }
 
 impl Touch {
+    /// The touch part of the way there, as a video shows it being made: the depth scaled by
+    /// `press`, the drag by `drag` (each 0..1; 1 and 1: the touch itself).
+    pub fn partway(&self, press: f64, drag: f64) -> Self {
+        Self {
+            depth_mm: self.depth_mm * press,
+            shear_x_mm: self.shear_x_mm * drag,
+            shear_y_mm: self.shear_y_mm * drag,
+            ..*self
+        }
+    }
+
     /// Checks the touch against the sensor: inside the marker area, depth in range, a drag only
     /// with contact and at most two pitches.
     pub fn validate(&self, cfg: &IatsConfig) -> Result<(), crate::SimError> {

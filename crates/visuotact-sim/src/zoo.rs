@@ -769,6 +769,18 @@ pub struct ZooTouch {
 }
 
 impl ZooTouch {
+    /// The touch part of the way there, as a video shows it being made: the depth scaled by
+    /// `press`, the drag and twist by `drag` (each 0..1; 1 and 1: the touch itself).
+    pub fn partway(&self, press: f64, drag: f64) -> Self {
+        Self {
+            depth_mm: self.depth_mm * press,
+            shear_x_mm: self.shear_x_mm * drag,
+            shear_y_mm: self.shear_y_mm * drag,
+            twist_deg: self.twist_deg * drag,
+            ..*self
+        }
+    }
+
     /// Checks the touch against the sensor: on the field, depth within the skin's limit, a drag
     /// or twist only with contact, at most two pitches of drag and 30° of twist.
     pub fn validate(&self, cfg: &ZooConfig) -> Result<(), crate::SimError> {

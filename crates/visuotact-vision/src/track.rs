@@ -996,13 +996,14 @@ impl Matching<'_> {
         // — unless it lies between a hole and a free blob and moved towards the blob by
         // [`DRAGGED_TOWARDS`]: matched a lattice step short, a patch dragged by over a pitch
         // seems to have moved little.
-        let dragged = |i: usize| {
-            on_the_way
-                .iter()
-                .any(|&(k, along)| k == i && along >= DRAGGED_TOWARDS)
-        };
+        let dragged: Vec<usize> = on_the_way
+            .iter()
+            .filter(|&&(_, along)| along >= DRAGGED_TOWARDS)
+            .map(|&(i, _)| i)
+            .collect();
         doubt.retain(|&i| {
-            self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i] || dragged(i)
+            self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i]
+                || dragged.contains(&i)
         });
         doubt.sort_unstable();
         doubt.dedup();
