@@ -434,9 +434,8 @@ fn foxglove_messages(url: &str, wanted: &[(&str, &str)]) -> Vec<Received> {
         .headers_mut()
         .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
     let (mut ws, _) = tungstenite::connect(request).unwrap();
-    // Subscription k + 1 is `topics[k]`, on channel `channel_ids[k]`.
+    // Subscription k + 1 is `topics[k]`.
     let mut topics: Vec<String> = Vec::new();
-    let mut channel_ids: Vec<u64> = Vec::new();
     let mut got = Vec::new();
     let mut server_info = false;
     while let Ok(msg) = ws.read() {
@@ -456,8 +455,9 @@ fn foxglove_messages(url: &str, wanted: &[(&str, &str)]) -> Vec<Received> {
                     assert_eq!(c.schema_name, *schema);
                     assert_eq!(c.encoding, "cdr");
                     assert_eq!(c.schema_encoding.as_deref(), Some("ros2msg"));
+                    // Every topic is advertised when the client connects.
+                    assert!(got.is_empty(), "{} advertised after data", c.topic);
                     topics.push(c.topic.to_string());
-                    channel_ids.push(c.id);
                     let id = u32::try_from(topics.len()).unwrap();
                     // Said on failure: which channels were advertised when.
                     eprintln!(
@@ -473,17 +473,11 @@ fn foxglove_messages(url: &str, wanted: &[(&str, &str)]) -> Vec<Received> {
                     ws.send(tungstenite::Message::Text(text.into())).unwrap();
                 }
             }
-            // The SDK (0.30) sends a new channel's advertisement before it records the channel
-            // for the client: a subscription answered at once can find it unknown. Subscribe
-            // again, as a client that reads its errors does.
+            // The server makes every topic before a client can connect, so a subscription
+            // sent at once finds each channel (foxglove 0.30 answers one to a channel made
+            // while the client is connected with this status).
             ServerMessage::Status(st) if st.message.starts_with("Unknown channel ID: ") => {
-                let channel: u64 = st.message["Unknown channel ID: ".len()..].parse().unwrap();
-                eprintln!("foxglove client: {}; subscribing again", st.message);
-                let k = channel_ids.iter().position(|&c| c == channel).unwrap();
-                std::thread::sleep(std::time::Duration::from_millis(20));
-                let sub = Subscription::new(u32::try_from(k + 1).unwrap(), channel);
-                let text = Subscribe::new([sub]).to_string();
-                ws.send(tungstenite::Message::Text(text.into())).unwrap();
+                panic!("foxglove client: {}", st.message);
             }
             ServerMessage::MessageData(md) => got.push(Received {
                 topic: topics[md.subscription_id as usize - 1].clone(),

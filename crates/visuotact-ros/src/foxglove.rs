@@ -5,8 +5,12 @@
 //!
 //! Each topic is one channel with message encoding `cdr` and its `ros2msg` schema — what an
 //! MCAP bag with the ROS 2 profile holds — so a panel reads the live run exactly as it reads a
-//! bag; each message is logged with its stamp as the log time. A channel is advertised when
-//! its first message is published. The server listens on loopback (127.0.0.1:8765, Foxglove's
+//! bag; each message is logged with its stamp as the log time. Every topic a frame may have
+//! (per sensor, for [`FoxgloveConfig::sensors`]) is made when the server starts, so a client
+//! is told of all of them when it connects and can subscribe before the first frame (a topic
+//! made while a client is connected is advertised to it before the server can take its
+//! subscription: foxglove 0.30 answers one sent at once with "Unknown channel ID"). The
+//! server listens on loopback (127.0.0.1:8765, Foxglove's
 //! default) unless told another address; every client gets its own queue of
 //! [`FoxgloveConfig::backlog`] messages, and a slow client loses its oldest messages, never
 //! slowing the estimator.
@@ -21,7 +25,7 @@ use foxglove::{
 
 use crate::msg::RosMessage;
 use crate::sink::LiveSink;
-use crate::topics::{typed_entry, Publish, RosConfig};
+use crate::topics::{declare_frame_topics, typed_entry, Declare, Publish, RosConfig};
 use crate::RosError;
 
 /// Where and how the live topics are served.
@@ -33,6 +37,8 @@ pub struct FoxgloveConfig {
     pub addr: SocketAddr,
     /// Messages queued per client before its oldest are dropped.
     pub backlog: usize,
+    /// The sensors of a run of several (topics under `NS/NAME`); empty for one sensor.
+    pub sensors: Vec<String>,
 }
 
 impl FoxgloveConfig {
@@ -49,11 +55,12 @@ impl Default for FoxgloveConfig {
             },
             addr: SocketAddr::from(([127, 0, 0, 1], 8765)),
             backlog: 1024,
+            sensors: Vec::new(),
         }
     }
 }
 
-/// A Foxglove WebSocket server with one raw channel per topic, made on first use.
+/// A Foxglove WebSocket server with one raw channel per topic.
 pub struct FoxglovePublisher {
     context: Arc<Context>,
     server: Option<WebSocketServerHandle>,
@@ -65,7 +72,8 @@ pub struct FoxglovePublisher {
 }
 
 impl FoxglovePublisher {
-    /// Starts the server on `cfg.addr` (its own runtime threads).
+    /// Makes every topic's channel ([`declare_frame_topics`], per sensor of `cfg.sensors`), then
+    /// starts the server on `cfg.addr` (its own runtime threads).
     pub fn start(cfg: &FoxgloveConfig) -> Result<Self, RosError> {
         if cfg.backlog == 0 {
             return Err(RosError::Config(
@@ -73,6 +81,20 @@ impl FoxglovePublisher {
             ));
         }
         let context = Context::new();
+        let mut declared = Self {
+            context: context.clone(),
+            server: None,
+            addr: cfg.addr,
+            channels: HashMap::new(),
+            buf: Vec::new(),
+            messages: 0,
+        };
+        if cfg.sensors.is_empty() {
+            declare_frame_topics(&mut declared, &cfg.ros)?;
+        }
+        for name in &cfg.sensors {
+            declare_frame_topics(&mut declared, &cfg.ros.for_sensor(name))?;
+        }
         let server = WebSocketServer::new()
             .name("visuotact")
             .context(&context)
@@ -80,15 +102,9 @@ impl FoxglovePublisher {
             .message_backlog_size(cfg.backlog)
             .start_blocking()
             .map_err(|e| RosError::Config(format!("Foxglove server on {}: {e}", cfg.addr)))?;
-        let addr = SocketAddr::new(cfg.addr.ip(), server.port());
-        Ok(Self {
-            context,
-            server: Some(server),
-            addr,
-            channels: HashMap::new(),
-            buf: Vec::new(),
-            messages: 0,
-        })
+        declared.addr = SocketAddr::new(cfg.addr.ip(), server.port());
+        declared.server = Some(server);
+        Ok(declared)
     }
 
     /// The address the server listens on (the port chosen when 0 was asked).
@@ -130,6 +146,12 @@ impl FoxglovePublisher {
             self.channels.insert(topic.to_string(), (M::NAME, channel));
         }
         typed_entry(&self.channels, topic, M::NAME)
+    }
+}
+
+impl Declare for FoxglovePublisher {
+    fn declare<M: RosMessage>(&mut self, topic: &str) -> Result<(), RosError> {
+        self.channel::<M>(topic).map(|_| ())
     }
 }
 

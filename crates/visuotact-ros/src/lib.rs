@@ -42,7 +42,9 @@ pub use export::{export_mcap, ExportConfig, ExportSummary, SessionExport};
 #[cfg(feature = "foxglove")]
 pub use foxglove::{FoxgloveConfig, FoxgloveSink};
 pub use sink::{LiveSink, McapRecorder, McapSink};
-pub use topics::{FrameMessages, FrameTarget, MarkerPoint, RosConfig};
+pub use topics::{
+    declare_frame_topics, Declare, FrameMessages, FrameTarget, MarkerPoint, RosConfig,
+};
 
 /// Errors of the ROS 2 outputs.
 #[derive(Debug, thiserror::Error)]

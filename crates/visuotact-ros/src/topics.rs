@@ -314,6 +314,27 @@ impl Publish for Bag {
     }
 }
 
+/// A target that can make a topic's channel before its first message (a live server, so that
+/// a client connecting before the first frame is told of every topic at once).
+pub trait Declare {
+    /// Makes `topic`'s channel for messages of type `M` (nothing if it exists).
+    fn declare<M: RosMessage>(&mut self, topic: &str) -> Result<(), RosError>;
+}
+
+/// Declares every topic [`write_frame`] may publish under `cfg`: wrench, measured wrench,
+/// contact, contact rule, marker cloud, the frames when `cfg.images`, and `/diagnostics`.
+pub fn declare_frame_topics<D: Declare>(d: &mut D, cfg: &RosConfig) -> Result<(), RosError> {
+    d.declare::<WrenchStamped>(&cfg.topic("wrench"))?;
+    d.declare::<WrenchStamped>(&cfg.topic("ft_sensor/wrench"))?;
+    d.declare::<PointStamped>(&cfg.topic("contact"))?;
+    d.declare::<Bool>(&cfg.topic("contact/active"))?;
+    d.declare::<PointCloud2>(&cfg.topic("markers"))?;
+    if cfg.images {
+        d.declare::<CompressedImage>(&cfg.topic("image/compressed"))?;
+    }
+    d.declare::<DiagnosticArray>("/diagnostics")
+}
+
 /// Where whole frames go: every [`Publish`] target as ROS 2 messages ([`write_frame`]), or
 /// another format that takes a frame's parts as they are (a Rerun recording).
 pub trait FrameTarget {
@@ -394,6 +415,71 @@ mod tests {
 
     fn f32_at(data: &[u8], at: usize) -> f32 {
         f32::from_le_bytes(data[at..at + 4].try_into().unwrap())
+    }
+
+    /// Records (topic, message type) of what is declared or published.
+    #[derive(Default)]
+    struct Seen(std::collections::BTreeSet<(String, &'static str)>);
+
+    impl Declare for Seen {
+        fn declare<M: RosMessage>(&mut self, topic: &str) -> Result<(), RosError> {
+            self.0.insert((topic.to_string(), M::NAME));
+            Ok(())
+        }
+    }
+
+    impl Publish for Seen {
+        fn publish<M: RosMessage>(&mut self, topic: &str, _: u64, _: &M) -> Result<(), RosError> {
+            self.0.insert((topic.to_string(), M::NAME));
+            Ok(())
+        }
+    }
+
+    /// A live server makes its channels before the first frame: what it declares is exactly
+    /// what a frame with every part publishes, topic and type, with and without the images.
+    #[test]
+    fn the_declared_topics_are_those_a_full_frame_publishes() {
+        let targets: Vec<TargetEstimate> = ["x_mm", "y_mm", "depth_mm"]
+            .iter()
+            .chain(&WRENCH_TARGETS)
+            .map(|n| TargetEstimate {
+                name: (*n).to_string(),
+                value: 1.0,
+                std: None,
+            })
+            .collect();
+        let markers = [MarkerPoint {
+            x_px: 1.0,
+            y_px: 2.0,
+            dx_px: 0.0,
+            dy_px: 0.0,
+            found: true,
+        }];
+        let health = Health::default();
+        for images in [true, false] {
+            let cfg = RosConfig {
+                images,
+                ..RosConfig::default()
+            }
+            .for_sensor("left");
+            let frame = FrameMessages {
+                targets: &targets,
+                contact: Some(true),
+                measured: Some([0.0; 6]),
+                markers: Some(&markers),
+                png: images.then(Vec::new),
+                health: Some((&health, Vec::new())),
+                ..FrameMessages::default()
+            };
+            let (mut published, mut declared) = (Seen::default(), Seen::default());
+            write_frame(&mut published, &cfg, frame).unwrap();
+            declare_frame_topics(&mut declared, &cfg).unwrap();
+            assert_eq!(declared.0, published.0);
+            assert_eq!(declared.0.len(), 6 + usize::from(images));
+            assert!(declared
+                .0
+                .contains(&("/visuotact/left/contact/active".into(), Bool::NAME)));
+        }
     }
 
     /// Without a scale the cloud keeps its pixel layout; with one, each point gains dx_mm and

@@ -181,7 +181,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         ),
         None => None,
     };
-    let mut out = Outputs::open(a, dashboard)?;
+    let mut out = Outputs::open(a, dashboard, &[])?;
     let mut summary =
         visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut out.sinks(), |w| {
             note!("warning: {w}")
@@ -299,7 +299,8 @@ fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let mut out = Outputs::open(a, dashboard)?;
+    let names: Vec<String> = sensors.iter().map(|s| s.name.clone()).collect();
+    let mut out = Outputs::open(a, dashboard, &names)?;
     let mut summaries = run_several(&mut sensors, &stop, &mut out.sinks(), |w| {
         note!("warning: {w}")
     })?;
@@ -376,8 +377,13 @@ struct Outputs {
 }
 
 impl Outputs {
-    /// The outputs `a` asks for, with `dashboard` when one is served.
-    fn open(a: &Args, dashboard: Option<visuotact_dashboard::Dashboard>) -> anyhow::Result<Self> {
+    /// The outputs `a` asks for, with `dashboard` when one is served, for `sensors` (the names
+    /// in a run of several, else empty).
+    fn open(
+        a: &Args,
+        dashboard: Option<visuotact_dashboard::Dashboard>,
+        sensors: &[String],
+    ) -> anyhow::Result<Self> {
         let udp = a
             .udp
             .as_deref()
@@ -391,6 +397,7 @@ impl Outputs {
                 FoxgloveSink::create(&FoxgloveConfig {
                     ros: a.bag.ros.config(a.foxglove_images),
                     addr,
+                    sensors: sensors.to_vec(),
                     ..FoxgloveConfig::default()
                 })
             })
