@@ -518,9 +518,21 @@ fn frame_check(
             .any(|(j, o)| j != t && (x - o.0).hypot(y - o.1) < own);
         if nearer || own > 0.5 * cal.pitch_px {
             out.wrong += 1;
+            // The simulated marker nearest the measurement, and the calibrated marker that is.
+            let (u, _) = now
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| o.0.is_finite())
+                .map(|(j, o)| (j, (x - o.0).hypot(y - o.1)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap_or((t, own));
+            let whose = pairing.iter().position(|&p| p == Some(u)).map_or_else(
+                || "uncalibrated".to_string(),
+                |q| format!("marker {q}, {}", f.status[q].name()),
+            );
             out.wrong_examples.push(format!(
-                "frame {k} (depth {depth_mm:.2} mm, motion up to {max_disp:.2} pitch): marker {i} measured at ({x:.1}, {y:.1}), truth ({:.1}, {:.1})",
-                now[t].0, now[t].1
+                "frame {k} (depth {depth_mm:.2} mm, motion up to {max_disp:.2} pitch): marker {i} measured at ({x:.1}, {y:.1}), truth ({:.1}, {:.1}), darea {:.1} px of {:.1}; nearest truth ({:.1}, {:.1}) is {whose}",
+                now[t].0, now[t].1, f.values[per * i + 2], m.area_px, now[u].0, now[u].1
             ));
             continue;
         }

@@ -25,13 +25,15 @@
 //!    field leave the markers ahead of them [`MarkerStatus::Ambiguous`]: a patch dragged past a
 //!    pitch can be matched a lattice step short with the gap at its back instead of its front,
 //!    and nothing in one frame tells the two apart. A marker is reported lost rather than
-//!    given a neighbour's blob (on the simulator's drags of 0.5–1.5 pitch: 11 wrong identities
+//!    given a neighbour's blob (on the simulator's drags of 0.5–1.5 pitch: 7 wrong identities
 //!    in 366 707 visible marker-frames, 272 without this step; none lost in frames moved by
 //!    under a pitch).
 //!
 //! No marker is ever given a blob just because it is the nearest one to its rest position.
 //! Markers left without a blob are reported as [`MarkerStatus::Lost`], [`MarkerStatus::Merged`]
-//! (their prediction falls on a blob already taken that is much bigger than one marker) or
+//! (their prediction falls on a blob already taken that is much bigger than one marker, or
+//! two markers predicted within 0.6 spacing of each other share a blob a quarter bigger than
+//! one: squeezed pins overlap, so their blob is less than two; its holder is merged too) or
 //! [`MarkerStatus::Ambiguous`] (two free blobs equally plausible); their feature cells stay
 //! empty and other markers' columns never shift. Two merged markers whose blob has about their
 //! two areas are split by the blob's second moments along its major axis
@@ -611,6 +613,14 @@ const AMBIGUOUS_SLIDE: f64 = 0.5;
 /// stays in doubt however little it moved ([`Matching::slide_chains`]).
 const DRAGGED_TOWARDS: f64 = 0.2;
 
+/// Two markers predicted within this many spacings of each other, one missing, may share the
+/// blob between them ([`Matching::crowded_onto`]).
+const CROWDED: f64 = 0.6;
+
+/// A blob shared by two squeezed markers is at least this many times the smaller marker's
+/// area ([`Matching::crowded_onto`]).
+const CROWDED_AREA: f64 = 1.25;
+
 /// How far from a hole a free blob leaves the markers between in doubt, in spacings.
 const HOLE_REACH: f64 = 4.0;
 
@@ -992,18 +1002,20 @@ impl Matching<'_> {
                 }
             }
         }
-        // A marker that stayed within half a spacing of where it was is not a lattice step off
-        // — unless it lies between a hole and a free blob and moved towards the blob by
-        // [`DRAGGED_TOWARDS`]: matched a lattice step short, a patch dragged by over a pitch
-        // seems to have moved little.
+        // A marker that stayed within half a spacing of its rest position is not a lattice
+        // step off — unless it lies between a hole and a free blob and moved towards the blob
+        // by [`DRAGGED_TOWARDS`]: matched a lattice step short, a patch dragged by over a pitch
+        // seems to have moved little. (With a temporal prior the motion counts from rest, not
+        // from the last frame: markers squeezed together over many frames are as doubtful.)
         let dragged: Vec<usize> = on_the_way
             .iter()
             .filter(|&&(_, along)| along >= DRAGGED_TOWARDS)
             .map(|&(i, _)| i)
             .collect();
         doubt.retain(|&i| {
-            self.disp[i].0.hypot(self.disp[i].1) >= 0.5 * self.reference.spacing_px[i]
-                || dragged.contains(&i)
+            let (a, r, d) = (self.anchors[i], self.reference.positions[i], self.disp[i]);
+            let moved = (a.0 + d.0 - r.0).hypot(a.1 + d.1 - r.1);
+            moved >= 0.5 * self.reference.spacing_px[i] || dragged.contains(&i)
         });
         doubt.sort_unstable();
         doubt.dedup();
@@ -1353,6 +1365,37 @@ impl Matching<'_> {
         }
     }
 
+    /// The taken blob unmatched marker `i` (predicted at `pred`, local magnification `scale`)
+    /// shares with its owner when the two are squeezed together: the blob nearest `pred` is
+    /// within [`CROWDED`] spacings of it, no free blob is as near, the owner's own prediction
+    /// is within [`CROWDED`] spacings of `pred` (two markers predicted closer than a lattice
+    /// step allows, one blob for both), and the blob is bigger than either marker by
+    /// [`CROWDED_AREA`] — pins squeezed under a deep press overlap and hide each other, so
+    /// their blob is not twice a pin, but a marker whose neighbour vanished behind it keeps
+    /// its own size.
+    fn crowded_onto(
+        &self,
+        i: usize,
+        (pred, scale): ((f64, f64), f64),
+        owner: &[Option<usize>],
+        matched: &[bool],
+    ) -> Option<usize> {
+        let reach = CROWDED * self.reference.spacing_px[i];
+        let j = self.index.nearest(pred, reach)?;
+        let k = owner[j]?;
+        let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+        if nearest_two(pred, &self.index, &self.taken, dist(b, pred))
+            .0
+            .is_some()
+        {
+            return None;
+        }
+        let (pk, _) = self.predict(k, matched)?;
+        let areas = &self.reference.areas_px;
+        let bigger = CROWDED_AREA * areas[k].min(areas[i]) * scale * scale;
+        (dist(pk, pred) < reach && f64::from(self.blobs[j].area_px) >= bigger).then_some(j)
+    }
+
     /// Classifies the unmatched markers: merged (a blob covering the prediction and much
     /// larger than the marker), ambiguous or lost.
     fn classify_unmatched(&self, predicted: &[(f64, f64)], usable: usize) -> Classified {
@@ -1381,15 +1424,22 @@ impl Matching<'_> {
             // The prediction may miss a merged blob's box by a little: the pair's centroid sits
             // between the two markers.
             let margin = 0.3 * reference.spacing_px[i] - 0.5;
-            let merged_with = blobs[..usable].iter().enumerate().find(|&(j, b)| {
-                let owner_area =
-                    owner[j].map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
-                f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area.min(owner_area)
-                    && pred.0 >= f64::from(b.bbox.x0) - margin
-                    && pred.0 <= f64::from(b.bbox.x1) + margin - 1.0
-                    && pred.1 >= f64::from(b.bbox.y0) - margin
-                    && pred.1 <= f64::from(b.bbox.y1) + margin - 1.0
-            });
+            let merged_with = blobs[..usable]
+                .iter()
+                .enumerate()
+                .find(|&(j, b)| {
+                    let owner_area =
+                        owner[j].map_or(expected_area, |k| reference.areas_px[k] * scale * scale);
+                    f64::from(b.area_px) >= cfg.merged_area_ratio * expected_area.min(owner_area)
+                        && pred.0 >= f64::from(b.bbox.x0) - margin
+                        && pred.0 <= f64::from(b.bbox.x1) + margin - 1.0
+                        && pred.1 >= f64::from(b.bbox.y0) - margin
+                        && pred.1 <= f64::from(b.bbox.y1) + margin - 1.0
+                })
+                .or_else(|| {
+                    m.crowded_onto(i, (pred, scale), &owner, &matched)
+                        .map(|j| (j, &blobs[j]))
+                });
             status[i] = if let Some((j, _)) = merged_with {
                 // The owner of that blob is merged too: its centroid is no longer its own.
                 if let Some(k) = owner[j] {

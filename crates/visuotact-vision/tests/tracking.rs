@@ -249,6 +249,52 @@ fn a_merged_pair_is_split_by_its_moments() {
     }
 }
 
+/// Followed frame by frame (the temporal prior), the right half of the grid slides left until
+/// columns 5 and 6 overlap (centres 0.8 radius apart: one blob of about 1.5 markers, smaller
+/// than the 1.6 that marks a blob as merged by its size alone). Neither marker of a squeezed
+/// pair is reported at the pair's centroid as its own: both are merged, or split by the
+/// blob's moments near their true centres; every other marker stays its own.
+#[test]
+fn squeezed_pins_sharing_a_blob_are_merged_not_one_of_them_at_the_centroid() {
+    let pattern = GridPattern::IATS;
+    let cal = calibrated(&pattern);
+    let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
+    ex.set_temporal_prior(true);
+    let rest = grid_markers(&pattern, None);
+    let last = 12;
+    for step in 0..=last {
+        let slide = (pattern.pitch_x_px - 0.8 * pattern.radius_px) * f64::from(step) / 12.0;
+        let mut markers = rest.clone();
+        for m in markers.iter_mut().filter(|m| m.col >= 6) {
+            m.ellipse.cx_px -= slide;
+        }
+        let shapes: Vec<_> = markers.iter().map(|m| (m.ellipse, None)).collect();
+        let img = render_markers(pattern.width, pattern.height, &shapes, &pattern.look, 40);
+        let f = ex.extract(&img).unwrap();
+        for (k, m) in cal.markers.iter().enumerate() {
+            let t = markers[k].ellipse;
+            let (x, y) = (m.x_px + f.values[4 * k], m.y_px + f.values[4 * k + 1]);
+            let e = (x - t.cx_px).hypot(y - t.cy_px);
+            let what = format!("step {step}: marker {k} {:?}", f.status[k]);
+            match f.status[k] {
+                MarkerStatus::Ok => assert!(e < 0.5, "{what} {e:.2} px off"),
+                MarkerStatus::Split => assert!(e < 2.5, "{what} {e:.2} px off"),
+                MarkerStatus::Merged => assert!(markers[k].col == 5 || markers[k].col == 6),
+                other => panic!("{what}: {other:?}"),
+            }
+        }
+        if step == last {
+            for k in (0..117).filter(|&k| rest[k].col == 5 || rest[k].col == 6) {
+                assert!(
+                    matches!(f.status[k], MarkerStatus::Merged | MarkerStatus::Split),
+                    "marker {k}: {:?}",
+                    f.status[k]
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn spurious_blobs_are_counted_not_assigned() {
     let pattern = GridPattern::IATS;
