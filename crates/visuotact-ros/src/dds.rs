@@ -25,7 +25,7 @@ use rustdds::{
 
 use crate::msg::RosMessage;
 use crate::sink::LiveSink;
-use crate::topics::{typed_entry, Publish, RosConfig};
+use crate::topics::{declare_sensor_topics, typed_entry, Declare, Publish, RosConfig};
 use crate::RosError;
 
 /// Where and how the live topics are published.
@@ -37,6 +37,8 @@ pub struct DdsConfig {
     pub domain_id: u16,
     /// The network interface's address to publish on (`None`: loopback only).
     pub network: Option<IpAddr>,
+    /// The sensors of a run of several (topics under `NS/NAME`); empty for one sensor.
+    pub sensors: Vec<String>,
 }
 
 impl Default for DdsConfig {
@@ -48,6 +50,7 @@ impl Default for DdsConfig {
             },
             domain_id: 0,
             network: None,
+            sensors: Vec::new(),
         }
     }
 }
@@ -137,7 +140,10 @@ fn dds_err(e: impl std::fmt::Display) -> RosError {
 }
 
 impl DdsPublisher {
-    /// A participant in `cfg.domain_id` on loopback (or `cfg.network`).
+    /// A participant in `cfg.domain_id` on loopback (or `cfg.network`), with a writer for
+    /// every topic a frame may have ([`declare_sensor_topics`]): discovery starts at once, so
+    /// a subscriber can match before the first frame (writers are volatile: what is published
+    /// before a subscriber matches is not sent to it).
     pub fn new(cfg: &DdsConfig) -> Result<Self, RosError> {
         let only: IpAddr = cfg.network.unwrap_or(IpAddr::from([127, 0, 0, 1]));
         check_interface(only)?;
@@ -148,13 +154,22 @@ impl DdsPublisher {
             .map_err(dds_err)?;
         let qos = ros_default_qos();
         let publisher = participant.create_publisher(&qos).map_err(dds_err)?;
-        Ok(Self {
+        let mut out = Self {
             participant,
             publisher,
             qos,
             writers: HashMap::new(),
             messages: 0,
-        })
+        };
+        declare_sensor_topics(&mut out, &cfg.ros, &cfg.sensors)?;
+        Ok(out)
+    }
+
+    /// The topics it has a writer for, sorted.
+    pub fn topics(&self) -> Vec<&str> {
+        let mut t: Vec<&str> = self.writers.keys().map(String::as_str).collect();
+        t.sort_unstable();
+        t
     }
 
     fn writer<M: RosMessage>(&mut self, topic: &str) -> Result<&DataWriter<Cdr, RawCdr>, RosError> {
@@ -175,6 +190,12 @@ impl DdsPublisher {
             self.writers.insert(topic.to_string(), (M::NAME, w));
         }
         typed_entry(&self.writers, topic, M::NAME)
+    }
+}
+
+impl Declare for DdsPublisher {
+    fn declare<M: RosMessage>(&mut self, topic: &str) -> Result<(), RosError> {
+        self.writer::<M>(topic).map(|_| ())
     }
 }
 
@@ -209,5 +230,45 @@ impl LiveSink<DdsPublisher> {
     /// Leaves the domain: the messages published, or the run's first error.
     pub fn finish(self) -> Result<u64, RosError> {
         self.finish_with(|out| Ok(out.messages))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every topic a frame may have gets its writer when the participant is made, per sensor
+    /// of a run of several (`/diagnostics` is shared), so discovery can match subscribers
+    /// before the first frame.
+    #[test]
+    fn writers_are_made_for_every_topic_before_the_first_frame() {
+        let cfg = DdsConfig {
+            domain_id: 71,
+            sensors: vec!["left".into(), "right".into()],
+            ..DdsConfig::default()
+        };
+        let p = DdsPublisher::new(&cfg).unwrap();
+        let topics = p.topics();
+        assert_eq!(topics.len(), 11, "{topics:?}");
+        assert_eq!(topics[0], "/diagnostics");
+        for side in ["left", "right"] {
+            for t in [
+                "contact",
+                "contact/active",
+                "ft_sensor/wrench",
+                "markers",
+                "wrench",
+            ] {
+                let name = format!("/visuotact/{side}/{t}");
+                assert!(topics.contains(&name.as_str()), "{name} in {topics:?}");
+            }
+        }
+        let one = DdsPublisher::new(&DdsConfig {
+            domain_id: 71,
+            ..DdsConfig::default()
+        })
+        .unwrap();
+        assert_eq!(one.topics().len(), 6, "{:?}", one.topics());
+        assert_eq!(p.messages + one.messages, 0);
     }
 }

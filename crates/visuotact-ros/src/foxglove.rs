@@ -25,7 +25,7 @@ use foxglove::{
 
 use crate::msg::RosMessage;
 use crate::sink::LiveSink;
-use crate::topics::{declare_frame_topics, typed_entry, Declare, Publish, RosConfig};
+use crate::topics::{declare_sensor_topics, typed_entry, Declare, Publish, RosConfig};
 use crate::RosError;
 
 /// Where and how the live topics are served.
@@ -72,7 +72,7 @@ pub struct FoxglovePublisher {
 }
 
 impl FoxglovePublisher {
-    /// Makes every topic's channel ([`declare_frame_topics`], per sensor of `cfg.sensors`), then
+    /// Makes every topic's channel ([`declare_sensor_topics`]), then
     /// starts the server on `cfg.addr` (its own runtime threads).
     pub fn start(cfg: &FoxgloveConfig) -> Result<Self, RosError> {
         if cfg.backlog == 0 {
@@ -89,12 +89,7 @@ impl FoxglovePublisher {
             buf: Vec::new(),
             messages: 0,
         };
-        if cfg.sensors.is_empty() {
-            declare_frame_topics(&mut declared, &cfg.ros)?;
-        }
-        for name in &cfg.sensors {
-            declare_frame_topics(&mut declared, &cfg.ros.for_sensor(name))?;
-        }
+        declare_sensor_topics(&mut declared, &cfg.ros, &cfg.sensors)?;
         let server = WebSocketServer::new()
             .name("visuotact")
             .context(&context)

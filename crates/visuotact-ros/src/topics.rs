@@ -335,6 +335,22 @@ pub fn declare_frame_topics<D: Declare>(d: &mut D, cfg: &RosConfig) -> Result<()
     d.declare::<DiagnosticArray>("/diagnostics")
 }
 
+/// Declares the topics of one sensor under `cfg` (`sensors` empty) or of each sensor of a run
+/// of several under [`RosConfig::for_sensor`].
+pub fn declare_sensor_topics<D: Declare>(
+    d: &mut D,
+    cfg: &RosConfig,
+    sensors: &[String],
+) -> Result<(), RosError> {
+    if sensors.is_empty() {
+        return declare_frame_topics(d, cfg);
+    }
+    for name in sensors {
+        declare_frame_topics(d, &cfg.for_sensor(name))?;
+    }
+    Ok(())
+}
+
 /// Where whole frames go: every [`Publish`] target as ROS 2 messages ([`write_frame`]), or
 /// another format that takes a frame's parts as they are (a Rerun recording).
 pub trait FrameTarget {

@@ -200,7 +200,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
 }
 
 /// The ROS 2 outputs asked for: the bag (`--mcap`) and the live DDS topics (`--ros2`).
-fn ros_sinks(a: &Args) -> anyhow::Result<(Option<McapSink>, Option<DdsSink>)> {
+fn ros_sinks(a: &Args, sensors: &[String]) -> anyhow::Result<(Option<McapSink>, Option<DdsSink>)> {
     let mcap = a
         .bag
         .mcap
@@ -221,6 +221,7 @@ fn ros_sinks(a: &Args) -> anyhow::Result<(Option<McapSink>, Option<DdsSink>)> {
                 ros: a.bag.ros.config(false),
                 domain_id: a.ros_domain_id,
                 network: a.ros_network,
+                sensors: sensors.to_vec(),
             })
         })
         .transpose()
@@ -390,7 +391,7 @@ impl Outputs {
             .map(UdpSink::connect)
             .transpose()
             .map_err(|e| anyhow::anyhow!("--udp {e}"))?;
-        let (mcap, dds) = ros_sinks(a)?;
+        let (mcap, dds) = ros_sinks(a, sensors)?;
         let foxglove = a
             .foxglove
             .map(|addr| {
