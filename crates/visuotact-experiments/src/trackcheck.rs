@@ -512,20 +512,19 @@ fn frame_check(
         let (dx, dy) = (f.values[per * i], f.values[per * i + 1]);
         let (x, y) = (m.x_px + dx, m.y_px + dy);
         let own = (x - now[t].0).hypot(y - now[t].1);
-        let nearer = now
+        // The simulated marker nearest the measurement: another one nearer than its own is a
+        // wrong identity.
+        let (u, du) = now
             .iter()
             .enumerate()
-            .any(|(j, o)| j != t && (x - o.0).hypot(y - o.1) < own);
+            .filter(|(_, o)| o.0.is_finite())
+            .map(|(j, o)| (j, (x - o.0).hypot(y - o.1)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((t, own));
+        let nearer = u != t && du < own;
         if nearer || own > 0.5 * cal.pitch_px {
             out.wrong += 1;
-            // The simulated marker nearest the measurement, and the calibrated marker that is.
-            let (u, _) = now
-                .iter()
-                .enumerate()
-                .filter(|(_, o)| o.0.is_finite())
-                .map(|(j, o)| (j, (x - o.0).hypot(y - o.1)))
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap_or((t, own));
+            // The calibrated marker the nearest simulated one is.
             let whose = pairing.iter().position(|&p| p == Some(u)).map_or_else(
                 || "uncalibrated".to_string(),
                 |q| format!("marker {q}, {}", f.status[q].name()),

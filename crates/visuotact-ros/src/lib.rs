@@ -43,7 +43,8 @@ pub use export::{export_mcap, ExportConfig, ExportSummary, SessionExport};
 pub use foxglove::{FoxgloveConfig, FoxgloveSink};
 pub use sink::{LiveSink, McapRecorder, McapSink};
 pub use topics::{
-    declare_frame_topics, Declare, FrameMessages, FrameTarget, MarkerPoint, RosConfig,
+    declare_frame_topics, declare_sensor_topics, Declare, FrameMessages, FrameTarget, MarkerPoint,
+    RosConfig,
 };
 
 /// Errors of the ROS 2 outputs.
