@@ -1267,7 +1267,9 @@ impl View {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TrackHints<'a> {
     /// The last `cut` blobs are markers cut by the image border (dropped by the blob filter):
-    /// a marker that takes one left the view and is reported lost, never measured.
+    /// a marker that takes one left the view and is reported lost, never measured — unless the
+    /// blob is as big as the marker at rest within the pixel noise of its outline (it touches
+    /// the edge without being cut by it).
     pub cut: usize,
     /// Each marker's position in an earlier frame of the same video (`None` for markers it did
     /// not have): tracking starts from there instead of from the reference.
@@ -1529,9 +1531,11 @@ pub fn track_with(
         mut on_blob,
     } = m.classify_unmatched(&predicted, usable);
     let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, &mut status);
-    for (st, a) in status.iter_mut().zip(&m.assignment) {
-        // A marker that took a blob cut by the border has left the view.
-        if a.is_some_and(|j| j >= usable) {
+    // A marker that took a blob cut by the border has left the view — unless the blob is as
+    // big as the marker at rest, within the pixel noise of its outline: then nothing of it is
+    // missing (a marker ending a pixel short of a circular mask's edge touches it).
+    for (i, (st, a)) in status.iter_mut().zip(&m.assignment).enumerate() {
+        if a.is_some_and(|j| j >= usable && !whole(blobs[j].area_px, reference.areas_px[i], cfg)) {
             *st = MarkerStatus::Lost;
         }
     }
@@ -1562,6 +1566,18 @@ pub fn track_with(
         spurious,
         split_px,
     }
+}
+
+/// Whether a blob of `area_px` cut by the border is still a whole marker of `rest_area_px`:
+/// no smaller than the marker at rest by more than the square root of its outline's length in
+/// pixels (about how much a marker's pixel count varies from frame to frame; 3 px for a 6-px
+/// pin, 8 px for a 400-px marker, whose centroid a cut of that size moves by 0.2 px), and not
+/// so big that it holds more than the marker (a merged blob, or a sensor's rim cut by the
+/// frame).
+fn whole(area_px: u32, rest_area_px: f64, cfg: &TrackConfig) -> bool {
+    let outline_px = 2.0 * (std::f64::consts::PI * rest_area_px).sqrt();
+    let a = f64::from(area_px);
+    a >= rest_area_px - outline_px.sqrt() && a < cfg.merged_area_ratio * rest_area_px
 }
 
 /// The markers in doubt around gaps in a moving field. A gap is a marker without a position

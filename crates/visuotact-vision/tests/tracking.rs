@@ -430,3 +430,73 @@ fn a_gap_in_a_field_dragged_under_a_pitch_is_one_lost_marker() {
         eprintln!("{what}: {in_doubt} markers in doubt");
     }
 }
+
+/// A disc-shaped blob of `area_px` pixels at (x, y), as the labelling pass reports it.
+fn disc_blob(x: f64, y: f64, area_px: u32, touches_border: bool) -> visuotact_vision::blobs::Blob {
+    let r = (f64::from(area_px) / std::f64::consts::PI).sqrt();
+    let v = r * r / 4.0;
+    visuotact_vision::blobs::Blob {
+        area_px,
+        x_px: x,
+        y_px: y,
+        mu20_px2: v,
+        mu11_px2: 0.0,
+        mu02_px2: v,
+        bbox: visuotact_vision::blobs::BBox {
+            x0: (x - r).floor().max(0.0) as u32,
+            y0: (y - r).floor().max(0.0) as u32,
+            x1: (x + r).ceil() as u32 + 1,
+            y1: (y + r).ceil() as u32 + 1,
+        },
+        touches_border,
+    }
+}
+
+/// A marker whose blob touches the view's edge (a circular mask a pixel beyond the marker's
+/// outline, pixel by pixel) is measured when the blob is as big as the marker at rest, and lost
+/// when the edge cut part of it off or the blob holds more than the marker (a rim cut by the
+/// frame beside it).
+#[test]
+fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints, TrackReference};
+    let pitch = 20.0;
+    let positions: Vec<(f64, f64)> = (0..25)
+        .map(|k| {
+            (
+                30.0 + pitch * f64::from(k % 5),
+                30.0 + pitch * f64::from(k / 5),
+            )
+        })
+        .collect();
+    let reference = TrackReference::new(positions.clone(), vec![30.0; 25]);
+    let cfg = TrackConfig::default();
+    // Marker 4 (top right) moved 1 px and its blob is listed as cut (the last one).
+    let frame = |area_px: u32| {
+        let mut blobs: Vec<_> = positions
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != 4)
+            .map(|(_, &(x, y))| disc_blob(x + 1.0, y, 30, false))
+            .collect();
+        let (x, y) = positions[4];
+        blobs.push(disc_blob(x + 1.0, y, area_px, true));
+        let hints = TrackHints {
+            cut: 1,
+            ..TrackHints::default()
+        };
+        let r = track_with(&reference, &blobs, &cfg, hints);
+        assert!((0..25)
+            .filter(|&k| k != 4)
+            .all(|k| r.status[k] == MarkerStatus::Ok));
+        (r.status[4], r.assignment[4].map(|j| blobs[j].x_px))
+    };
+    // Pixel noise of the outline: a 30-px marker seen as 27 px is whole.
+    for area in [27, 30, 34] {
+        assert_eq!(frame(area), (MarkerStatus::Ok, Some(111.0)), "{area} px");
+    }
+    // Cut by the edge (under the rest area by more than the outline's noise), or a blob far
+    // bigger than a marker: left the view, never measured.
+    for area in [15, 24, 60, 1200] {
+        assert_eq!(frame(area).0, MarkerStatus::Lost, "{area} px");
+    }
+}
