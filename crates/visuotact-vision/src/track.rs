@@ -1545,10 +1545,9 @@ pub fn track_with(
         }
     }
     // Order-free matching only: a temporal prior follows a drag step by step.
-    if !followed {
-        for i in doubt_around_gaps(reference, &m, &status, (shift, usable)) {
-            status[i] = MarkerStatus::Ambiguous;
-        }
+    let gaps = (!followed).then(|| doubt_around_gaps(reference, &m, &status, (shift, usable)));
+    for i in gaps.into_iter().flatten() {
+        status[i] = MarkerStatus::Ambiguous;
     }
     doubt_split_beside_doubt(reference, &m.anchors, &mut status);
     let mut assignment = m.assignment;
