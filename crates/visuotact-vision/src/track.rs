@@ -32,8 +32,8 @@
 //! No marker is ever given a blob just because it is the nearest one to its rest position.
 //! Markers left without a blob are reported as [`MarkerStatus::Lost`], [`MarkerStatus::Merged`]
 //! (their prediction falls on a blob already taken that is much bigger than one marker, or
-//! two markers predicted within 0.6 spacing of each other share a blob a quarter bigger than
-//! one: squeezed pins overlap, so their blob is less than two; its holder is merged too) or
+//! a blob a quarter bigger than one lies within 0.6 spacing of two markers' predictions:
+//! squeezed pins overlap, so their blob is less than two; its holder is merged too) or
 //! [`MarkerStatus::Ambiguous`] (two free blobs equally plausible); their feature cells stay
 //! empty and other markers' columns never shift. Two merged markers whose blob has about their
 //! two areas are split by the blob's second moments along its major axis
@@ -613,8 +613,8 @@ const AMBIGUOUS_SLIDE: f64 = 0.5;
 /// stays in doubt however little it moved ([`Matching::slide_chains`]).
 const DRAGGED_TOWARDS: f64 = 0.2;
 
-/// Two markers predicted within this many spacings of each other, one missing, may share the
-/// blob between them ([`Matching::crowded_onto`]).
+/// A blob within this many spacings of two markers' predictions, one of them missing, may be
+/// both of theirs ([`Matching::crowded_onto`]).
 const CROWDED: f64 = 0.6;
 
 /// A blob shared by two squeezed markers is at least this many times the smaller marker's
@@ -1369,9 +1369,9 @@ impl Matching<'_> {
 
     /// The taken blob unmatched marker `i` (predicted at `pred`, local magnification `scale`)
     /// shares with its owner when the two are squeezed together: the blob nearest `pred` is
-    /// within [`CROWDED`] spacings of it, no free blob is as near, the owner's own prediction
-    /// is within [`CROWDED`] spacings of `pred` (two markers predicted closer than a lattice
-    /// step allows, one blob for both), and the blob is bigger than either marker by
+    /// within [`CROWDED`] spacings of it, no free blob is as near, the blob is within
+    /// [`CROWDED`] spacings of the owner's own prediction too (one blob between two markers
+    /// predicted closer than a lattice step allows), and the blob is bigger than either marker by
     /// [`CROWDED_AREA`] — pins squeezed under a deep press overlap and hide each other, so
     /// their blob is not twice a pin, but a marker whose neighbour vanished behind it keeps
     /// its own size.
@@ -1395,7 +1395,7 @@ impl Matching<'_> {
         let (pk, _) = self.predict(k, matched)?;
         let areas = &self.reference.areas_px;
         let bigger = CROWDED_AREA * areas[k].min(areas[i]) * scale * scale;
-        (dist(pk, pred) < reach && f64::from(self.blobs[j].area_px) >= bigger).then_some(j)
+        (dist(pk, b) < reach && f64::from(self.blobs[j].area_px) >= bigger).then_some(j)
     }
 
     /// Classifies the unmatched markers: merged (a blob covering the prediction and much

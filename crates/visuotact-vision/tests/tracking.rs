@@ -500,3 +500,50 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
         assert_eq!(frame(area).0, MarkerStatus::Lost, "{area} px");
     }
 }
+
+/// Followed (a temporal prior), two neighbours squeezed towards each other end on one blob of
+/// 1.5 markers between their last positions, 0.62 spacing apart: the one left without a blob
+/// is merged with the one holding it (the blob lies within 0.6 spacing of both predictions),
+/// and neither is reported at the pair's centroid as its own.
+#[test]
+fn a_blob_between_two_squeezed_neighbours_merges_them() {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints, TrackReference};
+    let pitch = 20.0;
+    let positions: Vec<(f64, f64)> = (0..25)
+        .map(|k| {
+            (
+                30.0 + pitch * f64::from(k % 5),
+                30.0 + pitch * f64::from(k / 5),
+            )
+        })
+        .collect();
+    let reference = TrackReference::new(positions.clone(), vec![30.0; 25]);
+    let cfg = TrackConfig::default();
+    // Markers 12 and 13 (the middle row's centre and its right neighbour) were last seen at
+    // x = 75 and 87.4; the others at rest.
+    let mut prior: Vec<Option<(f64, f64)>> = positions.iter().copied().map(Some).collect();
+    prior[12] = Some((75.0, 70.0));
+    prior[13] = Some((87.4, 70.0));
+    let mut blobs: Vec<_> = positions
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != 12 && k != 13)
+        .map(|(_, &(x, y))| disc_blob(x, y, 30, false))
+        .collect();
+    blobs.push(disc_blob(81.0, 70.0, 45, false));
+    let hints = TrackHints {
+        prior: Some(&prior),
+        ..TrackHints::default()
+    };
+    let r = track_with(&reference, &blobs, &cfg, hints);
+    for k in (0..25).filter(|&k| k != 12 && k != 13) {
+        assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
+    }
+    for k in [12, 13] {
+        assert!(
+            matches!(r.status[k], MarkerStatus::Merged | MarkerStatus::Split),
+            "marker {k}: {:?}",
+            r.status[k]
+        );
+    }
+}
