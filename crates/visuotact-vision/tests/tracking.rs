@@ -431,6 +431,21 @@ fn a_gap_in_a_field_dragged_under_a_pitch_is_one_lost_marker() {
     }
 }
 
+/// A 5 × 5 grid of 30-px markers 20 px apart, starting at (30, 30): the positions and the
+/// tracking reference.
+fn grid_reference() -> (Vec<(f64, f64)>, visuotact_vision::track::TrackReference) {
+    let positions: Vec<(f64, f64)> = (0..25)
+        .map(|k| {
+            (
+                30.0 + 20.0 * f64::from(k % 5),
+                30.0 + 20.0 * f64::from(k / 5),
+            )
+        })
+        .collect();
+    let reference = visuotact_vision::track::TrackReference::new(positions.clone(), vec![30.0; 25]);
+    (positions, reference)
+}
+
 /// A disc-shaped blob of `area_px` pixels at (x, y), as the labelling pass reports it.
 fn disc_blob(x: f64, y: f64, area_px: u32, touches_border: bool) -> visuotact_vision::blobs::Blob {
     let r = (f64::from(area_px) / std::f64::consts::PI).sqrt();
@@ -458,17 +473,8 @@ fn disc_blob(x: f64, y: f64, area_px: u32, touches_border: bool) -> visuotact_vi
 /// frame beside it).
 #[test]
 fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
-    use visuotact_vision::track::{track_with, TrackConfig, TrackHints, TrackReference};
-    let pitch = 20.0;
-    let positions: Vec<(f64, f64)> = (0..25)
-        .map(|k| {
-            (
-                30.0 + pitch * f64::from(k % 5),
-                30.0 + pitch * f64::from(k / 5),
-            )
-        })
-        .collect();
-    let reference = TrackReference::new(positions.clone(), vec![30.0; 25]);
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
+    let (positions, reference) = grid_reference();
     let cfg = TrackConfig::default();
     // Marker 4 (top right) moved 1 px and its blob is listed as cut (the last one).
     let frame = |area_px: u32| {
@@ -507,17 +513,8 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
 /// and neither is reported at the pair's centroid as its own.
 #[test]
 fn a_blob_between_two_squeezed_neighbours_merges_them() {
-    use visuotact_vision::track::{track_with, TrackConfig, TrackHints, TrackReference};
-    let pitch = 20.0;
-    let positions: Vec<(f64, f64)> = (0..25)
-        .map(|k| {
-            (
-                30.0 + pitch * f64::from(k % 5),
-                30.0 + pitch * f64::from(k / 5),
-            )
-        })
-        .collect();
-    let reference = TrackReference::new(positions.clone(), vec![30.0; 25]);
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
+    let (positions, reference) = grid_reference();
     let cfg = TrackConfig::default();
     // Markers 12 and 13 (the middle row's centre and its right neighbour) were last seen at
     // x = 75 and 87.4; the others at rest.
