@@ -86,8 +86,10 @@ pub(crate) fn evaluation(
     }
     let figures: Vec<&TargetErrors> = e.targets.iter().map(|t| &t.errors).collect();
     if json {
+        let spreads: Vec<_> = e.targets.iter().map(|t| t.spread).collect();
         let v = serde_json::json!({
             "targets": figures,
+            "spread": spreads,
             "distance_mm": e.distance_mm,
         });
         say!("{}", serde_json::to_string_pretty(&v)?);
@@ -128,5 +130,40 @@ pub(crate) fn evaluation(
         "MPE and accuracy over samples with |target| ≥ {:.0} % of the largest |target|",
         100.0 * visuotact_nn::metrics::MPE_FLOOR_FRACTION
     );
+    spread_checks(&e);
     Ok(())
+}
+
+/// The table of how each target's `<target>_std` agrees with its errors, when any has one.
+fn spread_checks(e: &Evaluation) {
+    let checked: Vec<_> = e
+        .targets
+        .iter()
+        .filter_map(|t| Some((&t.errors.target, t.spread?)))
+        .collect();
+    if checked.is_empty() {
+        return;
+    }
+    say!("the stated spread (<target>_std) against the errors (normal errors: 68 % within 1, 95 % within 2):");
+    say!(
+        "{:<12} {:>10} {:>10} {:>10} {:>7} {:>22}",
+        "target",
+        "mean std",
+        "|e| ≤ std",
+        "≤ 2 std",
+        "corr.",
+        "mean |e| top 1/4, rest"
+    );
+    for (t, c) in checked {
+        say!(
+            "{:<12} {:>10.4} {:>9.1}% {:>9.1}% {:>7.2} {:>11.4} {:>10.4}",
+            t,
+            c.mean_spread,
+            100.0 * c.within_one,
+            100.0 * c.within_two,
+            c.correlation,
+            c.top_quarter_error,
+            c.rest_error
+        );
+    }
 }

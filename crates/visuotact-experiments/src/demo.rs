@@ -4,8 +4,8 @@
 //!
 //! Each experiment trains the paper's own network (trainlm, the paper's inputs) and
 //! visuotact's default (what `visuotact train` builds with no options: trainbr, the field
-//! summary beside the markers' principal components on wide sensors, an ensemble whose spread
-//! is reported). Every random draw is seeded from [`DemoConfig::seed`].
+//! summary beside the markers' principal components on wide sensors, an ensemble whose stated
+//! spread — the held-out error nearest each estimate — is reported). Every random draw is seeded from [`DemoConfig::seed`].
 
 use std::time::Instant;
 

@@ -95,7 +95,7 @@ fn row(e: &TargetErrors) -> String {
 
 fn random(out: &mut String, d: &IatsDemo) {
     let _ = writeln!(out,
-        "\n{} random touches (not in training), {} estimated by visuotact's default (mean ± its networks' mean spread):",
+        "\n{} random touches (not in training), {} estimated by visuotact's default (mean ± its mean stated spread, the held-out error):",
         d.random_touches, d.errors[0].n
     );
     for (j, (name, paper_figures)) in [

@@ -20,6 +20,7 @@
 
 use rayon::prelude::*;
 
+use crate::heldout::HeldOutErrors;
 use crate::lm::{Control, LmConfig};
 use crate::metrics::target_errors;
 use crate::mlp::{Algorithm, MinMax, Mlp, Settle, TrainConfig};
@@ -330,6 +331,11 @@ pub struct InputScore {
     pub error: f64,
     /// Whether this set was chosen.
     pub chosen: bool,
+    /// Each sample its fold held out, with the fold network's estimate (target units): the
+    /// errors [`with_held_out_errors`] keeps for a model that holds none out itself. Not kept
+    /// in the model file.
+    #[serde(skip)]
+    pub held_out: Vec<(usize, Vec<f64>)>,
 }
 
 /// How a model is trained. [`Default`] is visuotact's default (what `visuotact train` does
@@ -903,6 +909,7 @@ pub fn fit(
         .into_par_iter()
         .map(|i| train_network((&xs, &ts), &sizes, (i, networks), cfg, &progress))
         .collect();
+    let held_out = held_out_errors(&trained, (&xs, &ts), &target_scaling);
     let (net, out) = trained.remove(0);
     let members: Vec<Mlp> = trained.into_iter().map(|(m, _)| m).collect();
     let figures = |ids: &[usize]| subset_figures(&net, ids, (&xs, &ts), &target_scaling);
@@ -943,7 +950,43 @@ pub fn fit(
             selection: Vec::new(),
         },
         sensor: None,
+        held_out,
     })
+}
+
+/// The samples some network of `trained` held out (validation and test subsets), each with
+/// the mean estimate of the networks that held it out (scaled) and its absolute error per
+/// target in target units; `None` when too few were held out ([`HeldOutErrors::new`]).
+fn held_out_errors(
+    trained: &[(Mlp, crate::mlp::TrainOutcome)],
+    (xs, ts): (&[Vec<f64>], &[Vec<f64>]),
+    target_scaling: &MinMax,
+) -> Option<HeldOutErrors> {
+    let width = target_scaling.min.len();
+    let mut sum = vec![vec![0.0; width]; xs.len()];
+    let mut count = vec![0usize; xs.len()];
+    for (net, out) in trained {
+        for &i in out.subsets[1].iter().chain(&out.subsets[2]) {
+            for (s, e) in sum[i].iter_mut().zip(net.forward(&xs[i])) {
+                *s += e;
+            }
+            count[i] += 1;
+        }
+    }
+    let half: Vec<f64> = (0..width)
+        .map(|j| 0.5 * (target_scaling.max[j] - target_scaling.min[j]))
+        .collect();
+    let (estimates, errors) = (0..xs.len())
+        .filter(|&i| count[i] > 0)
+        .map(|i| {
+            let e: Vec<f64> = sum[i].iter().map(|s| s / count[i] as f64).collect();
+            let err = (0..width)
+                .map(|j| (e[j] - ts[i][j]).abs() * half[j])
+                .collect();
+            (e, err)
+        })
+        .unzip();
+    HeldOutErrors::new(estimates, errors)
 }
 
 /// Trains on every sample of `data`, reading the columns of `set` (`cfg` otherwise).
@@ -1043,10 +1086,42 @@ pub fn fit_choosing(
     if sets.is_empty() {
         return fit(data, cfg, progress);
     }
-    let (best, scores) = choose_inputs(data, cfg, sets, folds, quietly)?;
+    let (best, mut scores) = choose_inputs(data, cfg, sets, folds, quietly)?;
     let mut model = fit_set(data, &sets[best], cfg, progress)?;
+    with_held_out_errors(&mut model, &mut scores, data.t);
     model.training.selection = scores;
     Ok(model)
+}
+
+/// Gives `model` (trained on every sample of `targets`) the held-out errors of the chosen
+/// set's cross-validation ([`InputScore::held_out`]) when its own networks held nothing out
+/// (trainbr), so that its spread is a held-out error too ([`crate::heldout`]). The fold
+/// networks are single ones, not the ensemble: the figure leans to the cautious side. Every
+/// score's estimates are taken out (the scores then equal what the model file keeps).
+pub fn with_held_out_errors(model: &mut Model, scores: &mut [InputScore], targets: &[Vec<f64>]) {
+    let taken: Vec<Vec<(usize, Vec<f64>)>> = scores
+        .iter_mut()
+        .map(|s| std::mem::take(&mut s.held_out))
+        .collect();
+    if model.held_out.is_some() {
+        return;
+    }
+    let Some(chosen) = scores.iter().position(|s| s.chosen) else {
+        return;
+    };
+    let (estimates, errors) = taken[chosen]
+        .iter()
+        .filter(|(i, e)| *i < targets.len() && e.iter().all(|v| v.is_finite()))
+        .map(|(i, e)| {
+            let err = e
+                .iter()
+                .zip(&targets[*i])
+                .map(|(e, t)| (e - t).abs())
+                .collect();
+            (model.target_scaling.apply(e), err)
+        })
+        .unzip();
+    model.held_out = HeldOutErrors::new(estimates, errors);
 }
 
 /// Every set's `folds`-fold cross-validated error: fold k holds out the samples whose place in
@@ -1074,8 +1149,8 @@ fn cross_validated(
     let jobs: Vec<(usize, usize)> = (0..sets.len())
         .flat_map(|s| (0..trained).map(move |k| (s, k)))
         .collect();
-    // Per job, each held-out sample's squared errors per target.
-    let errors: Vec<Vec<Vec<f64>>> = jobs
+    // Per job, each held-out sample with its estimate.
+    let estimates: Vec<Vec<(usize, Vec<f64>)>> = jobs
         .par_iter()
         .enumerate()
         .map(|(job, &(s, k))| {
@@ -1096,11 +1171,7 @@ fn cross_validated(
                             "held-out sample {i}: {why}"
                         )))
                     })?;
-                    Ok(e.values
-                        .iter()
-                        .zip(&data.t[i])
-                        .map(|(e, t)| (e - t).powi(2))
-                        .collect())
+                    Ok((i, e.values))
                 })
                 .collect::<Result<_, FitError>>()
         })
@@ -1116,16 +1187,19 @@ fn cross_validated(
         .iter()
         .enumerate()
         .map(|(s, set)| {
-            let held: Vec<&Vec<f64>> = jobs
+            let held: Vec<(usize, Vec<f64>)> = jobs
                 .iter()
-                .zip(&errors)
+                .zip(&estimates)
                 .filter(|((js, _), _)| *js == s)
-                .flat_map(|(_, e)| e)
+                .flat_map(|(_, e)| e.iter().cloned())
                 .collect();
             let normalised_mse: Vec<f64> = (0..targets)
                 .map(|j| {
-                    let mse = held.iter().map(|e| e[j]).sum::<f64>() / held.len().max(1) as f64;
-                    mse / variance[j].max(f64::MIN_POSITIVE)
+                    let se: f64 = held
+                        .iter()
+                        .map(|(i, e)| (e[j] - data.t[*i][j]).powi(2))
+                        .sum();
+                    se / held.len().max(1) as f64 / variance[j].max(f64::MIN_POSITIVE)
                 })
                 .collect();
             InputScore {
@@ -1133,6 +1207,7 @@ fn cross_validated(
                 error: normalised_mse.iter().sum::<f64>() / targets as f64,
                 normalised_mse,
                 chosen: false,
+                held_out: held,
             }
         })
         .collect())
@@ -1274,6 +1349,91 @@ mod tests {
     }
 
     #[test]
+    fn the_spread_is_the_held_out_error_where_the_networks_agree_on_noise() {
+        // t = 2x plus noise of σ 0.02 below x = 0.5 and 0.3 above: every network fits the same
+        // line, so their spread is small on both halves; the held-out errors are not.
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut gauss = || {
+            let (u, v): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random_range(0.0..1.0));
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let x: Vec<Vec<f64>> = (0..800).map(|i| vec![(i as f64 + 0.5) / 800.0]).collect();
+        let t: Vec<Vec<f64>> = x
+            .iter()
+            .map(|r| vec![2.0 * r[0] + if r[0] < 0.5 { 0.02 } else { 0.3 } * gauss()])
+            .collect();
+        let (cols, targets) = (names("m", 1), names("y", 1));
+        let data = FitData {
+            x: &x,
+            t: &t,
+            feature_columns: &cols,
+            targets: &targets,
+        };
+        let cfg = FitConfig {
+            hidden: vec![3],
+            ensemble: 3,
+            algorithm: Algorithm::Trainlm,
+            ..FitConfig::default()
+        };
+        let m = fit(&data, &cfg, quietly).unwrap();
+        let h = m
+            .held_out
+            .as_ref()
+            .expect("trainlm holds out 30 % per network");
+        // Three networks holding out 30 % each: about two thirds of the samples.
+        assert!(
+            (400..700).contains(&h.estimates.len()),
+            "{}",
+            h.estimates.len()
+        );
+        for (x, lo, hi) in [
+            (0.2, 0.01, 0.05),
+            (0.3, 0.01, 0.05),
+            (0.7, 0.2, 0.45),
+            (0.85, 0.2, 0.45),
+        ] {
+            let e = m.estimate(&[x]).unwrap();
+            assert!(
+                (lo..hi).contains(&e.spread[0]),
+                "x {x}: held-out rms {}",
+                e.spread[0]
+            );
+            // The networks agree within a fraction of the noise above 0.5.
+            let (each, _) = m.estimate_each(&[x]).unwrap();
+            let (a, b) = each
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), o| (a.min(o[0]), b.max(o[0])));
+            assert!(b - a < 0.1, "x {x}: networks {each:?}");
+        }
+        assert_eq!(m.estimate_columns(), ["y0", "y0_std"]);
+        // The table travels in the model file; a damaged one is refused with the row.
+        let back = Model::from_json(&m.to_json(), "m.json").unwrap();
+        assert_eq!(back.held_out, m.held_out);
+        let mut bad = m.clone();
+        bad.held_out.as_mut().unwrap().errors[3] = vec![];
+        let e = Model::from_json(&bad.to_json(), "m.json").unwrap_err();
+        assert!(e.to_string().contains("row 3 has 0 values"), "{e}");
+        // trainbr trains on every sample: nothing held out, the ensemble's spread as before.
+        let br = fit(
+            &data,
+            &FitConfig {
+                algorithm: Algorithm::Trainbr,
+                max_epochs: 30,
+                ..cfg
+            },
+            quietly,
+        )
+        .unwrap();
+        assert!(br.held_out.is_none());
+        let e = br.estimate(&[0.7]).unwrap();
+        let (each, _) = br.estimate_each(&[0.7]).unwrap();
+        let mean = each.iter().map(|o| o[0]).sum::<f64>() / 3.0;
+        let sd = (each.iter().map(|o| (o[0] - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+        assert!((e.spread[0] - sd).abs() < 1e-12);
+    }
+
+    #[test]
     fn the_auto_rule_projects_wide_tables_only() {
         assert_eq!(auto_components(20), None);
         assert_eq!(auto_components(21), Some(AUTO_COMPONENTS));
@@ -1402,9 +1562,18 @@ mod tests {
                 winner.error < 0.2 && winner.error == winner.normalised_mse[0],
                 "{winner:?}"
             );
-            // The model file keeps the scores.
+            // The model file keeps the scores (not the fold networks' estimates).
             let back = Model::from_json(&m.to_json(), "test").unwrap();
             assert_eq!(back.training.selection, m.training.selection);
+            // trainbr held nothing out; the folds held out every sample once, and the errors
+            // the model keeps are those of the chosen set's fold networks.
+            let h = m.held_out.as_ref().expect("the folds' held-out errors");
+            assert_eq!(h.estimates.len(), x.len());
+            let mse = h.errors.iter().map(|e| e[0] * e[0]).sum::<f64>() / x.len() as f64;
+            let mean = t.iter().map(|r| r[0]).sum::<f64>() / x.len() as f64;
+            let var = t.iter().map(|r| (r[0] - mean).powi(2)).sum::<f64>() / x.len() as f64;
+            assert!((mse / var - winner.error).abs() < 1e-9 * winner.error.max(1.0));
+            assert_eq!(back.held_out, m.held_out);
         }
     }
 

@@ -46,6 +46,7 @@ pub mod br;
 mod damped;
 pub mod dual;
 pub mod fit;
+pub mod heldout;
 pub mod lm;
 pub mod metrics;
 pub mod mlp;

@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::heldout::{HeldOutErrors, LookupScratch};
 use crate::mlp::{MinMax, Mlp};
 
 /// Identifies model files.
@@ -59,7 +60,10 @@ pub const MAX_MISSING_FRACTION: f64 = 0.25;
 pub struct Estimate {
     /// Targets in their units (the ensemble's mean).
     pub values: Vec<f64>,
-    /// Standard deviation over the ensemble per target (empty for one network).
+    /// Per target, how far off the values may be (`<target>_std`): the root-mean-square error
+    /// of the held-out training samples with the nearest estimates when the model keeps them
+    /// ([`crate::heldout`]), else the standard deviation over the ensemble; empty for one
+    /// network without held-out samples.
     pub spread: Vec<f64>,
     /// Inputs that were missing and filled.
     pub filled: usize,
@@ -105,6 +109,11 @@ pub struct Model {
     pub training: TrainingSummary,
     /// The sensor calibration the features came from, when known.
     pub sensor: Option<serde_json::Value>,
+    /// The training samples its networks held out, with their estimates and errors: what
+    /// [`Estimate::spread`] is looked up in. Absent when no network held samples out (trainbr
+    /// trains on all) and in models written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOutErrors>,
 }
 
 /// Why a row gets no estimate.
@@ -211,6 +220,8 @@ pub struct EstimateScratch {
     acts: Vec<Vec<f64>>,
     outs: Vec<Vec<f64>>,
     n: usize,
+    scaled: Vec<f64>,
+    lookup: LookupScratch,
 }
 
 impl EstimateScratch {
@@ -251,11 +262,11 @@ impl Model {
             .collect()
     }
 
-    /// The columns of [`Estimate::into_row`]: the targets, then for an ensemble each target's
-    /// spread (`<target>_std`).
+    /// The columns of [`Estimate::into_row`]: the targets, then for an ensemble or a model
+    /// with held-out samples each target's spread (`<target>_std`).
     pub fn estimate_columns(&self) -> Vec<String> {
         let mut c = self.target_columns.clone();
-        if !self.members.is_empty() {
+        if !self.members.is_empty() || self.held_out.is_some() {
             c.extend(self.target_columns.iter().map(|t| format!("{t}_std")));
         }
         c
@@ -356,7 +367,11 @@ impl Model {
         out.values
             .extend((0..width).map(|j| outs.iter().map(|o| o[j]).sum::<f64>() / k));
         out.spread.clear();
-        if outs.len() > 1 {
+        if let Some(h) = &self.held_out {
+            self.target_scaling
+                .apply_into(&out.values, &mut scratch.scaled);
+            h.rms_error_into(&scratch.scaled, &mut scratch.lookup, &mut out.spread);
+        } else if outs.len() > 1 {
             out.spread.extend((0..width).map(|j| {
                 let v = outs
                     .iter()
@@ -436,6 +451,10 @@ impl Model {
                 "inconsistent model (layer sizes, columns and weights disagree)".to_string(),
             ));
         }
+        if let Some(h) = &m.held_out {
+            h.check(m.target_columns.len())
+                .map_err(|e| bad(format!("inconsistent model ({e})")))?;
+        }
         Ok(m)
     }
 
@@ -507,6 +526,7 @@ pub(crate) mod tests {
                 selection: Vec::new(),
             },
             sensor: None,
+            held_out: None,
         }
     }
 

@@ -115,7 +115,8 @@ pub struct TargetValue {
     pub name: String,
     /// The estimate, in the target's unit (an ensemble's mean).
     pub value: f64,
-    /// The standard deviation over an ensemble's networks; `None` for one network.
+    /// How far off the value may be ([`visuotact_nn::model::Estimate::spread`]); `None` for one
+    /// network without held-out samples.
     pub spread: Option<f64>,
 }
 
@@ -165,7 +166,8 @@ impl Estimate {
         self.target(name).map(|t| t.value)
     }
 
-    /// The ensemble's spread of target `name` (`None` for one network or an unknown name).
+    /// How far off target `name` may be (`<target>_std`: [`visuotact_nn::model::Estimate::spread`];
+    /// `None` without one or for an unknown name).
     pub fn spread(&self, name: &str) -> Option<f64> {
         self.target(name).and_then(|t| t.spread)
     }
@@ -354,7 +356,7 @@ impl Estimator {
     }
 
     /// The estimate's columns (empty without a model): the targets, then for an ensemble each
-    /// target's spread (`<target>_std`, the standard deviation over its networks).
+    /// target's spread (`<target>_std`, [`visuotact_nn::model::Estimate::spread`]).
     pub fn target_columns(&self) -> Vec<String> {
         self.model
             .as_ref()

@@ -27,6 +27,72 @@ pub struct TargetEvaluation {
     pub errors: TargetErrors,
     /// (truth, estimate) per matched row where both are finite.
     pub points: Vec<(f64, f64)>,
+    /// How the predictions' `<target>_std` agrees with the errors, when they have it.
+    pub spread: Option<SpreadCheck>,
+}
+
+/// Whether a target's stated spread (`<target>_std`) tells the large errors from the small:
+/// for a standard deviation of a normal error, 68 % of the errors lie within one and 95 %
+/// within two.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct SpreadCheck {
+    /// Rows with a finite estimate, label and spread.
+    pub n: usize,
+    /// Mean spread.
+    pub mean_spread: f64,
+    /// Fraction of rows whose |error| is at most the spread.
+    pub within_one: f64,
+    /// Fraction of rows whose |error| is at most twice the spread.
+    pub within_two: f64,
+    /// Pearson correlation of the spread and the |error| (0 when either does not vary).
+    pub correlation: f64,
+    /// Mean |error| of the quarter of rows with the largest spread.
+    pub top_quarter_error: f64,
+    /// Mean |error| of the other rows.
+    pub rest_error: f64,
+}
+
+/// [`SpreadCheck`] of `(|error|, spread)` pairs (finite ones); `None` under 4 pairs.
+pub fn spread_check(pairs: &[(f64, f64)]) -> Option<SpreadCheck> {
+    let mut v: Vec<(f64, f64)> = pairs
+        .iter()
+        .copied()
+        .filter(|(e, s)| e.is_finite() && s.is_finite())
+        .collect();
+    if v.len() < 4 {
+        return None;
+    }
+    let n = v.len() as f64;
+    let frac = |k: f64| v.iter().filter(|(e, s)| *e <= k * s).count() as f64 / n;
+    let (within_one, within_two) = (frac(1.0), frac(2.0));
+    let (me, ms) = (
+        v.iter().map(|p| p.0).sum::<f64>() / n,
+        v.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let (mut see, mut sss, mut ses) = (0.0, 0.0, 0.0);
+    for (e, s) in &v {
+        see += (e - me).powi(2);
+        sss += (s - ms).powi(2);
+        ses += (e - me) * (s - ms);
+    }
+    let correlation = if see > 0.0 && sss > 0.0 {
+        ses / (see * sss).sqrt()
+    } else {
+        0.0
+    };
+    // Largest spread first; the top quarter at least one row.
+    v.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let q = v.len().div_ceil(4);
+    let mean = |p: &[(f64, f64)]| p.iter().map(|x| x.0).sum::<f64>() / p.len() as f64;
+    Some(SpreadCheck {
+        n: v.len(),
+        mean_spread: ms,
+        within_one,
+        within_two,
+        correlation,
+        top_quarter_error: mean(&v[..q]),
+        rest_error: mean(&v[q..]),
+    })
 }
 
 /// Every target both tables have, and D when both have `x_mm` and `y_mm`.
@@ -96,7 +162,19 @@ pub fn evaluate(p: &KeyedTable, l: &KeyedTable) -> Option<Evaluation> {
                 .filter(|(t, e)| t.is_finite() && e.is_finite())
                 .map(|(t, e)| (*t, *e))
                 .collect();
-            (errors.n > 0).then_some(TargetEvaluation { errors, points })
+            let spread = p.column(&format!("{name}_std")).and_then(|sj| {
+                let pairs: Vec<(f64, f64)> = matched
+                    .iter()
+                    .zip(&lv)
+                    .map(|(&(r, _), t)| ((p.rows[r][j] - t).abs(), p.rows[r][sj]))
+                    .collect();
+                spread_check(&pairs)
+            });
+            (errors.n > 0).then_some(TargetEvaluation {
+                errors,
+                points,
+                spread,
+            })
         })
         .collect();
     if targets.is_empty() {
@@ -216,8 +294,62 @@ mod tests {
                 "prediction column `extra` is not in the labels: not scored"
             ]
         );
+        assert!(e.targets[0].spread.is_none(), "no x_mm_std column");
         // Nothing in common: no evaluation.
         let other = table(&["force_n"], &[("a", &[1.0])]);
         assert!(evaluate(&p, &other).is_none());
+    }
+
+    #[test]
+    fn the_spread_check_counts_errors_within_one_and_two_spreads() {
+        // |error|, spread: the two largest spreads hold the two largest errors.
+        let pairs = [
+            (0.1, 0.2),
+            (0.3, 0.2),
+            (0.5, 0.2),
+            (2.0, 1.5),
+            (4.0, 1.5),
+            (0.05, 0.2),
+            (f64::NAN, 1.0),
+        ];
+        let c = spread_check(&pairs).unwrap();
+        assert_eq!(c.n, 6);
+        assert!(
+            (c.within_one - 2.0 / 6.0).abs() < 1e-12,
+            "0.1 and 0.05: {c:?}"
+        );
+        assert!(
+            (c.within_two - 4.0 / 6.0).abs() < 1e-12,
+            "and 0.3 and 2.0: {c:?}"
+        );
+        assert!((c.mean_spread - 3.8 / 6.0).abs() < 1e-12);
+        assert!(
+            (c.top_quarter_error - 3.0).abs() < 1e-12,
+            "2.0 and 4.0: {c:?}"
+        );
+        assert!((c.rest_error - 0.2375).abs() < 1e-12);
+        assert!(c.correlation > 0.8, "{c:?}");
+        assert!(spread_check(&pairs[..3]).is_none());
+        // Read from tables: the column beside the target.
+        let p = table(
+            &["y_mm", "y_mm_std"],
+            &[
+                ("a", &[1.0, 0.5]),
+                ("b", &[2.0, 0.5]),
+                ("c", &[3.0, 2.0]),
+                ("d", &[0.0, 0.1]),
+            ],
+        );
+        let l = table(
+            &["y_mm"],
+            &[("a", &[1.2]), ("b", &[2.0]), ("c", &[0.0]), ("d", &[0.5])],
+        );
+        let s = evaluate(&p, &l).unwrap().targets[0].spread.unwrap();
+        assert_eq!(s.n, 4);
+        assert!((s.within_one - 0.5).abs() < 1e-12, "a and b: {s:?}");
+        assert!(
+            (s.within_two - 0.75).abs() < 1e-12,
+            "c is 3 off at 2 (within two), d 0.5 off at 0.1: {s:?}"
+        );
     }
 }

@@ -7,7 +7,7 @@
 //! ## Modules and what each owns
 //!
 //! the Python package `visuotact` (pyo3 + maturin, abi3 ≥ 3.10): `Sensor` (calibrate, load,
-//! extract), `Features`, `Model` (train, load, predict with the ensemble's spread), `live`,
+//! extract), `Features`, `Model` (train, load, predict with the held-out error beside each estimate), `live`,
 //! `filtfilt`, `simulate`, `VisuotactError`; type stubs `visuotact.pyi`; pytest in `tests/`
 //! against the CLI and scipy
 #![allow(
@@ -488,7 +488,9 @@ impl Model {
 
     /// Estimates for rows of the model's inputs (`columns` order; one row or samples × inputs;
     /// NaN for a lost marker's features, filled from the others): a dict of arrays, each
-    /// target's mean, `<target>_std` (the ensemble's spread, 0 for one network) and `filled`
+    /// target's mean, `<target>_std` (how far off it may be: the held-out RMS error of the training rows with the nearest
+    /// estimates, or the ensemble's standard deviation for a model without held-out rows; 0 for one
+    /// network without them) and `filled`
     /// (inputs filled per row). Rows that cannot be estimated (too many lost markers) are NaN.
     /// A wider table (e.g. every column `Sensor.extract` gives) is read by name: pass its
     /// `columns`, or pass a `Features` as it is.
@@ -577,7 +579,7 @@ impl Model {
 
 /// Estimates frame by frame from a source: yields dicts with `frame`, `index`,
 /// `timestamp_s`, `found` and `estimate` (a dict of target → value, with `<target>_std` for
-/// an ensemble; `None`, with `why`, when the frame has none).
+/// an ensemble or a model with held-out rows; `None`, with `why`, when the frame has none).
 #[pyclass(module = "visuotact", unsendable)]
 struct Live {
     stream: FrameStream,
