@@ -135,6 +135,15 @@ fn train_predict_eval_and_bad_tables() {
     assert_eq!(t["n"], 150);
     assert!(t["r"].as_f64().unwrap() > 0.99, "{t}");
     assert!(t["mean_abs"].as_f64().unwrap() < 0.5, "{t}");
+    // trainlm held frames out: the spread beside each estimate is checked against the errors.
+    let sp = &ev["spread"][0];
+    assert_eq!(sp["n"], 150, "{ev}");
+    assert!(sp["within_two"].as_f64().unwrap() > 0.5, "{sp}");
+    let table = String::from_utf8(eval(&p, &l, &[]).stdout).unwrap();
+    assert!(
+        table.contains("the stated spread (<target>_std) against the errors"),
+        "{table}"
+    );
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.contains("force_n: R = ") && svg.matches("<circle").count() == 150);
 

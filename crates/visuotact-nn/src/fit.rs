@@ -1407,6 +1407,16 @@ mod tests {
             assert!(b - a < 0.1, "x {x}: networks {each:?}");
         }
         assert_eq!(m.estimate_columns(), ["y0", "y0_std"]);
+        // Where the held-out errors are smaller than the networks' disagreement, the spread is
+        // the disagreement: the larger of the two.
+        let mut exact = m.clone();
+        for e in &mut exact.held_out.as_mut().unwrap().errors {
+            e[0] = 0.0;
+        }
+        let (each, _) = exact.estimate_each(&[0.7]).unwrap();
+        let mean = each.iter().map(|o| o[0]).sum::<f64>() / 3.0;
+        let sd = (each.iter().map(|o| (o[0] - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+        assert!(sd > 0.0 && exact.estimate(&[0.7]).unwrap().spread[0] == sd);
         // The table travels in the model file; a damaged one is refused with the row.
         let back = Model::from_json(&m.to_json(), "m.json").unwrap();
         assert_eq!(back.held_out, m.held_out);

@@ -1,7 +1,8 @@
 //! How far off an estimate may be, learned from the training frames the networks did not train
 //! on: every held-out training sample keeps its estimate (scaled targets) and its absolute error
 //! (target units); a new frame's uncertainty per target is the root-mean-square error of the
-//! [`HeldOutErrors::neighbours`] held-out samples whose estimates lie nearest its own.
+//! [`HeldOutErrors::neighbours`] held-out samples whose estimates lie nearest its own
+//! ([`crate::model::Model::estimate`] reports the larger of it and the ensemble's spread).
 //!
 //! An ensemble's spread says how much its networks disagree; it does not see what no network
 //! can tell from the inputs. On the real 127-pin TacTip set the frames whose pins barely move

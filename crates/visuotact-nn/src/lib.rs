@@ -37,7 +37,10 @@
 //! they train in parallel, which the callback can stop), `model` (the versioned model file: the
 //! projection reads the markers' features, the field summary and extra inputs pass by it;
 //! `Model::estimate` fills lost markers or says why it cannot; `estimate_into` /
-//! `estimate_each_into` with an `EstimateScratch` allocate nothing per frame), `sweep`
+//! `estimate_each_into` with an `EstimateScratch` allocate nothing per frame; the spread is the
+//! larger of the networks' standard deviation and `heldout`'s figure), `heldout` (the held-out
+//! training samples' estimates and errors kept in the model file: the RMS error of the 30 whose
+//! estimates lie nearest a new one, allocation-free lookup), `sweep`
 //! (architecture sweeps on every core: `architectures` specs, mean and best figures per size,
 //! networks ranked by scaled validation MSE), `metrics` (MSE, R, MPE, accuracy)
 

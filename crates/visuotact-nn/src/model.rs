@@ -60,10 +60,10 @@ pub const MAX_MISSING_FRACTION: f64 = 0.25;
 pub struct Estimate {
     /// Targets in their units (the ensemble's mean).
     pub values: Vec<f64>,
-    /// Per target, how far off the values may be (`<target>_std`): the root-mean-square error
-    /// of the held-out training samples with the nearest estimates when the model keeps them
-    /// ([`crate::heldout`]), else the standard deviation over the ensemble; empty for one
-    /// network without held-out samples.
+    /// Per target, how far off the values may be (`<target>_std`): the larger of the
+    /// ensemble's standard deviation and, when the model keeps them, the root-mean-square error
+    /// of the held-out training samples with the nearest estimates ([`crate::heldout`]); empty
+    /// for one network without held-out samples.
     pub spread: Vec<f64>,
     /// Inputs that were missing and filled.
     pub filled: usize,
@@ -222,6 +222,7 @@ pub struct EstimateScratch {
     n: usize,
     scaled: Vec<f64>,
     lookup: LookupScratch,
+    rms: Vec<f64>,
 }
 
 impl EstimateScratch {
@@ -367,11 +368,7 @@ impl Model {
         out.values
             .extend((0..width).map(|j| outs.iter().map(|o| o[j]).sum::<f64>() / k));
         out.spread.clear();
-        if let Some(h) = &self.held_out {
-            self.target_scaling
-                .apply_into(&out.values, &mut scratch.scaled);
-            h.rms_error_into(&scratch.scaled, &mut scratch.lookup, &mut out.spread);
-        } else if outs.len() > 1 {
+        if outs.len() > 1 {
             out.spread.extend((0..width).map(|j| {
                 let v = outs
                     .iter()
@@ -379,6 +376,17 @@ impl Model {
                     .sum::<f64>();
                 (v / (k - 1.0)).sqrt()
             }));
+        }
+        if let Some(h) = &self.held_out {
+            // The larger of the two: the held-out errors see what no network can tell, the
+            // networks' disagreement a frame unlike those they trained on.
+            self.target_scaling
+                .apply_into(&out.values, &mut scratch.scaled);
+            h.rms_error_into(&scratch.scaled, &mut scratch.lookup, &mut scratch.rms);
+            out.spread.resize(width, 0.0);
+            for (s, r) in out.spread.iter_mut().zip(&scratch.rms) {
+                *s = s.max(*r);
+            }
         }
         out.filled = filled;
         Ok(filled)

@@ -488,9 +488,9 @@ impl Model {
 
     /// Estimates for rows of the model's inputs (`columns` order; one row or samples × inputs;
     /// NaN for a lost marker's features, filled from the others): a dict of arrays, each
-    /// target's mean, `<target>_std` (how far off it may be: the held-out RMS error of the training rows with the nearest
-    /// estimates, or the ensemble's standard deviation for a model without held-out rows; 0 for one
-    /// network without them) and `filled`
+    /// target's mean, `<target>_std` (how far off it may be: the larger of the ensemble's standard deviation and
+    /// the held-out RMS error of the training rows with the nearest estimates; 0 for one network
+    /// without held-out rows) and `filled`
     /// (inputs filled per row). Rows that cannot be estimated (too many lost markers) are NaN.
     /// A wider table (e.g. every column `Sensor.extract` gives) is read by name: pass its
     /// `columns`, or pass a `Features` as it is.

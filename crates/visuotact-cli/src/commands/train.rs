@@ -37,9 +37,9 @@ pub(crate) struct Args {
     algorithm: AlgorithmArg,
     /// Train this many networks on other seeds and splits into one model file: estimates are
     /// their mean. The spread beside each (`predict` writes `<target>_std`, `run` and its
-    /// dashboard show it) is the held-out RMS error of the training frames whose estimates lie
-    /// nearest, from the samples the networks (or the input choice's folds) held out; a model
-    /// with none held out gives the networks' standard deviation. By default 5 (on 280 simulated touches of four sensors
+    /// dashboard show it) is the larger of the networks' standard deviation and the held-out
+    /// RMS error of the training frames whose estimates lie nearest (samples the networks' or
+    /// the input choice's folds held out). By default 5 (on 280 simulated touches of four sensors
     /// it cut the contact error by 7–35 % against one network), or 3 Levenberg–Marquardt
     /// networks on tables of 1 000 frames or more (docs/benchmarks.md).
     #[arg(long, value_name = "K")]
