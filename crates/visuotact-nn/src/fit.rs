@@ -1348,10 +1348,8 @@ mod tests {
         assert!(a.predict(&[1.0, 2.0, 3.0])[0].is_nan());
     }
 
-    #[test]
-    fn the_spread_is_the_held_out_error_where_the_networks_agree_on_noise() {
-        // t = 2x plus noise of σ 0.02 below x = 0.5 and 0.3 above: every network fits the same
-        // line, so their spread is small on both halves; the held-out errors are not.
+    /// t = 2x plus noise of σ 0.02 below x = 0.5 and 0.3 above (800 samples, seeded).
+    fn noisy_line() -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         let mut gauss = || {
@@ -1359,10 +1357,24 @@ mod tests {
             (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
         };
         let x: Vec<Vec<f64>> = (0..800).map(|i| vec![(i as f64 + 0.5) / 800.0]).collect();
-        let t: Vec<Vec<f64>> = x
+        let t = x
             .iter()
             .map(|r| vec![2.0 * r[0] + if r[0] < 0.5 { 0.02 } else { 0.3 } * gauss()])
             .collect();
+        (x, t)
+    }
+
+    /// The standard deviation of `m`'s networks' estimates of target 0 at `x`.
+    fn networks_sd(m: &Model, x: f64) -> f64 {
+        let (each, _) = m.estimate_each(&[x]).unwrap();
+        let k = each.len() as f64;
+        let mean = each.iter().map(|o| o[0]).sum::<f64>() / k;
+        (each.iter().map(|o| (o[0] - mean).powi(2)).sum::<f64>() / (k - 1.0)).sqrt()
+    }
+
+    /// A 3-network model of [`noisy_line`] trained by `algorithm`.
+    fn noisy_line_model(algorithm: Algorithm) -> Model {
+        let (x, t) = noisy_line();
         let (cols, targets) = (names("m", 1), names("y", 1));
         let data = FitData {
             x: &x,
@@ -1373,10 +1385,18 @@ mod tests {
         let cfg = FitConfig {
             hidden: vec![3],
             ensemble: 3,
-            algorithm: Algorithm::Trainlm,
+            algorithm,
+            max_epochs: 100,
             ..FitConfig::default()
         };
-        let m = fit(&data, &cfg, quietly).unwrap();
+        fit(&data, &cfg, quietly).unwrap()
+    }
+
+    #[test]
+    fn the_spread_is_the_held_out_error_where_the_networks_agree_on_noise() {
+        // Every network fits the same line, so their spread is small on both halves; the
+        // held-out errors are not.
+        let m = noisy_line_model(Algorithm::Trainlm);
         let h = m
             .held_out
             .as_ref()
@@ -1400,11 +1420,7 @@ mod tests {
                 e.spread[0]
             );
             // The networks agree within a fraction of the noise above 0.5.
-            let (each, _) = m.estimate_each(&[x]).unwrap();
-            let (a, b) = each
-                .iter()
-                .fold((f64::MAX, f64::MIN), |(a, b), o| (a.min(o[0]), b.max(o[0])));
-            assert!(b - a < 0.1, "x {x}: networks {each:?}");
+            assert!(networks_sd(&m, x) < 0.05, "x {x}");
         }
         assert_eq!(m.estimate_columns(), ["y0", "y0_std"]);
         // Where the held-out errors are smaller than the networks' disagreement, the spread is
@@ -1413,9 +1429,7 @@ mod tests {
         for e in &mut exact.held_out.as_mut().unwrap().errors {
             e[0] = 0.0;
         }
-        let (each, _) = exact.estimate_each(&[0.7]).unwrap();
-        let mean = each.iter().map(|o| o[0]).sum::<f64>() / 3.0;
-        let sd = (each.iter().map(|o| (o[0] - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+        let sd = networks_sd(&exact, 0.7);
         assert!(sd > 0.0 && exact.estimate(&[0.7]).unwrap().spread[0] == sd);
         // The table travels in the model file; a damaged one is refused with the row.
         let back = Model::from_json(&m.to_json(), "m.json").unwrap();
@@ -1424,23 +1438,15 @@ mod tests {
         bad.held_out.as_mut().unwrap().errors[3] = vec![];
         let e = Model::from_json(&bad.to_json(), "m.json").unwrap_err();
         assert!(e.to_string().contains("row 3 has 0 values"), "{e}");
-        // trainbr trains on every sample: nothing held out, the ensemble's spread as before.
-        let br = fit(
-            &data,
-            &FitConfig {
-                algorithm: Algorithm::Trainbr,
-                max_epochs: 30,
-                ..cfg
-            },
-            quietly,
-        )
-        .unwrap();
+    }
+
+    #[test]
+    fn a_model_that_held_nothing_out_states_its_networks_spread() {
+        // trainbr trains on every sample: no held-out table, the ensemble's spread as before.
+        let br = noisy_line_model(Algorithm::Trainbr);
         assert!(br.held_out.is_none());
         let e = br.estimate(&[0.7]).unwrap();
-        let (each, _) = br.estimate_each(&[0.7]).unwrap();
-        let mean = each.iter().map(|o| o[0]).sum::<f64>() / 3.0;
-        let sd = (each.iter().map(|o| (o[0] - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
-        assert!((e.spread[0] - sd).abs() < 1e-12);
+        assert!((e.spread[0] - networks_sd(&br, 0.7)).abs() < 1e-12);
     }
 
     #[test]
