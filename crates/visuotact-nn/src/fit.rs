@@ -1310,21 +1310,14 @@ mod tests {
             .map(|i| vec![(i % 6) as f64, (i % 10) as f64 * 0.3])
             .collect();
         let t: Vec<Vec<f64>> = x.iter().map(|r| vec![(r[0] * r[1]).sin()]).collect();
-        let (cols, targets) = (names("m", 2), names("y", 1));
-        let data = FitData {
-            x: &x,
-            t: &t,
-            feature_columns: &cols,
-            targets: &targets,
-        };
         let cfg = FitConfig {
             hidden: vec![4],
             ensemble: 3,
             max_epochs: 50,
             ..FitConfig::default()
         };
-        let a = fit(&data, &cfg, quietly).unwrap();
-        let b = fit(&data, &cfg, quietly).unwrap();
+        let a = fitted(&x, &t, &cfg);
+        let b = fitted(&x, &t, &cfg);
         assert_eq!(a.to_json(), b.to_json());
         assert_eq!(a.networks().count(), 3);
         assert_ne!(a.members[0], a.members[1]);
@@ -1372,16 +1365,21 @@ mod tests {
         (each.iter().map(|o| (o[0] - mean).powi(2)).sum::<f64>() / (k - 1.0)).sqrt()
     }
 
-    /// A 3-network model of [`noisy_line`] trained by `algorithm`.
-    fn noisy_line_model(algorithm: Algorithm) -> Model {
-        let (x, t) = noisy_line();
-        let (cols, targets) = (names("m", 1), names("y", 1));
+    /// A model of targets `t` (columns y0, y1, …) from inputs `x` (m0, m1, …) trained as `cfg`.
+    fn fitted(x: &[Vec<f64>], t: &[Vec<f64>], cfg: &FitConfig) -> Model {
+        let (cols, targets) = (names("m", x[0].len()), names("y", t[0].len()));
         let data = FitData {
-            x: &x,
-            t: &t,
+            x,
+            t,
             feature_columns: &cols,
             targets: &targets,
         };
+        fit(&data, cfg, quietly).unwrap()
+    }
+
+    /// A 3-network model of [`noisy_line`] trained by `algorithm`.
+    fn noisy_line_model(algorithm: Algorithm) -> Model {
+        let (x, t) = noisy_line();
         let cfg = FitConfig {
             hidden: vec![3],
             ensemble: 3,
@@ -1389,7 +1387,7 @@ mod tests {
             max_epochs: 100,
             ..FitConfig::default()
         };
-        fit(&data, &cfg, quietly).unwrap()
+        fitted(&x, &t, &cfg)
     }
 
     #[test]
