@@ -106,6 +106,10 @@ fn train_predict_eval_and_bad_tables() {
         "{err}"
     );
     assert!(err.contains("R train 0.99"), "{err}");
+    assert!(
+        err.contains("spread (<target>_std): the larger of the networks' disagreement and the held-out RMS error of the 30 nearest of"),
+        "{err}"
+    );
     let model: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
     assert_eq!(model["format"], "visuotact-model");
