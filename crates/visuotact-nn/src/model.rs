@@ -540,28 +540,43 @@ pub(crate) mod tests {
 
     #[test]
     fn estimates_into_reused_buffers_equal_the_allocating_ones() {
-        let m = model(&[3, 4, 2], 2);
-        let (mut scratch, mut out) = (EstimateScratch::default(), Estimate::default());
-        let rows = [[0.1, 0.5, 0.9], [0.7, 0.2, 0.3]];
-        m.estimate_into(&rows[0], &mut scratch, &mut out).unwrap();
-        let caps = (
-            out.values.capacity(),
-            out.spread.capacity(),
-            scratch.x.capacity(),
+        let plain = model(&[3, 4, 2], 2);
+        // The same with a held-out table of 40 samples on a diagonal, errors growing along it.
+        let mut held = plain.clone();
+        held.held_out = HeldOutErrors::new(
+            (0..40)
+                .map(|i| vec![f64::from(i) / 20.0 - 1.0; 2])
+                .collect(),
+            (0..40).map(|i| vec![f64::from(i) * 0.01, 0.5]).collect(),
         );
-        for row in rows {
-            m.estimate_into(&row, &mut scratch, &mut out).unwrap();
-            // Bit-identical to the allocating call, and no buffer had to grow.
-            assert_eq!(out, m.estimate(&row).unwrap());
-            assert_eq!(out.spread.len(), 2);
-            let now = (
-                out.values.capacity(),
-                out.spread.capacity(),
-                scratch.x.capacity(),
-            );
-            assert_eq!(now, caps);
+        assert!(held.held_out.is_some());
+        for m in [plain, held] {
+            let (mut scratch, mut out) = (EstimateScratch::default(), Estimate::default());
+            let rows = [[0.1, 0.5, 0.9], [0.7, 0.2, 0.3]];
+            m.estimate_into(&rows[0], &mut scratch, &mut out).unwrap();
+            let caps = |out: &Estimate, scratch: &EstimateScratch| {
+                (
+                    out.values.capacity(),
+                    out.spread.capacity(),
+                    scratch.x.capacity(),
+                    scratch.scaled.capacity(),
+                    scratch.rms.capacity(),
+                )
+            };
+            let before = caps(&out, &scratch);
+            for row in rows {
+                m.estimate_into(&row, &mut scratch, &mut out).unwrap();
+                // Bit-identical to the allocating call, and no buffer had to grow.
+                assert_eq!(out, m.estimate(&row).unwrap());
+                assert_eq!(out.spread.len(), 2);
+                assert_eq!(caps(&out, &scratch), before);
+            }
+            assert_eq!(scratch.outputs().len(), 3);
+            assert!(m.estimate_into(&[0.1], &mut scratch, &mut out).is_err());
+            if m.held_out.is_some() {
+                // Target 1's held-out error is 0.5 everywhere: above the networks' spread.
+                assert_eq!(out.spread[1], 0.5);
+            }
         }
-        assert_eq!(scratch.outputs().len(), 3);
-        assert!(m.estimate_into(&[0.1], &mut scratch, &mut out).is_err());
     }
 }
