@@ -6,7 +6,9 @@ use anyhow::bail;
 use visuotact_nn::metrics::TargetErrors;
 use visuotact_pipeline::evaluation::{evaluate_files, Evaluation};
 use visuotact_report::figures::{ContactMap, Panel, RegressionPlot};
-use visuotact_report::pages::{evaluation_page, RunInfo};
+use visuotact_report::pages::{
+    evaluation_page, spread_rows, RunInfo, SPREAD_CAPTION, SPREAD_HEADER,
+};
 
 /// Writes `eval --report`'s page.
 fn evaluation_report(
@@ -136,34 +138,40 @@ pub(crate) fn evaluation(
 
 /// The table of how each target's `<target>_std` agrees with its errors, when any has one.
 fn spread_checks(e: &Evaluation) {
-    let checked: Vec<_> = e
-        .targets
-        .iter()
-        .filter_map(|t| Some((&t.errors.target, t.spread?)))
-        .collect();
-    if checked.is_empty() {
+    let rows = spread_rows(e);
+    if rows.is_empty() {
         return;
     }
-    say!("the stated spread (<target>_std) against the errors (normal errors: 68 % within 1, 95 % within 2):");
-    say!(
-        "{:<12} {:>10} {:>10} {:>10} {:>7} {:>22}",
-        "target",
-        "mean std",
-        "|e| ≤ std",
-        "≤ 2 std",
-        "corr.",
-        "mean |e| top 1/4, rest"
-    );
-    for (t, c) in checked {
+    say!("{}:", SPREAD_CAPTION.to_lowercase());
+    let widths: Vec<usize> = (0..SPREAD_HEADER.len())
+        .map(|c| {
+            rows.iter()
+                .map(|r| r[c].chars().count())
+                .chain([SPREAD_HEADER[c].chars().count()])
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
+    let line = |cells: &[&str]| {
+        cells
+            .iter()
+            .zip(&widths)
+            .enumerate()
+            .map(|(c, (v, &w))| {
+                if c == 0 {
+                    format!("{v:<w$}")
+                } else {
+                    format!("{v:>w$}")
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("  ")
+    };
+    say!("{}", line(&SPREAD_HEADER));
+    for r in &rows {
         say!(
-            "{:<12} {:>10.4} {:>9.1}% {:>9.1}% {:>7.2} {:>11.4} {:>10.4}",
-            t,
-            c.mean_spread,
-            100.0 * c.within_one,
-            100.0 * c.within_two,
-            c.correlation,
-            c.top_quarter_error,
-            c.rest_error
+            "{}",
+            line(&r.iter().map(String::as_str).collect::<Vec<_>>())
         );
     }
 }

@@ -727,6 +727,31 @@ fn contact_map_of_literal_tables() {
         "regression plot and contact map"
     );
     assert!(!html.contains("src=") && !html.contains("href="));
+    assert!(!html.contains("stated spread"), "no <target>_std column");
+    // A spread beside the estimates is checked against the errors, printed and in the page.
+    let (p2, l2) = (d.join("p2.csv"), d.join("l2.csv"));
+    std::fs::write(
+        &p2,
+        "frame,force_n,force_n_std\na,1,0.5\nb,2,0.5\nc,3,2\nd,0,0.1\n",
+    )
+    .unwrap();
+    std::fs::write(&l2, "frame,force_n\na,1.2\nb,2\nc,0\nd,0.5\n").unwrap();
+    let o = eval(&p2, &l2, &["--report", s(&report)]);
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    let row = out
+        .lines()
+        .skip_while(|l| !l.starts_with("the stated spread"))
+        .find(|l| l.starts_with("force_n "))
+        .unwrap_or_default();
+    let cells: Vec<&str> = row.split_whitespace().collect();
+    // Within one spread: a and b; within two: c too (3 off at 2).
+    assert_eq!(cells[..4], ["force_n", "0.7750", "50.0", "75.0"], "{out}");
+    let html = std::fs::read_to_string(&report).unwrap();
+    assert!(
+        html.contains("stated spread")
+            && html.contains("<td>force_n</td><td>0.7750</td><td>50.0</td><td>75.0</td>"),
+        "{html}"
+    );
     // Without positions there is nothing to map.
     std::fs::write(&p, "frame,force_n\na,1\n").unwrap();
     std::fs::write(&l, "frame,force_n\na,1.2\n").unwrap();

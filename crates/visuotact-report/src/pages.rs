@@ -1,6 +1,7 @@
 //! The report page of `visuotact eval --report` (the error table, the regression plot and the
-//! contact map of one evaluation) as a [`Page`], and the parts every report page shares: the
-//! error table and the run's settings and timings.
+//! contact map of one evaluation, and how the stated spread agrees with the errors) as a
+//! [`Page`], and the parts every report page shares: the error table and the run's settings
+//! and timings.
 
 use visuotact_nn::metrics::{TargetErrors, MPE_FLOOR_FRACTION};
 use visuotact_pipeline::evaluation::Evaluation;
@@ -49,6 +50,40 @@ pub const ERROR_HEADER: [&str; 8] = [
     "accuracy %",
 ];
 
+/// How each target's stated spread (`<target>_std`) agrees with its errors, one row per target
+/// that has one ([`visuotact_pipeline::evaluation::SpreadCheck`]); empty when none has.
+pub fn spread_rows(e: &Evaluation) -> Vec<Vec<String>> {
+    e.targets
+        .iter()
+        .filter_map(|t| {
+            let c = t.spread?;
+            Some(vec![
+                t.errors.target.clone(),
+                format!("{:.4}", c.mean_spread),
+                format!("{:.1}", 100.0 * c.within_one),
+                format!("{:.1}", 100.0 * c.within_two),
+                format!("{:.2}", c.correlation),
+                format!("{:.4}", c.top_quarter_error),
+                format!("{:.4}", c.rest_error),
+            ])
+        })
+        .collect()
+}
+
+/// The header of [`spread_rows`].
+pub const SPREAD_HEADER: [&str; 7] = [
+    "target",
+    "mean std",
+    "|e| ≤ std %",
+    "|e| ≤ 2 std %",
+    "corr.",
+    "mean |e|, top 1/4 std",
+    "mean |e|, rest",
+];
+
+/// The caption of [`spread_rows`]' table.
+pub const SPREAD_CAPTION: &str = "The stated spread (<target>_std) against the errors (a normal error's standard deviation holds 68 % within 1 and 95 % within 2)";
+
 /// The settings and timings of a run.
 pub fn run_section(page: &mut Page, run: &RunInfo) {
     page.heading(2, "Run");
@@ -91,6 +126,10 @@ pub fn evaluation_page(
             "Contact distance D (x, y): mean {:.3} mm, max {:.3} mm.",
             d.mean, d.max
         ));
+    }
+    let spread = spread_rows(e);
+    if !spread.is_empty() {
+        page.table(SPREAD_CAPTION, &SPREAD_HEADER, &spread);
     }
     let panels: Vec<Panel> = e
         .targets
