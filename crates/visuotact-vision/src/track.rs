@@ -621,6 +621,11 @@ const CROWDED: f64 = 0.6;
 /// area ([`Matching::crowded_onto`]).
 const CROWDED_AREA: f64 = 1.25;
 
+/// How near a blob the prediction of a marker unseen in the prior frame (made from its
+/// neighbours' motion alone) may lie for the blob to be its as much as a neighbour's that was
+/// unseen too, in spacings ([`doubt_reacquired_beside_unseen`]).
+const UNSEEN_REACH: f64 = 0.75;
+
 /// How far from a hole a free blob leaves the markers between in doubt, in spacings.
 const HOLE_REACH: f64 = 4.0;
 
@@ -1550,6 +1555,9 @@ pub fn track_with(
         status[i] = MarkerStatus::Ambiguous;
     }
     doubt_split_beside_doubt(reference, &m.anchors, &mut status);
+    if let Some(p) = prior.filter(|_| followed) {
+        doubt_reacquired_beside_unseen(reference, &m, (p, &predicted), &mut status);
+    }
     let mut assignment = m.assignment;
     for i in 0..n {
         if status[i] != MarkerStatus::Ok {
@@ -1591,6 +1599,38 @@ fn doubt_split_beside_doubt(
         for i in doubtful {
             status[i] = MarkerStatus::Ambiguous;
         }
+    }
+}
+
+/// Followed tracking: puts in doubt ([`MarkerStatus::Ambiguous`]) a marker that had no
+/// position in the prior frame and takes a blob now, when a lattice neighbour that had none
+/// either is still without a blob of its own and its prediction lies within [`UNSEEN_REACH`]
+/// spacings of that blob. Both predictions come from their neighbours' motion alone (the two
+/// were lost or merged a frame ago), and which of the two the blob shows no test can tell: at
+/// the front of a drag a pin hidden behind its neighbour otherwise takes the neighbour's blob,
+/// a lattice step off, and holds it frame after frame.
+fn doubt_reacquired_beside_unseen(
+    reference: &TrackReference,
+    m: &Matching<'_>,
+    (prior, predicted): (&[Option<(f64, f64)>], &[(f64, f64)]),
+    status: &mut [MarkerStatus],
+) {
+    let unseen = |k: usize| prior[k].is_none();
+    let doubtful: Vec<usize> = (0..status.len())
+        .filter(|&i| status[i] == MarkerStatus::Ok && unseen(i))
+        .filter_map(|i| m.assignment[i].map(|j| (i, j)))
+        .filter(|&(i, j)| {
+            let b = (m.blobs[j].x_px, m.blobs[j].y_px);
+            lattice_steps(reference, &m.anchors, i).any(|k| {
+                unseen(k)
+                    && m.assignment[k].is_none()
+                    && dist(predicted[k], b) < UNSEEN_REACH * reference.spacing_px[k]
+            })
+        })
+        .map(|(i, _)| i)
+        .collect();
+    for i in doubtful {
+        status[i] = MarkerStatus::Ambiguous;
     }
 }
 

@@ -544,3 +544,45 @@ fn a_blob_between_two_squeezed_neighbours_merges_them() {
         );
     }
 }
+
+/// Followed (a temporal prior), two neighbours that had no position in the prior frame (both
+/// lost or merged) and one blob between their predictions: which of the two it shows is not
+/// known, so the one that took it is in doubt, not measured. When the neighbour was seen in the
+/// prior frame, or the blob lies beyond 0.75 spacing of its prediction, the blob stays the
+/// taker's.
+#[test]
+fn a_blob_between_two_markers_unseen_a_frame_ago_is_neither_ones() {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
+    let (positions, reference) = grid_reference();
+    let cfg = TrackConfig::default();
+    // Markers 12 and 13 (predicted at x = 70 and 90 from their neighbours, at rest); one blob
+    // at x = `blob_x` on their row.
+    let frame = |blob_x: f64, seen_13: bool| {
+        let mut prior: Vec<Option<(f64, f64)>> = positions.iter().copied().map(Some).collect();
+        prior[12] = None;
+        prior[13] = seen_13.then_some(positions[13]);
+        let mut blobs: Vec<_> = positions
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != 12 && k != 13)
+            .map(|(_, &(x, y))| disc_blob(x, y, 30, false))
+            .collect();
+        blobs.push(disc_blob(blob_x, 70.0, 30, false));
+        let hints = TrackHints {
+            prior: Some(&prior),
+            ..TrackHints::default()
+        };
+        let r = track_with(&reference, &blobs, &cfg, hints);
+        for k in (0..25).filter(|&k| k != 12 && k != 13) {
+            assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
+        }
+        assert_eq!(r.status[13], MarkerStatus::Lost);
+        r.status[12]
+    };
+    // 8 px from 12's prediction, 12 px (0.6 spacing) from 13's: either's.
+    assert_eq!(frame(78.0, false), MarkerStatus::Ambiguous);
+    // 13 was seen a frame ago (its prediction is its last position): 12's.
+    assert_eq!(frame(78.0, true), MarkerStatus::Ok);
+    // 18 px (0.9 spacing) from 13's prediction: 12's.
+    assert_eq!(frame(72.0, false), MarkerStatus::Ok);
+}
