@@ -1536,28 +1536,18 @@ pub fn track_with(
         mut on_blob,
     } = m.classify_unmatched(&predicted, usable);
     let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, &mut status);
-    // A marker that took a blob cut by the border has left the view — unless the blob is as
-    // big as the marker at rest, within the pixel noise of its outline: then nothing of it is
-    // missing (a marker ending a pixel short of a circular mask's edge touches it).
-    for (i, (st, a)) in status.iter_mut().zip(&m.assignment).enumerate() {
-        if a.is_some_and(|j| j >= usable && !whole(blobs[j].area_px, reference.areas_px[i], cfg)) {
-            *st = MarkerStatus::Lost;
-        }
-    }
-    for &i in &doubtful {
-        if status[i] == MarkerStatus::Ok {
-            status[i] = MarkerStatus::Ambiguous;
-        }
-    }
-    // Order-free matching only: a temporal prior follows a drag step by step.
-    let gaps = (!followed).then(|| doubt_around_gaps(reference, &m, &status, (shift, usable)));
-    for i in gaps.into_iter().flatten() {
-        status[i] = MarkerStatus::Ambiguous;
-    }
-    doubt_split_beside_doubt(reference, &m.anchors, &mut status);
-    if let Some(p) = prior.filter(|_| followed) {
-        doubt_reacquired_beside_unseen(reference, &m, (p, &predicted), &mut status);
-    }
+    lose_cut(&m, usable, &mut status);
+    let unseen: Option<Vec<bool>> = prior
+        .filter(|_| followed)
+        .map(|p| p.iter().map(Option::is_none).collect());
+    put_in_doubt(
+        &m,
+        &doubtful,
+        &predicted,
+        unseen.as_deref(),
+        (shift, usable),
+        &mut status,
+    );
     let mut assignment = m.assignment;
     for i in 0..n {
         if status[i] != MarkerStatus::Ok {
@@ -1602,6 +1592,49 @@ fn doubt_split_beside_doubt(
     }
 }
 
+/// A marker that took a blob cut by the border (from `usable` on) has left the view: lost —
+/// unless the blob is as big as the marker at rest, within the pixel noise of its outline
+/// ([`whole`]): then nothing of it is missing (a marker ending a pixel short of a circular
+/// mask's edge touches it).
+fn lose_cut(m: &Matching<'_>, usable: usize, status: &mut [MarkerStatus]) {
+    for (i, (st, a)) in status.iter_mut().zip(&m.assignment).enumerate() {
+        let whole_blob = |j: usize| whole(m.blobs[j].area_px, m.reference.areas_px[i], m.cfg);
+        if a.is_some_and(|j| j >= usable && !whole_blob(j)) {
+            *st = MarkerStatus::Lost;
+        }
+    }
+}
+
+/// Puts in doubt ([`MarkerStatus::Ambiguous`]) the matched markers that `doubtful` (the chain
+/// slides') names, then those [`doubt_around_gaps`] (order-free matching only: a temporal prior
+/// follows a drag step by step), [`doubt_split_beside_doubt`] and, when followed (`unseen`: the
+/// markers without a position in the prior frame), [`doubt_reacquired_beside_unseen`] find.
+fn put_in_doubt(
+    m: &Matching<'_>,
+    doubtful: &[usize],
+    predicted: &[(f64, f64)],
+    unseen: Option<&[bool]>,
+    (shift, usable): ((f64, f64), usize),
+    status: &mut [MarkerStatus],
+) {
+    let reference = m.reference;
+    for &i in doubtful {
+        if status[i] == MarkerStatus::Ok {
+            status[i] = MarkerStatus::Ambiguous;
+        }
+    }
+    let gaps = unseen
+        .is_none()
+        .then(|| doubt_around_gaps(reference, m, status, (shift, usable)));
+    for i in gaps.into_iter().flatten() {
+        status[i] = MarkerStatus::Ambiguous;
+    }
+    doubt_split_beside_doubt(reference, &m.anchors, status);
+    if let Some(unseen) = unseen {
+        doubt_reacquired_beside_unseen(reference, m, (unseen, predicted), status);
+    }
+}
+
 /// Followed tracking: puts in doubt ([`MarkerStatus::Ambiguous`]) a marker that had no
 /// position in the prior frame and takes a blob now, when a lattice neighbour that had none
 /// either is still without a blob of its own and its prediction lies within [`UNSEEN_REACH`]
@@ -1612,10 +1645,10 @@ fn doubt_split_beside_doubt(
 fn doubt_reacquired_beside_unseen(
     reference: &TrackReference,
     m: &Matching<'_>,
-    (prior, predicted): (&[Option<(f64, f64)>], &[(f64, f64)]),
+    (unseen, predicted): (&[bool], &[(f64, f64)]),
     status: &mut [MarkerStatus],
 ) {
-    let unseen = |k: usize| prior[k].is_none();
+    let unseen = |k: usize| unseen[k];
     let doubtful: Vec<usize> = (0..status.len())
         .filter(|&i| status[i] == MarkerStatus::Ok && unseen(i))
         .filter_map(|i| m.assignment[i].map(|j| (i, j)))
