@@ -7,7 +7,7 @@ use visuotact_nn::metrics::TargetErrors;
 use visuotact_pipeline::evaluation::{evaluate_files, Evaluation};
 use visuotact_report::figures::{ContactMap, Panel, RegressionPlot};
 use visuotact_report::pages::{
-    evaluation_page, spread_rows, RunInfo, SPREAD_CAPTION, SPREAD_HEADER,
+    evaluation_page, spread_rows, text_table, RunInfo, SPREAD_CAPTION, SPREAD_HEADER,
 };
 
 /// Writes `eval --report`'s page.
@@ -139,39 +139,8 @@ pub(crate) fn evaluation(
 /// The table of how each target's `<target>_std` agrees with its errors, when any has one.
 fn spread_checks(e: &Evaluation) {
     let rows = spread_rows(e);
-    if rows.is_empty() {
-        return;
-    }
-    say!("{}:", SPREAD_CAPTION.to_lowercase());
-    let widths: Vec<usize> = (0..SPREAD_HEADER.len())
-        .map(|c| {
-            rows.iter()
-                .map(|r| r[c].chars().count())
-                .chain([SPREAD_HEADER[c].chars().count()])
-                .max()
-                .unwrap_or(0)
-        })
-        .collect();
-    let line = |cells: &[&str]| {
-        cells
-            .iter()
-            .zip(&widths)
-            .enumerate()
-            .map(|(c, (v, &w))| {
-                if c == 0 {
-                    format!("{v:<w$}")
-                } else {
-                    format!("{v:>w$}")
-                }
-            })
-            .collect::<Vec<_>>()
-            .join("  ")
-    };
-    say!("{}", line(&SPREAD_HEADER));
-    for r in &rows {
-        say!(
-            "{}",
-            line(&r.iter().map(String::as_str).collect::<Vec<_>>())
-        );
+    if !rows.is_empty() {
+        say!("{}:", SPREAD_CAPTION.to_lowercase());
+        say_part!("{}", text_table(&SPREAD_HEADER, &rows));
     }
 }

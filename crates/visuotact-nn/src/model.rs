@@ -263,6 +263,36 @@ impl Model {
             .collect()
     }
 
+    /// What [`Estimate::spread`] will be, in words (`None` for one network without held-out
+    /// samples): the held-out table's size and overall RMS error per target, or the networks'
+    /// standard deviation when nothing was held out.
+    pub fn spread_in_words(&self) -> Option<String> {
+        match &self.held_out {
+            Some(h) => {
+                let rms = |j: usize| {
+                    let ss: f64 = h.errors.iter().map(|e| e[j] * e[j]).sum();
+                    (ss / h.errors.len() as f64).sqrt()
+                };
+                let overall: Vec<String> = self
+                    .target_columns
+                    .iter()
+                    .enumerate()
+                    .map(|(j, t)| format!("{t} {:.4}", rms(j)))
+                    .collect();
+                Some(format!(
+                    "the larger of the networks' disagreement and the held-out RMS error of the {} nearest of {} held-out frames (overall {})",
+                    h.neighbours,
+                    h.estimates.len(),
+                    overall.join(", ")
+                ))
+            }
+            None if !self.members.is_empty() => {
+                Some("the networks' standard deviation (no frame was held out)".to_string())
+            }
+            None => None,
+        }
+    }
+
     /// The columns of [`Estimate::into_row`]: the targets, then for an ensemble or a model
     /// with held-out samples each target's spread (`<target>_std`).
     pub fn estimate_columns(&self) -> Vec<String> {

@@ -84,6 +84,45 @@ pub const SPREAD_HEADER: [&str; 7] = [
 /// The caption of [`spread_rows`]' table.
 pub const SPREAD_CAPTION: &str = "The stated spread (<target>_std) against the errors (a normal error's standard deviation holds 68 % within 1 and 95 % within 2)";
 
+/// `header` and `rows` as plain text for a terminal: one line each, columns padded to their
+/// widest cell, the first left-aligned and the others right-aligned, two spaces apart.
+///
+/// ```
+/// let t = visuotact_report::pages::text_table(&["a", "bb"], &[vec!["xyz".into(), "1".into()]]);
+/// assert_eq!(t, "a    bb\nxyz   1\n");
+/// ```
+pub fn text_table(header: &[&str], rows: &[Vec<String>]) -> String {
+    let width = |c: usize| {
+        rows.iter()
+            .filter_map(|r| r.get(c))
+            .map(|v| v.chars().count())
+            .chain([header[c].chars().count()])
+            .max()
+            .unwrap_or(0)
+    };
+    let widths: Vec<usize> = (0..header.len()).map(width).collect();
+    let line = |cells: Vec<&str>| {
+        let padded: Vec<String> = cells
+            .iter()
+            .zip(&widths)
+            .enumerate()
+            .map(|(c, (v, &w))| {
+                if c == 0 {
+                    format!("{v:<w$}")
+                } else {
+                    format!("{v:>w$}")
+                }
+            })
+            .collect();
+        padded.join("  ") + "\n"
+    };
+    let mut out = line(header.to_vec());
+    for r in rows {
+        out.push_str(&line(r.iter().map(String::as_str).collect()));
+    }
+    out
+}
+
 /// The settings and timings of a run.
 pub fn run_section(page: &mut Page, run: &RunInfo) {
     page.heading(2, "Run");

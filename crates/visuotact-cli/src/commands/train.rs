@@ -262,30 +262,8 @@ fn print_trained(model: &Model, targets: &[String], secs: f64) {
             cell(&tr.r[2], j, true)
         );
     }
-    match &model.held_out {
-        Some(h) => {
-            let rms = |j: usize| {
-                let ss: f64 = h.errors.iter().map(|e| e[j] * e[j]).sum();
-                (ss / h.errors.len() as f64).sqrt()
-            };
-            note!(
-                "spread (<target>_std): the larger of the networks' disagreement and the held-out RMS error of the {} nearest of {} held-out frames (overall {})",
-                h.neighbours,
-                h.estimates.len(),
-                targets
-                    .iter()
-                    .enumerate()
-                    .map(|(j, t)| format!("{t} {:.4}", rms(j)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        }
-        None if !model.members.is_empty() => {
-            note!(
-                "spread (<target>_std): the networks' standard deviation (no frame was held out)"
-            );
-        }
-        None => {}
+    if let Some(words) = model.spread_in_words() {
+        note!("spread (<target>_std): {words}");
     }
 }
 
