@@ -507,35 +507,49 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
     }
 }
 
-/// Followed (a temporal prior), two neighbours squeezed towards each other end on one blob of
-/// 1.5 markers between their last positions, 0.62 spacing apart: the one left without a blob
-/// is merged with the one holding it (the blob lies within 0.6 spacing of both predictions),
-/// and neither is reported at the pair's centroid as its own.
-#[test]
-fn a_blob_between_two_squeezed_neighbours_merges_them() {
+/// Followed tracking of the grid with markers 12 and 13 (the middle row's centre and its
+/// right neighbour) last seen at `pair` (`None`: without a position) and the others at rest;
+/// the frame has every other marker's blob at rest and `blob` for the pair. Every other
+/// marker is checked measured.
+fn middle_pair_followed(
+    pair: [Option<(f64, f64)>; 2],
+    blob: visuotact_vision::blobs::Blob,
+) -> visuotact_vision::track::TrackResult {
     use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
     let (positions, reference) = grid_reference();
-    let cfg = TrackConfig::default();
-    // Markers 12 and 13 (the middle row's centre and its right neighbour) were last seen at
-    // x = 75 and 87.4; the others at rest.
     let mut prior: Vec<Option<(f64, f64)>> = positions.iter().copied().map(Some).collect();
-    prior[12] = Some((75.0, 70.0));
-    prior[13] = Some((87.4, 70.0));
+    prior[12] = pair[0];
+    prior[13] = pair[1];
     let mut blobs: Vec<_> = positions
         .iter()
         .enumerate()
         .filter(|&(k, _)| k != 12 && k != 13)
         .map(|(_, &(x, y))| disc_blob(x, y, 30, false))
         .collect();
-    blobs.push(disc_blob(81.0, 70.0, 45, false));
+    blobs.push(blob);
     let hints = TrackHints {
         prior: Some(&prior),
         ..TrackHints::default()
     };
-    let r = track_with(&reference, &blobs, &cfg, hints);
+    let r = track_with(&reference, &blobs, &TrackConfig::default(), hints);
     for k in (0..25).filter(|&k| k != 12 && k != 13) {
         assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
     }
+    r
+}
+
+/// Followed (a temporal prior), two neighbours squeezed towards each other end on one blob of
+/// 1.5 markers between their last positions, 0.62 spacing apart: the one left without a blob
+/// is merged with the one holding it (the blob lies within 0.6 spacing of both predictions),
+/// and neither is reported at the pair's centroid as its own.
+#[test]
+fn a_blob_between_two_squeezed_neighbours_merges_them() {
+    // Markers 12 and 13 (the middle row's centre and its right neighbour) were last seen at
+    // x = 75 and 87.4; the others at rest.
+    let r = middle_pair_followed(
+        [Some((75.0, 70.0)), Some((87.4, 70.0))],
+        disc_blob(81.0, 70.0, 45, false),
+    );
     for k in [12, 13] {
         assert!(
             matches!(r.status[k], MarkerStatus::Merged | MarkerStatus::Split),
@@ -552,30 +566,13 @@ fn a_blob_between_two_squeezed_neighbours_merges_them() {
 /// taker's.
 #[test]
 fn a_blob_between_two_markers_unseen_a_frame_ago_is_neither_ones() {
-    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
-    let (positions, reference) = grid_reference();
-    let cfg = TrackConfig::default();
     // Markers 12 and 13 (predicted at x = 70 and 90 from their neighbours, at rest); one blob
     // at x = `blob_x` on their row.
     let frame = |blob_x: f64, seen_13: bool| {
-        let mut prior: Vec<Option<(f64, f64)>> = positions.iter().copied().map(Some).collect();
-        prior[12] = None;
-        prior[13] = seen_13.then_some(positions[13]);
-        let mut blobs: Vec<_> = positions
-            .iter()
-            .enumerate()
-            .filter(|&(k, _)| k != 12 && k != 13)
-            .map(|(_, &(x, y))| disc_blob(x, y, 30, false))
-            .collect();
-        blobs.push(disc_blob(blob_x, 70.0, 30, false));
-        let hints = TrackHints {
-            prior: Some(&prior),
-            ..TrackHints::default()
-        };
-        let r = track_with(&reference, &blobs, &cfg, hints);
-        for k in (0..25).filter(|&k| k != 12 && k != 13) {
-            assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
-        }
+        let r = middle_pair_followed(
+            [None, seen_13.then_some((90.0, 70.0))],
+            disc_blob(blob_x, 70.0, 30, false),
+        );
         assert_eq!(r.status[13], MarkerStatus::Lost);
         r.status[12]
     };
