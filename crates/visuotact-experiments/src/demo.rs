@@ -112,7 +112,7 @@ pub struct Table3Row {
     pub actual: [f64; 3],
     /// The paper's estimate.
     pub paper: [f64; 3],
-    /// visuotact's default: values and its networks' spread, or why there is none.
+    /// visuotact's default: values and its stated spread (`<target>_std`), or why there is none.
     pub estimate: Result<([f64; 3], [f64; 3]), String>,
 }
 

@@ -50,7 +50,7 @@ fn iats_training(out: &mut String, d: &IatsDemo) {
 
 fn table3(out: &mut String, d: &IatsDemo) {
     let _ = writeln!(out,
-        "\nTable 3 layout, visuotact's default: actual | estimate ± spread of its networks | error || paper's estimate | paper's error"
+        "\nTable 3 layout, visuotact's default: actual | estimate ± its stated spread | error || paper's estimate | paper's error"
     );
     for (k, r) in d.table3.iter().enumerate() {
         let (actual, paper) = (r.actual, r.paper);
