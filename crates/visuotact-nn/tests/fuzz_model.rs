@@ -6,13 +6,14 @@ use std::sync::OnceLock;
 
 use proptest::prelude::*;
 use visuotact_nn::fit::{fit, quietly, FitConfig, FitData};
+use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::Model;
 
-/// A small trained ensemble's file.
+/// A small trained ensemble's file, with its held-out table (trainlm holds samples out).
 fn model_file() -> &'static str {
     static M: OnceLock<String> = OnceLock::new();
     M.get_or_init(|| {
-        let x: Vec<Vec<f64>> = (0..16).map(|k| vec![k as f64, (k as f64).sin()]).collect();
+        let x: Vec<Vec<f64>> = (0..100).map(|k| vec![k as f64, (k as f64).sin()]).collect();
         let t: Vec<Vec<f64>> = x.iter().map(|r| vec![r[0] * 0.5 + r[1]]).collect();
         let cols = ["m000_dx_px".to_string(), "m000_dy_px".to_string()];
         let targets = ["y".to_string()];
@@ -26,9 +27,12 @@ fn model_file() -> &'static str {
             hidden: vec![2],
             ensemble: 2,
             max_epochs: 5,
+            algorithm: Algorithm::Trainlm,
             ..FitConfig::default()
         };
-        fit(&data, &cfg, quietly).unwrap().to_json()
+        let m = fit(&data, &cfg, quietly).unwrap();
+        assert!(m.held_out.is_some());
+        m.to_json()
     })
 }
 
@@ -62,6 +66,7 @@ proptest! {
             Ok(m) => {
                 if let Ok(e) = m.estimate(&row) {
                     prop_assert_eq!(e.values.len(), m.target_columns.len());
+                    prop_assert_eq!(e.spread.len(), m.target_columns.len());
                 }
             }
             Err(e) => prop_assert!(e.to_string().contains("fuzzed.json"), "{}", e),
