@@ -407,19 +407,30 @@ impl Model {
                 (v / (k - 1.0)).sqrt()
             }));
         }
-        if let Some(h) = &self.held_out {
-            // The larger of the two: the held-out errors see what no network can tell, the
-            // networks' disagreement a frame unlike those they trained on.
-            self.target_scaling
-                .apply_into(&out.values, &mut scratch.scaled);
-            h.rms_error_into(&scratch.scaled, &mut scratch.lookup, &mut scratch.rms);
+        // The larger of the two: the held-out errors see what no network can tell, the
+        // networks' disagreement a frame unlike those they trained on.
+        if let Some(held) = self.held_out_error(&out.values, scratch) {
             out.spread.resize(width, 0.0);
-            for (s, r) in out.spread.iter_mut().zip(&scratch.rms) {
+            for (s, r) in out.spread.iter_mut().zip(held) {
                 *s = s.max(*r);
             }
         }
         out.filled = filled;
         Ok(filled)
+    }
+
+    /// Per target, the root-mean-square error of the held-out training samples whose estimates
+    /// lie nearest `values` (target units; [`crate::heldout`]), in `scratch`; `None` when the
+    /// model keeps no held-out table. Allocation-free once `scratch` has held a lookup.
+    pub fn held_out_error<'s>(
+        &self,
+        values: &[f64],
+        scratch: &'s mut EstimateScratch,
+    ) -> Option<&'s [f64]> {
+        let h = self.held_out.as_ref()?;
+        self.target_scaling.apply_into(values, &mut scratch.scaled);
+        h.rms_error_into(&scratch.scaled, &mut scratch.lookup, &mut scratch.rms);
+        Some(&scratch.rms)
     }
 
     /// Parses a model file's text; `source` names it in errors.

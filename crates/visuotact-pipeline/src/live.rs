@@ -81,7 +81,10 @@ pub struct TargetEstimate {
     pub name: String,
     /// The ensemble's mean.
     pub value: f64,
-    /// Standard deviation over the ensemble (absent with one network).
+    /// How far off the value may be, as `predict`'s `<target>_std`: the larger of the
+    /// standard deviation over the ensemble's networks and the held-out error nearest the
+    /// estimate ([`visuotact_nn::model::Model::held_out_error`]); absent with one network
+    /// and no held-out table.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub std: Option<f64>,
 }
@@ -469,17 +472,34 @@ impl LiveEstimator {
             networks += outs.len();
         }
         let n = networks as f64;
+        let means: Vec<f64> = sums.iter().map(|s| s / n).collect();
+        // As `predict`'s `<target>_std`: the larger of the networks' standard deviation and
+        // the held-out error nearest the estimate (the largest over the files keeping one).
+        let mut held: Option<Vec<f64>> = None;
+        for (m, scratch) in self.ensemble.iter().zip(&mut self.scratch) {
+            if let Some(r) = m.held_out_error(&means, scratch) {
+                let h = held.get_or_insert_with(|| vec![0.0; width]);
+                for (h, r) in h.iter_mut().zip(r) {
+                    *h = h.max(*r);
+                }
+            }
+        }
         first
             .target_columns
             .iter()
             .enumerate()
             .map(|(k, name)| {
-                let mean = sums[k] / n;
+                let mean = means[k];
+                let networks_std = (networks > 1)
+                    .then(|| ((sq[k] / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt());
+                let held_k = held.as_ref().map(|h| h[k]);
                 TargetEstimate {
                     name: name.clone(),
                     value: mean,
-                    std: (networks > 1)
-                        .then(|| ((sq[k] / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt()),
+                    std: match (networks_std, held_k) {
+                        (Some(a), Some(b)) => Some(a.max(b)),
+                        (a, b) => a.or(b),
+                    },
                 }
             })
             .collect()
@@ -557,6 +577,23 @@ mod tests {
         assert_eq!(r.targets.len(), 1);
         let (value, std) = (r.targets[0].value, r.targets[0].std.unwrap());
         assert!(value.is_finite() && std > 0.0 && std.is_finite(), "{r:?}");
+        // A model file keeping held-out errors (7 everywhere, above the networks' spread):
+        // the spread is `predict`'s, the held-out error nearest the estimate.
+        let mut held = tiny_model("a_mm");
+        held.held_out = visuotact_nn::heldout::HeldOutErrors::new(
+            (0..40).map(|i| vec![f64::from(i) / 20.0 - 1.0]).collect(),
+            vec![vec![7.0]; 40],
+        );
+        let mut live = LiveEstimator::new(sensor(), vec![held], &LiveConfig::default()).unwrap();
+        live.process(&rest, None).unwrap();
+        let r = live
+            .process(&render(&cfg, &press, 10).unwrap().0, None)
+            .unwrap();
+        assert_eq!(r.targets[0].std, Some(7.0), "{r:?}");
+        assert!(
+            (r.targets[0].value - value).abs() < 1e-9,
+            "the same networks: {r:?}"
+        );
     }
 
     #[test]
