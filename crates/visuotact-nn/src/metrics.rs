@@ -38,6 +38,26 @@ pub struct TargetErrors {
 /// Fraction of the largest |truth| below which samples are left out of percentage errors.
 pub const MPE_FLOOR_FRACTION: f64 = 0.1;
 
+/// The Pearson correlation of the pairs' two values; 0 when either does not vary (no linear
+/// relation to measure; never NaN: model files and JSON reports hold it) or there are none.
+pub fn pearson(pairs: &[(f64, f64)]) -> f64 {
+    let nf = pairs.len().max(1) as f64;
+    let mean_a = pairs.iter().map(|p| p.0).sum::<f64>() / nf;
+    let mean_b = pairs.iter().map(|p| p.1).sum::<f64>() / nf;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (a, b) in pairs {
+        sab += (a - mean_a) * (b - mean_b);
+        saa += (a - mean_a).powi(2);
+        sbb += (b - mean_b).powi(2);
+    }
+    let s = saa.sqrt() * sbb.sqrt();
+    if s > 0.0 {
+        sab / s
+    } else {
+        0.0
+    }
+}
+
 /// Figures for estimates `est` against `truth` (pairs with a NaN are left out).
 pub fn target_errors(target: &str, est: &[f64], truth: &[f64]) -> TargetErrors {
     let pairs: Vec<(f64, f64)> = est
@@ -48,19 +68,6 @@ pub fn target_errors(target: &str, est: &[f64], truth: &[f64]) -> TargetErrors {
         .collect();
     let n = pairs.len();
     let nf = n.max(1) as f64;
-    let mean_p = pairs.iter().map(|p| p.0).sum::<f64>() / nf;
-    let mean_t = pairs.iter().map(|p| p.1).sum::<f64>() / nf;
-    let cov: f64 = pairs.iter().map(|(a, b)| (a - mean_p) * (b - mean_t)).sum();
-    let sp = pairs
-        .iter()
-        .map(|(a, _)| (a - mean_p).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    let st = pairs
-        .iter()
-        .map(|(_, b)| (b - mean_t).powi(2))
-        .sum::<f64>()
-        .sqrt();
     let mpe_floor = MPE_FLOOR_FRACTION * pairs.iter().fold(0.0f64, |m, (_, t)| m.max(t.abs()));
     let rel: Vec<f64> = pairs
         .iter()
@@ -76,9 +83,8 @@ pub fn target_errors(target: &str, est: &[f64], truth: &[f64]) -> TargetErrors {
         target: target.to_string(),
         n,
         mse: pairs.iter().map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / nf,
-        // No variation in the truth or the estimates: no linear relation to measure, R = 0
-        // (never NaN: model files and JSON reports hold it).
-        r: if sp * st > 0.0 { cov / (sp * st) } else { 0.0 },
+        // No variation in the truth or the estimates: R = 0, where MATLAB gives NaN.
+        r: pearson(&pairs),
         mean_abs: pairs.iter().map(|(a, b)| (a - b).abs()).sum::<f64>() / nf,
         max_abs: pairs.iter().fold(0.0f64, |m, (a, b)| m.max((a - b).abs())),
         mean_percentage_error: mpe,

@@ -407,30 +407,35 @@ impl Model {
                 (v / (k - 1.0)).sqrt()
             }));
         }
-        // The larger of the two: the held-out errors see what no network can tell, the
-        // networks' disagreement a frame unlike those they trained on.
-        if let Some(held) = self.held_out_error(&out.values, scratch) {
+        if self.held_out.is_some() {
             out.spread.resize(width, 0.0);
-            for (s, r) in out.spread.iter_mut().zip(held) {
-                *s = s.max(*r);
-            }
+            self.widen_spread(&out.values, scratch, &mut out.spread);
         }
         out.filled = filled;
         Ok(filled)
     }
 
-    /// Per target, the root-mean-square error of the held-out training samples whose estimates
-    /// lie nearest `values` (target units; [`crate::heldout`]), in `scratch`; `None` when the
-    /// model keeps no held-out table. Allocation-free once `scratch` has held a lookup.
-    pub fn held_out_error<'s>(
+    /// Raises each target's `spread` (the networks' standard deviation at the estimate
+    /// `values`, target units) to the root-mean-square error of the held-out training samples
+    /// whose estimates lie nearest `values` ([`crate::heldout`]), when that is larger: the
+    /// held-out errors see what no network can tell, the networks' disagreement a frame unlike
+    /// those they trained on. Returns whether the model keeps a held-out table (without one,
+    /// `spread` is left as it is). Allocation-free once `scratch` has held a lookup.
+    pub fn widen_spread(
         &self,
         values: &[f64],
-        scratch: &'s mut EstimateScratch,
-    ) -> Option<&'s [f64]> {
-        let h = self.held_out.as_ref()?;
+        scratch: &mut EstimateScratch,
+        spread: &mut [f64],
+    ) -> bool {
+        let Some(h) = &self.held_out else {
+            return false;
+        };
         self.target_scaling.apply_into(values, &mut scratch.scaled);
         h.rms_error_into(&scratch.scaled, &mut scratch.lookup, &mut scratch.rms);
-        Some(&scratch.rms)
+        for (s, r) in spread.iter_mut().zip(&scratch.rms) {
+            *s = s.max(*r);
+        }
+        true
     }
 
     /// Parses a model file's text; `source` names it in errors.

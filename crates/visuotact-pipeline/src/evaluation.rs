@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use visuotact_io::table::{KeyedTable, TableError};
-use visuotact_nn::metrics::{target_errors, TargetErrors};
+use visuotact_nn::metrics::{pearson, target_errors, TargetErrors};
 
 /// One touch on the contact map: actual and estimated (x, y, depth); depth NaN when absent.
 pub type MapPoint = ([f64; 3], [f64; 3]);
@@ -65,21 +65,8 @@ pub fn spread_check(pairs: &[(f64, f64)]) -> Option<SpreadCheck> {
     let n = v.len() as f64;
     let frac = |k: f64| v.iter().filter(|(e, s)| *e <= k * s).count() as f64 / n;
     let (within_one, within_two) = (frac(1.0), frac(2.0));
-    let (me, ms) = (
-        v.iter().map(|p| p.0).sum::<f64>() / n,
-        v.iter().map(|p| p.1).sum::<f64>() / n,
-    );
-    let (mut see, mut sss, mut ses) = (0.0, 0.0, 0.0);
-    for (e, s) in &v {
-        see += (e - me).powi(2);
-        sss += (s - ms).powi(2);
-        ses += (e - me) * (s - ms);
-    }
-    let correlation = if see > 0.0 && sss > 0.0 {
-        ses / (see * sss).sqrt()
-    } else {
-        0.0
-    };
+    let ms = v.iter().map(|p| p.1).sum::<f64>() / n;
+    let correlation = pearson(&v);
     // Largest spread first; the top quarter at least one row.
     v.sort_by(|a, b| b.1.total_cmp(&a.1));
     let q = v.len().div_ceil(4);

@@ -83,7 +83,7 @@ pub struct TargetEstimate {
     pub value: f64,
     /// How far off the value may be, as `predict`'s `<target>_std`: the larger of the
     /// standard deviation over the ensemble's networks and the held-out error nearest the
-    /// estimate ([`visuotact_nn::model::Model::held_out_error`]); absent with one network
+    /// estimate ([`visuotact_nn::model::Model::widen_spread`]); absent with one network
     /// and no held-out table.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub std: Option<f64>,
@@ -472,35 +472,29 @@ impl LiveEstimator {
             networks += outs.len();
         }
         let n = networks as f64;
-        let means: Vec<f64> = sums.iter().map(|s| s / n).collect();
-        // As `predict`'s `<target>_std`: the larger of the networks' standard deviation and
-        // the held-out error nearest the estimate (the largest over the files keeping one).
-        let mut held: Option<Vec<f64>> = None;
+        // In place: the means, then the networks' standard deviations (0 for one network).
+        for (s, q) in sums.iter_mut().zip(&mut sq) {
+            *s /= n;
+            *q = if networks > 1 {
+                ((*q / n - *s * *s).max(0.0) * n / (n - 1.0)).sqrt()
+            } else {
+                0.0
+            };
+        }
+        // As `predict`'s `<target>_std`: raised to the held-out error nearest the estimate (the
+        // largest over the files keeping one).
+        let mut held = false;
         for (m, scratch) in self.ensemble.iter().zip(&mut self.scratch) {
-            if let Some(r) = m.held_out_error(&means, scratch) {
-                let h = held.get_or_insert_with(|| vec![0.0; width]);
-                for (h, r) in h.iter_mut().zip(r) {
-                    *h = h.max(*r);
-                }
-            }
+            held |= m.widen_spread(&sums, scratch, &mut sq);
         }
         first
             .target_columns
             .iter()
-            .enumerate()
-            .map(|(k, name)| {
-                let mean = means[k];
-                let networks_std = (networks > 1)
-                    .then(|| ((sq[k] / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt());
-                let held_k = held.as_ref().map(|h| h[k]);
-                TargetEstimate {
-                    name: name.clone(),
-                    value: mean,
-                    std: match (networks_std, held_k) {
-                        (Some(a), Some(b)) => Some(a.max(b)),
-                        (a, b) => a.or(b),
-                    },
-                }
+            .zip(sums.iter().zip(&sq))
+            .map(|(name, (&value, &std))| TargetEstimate {
+                name: name.clone(),
+                value,
+                std: (networks > 1 || held).then_some(std),
             })
             .collect()
     }

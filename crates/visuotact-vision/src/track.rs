@@ -1537,14 +1537,11 @@ pub fn track_with(
     } = m.classify_unmatched(&predicted, usable);
     let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, &mut status);
     lose_cut(&m, usable, &mut status);
-    let unseen: Option<Vec<bool>> = prior
-        .filter(|_| followed)
-        .map(|p| p.iter().map(Option::is_none).collect());
     put_in_doubt(
         &m,
         &doubtful,
         &predicted,
-        unseen.as_deref(),
+        prior.filter(|_| followed),
         (shift, usable),
         &mut status,
     );
@@ -1607,13 +1604,13 @@ fn lose_cut(m: &Matching<'_>, usable: usize, status: &mut [MarkerStatus]) {
 
 /// Puts in doubt ([`MarkerStatus::Ambiguous`]) the matched markers that `doubtful` (the chain
 /// slides') names, then those [`doubt_around_gaps`] (order-free matching only: a temporal prior
-/// follows a drag step by step), [`doubt_split_beside_doubt`] and, when followed (`unseen`: the
-/// markers without a position in the prior frame), [`doubt_reacquired_beside_unseen`] find.
+/// follows a drag step by step), [`doubt_split_beside_doubt`] and, when followed (`prior`: the
+/// markers' positions in the prior frame), [`doubt_reacquired_beside_unseen`] find.
 fn put_in_doubt(
     m: &Matching<'_>,
     doubtful: &[usize],
     predicted: &[(f64, f64)],
-    unseen: Option<&[bool]>,
+    prior: Option<&[Option<(f64, f64)>]>,
     (shift, usable): ((f64, f64), usize),
     status: &mut [MarkerStatus],
 ) {
@@ -1623,15 +1620,15 @@ fn put_in_doubt(
             status[i] = MarkerStatus::Ambiguous;
         }
     }
-    let gaps = unseen
+    let gaps = prior
         .is_none()
         .then(|| doubt_around_gaps(reference, m, status, (shift, usable)));
     for i in gaps.into_iter().flatten() {
         status[i] = MarkerStatus::Ambiguous;
     }
     doubt_split_beside_doubt(reference, &m.anchors, status);
-    if let Some(unseen) = unseen {
-        doubt_reacquired_beside_unseen(reference, m, (unseen, predicted), status);
+    if let Some(prior) = prior {
+        doubt_reacquired_beside_unseen(m, prior, predicted, status);
     }
 }
 
@@ -1643,12 +1640,13 @@ fn put_in_doubt(
 /// the front of a drag a pin hidden behind its neighbour otherwise takes the neighbour's blob,
 /// a lattice step off, and holds it frame after frame.
 fn doubt_reacquired_beside_unseen(
-    reference: &TrackReference,
     m: &Matching<'_>,
-    (unseen, predicted): (&[bool], &[(f64, f64)]),
+    prior: &[Option<(f64, f64)>],
+    predicted: &[(f64, f64)],
     status: &mut [MarkerStatus],
 ) {
-    let unseen = |k: usize| unseen[k];
+    let reference = m.reference;
+    let unseen = |k: usize| prior[k].is_none();
     let doubtful: Vec<usize> = (0..status.len())
         .filter(|&i| status[i] == MarkerStatus::Ok && unseen(i))
         .filter_map(|i| m.assignment[i].map(|j| (i, j)))
