@@ -301,6 +301,7 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("dots", 2, 1),
         ("dots", 3, 2),
         ("gelsight", 1, 1),
+        ("gelsight", 1, 2),
         ("gelsight", 2, 1),
         ("gelsight", 3, 2),
     ];

@@ -609,6 +609,12 @@ fn local_motion(
 /// marker costing 1) leaves its chain's markers in doubt ([`Matching::slide_chains`]).
 const AMBIGUOUS_SLIDE: f64 = 0.5;
 
+/// Two rows sliding together into two holes side by side (the holes moving to their other
+/// ends, no free blob taken) that change the energy by less than this leave their markers in
+/// doubt ([`Matching::slide_chains`]): half [`AMBIGUOUS_SLIDE`], as a slide that only moves
+/// the holes is weaker evidence of a drag than one that fills them from a spare blob.
+const AMBIGUOUS_ROWS_SLIDE: f64 = 0.35;
+
 /// A marker between a hole and a free blob that moved towards the blob by this many spacings
 /// stays in doubt however little it moved ([`Matching::slide_chains`]).
 const DRAGGED_TOWARDS: f64 = 0.2;
@@ -957,6 +963,39 @@ impl Matching<'_> {
         out
     }
 
+    /// Pairs of chains of the same length stepping the same way from two holes that are lattice
+    /// neighbours ([`Matching::chains_into`]; disjoint, two markers or more each).
+    fn parallel_chains(&self, holes: &[usize], matched: &[bool]) -> Vec<(Vec<usize>, Vec<usize>)> {
+        let step = |path: &[usize]| {
+            let (a, b) = (
+                self.reference.positions[path[0]],
+                self.reference.positions[path[1]],
+            );
+            (b.0 - a.0, b.1 - a.1)
+        };
+        let mut out = Vec::new();
+        for &h1 in holes {
+            for &h2 in holes {
+                if h2 <= h1 || !self.reference.neighbours[h1].contains(&h2) {
+                    continue;
+                }
+                let second = self.chains_into(h2, matched);
+                for p1 in self.chains_into(h1, matched) {
+                    for p2 in &second {
+                        if p1.len() == p2.len()
+                            && p1.len() >= 2
+                            && dist(step(&p1), step(p2)) < self.reference.spacing_px[h1] / 3.0
+                            && !p1.iter().any(|i| p2.contains(i))
+                        {
+                            out.push((p1.clone(), p2.clone()));
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Slides chains of assignments into holes: a marker without a blob inside the matched
     /// region takes its neighbour's blob, that neighbour the next one's along the same lattice
     /// step, and so on (up to six), the last taking a free blob near where its neighbours put
@@ -968,9 +1007,11 @@ impl Matching<'_> {
     /// those of a chain ending on a free blob whose slide would change the energy by less than
     /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
     /// the chain moved one lattice step as without, and which marker holds which blob cannot
-    /// be told (a drag of more than a pitch) — and those [`Matching::between_holes_and_free_blobs`]
+    /// be told (a drag of more than a pitch) — those of two parallel chains from holes side by
+    /// side whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (frames in any
+    /// order: `followed` false), and those [`Matching::between_holes_and_free_blobs`]
     /// (however little they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
-    fn slide_chains(&mut self, lost_cost: f64) -> Vec<usize> {
+    fn slide_chains(&mut self, lost_cost: f64, followed: bool) -> Vec<usize> {
         for _ in 0..16 {
             let matched = self.matched();
             let mut best: Option<(f64, Vec<usize>, Option<usize>)> = None;
@@ -1007,6 +1048,35 @@ impl Matching<'_> {
                 }
             }
         }
+        // Two holes side by side may be one slide of two rows: each row alone leaves a shear
+        // between them that the slide of both together does not. Its markers are in doubt
+        // when they moved half a spacing in either reading (the slid one moves them by about a
+        // lattice step more: a patch dragged by over a pitch seems to have moved little).
+        // Frames in any order only: followed, a lattice step since the prior frame is no
+        // reading of a drag built up frame by frame.
+        let mut slid_far = Vec::new();
+        let pairs = if followed {
+            Vec::new()
+        } else {
+            self.parallel_chains(&holes, &matched)
+        };
+        for (p1, p2) in pairs {
+            let (de, _) = self.try_chains(&[&p1, &p2], lost_cost);
+            if de < AMBIGUOUS_ROWS_SLIDE {
+                for path in [&p1, &p2] {
+                    doubt.extend_from_slice(&path[1..]);
+                    for w in path[1..].windows(2) {
+                        let (i, next) = (w[0], w[1]);
+                        let r = self.reference.positions[i];
+                        let held =
+                            self.assignment[next].map(|j| (self.blobs[j].x_px, self.blobs[j].y_px));
+                        if held.is_some_and(|b| dist(b, r) >= 0.5 * self.reference.spacing_px[i]) {
+                            slid_far.push(i);
+                        }
+                    }
+                }
+            }
+        }
         // A marker that stayed within half a spacing of its rest position is not a lattice
         // step off — unless it lies between a hole and a free blob and moved towards the blob
         // by [`DRAGGED_TOWARDS`]: matched a lattice step short, a patch dragged by over a pitch
@@ -1020,7 +1090,9 @@ impl Matching<'_> {
         doubt.retain(|&i| {
             let (a, r, d) = (self.anchors[i], self.reference.positions[i], self.disp[i]);
             let moved = (a.0 + d.0 - r.0).hypot(a.1 + d.1 - r.1);
-            moved >= 0.5 * self.reference.spacing_px[i] || dragged.contains(&i)
+            moved >= 0.5 * self.reference.spacing_px[i]
+                || dragged.contains(&i)
+                || slid_far.contains(&i)
         });
         doubt.sort_unstable();
         doubt.dedup();
@@ -1117,60 +1189,93 @@ impl Matching<'_> {
     /// The energy change of sliding `path` (see [`Matching::slide_chains`]), the free blob its
     /// last marker would take, and whether that marker, left without one, would be out of view.
     fn try_chain(&mut self, path: &[usize], lost_cost: f64) -> Option<(f64, Option<usize>, bool)> {
-        let mut area: Vec<usize> = path.to_vec();
-        for &i in path {
+        let (de, ends) = self.try_chains(&[path], lost_cost);
+        ends.first().map(|&(end, out)| (de, end, out))
+    }
+
+    /// The energy change of sliding every path of `paths` at once (disjoint chains, see
+    /// [`Matching::slide_chains`]), and per path the free blob its last marker would take and
+    /// whether that marker, left without one, would be out of view.
+    fn try_chains(
+        &mut self,
+        paths: &[&[usize]],
+        lost_cost: f64,
+    ) -> (f64, Vec<(Option<usize>, bool)>) {
+        let mut area: Vec<usize> = Vec::new();
+        for &i in paths.iter().copied().flatten() {
+            area.push(i);
             area.extend(self.reference.neighbours[i].iter().copied());
         }
         area.sort_unstable();
         area.dedup();
         let before = self.local_energy(&area, lost_cost);
-        // Where the field put the last marker before the slide (as a position): a chain may
+        // Where the field put each last marker before the slide (as a position): a chain may
         // only push a marker out of view that the field already puts near the view's edge.
-        let last = path[path.len() - 1];
-        let near_edge = {
+        let near_edge: Vec<bool> = {
             let matched = self.matched();
-            let here = self.assignment[last]
-                .map(|j| (self.blobs[j].x_px, self.blobs[j].y_px))
-                .or_else(|| self.predict(last, &matched).map(|p| p.0));
-            self.view
-                .zip(here)
-                .is_some_and(|(v, p)| v.depth_px(p) < 0.85 * self.reference.spacing_px[last])
+            paths
+                .iter()
+                .map(|path| {
+                    let last = path[path.len() - 1];
+                    let here = self.assignment[last]
+                        .map(|j| (self.blobs[j].x_px, self.blobs[j].y_px))
+                        .or_else(|| self.predict(last, &matched).map(|p| p.0));
+                    self.view.zip(here).is_some_and(|(v, p)| {
+                        v.depth_px(p) < 0.85 * self.reference.spacing_px[last]
+                    })
+                })
+                .collect()
         };
-        let saved: Vec<(usize, Option<usize>, (f64, f64))> = path
+        let saved: Vec<(usize, Option<usize>, (f64, f64))> = paths
             .iter()
+            .copied()
+            .flatten()
             .map(|&i| (i, self.assignment[i], self.disp[i]))
             .collect();
-        self.shift_chain(path);
-        // The last marker: the nearest free blob to its new prediction, within a spacing.
+        for path in paths {
+            self.shift_chain(path);
+        }
         let matched = self.matched();
-        let predicted_last = self.predict(last, &matched);
-        let end = predicted_last.and_then(|(p, scale)| {
-            let gate = self.reference.spacing_px[last] * scale.clamp(0.7, 1.6);
-            nearest_two(p, &self.index, &self.taken, gate)
-                .0
-                .map(|(j, _)| j)
-        });
-        // Out of view: cut by the view's edge or beyond it, where its neighbours put it or
-        // where the chain carries it (moved as the marker before it in the chain).
-        let radius = (self.reference.areas_px[last] / std::f64::consts::PI).sqrt();
-        let carried = (path.len() >= 2).then(|| {
-            let d = self.disp[path[path.len() - 2]];
-            let a = self.anchors[last];
-            (a.0 + d.0, a.1 + d.1)
-        });
-        let out = near_edge
-            && self.view.is_some_and(|v| {
-                predicted_last
-                    .into_iter()
-                    .chain(carried.map(|p| (p, 1.0)))
-                    .any(|(p, scale)| v.depth_px(p) < radius * scale)
+        let mut ends = Vec::with_capacity(paths.len());
+        let mut explained = 0.0;
+        for (path, near_edge) in paths.iter().zip(near_edge) {
+            let last = path[path.len() - 1];
+            // The last marker: the nearest free blob to its new prediction, within a spacing.
+            let predicted_last = self.predict(last, &matched);
+            let end = predicted_last.and_then(|(p, scale)| {
+                let gate = self.reference.spacing_px[last] * scale.clamp(0.7, 1.6);
+                nearest_two(p, &self.index, &self.taken, gate)
+                    .0
+                    .map(|(j, _)| j)
             });
-        if let Some(j) = end {
-            self.take(last, j);
+            // Out of view: cut by the view's edge or beyond it, where its neighbours put it or
+            // where the chain carries it (moved as the marker before it in the chain).
+            let radius = (self.reference.areas_px[last] / std::f64::consts::PI).sqrt();
+            let carried = (path.len() >= 2).then(|| {
+                let d = self.disp[path[path.len() - 2]];
+                let a = self.anchors[last];
+                (a.0 + d.0, a.1 + d.1)
+            });
+            let out = near_edge
+                && self.view.is_some_and(|v| {
+                    predicted_last
+                        .into_iter()
+                        .chain(carried.map(|p| (p, 1.0)))
+                        .any(|(p, scale)| v.depth_px(p) < radius * scale)
+                });
+            if let Some(j) = end {
+                self.take(last, j);
+            }
+            // A hole moved out of the view is explained: it counts half (the slide must still
+            // leave the field about as smooth).
+            if end.is_none() && out {
+                explained += 0.5 * lost_cost;
+            }
+            ends.push((end, out));
         }
         let after = self.local_energy(&area, lost_cost);
         // Restore.
-        for &i in path {
+        for &i in paths.iter().copied().flatten() {
             self.release(i);
         }
         for (i, a, d) in saved {
@@ -1179,14 +1284,7 @@ impl Matching<'_> {
             }
             self.disp[i] = d;
         }
-        // A hole moved out of the view is explained: it counts half (the slide must still
-        // leave the field about as smooth).
-        let explained = if end.is_none() && out {
-            0.5 * lost_cost
-        } else {
-            0.0
-        };
-        Some((after - before - explained, end, out))
+        (after - before - explained, ends)
     }
 
     /// Each marker of `path` takes the blob the next one holds; the last is left without one.
@@ -1526,7 +1624,7 @@ pub fn track_with(
         m.grow();
     }
     m.rematch_if_better(&predicted);
-    let doubtful = m.slide_chains(1.0);
+    let doubtful = m.slide_chains(1.0, followed);
 
     m.look_up_unreached(&predicted);
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
