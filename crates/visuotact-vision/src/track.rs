@@ -1008,10 +1008,11 @@ impl Matching<'_> {
     /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
     /// the chain moved one lattice step as without, and which marker holds which blob cannot
     /// be told (a drag of more than a pitch) — those of two parallel chains from holes side by
-    /// side whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (frames in any
-    /// order: `followed` false), and those [`Matching::between_holes_and_free_blobs`]
+    /// side whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (followed, with
+    /// `prior`: only chains through a marker the prior frame did not see), and those
+    /// [`Matching::between_holes_and_free_blobs`]
     /// (however little they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
-    fn slide_chains(&mut self, lost_cost: f64, followed: bool) -> Vec<usize> {
+    fn slide_chains(&mut self, lost_cost: f64, prior: Option<&[Option<(f64, f64)>]>) -> Vec<usize> {
         for _ in 0..16 {
             let matched = self.matched();
             let mut best: Option<(f64, Vec<usize>, Option<usize>)> = None;
@@ -1052,14 +1053,13 @@ impl Matching<'_> {
         // between them that the slide of both together does not. Its markers are in doubt
         // when they moved half a spacing in either reading (the slid one moves them by about a
         // lattice step more: a patch dragged by over a pitch seems to have moved little).
-        // Frames in any order only: followed, a lattice step since the prior frame is no
-        // reading of a drag built up frame by frame.
+        // Followed, a marker seen in the prior frame does not jump a lattice step: only chains
+        // through a marker the prior frame did not see (placed by its neighbours) may slide.
         let mut slid_far = Vec::new();
-        let pairs = if followed {
-            Vec::new()
-        } else {
-            self.parallel_chains(&holes, &matched)
-        };
+        let mut pairs = self.parallel_chains(&holes, &matched);
+        if let Some(prior) = prior {
+            pairs.retain(|(p1, p2)| p1[1..].iter().chain(&p2[1..]).any(|&i| prior[i].is_none()));
+        }
         for (p1, p2) in pairs {
             let (de, _) = self.try_chains(&[&p1, &p2], lost_cost);
             if de < AMBIGUOUS_ROWS_SLIDE {
@@ -1624,7 +1624,7 @@ pub fn track_with(
         m.grow();
     }
     m.rematch_if_better(&predicted);
-    let doubtful = m.slide_chains(1.0, followed);
+    let doubtful = m.slide_chains(1.0, prior.filter(|_| followed));
 
     m.look_up_unreached(&predicted);
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.

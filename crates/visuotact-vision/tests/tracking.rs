@@ -584,58 +584,40 @@ fn a_blob_between_two_markers_unseen_a_frame_ago_is_neither_ones() {
     assert_eq!(frame(72.0, false), MarkerStatus::Ok);
 }
 
-/// Two rows of a 12 × 8 grid (pitch 22 px) dragged left by up to 1.5 pitches near the top
-/// edge (the drag of `scripts/drag-matrix`'s GelSight variant 1, seed 2, frame 5): in each,
-/// the fifth and sixth markers are squeezed into one blob of about one marker's size (seen as
-/// the fifth) and the next two slid past their rest places, so the rows read one lattice step
-/// short are about as smooth as the truth — but only when both rows slide together (each alone
-/// leaves a shear between them). No marker is reported at another's blob: those the two
-/// readings disagree on are in doubt.
-#[test]
-fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
-    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
-    let (cols, rows) = (12usize, 8usize);
-    let positions: Vec<(f64, f64)> = (0..cols * rows)
+/// The frame of [`two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short`].
+struct DraggedRows {
+    positions: Vec<(f64, f64)>,
+    reference: visuotact_vision::track::TrackReference,
+    blobs: Vec<visuotact_vision::blobs::Blob>,
+    /// Each marker's true position (`None`: hidden).
+    truth: Vec<Option<(f64, f64)>>,
+}
+
+fn two_rows_dragged() -> DraggedRows {
+    const COLS: usize = 12;
+    const H: f64 = f64::NAN; // hidden under the squeeze
+    let positions: Vec<(f64, f64)> = (0..COLS * 8)
         .map(|k| {
             (
-                40.0 + 22.0 * (k % cols) as f64,
-                50.0 + 22.0 * (k / cols) as f64,
+                40.0 + 22.0 * (k % COLS) as f64,
+                50.0 + 22.0 * (k / COLS) as f64,
             )
         })
         .collect();
     let reference =
-        visuotact_vision::track::TrackReference::new(positions.clone(), vec![85.0; cols * rows]);
-    // Leftward motion per column (px); NaN: hidden under the squeeze.
-    let dragged = [
-        0.0,
-        -1.0,
-        -3.0,
-        -6.0,
-        f64::NAN,
-        f64::NAN,
-        -33.0,
-        -26.0,
-        -10.0,
-        -4.0,
-        -2.0,
-        -1.0,
+        visuotact_vision::track::TrackReference::new(positions.clone(), vec![85.0; COLS * 8]);
+    // Leftward motion per row (the first four) and column, px.
+    let motion: [[f64; COLS]; 4] = [
+        [0., -1., -3., -6., H, H, -33., -26., -10., -4., -2., -1.],
+        [0., -1., -3., -6., H, H, -33., -26., -10., -4., -2., -1.],
+        [0., -1., -2., -4., -9., -15., -16., -12., -6., -3., -1., 0.],
+        [0., -1., -1., -2., -4., -6., -6., -5., -3., -2., -1., 0.],
     ];
-    let below = [
-        0.0, -1.0, -2.0, -4.0, -9.0, -15.0, -16.0, -12.0, -6.0, -3.0, -1.0, 0.0,
-    ];
-    let under = [
-        0.0, -1.0, -1.0, -2.0, -4.0, -6.0, -6.0, -5.0, -3.0, -2.0, -1.0, 0.0,
-    ];
-    let truth: Vec<Option<(f64, f64)>> = positions
+    let mut truth: Vec<Option<(f64, f64)>> = positions
         .iter()
         .enumerate()
         .map(|(k, &(x, y))| {
-            let dx = match k / cols {
-                0 | 1 => dragged[k % cols],
-                2 => below[k % cols],
-                3 => under[k % cols],
-                _ => 0.0,
-            };
+            let dx = motion.get(k / COLS).map_or(0.0, |row| row[k % COLS]);
             (!dx.is_nan()).then_some((x + dx, y))
         })
         .collect();
@@ -645,30 +627,67 @@ fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
         .map(|&(x, y)| disc_blob(x, y, 85, false))
         .collect();
     // The squeezed pair of each row: one blob, the fifth marker's as seen.
-    let mut truth = truth;
     for r in 0..2 {
-        let (x, y) = positions[r * cols + 4];
+        let (x, y) = positions[r * COLS + 4];
         blobs.push(disc_blob(x - 13.0, y, 93, false));
-        truth[r * cols + 4] = Some((x - 13.0, y));
+        truth[r * COLS + 4] = Some((x - 13.0, y));
     }
-    let r = track_with(
-        &reference,
-        &blobs,
-        &TrackConfig::default(),
+    DraggedRows {
+        positions,
+        reference,
+        blobs,
+        truth,
+    }
+}
+
+/// Two rows of a 12 × 8 grid (pitch 22 px) dragged left by up to 1.5 pitches near the top
+/// edge (the drag of `scripts/drag-matrix`'s GelSight variant 1, seed 2, frame 5): in each,
+/// the fifth and sixth markers are squeezed into one blob of about one marker's size (seen as
+/// the fifth) and the next two slid past their rest places, so the rows read one lattice step
+/// short are about as smooth as the truth — but only when both rows slide together (each alone
+/// leaves a shear between them). No marker is reported at another's blob: those the two
+/// readings disagree on are in doubt — in frames in any order, and followed when the prior
+/// frame did not see the dragged markers (their places come from their neighbours).
+#[test]
+fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
+    let cols = 12;
+    let DraggedRows {
+        positions,
+        reference,
+        blobs,
+        truth,
+    } = two_rows_dragged();
+    // Frames in any order; and followed, the prior frame having seen the rows' dragged part
+    // nowhere (the rest where it was at rest).
+    let mut prior: Vec<Option<(f64, f64)>> = positions.iter().copied().map(Some).collect();
+    for r in 0..2 {
+        for c in 4..8 {
+            prior[r * cols + c] = None;
+        }
+    }
+    let hints = [
         TrackHints::default(),
-    );
-    for (k, t) in truth.iter().enumerate() {
-        let Some(j) = r.assignment[k] else { continue };
-        let b = (blobs[j].x_px, blobs[j].y_px);
-        let own = t.is_some_and(|t| (b.0 - t.0).hypot(b.1 - t.1) < 3.0);
-        assert!(
-            own,
-            "marker {k} reported {:?} at {b:?}, truth {t:?}",
-            r.status[k]
-        );
-    }
-    // Away from the drag every marker is measured.
-    for k in 4 * cols..rows * cols {
-        assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
+        TrackHints {
+            prior: Some(&prior),
+            ..TrackHints::default()
+        },
+    ];
+    for (what, hints) in ["in any order", "followed"].into_iter().zip(hints) {
+        let r = track_with(&reference, &blobs, &TrackConfig::default(), hints);
+        for (k, t) in truth.iter().enumerate() {
+            let Some(j) = r.assignment[k] else { continue };
+            let b = (blobs[j].x_px, blobs[j].y_px);
+            let own = t.is_some_and(|t| (b.0 - t.0).hypot(b.1 - t.1) < 3.0);
+            assert!(
+                own,
+                "{what}: marker {k} {:?} at {b:?}, truth {t:?}",
+                r.status[k]
+            );
+        }
+        // Away from the drag every marker is measured.
+        for k in 4 * cols..positions.len() {
+            assert_eq!(r.status[k], MarkerStatus::Ok, "{what}: marker {k}");
+        }
     }
 }
