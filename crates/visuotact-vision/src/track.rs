@@ -1008,7 +1008,8 @@ impl Matching<'_> {
     /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
     /// the chain moved one lattice step as without, and which marker holds which blob cannot
     /// be told (a drag of more than a pitch) — those of two parallel chains from holes side by
-    /// side whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (followed, with
+    /// side, a spacing or more inside the view (a marker at the view's edge may simply be cut),
+    /// whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (followed, with
     /// `prior`: only chains through a marker the prior frame did not see), and those
     /// [`Matching::between_holes_and_free_blobs`]
     /// (however little they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
@@ -1057,6 +1058,12 @@ impl Matching<'_> {
         // through a marker the prior frame did not see (placed by its neighbours) may slide.
         let mut slid_far = Vec::new();
         let mut pairs = self.parallel_chains(&holes, &matched);
+        let inside = |h: usize| {
+            let at = self.predict(h, &matched).map_or(self.anchors[h], |p| p.0);
+            self.view
+                .is_none_or(|v| v.depth_px(at) >= self.reference.spacing_px[h])
+        };
+        pairs.retain(|(p1, p2)| inside(p1[0]) && inside(p2[0]));
         if let Some(prior) = prior {
             pairs.retain(|(p1, p2)| p1[1..].iter().chain(&p2[1..]).any(|&i| prior[i].is_none()));
         }
@@ -1065,13 +1072,16 @@ impl Matching<'_> {
             if de < AMBIGUOUS_ROWS_SLIDE {
                 for path in [&p1, &p2] {
                     doubt.extend_from_slice(&path[1..]);
+                    // Beyond the hole: a marker that would take its neighbour's blob, and the
+                    // neighbour whose blob it would take, when that moves it half a spacing.
                     for w in path[1..].windows(2) {
-                        let (i, next) = (w[0], w[1]);
-                        let r = self.reference.positions[i];
-                        let held =
-                            self.assignment[next].map(|j| (self.blobs[j].x_px, self.blobs[j].y_px));
-                        if held.is_some_and(|b| dist(b, r) >= 0.5 * self.reference.spacing_px[i]) {
-                            slid_far.push(i);
+                        let r = self.reference.positions[w[0]];
+                        let taken =
+                            self.assignment[w[1]].map(|j| (self.blobs[j].x_px, self.blobs[j].y_px));
+                        if taken
+                            .is_some_and(|b| dist(b, r) >= 0.5 * self.reference.spacing_px[w[0]])
+                        {
+                            slid_far.extend_from_slice(w);
                         }
                     }
                 }
