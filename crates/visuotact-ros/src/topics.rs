@@ -273,7 +273,8 @@ pub fn health_status(
 }
 
 /// The entry made for `topic` in a table of per-topic writers or channels, checked to carry
-/// type `name`: one topic, one type.
+/// type `name`: one topic, one type. (Used by the live publishers only.)
+#[cfg(any(feature = "dds", feature = "foxglove"))]
 pub(crate) fn typed_entry<'a, T>(
     table: &'a std::collections::HashMap<String, (&'static str, T)>,
     topic: &str,
