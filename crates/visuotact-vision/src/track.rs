@@ -25,9 +25,13 @@
 //!    field leave the markers ahead of them [`MarkerStatus::Ambiguous`]: a patch dragged past a
 //!    pitch can be matched a lattice step short with the gap at its back instead of its front,
 //!    and nothing in one frame tells the two apart. A marker is reported lost rather than
-//!    given a neighbour's blob (on the simulator's drags of 0.5–1.5 pitch: 6 wrong identities
-//!    in 366 707 visible marker-frames, 272 without this step; none lost in frames moved by
-//!    under a pitch). A pair split from one blob beside markers in doubt is in doubt too.
+//!    given a neighbour's blob (on the simulator's drags of 0.5–1.5 pitch, seeds 1–2: no
+//!    wrong identity in 366 707 visible marker-frames, 272 without this step; none lost in
+//!    frames moved by under a pitch). A chain of markers that could slide one lattice step into
+//!    a hole about as smoothly is in doubt, and so are two parallel chains whose joint slide
+//!    into two holes side by side is (two rows dragged together: each alone would leave a
+//!    shear against the other). A pair split from one blob beside markers in doubt is in
+//!    doubt too.
 //!
 //! No marker is ever given a blob just because it is the nearest one to its rest position.
 //! Markers left without a blob are reported as [`MarkerStatus::Lost`], [`MarkerStatus::Merged`]
