@@ -615,8 +615,9 @@ const AMBIGUOUS_SLIDE: f64 = 0.5;
 
 /// Two rows sliding together into two holes side by side (the holes moving to their other
 /// ends, no free blob taken) that change the energy by less than this leave their markers in
-/// doubt ([`Matching::slide_chains`]): half [`AMBIGUOUS_SLIDE`], as a slide that only moves
-/// the holes is weaker evidence of a drag than one that fills them from a spare blob.
+/// doubt ([`Matching::slide_chains`]). Under [`AMBIGUOUS_SLIDE`], as a slide that only moves
+/// the holes is weaker evidence of a drag than one that fills them from a spare blob: truly
+/// ambiguous pairs measured 0.02–0.25, the lowest on a frame tracked right 0.43.
 const AMBIGUOUS_ROWS_SLIDE: f64 = 0.35;
 
 /// A marker between a hole and a free blob that moved towards the blob by this many spacings
@@ -968,8 +969,14 @@ impl Matching<'_> {
     }
 
     /// Pairs of chains of the same length stepping the same way from two holes that are lattice
-    /// neighbours ([`Matching::chains_into`]; disjoint, two markers or more each).
-    fn parallel_chains(&self, holes: &[usize], matched: &[bool]) -> Vec<(Vec<usize>, Vec<usize>)> {
+    /// neighbours, both `inside` (`chains[k]`: [`Matching::chains_into`] of `holes[k]`;
+    /// disjoint, two markers or more each).
+    fn parallel_chains<'c>(
+        &self,
+        holes: &[usize],
+        inside: &[bool],
+        chains: &'c [Vec<Vec<usize>>],
+    ) -> Vec<(&'c [usize], &'c [usize])> {
         let step = |path: &[usize]| {
             let (a, b) = (
                 self.reference.positions[path[0]],
@@ -978,20 +985,19 @@ impl Matching<'_> {
             (b.0 - a.0, b.1 - a.1)
         };
         let mut out = Vec::new();
-        for &h1 in holes {
-            for &h2 in holes {
-                if h2 <= h1 || !self.reference.neighbours[h1].contains(&h2) {
+        for (k1, &h1) in holes.iter().enumerate() {
+            for (k2, &h2) in holes.iter().enumerate().skip(k1 + 1) {
+                if !(inside[k1] && inside[k2] && self.reference.neighbours[h1].contains(&h2)) {
                     continue;
                 }
-                let second = self.chains_into(h2, matched);
-                for p1 in self.chains_into(h1, matched) {
-                    for p2 in &second {
+                for p1 in &chains[k1] {
+                    for p2 in &chains[k2] {
                         if p1.len() == p2.len()
                             && p1.len() >= 2
-                            && dist(step(&p1), step(p2)) < self.reference.spacing_px[h1] / 3.0
+                            && dist(step(p1), step(p2)) < self.reference.spacing_px[h1] / 3.0
                             && !p1.iter().any(|i| p2.contains(i))
                         {
-                            out.push((p1.clone(), p2.clone()));
+                            out.push((p1.as_slice(), p2.as_slice()));
                         }
                     }
                 }
@@ -1042,55 +1048,22 @@ impl Matching<'_> {
         let on_the_way = self.between_holes_and_free_blobs(&holes, &matched);
         let mut doubt = self.holding_a_holes_blob(&holes, &matched);
         doubt.extend(on_the_way.iter().map(|&(i, _)| i));
-        for &h in &holes {
-            for path in self.chains_into(h, &matched) {
-                if path.len() < 2 {
-                    continue;
-                }
-                if let Some((de, Some(_), _)) = self.try_chain(&path, lost_cost) {
+        // Each hole's chains, once (the single slides and the parallel pairs both try them).
+        let chains: Vec<Vec<Vec<usize>>> = holes
+            .iter()
+            .map(|&h| self.chains_into(h, &matched))
+            .collect();
+        for path in chains.iter().flatten() {
+            if path.len() >= 2 {
+                if let Some((de, Some(_), _)) = self.try_chain(path, lost_cost) {
                     if de < AMBIGUOUS_SLIDE {
                         doubt.extend_from_slice(&path[1..]);
                     }
                 }
             }
         }
-        // Two holes side by side may be one slide of two rows: each row alone leaves a shear
-        // between them that the slide of both together does not. Its markers are in doubt
-        // when they moved half a spacing in either reading (the slid one moves them by about a
-        // lattice step more: a patch dragged by over a pitch seems to have moved little).
-        // Followed, a marker seen in the prior frame does not jump a lattice step: only chains
-        // through a marker the prior frame did not see (placed by its neighbours) may slide.
-        let mut slid_far = Vec::new();
-        let mut pairs = self.parallel_chains(&holes, &matched);
-        let inside = |h: usize| {
-            let at = self.predict(h, &matched).map_or(self.anchors[h], |p| p.0);
-            self.view
-                .is_none_or(|v| v.depth_px(at) >= self.reference.spacing_px[h])
-        };
-        pairs.retain(|(p1, p2)| inside(p1[0]) && inside(p2[0]));
-        if let Some(prior) = prior {
-            pairs.retain(|(p1, p2)| p1[1..].iter().chain(&p2[1..]).any(|&i| prior[i].is_none()));
-        }
-        for (p1, p2) in pairs {
-            let (de, _) = self.try_chains(&[&p1, &p2], lost_cost);
-            if de < AMBIGUOUS_ROWS_SLIDE {
-                for path in [&p1, &p2] {
-                    doubt.extend_from_slice(&path[1..]);
-                    // Beyond the hole: a marker that would take its neighbour's blob, and the
-                    // neighbour whose blob it would take, when that moves it half a spacing.
-                    for w in path[1..].windows(2) {
-                        let r = self.reference.positions[w[0]];
-                        let taken =
-                            self.assignment[w[1]].map(|j| (self.blobs[j].x_px, self.blobs[j].y_px));
-                        if taken
-                            .is_some_and(|b| dist(b, r) >= 0.5 * self.reference.spacing_px[w[0]])
-                        {
-                            slid_far.extend_from_slice(w);
-                        }
-                    }
-                }
-            }
-        }
+        let (rows, slid_far) = self.parallel_rows_in_doubt(&holes, &chains, prior, lost_cost);
+        doubt.extend(rows);
         // A marker that stayed within half a spacing of its rest position is not a lattice
         // step off — unless it lies between a hole and a free blob and moved towards the blob
         // by [`DRAGGED_TOWARDS`]: matched a lattice step short, a patch dragged by over a pitch
@@ -1111,6 +1084,62 @@ impl Matching<'_> {
         doubt.sort_unstable();
         doubt.dedup();
         doubt
+    }
+
+    /// The markers of parallel chains from holes side by side whose joint slide changes the
+    /// energy by less than [`AMBIGUOUS_ROWS_SLIDE`] ([`Matching::slide_chains`]; `chains[k]`:
+    /// [`Matching::chains_into`] of `holes[k]`), and those of them the slid reading moves half
+    /// a spacing (in doubt however little they seem to have moved).
+    fn parallel_rows_in_doubt(
+        &mut self,
+        holes: &[usize],
+        chains: &[Vec<Vec<usize>>],
+        prior: Option<&[Option<(f64, f64)>]>,
+        lost_cost: f64,
+    ) -> (Vec<usize>, Vec<usize>) {
+        // Two holes side by side may be one slide of two rows: each row alone leaves a shear
+        // between them that the slide of both together does not. Its markers are in doubt
+        // when they moved half a spacing, or beyond the hole when one of two chain neighbours
+        // would move half a spacing by taking the other's blob (a patch dragged by over a
+        // pitch and read a step short seems to have moved little). Holes within a spacing of
+        // the view's edge start no pair (a marker there may simply be cut). Followed, a marker
+        // seen in the prior frame does not jump a lattice step: only chains through a marker
+        // the prior frame did not see (placed by its neighbours) may slide.
+        let (mut doubt, mut slid_far) = (Vec::new(), Vec::new());
+        let matched = self.matched();
+        let inside: Vec<bool> = holes
+            .iter()
+            .map(|&h| {
+                let at = self.predict(h, &matched).map_or(self.anchors[h], |p| p.0);
+                self.view
+                    .is_none_or(|v| v.depth_px(at) >= self.reference.spacing_px[h])
+            })
+            .collect();
+        let mut pairs = self.parallel_chains(holes, &inside, chains);
+        if let Some(prior) = prior {
+            pairs.retain(|(p1, p2)| p1[1..].iter().chain(&p2[1..]).any(|&i| prior[i].is_none()));
+        }
+        for (p1, p2) in pairs {
+            let (de, _) = self.try_chains(&[p1, p2], lost_cost);
+            if de < AMBIGUOUS_ROWS_SLIDE {
+                for path in [p1, p2] {
+                    doubt.extend_from_slice(&path[1..]);
+                    // Beyond the hole: a marker that would take its neighbour's blob, and the
+                    // neighbour whose blob it would take, when that moves it half a spacing.
+                    for w in path[1..].windows(2) {
+                        let r = self.reference.positions[w[0]];
+                        let taken =
+                            self.assignment[w[1]].map(|j| (self.blobs[j].x_px, self.blobs[j].y_px));
+                        if taken
+                            .is_some_and(|b| dist(b, r) >= 0.5 * self.reference.spacing_px[w[0]])
+                        {
+                            slid_far.extend_from_slice(w);
+                        }
+                    }
+                }
+            }
+        }
+        (doubt, slid_far)
     }
 
     /// The matched markers in doubt around `holes`: those whose blobs lie on the way from a

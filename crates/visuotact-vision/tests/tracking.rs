@@ -593,8 +593,10 @@ struct DraggedRows {
     truth: Vec<Option<(f64, f64)>>,
 }
 
+/// Columns of [`two_rows_dragged`]'s grid (8 rows).
+const COLS: usize = 12;
+
 fn two_rows_dragged() -> DraggedRows {
-    const COLS: usize = 12;
     const H: f64 = f64::NAN; // hidden under the squeeze
     let positions: Vec<(f64, f64)> = (0..COLS * 8)
         .map(|k| {
@@ -651,7 +653,6 @@ fn two_rows_dragged() -> DraggedRows {
 #[test]
 fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
     use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
-    let cols = 12;
     let DraggedRows {
         positions,
         reference,
@@ -663,7 +664,7 @@ fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
     let mut prior: Vec<Option<(f64, f64)>> = positions.iter().copied().map(Some).collect();
     for r in 0..2 {
         for c in 4..8 {
-            prior[r * cols + c] = None;
+            prior[r * COLS + c] = None;
         }
     }
     let hints = [
@@ -686,7 +687,7 @@ fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
             );
         }
         // Away from the drag every marker is measured.
-        for k in 4 * cols..positions.len() {
+        for k in 4 * COLS..positions.len() {
             assert_eq!(r.status[k], MarkerStatus::Ok, "{what}: marker {k}");
         }
     }
