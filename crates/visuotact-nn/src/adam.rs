@@ -475,12 +475,23 @@ mod tests {
         assert!((mse - direct).abs() < 1e-14, "{mse} vs {direct}");
     }
 
+    /// The first 340 rows to fit, the rest to validate.
+    fn fit_and_validation<'a>(
+        x: &'a [&'a [f64]],
+        t: &'a [&'a [f64]],
+    ) -> (Samples<'a>, Samples<'a>) {
+        let ((fit_x, val_x), (fit_t, val_t)) = (x.split_at(340), t.split_at(340));
+        (
+            Samples { x: fit_x, t: fit_t },
+            Samples { x: val_x, t: val_t },
+        )
+    }
+
     #[test]
     fn training_fits_a_smooth_function_and_is_deterministic() {
         let (x, t) = table(400);
         let (xr, tr) = (rows(&x), rows(&t));
-        let (fit_x, val_x) = xr.split_at(340);
-        let (fit_t, val_t) = tr.split_at(340);
+        let data = fit_and_validation(&xr, &tr);
         let net = Mlp::glorot(&[3, 16, 2], 1);
         let cfg = AdamConfig {
             learning_rate: 1e-2,
@@ -489,10 +500,6 @@ mod tests {
             max_epochs: 300,
             ..AdamConfig::DEFAULT
         };
-        let data = (
-            Samples { x: fit_x, t: fit_t },
-            Samples { x: val_x, t: val_t },
-        );
         let mut seen = 0;
         let a = minimize_adam(&net, &net.params, data, &cfg, 7, |p| {
             seen = p.epoch;
@@ -511,13 +518,8 @@ mod tests {
     fn a_settled_error_drops_the_step_before_stopping() {
         let (x, t) = table(400);
         let (xr, tr) = (rows(&x), rows(&t));
-        let (fit_x, val_x) = xr.split_at(340);
-        let (fit_t, val_t) = tr.split_at(340);
+        let data = fit_and_validation(&xr, &tr);
         let net = Mlp::glorot(&[3, 16, 2], 1);
-        let data = (
-            Samples { x: fit_x, t: fit_t },
-            Samples { x: val_x, t: val_t },
-        );
         let run = |step_drops| {
             let cfg = AdamConfig {
                 learning_rate: 3e-2,
