@@ -88,10 +88,12 @@ fn the_9dtact_options_work_as_written() {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
-/// The TacTip data set commands on the real 127-pin set: every test frame estimated, and each
+/// The TacTip data set commands on the real 127-pin set: every test frame estimated, each
 /// target's mean absolute error under the naive OpenCV + scikit-learn MLP(64, 64) peer's on the
-/// same split (`scripts/peer_tactip127.py`, measured 0.165 mm, 2.07°, 0.484 mm, 1.38°; the
-/// default measured 0.087 mm, 1.03°, 0.41 mm, 1.07°, docs/benchmarks.md).
+/// same split (`scripts/peer_tactip127.py`, measured 0.1648 mm, 2.0715°, 0.4837 mm, 1.3798°),
+/// and the pose's (y, rotation) at most half the peer's, as issue 34 asks. The default
+/// measured 0.0804–0.0808 mm, 0.910–0.931°, 0.395–0.397 mm, 1.039–1.041° on train seeds 1–3
+/// (docs/benchmarks.md); shear and twist stay above half the peer's (the frames' limit there).
 #[test]
 fn the_tactip_data_set_commands_work_as_written() {
     let lines = [
@@ -127,15 +129,17 @@ fn the_tactip_data_set_commands_work_as_written() {
     let o = run(&json, &d, &swap);
     assert!(o.status.success(), "{}", stderr(&o));
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // (target, the peer's error, the share of it to stay under)
     let peer = [
-        ("pose_2", 0.165),
-        ("pose_6", 2.07),
-        ("move_1", 0.484),
-        ("move_6", 1.38),
+        ("pose_2", 0.1648, 0.5),
+        ("pose_6", 2.0715, 0.5),
+        ("move_1", 0.4837, 1.0),
+        ("move_6", 1.3798, 1.0),
     ];
     for t in ev["targets"].as_array().unwrap() {
         let name = t["target"].as_str().unwrap();
-        let (_, worst) = peer.iter().find(|(n, _)| *n == name).unwrap();
+        let (_, peer_mae, share) = peer.iter().find(|(n, ..)| *n == name).unwrap();
+        let worst = share * peer_mae;
         assert_eq!(
             t["n"].as_u64(),
             Some(1237),
@@ -143,8 +147,8 @@ fn the_tactip_data_set_commands_work_as_written() {
         );
         let mae = t["mean_abs"].as_f64().unwrap();
         assert!(
-            mae < *worst,
-            "{name}: mean abs error {mae} against the peer's {worst}"
+            mae <= worst,
+            "{name}: mean abs error {mae} against {share} × the peer's {peer_mae}"
         );
     }
 }
