@@ -637,6 +637,16 @@ const CROWDED_AREA: f64 = 1.25;
 /// unseen too, in spacings ([`doubt_reacquired_beside_unseen`]).
 const UNSEEN_REACH: f64 = 0.75;
 
+/// How near a blob a hole's prediction may lie for the marker holding it to be in doubt, in
+/// the hole's spacings ([`Matching::holding_a_holes_blob`]). A hole's prediction comes from
+/// neighbours that lag a drag, so it falls short: at 0.6 of the gate scaled by the local
+/// magnification (before) a GelSight marker at the top edge kept the blob of a neighbour
+/// whose prediction lay 0.54 spacing from it, against 0.66 from its own (drag seed 7), and two
+/// small-TacTip pins in a 3.3 mm press kept their neighbours' (seed 6). Measured on the drag
+/// matrix, seeds 1–8: wrong identities 12 → 9, lost +24 of 4 427 on seeds 1–2, none more in
+/// frames moved under a pitch.
+const HOLE_BLOB_REACH: f64 = 0.75;
+
 /// How far from a hole a free blob leaves the markers between in doubt, in spacings.
 const HOLE_REACH: f64 = 4.0;
 
@@ -1177,9 +1187,10 @@ impl Matching<'_> {
     }
 
     /// The matched markers holding a blob that fits a hole beside them about as well: the blob
-    /// nearest where a hole's neighbours put it (within the gate) belongs to a neighbour whose
-    /// own prediction is no nearer to it than [`TrackConfig::ambiguity_ratio`] times — the
-    /// blob may be the hole's and the neighbour's own blob elsewhere or gone.
+    /// nearest where a hole's neighbours put it (within [`HOLE_BLOB_REACH`]) belongs to a
+    /// neighbour whose own prediction is no nearer to it than
+    /// [`TrackConfig::ambiguity_ratio`] times — the blob may be the hole's and the neighbour's
+    /// own blob elsewhere or gone.
     fn holding_a_holes_blob(&self, holes: &[usize], matched: &[bool]) -> Vec<usize> {
         let mut owner: Vec<Option<usize>> = vec![None; self.blobs.len()];
         for (i, a) in self.assignment.iter().enumerate() {
@@ -1189,10 +1200,10 @@ impl Matching<'_> {
         }
         let mut out = Vec::new();
         for &h in holes {
-            let Some((p, scale)) = self.predict(h, matched) else {
+            let Some((p, _)) = self.predict(h, matched) else {
                 continue;
             };
-            let gate = self.cfg.gate_pitches * self.reference.spacing_px[h] * scale * 1.5;
+            let gate = HOLE_BLOB_REACH * self.reference.spacing_px[h];
             let Some(j) = self.index.nearest(p, gate) else {
                 continue;
             };
