@@ -352,3 +352,22 @@ fn followed_checks_build_each_touch_up_frame_by_frame() {
     assert_eq!(r.lost, r.beyond_lost, "{:#?}", r.examples);
     assert!(r.err_mean_px < 0.05, "mean error {:.3} px", r.err_mean_px);
 }
+
+/// Followed drags under a deep press: a merged pair the prior frame did not see both of is not
+/// split (its predictions come from the neighbours alone and can cross). TacTip variant 4, seed
+/// 1, its 13th touch (a 5.1 mm press dragged 2.1 pitches): marker 178 was given the half of
+/// its blob where marker 193 is before.
+#[test]
+fn a_followed_pair_unseen_a_frame_ago_is_not_split_the_wrong_way_round() {
+    let sensor = SimSensor::named("tactip", 4).unwrap();
+    let r = check(&CheckConfig {
+        followed_steps: 12,
+        motion_limit_pitches: 1.0,
+        ..config(sensor, "drag", 13, 1)
+    })
+    .unwrap();
+    assert_eq!(r.frames, 156);
+    assert!(r.beyond_frames > 0, "no frame moved beyond a pitch");
+    assert_eq!(r.wrong, 0, "{:#?}", r.examples);
+    assert_eq!(r.lost, r.beyond_lost, "{:#?}", r.examples);
+}

@@ -1687,7 +1687,13 @@ pub fn track_with(
         merged_blob,
         mut on_blob,
     } = m.classify_unmatched(&predicted, usable);
-    let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, &mut status);
+    let split_px = split_pairs(
+        reference,
+        blobs,
+        cfg,
+        (&mut on_blob, prior.filter(|_| followed)),
+        &mut status,
+    );
     lose_cut(&m, usable, &mut status);
     put_in_doubt(
         &m,
@@ -1965,14 +1971,20 @@ fn gap_motion(
 /// centres are `d` apart along the blob's major axis give the blob a variance of
 /// `(a1·σ1² + a2·σ2²)/a + a1·a2·d²/a²` along it, which gives `d`; the blob's centroid is the
 /// area-weighted mean of the two centres. Each marker goes to the side its prediction lies on,
-/// and the split is kept only if both estimates stay within the gate of their predictions.
-/// Returns the positions (empty when nothing was split) and marks those markers
-/// [`MarkerStatus::Split`].
+/// and the split is kept only if both estimates stay within the gate of their predictions —
+/// and, followed (`prior`: the markers' positions in the prior frame), only if the prior frame
+/// saw both: otherwise their predictions come from the neighbours alone and can cross under a
+/// deep press (the drag matrix followed frame by frame: wrong identities 26 → 22, lost 42 →
+/// 46, none more in frames moved under a pitch). Returns the positions (empty when nothing
+/// was split) and marks those markers [`MarkerStatus::Split`].
 fn split_pairs(
     reference: &TrackReference,
     blobs: &[Blob],
     cfg: &TrackConfig,
-    on_blob: &mut [(usize, usize, (f64, f64), f64)],
+    (on_blob, prior): (
+        &mut [(usize, usize, (f64, f64), f64)],
+        Option<&[Option<(f64, f64)>]>,
+    ),
     status: &mut [MarkerStatus],
 ) -> Vec<Option<(f64, f64)>> {
     let mut out: Vec<Option<(f64, f64)>> = Vec::new();
@@ -2007,6 +2019,11 @@ fn split_pairs(
             continue;
         }
         let d = d2.sqrt();
+        // Followed, a pair the prior frame did not see both of has predictions from its
+        // neighbours alone, which under a deep press can cross: it stays merged.
+        if prior.is_some_and(|p| p[i1].is_none() || p[i2].is_none()) {
+            continue;
+        }
         // Marker 1 on the +u side if its prediction is.
         let sign = if (p1.0 - p2.0) * u.0 + (p1.1 - p2.1) * u.1 >= 0.0 {
             1.0
