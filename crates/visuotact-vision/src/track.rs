@@ -1641,12 +1641,12 @@ pub fn track_with(
     if let Some(sizes) = &reference.ring_sizes_px {
         return track_rings(reference, sizes, &blobs[..usable]);
     }
-    let prior = hints.prior;
     let n = reference.positions.len();
+    // Followed: a temporal prior with a position (or none) for every marker.
+    let prior = hints.prior.filter(|p| p.len() == n);
     let index = BlobIndex::new(blobs, reference.pitch_px.max(1.0));
-    let followed = prior.is_some_and(|p| p.len() == n);
     let (anchors, shift) = match prior {
-        Some(p) if p.len() == n => {
+        Some(p) => {
             let a = anchors_from_prior(reference, p);
             (a, (0.0, 0.0))
         }
@@ -1678,7 +1678,7 @@ pub fn track_with(
         m.grow();
     }
     m.rematch_if_better(&predicted);
-    let doubtful = m.slide_chains(1.0, prior.filter(|_| followed));
+    let doubtful = m.slide_chains(1.0, prior);
 
     m.look_up_unreached(&predicted);
     // Classify the unmatched, and flag matched blobs that swallowed a neighbour.
@@ -1687,19 +1687,13 @@ pub fn track_with(
         merged_blob,
         mut on_blob,
     } = m.classify_unmatched(&predicted, usable);
-    let split_px = split_pairs(
-        reference,
-        blobs,
-        cfg,
-        (&mut on_blob, prior.filter(|_| followed)),
-        &mut status,
-    );
+    let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, prior, &mut status);
     lose_cut(&m, usable, &mut status);
     put_in_doubt(
         &m,
         &doubtful,
         &predicted,
-        prior.filter(|_| followed),
+        prior,
         (shift, usable),
         &mut status,
     );
@@ -1981,10 +1975,8 @@ fn split_pairs(
     reference: &TrackReference,
     blobs: &[Blob],
     cfg: &TrackConfig,
-    (on_blob, prior): (
-        &mut [(usize, usize, (f64, f64), f64)],
-        Option<&[Option<(f64, f64)>]>,
-    ),
+    on_blob: &mut [(usize, usize, (f64, f64), f64)],
+    prior: Option<&[Option<(f64, f64)>]>,
     status: &mut [MarkerStatus],
 ) -> Vec<Option<(f64, f64)>> {
     let mut out: Vec<Option<(f64, f64)>> = Vec::new();
