@@ -388,13 +388,14 @@ pub fn minimize_adam(
             stop = AdamStop::Callback;
             break;
         }
-        if since_best >= cfg.patience && drops_left > 0 {
+        if since_best >= cfg.patience {
+            if drops_left == 0 {
+                stop = AdamStop::Settled;
+                break;
+            }
             drops_left -= 1;
             step *= cfg.drop_factor;
             since_best = 0;
-        } else if since_best >= cfg.patience {
-            stop = AdamStop::Settled;
-            break;
         }
     }
     if best.0.is_infinite() {

@@ -1985,7 +1985,9 @@ fn split_pairs(
         let [(j, i1, p1, s1), (_, i2, p2, s2)] = *group else {
             continue;
         };
-        if i1 == i2 {
+        // Followed, a pair the prior frame did not see both of has predictions from its
+        // neighbours alone, which under a deep press can cross: it stays merged.
+        if i1 == i2 || prior.is_some_and(|p| p[i1].is_none() || p[i2].is_none()) {
             continue;
         }
         let b = &blobs[j];
@@ -2011,11 +2013,6 @@ fn split_pairs(
             continue;
         }
         let d = d2.sqrt();
-        // Followed, a pair the prior frame did not see both of has predictions from its
-        // neighbours alone, which under a deep press can cross: it stays merged.
-        if prior.is_some_and(|p| p[i1].is_none() || p[i2].is_none()) {
-            continue;
-        }
         // Marker 1 on the +u side if its prediction is.
         let sign = if (p1.0 - p2.0) * u.0 + (p1.1 - p2.1) * u.1 >= 0.0 {
             1.0
