@@ -637,6 +637,18 @@ const CROWDED_AREA: f64 = 1.25;
 /// unseen too, in spacings ([`doubt_reacquired_beside_unseen`]).
 const UNSEEN_REACH: f64 = 0.75;
 
+/// A blob at least this many times its holder's area (scaled by the local magnification) holds
+/// more than one marker ([`Matching::holding_a_swollen_blob`]). Large dots dragged onto their
+/// neighbours left blobs of 1.44–1.58 times a dot, the neighbour hidden; of the blobs that big
+/// beside an unmatched neighbour on the drag matrix (seeds 1–8), 14 were a visible marker's own.
+const SWOLLEN_AREA: f64 = 1.4;
+
+/// How near a swollen blob an unmatched neighbour's prediction may lie for the blob to be
+/// partly that neighbour's, in the neighbour's spacings ([`Matching::holding_a_swollen_blob`]).
+/// The prediction comes from neighbours that lag the drag: the hidden dots' lay 0.79–1.0
+/// spacing from the blob they shared.
+const SWOLLEN_REACH: f64 = 1.0;
+
 /// How near a blob a hole's prediction may lie for the marker holding it to be in doubt, in
 /// the hole's spacings ([`Matching::holding_a_holes_blob`]). A hole's prediction comes from
 /// neighbours that lag a drag, so it falls short: at 0.6 of the gate scaled by the local
@@ -1555,6 +1567,37 @@ impl Matching<'_> {
         (dist(pk, b) < reach && f64::from(self.blobs[j].area_px) >= bigger).then_some(j)
     }
 
+    /// The markers (reported [`MarkerStatus::Ok`] in `status`) holding a swollen blob, at
+    /// least [`SWOLLEN_AREA`] times their area scaled by the local magnification, within
+    /// [`SWOLLEN_REACH`] spacings of the prediction of a neighbour left without a blob: the blob
+    /// is likely both of theirs (a marker dragged onto the next one and hidden behind it), and
+    /// its centroid neither's, though well under the merged size.
+    fn holding_a_swollen_blob(&self, status: &[MarkerStatus]) -> Vec<usize> {
+        let matched = self.matched();
+        let mut out = Vec::new();
+        for k in (0..status.len()).filter(|&k| self.assignment[k].is_none()) {
+            let Some((pk, _)) = self.predict(k, &matched) else {
+                continue;
+            };
+            let reach = SWOLLEN_REACH * self.reference.spacing_px[k];
+            for &i in &self.reference.neighbours[k] {
+                let Some(j) = self.assignment[i] else {
+                    continue;
+                };
+                let b = &self.blobs[j];
+                if status[i] != MarkerStatus::Ok || dist((b.x_px, b.y_px), pk) > reach {
+                    continue;
+                }
+                let scale = self.predict(i, &matched).map_or(1.0, |(_, s)| s);
+                let swollen = SWOLLEN_AREA * self.reference.areas_px[i] * scale * scale;
+                if f64::from(b.area_px) >= swollen {
+                    out.push(i);
+                }
+            }
+        }
+        out
+    }
+
     /// Classifies the unmatched markers: merged (a blob covering the prediction and much
     /// larger than the marker), ambiguous or lost.
     fn classify_unmatched(&self, predicted: &[(f64, f64)], usable: usize) -> Classified {
@@ -1757,7 +1800,8 @@ fn lose_cut(m: &Matching<'_>, usable: usize, status: &mut [MarkerStatus]) {
 /// Puts in doubt ([`MarkerStatus::Ambiguous`]) the matched markers that `doubtful` (the chain
 /// slides') names, then those [`doubt_around_gaps`] (order-free matching only: a temporal prior
 /// follows a drag step by step), [`doubt_split_beside_doubt`] and, when followed (`prior`: the
-/// markers' positions in the prior frame), [`doubt_reacquired_beside_unseen`] find.
+/// markers' positions in the prior frame), [`doubt_reacquired_beside_unseen`] find; order-free,
+/// last, reports [`MarkerStatus::Merged`] the markers [`Matching::holding_a_swollen_blob`] finds.
 fn put_in_doubt(
     m: &Matching<'_>,
     doubtful: &[usize],
@@ -1781,6 +1825,13 @@ fn put_in_doubt(
     doubt_split_beside_doubt(reference, &m.anchors, status);
     if let Some(prior) = prior {
         doubt_reacquired_beside_unseen(m, prior, predicted, status);
+    } else {
+        // After the gaps, which a merged marker would widen. Followed, a marker keeps its blob:
+        // withholding its position loses its track, and the next frame's prediction from its
+        // neighbours alone swapped more identities (22 → 27 on the followed drag matrix).
+        for i in m.holding_a_swollen_blob(status) {
+            status[i] = MarkerStatus::Merged;
+        }
     }
 }
 

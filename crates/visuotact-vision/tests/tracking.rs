@@ -507,6 +507,41 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
     }
 }
 
+/// Order-free, a marker dragged onto its right-hand neighbour and hidden behind it: the one blob
+/// left, near the neighbour, is 1.5 markers, and the hidden marker's prediction from its
+/// neighbours at rest lies 0.9 spacing from it. Its centroid is neither's: the neighbour is
+/// merged, not measured. A blob 1.2 markers big (a marker's outline pixels), or one beyond a
+/// spacing of the hidden marker's prediction, stays the neighbour's.
+#[test]
+fn a_blob_swollen_beside_a_hidden_neighbour_is_not_the_holders_alone() {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
+    let (positions, reference) = grid_reference();
+    // Markers 12 (at (70, 70)) and 13 (at (90, 70)): one blob at (x, 70) of `area_px`.
+    let frame = |x: f64, area_px: u32| {
+        let mut blobs: Vec<_> = positions
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != 12 && k != 13)
+            .map(|(_, &(x, y))| disc_blob(x, y, 30, false))
+            .collect();
+        blobs.push(disc_blob(x, 70.0, area_px, false));
+        let r = track_with(
+            &reference,
+            &blobs,
+            &TrackConfig::default(),
+            TrackHints::default(),
+        );
+        for k in (0..25).filter(|&k| k != 12 && k != 13) {
+            assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
+        }
+        assert!(!r.status[12].has_position(), "{:?}", r.status[12]);
+        (r.status[13], r.assignment[13].map(|j| blobs[j].x_px))
+    };
+    assert_eq!(frame(88.0, 45).0, MarkerStatus::Merged);
+    assert_eq!(frame(88.0, 36), (MarkerStatus::Ok, Some(88.0)));
+    assert_eq!(frame(91.0, 45), (MarkerStatus::Ok, Some(91.0)));
+}
+
 /// Followed tracking of the grid with markers 12 and 13 (the middle row's centre and its
 /// right neighbour) last seen at `pair` (`None`: without a position) and the others at rest;
 /// the frame has every other marker's blob at rest and `blob` for the pair. Every other
