@@ -643,6 +643,15 @@ const UNSEEN_REACH: f64 = 0.75;
 /// beside an unmatched neighbour on the drag matrix (seeds 1–8), 14 were a visible marker's own.
 const SWOLLEN_AREA: f64 = 1.4;
 
+/// A blob at least this many times its holder's area, over the median of the same ratio for
+/// its matched lattice neighbours' blobs, also holds more than one marker
+/// ([`Matching::holding_a_swollen_blob`]): blobs swell or shrink with the neighbourhood (the
+/// local magnification, the threshold in a shaded patch), and one swollen against its own
+/// neighbours is a sharper sign than against the magnification alone. On the drag matrix,
+/// seeds 1–12, it takes wrong identities 27 → 23 beside [`SWOLLEN_AREA`] for 7 more lost
+/// markers (of 19 702).
+const SWOLLEN_BESIDE: f64 = 1.3;
+
 /// How near a swollen blob an unmatched neighbour's prediction may lie for the blob to be
 /// partly that neighbour's, in the neighbour's spacings ([`Matching::holding_a_swollen_blob`]).
 /// The prediction comes from neighbours that lag the drag: the hidden dots' lay 0.79–1.0
@@ -1567,8 +1576,9 @@ impl Matching<'_> {
         (dist(pk, b) < reach && f64::from(self.blobs[j].area_px) >= bigger).then_some(j)
     }
 
-    /// The markers (reported [`MarkerStatus::Ok`] in `status`) holding a swollen blob, at
-    /// least [`SWOLLEN_AREA`] times their area scaled by the local magnification, within
+    /// The markers (reported [`MarkerStatus::Ok`] in `status`) holding a swollen blob (at
+    /// least [`SWOLLEN_AREA`] times their area scaled by the local magnification, or
+    /// [`SWOLLEN_BESIDE`] times their area scaled as their neighbours' blobs are), within
     /// [`SWOLLEN_REACH`] spacings of the prediction of a neighbour left without a blob: the blob
     /// is likely both of theirs (a marker dragged onto the next one and hidden behind it), and
     /// its centroid neither's, though well under the merged size.
@@ -1588,14 +1598,32 @@ impl Matching<'_> {
                 if status[i] != MarkerStatus::Ok || dist((b.x_px, b.y_px), pk) > reach {
                     continue;
                 }
+                let ratio = f64::from(b.area_px) / self.reference.areas_px[i];
                 let scale = self.predict(i, &matched).map_or(1.0, |(_, s)| s);
-                let swollen = SWOLLEN_AREA * self.reference.areas_px[i] * scale * scale;
-                if f64::from(b.area_px) >= swollen {
+                if ratio >= SWOLLEN_AREA * scale * scale
+                    || self
+                        .neighbours_area_ratio(i, status)
+                        .is_some_and(|r| ratio >= SWOLLEN_BESIDE * r)
+                {
                     out.push(i);
                 }
             }
         }
         out
+    }
+
+    /// The median, over `i`'s lattice neighbours matched and reported [`MarkerStatus::Ok`], of
+    /// their blob's area over their area at rest (`None` without such neighbours).
+    fn neighbours_area_ratio(&self, i: usize, status: &[MarkerStatus]) -> Option<f64> {
+        let mut ratios: Vec<f64> = lattice_steps(self.reference, &self.anchors, i)
+            .filter(|&n| status[n] == MarkerStatus::Ok)
+            .filter_map(|n| {
+                let j = self.assignment[n]?;
+                Some(f64::from(self.blobs[j].area_px) / self.reference.areas_px[n])
+            })
+            .collect();
+        ratios.sort_by(f64::total_cmp);
+        ratios.get(ratios.len() / 2).copied()
     }
 
     /// Classifies the unmatched markers: merged (a blob covering the prediction and much
