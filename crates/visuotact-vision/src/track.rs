@@ -37,7 +37,9 @@
 //! Markers left without a blob are reported as [`MarkerStatus::Lost`], [`MarkerStatus::Merged`]
 //! (their prediction falls on a blob already taken that is much bigger than one marker, or
 //! a blob a quarter bigger than one lies within 0.6 spacing of two markers' predictions:
-//! squeezed pins overlap, so their blob is less than two; its holder is merged too) or
+//! squeezed pins overlap, so their blob is less than two; its holder is merged too; order-free,
+//! a blob 1.4 times its holder, or 1.3 times as swollen as the blobs around, within a spacing
+//! of a blobless neighbour's prediction is that neighbour's too, hidden under it) or
 //! [`MarkerStatus::Ambiguous`] (two free blobs equally plausible); their feature cells stay
 //! empty and other markers' columns never shift. Two merged markers whose blob has about their
 //! two areas are split by the blob's second moments along its major axis
