@@ -1621,7 +1621,8 @@ impl Matching<'_> {
                     continue;
                 };
                 let b = &self.blobs[j];
-                if status[i] != MarkerStatus::Ok || dist((b.x_px, b.y_px), pk) > reach {
+                let beside = dist((b.x_px, b.y_px), pk) <= reach;
+                if status[i] != MarkerStatus::Ok || !beside || out.contains(&i) {
                     continue;
                 }
                 let ratio = f64::from(b.area_px) / self.reference.areas_px[i];
@@ -1648,6 +1649,8 @@ impl Matching<'_> {
                 Some(f64::from(self.blobs[j].area_px) / self.reference.areas_px[n])
             })
             .collect();
+        // The upper median (`layout::median` averages the middle two of an even count: 3 more
+        // markers lost on the drag matrix, measured).
         ratios.sort_by(f64::total_cmp);
         ratios.get(ratios.len() / 2).copied()
     }
