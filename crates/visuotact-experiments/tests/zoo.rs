@@ -295,7 +295,11 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// frame moved 0.93 pitch; GelSight variant 1, seed 8: 1, 2 and 1 wrong identities before);
 /// and a GelSight row at the top edge dragged 1.17 pitches with its third marker hidden, read
 /// a step short (variant 1, seed 12: 2 wrong identities before chains whose slide leaves their
-/// last marker without a blob were put in doubt).
+/// last marker without a blob were put in doubt); dots dragged onto a neighbour that held
+/// their blob, their prediction 1.02–1.05 spacings from it or their own blob in doubt or
+/// merged (dots variant 3, seeds 11, 16 and 17, in frames moved 1.03, 1.34 and 1.41 pitches:
+/// 1 wrong identity each before); and two GelSight rows 25 px below the top edge dragged
+/// 1.35 pitches and read a step short together (variant 3, seed 20: 3 before).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -318,6 +322,10 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("gelsight", 1, 8),
         ("dots", 3, 12),
         ("gelsight", 1, 12),
+        ("dots", 3, 11),
+        ("dots", 3, 16),
+        ("dots", 3, 17),
+        ("gelsight", 3, 20),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

@@ -666,11 +666,20 @@ const SWOLLEN_AREA: f64 = 1.4;
 /// markers (of 19 702).
 const SWOLLEN_BESIDE: f64 = 1.3;
 
-/// How near a swollen blob an unmatched neighbour's prediction may lie for the blob to be
-/// partly that neighbour's, in the neighbour's spacings ([`Matching::holding_a_swollen_blob`]).
-/// The prediction comes from neighbours that lag the drag: the hidden dots' lay 0.79–1.0
-/// spacing from the blob they shared.
-const SWOLLEN_REACH: f64 = 1.0;
+/// How near a swollen blob the prediction of a neighbour without a position may lie for the
+/// blob to be partly that neighbour's, in the neighbour's spacings
+/// ([`Matching::holding_a_swollen_blob`]). The prediction comes from neighbours that lag the
+/// drag: the hidden dots' lay 0.79–1.0 spacing from the blob they shared on seeds 1–12, and
+/// 1.02–1.05 on seeds 11, 17 and 21 (1.0 before: drag matrix seeds 1–24, wrong identities
+/// 49 → 45 together with merged neighbours, 250 more lost of 43 053).
+const SWOLLEN_REACH: f64 = 1.1;
+
+/// Holes this many spacings or more inside the view start pairs of parallel chains
+/// ([`Matching::parallel_rows_in_doubt`]); one nearer the edge may simply be cut. One whole
+/// spacing kept out the top row of a GelSight-like grid (its pins 25 px from the edge, 5 px in
+/// radius), whose rows dragged to the side were read a step short: drag matrix seeds 1–24,
+/// wrong identities 52 → 49, one more lost.
+const EDGE_DEPTH: f64 = 0.5;
 
 /// How near a blob a hole's prediction may lie for the marker holding it to be in doubt, in
 /// the hole's spacings ([`Matching::holding_a_holes_blob`]). A hole's prediction comes from
@@ -1063,8 +1072,8 @@ impl Matching<'_> {
     /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
     /// the chain moved one lattice step as without, and which marker holds which blob cannot
     /// be told (a drag of more than a pitch) — those of two parallel chains from holes side by
-    /// side, a spacing or more inside the view (a marker at the view's edge may simply be cut),
-    /// whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (followed, with
+    /// side, [`EDGE_DEPTH`] spacings or more inside the view (a marker at the view's edge may
+    /// simply be cut), whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (followed, with
     /// `prior`: only chains through a marker the prior frame did not see), and those
     /// [`Matching::between_holes_and_free_blobs`]
     /// (however little they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
@@ -1158,8 +1167,9 @@ impl Matching<'_> {
         // between them that the slide of both together does not. Its markers are in doubt
         // when they moved half a spacing, or beyond the hole when one of two chain neighbours
         // would move half a spacing by taking the other's blob (a patch dragged by over a
-        // pitch and read a step short seems to have moved little). Holes within a spacing of
-        // the view's edge start no pair (a marker there may simply be cut). Followed, a marker
+        // pitch and read a step short seems to have moved little). Holes within
+        // [`EDGE_DEPTH`] spacings of the view's edge start no pair (a marker there may simply be
+        // cut). Followed, a marker
         // seen in the prior frame does not jump a lattice step: only chains through a marker
         // the prior frame did not see (placed by its neighbours) may slide.
         let (mut doubt, mut slid_far) = (Vec::new(), Vec::new());
@@ -1169,7 +1179,7 @@ impl Matching<'_> {
             .map(|&h| {
                 let at = self.predict(h, &matched).map_or(self.anchors[h], |p| p.0);
                 self.view
-                    .is_none_or(|v| v.depth_px(at) >= self.reference.spacing_px[h])
+                    .is_none_or(|v| v.depth_px(at) >= EDGE_DEPTH * self.reference.spacing_px[h])
             })
             .collect();
         let mut pairs = self.parallel_chains(holes, &inside, chains);
@@ -1605,13 +1615,18 @@ impl Matching<'_> {
     /// The markers (reported [`MarkerStatus::Ok`] in `status`) holding a swollen blob (at
     /// least [`SWOLLEN_AREA`] times their area scaled by the local magnification, or
     /// [`SWOLLEN_BESIDE`] times their area scaled as their neighbours' blobs are), within
-    /// [`SWOLLEN_REACH`] spacings of the prediction of a neighbour left without a blob: the blob
-    /// is likely both of theirs (a marker dragged onto the next one and hidden behind it), and
-    /// its centroid neither's, though well under the merged size.
+    /// [`SWOLLEN_REACH`] spacings of the prediction of a neighbour left without a position (no
+    /// blob, or one in doubt or merged): the blob is likely both of theirs (a marker dragged
+    /// onto the next one and hidden behind it), and its centroid neither's, though well under
+    /// the merged size. (A neighbour in doubt or merged holds a blob that is not its own; drag
+    /// matrix seeds 1–16, wrong identities 20 → 18 for 255 more lost of 27 478.)
     fn holding_a_swollen_blob(&self, status: &[MarkerStatus]) -> Vec<usize> {
         let matched = self.matched();
         let mut out = Vec::new();
-        for k in (0..status.len()).filter(|&k| self.assignment[k].is_none()) {
+        for k in (0..status.len()).filter(|&k| {
+            self.assignment[k].is_none()
+                || matches!(status[k], MarkerStatus::Ambiguous | MarkerStatus::Merged)
+        }) {
             let Some((pk, _)) = self.predict(k, &matched) else {
                 continue;
             };
