@@ -299,7 +299,9 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// their blob, their prediction 1.02–1.05 spacings from it or their own blob in doubt or
 /// merged (dots variant 3, seeds 11, 16 and 17, in frames moved 1.03, 1.34 and 1.41 pitches:
 /// 1 wrong identity each before); and two GelSight rows 25 px below the top edge dragged
-/// 1.35 pitches and read a step short together (variant 3, seed 20: 3 before).
+/// 1.35 pitches and read a step short together (variant 3, seed 20: 3 before); and a patch of
+/// small-TacTip pins read a step short in three rows at once, each pair of them too uneven
+/// to slide back (variant 4, seed 8, 2.53 pitches: 1 before three rows were tried together).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -326,6 +328,7 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("dots", 3, 16),
         ("dots", 3, 17),
         ("gelsight", 3, 20),
+        ("tactip-small", 4, 8),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

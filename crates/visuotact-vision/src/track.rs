@@ -1152,10 +1152,14 @@ impl Matching<'_> {
         doubt
     }
 
-    /// The markers of parallel chains from holes side by side whose joint slide changes the
-    /// energy by less than [`AMBIGUOUS_ROWS_SLIDE`] ([`Matching::slide_chains`]; `chains[k]`:
+    /// The markers of parallel chains from holes side by side — two, or three (two pairs
+    /// sharing a chain) — whose joint slide changes the energy by less than
+    /// [`AMBIGUOUS_ROWS_SLIDE`] ([`Matching::slide_chains`]; `chains[k]`:
     /// [`Matching::chains_into`] of `holes[k]`), and those of them the slid reading moves half
-    /// a spacing (in doubt however little they seem to have moved).
+    /// a spacing (in doubt however little they seem to have moved). Three GelSight rows dragged
+    /// 1.7 pitches and read a step short cost 0.76–1.26 to slide back two at a time and 0.28
+    /// all three: drag matrix seeds 1–24, wrong identities 45 → 32 with three rows, 203 more
+    /// lost of 43 303; held-out seeds 25–32 32 → 24, 88 more lost.
     fn parallel_rows_in_doubt(
         &mut self,
         holes: &[usize],
@@ -1186,10 +1190,29 @@ impl Matching<'_> {
         if let Some(prior) = prior {
             pairs.retain(|(p1, p2)| p1[1..].iter().chain(&p2[1..]).any(|&i| prior[i].is_none()));
         }
-        for (p1, p2) in pairs {
-            let (de, _) = self.try_chains(&[p1, p2], lost_cost);
+        // Three rows side by side (two pairs sharing a chain) may slide together where no two
+        // of them would.
+        let mut groups: Vec<Vec<&[usize]>> = pairs.iter().map(|&(a, b)| vec![a, b]).collect();
+        for (k, &(a, b)) in pairs.iter().enumerate() {
+            for &(c, d) in &pairs[k + 1..] {
+                let third = match (a == c, a == d, b == c, b == d) {
+                    (true, false, false, _) => Some([b, a, d]),
+                    (false, true, false, _) => Some([b, a, c]),
+                    (false, false, true, false) => Some([a, b, d]),
+                    (false, false, false, true) => Some([a, b, c]),
+                    _ => None,
+                };
+                if let Some([x, m, y]) = third {
+                    if !x.iter().any(|i| y.contains(i)) {
+                        groups.push(vec![x, m, y]);
+                    }
+                }
+            }
+        }
+        for group in groups {
+            let (de, _) = self.try_chains(&group, lost_cost);
             if de < AMBIGUOUS_ROWS_SLIDE {
-                for path in [p1, p2] {
+                for path in group {
                     doubt.extend_from_slice(&path[1..]);
                     // Beyond the hole: a marker that would take its neighbour's blob, and the
                     // neighbour whose blob it would take, when that moves it half a spacing.
