@@ -1071,12 +1071,12 @@ impl Matching<'_> {
     /// those of a chain ending on a free blob whose slide would change the energy by less than
     /// [`AMBIGUOUS_SLIDE`] either way — the field is then about as smooth with every blob of
     /// the chain moved one lattice step as without, and which marker holds which blob cannot
-    /// be told (a drag of more than a pitch) — those of two parallel chains from holes side by
-    /// side, [`EDGE_DEPTH`] spacings or more inside the view (a marker at the view's edge may
-    /// simply be cut), whose joint slide changes it by less than [`AMBIGUOUS_ROWS_SLIDE`] (followed, with
-    /// `prior`: only chains through a marker the prior frame did not see), and those
-    /// [`Matching::between_holes_and_free_blobs`]
-    /// (however little they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
+    /// be told (a drag of more than a pitch) — those of two or three parallel chains from holes
+    /// side by side, [`EDGE_DEPTH`] spacings or more inside the view (a marker at the view's
+    /// edge may simply be cut), whose joint slide changes it by less than
+    /// [`AMBIGUOUS_ROWS_SLIDE`] (followed, with `prior`: only chains through a marker the prior
+    /// frame did not see), and those [`Matching::between_holes_and_free_blobs`] (however little
+    /// they seem to have moved) and [`Matching::holding_a_holes_blob`] find.
     fn slide_chains(&mut self, lost_cost: f64, prior: Option<&[Option<(f64, f64)>]>) -> Vec<usize> {
         for _ in 0..16 {
             let matched = self.matched();
@@ -1171,11 +1171,10 @@ impl Matching<'_> {
         // between them that the slide of both together does not. Its markers are in doubt
         // when they moved half a spacing, or beyond the hole when one of two chain neighbours
         // would move half a spacing by taking the other's blob (a patch dragged by over a
-        // pitch and read a step short seems to have moved little). Holes within
-        // [`EDGE_DEPTH`] spacings of the view's edge start no pair (a marker there may simply be
-        // cut). Followed, a marker
-        // seen in the prior frame does not jump a lattice step: only chains through a marker
-        // the prior frame did not see (placed by its neighbours) may slide.
+        // pitch and read a step short seems to have moved little). Holes within `EDGE_DEPTH`
+        // spacings of the view's edge start no pair (a marker there may simply be cut).
+        // Followed, a marker seen in the prior frame does not jump a lattice step: only chains
+        // through a marker the prior frame did not see (placed by its neighbours) may slide.
         let (mut doubt, mut slid_far) = (Vec::new(), Vec::new());
         let matched = self.matched();
         let inside: Vec<bool> = holes
@@ -1193,21 +1192,13 @@ impl Matching<'_> {
         // Three rows side by side (two pairs sharing a chain) may slide together where no two
         // of them would.
         let mut groups: Vec<Vec<&[usize]>> = pairs.iter().map(|&(a, b)| vec![a, b]).collect();
-        for (k, &(a, b)) in pairs.iter().enumerate() {
-            for &(c, d) in &pairs[k + 1..] {
-                let third = match (a == c, a == d, b == c, b == d) {
-                    (true, false, false, _) => Some([b, a, d]),
-                    (false, true, false, _) => Some([b, a, c]),
-                    (false, false, true, false) => Some([a, b, d]),
-                    (false, false, false, true) => Some([a, b, c]),
-                    _ => None,
-                };
-                if let Some([x, m, y]) = third {
-                    if !x.iter().any(|i| y.contains(i)) {
-                        groups.push(vec![x, m, y]);
-                    }
-                }
-            }
+        for (k, &p) in pairs.iter().enumerate() {
+            groups.extend(
+                pairs[k + 1..]
+                    .iter()
+                    .filter_map(|&q| three_rows(p, q))
+                    .map(Vec::from),
+            );
         }
         for group in groups {
             let (de, _) = self.try_chains(&group, lost_cost);
@@ -1890,6 +1881,23 @@ fn lose_cut(m: &Matching<'_>, usable: usize, status: &mut [MarkerStatus]) {
             *st = MarkerStatus::Lost;
         }
     }
+}
+
+/// The three chains of two pairs of parallel chains that share exactly one chain, the shared
+/// one in the middle (`None` when they share none, or the other two overlap).
+fn three_rows<'c>(
+    (a, b): (&'c [usize], &'c [usize]),
+    (c, d): (&'c [usize], &'c [usize]),
+) -> Option<[&'c [usize]; 3]> {
+    let (middle, x) = if a == c || a == d {
+        (a, b)
+    } else if b == c || b == d {
+        (b, a)
+    } else {
+        return None;
+    };
+    let y = if middle == c { d } else { c };
+    (x != y && !x.iter().any(|i| y.contains(i))).then_some([x, middle, y])
 }
 
 /// Puts in doubt ([`MarkerStatus::Ambiguous`]) the matched markers that `doubtful` (the chain
