@@ -44,7 +44,9 @@
 //! empty and other markers' columns never shift. Two merged markers whose blob has about their
 //! two areas are split by the blob's second moments along its major axis
 //! ([`MarkerStatus::Split`]: a position, no area; ≈ 0.4 px from the truth for two touching
-//! discs of radius 10 px, test `a_merged_pair_is_split_by_its_moments`).
+//! discs of radius 10 px, test `a_merged_pair_is_split_by_its_moments`) — unless the blob has
+//! no waist and the split would put them under 0.55 of their predictions' separation: that is
+//! one marker stretched by a drag, and both stay merged.
 
 use std::collections::BinaryHeap;
 
@@ -1816,7 +1818,8 @@ pub fn track_with(
         merged_blob,
         mut on_blob,
     } = m.classify_unmatched(&predicted, usable);
-    let split_px = split_pairs(reference, blobs, cfg, &mut on_blob, prior, &mut status);
+    let (mut split_px, stretched) =
+        split_pairs(reference, blobs, cfg, &mut on_blob, prior, &mut status);
     lose_cut(&m, usable, &mut status);
     put_in_doubt(
         &m,
@@ -1826,6 +1829,13 @@ pub fn track_with(
         (shift, usable),
         &mut status,
     );
+    // After the doubt, which they would widen as gaps: split, their neighbours saw them.
+    for i in stretched {
+        if status[i] == MarkerStatus::Split {
+            status[i] = MarkerStatus::Merged;
+            split_px[i] = None;
+        }
+    }
     let mut assignment = m.assignment;
     for i in 0..n {
         if status[i] != MarkerStatus::Ok {
@@ -2114,6 +2124,31 @@ fn gap_motion(
     (all >= 2 && count >= 1 && max >= GAP_MOTION).then_some((max, sum))
 }
 
+/// A blob with at least this share of the area of the ellipse with its second moments
+/// (`4π·√(λ1·λ2)`, each variance widened by the pixel's own 1/12) has no waist between two
+/// lobes ([`one_stretched_marker`]): an ellipse fills all of it, two touching discs 0.89. On
+/// the drag matrix (seeds 1–24) the merged pairs split right measured 0.58–0.91 with a waist,
+/// the stretched single markers 0.995–1.0.
+const NO_WAIST_FILL: f64 = 0.95;
+
+/// Two markers split from a blob with no waist closer than this share of their predictions'
+/// separation are one marker stretched by a drag, not two ([`one_stretched_marker`]). On the
+/// drag matrix (seeds 1–24) the waistless blobs split right had 0.55–0.92; those split between
+/// one stretched dot and a neighbour hidden elsewhere 0.22–0.53.
+const STRETCHED_SEPARATION: f64 = 0.55;
+
+/// Whether a blob that moments would split into two markers `d` px apart, predicted `d_pred`
+/// px apart, is rather one marker stretched to twice its area: a dot dragged along its
+/// neighbour's direction grows to the size of two without a waist, and its split would give
+/// the neighbour (hidden elsewhere) a position a lattice step off. Two markers merged under a
+/// press show a waist, or lie about as far apart as their predictions.
+fn one_stretched_marker(b: &Blob, d: f64, d_pred: f64) -> bool {
+    let pixel = 1.0 / 12.0;
+    let (xx, xy, yy) = (b.mu20_px2 + pixel, b.mu11_px2, b.mu02_px2 + pixel);
+    let ellipse_px = 4.0 * std::f64::consts::PI * (xx * yy - xy * xy).max(0.0).sqrt();
+    f64::from(b.area_px) >= NO_WAIST_FILL * ellipse_px && d < STRETCHED_SEPARATION * d_pred
+}
+
 /// Splits blobs that exactly two merged markers fell on, when the blob's area is about theirs
 /// together: two markers of areas `a1`, `a2` (discs: variance `a/4π` along any axis) whose
 /// centres are `d` apart along the blob's major axis give the blob a variance of
@@ -2124,7 +2159,9 @@ fn gap_motion(
 /// saw both: otherwise their predictions come from the neighbours alone and can cross under a
 /// deep press (the drag matrix followed frame by frame: wrong identities 26 → 22, lost 42 →
 /// 46, none more in frames moved under a pitch). Returns the positions (empty when nothing
-/// was split) and marks those markers [`MarkerStatus::Split`].
+/// was split) and marks those markers [`MarkerStatus::Split`]; and the pairs split from a blob
+/// that is rather one marker stretched by a drag ([`one_stretched_marker`]), which the caller
+/// merges once the doubt around gaps is settled (as split pairs, their neighbours saw them).
 fn split_pairs(
     reference: &TrackReference,
     blobs: &[Blob],
@@ -2132,8 +2169,9 @@ fn split_pairs(
     on_blob: &mut [(usize, usize, (f64, f64), f64)],
     prior: Option<&[Option<(f64, f64)>]>,
     status: &mut [MarkerStatus],
-) -> Vec<Option<(f64, f64)>> {
+) -> (Vec<Option<(f64, f64)>>, Vec<usize>) {
     let mut out: Vec<Option<(f64, f64)>> = Vec::new();
+    let mut stretched = Vec::new();
     on_blob.sort_by_key(|e| (e.0, e.1));
     for group in on_blob.chunk_by(|a, b| a.0 == b.0) {
         let [(j, i1, p1, s1), (_, i2, p2, s2)] = *group else {
@@ -2195,6 +2233,9 @@ fn split_pairs(
             out[i] = Some(q);
             status[i] = MarkerStatus::Split;
         }
+        if one_stretched_marker(b, d, dist(p1, p2)) {
+            stretched.extend([i1, i2]);
+        }
     }
-    out
+    (out, stretched)
 }

@@ -549,6 +549,64 @@ fn a_blob_swollen_beside_a_hidden_neighbour_is_not_the_holders_alone() {
     assert_eq!(frame(93.0, 45, 30), (MarkerStatus::Ok, Some(93.0)));
 }
 
+/// Order-free, on a 5 × 5 grid of 64-px markers 20 px apart, one blob of two markers' area
+/// midway between markers 12 and 13 (predicted at x = 70 and 90), the other markers at rest.
+/// With a waist between two lobes (the moments of two touching discs) it is split into the two
+/// markers at their centres. With no waist (an ellipse as wide as one marker) whose split would
+/// put the two 7.8 px apart, 0.39 of their predictions' separation, it is one marker stretched
+/// by a drag, its neighbour hidden elsewhere: both are merged, neither measured. A thinner
+/// ellipse whose split puts them 12 px apart, 0.6 of the predictions' (side-by-side pins
+/// squeezed into one outline), is split.
+#[test]
+fn a_blob_without_a_waist_is_split_only_as_far_apart_as_predicted() {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints, TrackReference};
+    let (positions, _) = grid_reference();
+    let reference = TrackReference::new(positions.clone(), vec![64.0; 25]);
+    // Variances along x and y of a 128-px blob at (80, 70).
+    let frame = |var_x: f64, var_y: f64| {
+        let mut blobs: Vec<_> = positions
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != 12 && k != 13)
+            .map(|(_, &(x, y))| disc_blob(x, y, 64, false))
+            .collect();
+        let mut pair = disc_blob(80.0, 70.0, 128, false);
+        pair.mu20_px2 = var_x;
+        pair.mu02_px2 = var_y;
+        blobs.push(pair);
+        let r = track_with(
+            &reference,
+            &blobs,
+            &TrackConfig::default(),
+            TrackHints::default(),
+        );
+        for k in (0..25).filter(|&k| k != 12 && k != 13) {
+            assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
+        }
+        [12, 13].map(|k| (r.status[k], r.position_px(k, &blobs).map(|p| p.0)))
+    };
+    // A disc of 64 px: radius 4.51 px, a variance of 64/4π = 5.09 px² along any axis.
+    let disc = 64.0 / (4.0 * std::f64::consts::PI);
+    let radius = (64.0 / std::f64::consts::PI).sqrt();
+    // Two touching discs: split near their centres (within 0.3 px: the local fit sees marker
+    // 13 a little smaller, 0.97 of its rest size, and weights the split by area).
+    let [(s12, x12), (s13, x13)] = frame(disc + radius * radius, disc);
+    assert_eq!((s12, s13), (MarkerStatus::Split, MarkerStatus::Split));
+    assert!((x12.unwrap() - (80.0 - radius)).abs() < 0.3, "{x12:?}");
+    assert!((x13.unwrap() - (80.0 + radius)).abs() < 0.3, "{x13:?}");
+    // An ellipse of 128 px as wide as a disc, twice as long: one stretched marker.
+    let [(s12, x12), (s13, x13)] = frame(radius * radius, disc);
+    assert_eq!((s12, s13), (MarkerStatus::Merged, MarkerStatus::Merged));
+    assert_eq!((x12, x13), (None, None));
+    // An ellipse of 128 px whose split is 12 px: half-axes 2·√(5.09 + 36) and 128/(π·that).
+    let long = 2.0 * (disc + 36.0_f64).sqrt();
+    let thin = 128.0 / (std::f64::consts::PI * long);
+    let [(s12, x12), (s13, x13)] = frame(long * long / 4.0, thin * thin / 4.0);
+    assert_eq!((s12, s13), (MarkerStatus::Split, MarkerStatus::Split));
+    assert!((x12.unwrap() - 74.0).abs() < 0.3, "{x12:?}");
+    assert!((x13.unwrap() - 86.0).abs() < 0.3, "{x13:?}");
+}
+
 /// Followed tracking of the grid with markers 12 and 13 (the middle row's centre and its
 /// right neighbour) last seen at `pair` (`None`: without a position) and the others at rest;
 /// the frame has every other marker's blob at rest and `blob` for the pair. Every other
