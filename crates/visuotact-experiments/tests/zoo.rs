@@ -301,7 +301,12 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// 1 wrong identity each before); and two GelSight rows 25 px below the top edge dragged
 /// 1.35 pitches and read a step short together (variant 3, seed 20: 3 before); and a patch of
 /// small-TacTip pins read a step short in three rows at once, each pair of them too uneven
-/// to slide back (variant 4, seed 8, 2.53 pitches: 1 before three rows were tried together).
+/// to slide back (variant 4, seed 8, 2.53 pitches: 1 before three rows were tried together);
+/// and a dot stretched by a drag to the size of two, split with a neighbour hidden elsewhere
+/// (dots variant 3, seed 21, 1.21 pitches: 1 before a blob with no waist was split only as
+/// far apart as predicted); and a pin half out of a circular view, its cut blob the size of
+/// the pin at rest but under its size swollen by a deep press (small TacTip variant 4, seed
+/// 35: 1 before the cut test was scaled by the local magnification).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -329,6 +334,8 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("dots", 3, 17),
         ("gelsight", 3, 20),
         ("tactip-small", 4, 8),
+        ("dots", 3, 21),
+        ("tactip-small", 4, 35),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

@@ -1881,12 +1881,20 @@ fn doubt_split_beside_doubt(
 }
 
 /// A marker that took a blob cut by the border (from `usable` on) has left the view: lost —
-/// unless the blob is as big as the marker at rest, within the pixel noise of its outline
-/// ([`whole`]): then nothing of it is missing (a marker ending a pixel short of a circular
-/// mask's edge touches it).
+/// unless the blob is as big as the marker at rest, scaled by the local magnification of its
+/// neighbours' motion, within the pixel noise of its outline ([`whole`]): then nothing of it is
+/// missing (a marker ending a pixel short of a circular mask's edge touches it). Scaled, as a
+/// pin half out of view under a deep press has swollen beyond its size at rest (small TacTip,
+/// drag seed 35: a pin centred 1.9 px outside the mask, its cut blob 11 px against 13 at rest
+/// and 19 swollen, was measured 3.2 px off; drag matrix seeds 1–40: wrong identities 68 → 63,
+/// 20 fewer lost).
 fn lose_cut(m: &Matching<'_>, usable: usize, status: &mut [MarkerStatus]) {
+    let matched = m.matched();
     for (i, (st, a)) in status.iter_mut().zip(&m.assignment).enumerate() {
-        let whole_blob = |j: usize| whole(m.blobs[j].area_px, m.reference.areas_px[i], m.cfg);
+        let whole_blob = |j: usize| {
+            let s = m.predict(i, &matched).map_or(1.0, |(_, s)| s);
+            whole(m.blobs[j].area_px, m.reference.areas_px[i] * s * s, m.cfg)
+        };
         if a.is_some_and(|j| j >= usable && !whole_blob(j)) {
             *st = MarkerStatus::Lost;
         }

@@ -468,9 +468,9 @@ fn disc_blob(x: f64, y: f64, area_px: u32, touches_border: bool) -> visuotact_vi
 }
 
 /// A marker whose blob touches the view's edge (a circular mask a pixel beyond the marker's
-/// outline, pixel by pixel) is measured when the blob is as big as the marker at rest, and lost
-/// when the edge cut part of it off or the blob holds more than the marker (a rim cut by the
-/// frame beside it).
+/// outline, pixel by pixel) is measured when the blob is as big as the marker at rest (scaled by
+/// the local magnification), and lost when the edge cut part of it off or the blob holds more
+/// than the marker (a rim cut by the frame beside it).
 #[test]
 fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
     use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
@@ -505,6 +505,30 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
     for area in [15, 24, 60, 1200] {
         assert_eq!(frame(area).0, MarkerStatus::Lost, "{area} px");
     }
+    // The grid magnified 1.25 times about its centre (a deep press): the markers swell with the
+    // skin to 47 px, and the rest area of 30 px is then a cut marker.
+    let magnified = |area_px: u32| {
+        let at = |(x, y): (f64, f64)| (70.0 + 1.25 * (x - 70.0), 70.0 + 1.25 * (y - 70.0));
+        let mut blobs: Vec<_> = positions
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != 4)
+            .map(|(_, &p)| disc_blob(at(p).0, at(p).1, 47, false))
+            .collect();
+        let (x, y) = at(positions[4]);
+        blobs.push(disc_blob(x, y, area_px, true));
+        let hints = TrackHints {
+            cut: 1,
+            ..TrackHints::default()
+        };
+        let r = track_with(&reference, &blobs, &cfg, hints);
+        assert!((0..25)
+            .filter(|&k| k != 4)
+            .all(|k| r.status[k] == MarkerStatus::Ok));
+        r.status[4]
+    };
+    assert_eq!(magnified(46), MarkerStatus::Ok);
+    assert_eq!(magnified(30), MarkerStatus::Lost);
 }
 
 /// Order-free, a marker dragged onto its right-hand neighbour and hidden behind it: the one blob
