@@ -476,16 +476,17 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
     use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
     let (positions, reference) = grid_reference();
     let cfg = TrackConfig::default();
-    // Marker 4 (top right) moved 1 px and its blob is listed as cut (the last one).
-    let frame = |area_px: u32| {
+    // Every marker's blob at `at` of its rest position, of `others_px` (marker 4's, top right,
+    // of `area_px`, listed as cut: the last one).
+    let track_cut = |at: &dyn Fn((f64, f64)) -> (f64, f64), others_px: u32, area_px: u32| {
         let mut blobs: Vec<_> = positions
             .iter()
             .enumerate()
             .filter(|&(k, _)| k != 4)
-            .map(|(_, &(x, y))| disc_blob(x + 1.0, y, 30, false))
+            .map(|(_, &p)| disc_blob(at(p).0, at(p).1, others_px, false))
             .collect();
-        let (x, y) = positions[4];
-        blobs.push(disc_blob(x + 1.0, y, area_px, true));
+        let (x, y) = at(positions[4]);
+        blobs.push(disc_blob(x, y, area_px, true));
         let hints = TrackHints {
             cut: 1,
             ..TrackHints::default()
@@ -496,6 +497,8 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
             .all(|k| r.status[k] == MarkerStatus::Ok));
         (r.status[4], r.assignment[4].map(|j| blobs[j].x_px))
     };
+    // Moved 1 px.
+    let frame = |area_px: u32| track_cut(&|(x, y)| (x + 1.0, y), 30, area_px);
     // Pixel noise of the outline: a 30-px marker seen as 27 px is whole.
     for area in [27, 30, 34] {
         assert_eq!(frame(area), (MarkerStatus::Ok, Some(111.0)), "{area} px");
@@ -509,26 +512,42 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
     // skin to 47 px, and the rest area of 30 px is then a cut marker.
     let magnified = |area_px: u32| {
         let at = |(x, y): (f64, f64)| (70.0 + 1.25 * (x - 70.0), 70.0 + 1.25 * (y - 70.0));
-        let mut blobs: Vec<_> = positions
-            .iter()
-            .enumerate()
-            .filter(|&(k, _)| k != 4)
-            .map(|(_, &p)| disc_blob(at(p).0, at(p).1, 47, false))
-            .collect();
-        let (x, y) = at(positions[4]);
-        blobs.push(disc_blob(x, y, area_px, true));
-        let hints = TrackHints {
-            cut: 1,
-            ..TrackHints::default()
-        };
-        let r = track_with(&reference, &blobs, &cfg, hints);
-        assert!((0..25)
-            .filter(|&k| k != 4)
-            .all(|k| r.status[k] == MarkerStatus::Ok));
-        r.status[4]
+        track_cut(&at, 47, area_px).0
     };
     assert_eq!(magnified(46), MarkerStatus::Ok);
     assert_eq!(magnified(30), MarkerStatus::Lost);
+}
+
+/// Order-free tracking of a grid with every marker's blob at rest, of `others_px`, but markers
+/// 12 and 13 (the middle row's centre and its right neighbour), for which there is one `blob`.
+/// Every other marker is checked measured. Returns the tracking and the blobs.
+fn pair_on_one_blob(
+    positions: &[(f64, f64)],
+    reference: &visuotact_vision::track::TrackReference,
+    others_px: u32,
+    blob: visuotact_vision::blobs::Blob,
+) -> (
+    visuotact_vision::track::TrackResult,
+    Vec<visuotact_vision::blobs::Blob>,
+) {
+    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
+    let mut blobs: Vec<_> = positions
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != 12 && k != 13)
+        .map(|(_, &(x, y))| disc_blob(x, y, others_px, false))
+        .collect();
+    blobs.push(blob);
+    let r = track_with(
+        reference,
+        &blobs,
+        &TrackConfig::default(),
+        TrackHints::default(),
+    );
+    for k in (0..25).filter(|&k| k != 12 && k != 13) {
+        assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
+    }
+    (r, blobs)
 }
 
 /// Order-free, a marker dragged onto its right-hand neighbour and hidden behind it: the one blob
@@ -540,27 +559,12 @@ fn a_marker_touching_the_views_edge_whole_is_measured_cut_is_lost() {
 /// (at 1.05 it is merged).
 #[test]
 fn a_blob_swollen_beside_a_hidden_neighbour_is_not_the_holders_alone() {
-    use visuotact_vision::track::{track_with, TrackConfig, TrackHints};
     let (positions, reference) = grid_reference();
     // Markers 12 (at (70, 70)) and 13 (at (90, 70)): one blob at (x, 70) of `area_px`; the
     // other markers' blobs at rest, of `others_px` (30 at rest).
     let frame = |x: f64, area_px: u32, others_px: u32| {
-        let mut blobs: Vec<_> = positions
-            .iter()
-            .enumerate()
-            .filter(|&(k, _)| k != 12 && k != 13)
-            .map(|(_, &(x, y))| disc_blob(x, y, others_px, false))
-            .collect();
-        blobs.push(disc_blob(x, 70.0, area_px, false));
-        let r = track_with(
-            &reference,
-            &blobs,
-            &TrackConfig::default(),
-            TrackHints::default(),
-        );
-        for k in (0..25).filter(|&k| k != 12 && k != 13) {
-            assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
-        }
+        let blob = disc_blob(x, 70.0, area_px, false);
+        let (r, blobs) = pair_on_one_blob(&positions, &reference, others_px, blob);
         assert!(!r.status[12].has_position(), "{:?}", r.status[12]);
         (r.status[13], r.assignment[13].map(|j| blobs[j].x_px))
     };
@@ -583,30 +587,15 @@ fn a_blob_swollen_beside_a_hidden_neighbour_is_not_the_holders_alone() {
 /// squeezed into one outline), is split.
 #[test]
 fn a_blob_without_a_waist_is_split_only_as_far_apart_as_predicted() {
-    use visuotact_vision::track::{track_with, TrackConfig, TrackHints, TrackReference};
+    use visuotact_vision::track::TrackReference;
     let (positions, _) = grid_reference();
     let reference = TrackReference::new(positions.clone(), vec![64.0; 25]);
     // Variances along x and y of a 128-px blob at (80, 70).
     let frame = |var_x: f64, var_y: f64| {
-        let mut blobs: Vec<_> = positions
-            .iter()
-            .enumerate()
-            .filter(|&(k, _)| k != 12 && k != 13)
-            .map(|(_, &(x, y))| disc_blob(x, y, 64, false))
-            .collect();
         let mut pair = disc_blob(80.0, 70.0, 128, false);
         pair.mu20_px2 = var_x;
         pair.mu02_px2 = var_y;
-        blobs.push(pair);
-        let r = track_with(
-            &reference,
-            &blobs,
-            &TrackConfig::default(),
-            TrackHints::default(),
-        );
-        for k in (0..25).filter(|&k| k != 12 && k != 13) {
-            assert_eq!(r.status[k], MarkerStatus::Ok, "marker {k}");
-        }
+        let (r, blobs) = pair_on_one_blob(&positions, &reference, 64, pair);
         [12, 13].map(|k| (r.status[k], r.position_px(k, &blobs).map(|p| p.0)))
     };
     // A disc of 64 px: radius 4.51 px, a variance of 64/4π = 5.09 px² along any axis.
