@@ -306,7 +306,9 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// (dots variant 3, seed 21, 1.21 pitches: 1 before a blob with no waist was split only as
 /// far apart as predicted); and a pin half out of a circular view, its cut blob the size of
 /// the pin at rest but under its size swollen by a deep press (small TacTip variant 4, seed
-/// 35: 1 before the cut test was scaled by the local magnification).
+/// 35: 1 before the cut test was scaled by the local magnification); and two dots shrunk
+/// under the contact and touching in one blob of one dot's size but two lobes, its holder
+/// measured at their centroid (dots variant 3, seed 9, 1.32 pitches: 2 before).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -336,6 +338,7 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("tactip-small", 4, 8),
         ("dots", 3, 21),
         ("tactip-small", 4, 35),
+        ("dots", 3, 9),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

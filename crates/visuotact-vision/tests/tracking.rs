@@ -620,6 +620,34 @@ fn a_blob_without_a_waist_is_split_only_as_far_apart_as_predicted() {
     assert!((x13.unwrap() - 86.0).abs() < 0.3, "{x13:?}");
 }
 
+/// Order-free, marker 13 hidden (no blob) and marker 12's blob, at its rest place 1 spacing
+/// from 13's prediction, of one marker's area but two lobes (the moments of two half-size discs
+/// 8 px apart: it fills 0.73 of its ellipse): two markers shrunk under the contact and touching,
+/// the centroid neither's. 12 is merged, not measured. A disc of the same area stays 12's, and
+/// so does the two-lobed blob of markers under 50 px at rest, whose outline is a few pixels.
+#[test]
+fn a_two_lobed_blob_beside_a_hidden_neighbour_is_not_the_holders_alone() {
+    use visuotact_vision::track::TrackReference;
+    let (positions, small) = grid_reference();
+    let status_12 = |area_px: u32, two_lobes: bool| {
+        let reference = TrackReference::new(positions.clone(), vec![f64::from(area_px); 25]);
+        let mut blob = disc_blob(70.0, 70.0, area_px, false);
+        if two_lobes {
+            // Two discs of half the area, their centres 8 px apart along x.
+            let half = f64::from(area_px) / 2.0 / (4.0 * std::f64::consts::PI);
+            blob.mu20_px2 = half + 16.0;
+            blob.mu02_px2 = half;
+        }
+        let (r, _) = pair_on_one_blob(&positions, &reference, area_px, blob);
+        assert_eq!(r.status[13], MarkerStatus::Lost);
+        r.status[12]
+    };
+    assert_eq!(status_12(64, true), MarkerStatus::Merged);
+    assert_eq!(status_12(64, false), MarkerStatus::Ok);
+    assert_eq!(small.areas_px[0], 30.0);
+    assert_eq!(status_12(30, true), MarkerStatus::Ok);
+}
+
 /// Followed tracking of the grid with markers 12 and 13 (the middle row's centre and its
 /// right neighbour) last seen at `pair` (`None`: without a position) and the others at rest;
 /// the frame has every other marker's blob at rest and `blob` for the pair. Every other
