@@ -41,8 +41,8 @@
 //! a blob 1.4 times its holder, or 1.3 times as swollen as the blobs around, or of two lobes,
 //! within a spacing of a blobless neighbour's prediction is that neighbour's too, hidden under
 //! it) or [`MarkerStatus::Ambiguous`] (two free blobs equally plausible); their feature cells
-//! stay empty and other markers' columns never shift. Two merged markers whose blob has about their
-//! two areas are split by the blob's second moments along its major axis
+//! stay empty and other markers' columns never shift. Two merged markers whose blob has about
+//! their two areas are split by the blob's second moments along its major axis
 //! ([`MarkerStatus::Split`]: a position, no area; ≈ 0.4 px from the truth for two touching
 //! discs of radius 10 px, test `a_merged_pair_is_split_by_its_moments`) — unless the blob has
 //! no waist and the split would put them under 0.55 of their predictions' separation: that is
@@ -1902,13 +1902,15 @@ fn doubt_split_beside_doubt(
 /// and 19 swollen, was measured 3.2 px off; drag matrix seeds 1–40: wrong identities 68 → 63,
 /// 20 fewer lost).
 fn lose_cut(m: &Matching<'_>, usable: usize, status: &mut [MarkerStatus]) {
-    let matched = m.matched();
+    // Most frames have no marker on a cut blob: the matched set only for those that do.
+    let mut matched: Option<Vec<bool>> = None;
     for (i, (st, a)) in status.iter_mut().zip(&m.assignment).enumerate() {
-        let whole_blob = |j: usize| {
-            let s = m.predict(i, &matched).map_or(1.0, |(_, s)| s);
-            whole(m.blobs[j].area_px, m.reference.areas_px[i] * s * s, m.cfg)
+        let Some(j) = a.filter(|&j| j >= usable) else {
+            continue;
         };
-        if a.is_some_and(|j| j >= usable && !whole_blob(j)) {
+        let matched = matched.get_or_insert_with(|| m.matched());
+        let s = m.predict(i, matched).map_or(1.0, |(_, s)| s);
+        if !whole(m.blobs[j].area_px, m.reference.areas_px[i] * s * s, m.cfg) {
             *st = MarkerStatus::Lost;
         }
     }
@@ -2154,9 +2156,9 @@ fn gap_motion(
 }
 
 /// A blob with at least this share of the area of the ellipse with its second moments
-/// ([`ellipse_fill`]) has no waist between two lobes ([`one_stretched_marker`]): an ellipse fills all of it, two touching discs 0.89. On
-/// the drag matrix (seeds 1–24) the merged pairs split right measured 0.58–0.91 with a waist,
-/// the stretched single markers 0.995–1.0.
+/// ([`ellipse_fill`]) has no waist between two lobes ([`one_stretched_marker`]): an ellipse
+/// fills all of it, two touching discs 0.89. On the drag matrix (seeds 1–24) the merged pairs
+/// split right measured 0.58–0.91 with a waist, the stretched single markers 0.995–1.0.
 const NO_WAIST_FILL: f64 = 0.95;
 
 /// Two markers split from a blob with no waist closer than this share of their predictions'
@@ -2175,7 +2177,7 @@ fn one_stretched_marker(b: &Blob, d: f64, d_pred: f64) -> bool {
 }
 
 /// The share of the ellipse with a blob's second moments (`4π·√(λ1·λ2)`, each variance widened
-/// by the pixel's own 1/12) that its area fills: 1 for an ellipse, 0.875 for two touching
+/// by the pixel's own 1/12) that its area fills: 1 for an ellipse, 0.89 for two touching
 /// equal discs, less for two lobes joined by a thinner bridge.
 fn ellipse_fill(b: &Blob) -> f64 {
     let pixel = 1.0 / 12.0;
