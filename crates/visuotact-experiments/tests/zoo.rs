@@ -308,7 +308,11 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// the pin at rest but under its size swollen by a deep press (small TacTip variant 4, seed
 /// 35: 1 before the cut test was scaled by the local magnification); and two dots shrunk
 /// under the contact and touching in one blob of one dot's size but two lobes, its holder
-/// measured at their centroid (dots variant 3, seed 9, 1.32 pitches: 2 before).
+/// measured at their centroid (dots variant 3, seed 9, 1.32 pitches: 2 before); and a TacTip
+/// rim dragged about two pitches, its outer row out of the round view and read one lattice
+/// step short, the largest motion left under a pitch and two pins on one blob with no waist
+/// (variant 4, seed 12, and variant 6, seed 10: 4 and 6 wrong identities before such frames
+/// were looked at from 0.9 pitch).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -339,6 +343,8 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("dots", 3, 21),
         ("tactip-small", 4, 35),
         ("dots", 3, 9),
+        ("tactip", 4, 12),
+        ("tactip", 6, 10),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

@@ -716,8 +716,20 @@ const GAP_MOTION: f64 = 0.4;
 /// spacings, has no gaps in doubt ([`doubt_around_gaps`]).
 const FRAME_MOTION: f64 = 1.0;
 
+/// [`FRAME_MOTION`] in a frame where two markers fell on one blob with no waist that was not
+/// split ([`unsplit_waistless_pair`]): a sign of a field read a lattice step short, the pair
+/// on a single marker's blob. A TacTip rim dragged two pitches, its outer row pushed out of
+/// the round view, was read a step short with its largest held motion 0.96–0.97 spacing
+/// and such a pair inside. On the drag matrix at `--motion-limit 1`: seeds 9–24, wrong
+/// identities 25 → 8 (TacTip 16 → 2, small TacTip 4 → 1), lost +136 of 31 116, none in
+/// frames moved under a pitch; seeds 1–8, 20 more lost (dots), all beyond a pitch.
+const WAISTLESS_FRAME_MOTION: f64 = 0.9;
+
 /// Radius of the doubt around such a gap, in spacings, per spacing of motion plus one.
 const GAP_REACH: f64 = 2.0;
+
+/// A marker merged on a blob: (blob, marker, predicted position, local magnification).
+type OnBlob = (usize, usize, (f64, f64), f64);
 
 /// The working state of one frame's matching.
 struct Matching<'a> {
@@ -1557,7 +1569,7 @@ fn anchors_from_prior(reference: &TrackReference, p: &[Option<(f64, f64)>]) -> V
 struct Classified {
     status: Vec<MarkerStatus>,
     merged_blob: Vec<bool>,
-    on_blob: Vec<(usize, usize, (f64, f64), f64)>,
+    on_blob: Vec<OnBlob>,
 }
 
 impl Matching<'_> {
@@ -1709,7 +1721,7 @@ impl Matching<'_> {
         let mut status = vec![MarkerStatus::Ok; n];
         let mut merged_blob = vec![false; blobs.len()];
         // (blob, marker, predicted position, local magnification) of every merged marker.
-        let mut on_blob: Vec<(usize, usize, (f64, f64), f64)> = Vec::new();
+        let mut on_blob: Vec<OnBlob> = Vec::new();
         let matched = m.matched();
         // The marker holding each blob.
         let mut owner: Vec<Option<usize>> = vec![None; blobs.len()];
@@ -1841,7 +1853,7 @@ pub fn track_with(
         (&doubtful, &stretched),
         &predicted,
         prior,
-        (shift, usable),
+        (shift, usable, &on_blob),
         &mut status,
     );
     for i in stretched {
@@ -1939,16 +1951,22 @@ fn three_rows<'c>(
 /// markers' positions in the prior frame), [`doubt_reacquired_beside_unseen`] find; then
 /// reports [`MarkerStatus::Merged`] the pairs split from one `stretched` marker
 /// ([`one_stretched_marker`]) and, order-free, last, the markers
-/// [`Matching::holding_a_swollen_blob`] finds.
+/// [`Matching::holding_a_swollen_blob`] finds. `on_blob` (the markers merged on each blob)
+/// sets the motion a frame needs for gaps ([`unsplit_waistless_pair`]).
 fn put_in_doubt(
     m: &Matching<'_>,
     (doubtful, stretched): (&[usize], &[usize]),
     predicted: &[(f64, f64)],
     prior: Option<&[Option<(f64, f64)>]>,
-    (shift, usable): ((f64, f64), usize),
+    (shift, usable, on_blob): ((f64, f64), usize, &[OnBlob]),
     status: &mut [MarkerStatus],
 ) {
     let reference = m.reference;
+    let frame_motion = if unsplit_waistless_pair(m.blobs, on_blob, status) {
+        WAISTLESS_FRAME_MOTION
+    } else {
+        FRAME_MOTION
+    };
     for &i in doubtful {
         if status[i] == MarkerStatus::Ok {
             status[i] = MarkerStatus::Ambiguous;
@@ -1956,7 +1974,7 @@ fn put_in_doubt(
     }
     let gaps = prior
         .is_none()
-        .then(|| doubt_around_gaps(reference, m, status, (shift, usable)));
+        .then(|| doubt_around_gaps(reference, m, status, (shift, usable, frame_motion)));
     for i in gaps.into_iter().flatten() {
         status[i] = MarkerStatus::Ambiguous;
     }
@@ -2031,8 +2049,9 @@ fn whole(area_px: u32, rest_area_px: f64, cfg: &TrackConfig) -> bool {
 /// `GAP_REACH × (1 + motion)` spacings ahead of it (along its neighbours' mean motion; `motion`
 /// the largest), is put in doubt; so is a matched marker none of whose neighbours a lattice
 /// step away holds a blob outside the doubt (it took its blob on its own). Only in frames
-/// where some matched marker moved by [`FRAME_MOTION`] spacings: a lattice-step error needs a
-/// lattice step of motion.
+/// where some matched marker moved by `frame_motion` spacings ([`FRAME_MOTION`], or
+/// [`WAISTLESS_FRAME_MOTION`] where two markers sit unsplit on one blob with no waist): a
+/// lattice-step error needs a lattice step of motion.
 ///
 /// Why: a patch dragged by over a pitch loses markers where the skin bunches up ahead of the
 /// drag; the matching can then put the patch one lattice step short, with the missing marker
@@ -2046,11 +2065,11 @@ fn doubt_around_gaps(
     reference: &TrackReference,
     m: &Matching<'_>,
     status: &[MarkerStatus],
-    (shift, usable): ((f64, f64), usize),
+    (shift, usable, frame_motion): ((f64, f64), usize, f64),
 ) -> Vec<usize> {
     let held = |k: usize| m.assignment[k].is_some() && status[k] == MarkerStatus::Ok;
     let moved_a_step = |k: usize| {
-        let step = FRAME_MOTION * reference.spacing_px[k];
+        let step = frame_motion * reference.spacing_px[k];
         held(k) && dist_sq(m.disp[k], shift) >= step * step
     };
     if !(0..status.len()).any(moved_a_step) {
@@ -2186,6 +2205,16 @@ fn ellipse_fill(b: &Blob) -> f64 {
     f64::from(b.area_px) / ellipse_px
 }
 
+/// Whether two or more markers fell on one blob with no waist ([`NO_WAIST_FILL`]) and were
+/// not split from it.
+fn unsplit_waistless_pair(blobs: &[Blob], on_blob: &[OnBlob], status: &[MarkerStatus]) -> bool {
+    on_blob.chunk_by(|a, b| a.0 == b.0).any(|g| {
+        g.len() >= 2
+            && g.iter().all(|e| status[e.1] != MarkerStatus::Split)
+            && ellipse_fill(&blobs[g[0].0]) >= NO_WAIST_FILL
+    })
+}
+
 /// Splits blobs that exactly two merged markers fell on, when the blob's area is about theirs
 /// together: two markers of areas `a1`, `a2` (discs: variance `a/4π` along any axis) whose
 /// centres are `d` apart along the blob's major axis give the blob a variance of
@@ -2203,7 +2232,7 @@ fn split_pairs(
     reference: &TrackReference,
     blobs: &[Blob],
     cfg: &TrackConfig,
-    on_blob: &mut [(usize, usize, (f64, f64), f64)],
+    on_blob: &mut [OnBlob],
     prior: Option<&[Option<(f64, f64)>]>,
     status: &mut [MarkerStatus],
 ) -> (Vec<Option<(f64, f64)>>, Vec<usize>) {
