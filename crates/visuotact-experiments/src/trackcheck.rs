@@ -11,6 +11,10 @@
 //!   than its own, or off its own by over half its spacing, has a **wrong identity**;
 //! - the **displacement error** is `|(measured − reference) − (true − true at rest)|` over the
 //!   visible markers reported `ok`.
+//!
+//! A frame's motion is the largest true displacement of a visible marker; the lost markers in
+//! frames within the motion limit are also counted apart where a marker in view but hidden
+//! (behind a neighbour, or squeezed to a sliver) moved beyond it.
 
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
@@ -181,9 +185,14 @@ pub struct CheckReport {
     pub beyond_lost: usize,
     /// Of `wrong`, those in such frames.
     pub beyond_wrong: usize,
+    /// Of `lost` in the frames within `motion_limit_pitches`, those in frames where a marker
+    /// in view but not visible (hidden behind a neighbour, or squeezed to a sliver) moved
+    /// beyond it: the skin moved that far, under a neighbour.
+    pub hidden_beyond_lost: usize,
 }
 
-type Truth = Vec<(f64, f64, f64, bool)>;
+/// Per simulated marker: position (pixels), area (pixels), visible, in view.
+type Truth = Vec<(f64, f64, f64, bool, bool)>;
 
 /// A touch of either kind, with its depth for the record.
 enum AnyTouch {
@@ -249,7 +258,7 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> Result<(RgbImage, 
                 img,
                 truth
                     .iter()
-                    .map(|m| (m.x_px, m.y_px, m.area_px, m.visible))
+                    .map(|m| (m.x_px, m.y_px, m.area_px, m.visible, m.fully_in_view))
                     .collect(),
             ))
         }
@@ -259,7 +268,7 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> Result<(RgbImage, 
                 img,
                 truth
                     .iter()
-                    .map(|m| (m.x_px, m.y_px, m.area_px, m.visible))
+                    .map(|m| (m.x_px, m.y_px, m.area_px, m.visible, m.in_view))
                     .collect(),
             ))
         }
@@ -412,6 +421,8 @@ impl CheckReport {
                 report.beyond_frames += 1;
                 report.beyond_lost += fc.lost;
                 report.beyond_wrong += fc.wrong;
+            } else if fc.max_motion_in_view > motion_limit_pitches {
+                report.hidden_beyond_lost += fc.lost;
             }
             report.visible += fc.visible;
             report.lost += fc.lost;
@@ -462,6 +473,8 @@ fn pair(cal: &SensorCalibration, rest: &Truth) -> Vec<Option<usize>> {
 #[derive(Default)]
 struct FrameCheck {
     max_motion: f64,
+    /// The largest motion of a marker in view, visible or not, in pitches.
+    max_motion_in_view: f64,
     visible: usize,
     lost: usize,
     wrong: usize,
@@ -482,16 +495,18 @@ fn frame_check(
 ) -> FrameCheck {
     let mut out = FrameCheck::default();
     let per = FeatureSet::ALL.per_marker();
-    // The largest true displacement of a visible marker, in pitches.
-    let max_disp = cal
-        .markers
-        .iter()
-        .zip(pairing)
-        .filter_map(|(_, t)| *t)
-        .filter(|&t| now[t].3)
-        .map(|t| (now[t].0 - rest[t].0).hypot(now[t].1 - rest[t].1) / cal.pitch_px)
-        .fold(0.0, f64::max);
+    // The largest true displacement of a visible marker, and of one in view, in pitches.
+    let largest_motion = |counts: &dyn Fn(usize) -> bool| {
+        pairing
+            .iter()
+            .filter_map(|t| *t)
+            .filter(|&t| counts(t))
+            .map(|t| (now[t].0 - rest[t].0).hypot(now[t].1 - rest[t].1) / cal.pitch_px)
+            .fold(0.0, f64::max)
+    };
+    let max_disp = largest_motion(&|t| now[t].3);
     out.max_motion = max_disp;
+    out.max_motion_in_view = largest_motion(&|t| now[t].4);
     for (i, (m, t)) in cal.markers.iter().zip(pairing).enumerate() {
         let Some(t) = *t else { continue };
         let visible = now[t].3;

@@ -73,7 +73,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
     let centroid = a.centroid;
     say!(
-        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong"
+        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong\thidden_beyond_lost"
     );
     let (mut lost, mut wrong) = (0, 0);
     for v in parse_range(&a.variants)? {
@@ -102,7 +102,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         };
         let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
         say!(
-            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}",
+            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}\t{}",
             a.sensor,
             r.layout.map_or("-", Layout::name),
             r.sim_markers,
@@ -118,7 +118,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             r.max_motion_pitches,
             r.beyond_frames,
             r.beyond_lost,
-            r.beyond_wrong
+            r.beyond_wrong,
+            r.hidden_beyond_lost
         );
         if a.verbose {
             for e in &r.examples {
