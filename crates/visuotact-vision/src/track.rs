@@ -1962,19 +1962,20 @@ fn put_in_doubt(
     status: &mut [MarkerStatus],
 ) {
     let reference = m.reference;
-    let frame_motion = if unsplit_waistless_pair(m.blobs, on_blob, status) {
-        WAISTLESS_FRAME_MOTION
-    } else {
-        FRAME_MOTION
-    };
     for &i in doubtful {
         if status[i] == MarkerStatus::Ok {
             status[i] = MarkerStatus::Ambiguous;
         }
     }
-    let gaps = prior
-        .is_none()
-        .then(|| doubt_around_gaps(reference, m, status, (shift, usable, frame_motion)));
+    let gaps = prior.is_none().then(|| {
+        // `on_blob` is sorted by blob (`split_pairs`); a split leaves no status Ok to doubt.
+        let frame_motion = if unsplit_waistless_pair(m.blobs, on_blob, status) {
+            WAISTLESS_FRAME_MOTION
+        } else {
+            FRAME_MOTION
+        };
+        doubt_around_gaps(reference, m, status, (shift, usable, frame_motion))
+    });
     for i in gaps.into_iter().flatten() {
         status[i] = MarkerStatus::Ambiguous;
     }
