@@ -91,9 +91,11 @@ fn the_9dtact_options_work_as_written() {
 /// The TacTip data set commands on the real 127-pin set: every test frame estimated, each
 /// target's mean absolute error under the naive OpenCV + scikit-learn MLP(64, 64) peer's on the
 /// same split (`scripts/peer_tactip127.py`, measured 0.1648 mm, 2.0715°, 0.4837 mm, 1.3798°),
-/// and the pose's (y, rotation) at most half the peer's, as issue 34 asks. The default
-/// measured 0.0804–0.0808 mm, 0.910–0.931°, 0.395–0.397 mm, 1.039–1.041° on train seeds 1–3
-/// (docs/benchmarks.md); shear and twist stay above half the peer's (the frames' limit there).
+/// and the pose's (y, rotation) at most half the peer's, as issue 34 asks. Shear and twist stay
+/// above half the peer's (the frames' limit there, docs/benchmarks.md); the bounds on them
+/// (0.8 and 0.72 of the peer's) hold the gain of reading the binarised pins without their
+/// areas: with the areas the default measured 0.395–0.397 mm and 1.036–1.041° on train seeds
+/// 1–3, without them 0.3755 mm and 0.963° (seed 1).
 #[test]
 fn the_tactip_data_set_commands_work_as_written() {
     let lines = [
@@ -133,8 +135,8 @@ fn the_tactip_data_set_commands_work_as_written() {
     let peer = [
         ("pose_2", 0.1648, 0.5),
         ("pose_6", 2.0715, 0.5),
-        ("move_1", 0.4837, 1.0),
-        ("move_6", 1.3798, 1.0),
+        ("move_1", 0.4837, 0.8),
+        ("move_6", 1.3798, 0.72),
     ];
     for t in ev["targets"].as_array().unwrap() {
         let name = t["target"].as_str().unwrap();

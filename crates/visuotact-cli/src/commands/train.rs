@@ -204,11 +204,16 @@ fn choose(
         reporter.training(p)
     })
     .map_err(fit_error)?;
-    for score in &selection {
+    for (score, set) in selection.iter().zip(sets) {
         note!(
-            "  {} {}: held-out error / variance {:.3e} (per target {})",
+            "  {} {}{}: held-out error / variance {:.3e} (per target {})",
             if score.chosen { "chose" } else { "     " },
             score.inputs,
+            if set.handicap > 1.0 {
+                format!(" (only if {:.0} % better)", 100.0 * (set.handicap - 1.0))
+            } else {
+                String::new()
+            },
             score.error,
             score
                 .normalised_mse
