@@ -93,9 +93,9 @@ fn the_9dtact_options_work_as_written() {
 /// same split (`scripts/peer_tactip127.py`, measured 0.1648 mm, 2.0715°, 0.4837 mm, 1.3798°),
 /// and the pose's (y, rotation) at most half the peer's, as issue 34 asks. Shear and twist stay
 /// above half the peer's (the frames' limit there, docs/benchmarks.md); the bounds on them
-/// (0.8 and 0.72 of the peer's) hold the gain of reading the binarised pins without their
-/// areas: with the areas the default measured 0.395–0.397 mm and 1.036–1.041° on train seeds
-/// 1–3, without them 0.3755 mm and 0.963° (seed 1).
+/// (0.81 and 0.73 of the peer's: 0.392 mm, 1.007°) hold the gain of reading the binarised pins
+/// without their areas: with the areas the default measured 0.395–0.397 mm and 1.036–1.041° on
+/// train seeds 1–3, without them 0.377–0.379 mm and 0.965–0.974°.
 #[test]
 fn the_tactip_data_set_commands_work_as_written() {
     let lines = [
@@ -135,8 +135,8 @@ fn the_tactip_data_set_commands_work_as_written() {
     let peer = [
         ("pose_2", 0.1648, 0.5),
         ("pose_6", 2.0715, 0.5),
-        ("move_1", 0.4837, 0.8),
-        ("move_6", 1.3798, 0.72),
+        ("move_1", 0.4837, 0.81),
+        ("move_6", 1.3798, 0.73),
     ];
     for t in ev["targets"].as_array().unwrap() {
         let name = t["target"].as_str().unwrap();

@@ -40,8 +40,8 @@ pub(crate) struct Args {
     /// dashboard show it) is the larger of the networks' standard deviation and the held-out
     /// RMS error of the training frames whose estimates lie nearest (samples the networks' or
     /// the input choice's folds held out). By default 5 (on 280 simulated touches of four sensors
-    /// it cut the contact error by 7–35 % against one network), or 3 Levenberg–Marquardt
-    /// networks on tables of 1 000 frames or more (docs/benchmarks.md).
+    /// it cut the contact error by 7–35 % against one network); on tables of 1 000 frames or
+    /// more 3 Levenberg–Marquardt networks or 4 wide ones (docs/benchmarks.md).
     #[arg(long, value_name = "K")]
     ensemble: Option<usize>,
     /// Sensor file to store in the model (the calibration the features came from).
