@@ -12,8 +12,8 @@ use std::time::Instant;
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_nn::fit::{
-    candidate_inputs, column_kinds, fit_choosing, quietly, wide_candidate, FieldInputs, FitConfig,
-    FitData, FitError, InputSet, SELECTION_FOLDS,
+    candidate_inputs, column_kinds, ensemble_for, fit_choosing_ensemble, folds_trained, quietly,
+    wide_candidate, FieldInputs, FitConfig, FitData, FitError, InputSet, SELECTION_FOLDS,
 };
 use visuotact_nn::metrics::{target_errors, TargetErrors};
 use visuotact_nn::model::{is_marker_column, EstimateError, Model};
@@ -254,8 +254,9 @@ fn train(
         targets: &targets,
     };
     let t0 = Instant::now();
-    let model = fit_choosing(&data, cfg, sets, folds, quietly)?;
-    let inputs = inputs_of(&model, (sets, folds));
+    let ensemble = |set: &InputSet| ensemble_for(x.len(), set, cfg);
+    let model = fit_choosing_ensemble(&data, cfg, (sets, folds), ensemble, quietly)?;
+    let inputs = inputs_of(&model, (sets, folds), x.len());
     Ok(Trained {
         model,
         train_s: t0.elapsed().as_secs_f64(),
@@ -333,11 +334,16 @@ fn inputs_of_rows(
     Ok(move |row: &[f64]| picks.iter().map(|&i| row[i]).collect())
 }
 
-/// The inputs `model` was trained on, in words.
-fn inputs_of(model: &Model, (sets, folds): (&[InputSet], usize)) -> String {
+/// The inputs `model` was trained on (from `samples` samples), in words.
+fn inputs_of(model: &Model, (sets, folds): (&[InputSet], usize), samples: usize) -> String {
+    let how = if folds_trained(samples, folds) == folds {
+        format!("{folds}-fold cross-validation")
+    } else {
+        format!("one network each on a held-out fold of {folds}")
+    };
     match model.training.selection.iter().find(|s| s.chosen) {
         Some(chosen) => format!(
-            "{} (chosen by {folds}-fold cross-validation; held-out error / variance {})",
+            "{} (chosen by {how}; held-out error / variance {})",
             chosen.inputs,
             model
                 .training

@@ -1143,11 +1143,27 @@ pub fn fit_choosing(
     folds: usize,
     progress: impl Progress,
 ) -> Result<Model, FitError> {
+    fit_choosing_ensemble(data, cfg, (sets, folds), |_| cfg.ensemble, progress)
+}
+
+/// [`fit_choosing`] with `ensemble(set)` networks for the set chosen — `visuotact train`'s
+/// default is [`ensemble_for`] the table's size.
+pub fn fit_choosing_ensemble(
+    data: &FitData<'_>,
+    cfg: &FitConfig,
+    (sets, folds): (&[InputSet], usize),
+    ensemble: impl Fn(&InputSet) -> usize,
+    progress: impl Progress,
+) -> Result<Model, FitError> {
     if sets.is_empty() {
         return fit(data, cfg, progress);
     }
     let (best, mut scores) = choose_inputs(data, cfg, sets, folds, quietly)?;
-    let mut model = fit_set(data, &sets[best], cfg, progress)?;
+    let cfg = FitConfig {
+        ensemble: ensemble(&sets[best]),
+        ..cfg.clone()
+    };
+    let mut model = fit_set(data, &sets[best], &cfg, progress)?;
     with_held_out_errors(&mut model, &mut scores, data.t);
     model.training.selection = scores;
     Ok(model)
