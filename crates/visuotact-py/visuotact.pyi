@@ -77,7 +77,7 @@ class Model:
         algorithm: str = "trainbr",
         components: str = "auto",
         field: str = "auto",
-        ensemble: int = 5,
+        ensemble: int | None = None,
         seed: int = 1,
         max_epochs: int = 1000,
         sensor: Sensor | None = None,

@@ -30,8 +30,8 @@ use pyo3::types::{PyDict, PyString};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::{read_image, FrameStream};
 use visuotact_nn::fit::{
-    candidate_inputs, column_kinds, components_from_name, fit_choosing, quietly, wide_candidate,
-    FieldInputs, FitConfig, FitData, SELECTION_FOLDS,
+    candidate_inputs, column_kinds, components_from_name, ensemble_for, fit_choosing_ensemble,
+    quietly, wide_candidate, FieldInputs, FitConfig, FitData, SELECTION_FOLDS,
 };
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
@@ -350,11 +350,13 @@ fn training_columns(columns: &[String], field: &str) -> PyResult<Vec<usize>> {
 impl Model {
     /// Trains on a feature table (`features`: samples × columns, NaN for lost markers) and
     /// labels (samples × targets), with `visuotact train`'s defaults: trainbr, one hidden
-    /// layer of 20, 5 networks; on wide sensors the field summary with 10 principal components
-    /// of the markers' features, or the field summary alone, whichever 5-fold
-    /// cross-validation prefers (`Model.selection` has the scores). `components`: "auto", 0 (none) or a count.
+    /// layer of 20, 5 networks (from 1 000 samples 3, or 4 wide ones; `ensemble` fixes it);
+    /// on wide sensors the field summary with 10 principal components of the markers'
+    /// features, or the field summary alone, whichever 5-fold cross-validation prefers, and
+    /// from 1 000 samples the wide network too (`Model.selection` has the scores).
+    /// `components`: "auto", 0 (none) or a count.
     #[staticmethod]
-    #[pyo3(signature = (features, labels, columns, targets, hidden = None, algorithm = "trainbr", components = "auto".to_string(), field = "auto", ensemble = 5, seed = 1, max_epochs = 1000, sensor = None))]
+    #[pyo3(signature = (features, labels, columns, targets, hidden = None, algorithm = "trainbr", components = "auto".to_string(), field = "auto", ensemble = None, seed = 1, max_epochs = 1000, sensor = None))]
     #[allow(
         clippy::too_many_arguments,
         reason = "Python keyword arguments, each with a default"
@@ -369,7 +371,7 @@ impl Model {
         algorithm: &str,
         components: String,
         field: &str,
-        ensemble: usize,
+        ensemble: Option<usize>,
         seed: u64,
         max_epochs: usize,
         sensor: Option<&Sensor>,
@@ -401,7 +403,7 @@ impl Model {
             })?,
             components: components_from_name(&components, markers)
                 .map_err(|e| error(format!("components {e}")))?,
-            ensemble,
+            ensemble: ensemble.unwrap_or(auto.ensemble),
             seed,
             max_epochs,
             ..auto
@@ -419,7 +421,11 @@ impl Model {
             targets: &targets,
         };
         let mut m = py
-            .detach(|| fit_choosing(&data, &cfg, &sets, SELECTION_FOLDS, quietly))
+            .detach(|| {
+                let networks =
+                    |set: &_| ensemble.unwrap_or_else(|| ensemble_for(x.len(), set, &cfg));
+                fit_choosing_ensemble(&data, &cfg, (&sets, SELECTION_FOLDS), networks, quietly)
+            })
             .map_err(error)?;
         if let Some(s) = sensor {
             m.sensor = Some(
