@@ -322,3 +322,15 @@ pub fn is_marker_column(c: &str) -> bool {
     let b = c.as_bytes();
     b.len() > 5 && b[0] == b'm' && b[1..4].iter().all(u8::is_ascii_digit) && b[4] == b'_'
 }
+
+/// Whether a feature column is a marker's shape change rather than its displacement: its area
+/// (`m017_darea_px`, `m017_darea_mm2`) or eccentricity (`m017_decc`).
+///
+/// ```
+/// use visuotact_image::is_marker_shape_column;
+/// assert!(is_marker_shape_column("m017_darea_px") && is_marker_shape_column("m017_decc"));
+/// assert!(!is_marker_shape_column("m017_dx_px") && !is_marker_shape_column("field_rms_px"));
+/// ```
+pub fn is_marker_shape_column(c: &str) -> bool {
+    is_marker_column(c) && matches!(c.get(5..), Some("darea_px" | "darea_mm2" | "decc"))
+}

@@ -137,12 +137,10 @@ pub fn column_kinds(columns: &[String], field_columns: &[&str]) -> Vec<ColumnKin
     columns
         .iter()
         .map(|c| {
-            if crate::model::is_marker_column(c) {
-                if is_shape_column(c) {
-                    ColumnKind::MarkerShape
-                } else {
-                    ColumnKind::Marker
-                }
+            if visuotact_image::is_marker_shape_column(c) {
+                ColumnKind::MarkerShape
+            } else if crate::model::is_marker_column(c) {
+                ColumnKind::Marker
             } else if field_columns.contains(&c.as_str()) {
                 ColumnKind::Field
             } else {
@@ -157,11 +155,6 @@ impl ColumnKind {
     pub fn is_marker(self) -> bool {
         matches!(self, Self::Marker | Self::MarkerShape)
     }
-}
-
-/// Whether a marker's column is a shape change: `darea_px`, `darea_mm2` or `decc`.
-fn is_shape_column(c: &str) -> bool {
-    matches!(c.get(5..), Some("darea_px" | "darea_mm2" | "decc"))
 }
 
 /// A set of a table's columns to train on, with how its markers' features are projected.
@@ -190,7 +183,7 @@ pub struct InputSet {
 /// it must beat the others by 5 %. On the zoo TacTip (5 000 simulated touches, 6 targets) it
 /// won the choice by 1 % on one seed and lost it on another (the same set's held-out error
 /// moved by 3 % between the seeds), and on that seed's test touches its shear was 11 % worse;
-/// on the real 127-pin TacTip set it wins by 17 % and every target's test error falls by 5–9 %
+/// on the real 127-pin TacTip set it wins by 17 % and every target's test error falls by 4–9 %
 /// (docs/benchmarks.md).
 pub const SHAPELESS_HANDICAP: f64 = 1.05;
 
