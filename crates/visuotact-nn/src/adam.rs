@@ -27,6 +27,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::lm::Control;
 use crate::mlp::Mlp;
+use crate::tansig::{tansig, tansig_of_sum_in_place};
 
 /// Adam's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,7 +122,8 @@ pub struct Samples<'a> {
 
 /// Activations and sensitivities of one batch, kept between batches.
 struct Batch {
-    /// Per layer, the batch's activations (`B × size`), inputs first.
+    /// Per layer, the batch's activations (`B × size`), inputs first — those transposed
+    /// (`size × B`, one sample per column) so that loading a sample is one contiguous copy.
     acts: Vec<Mat<f64>>,
     /// Per layer, the sensitivities to its pre-activations (`B × size`), after the inputs.
     deltas: Vec<Mat<f64>>,
@@ -130,12 +132,31 @@ struct Batch {
 impl Batch {
     fn new(sizes: &[usize], rows: usize) -> Self {
         Self {
-            acts: sizes.iter().map(|&s| Mat::zeros(rows, s)).collect(),
+            acts: sizes
+                .iter()
+                .enumerate()
+                .map(|(l, &s)| {
+                    if l == 0 {
+                        Mat::zeros(s, rows)
+                    } else {
+                        Mat::zeros(rows, s)
+                    }
+                })
+                .collect(),
             deltas: sizes[1..].iter().map(|&s| Mat::zeros(rows, s)).collect(),
         }
     }
 
-    /// Forward pass over `rows` samples whose inputs are in `acts[0]`'s first rows.
+    /// Layer `l`'s activations of the first `rows` samples (`rows × size`).
+    fn layer(acts: &[Mat<f64>], l: usize, rows: usize) -> MatRef<'_, f64> {
+        if l == 0 {
+            acts[0].as_ref().subcols(0, rows).transpose()
+        } else {
+            acts[l].as_ref().subrows(0, rows)
+        }
+    }
+
+    /// Forward pass over `rows` samples whose inputs are in `acts[0]`'s first columns.
     fn forward(&mut self, net: &Mlp, p: &[f64], rows: usize) {
         let layers = net.sizes.len() - 1;
         let mut off = 0;
@@ -145,13 +166,15 @@ impl Batch {
             let b = &p[off + n_in * n_out..off + n_in * n_out + n_out];
             off += n_in * n_out + n_out;
             let (prev, next) = self.acts.split_at_mut(l + 1);
-            let a = prev[l].as_ref().subrows(0, rows);
+            let a = Self::layer(prev, l, rows);
             let mut z = next[0].as_mut().subrows_mut(0, rows);
             matmul(z.rb_mut(), Accum::Replace, a, wt, 1.0, Par::Seq);
             let hidden = l + 1 < layers;
             for (o, &bo) in b.iter().enumerate() {
-                for v in z.rb_mut().col_mut(o).iter_mut() {
-                    *v = if hidden { (*v + bo).tanh() } else { *v + bo };
+                let col = z.rb_mut().col_mut(o);
+                match col.try_as_col_major_mut() {
+                    Some(c) if hidden => tansig_of_sum_in_place(c.as_slice_mut(), bo),
+                    _ => col_add_or_tansig(z.rb_mut().col_mut(o).iter_mut(), bo, hidden),
                 }
             }
         }
@@ -180,7 +203,7 @@ impl Batch {
             let (n_in, n_out, off) = (net.sizes[l], net.sizes[l + 1], offs[l]);
             let (w_grad, rest) = grad[off..].split_at_mut(n_in * n_out);
             let d = self.deltas[l].as_ref().subrows(0, rows);
-            let a = self.acts[l].as_ref().subrows(0, rows);
+            let a = Self::layer(&self.acts, l, rows);
             let gw = MatMut::from_column_major_slice_mut(w_grad, n_in, n_out);
             matmul(gw, Accum::Replace, a.transpose(), d, 1.0, Par::Seq);
             for (o, g) in rest[..n_out].iter_mut().enumerate() {
@@ -214,14 +237,19 @@ impl Batch {
         sse
     }
 
-    /// Copies the inputs of `ids` into the first rows of `acts[0]`.
+    /// Copies the inputs of `ids` into the first columns of `acts[0]`.
     fn load(&mut self, x: &[&[f64]], ids: &[usize]) {
-        let mut a = self.acts[0].as_mut();
         for (r, &i) in ids.iter().enumerate() {
-            for (c, &v) in x[i].iter().enumerate() {
-                a[(r, c)] = v;
-            }
+            self.acts[0].col_as_slice_mut(r).copy_from_slice(x[i]);
         }
+    }
+}
+
+/// A column's values plus `bias`, through [`tansig`] when `hidden` (the strided path; an
+/// output layer's columns are only shifted).
+fn col_add_or_tansig<'a>(col: impl Iterator<Item = &'a mut f64>, bias: f64, hidden: bool) {
+    for v in col {
+        *v = if hidden { tansig(*v + bias) } else { *v + bias };
     }
 }
 
@@ -253,7 +281,7 @@ fn batched_mse(net: &Mlp, p: &[f64], samples: Samples<'_>, batch: &mut Batch) ->
     if n == 0 {
         return f64::NAN;
     }
-    let cap = batch.acts[0].nrows();
+    let cap = batch.acts[0].ncols();
     let layers = net.sizes.len() - 1;
     let mut sum = 0.0;
     let ids: Vec<usize> = (0..n).collect();

@@ -57,6 +57,7 @@ pub mod model;
 pub mod nist;
 pub mod pca;
 pub mod sweep;
+pub mod tansig;
 
 /// Any error of this crate: each module's error converts into it, for callers that handle them alike (`?` into one type).
 #[derive(Debug, thiserror::Error)]

@@ -15,6 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::lm::{minimize, Control, DualJacobian, LmConfig, LmOutcome, Problem, StopReason};
+use crate::tansig::tansig_in_place;
 
 /// Layer sizes and weights.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -97,8 +98,10 @@ impl Mlp {
             z.clear();
             for o in 0..n_out {
                 let row = &w[o * n_in..(o + 1) * n_in];
-                let s: f64 = row.iter().zip(a).map(|(wi, ai)| wi * ai).sum::<f64>() + b[o];
-                z.push(if l + 1 == layers { s } else { s.tanh() });
+                z.push(row.iter().zip(a).map(|(wi, ai)| wi * ai).sum::<f64>() + b[o]);
+            }
+            if l + 1 < layers {
+                tansig_in_place(z);
             }
         }
     }
