@@ -116,14 +116,16 @@ fn binarised_tactip_frames_are_tracked_at_the_digitisation_floor() {
     }
 }
 
-/// Visible markers a tracker got wrong in one frame: not `ok`, or 0.5 px or more from the
-/// truth.
+/// Visible markers a tracker got wrong in one frame: not `ok` (withheld), or 0.5 px or more
+/// from the truth (wrong).
 #[derive(Debug, Default)]
 struct Followed {
     /// Largest true motion of a visible marker, in pitches.
     motion_pitches: f64,
-    /// With the temporal prior, frame after frame.
-    temporal: Vec<String>,
+    /// With the temporal prior, frame after frame: measured 0.5 px or more from the truth.
+    temporal_wrong: Vec<String>,
+    /// With the temporal prior: reported lost, ambiguous or merged.
+    temporal_withheld: Vec<String>,
     /// Each frame on its own.
     order_free: usize,
 }
@@ -201,7 +203,13 @@ fn follow(
                     },
                 )
             };
-            o.temporal.extend(off(&f));
+            if let Some(why) = off(&f) {
+                if f.status[i] == MarkerStatus::Ok {
+                    o.temporal_wrong.push(why);
+                } else {
+                    o.temporal_withheld.push(why);
+                }
+            }
             o.order_free += usize::from(off(&g).is_some());
         }
         out.push(o);
@@ -225,13 +233,31 @@ fn the_temporal_prior_follows_a_drag_built_up_past_the_order_free_limit() {
         })
         .collect();
     let frames = follow(&cfg, &touches);
+    // Never a wrong position; withheld (a marker on a blob it may share with a neighbour
+    // dragged onto it and hidden, `holding_a_swollen_blob`) only beyond a pitch, as issue 34
+    // asks, and a few where order-free tracking gets hundreds wrong or lost.
     for (step, f) in frames.iter().enumerate() {
-        assert!(f.temporal.is_empty(), "step {step}: {:#?}", f.temporal);
+        assert!(
+            f.temporal_wrong.is_empty(),
+            "step {step}: {:#?}",
+            f.temporal_wrong
+        );
+        assert!(
+            f.temporal_withheld.is_empty() || f.motion_pitches > 1.0,
+            "step {step}, moved {:.2} pitch: {:#?}",
+            f.motion_pitches,
+            f.temporal_withheld
+        );
     }
     let motion = frames.iter().map(|f| f.motion_pitches).fold(0.0, f64::max);
     assert!(motion > MOTION_LIMIT_PITCHES, "motion {motion:.2} pitch");
     let free: usize = frames.iter().map(|f| f.order_free).sum();
-    eprintln!("order-free tracking on the same frames: {free} marker-frames wrong or lost");
+    let withheld: usize = frames.iter().map(|f| f.temporal_withheld.len()).sum();
+    assert!(
+        10 * withheld < free,
+        "followed: {withheld} withheld; order-free: {free} wrong or lost"
+    );
+    eprintln!("followed: {withheld} marker-frames withheld; order-free: {free} wrong or lost");
 }
 
 /// The drag that order-free matching takes a lattice step short (the one frame of
@@ -260,7 +286,16 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
         .collect();
     let frames = follow(&cfg, &touches);
     for (step, f) in frames.iter().enumerate() {
-        assert!(f.temporal.is_empty(), "step {step}: {:#?}", f.temporal);
+        assert!(
+            f.temporal_wrong.is_empty(),
+            "step {step}: {:#?}",
+            f.temporal_wrong
+        );
+        assert!(
+            f.temporal_withheld.is_empty(),
+            "step {step}: {:#?}",
+            f.temporal_withheld
+        );
     }
     let last = frames.last().unwrap();
     assert!(

@@ -591,7 +591,7 @@ impl FeatureExtractor {
             self.prior.clear();
             let t = &self.last_track;
             self.prior
-                .extend((0..t.status.len()).map(|i| t.position_px(i, blobs)));
+                .extend((0..t.status.len()).map(|i| t.followed_px(i, blobs)));
         }
         self.marker_values_into(out);
         let t = &self.last_track;

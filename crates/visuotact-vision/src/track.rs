@@ -257,6 +257,11 @@ pub struct TrackResult {
     /// Estimated position of each [`MarkerStatus::Split`] marker (`None` for the others; empty
     /// when no marker was split).
     pub split_px: Vec<Option<(f64, f64)>>,
+    /// Followed tracking: the blob centroid of each marker reported [`MarkerStatus::Merged`]
+    /// because it held a swollen blob likely shared with a hidden neighbour (`None` for the
+    /// others; empty when there is none). Not a measurement: only where the next frame starts
+    /// looking for it ([`TrackResult::followed_px`]).
+    pub held_px: Vec<Option<(f64, f64)>>,
 }
 
 impl TrackResult {
@@ -271,6 +276,14 @@ impl TrackResult {
             Some(j) => Some((blobs[j].x_px, blobs[j].y_px)),
             None => self.split_px.get(i).copied().flatten(),
         }
+    }
+
+    /// Where the next frame of a video starts looking for marker `i`: its
+    /// [`TrackResult::position_px`], or the blob it held while reported merged
+    /// ([`TrackResult::held_px`]).
+    pub fn followed_px(&self, i: usize, blobs: &[Blob]) -> Option<(f64, f64)> {
+        self.position_px(i, blobs)
+            .or_else(|| self.held_px.get(i).copied().flatten())
     }
 }
 
@@ -526,6 +539,7 @@ fn track_rings(reference: &TrackReference, sizes: &[f64], blobs: &[Blob]) -> Tra
         shift_px,
         spurious,
         split_px: Vec::new(),
+        held_px: Vec::new(),
     }
 }
 
@@ -1848,7 +1862,7 @@ pub fn track_with(
     let (mut split_px, stretched) =
         split_pairs(reference, blobs, cfg, &mut on_blob, prior, &mut status);
     lose_cut(&m, usable, &mut status);
-    put_in_doubt(
+    let held = put_in_doubt(
         &m,
         (&doubtful, &stretched),
         &predicted,
@@ -1861,21 +1875,22 @@ pub fn track_with(
             split_px[i] = None;
         }
     }
+    let held_px = held_positions(&m, &held);
     let mut assignment = m.assignment;
-    for i in 0..n {
-        if status[i] != MarkerStatus::Ok {
-            assignment[i] = None;
+    for (a, st) in assignment.iter_mut().zip(&status) {
+        if *st != MarkerStatus::Ok {
+            *a = None;
         }
     }
-    let spurious = (0..usable)
-        .filter(|&j| !m.taken[j] && !merged_blob[j])
-        .count();
     TrackResult {
         assignment,
         status,
         shift_px: shift,
-        spurious,
+        spurious: (0..usable)
+            .filter(|&j| !m.taken[j] && !merged_blob[j])
+            .count(),
         split_px,
+        held_px,
     }
 }
 
@@ -1951,8 +1966,10 @@ fn three_rows<'c>(
 /// markers' positions in the prior frame), [`doubt_reacquired_beside_unseen`] find; then
 /// reports [`MarkerStatus::Merged`] the pairs split from one `stretched` marker
 /// ([`one_stretched_marker`]) and, order-free, last, the markers
-/// [`Matching::holding_a_swollen_blob`] finds. `on_blob` (the markers merged on each blob)
-/// sets the motion a frame needs for gaps ([`unsplit_waistless_pair`]).
+/// [`Matching::holding_a_swollen_blob`] finds — followed too, where those are returned: the
+/// next frame starts from the blob they held ([`TrackResult::held_px`]). `on_blob` (the
+/// markers merged on each blob) sets the motion a frame needs for gaps
+/// ([`unsplit_waistless_pair`]).
 fn put_in_doubt(
     m: &Matching<'_>,
     (doubtful, stretched): (&[usize], &[usize]),
@@ -1960,7 +1977,7 @@ fn put_in_doubt(
     prior: Option<&[Option<(f64, f64)>]>,
     (shift, usable, on_blob): ((f64, f64), usize, &[OnBlob]),
     status: &mut [MarkerStatus],
-) {
+) -> Vec<usize> {
     let reference = m.reference;
     for &i in doubtful {
         if status[i] == MarkerStatus::Ok {
@@ -1988,14 +2005,46 @@ fn put_in_doubt(
     }
     if let Some(prior) = prior {
         doubt_reacquired_beside_unseen(m, prior, predicted, status);
+    }
+    // After the gaps, which a merged marker would widen. Followed, the marker's track goes on
+    // from its blob: predicted from its neighbours alone the next frame swapped more
+    // identities (22 → 27 on the followed drag matrix); and only in frames moved a pitch from
+    // rest (one GelSight dot merged in a frame moved 0.98 pitch, drag matrix seed 4).
+    let moved = prior.is_none() || moved_from_rest(m, status, FRAME_MOTION);
+    let held = if moved {
+        m.holding_a_swollen_blob(status)
     } else {
-        // After the gaps, which a merged marker would widen. Followed, a marker keeps its blob:
-        // withholding its position loses its track, and the next frame's prediction from its
-        // neighbours alone swapped more identities (22 → 27 on the followed drag matrix).
-        for i in m.holding_a_swollen_blob(status) {
-            status[i] = MarkerStatus::Merged;
+        Vec::new()
+    };
+    for &i in &held {
+        status[i] = MarkerStatus::Merged;
+    }
+    held
+}
+
+/// [`TrackResult::held_px`]: the blob centroid of each of the markers `held` (empty when none).
+fn held_positions(m: &Matching<'_>, held: &[usize]) -> Vec<Option<(f64, f64)>> {
+    let mut out = Vec::new();
+    for &i in held {
+        if let Some(j) = m.assignment[i] {
+            out.resize(m.assignment.len(), None);
+            out[i] = Some((m.blobs[j].x_px, m.blobs[j].y_px));
         }
     }
+    out
+}
+
+/// Whether some marker reported [`MarkerStatus::Ok`] holds a blob `spacings` of its spacings
+/// or more from its reference position.
+fn moved_from_rest(m: &Matching<'_>, status: &[MarkerStatus], spacings: f64) -> bool {
+    (0..status.len()).any(|k| {
+        let step = spacings * m.reference.spacing_px[k];
+        status[k] == MarkerStatus::Ok
+            && m.assignment[k].is_some_and(|j| {
+                let b = &m.blobs[j];
+                dist_sq((b.x_px, b.y_px), m.reference.positions[k]) >= step * step
+            })
+    })
 }
 
 /// Followed tracking: puts in doubt ([`MarkerStatus::Ambiguous`]) a marker that had no
