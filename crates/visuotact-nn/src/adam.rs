@@ -27,7 +27,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::lm::Control;
 use crate::mlp::Mlp;
-use crate::tansig::{tansig, tansig_of_sum_in_place};
+use crate::tansig::tansig_of_sum_in_place;
 
 /// Adam's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -167,14 +167,22 @@ impl Batch {
             off += n_in * n_out + n_out;
             let (prev, next) = self.acts.split_at_mut(l + 1);
             let a = Self::layer(prev, l, rows);
-            let mut z = next[0].as_mut().subrows_mut(0, rows);
-            matmul(z.rb_mut(), Accum::Replace, a, wt, 1.0, Par::Seq);
+            let z = &mut next[0];
+            matmul(
+                z.as_mut().subrows_mut(0, rows),
+                Accum::Replace,
+                a,
+                wt,
+                1.0,
+                Par::Seq,
+            );
             let hidden = l + 1 < layers;
             for (o, &bo) in b.iter().enumerate() {
-                let col = z.rb_mut().col_mut(o);
-                match col.try_as_col_major_mut() {
-                    Some(c) if hidden => tansig_of_sum_in_place(c.as_slice_mut(), bo),
-                    _ => col_add_or_tansig(z.rb_mut().col_mut(o).iter_mut(), bo, hidden),
+                let col = &mut z.col_as_slice_mut(o)[..rows];
+                if hidden {
+                    tansig_of_sum_in_place(col, bo);
+                } else {
+                    col.iter_mut().for_each(|v| *v += bo);
                 }
             }
         }
@@ -242,14 +250,6 @@ impl Batch {
         for (r, &i) in ids.iter().enumerate() {
             self.acts[0].col_as_slice_mut(r).copy_from_slice(x[i]);
         }
-    }
-}
-
-/// A column's values plus `bias`, through [`tansig`] when `hidden` (the strided path; an
-/// output layer's columns are only shifted).
-fn col_add_or_tansig<'a>(col: impl Iterator<Item = &'a mut f64>, bias: f64, hidden: bool) {
-    for v in col {
-        *v = if hidden { tansig(*v + bias) } else { *v + bias };
     }
 }
 
