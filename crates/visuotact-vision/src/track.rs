@@ -1969,7 +1969,7 @@ fn three_rows<'c>(
 /// [`Matching::holding_a_swollen_blob`] finds — followed too, where those are returned: the
 /// next frame starts from the blob they held ([`TrackResult::held_px`]). `on_blob` (the
 /// markers merged on each blob) sets the motion a frame needs for gaps
-/// ([`unsplit_waistless_pair`]).
+/// ([`unsplit_waistless_pair`], [`waistless_blob_a_step_off`]).
 fn put_in_doubt(
     m: &Matching<'_>,
     (doubtful, stretched): (&[usize], &[usize]),
@@ -1986,7 +1986,9 @@ fn put_in_doubt(
     }
     let gaps = prior.is_none().then(|| {
         // `on_blob` is sorted by blob (`split_pairs`); a split leaves no status Ok to doubt.
-        let frame_motion = if unsplit_waistless_pair(m.blobs, on_blob, status) {
+        let frame_motion = if waistless_blob_a_step_off(m, on_blob, shift) {
+            0.0
+        } else if unsplit_waistless_pair(m.blobs, on_blob, status) {
             WAISTLESS_FRAME_MOTION
         } else {
             FRAME_MOTION
@@ -2100,8 +2102,9 @@ fn whole(area_px: u32, rest_area_px: f64, cfg: &TrackConfig) -> bool {
 /// the largest), is put in doubt; so is a matched marker none of whose neighbours a lattice
 /// step away holds a blob outside the doubt (it took its blob on its own). Only in frames
 /// where some matched marker moved by `frame_motion` spacings ([`FRAME_MOTION`], or
-/// [`WAISTLESS_FRAME_MOTION`] where two markers sit unsplit on one blob with no waist): a
-/// lattice-step error needs a lattice step of motion.
+/// [`WAISTLESS_FRAME_MOTION`] where two markers sit unsplit on one blob with no waist, or in
+/// any frame where such a blob lies a step from one of them, [`waistless_blob_a_step_off`]):
+/// a lattice-step error needs a lattice step of motion.
 ///
 /// Why: a patch dragged by over a pitch loses markers where the skin bunches up ahead of the
 /// drag; the matching can then put the patch one lattice step short, with the missing marker
@@ -2262,6 +2265,30 @@ fn unsplit_waistless_pair(blobs: &[Blob], on_blob: &[OnBlob], status: &[MarkerSt
         g.len() >= 2
             && g.iter().all(|e| status[e.1] != MarkerStatus::Split)
             && ellipse_fill(&blobs[g[0].0]) >= NO_WAIST_FILL
+    })
+}
+
+/// Whether two or more markers fell on one blob with no waist ([`NO_WAIST_FILL`]: one
+/// marker's blob, split or not) that lies [`FRAME_MOTION`] spacings or more beyond the overall
+/// `shift` from one of them: one of the two has moved a lattice step, whichever the blob is, so
+/// the frame has (the gate of [`doubt_around_gaps`] is open), though read a step short its
+/// held markers seem to have moved less. A GelSight grid dragged 1.6–1.7 pitches, its front
+/// bunched into two-lobed blobs and its last dot stretched, was read a step short with its
+/// largest held motion under 0.9 spacing and the stretched dot claimed by two (drag seeds 29
+/// and 32). Drag matrix at `--motion-limit 1` (2026-11-29): seeds 25–40, wrong identities 32 →
+/// 25 (GelSight 14 → 7), lost +48 of 20 556, none in frames moved under a pitch; seeds 1–24,
+/// wrong identities 8 → 8, lost +157 of 43 654, 15 of them in frames moved under a pitch
+/// (dots variant 3, seed 4), all where a hidden dot moved beyond one.
+fn waistless_blob_a_step_off(m: &Matching<'_>, on_blob: &[OnBlob], shift: (f64, f64)) -> bool {
+    on_blob.chunk_by(|a, b| a.0 == b.0).any(|g| {
+        let b = &m.blobs[g[0].0];
+        g.len() >= 2
+            && ellipse_fill(b) >= NO_WAIST_FILL
+            && g.iter().any(|&(_, i, _, _)| {
+                let (x, y) = m.anchors[i];
+                let step = FRAME_MOTION * m.reference.spacing_px[i];
+                dist_sq((b.x_px, b.y_px), (x + shift.0, y + shift.1)) >= step * step
+            })
     })
 }
 
