@@ -731,7 +731,7 @@ const GAP_MOTION: f64 = 0.4;
 const FRAME_MOTION: f64 = 1.0;
 
 /// [`FRAME_MOTION`] in a frame where two markers fell on one blob with no waist that was not
-/// split ([`unsplit_waistless_pair`]): a sign of a field read a lattice step short, the pair
+/// split ([`gaps_frame_motion`]): a sign of a field read a lattice step short, the pair
 /// on a single marker's blob. A TacTip rim dragged two pitches, its outer row pushed out of
 /// the round view, was read a step short with its largest held motion 0.96–0.97 spacing
 /// and such a pair inside. On the drag matrix at `--motion-limit 1`: seeds 9–24, wrong
@@ -1969,7 +1969,7 @@ fn three_rows<'c>(
 /// [`Matching::holding_a_swollen_blob`] finds — followed too, where those are returned: the
 /// next frame starts from the blob they held ([`TrackResult::held_px`]). `on_blob` (the
 /// markers merged on each blob) sets the motion a frame needs for gaps
-/// ([`unsplit_waistless_pair`], [`waistless_blob_a_step_off`]).
+/// ([`gaps_frame_motion`]).
 fn put_in_doubt(
     m: &Matching<'_>,
     (doubtful, stretched): (&[usize], &[usize]),
@@ -1986,13 +1986,7 @@ fn put_in_doubt(
     }
     let gaps = prior.is_none().then(|| {
         // `on_blob` is sorted by blob (`split_pairs`); a split leaves no status Ok to doubt.
-        let frame_motion = if waistless_blob_a_step_off(m, on_blob, shift) {
-            0.0
-        } else if unsplit_waistless_pair(m.blobs, on_blob, status) {
-            WAISTLESS_FRAME_MOTION
-        } else {
-            FRAME_MOTION
-        };
+        let frame_motion = gaps_frame_motion(m, on_blob, status, shift);
         doubt_around_gaps(reference, m, status, (shift, usable, frame_motion))
     });
     for i in gaps.into_iter().flatten() {
@@ -2026,12 +2020,12 @@ fn put_in_doubt(
 
 /// [`TrackResult::held_px`]: the blob centroid of each of the markers `held` (empty when none).
 fn held_positions(m: &Matching<'_>, held: &[usize]) -> Vec<Option<(f64, f64)>> {
-    let mut out = Vec::new();
+    if held.is_empty() {
+        return Vec::new();
+    }
+    let mut out = vec![None; m.assignment.len()];
     for &i in held {
-        if let Some(j) = m.assignment[i] {
-            out.resize(m.assignment.len(), None);
-            out[i] = Some((m.blobs[j].x_px, m.blobs[j].y_px));
-        }
+        out[i] = m.assignment[i].map(|j| (m.blobs[j].x_px, m.blobs[j].y_px));
     }
     out
 }
@@ -2101,10 +2095,8 @@ fn whole(area_px: u32, rest_area_px: f64, cfg: &TrackConfig) -> bool {
 /// `GAP_REACH × (1 + motion)` spacings ahead of it (along its neighbours' mean motion; `motion`
 /// the largest), is put in doubt; so is a matched marker none of whose neighbours a lattice
 /// step away holds a blob outside the doubt (it took its blob on its own). Only in frames
-/// where some matched marker moved by `frame_motion` spacings ([`FRAME_MOTION`], or
-/// [`WAISTLESS_FRAME_MOTION`] where two markers sit unsplit on one blob with no waist, or in
-/// any frame where such a blob lies a step from one of them, [`waistless_blob_a_step_off`]):
-/// a lattice-step error needs a lattice step of motion.
+/// where some matched marker moved by `frame_motion` spacings ([`gaps_frame_motion`]): a
+/// lattice-step error needs a lattice step of motion.
 ///
 /// Why: a patch dragged by over a pitch loses markers where the skin bunches up ahead of the
 /// drag; the matching can then put the patch one lattice step short, with the missing marker
@@ -2258,38 +2250,46 @@ fn ellipse_fill(b: &Blob) -> f64 {
     f64::from(b.area_px) / ellipse_px
 }
 
-/// Whether two or more markers fell on one blob with no waist ([`NO_WAIST_FILL`]) and were
-/// not split from it.
-fn unsplit_waistless_pair(blobs: &[Blob], on_blob: &[OnBlob], status: &[MarkerStatus]) -> bool {
-    on_blob.chunk_by(|a, b| a.0 == b.0).any(|g| {
-        g.len() >= 2
-            && g.iter().all(|e| status[e.1] != MarkerStatus::Split)
-            && ellipse_fill(&blobs[g[0].0]) >= NO_WAIST_FILL
-    })
-}
-
-/// Whether two or more markers fell on one blob with no waist ([`NO_WAIST_FILL`]: one
-/// marker's blob, split or not) that lies [`FRAME_MOTION`] spacings or more beyond the overall
-/// `shift` from one of them: one of the two has moved a lattice step, whichever the blob is, so
-/// the frame has (the gate of [`doubt_around_gaps`] is open), though read a step short its
-/// held markers seem to have moved less. A GelSight grid dragged 1.6–1.7 pitches, its front
-/// bunched into two-lobed blobs and its last dot stretched, was read a step short with its
-/// largest held motion under 0.9 spacing and the stretched dot claimed by two (drag seeds 29
-/// and 32). Drag matrix at `--motion-limit 1` (2026-11-29): seeds 25–40, wrong identities 32 →
-/// 25 (GelSight 14 → 7), lost +48 of 20 556, none in frames moved under a pitch; seeds 1–24,
-/// wrong identities 8 → 8, lost +157 of 43 654, 15 of them in frames moved under a pitch
-/// (dots variant 3, seed 4), all where a hidden dot moved beyond one.
-fn waistless_blob_a_step_off(m: &Matching<'_>, on_blob: &[OnBlob], shift: (f64, f64)) -> bool {
-    on_blob.chunk_by(|a, b| a.0 == b.0).any(|g| {
+/// The motion, in spacings, some held marker must show for [`doubt_around_gaps`] to look at a
+/// frame, from the blobs with no waist ([`NO_WAIST_FILL`]: one marker's blob) that two or more
+/// markers fell on (`on_blob`, sorted by blob): 0 (any frame) when such a blob, split or not,
+/// lies [`FRAME_MOTION`] spacings or more beyond the overall `shift` from one of them — one of
+/// the two has moved a lattice step, whichever the blob is, though read a step short the held
+/// markers seem to have moved less; [`WAISTLESS_FRAME_MOTION`] when such a blob was not split;
+/// else [`FRAME_MOTION`].
+///
+/// The first case: a GelSight grid dragged 1.6–1.7 pitches, its front bunched into two-lobed
+/// blobs and its last dot stretched, was read a step short with its largest held motion under
+/// 0.9 spacing and the stretched dot claimed by two (drag seeds 29 and 32). Drag matrix at
+/// `--motion-limit 1` (2026-11-29): seeds 25–40, wrong identities 32 → 25 (GelSight 14 → 7),
+/// lost +48 of 20 556, none in frames moved under a pitch; seeds 1–24, wrong identities 8 → 8,
+/// lost +157 of 43 654, 15 of them in frames moved under a pitch (dots variant 3, seed 4), all
+/// where a hidden dot moved beyond one.
+fn gaps_frame_motion(
+    m: &Matching<'_>,
+    on_blob: &[OnBlob],
+    status: &[MarkerStatus],
+    shift: (f64, f64),
+) -> f64 {
+    let mut motion = FRAME_MOTION;
+    for g in on_blob.chunk_by(|a, b| a.0 == b.0) {
         let b = &m.blobs[g[0].0];
-        g.len() >= 2
-            && ellipse_fill(b) >= NO_WAIST_FILL
-            && g.iter().any(|&(_, i, _, _)| {
-                let (x, y) = m.anchors[i];
-                let step = FRAME_MOTION * m.reference.spacing_px[i];
-                dist_sq((b.x_px, b.y_px), (x + shift.0, y + shift.1)) >= step * step
-            })
-    })
+        if g.len() < 2 || ellipse_fill(b) < NO_WAIST_FILL {
+            continue;
+        }
+        let a_step_off = g.iter().any(|&(_, i, _, _)| {
+            let (x, y) = m.anchors[i];
+            let step = FRAME_MOTION * m.reference.spacing_px[i];
+            dist_sq((b.x_px, b.y_px), (x + shift.0, y + shift.1)) >= step * step
+        });
+        if a_step_off {
+            return 0.0;
+        }
+        if g.iter().all(|e| status[e.1] != MarkerStatus::Split) {
+            motion = WAISTLESS_FRAME_MOTION;
+        }
+    }
+    motion
 }
 
 /// Splits blobs that exactly two merged markers fell on, when the blob's area is about theirs
