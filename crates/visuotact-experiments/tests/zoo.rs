@@ -349,7 +349,12 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// (variant 4, seed 12, and variant 6, seed 10: 4 and 6 wrong identities before such frames
 /// were looked at from 0.9 pitch); and a GelSight grid dragged 1.6 pitches, read a step short
 /// with its held markers under 0.9 pitch and its stretched last dot claimed by two (variant 1,
-/// seed 32: 2 before such a blob a step from one of the two opened the gate).
+/// seed 32: 2 before such a blob a step from one of the two opened the gate); and fields read a
+/// step short with the back pin of every row lost and the held markers under a pitch (a small
+/// TacTip dragged 2.2 pitches towards the view's edge, variant 4 seed 36, and a GelSight grid
+/// 1.8 pitches, variant 1 seed 37: 7 and 5 before three gaps opened the gate at half a
+/// pitch), or the lost pins on a TacTip's outer ring with no held marker a lattice step away
+/// (variant 4, seed 25, 2.6 pitches: 7 before).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -383,6 +388,9 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("tactip", 4, 12),
         ("tactip", 6, 10),
         ("gelsight", 1, 32),
+        ("tactip-small", 4, 25),
+        ("tactip-small", 4, 36),
+        ("gelsight", 1, 37),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

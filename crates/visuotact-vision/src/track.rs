@@ -21,10 +21,11 @@
 //! 4. **Verification.** A matched marker whose blob is far from what its matched neighbours
 //!    predict (over `verify_pitches` × its spacing) is released and grown again once: a
 //!    marker that took its neighbour's blob is corrected by the markers around it.
-//! 5. **Doubt.** Where the skin moved by a lattice step or more, markers missing inside the
-//!    field leave the markers ahead of them [`MarkerStatus::Ambiguous`]: a patch dragged past a
-//!    pitch can be matched a lattice step short with the gap at its back instead of its front,
-//!    and nothing in one frame tells the two apart. A marker is reported lost rather than
+//! 5. **Doubt.** Where the skin moved by a lattice step or more (half a step where three or
+//!    more markers are missing), markers missing inside the field leave the markers ahead of
+//!    them [`MarkerStatus::Ambiguous`]: a patch dragged past a pitch can be matched a lattice
+//!    step short with the gap at its back instead of its front, and nothing in one frame tells
+//!    the two apart. A marker is reported lost rather than
 //!    given a neighbour's blob (on the simulator's drags of 0.5–1.5 pitch, seeds 1–2: no
 //!    wrong identity in 366 707 visible marker-frames, 272 without this step; none lost in
 //!    frames moved by under a pitch). A chain of markers that could slide one lattice step into
@@ -739,8 +740,31 @@ const FRAME_MOTION: f64 = 1.0;
 /// frames moved under a pitch; seeds 1–8, 20 more lost (dots), all beyond a pitch.
 const WAISTLESS_FRAME_MOTION: f64 = 0.9;
 
+/// A frame with this many gaps left without a blob ([`doubt_around_gaps`]) looks for gaps in
+/// doubt once some matched marker moved [`MANY_GAPS_MOTION`] spacings, not [`FRAME_MOTION`]:
+/// a field read a lattice step short leaves a gap at the back of every row it crossed, and its
+/// held markers seem to have moved a step less than they did; a field really moved under a
+/// pitch misses a marker or two (painted over, hidden under the tip). Markers in doubt on the
+/// blob they hold (a chain that could slide, [`Matching::slide_chains`]) do not count: two
+/// rows dragged side by side then put rows far from the drag in doubt
+/// (`two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short`). A small TacTip
+/// dragged 2.2 pitches towards the view's edge was read a step short with five rows' back pins
+/// lost and its largest held motion 0.9 spacing (drag seed 36); GelSight grids dragged 1.6–1.8
+/// pitches likewise (seeds 28, 31, 37). Drag matrix at `--motion-limit 1` (2026-11-29, with
+/// the far neighbours of [`gap_motion`]): seeds 25–40, wrong identities 25 → 2, lost 20 604 →
+/// 20 807 of 2 936 994 visible marker-frames; seeds 1–24, 8 → 8, lost 43 811 → 44 113 of
+/// 4 400 880; none more in frames moved under a pitch.
+const MANY_GAPS: usize = 3;
+
+/// See [`MANY_GAPS`].
+const MANY_GAPS_MOTION: f64 = 0.5;
+
 /// Radius of the doubt around such a gap, in spacings, per spacing of motion plus one.
 const GAP_REACH: f64 = 2.0;
+
+/// How far [`gap_motion`] looks for held markers, in spacings, when none a lattice step away
+/// holds a blob.
+const GAP_FAR: f64 = 2.0;
 
 /// A marker merged on a blob: (blob, marker, predicted position, local magnification).
 type OnBlob = (usize, usize, (f64, f64), f64);
@@ -2095,8 +2119,9 @@ fn whole(area_px: u32, rest_area_px: f64, cfg: &TrackConfig) -> bool {
 /// `GAP_REACH × (1 + motion)` spacings ahead of it (along its neighbours' mean motion; `motion`
 /// the largest), is put in doubt; so is a matched marker none of whose neighbours a lattice
 /// step away holds a blob outside the doubt (it took its blob on its own). Only in frames
-/// where some matched marker moved by `frame_motion` spacings ([`gaps_frame_motion`]): a
-/// lattice-step error needs a lattice step of motion.
+/// where some matched marker moved by `frame_motion` spacings ([`gaps_frame_motion`]), or by
+/// [`MANY_GAPS_MOTION`] in a frame with [`MANY_GAPS`] gaps: a lattice-step error needs a
+/// lattice step of motion.
 ///
 /// Why: a patch dragged by over a pitch loses markers where the skin bunches up ahead of the
 /// drag; the matching can then put the patch one lattice step short, with the missing marker
@@ -2113,22 +2138,35 @@ fn doubt_around_gaps(
     (shift, usable, frame_motion): ((f64, f64), usize, f64),
 ) -> Vec<usize> {
     let held = |k: usize| m.assignment[k].is_some() && status[k] == MarkerStatus::Ok;
-    let moved_a_step = |k: usize| {
-        let step = frame_motion * reference.spacing_px[k];
-        held(k) && dist_sq(m.disp[k], shift) >= step * step
+    let moved = |spacings: f64| {
+        (0..status.len()).any(|k| {
+            let step = spacings * reference.spacing_px[k];
+            held(k) && dist_sq(m.disp[k], shift) >= step * step
+        })
     };
-    if !(0..status.len()).any(moved_a_step) {
+    let gaps = || {
+        status.iter().enumerate().filter_map(|(g, st)| {
+            let cut = m.assignment[g].is_some_and(|j| j >= usable);
+            if st.has_position() || cut {
+                return None;
+            }
+            gap_motion(reference, m, g, shift, &held).map(|(motion, dir)| (g, motion, dir))
+        })
+    };
+    // Markers the matching left without a blob: those put in doubt on the blob they hold (a
+    // chain that could slide) are no sign of a slide across rows.
+    let open = moved(frame_motion)
+        || (moved(MANY_GAPS_MOTION)
+            && gaps()
+                .filter(|&(g, _, _)| m.assignment[g].is_none())
+                .nth(MANY_GAPS - 1)
+                .is_some());
+    if !open {
         return Vec::new();
     }
     let matched = m.matched();
     let mut out = Vec::new();
-    for (g, st) in status.iter().enumerate() {
-        if st.has_position() || m.assignment[g].is_some_and(|j| j >= usable) {
-            continue;
-        }
-        let Some((motion, dir)) = gap_motion(reference, m, g, shift, &held) else {
-            continue;
-        };
+    for (g, motion, dir) in gaps() {
         // Where its neighbours put it: a marker pushed out to the edge of the view has left it.
         let s = reference.spacing_px[g];
         let at = m.anchors[g];
@@ -2196,7 +2234,10 @@ fn lattice_steps<'r>(
 /// The motion around gap `g` when it is a gap (see [`doubt_around_gaps`]): the largest motion
 /// of its matched neighbours a lattice step away, in spacings, and the direction of their mean
 /// motion. The markers that lag a lattice step behind a drag seem to have moved little, so
-/// the largest motion beside the gap counts, not the mean.
+/// the largest motion beside the gap counts, not the mean. When none of its neighbours a
+/// lattice step away holds a blob, those within [`GAP_FAR`] spacings count: a small TacTip
+/// dragged 2.6 pitches across its outer ring was read a step short with the ring's pins lost
+/// and no held marker a lattice step from them (drag seed 25: 7 wrong identities → 0).
 fn gap_motion(
     reference: &TrackReference,
     m: &Matching<'_>,
@@ -2204,19 +2245,38 @@ fn gap_motion(
     shift: (f64, f64),
     held: &impl Fn(usize) -> bool,
 ) -> Option<(f64, (f64, f64))> {
+    // (markers, held, largest motion in spacings, sum of the held markers' motion)
+    let tally = |ks: &mut dyn Iterator<Item = usize>| {
+        let (mut all, mut count, mut max, mut sum) = (0usize, 0usize, 0.0f64, (0.0, 0.0));
+        for k in ks {
+            all += 1;
+            if held(k) {
+                let d = (m.disp[k].0 - shift.0, m.disp[k].1 - shift.1);
+                count += 1;
+                max = max.max(d.0.hypot(d.1) / reference.spacing_px[k]);
+                sum = (sum.0 + d.0, sum.1 + d.1);
+            }
+        }
+        (all, count, max, sum)
+    };
     // Its nearest neighbours only: a marker at the edge of the view has matched markers two
     // steps inwards, but is not inside the field.
-    let (mut all, mut count, mut max, mut sum) = (0usize, 0usize, 0.0f64, (0.0, 0.0));
-    for k in lattice_steps(reference, &m.anchors, g) {
-        all += 1;
-        if held(k) {
-            let d = (m.disp[k].0 - shift.0, m.disp[k].1 - shift.1);
-            count += 1;
-            max = max.max(d.0.hypot(d.1) / reference.spacing_px[k]);
-            sum = (sum.0 + d.0, sum.1 + d.1);
-        }
+    let (all, mut count, mut max, mut sum) = tally(&mut lattice_steps(reference, &m.anchors, g));
+    let mut inside = all >= 2;
+    if count == 0 && all >= 1 {
+        // Every lattice neighbour without a blob too (the back of a field read a step short,
+        // or a TacTip's outer ring, sparser than the rings inside it): the held markers within
+        // `GAP_FAR` spacings.
+        let far = GAP_FAR * reference.spacing_px[g];
+        let mut near = reference.neighbours[g]
+            .iter()
+            .copied()
+            .filter(|&k| dist_sq(m.anchors[k], m.anchors[g]) <= far * far);
+        let all_far;
+        (all_far, count, max, sum) = tally(&mut near);
+        inside = all_far >= 2;
     }
-    (all >= 2 && count >= 1 && max >= GAP_MOTION).then_some((max, sum))
+    (inside && count >= 1 && max >= GAP_MOTION).then_some((max, sum))
 }
 
 /// A blob with at least this share of the area of the ellipse with its second moments
