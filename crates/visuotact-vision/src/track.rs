@@ -25,8 +25,8 @@
 //!    more markers are missing), markers missing inside the field leave the markers ahead of
 //!    them [`MarkerStatus::Ambiguous`]: a patch dragged past a pitch can be matched a lattice
 //!    step short with the gap at its back instead of its front, and nothing in one frame tells
-//!    the two apart. A marker is reported lost rather than
-//!    given a neighbour's blob (on the simulator's drags of 0.5–1.5 pitch, seeds 1–2: no
+//!    the two apart. A marker is reported lost rather than given a neighbour's blob (on the
+//!    simulator's drags of 0.5–1.5 pitch, seeds 1–2: no
 //!    wrong identity in 366 707 visible marker-frames, 272 without this step; none lost in
 //!    frames moved by under a pitch). A chain of markers that could slide one lattice step into
 //!    a hole about as smoothly is in doubt, and so are two parallel chains whose joint slide
@@ -2138,35 +2138,31 @@ fn doubt_around_gaps(
     (shift, usable, frame_motion): ((f64, f64), usize, f64),
 ) -> Vec<usize> {
     let held = |k: usize| m.assignment[k].is_some() && status[k] == MarkerStatus::Ok;
-    let moved = |spacings: f64| {
-        (0..status.len()).any(|k| {
-            let step = spacings * reference.spacing_px[k];
-            held(k) && dist_sq(m.disp[k], shift) >= step * step
-        })
-    };
-    let gaps = || {
-        status.iter().enumerate().filter_map(|(g, st)| {
-            let cut = m.assignment[g].is_some_and(|j| j >= usable);
-            if st.has_position() || cut {
-                return None;
-            }
+    // The largest motion of a held marker beyond the overall motion, in spacings (one pass).
+    let largest = (0..status.len())
+        .filter(|&k| held(k))
+        .map(|k| dist_sq(m.disp[k], shift).sqrt() / reference.spacing_px[k])
+        .fold(0.0, f64::max);
+    if largest < frame_motion.min(MANY_GAPS_MOTION) {
+        return Vec::new();
+    }
+    let gaps: Vec<(usize, f64, (f64, f64))> = status
+        .iter()
+        .enumerate()
+        .filter(|&(g, st)| !st.has_position() && !m.assignment[g].is_some_and(|j| j >= usable))
+        .filter_map(|(g, _)| {
             gap_motion(reference, m, g, shift, &held).map(|(motion, dir)| (g, motion, dir))
         })
-    };
+        .collect();
     // Markers the matching left without a blob: those put in doubt on the blob they hold (a
     // chain that could slide) are no sign of a slide across rows.
-    let open = moved(frame_motion)
-        || (moved(MANY_GAPS_MOTION)
-            && gaps()
-                .filter(|&(g, _, _)| m.assignment[g].is_none())
-                .nth(MANY_GAPS - 1)
-                .is_some());
-    if !open {
+    let blobless = gaps.iter().filter(|e| m.assignment[e.0].is_none()).count();
+    if largest < frame_motion && blobless < MANY_GAPS {
         return Vec::new();
     }
     let matched = m.matched();
     let mut out = Vec::new();
-    for (g, motion, dir) in gaps() {
+    for &(g, motion, dir) in &gaps {
         // Where its neighbours put it: a marker pushed out to the edge of the view has left it.
         let s = reference.spacing_px[g];
         let at = m.anchors[g];
@@ -2261,22 +2257,22 @@ fn gap_motion(
     };
     // Its nearest neighbours only: a marker at the edge of the view has matched markers two
     // steps inwards, but is not inside the field.
-    let (all, mut count, mut max, mut sum) = tally(&mut lattice_steps(reference, &m.anchors, g));
-    let mut inside = all >= 2;
-    if count == 0 && all >= 1 {
+    let steps = tally(&mut lattice_steps(reference, &m.anchors, g));
+    let (all, count, max, sum) = if steps.1 == 0 && steps.0 >= 1 {
         // Every lattice neighbour without a blob too (the back of a field read a step short,
         // or a TacTip's outer ring, sparser than the rings inside it): the held markers within
         // `GAP_FAR` spacings.
         let far = GAP_FAR * reference.spacing_px[g];
-        let mut near = reference.neighbours[g]
-            .iter()
-            .copied()
-            .filter(|&k| dist_sq(m.anchors[k], m.anchors[g]) <= far * far);
-        let all_far;
-        (all_far, count, max, sum) = tally(&mut near);
-        inside = all_far >= 2;
-    }
-    (inside && count >= 1 && max >= GAP_MOTION).then_some((max, sum))
+        tally(
+            &mut reference.neighbours[g]
+                .iter()
+                .copied()
+                .filter(|&k| dist_sq(m.anchors[k], m.anchors[g]) <= far * far),
+        )
+    } else {
+        steps
+    };
+    (all >= 2 && count >= 1 && max >= GAP_MOTION).then_some((max, sum))
 }
 
 /// A blob with at least this share of the area of the ellipse with its second moments
