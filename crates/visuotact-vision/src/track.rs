@@ -2149,7 +2149,7 @@ fn doubt_around_gaps(
     let gaps: Vec<(usize, f64, (f64, f64))> = status
         .iter()
         .enumerate()
-        .filter(|&(g, st)| !st.has_position() && !m.assignment[g].is_some_and(|j| j >= usable))
+        .filter(|&(g, st)| !st.has_position() && m.assignment[g].is_none_or(|j| j < usable))
         .filter_map(|(g, _)| {
             gap_motion(reference, m, g, shift, &held).map(|(motion, dir)| (g, motion, dir))
         })
