@@ -354,7 +354,10 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
 /// TacTip dragged 2.2 pitches towards the view's edge, variant 4 seed 36, and a GelSight grid
 /// 1.8 pitches, variant 1 seed 37: 7 and 5 before three gaps opened the gate at half a
 /// pitch), or the lost pins on a TacTip's outer ring with no held marker a lattice step away
-/// (variant 4, seed 25, 2.6 pitches: 7 before).
+/// (variant 4, seed 25, 2.6 pitches: 7 before); and two dots dragged onto one blob, the
+/// hidden one's prediction 1.10 spacings from it, in a frame whose visible dots moved 0.71
+/// pitch (dots variant 3, seed 43, held out when the rules before were written: 1 before the
+/// far reach for blobs swollen to two dots).
 #[test]
 fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
     let runs = [
@@ -391,6 +394,7 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         ("tactip-small", 4, 25),
         ("tactip-small", 4, 36),
         ("gelsight", 1, 37),
+        ("dots", 3, 43),
     ];
     for (name, variant, seed) in runs {
         let sensor = SimSensor::named(name, variant).unwrap();

@@ -703,6 +703,18 @@ const TWO_LOBES_MIN_AREA_PX: f64 = 50.0;
 /// 49 → 45 together with merged neighbours, 250 more lost of 43 053).
 const SWOLLEN_REACH: f64 = 1.1;
 
+/// A swollen blob up to this many of the hidden neighbour's spacings from its prediction is
+/// also partly that neighbour's when it is at least [`SWOLLEN_FAR_BESIDE`] times its holder's
+/// area over its neighbours' ([`Matching::holding_a_swollen_blob`]): a pair of dots dragged
+/// together whose hidden dot's prediction lay 1.102 spacings off (held-out drag seed 43, the
+/// visible dots moved 0.71 pitch) was read as the holder's alone. Nearer than
+/// [`SWOLLEN_REACH`] the milder signs suffice.
+const SWOLLEN_FAR_REACH: f64 = 1.25;
+
+/// How swollen a blob beyond [`SWOLLEN_REACH`] must be against its holder's neighbours'
+/// blobs, as [`SWOLLEN_BESIDE`] is within it: two whole dots on one blob.
+const SWOLLEN_FAR_BESIDE: f64 = 1.8;
+
 /// Holes this many spacings or more inside the view start pairs of parallel chains
 /// ([`Matching::parallel_rows_in_doubt`]); one nearer the edge may simply be cut. One whole
 /// spacing kept out the top row of a GelSight-like grid (its pins 25 px from the edge, 5 px in
@@ -1695,7 +1707,8 @@ impl Matching<'_> {
     /// [`SWOLLEN_BESIDE`] times their area scaled as their neighbours' blobs are, or of two
     /// lobes, [`TWO_LOBES_FILL`]), within
     /// [`SWOLLEN_REACH`] spacings of the prediction of a neighbour left without a position (no
-    /// blob, or one in doubt or merged): the blob is likely both of theirs (a marker dragged
+    /// blob, or one in doubt or merged), or within [`SWOLLEN_FAR_REACH`] if
+    /// [`SWOLLEN_FAR_BESIDE`] times as swollen as its neighbours' blobs: the blob is likely both of theirs (a marker dragged
     /// onto the next one and hidden behind it), and its centroid neither's, though well under
     /// the merged size. (A neighbour in doubt or merged holds a blob that is not its own; drag
     /// matrix seeds 1–16, wrong identities 20 → 18 for 255 more lost of 27 478.)
@@ -1710,16 +1723,26 @@ impl Matching<'_> {
                 continue;
             };
             let reach = SWOLLEN_REACH * self.reference.spacing_px[k];
+            let far = SWOLLEN_FAR_REACH * self.reference.spacing_px[k];
             for &i in &self.reference.neighbours[k] {
                 let Some(j) = self.assignment[i] else {
                     continue;
                 };
                 let b = &self.blobs[j];
-                let beside = dist((b.x_px, b.y_px), pk) <= reach;
-                if status[i] != MarkerStatus::Ok || !beside || out.contains(&i) {
+                let d = dist((b.x_px, b.y_px), pk);
+                if status[i] != MarkerStatus::Ok || d > far || out.contains(&i) {
                     continue;
                 }
                 let ratio = f64::from(b.area_px) / self.reference.areas_px[i];
+                if d > reach {
+                    if self
+                        .neighbours_area_ratio(i, status)
+                        .is_some_and(|r| ratio >= SWOLLEN_FAR_BESIDE * r)
+                    {
+                        out.push(i);
+                    }
+                    continue;
+                }
                 let scale = self.predict(i, &matched).map_or(1.0, |(_, s)| s);
                 if ratio >= SWOLLEN_AREA * scale * scale
                     || self
