@@ -1705,12 +1705,11 @@ impl Matching<'_> {
     /// The markers (reported [`MarkerStatus::Ok`] in `status`) holding a swollen blob (at
     /// least [`SWOLLEN_AREA`] times their area scaled by the local magnification, or
     /// [`SWOLLEN_BESIDE`] times their area scaled as their neighbours' blobs are, or of two
-    /// lobes, [`TWO_LOBES_FILL`]), within
-    /// [`SWOLLEN_REACH`] spacings of the prediction of a neighbour left without a position (no
-    /// blob, or one in doubt or merged), or within [`SWOLLEN_FAR_REACH`] if
-    /// [`SWOLLEN_FAR_BESIDE`] times as swollen as its neighbours' blobs: the blob is likely both of theirs (a marker dragged
-    /// onto the next one and hidden behind it), and its centroid neither's, though well under
-    /// the merged size. (A neighbour in doubt or merged holds a blob that is not its own; drag
+    /// lobes, [`TWO_LOBES_FILL`]), within [`SWOLLEN_REACH`] spacings of the prediction of a
+    /// neighbour left without a position (no blob, or one in doubt or merged), or within
+    /// [`SWOLLEN_FAR_REACH`] if [`SWOLLEN_FAR_BESIDE`] times as swollen as its neighbours'
+    /// blobs: the blob is likely both of theirs (a marker dragged onto the next one and hidden
+    /// behind it), and its centroid neither's, though well under the merged size. (A neighbour in doubt or merged holds a blob that is not its own; drag
     /// matrix seeds 1–16, wrong identities 20 → 18 for 255 more lost of 27 478.)
     fn holding_a_swollen_blob(&self, status: &[MarkerStatus]) -> Vec<usize> {
         let matched = self.matched();
@@ -1734,23 +1733,21 @@ impl Matching<'_> {
                     continue;
                 }
                 let ratio = f64::from(b.area_px) / self.reference.areas_px[i];
-                if d > reach {
-                    if self
-                        .neighbours_area_ratio(i, status)
-                        .is_some_and(|r| ratio >= SWOLLEN_FAR_BESIDE * r)
-                    {
-                        out.push(i);
-                    }
-                    continue;
-                }
-                let scale = self.predict(i, &matched).map_or(1.0, |(_, s)| s);
-                if ratio >= SWOLLEN_AREA * scale * scale
-                    || self
-                        .neighbours_area_ratio(i, status)
-                        .is_some_and(|r| ratio >= SWOLLEN_BESIDE * r)
-                    || (self.reference.areas_px[i] >= TWO_LOBES_MIN_AREA_PX
-                        && ellipse_fill(b) < TWO_LOBES_FILL)
-                {
+                let swollen_beside = |factor: f64| {
+                    self.neighbours_area_ratio(i, status)
+                        .is_some_and(|r| ratio >= factor * r)
+                };
+                let swollen = if d <= reach {
+                    let scale = self.predict(i, &matched).map_or(1.0, |(_, s)| s);
+                    ratio >= SWOLLEN_AREA * scale * scale
+                        || swollen_beside(SWOLLEN_BESIDE)
+                        || (self.reference.areas_px[i] >= TWO_LOBES_MIN_AREA_PX
+                            && ellipse_fill(b) < TWO_LOBES_FILL)
+                } else {
+                    // Beyond `reach` only a blob of two whole markers against its neighbours'.
+                    swollen_beside(SWOLLEN_FAR_BESIDE)
+                };
+                if swollen {
                     out.push(i);
                 }
             }
