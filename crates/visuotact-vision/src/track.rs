@@ -1709,8 +1709,9 @@ impl Matching<'_> {
     /// neighbour left without a position (no blob, or one in doubt or merged), or within
     /// [`SWOLLEN_FAR_REACH`] if [`SWOLLEN_FAR_BESIDE`] times as swollen as its neighbours'
     /// blobs: the blob is likely both of theirs (a marker dragged onto the next one and hidden
-    /// behind it), and its centroid neither's, though well under the merged size. (A neighbour in doubt or merged holds a blob that is not its own; drag
-    /// matrix seeds 1–16, wrong identities 20 → 18 for 255 more lost of 27 478.)
+    /// behind it), and its centroid neither's, though well under the merged size. (A neighbour
+    /// in doubt or merged holds a blob that is not its own; drag matrix seeds 1–16, wrong
+    /// identities 20 → 18 for 255 more lost of 27 478.)
     fn holding_a_swollen_blob(&self, status: &[MarkerStatus]) -> Vec<usize> {
         let matched = self.matched();
         let mut out = Vec::new();
