@@ -10,11 +10,13 @@
 //! (those experiments laid out as the papers' tables, as text), `pages` (the HTML report page of
 //! `demo --report`), `synth` (simulated session folders with exact truth, grid-pattern series;
 //! `SimulateConfig`, `SimulateError`), `trackcheck` (simulated sensors tracked in memory against
-//! the simulator's per-marker truth: lost markers, wrong identities, displacement error;
-//! `CheckConfig`, `CheckReport`)
+//! the simulator's per-marker truth: lost markers, wrong identities, displacement error, per
+//! motion band; `CheckConfig`, `CheckReport`), `scorecard` (the tracking scorecard: the zoo's
+//! drawn variants through every protocol, per family × motion band, held to a baseline table)
 
 pub mod demo;
 pub mod pages;
+pub mod scorecard;
 pub mod synth;
 pub mod tables;
 pub mod trackcheck;

@@ -30,6 +30,7 @@ use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures, Fr
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::options::DetectorOptions;
 use visuotact_vision::preprocess::CircleMask;
+use visuotact_vision::track::TrackConfig;
 
 /// Why a check could not run.
 #[derive(Debug, thiserror::Error)]
@@ -141,6 +142,8 @@ pub struct CheckConfig {
     /// in N frames — pressed over the first third, then dragged and twisted — and followed
     /// with the temporal prior, as `--temporal` follows a video; every frame is checked.
     pub followed_steps: usize,
+    /// The tracker's settings.
+    pub track: TrackConfig,
 }
 
 /// The motion up to which order-free tracking must keep every visible marker, in pitches.
@@ -189,6 +192,46 @@ pub struct CheckReport {
     /// in view but not visible (hidden behind a neighbour, or squeezed to a sliver) moved
     /// beyond it: the skin moved that far, under a neighbour.
     pub hidden_beyond_lost: usize,
+    /// The same counts per motion band ([`MOTION_BANDS`]: the frame's largest motion of a
+    /// visible marker under 0.5, 0.5–1, 1–1.5 and over 1.5 pitches).
+    pub bands: [BandCounts; 4],
+}
+
+/// Upper edges of the motion bands, pitches (the last band has none).
+pub const MOTION_BANDS: [f64; 3] = [0.5, 1.0, 1.5];
+
+/// What one motion band of a check counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BandCounts {
+    /// Frames in the band.
+    pub frames: usize,
+    /// Visible marker-frames.
+    pub visible: usize,
+    /// Visible markers reported lost or merged.
+    pub lost: usize,
+    /// Visible markers reported ambiguous.
+    pub ambiguous: usize,
+    /// Markers reported with a position that is another marker's or over half a pitch off.
+    pub wrong: usize,
+}
+
+impl BandCounts {
+    /// Adds `o`'s counts.
+    pub fn add(&mut self, o: &BandCounts) {
+        self.frames += o.frames;
+        self.visible += o.visible;
+        self.lost += o.lost;
+        self.ambiguous += o.ambiguous;
+        self.wrong += o.wrong;
+    }
+}
+
+/// The band of a frame whose largest motion is `pitches`.
+pub fn band_of(pitches: f64) -> usize {
+    MOTION_BANDS
+        .iter()
+        .position(|&edge| pitches < edge)
+        .unwrap_or(MOTION_BANDS.len())
 }
 
 /// Per simulated marker: position (pixels), area (pixels), visible, in view.
@@ -301,7 +344,7 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
             detector,
             layout: c.layout,
             features: FeatureSet::ALL,
-            ..Default::default()
+            track: c.track,
         },
     )?;
     let rest_truth = &refs[0].1;
@@ -409,6 +452,33 @@ impl Run<'_> {
 }
 
 impl CheckReport {
+    /// The header of [`CheckReport::tsv_row`]'s table.
+    pub const TSV_HEADER: &'static str = "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong\thidden_beyond_lost";
+
+    /// This report as one tab-separated row for sensor `name`, variant `variant`.
+    pub fn tsv_row(&self, name: &str, variant: u64) -> String {
+        let r = self;
+        format!(
+            "{name}\t{variant}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}\t{}",
+            r.layout.map_or("-", Layout::name),
+            r.sim_markers,
+            r.calibrated,
+            r.uncalibrated,
+            r.frames,
+            r.visible,
+            r.lost,
+            r.wrong,
+            r.err_mean_px,
+            r.err_p99_px,
+            r.err_max_px,
+            r.max_motion_pitches,
+            r.beyond_frames,
+            r.beyond_lost,
+            r.beyond_wrong,
+            r.hidden_beyond_lost
+        )
+    }
+
     /// Adds the frames' checks: counts, the error percentiles, the first examples.
     fn add(&mut self, per_frame: Vec<FrameCheck>, motion_limit_pitches: f64) {
         let report = self;
@@ -424,6 +494,12 @@ impl CheckReport {
             } else if fc.max_motion_in_view > motion_limit_pitches {
                 report.hidden_beyond_lost += fc.lost;
             }
+            let band = &mut report.bands[band_of(fc.max_motion)];
+            band.frames += 1;
+            band.visible += fc.visible;
+            band.lost += fc.lost - fc.ambiguous;
+            band.ambiguous += fc.ambiguous;
+            band.wrong += fc.wrong;
             report.visible += fc.visible;
             report.lost += fc.lost;
             report.wrong += fc.wrong;
@@ -477,6 +553,8 @@ struct FrameCheck {
     max_motion_in_view: f64,
     visible: usize,
     lost: usize,
+    /// Of `lost`, those reported ambiguous.
+    ambiguous: usize,
     wrong: usize,
     ok_not_visible: usize,
     errs: Vec<f64>,
@@ -517,6 +595,9 @@ fn frame_check(
         if !ok {
             if visible {
                 out.lost += 1;
+                if f.status[i] == visuotact_vision::track::MarkerStatus::Ambiguous {
+                    out.ambiguous += 1;
+                }
                 out.examples.push(format!(
                     "frame {k} (depth {depth_mm:.2} mm, motion up to {max_disp:.2} pitch): marker {i} {} though visible",
                     f.status[i].name()

@@ -24,6 +24,7 @@ fn config(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> Check
         layout: LayoutChoice::Auto,
         motion_limit_pitches: MOTION_LIMIT_PITCHES,
         followed_steps: 0,
+        track: visuotact_vision::track::TrackConfig::DEFAULT,
     }
 }
 

@@ -2,10 +2,14 @@
 //! table row per variant.
 
 use anyhow::{bail, Context};
-use visuotact_experiments::trackcheck::{check, CheckConfig, SimSensor, MOTION_LIMIT_PITCHES};
+use visuotact_experiments::scorecard::scorecard_table;
+use visuotact_experiments::trackcheck::{
+    check, CheckConfig, CheckReport, SimSensor, MOTION_LIMIT_PITCHES,
+};
 use visuotact_vision::detect::Centroid;
-use visuotact_vision::layout::{Layout, LayoutChoice};
+use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::ThresholdChoice;
+use visuotact_vision::track::TrackConfig;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -45,6 +49,13 @@ pub(crate) struct Args {
     /// its own.
     #[arg(long, default_value_t = 0)]
     followed: usize,
+    /// Print the tracking scorecard instead: seeds `--seed` and the next, wrong / lost /
+    /// ambiguous marker-frames per sensor family and motion band.
+    #[arg(long)]
+    scorecard: bool,
+    /// With `--scorecard`: fail where it is worse than this baseline table.
+    #[arg(long)]
+    baseline: Option<std::path::PathBuf>,
     /// Print the first problems found.
     #[arg(long)]
     verbose: bool,
@@ -65,6 +76,17 @@ pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    let track = TrackConfig::DEFAULT;
+    if a.scorecard {
+        let (table, worse) = scorecard_table(a.seed, track, a.baseline.as_deref())?;
+        say!("{table}");
+        anyhow::ensure!(
+            worse.is_empty(),
+            "worse than the baseline: {}",
+            worse.join("; ")
+        );
+        return Ok(());
+    }
     if !(a.motion_limit.is_finite() && a.motion_limit > 0.0) {
         bail!(
             "--motion-limit {}: expected a positive number of pitches",
@@ -72,9 +94,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         );
     }
     let centroid = a.centroid;
-    say!(
-        "sensor\tvariant\tlayout\tmarkers\tcalibrated\tuncalibrated\tframes\tvisible\tlost\twrong\terr_mean_px\terr_p99_px\terr_max_px\tmax_motion_pitch\tbeyond_frames\tbeyond_lost\tbeyond_wrong\thidden_beyond_lost"
-    );
+    say!("{}", CheckReport::TSV_HEADER);
     let (mut lost, mut wrong) = (0, 0);
     for v in parse_range(&a.variants)? {
         let mut sensor = SimSensor::named(&a.sensor, v)?;
@@ -99,28 +119,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             layout: LayoutChoice::Auto,
             motion_limit_pitches: a.motion_limit,
             followed_steps: a.followed,
+            track,
         };
         let r = check(&cfg).with_context(|| format!("{} variant {v}", a.sensor))?;
-        say!(
-            "{}\t{v}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{:.4}\t{:.4}\t{:.4}\t{:.2}\t{}\t{}\t{}\t{}",
-            a.sensor,
-            r.layout.map_or("-", Layout::name),
-            r.sim_markers,
-            r.calibrated,
-            r.uncalibrated,
-            r.frames,
-            r.visible,
-            r.lost,
-            r.wrong,
-            r.err_mean_px,
-            r.err_p99_px,
-            r.err_max_px,
-            r.max_motion_pitches,
-            r.beyond_frames,
-            r.beyond_lost,
-            r.beyond_wrong,
-            r.hidden_beyond_lost
-        );
+        say!("{}", r.tsv_row(&a.sensor, v));
         if a.verbose {
             for e in &r.examples {
                 say!("  {e}");
