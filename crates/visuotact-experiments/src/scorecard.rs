@@ -11,13 +11,9 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use visuotact_vision::detect::Centroid;
-use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::track::TrackConfig;
 
-use crate::trackcheck::{
-    check, BandCounts, CheckConfig, CheckError, SimSensor, MOTION_LIMIT_PITCHES,
-};
+use crate::trackcheck::{check, BandCounts, CheckConfig, CheckError, SimSensor};
 
 /// What a scorecard runs.
 #[derive(Clone, Debug)]
@@ -188,38 +184,34 @@ impl Scorecard {
     }
 }
 
-/// Runs the scorecard and, with a `baseline` file, lists where it is worse (tolerance 0.2 %
-/// of the visible marker-frames).
-pub fn scorecard_against(
-    c: &ScorecardConfig,
-    baseline: Option<&std::path::Path>,
-) -> Result<(Scorecard, Vec<String>), ScorecardError> {
-    let card = scorecard(c)?;
-    let Some(path) = baseline else {
-        return Ok((card, Vec::new()));
-    };
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ScorecardError::Read {
-        path: name.clone(),
-        source,
-    })?;
-    let worse = card.regressions(&Scorecard::from_tsv(&text, &name)?, 0.002);
-    Ok((card, worse))
-}
+/// How much more lost and ambiguous a cell may have than its baseline: 0.2 % of its visible
+/// marker-frames (at least two).
+pub const BASELINE_TOLERANCE: f64 = 0.002;
 
 /// The scorecard of seeds `seed` and `seed + 1` with `track`, as a table, and where it is
-/// worse than `baseline` (what `check-tracking --scorecard` prints).
+/// worse than `baseline` by over [`BASELINE_TOLERANCE`] (what `check-tracking --scorecard`
+/// prints).
 pub fn scorecard_table(
     seed: u64,
     track: TrackConfig,
     baseline: Option<&std::path::Path>,
 ) -> Result<(String, Vec<String>), ScorecardError> {
-    let c = ScorecardConfig {
+    let card = scorecard(&ScorecardConfig {
         seeds: vec![seed, seed + 1],
         track,
         ..Default::default()
+    })?;
+    let worse = match baseline {
+        Some(path) => {
+            let name = path.display().to_string();
+            let text = std::fs::read_to_string(path).map_err(|source| ScorecardError::Read {
+                path: name.clone(),
+                source,
+            })?;
+            card.regressions(&Scorecard::from_tsv(&text, &name)?, BASELINE_TOLERANCE)
+        }
+        None => Vec::new(),
     };
-    let (card, worse) = scorecard_against(&c, baseline)?;
     Ok((card.to_tsv().trim_end().to_string(), worse))
 }
 
@@ -235,16 +227,9 @@ pub fn scorecard(c: &ScorecardConfig) -> Result<Scorecard, CheckError> {
                 c.touches
             };
             let r = check(&CheckConfig {
-                sensor,
-                protocol: protocol.to_string(),
-                touches,
-                seed,
-                references: 10,
-                detector: sensor.detector(Centroid::Grey),
-                layout: LayoutChoice::Auto,
-                motion_limit_pitches: MOTION_LIMIT_PITCHES,
                 followed_steps: followed,
                 track: c.track,
+                ..CheckConfig::zoo(sensor, protocol, touches, seed)
             })?;
             let name = if followed > 0 {
                 format!("{family} followed")

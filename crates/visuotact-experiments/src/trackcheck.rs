@@ -146,6 +146,27 @@ pub struct CheckConfig {
     pub track: TrackConfig,
 }
 
+impl CheckConfig {
+    /// A check of `sensor` through `protocol` as the tests and the scorecard run it: ten rest
+    /// frames averaged into the reference, the sensor's own detector with grey-level
+    /// centroids, the layout recognised, [`MOTION_LIMIT_PITCHES`], every frame order-free,
+    /// the tracker's defaults.
+    pub fn zoo(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> Self {
+        Self {
+            sensor,
+            protocol: protocol.to_string(),
+            touches,
+            seed,
+            references: 10,
+            detector: sensor.detector(Centroid::Grey),
+            layout: LayoutChoice::Auto,
+            motion_limit_pitches: MOTION_LIMIT_PITCHES,
+            followed_steps: 0,
+            track: TrackConfig::DEFAULT,
+        }
+    }
+}
+
 /// The motion up to which order-free tracking must keep every visible marker, in pitches.
 pub const MOTION_LIMIT_PITCHES: f64 = 1.5;
 

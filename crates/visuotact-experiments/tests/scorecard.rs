@@ -5,7 +5,7 @@
 //! with `visuotact check-tracking --scorecard --seed 101 > testdata/scorecard/zoo.tsv` when a
 //! change is meant to move it, and say why in the commit.
 
-use visuotact_experiments::scorecard::{scorecard, Scorecard, ScorecardConfig};
+use visuotact_experiments::scorecard::{scorecard, Scorecard, ScorecardConfig, BASELINE_TOLERANCE};
 
 #[test]
 fn scorecard_holds_its_baseline() {
@@ -16,7 +16,7 @@ fn scorecard_holds_its_baseline() {
     let baseline = Scorecard::from_tsv(&std::fs::read_to_string(path).unwrap(), path).unwrap();
     let card = scorecard(&ScorecardConfig::default()).unwrap();
     eprintln!("{}", card.to_tsv());
-    let worse = card.regressions(&baseline, 0.002);
+    let worse = card.regressions(&baseline, BASELINE_TOLERANCE);
     assert!(worse.is_empty(), "worse than {path}: {worse:#?}");
     // The contract: no wrong identity in a frame moved under 1.5 pitches.
     for (name, bands) in &card.rows {

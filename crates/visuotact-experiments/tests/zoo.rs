@@ -14,18 +14,7 @@ use visuotact_vision::detect::Centroid;
 use visuotact_vision::layout::{Layout, LayoutChoice};
 
 fn config(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> CheckConfig {
-    CheckConfig {
-        sensor,
-        protocol: protocol.to_string(),
-        touches,
-        seed,
-        references: 10,
-        detector: sensor.detector(Centroid::Grey),
-        layout: LayoutChoice::Auto,
-        motion_limit_pitches: MOTION_LIMIT_PITCHES,
-        followed_steps: 0,
-        track: visuotact_vision::track::TrackConfig::DEFAULT,
-    }
+    CheckConfig::zoo(sensor, protocol, touches, seed)
 }
 
 fn run(sensor: SimSensor, protocol: &str, touches: usize, seed: u64) -> CheckReport {
