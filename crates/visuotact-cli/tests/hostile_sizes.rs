@@ -210,8 +210,8 @@ fn sensor_files_that_describe_no_sensor_are_refused_when_read() {
         ),
         (
             "gate",
-            |v| v["track"]["gate_pitches"] = serde_json::json!(0),
-            "gate_pitches must be in (0, 100]",
+            |v| v["track"]["gate_spacings"] = serde_json::json!(0),
+            "gate_spacings must be in (0, 100]",
         ),
         (
             "many",

@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use visuotact_vision::track::TrackConfig;
+use visuotact_vision::track::TrackParams;
 
 use crate::trackcheck::{check, BandCounts, CheckConfig, CheckError, SimSensor};
 
@@ -23,7 +23,7 @@ pub struct ScorecardConfig {
     /// Touches per run.
     pub touches: usize,
     /// The tracker's settings.
-    pub track: TrackConfig,
+    pub track: TrackParams,
 }
 
 impl Default for ScorecardConfig {
@@ -31,7 +31,7 @@ impl Default for ScorecardConfig {
         Self {
             seeds: vec![101, 102],
             touches: 20,
-            track: TrackConfig::DEFAULT,
+            track: TrackParams::DEFAULT,
         }
     }
 }
@@ -193,7 +193,7 @@ pub const BASELINE_TOLERANCE: f64 = 0.002;
 /// prints).
 pub fn scorecard_table(
     seed: u64,
-    track: TrackConfig,
+    track: TrackParams,
     baseline: Option<&std::path::Path>,
 ) -> Result<(String, Vec<String>), ScorecardError> {
     let card = scorecard(&ScorecardConfig {

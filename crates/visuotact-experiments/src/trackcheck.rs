@@ -30,7 +30,7 @@ use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures, Fr
 use visuotact_vision::layout::{Layout, LayoutChoice};
 use visuotact_vision::options::DetectorOptions;
 use visuotact_vision::preprocess::CircleMask;
-use visuotact_vision::track::TrackConfig;
+use visuotact_vision::track::TrackParams;
 
 /// Why a check could not run.
 #[derive(Debug, thiserror::Error)]
@@ -143,7 +143,7 @@ pub struct CheckConfig {
     /// with the temporal prior, as `--temporal` follows a video; every frame is checked.
     pub followed_steps: usize,
     /// The tracker's settings.
-    pub track: TrackConfig,
+    pub track: TrackParams,
 }
 
 impl CheckConfig {
@@ -162,7 +162,7 @@ impl CheckConfig {
             layout: LayoutChoice::Auto,
             motion_limit_pitches: MOTION_LIMIT_PITCHES,
             followed_steps: 0,
-            track: TrackConfig::DEFAULT,
+            track: TrackParams::DEFAULT,
         }
     }
 }

@@ -19,7 +19,7 @@ use visuotact_vision::preprocess::{
     gray_from_rgb_into, histogram, histogram_of, morphology_in_place, open3_from_rgb_into,
     otsu_level, Channel, HistogramPixels, MorphScratch, Open3Scratch, PreprocessConfig,
 };
-use visuotact_vision::track::{track, TrackConfig};
+use visuotact_vision::track::{track, TrackParams};
 
 fn stages(c: &mut Criterion) {
     let pattern = GridPattern::IATS;
@@ -176,13 +176,13 @@ fn stages(c: &mut Criterion) {
     });
     // Blobs of the pressed frame, whether or not `detect_total` ran in this invocation.
     det.detect_into(&img, &mut found);
-    let reference = track_reference(&cal.markers, cal.pitch_px, cal.layout);
+    let reference = track_reference(&cal);
     c.bench_function("track_117", |b| {
         b.iter(|| {
             track(
                 black_box(&reference),
                 black_box(&found),
-                &TrackConfig::DEFAULT,
+                &TrackParams::DEFAULT,
             )
         })
     });

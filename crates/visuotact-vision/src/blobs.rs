@@ -119,6 +119,61 @@ pub struct Shape {
 }
 
 impl Blob {
+    /// The blob of `self` and `other` together, as if one component (pieces of one marker):
+    /// areas add, the centroid is their area-weighted mean and the second moments add about it
+    /// (each piece's own variance plus its centroid's offset squared).
+    ///
+    /// ```
+    /// use visuotact_vision::blobs::{BBox, Blob};
+    /// // Two 1 × 2 pieces side by side make a 2 × 2 square.
+    /// let piece = |x: f64| Blob {
+    ///     area_px: 2,
+    ///     x_px: x,
+    ///     y_px: 0.5,
+    ///     mu20_px2: 0.0,
+    ///     mu11_px2: 0.0,
+    ///     mu02_px2: 0.25,
+    ///     bbox: BBox { x0: x as u32, y0: 0, x1: x as u32 + 1, y1: 2 },
+    ///     touches_border: false,
+    /// };
+    /// let square = piece(0.0).union(&piece(1.0));
+    /// assert_eq!(square.area_px, 4);
+    /// assert_eq!((square.x_px, square.mu20_px2, square.mu02_px2), (0.5, 0.25, 0.25));
+    /// assert_eq!(square.bbox, BBox { x0: 0, y0: 0, x1: 2, y1: 2 });
+    /// ```
+    pub fn union(&self, other: &Blob) -> Blob {
+        let (n1, n2) = (f64::from(self.area_px), f64::from(other.area_px));
+        let n = (n1 + n2).max(1.0);
+        let (x, y) = (
+            (n1 * self.x_px + n2 * other.x_px) / n,
+            (n1 * self.y_px + n2 * other.y_px) / n,
+        );
+        let about = |b: &Blob, w: f64| {
+            let (dx, dy) = (b.x_px - x, b.y_px - y);
+            (
+                w * (b.mu20_px2 + dx * dx),
+                w * (b.mu11_px2 + dx * dy),
+                w * (b.mu02_px2 + dy * dy),
+            )
+        };
+        let (a, b) = (about(self, n1), about(other, n2));
+        Blob {
+            area_px: self.area_px + other.area_px,
+            x_px: x,
+            y_px: y,
+            mu20_px2: (a.0 + b.0) / n,
+            mu11_px2: (a.1 + b.1) / n,
+            mu02_px2: (a.2 + b.2) / n,
+            bbox: BBox {
+                x0: self.bbox.x0.min(other.bbox.x0),
+                y0: self.bbox.y0.min(other.bbox.y0),
+                x1: self.bbox.x1.max(other.bbox.x1),
+                y1: self.bbox.y1.max(other.bbox.y1),
+            },
+            touches_border: self.touches_border || other.touches_border,
+        }
+    }
+
     /// Axes, eccentricity and orientation under the given convention.
     pub fn shape(&self, convention: MomentConvention) -> Shape {
         let extra = match convention {

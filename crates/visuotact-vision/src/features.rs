@@ -417,7 +417,7 @@ impl FeatureExtractor {
     /// An extractor for `cal` producing `features`.
     pub fn new(cal: SensorCalibration, features: FeatureSet) -> Result<Self, ConfigError> {
         let detector = Detector::new(cal.detector.clone())?;
-        let reference = track_reference(&cal.markers, cal.pitch_px, cal.layout);
+        let reference = track_reference(&cal);
         let view = view_of(&cal);
         Ok(Self {
             cal,
@@ -505,7 +505,8 @@ impl FeatureExtractor {
                 },
             );
             // The prior lost track (far fewer markers than the last frame had): start again
-            // from the reference, and keep that if it finds clearly more.
+            // from the reference, and keep that if it finds clearly more and gives every
+            // marker the followed reading holds the same blob (else it is another reading).
             let had = self.prior.iter().filter(|p| p.is_some()).count();
             if t.found() + 3 + had / 20 < had {
                 let r = track_with(
@@ -514,7 +515,12 @@ impl FeatureExtractor {
                     &self.cal.track,
                     from_reference,
                 );
-                if r.found() > t.found() + 2 {
+                let agree = t
+                    .assignment
+                    .iter()
+                    .zip(&r.assignment)
+                    .all(|(a, b)| a.is_none() || b.is_none() || a == b);
+                if agree && r.found() > t.found() + 2 {
                     r
                 } else {
                     t
@@ -586,6 +592,8 @@ impl FeatureExtractor {
         self.cut = self.detector.last_cut().len();
         self.blobs.extend_from_slice(self.detector.last_cut());
         self.last_track = self.track();
+        // A marker's dot in pieces is measured on its pieces together.
+        self.last_track.merge_pieces(&mut self.blobs);
         if self.temporal {
             let blobs = &self.blobs;
             self.prior.clear();

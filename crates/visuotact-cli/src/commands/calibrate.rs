@@ -11,7 +11,7 @@ use visuotact_vision::calibration::CalibrationConfig;
 use visuotact_vision::features::FeatureSet;
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::Purpose;
-use visuotact_vision::track::TrackConfig;
+use visuotact_vision::track::TrackParams;
 
 use crate::progress::Reporter;
 
@@ -91,7 +91,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         detector,
         layout,
         features,
-        track: TrackConfig::DEFAULT,
+        track: TrackParams::DEFAULT,
     };
     if let Some(size) = &size {
         note!("{}", size.in_words(&cfg.detector));

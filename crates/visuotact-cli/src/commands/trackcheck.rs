@@ -9,7 +9,7 @@ use visuotact_experiments::trackcheck::{
 use visuotact_vision::detect::Centroid;
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::ThresholdChoice;
-use visuotact_vision::track::TrackConfig;
+use visuotact_vision::track::TrackParams;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -49,6 +49,9 @@ pub(crate) struct Args {
     /// its own.
     #[arg(long, default_value_t = 0)]
     followed: usize,
+    /// Tracker settings over the defaults, name=value pairs: `margin=3,gate_spacings=0.5`.
+    #[arg(long, default_value = "")]
+    track: String,
     /// Print the tracking scorecard instead: seeds `--seed` and the next, wrong / lost /
     /// ambiguous marker-frames per sensor family and motion band.
     #[arg(long)]
@@ -76,7 +79,8 @@ pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let track = TrackConfig::DEFAULT;
+    let track =
+        (TrackParams::DEFAULT.parse_over(&a.track)).map_err(|e| anyhow::anyhow!("--track: {e}"))?;
     if a.scorecard {
         let (table, worse) = scorecard_table(a.seed, track, a.baseline.as_deref())?;
         say!("{table}");

@@ -1,0 +1,183 @@
+//! The one energy every decision of the tracker compares.
+//!
+//! A marker `i` taking blob `j` costs
+//!
+//! ```text
+//! (|b_j − q_i| / (σ · s_i · m_i))²  +  (ln(A_j / (k · a_i · m_i²)) / σ_a,i)²
+//! ```
+//!
+//! with `q_i` its prediction from its neighbours ([`super::predict`]), `s_i` its spacing,
+//! `m_i` the local magnification, `a_i` its area at rest and `k` the number of markers the
+//! blob holds (1, or 2 when two markers squeezed together show as one blob, whose centroid is
+//! then compared with their predictions' area-weighted mean; a blob smaller than expected
+//! counts with three times the tolerance: markers shrink under a squeeze, only merges
+//! grow); `σ` is
+//! [`TrackParams::sigma_spacings`](super::TrackParams::sigma_spacings) and `σ_a,i` the area
+//! tolerance [`TrackParams::area_sigma`](super::TrackParams::area_sigma) widened by the pixel
+//! noise of a small marker's outline. A blob cut by the image border carries no area term; a
+//! blob of two lobes pays a shape term (how far under 1 it fills its moments' ellipse, in the
+//! sensor's own markers' shortfall at rest). A weak
+//! motion prior adds `(|b_j − o_i| / (M · s_i))²`, `o_i` where the starting motion puts the
+//! marker and `M` [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings): it
+//! decides between readings the rest cannot tell apart (half a grid hidden, the other half read
+//! where it is or a step along).
+//! A marker taking no blob and a blob taken by no marker (clutter) each cost half of
+//! `(gate / σ)²`, so that a blob at the gate is as likely the marker's as not; the marker's
+//! half is scaled by how visible it is expected to be (0 outside the view, 1 a radius inside
+//! it) where its neighbours or the starting motion put it, whichever is deeper inside — a
+//! reading does not get to push markers out of the view for free — and a blob cut by the
+//! border is no clutter (it explains a marker leaving the view). The total is the energy; the assignment minimises it and the
+//! ambiguity is a margin on it. Read a lattice step off, a field leaves a row of markers at
+//! one edge without blobs or a row of blobs at the other edge without markers: either costs.
+
+use super::index::dist;
+use super::predict::Prediction;
+use super::{TrackParams, TrackReference, View};
+use crate::blobs::Blob;
+
+/// The energy's terms for one frame.
+pub(super) struct Energy<'a> {
+    pub reference: &'a TrackReference,
+    pub params: &'a TrackParams,
+    pub view: Option<View>,
+}
+
+impl Energy<'_> {
+    /// The cost of a blob at the gate: that of a marker without a blob wholly in view plus
+    /// that of a blob without a marker.
+    pub fn gate_cost(&self) -> f64 {
+        (self.params.gate_spacings / self.params.sigma_spacings).powi(2)
+    }
+
+    /// The cost of a blob taken by no marker (clutter).
+    pub fn clutter_cost(&self) -> f64 {
+        0.5 * self.gate_cost()
+    }
+
+    /// The cost of marker `i` without a blob where its neighbours put it (`at`): half the gate
+    /// cost times how far the marker is inside the view, in radii (0 at or beyond its edge, 1
+    /// a radius inside).
+    pub fn lost_cost_at(&self, i: usize, p: &Prediction) -> f64 {
+        let seen = self.view.map_or(1.0, |v| {
+            let r = (self.reference.areas_px[i] / std::f64::consts::PI).sqrt() * p.scale;
+            let depth = v.depth_px(p.at).max(v.depth_px(p.start));
+            (depth / r.max(0.5)).clamp(0.0, 1.0)
+        });
+        0.5 * self.gate_cost() * seen
+    }
+
+    /// The cost of leaving marker `i` without a blob when it could take one: its lost cost
+    /// plus the clutter the blob becomes.
+    pub fn unmatched_cost_at(&self, i: usize, p: &Prediction) -> f64 {
+        self.lost_cost_at(i, p) + self.clutter_cost()
+    }
+
+    /// The prediction's uncertainty, pixels: σ spacings scaled by the magnification, widened
+    /// by how far the neighbours' motion strays from affine.
+    pub fn sigma_px(&self, i: usize, p: &Prediction) -> f64 {
+        let s = self.params.sigma_spacings * self.reference.spacing_px[i] * p.scale;
+        (s * s + p.spread_px * p.spread_px).sqrt()
+    }
+
+    /// The position term: `(distance / σ_px)²`.
+    pub fn position_cost(&self, i: usize, d_px: f64, p: &Prediction) -> f64 {
+        (d_px / self.sigma_px(i, p)).powi(2)
+    }
+
+    /// How far blob `b`'s area is from `expected_px`, in area tolerances (signed: negative
+    /// when smaller). The tolerance is [`TrackParams::area_sigma`](super::TrackParams) widened
+    /// by the pixel noise of the marker's outline (about the square root of its length).
+    pub fn area_misfit(&self, b: &Blob, expected_px: f64) -> f64 {
+        let (a, o) = (self.params.area_sigma, outline_noise(expected_px));
+        let sigma = (a * a + o * o).sqrt();
+        (f64::from(b.area_px.max(1)) / expected_px).ln() / sigma
+    }
+
+    /// The area term of blob `b` holding markers of expected total area `expected_px`
+    /// (0 for a blob cut by the border). A marker squeezed at the edge of a contact, or in
+    /// the shade, shrinks to a sliver of itself; only a merge makes one grow: shrinking is
+    /// three times as likely.
+    pub fn area_cost(&self, b: &Blob, expected_px: f64, cut: bool) -> f64 {
+        if cut || expected_px <= 0.0 {
+            return 0.0;
+        }
+        let z = self.area_misfit(b, expected_px);
+        if z < 0.0 {
+            (z / 3.0).powi(2)
+        } else {
+            z * z
+        }
+    }
+
+    /// The cost of marker `i`, predicted at `pred` with magnification `scale`, taking `b`
+    /// alone: position, area and shape (a blob of two lobes is not one marker).
+    pub fn cost(&self, i: usize, p: &Prediction, b: &Blob, cut: bool) -> f64 {
+        let d = dist((b.x_px, b.y_px), p.at);
+        let expected = self.reference.areas_px[i] * p.scale * p.scale;
+        let shape = if cut {
+            0.0
+        } else {
+            shape_cost(b, expected, self.reference.fill_sigma)
+        };
+        let moved = dist((b.x_px, b.y_px), p.start);
+        self.position_cost(i, d, p)
+            + self.area_cost(b, expected, cut)
+            + shape
+            + self.motion_cost(i, moved)
+    }
+
+    /// The cost of marker `i` taking `b`, the union of pieces of its dot: position and area
+    /// as [`Energy::cost`], no shape term (the pieces leave the gap that broke them between
+    /// them; that they are one marker's is the pieces' own test).
+    pub fn pieces_cost(&self, i: usize, p: &Prediction, b: &Blob) -> f64 {
+        let expected = self.reference.areas_px[i] * p.scale * p.scale;
+        self.position_cost(i, dist((b.x_px, b.y_px), p.at), p)
+            + self.area_cost(b, expected, false)
+            + self.motion_cost(i, dist((b.x_px, b.y_px), p.start))
+    }
+
+    /// The motion prior: a marker `moved_px` from where the starting motion puts it (the
+    /// reference after the registration's overall shift, or its last position when followed)
+    /// costs `(moved / (M · s_i))²`, `M`
+    /// [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings). Weak (a pitch costs
+    /// 1/16), it decides between readings the rest of the energy cannot tell apart, such as
+    /// half a grid hidden and the visible half read where it is or a step along.
+    pub fn motion_cost(&self, i: usize, moved_px: f64) -> f64 {
+        (moved_px / (self.params.motion_spacings * self.reference.spacing_px[i])).powi(2)
+    }
+
+    /// The gate around marker `i`'s prediction, pixels: `gate / σ` of its uncertainties.
+    pub fn gate_px(&self, i: usize, p: &Prediction) -> f64 {
+        self.params.gate_spacings / self.params.sigma_spacings * self.sigma_px(i, p)
+    }
+}
+
+/// The relative noise of the area of a blob of `area_px` from the pixels of its outline (about
+/// the square root of the outline's length, over the area).
+pub(super) fn outline_noise(area_px: f64) -> f64 {
+    let outline_px = 2.0 * (std::f64::consts::PI * area_px).sqrt();
+    outline_px.sqrt() / area_px
+}
+
+/// The share of the ellipse with a blob's second moments (`4π·√(λ1·λ2)`, each variance
+/// widened by the pixel's own 1/12) that its area fills: 1 for an ellipse, 0.89 for two
+/// touching equal discs, less for two lobes joined by a thinner bridge.
+pub(super) fn ellipse_fill(b: &Blob) -> f64 {
+    let pixel = 1.0 / 12.0;
+    let (xx, xy, yy) = (b.mu20_px2 + pixel, b.mu11_px2, b.mu02_px2 + pixel);
+    let ellipse_px = 4.0 * std::f64::consts::PI * (xx * yy - xy * xy).max(0.0).sqrt();
+    f64::from(b.area_px) / ellipse_px
+}
+
+/// The shape term of blob `b` read as one marker of `one_px` expected: one marker fills its
+/// ellipse (1 for a disc); two lobes joined by a waist fill less (0.89 for two touching equal
+/// discs), each `fill_sigma` (the sensor's own markers' shortfall at rest,
+/// [`TrackReference::fill_sigma`](super::TrackReference::fill_sigma), widened by the outline's
+/// pixel noise as the area's tolerance is) under 1 counting against it. Two markers' blob may
+/// fill anything from that to 1 (overlapping discs): the shape says nothing against a pair,
+/// whose separation the elongation term weighs.
+pub(super) fn shape_cost(b: &Blob, one_px: f64, fill_sigma: f64) -> f64 {
+    let o = outline_noise(one_px.max(1.0));
+    let sigma = (fill_sigma * fill_sigma + o * o).sqrt();
+    ((1.0 - ellipse_fill(b)).max(0.0) / sigma).powi(2)
+}

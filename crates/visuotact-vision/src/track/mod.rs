@@ -1,0 +1,480 @@
+//! Matching reference markers to the blobs of a frame: every frame on its own (order-free), or
+//! starting from the last frame's positions (followed, for video).
+//!
+//! One model, one energy, one assignment:
+//! - `predict`: every marker is predicted from a local affine fit of its matched lattice
+//!   neighbours' motion (the skin's motion is smooth; the layout's topology carries the
+//!   prediction across a field stretched by pitches).
+//! - `energy`: a marker taking a blob costs its residual to the prediction (in spacings)
+//!   plus how unlike its expected size and shape the blob is and a weak motion prior; a
+//!   marker without a blob costs the lost cost, scaled by how visible it should be, and a
+//!   blob without a marker the same as clutter.
+//! - `solve`: seeds, growth and a global minimum-cost assignment minimise the energy;
+//!   order-free on a lattice, the reading shifted by whole lattice steps is compared too.
+//! - `slide`: the runner-ups a lattice tracker must compare — regions read a lattice step
+//!   off (chains from markers without a blob) and smooth parts shifted by a step or two —
+//!   kept when they lower the energy by the margin.
+//! - `pieces`: a marker's dot broken in pieces (by the threshold, or a line drawn across it) is
+//!   measured on its pieces together when that lowers the energy.
+//! - `ambiguity`, `split`: a blob may hold two markers (a hypothesis on the energy, split by
+//!   its moments when they are two discs'); a marker is ambiguous when a runner-up reading
+//!   costs less than one margin more than the best.
+//!
+//! All tuning is [`TrackParams`] (stored in the sensor file). No marker is ever given a blob
+//! just because it is the nearest one to its rest position; markers left without a blob are
+//! reported [`MarkerStatus::Lost`], [`MarkerStatus::Merged`] (their blob holds a neighbour
+//! too) or [`MarkerStatus::Ambiguous`]; their feature cells stay empty and other markers'
+//! columns never shift. Two merged markers whose blob has about their two areas are split by
+//! the blob's second moments ([`MarkerStatus::Split`]: a position, no area; ≈ 0.4 px from the
+//! truth for two touching discs of radius 10 px, test `a_merged_pair_is_split_by_its_moments`).
+
+mod ambiguity;
+mod energy;
+mod index;
+mod pieces;
+mod predict;
+mod rings;
+mod slide;
+mod solve;
+mod split;
+
+use serde::{Deserialize, Serialize};
+
+use crate::blobs::Blob;
+use crate::layout::k_nearest_all;
+
+/// What happened to one reference marker in one frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MarkerStatus {
+    /// Matched to exactly one blob.
+    Ok,
+    /// No blob near where the marker should be.
+    Lost,
+    /// Its blob merged with a neighbour's.
+    Merged,
+    /// Two or more blobs equally plausible.
+    Ambiguous,
+    /// Its blob merged with one neighbour's, and the pair was split by the blob's moments: the
+    /// position is estimated ([`TrackResult::split_px`]), area and eccentricity are unknown.
+    Split,
+}
+
+impl MarkerStatus {
+    /// Every status.
+    pub const ALL: [MarkerStatus; 5] = [
+        MarkerStatus::Ok,
+        MarkerStatus::Lost,
+        MarkerStatus::Merged,
+        MarkerStatus::Ambiguous,
+        MarkerStatus::Split,
+    ];
+
+    /// Name used in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            MarkerStatus::Ok => "ok",
+            MarkerStatus::Lost => "lost",
+            MarkerStatus::Merged => "merged",
+            MarkerStatus::Ambiguous => "ambiguous",
+            MarkerStatus::Split => "split",
+        }
+    }
+
+    /// Whether the marker has a measured position this frame ([`MarkerStatus::Ok`] or
+    /// [`MarkerStatus::Split`]).
+    pub fn has_position(self) -> bool {
+        matches!(self, MarkerStatus::Ok | MarkerStatus::Split)
+    }
+}
+
+/// All the tracker's tuning: the energy's scales, its margin and the order-free search's
+/// reach. Distances are in units of each marker's spacing to its nearest neighbour, scaled
+/// by the local magnification.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TrackParams {
+    /// How far the order-free search shifts the whole reading, in lattice steps: a field
+    /// moved by this many pitches everywhere is still read right. 5: a TacTip tilted 25° and
+    /// slid 5 mm from a reference itself tilted and slid the other way moves its pins about
+    /// four pitches.
+    pub reach_pitches: f64,
+    /// The typical motion of a marker from where the starting motion puts it (the reference
+    /// after the registration's overall shift, or its last position when followed), in
+    /// spacings: the scale of the weak motion prior, which decides between readings the rest
+    /// of the energy cannot tell apart. 4: a TacTip's pins stray up to three pitches from the
+    /// overall shift under tilt and slide; a third of a grid, all 39 markers at rest, read a
+    /// row off costs more than the margin.
+    pub motion_spacings: f64,
+    /// How far from its prediction a blob may lie and still be the marker's, in spacings (a
+    /// blob at the gate costs as much as the marker lost and the blob left over). 0.6: a
+    /// prediction from neighbours that lag a drag falls up to about half a spacing short.
+    pub gate_spacings: f64,
+    /// Typical error of a prediction from the neighbours, in spacings: the scale of the
+    /// position term. 0.2: the residual of a local affine fit under a deep press or a drag of
+    /// a pitch.
+    pub sigma_spacings: f64,
+    /// Typical relative change of a marker's blob area from its expected size: the scale of
+    /// the area term (widened by the pixel noise of a small marker's outline). 0.35: binarised
+    /// pins swell and shrink by about a third with the light.
+    pub area_sigma: f64,
+    /// The energy gap under which a runner-up reading makes a marker ambiguous, in the
+    /// energy's units (a squared residual of one sigma costs 1). 2: a reading about 1.4 sigma
+    /// worse is still plausible.
+    pub margin: f64,
+}
+
+impl TrackParams {
+    /// The defaults.
+    pub const DEFAULT: Self = Self {
+        reach_pitches: 5.0,
+        motion_spacings: 4.0,
+        gate_spacings: 0.6,
+        sigma_spacings: 0.2,
+        area_sigma: 0.35,
+        margin: 2.0,
+    };
+
+    /// The defaults with the settings of `text` over them: `name=value` pairs separated by
+    /// commas (`margin=3,gate_spacings=0.45`), names as the fields; checked.
+    pub fn parse_over(mut self, text: &str) -> Result<Self, crate::ConfigError> {
+        for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (name, value) = pair.split_once('=').ok_or_else(|| {
+                crate::ConfigError(format!("tracker setting {pair:?}: expected name=value"))
+            })?;
+            let v: f64 = value.trim().parse().map_err(|_| {
+                crate::ConfigError(format!("tracker {name}: {value:?} is not a number"))
+            })?;
+            let slot = match name.trim() {
+                "reach_pitches" => &mut self.reach_pitches,
+                "motion_spacings" => &mut self.motion_spacings,
+                "gate_spacings" => &mut self.gate_spacings,
+                "sigma_spacings" => &mut self.sigma_spacings,
+                "area_sigma" => &mut self.area_sigma,
+                "margin" => &mut self.margin,
+                other => {
+                    return Err(crate::ConfigError(format!(
+                        "unknown tracker setting {other:?}: expected reach_pitches, \
+                         motion_spacings, gate_spacings, sigma_spacings, area_sigma or margin"
+                    )))
+                }
+            };
+            *slot = v;
+        }
+        self.validate()?;
+        Ok(self)
+    }
+
+    /// Checks the settings: every distance positive and finite, the area scale and margin
+    /// positive.
+    pub fn validate(&self) -> Result<(), crate::ConfigError> {
+        for (name, v, hi) in [
+            ("reach_pitches", self.reach_pitches, 100.0),
+            ("motion_spacings", self.motion_spacings, 100.0),
+            ("gate_spacings", self.gate_spacings, 100.0),
+            ("sigma_spacings", self.sigma_spacings, 100.0),
+            ("area_sigma", self.area_sigma, 100.0),
+            ("margin", self.margin, 1e6),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= hi) {
+                return Err(crate::ConfigError(format!(
+                    "tracker {name} must be in (0, {hi}], got {v}"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for TrackParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// The least [`TrackReference::fill_sigma`]: the shortfall of a pixelated disc of a few
+/// pixels' radius, and what a reference of clean discs gets.
+pub const FILL_SIGMA_FLOOR: f64 = 0.03;
+
+/// The reference markers as the tracker needs them.
+#[derive(Clone, Debug)]
+pub struct TrackReference {
+    /// Marker positions `(x, y)` in pixels.
+    pub positions: Vec<(f64, f64)>,
+    /// Reference areas in pixels.
+    pub areas_px: Vec<f64>,
+    /// Neighbours of each marker (indices): its 12 nearest within 2.5 × its spacing, plus every
+    /// marker that counts it among theirs (the relation is symmetric).
+    pub neighbours: Vec<Vec<usize>>,
+    /// Each marker's distance to its nearest neighbour, pixels (the local pitch: a dome's or a
+    /// wide-angle lens's pitch varies across the image).
+    pub spacing_px: Vec<f64>,
+    /// Median spacing, pixels.
+    pub pitch_px: f64,
+    /// How loosely the markers' blobs fill the ellipse of their second moments at rest: the RMS
+    /// of the reference markers' shortfall under 1 ([`FILL_SIGMA_FLOOR`] at least; an ideal
+    /// disc fills it, printed dots under an adaptive threshold 0.75–0.99). The tolerance of the
+    /// shape term, which tells one marker from two lobes: a sensor whose single markers are
+    /// ragged gets no evidence from a ragged blob.
+    pub fill_sigma: f64,
+    /// For concentric rings, each ring's major axis in pixels: rings share a centre, so they
+    /// are matched by size near the reference centre instead of by position.
+    pub ring_sizes_px: Option<Vec<f64>>,
+    /// The lattice's step directions (unit-spacing vectors; empty for fewer than 3 markers).
+    lattice_dirs: Vec<(f64, f64)>,
+    /// Per marker, its neighbour one step along each of `lattice_dirs`.
+    lattice_steps: Vec<Vec<Option<usize>>>,
+}
+
+impl TrackReference {
+    /// Builds neighbourhoods, spacings and lattice steps from positions and areas.
+    pub fn new(positions: Vec<(f64, f64)>, areas_px: Vec<f64>) -> Self {
+        let n = positions.len();
+        let knn = if n > 1 {
+            k_nearest_all(&positions, 12.min(n - 1))
+        } else {
+            vec![Vec::new(); n]
+        };
+        let spacing: Vec<f64> = knn
+            .iter()
+            .map(|v| v.first().map_or(f64::NAN, |x| x.1))
+            .collect();
+        let mut sorted: Vec<f64> = spacing.iter().copied().filter(|s| s.is_finite()).collect();
+        sorted.sort_by(f64::total_cmp);
+        let pitch_px = if sorted.is_empty() {
+            // One marker: use its size as the scale.
+            areas_px.first().map_or(10.0, |a| 2.0 * a.sqrt())
+        } else {
+            sorted[sorted.len() / 2]
+        };
+        let spacing_px: Vec<f64> = spacing
+            .iter()
+            .map(|s| if s.is_finite() { *s } else { pitch_px })
+            .collect();
+        let mut neighbours: Vec<Vec<usize>> = knn
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                v.iter()
+                    .filter(|&&(_, d)| d < 2.5 * spacing_px[i])
+                    .map(|&(j, _)| j)
+                    .collect()
+            })
+            .collect();
+        for i in 0..n {
+            for k in 0..neighbours[i].len() {
+                let j = neighbours[i][k];
+                if !neighbours[j].contains(&i) {
+                    neighbours[j].push(i);
+                }
+            }
+        }
+        let (lattice_dirs, lattice_steps) =
+            predict::lattice_steps(&positions, &neighbours, &spacing_px);
+        Self {
+            positions,
+            areas_px,
+            neighbours,
+            spacing_px,
+            pitch_px,
+            fill_sigma: FILL_SIGMA_FLOOR,
+            ring_sizes_px: None,
+            lattice_dirs,
+            lattice_steps,
+        }
+    }
+}
+
+/// The outcome for one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrackResult {
+    /// Blob index per marker (`None` unless the status is [`MarkerStatus::Ok`]).
+    pub assignment: Vec<Option<usize>>,
+    /// Status per marker.
+    pub status: Vec<MarkerStatus>,
+    /// Overall motion found by the registration, in pixels.
+    pub shift_px: (f64, f64),
+    /// Blobs not given to any marker.
+    pub spurious: usize,
+    /// Estimated position of each [`MarkerStatus::Split`] marker (`None` for the others; empty
+    /// when no marker was split).
+    pub split_px: Vec<Option<(f64, f64)>>,
+    /// Followed tracking: the centroid of the blob each [`MarkerStatus::Merged`] marker shares
+    /// (`None` for the others; empty when there is none). Not a measurement: only where the
+    /// next frame starts looking for it ([`TrackResult::followed_px`]).
+    pub held_px: Vec<Option<(f64, f64)>>,
+    /// Further pieces of a marker's blob: (the blob the marker holds, a piece). A marker's
+    /// measurement is of its pieces together: apply [`TrackResult::merge_pieces`] to the blobs
+    /// before reading positions and areas from them.
+    pub pieces: Vec<(usize, usize)>,
+}
+
+impl TrackResult {
+    /// Number of markers with a position: matched, or split from a merged pair.
+    pub fn found(&self) -> usize {
+        self.status.iter().filter(|s| s.has_position()).count()
+    }
+
+    /// Marker `i`'s position this frame: its blob's centroid, or its split estimate.
+    pub fn position_px(&self, i: usize, blobs: &[Blob]) -> Option<(f64, f64)> {
+        match self.assignment[i] {
+            Some(j) => Some((blobs[j].x_px, blobs[j].y_px)),
+            None => self.split_px.get(i).copied().flatten(),
+        }
+    }
+
+    /// Merges each marker's further [`TrackResult::pieces`] into the blob it holds
+    /// ([`Blob::union`]); the pieces themselves are left as they were.
+    pub fn merge_pieces(&self, blobs: &mut [Blob]) {
+        for &(j, j2) in &self.pieces {
+            if let (Some(&b), Some(b2)) = (blobs.get(j), blobs.get(j2)) {
+                blobs[j] = b.union(b2);
+            }
+        }
+    }
+
+    /// Where the next frame of a video starts looking for marker `i`: its
+    /// [`TrackResult::position_px`], or the blob it shares while reported merged
+    /// ([`TrackResult::held_px`]).
+    pub fn followed_px(&self, i: usize, blobs: &[Blob]) -> Option<(f64, f64)> {
+        self.position_px(i, blobs)
+            .or_else(|| self.held_px.get(i).copied().flatten())
+    }
+}
+
+/// The part of the image where markers can be seen: a rectangle (the image or its region of
+/// interest), optionally cut to a circle (a circular view).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// Left edge, pixels (pixel centres at integers: the first column spans −0.5..0.5).
+    pub x0: f64,
+    /// Top edge, pixels.
+    pub y0: f64,
+    /// Right edge, pixels.
+    pub x1: f64,
+    /// Bottom edge, pixels.
+    pub y1: f64,
+    /// Centre and radius of the circular view, pixels.
+    pub circle: Option<((f64, f64), f64)>,
+}
+
+impl View {
+    /// How far `p` lies inside the view (distance to its nearest edge; negative outside).
+    pub fn depth_px(&self, p: (f64, f64)) -> f64 {
+        let mut d = (p.0 - self.x0)
+            .min(self.x1 - p.0)
+            .min(p.1 - self.y0)
+            .min(self.y1 - p.1);
+        if let Some((c, r)) = self.circle {
+            d = d.min(r - index::dist(p, c));
+        }
+        d
+    }
+}
+
+/// What the tracker may use besides the blobs.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TrackHints<'a> {
+    /// The last `cut` blobs are markers cut by the image border (dropped by the blob filter):
+    /// a marker that takes one left the view and is reported lost, never measured — unless the
+    /// blob is as big as the whole marker (it touches the edge without being cut by it).
+    pub cut: usize,
+    /// Each marker's position in an earlier frame of the same video (`None` for markers it did
+    /// not have): tracking starts from there instead of from the reference.
+    pub prior: Option<&'a [Option<(f64, f64)>]>,
+    /// Where markers can be seen: a marker its neighbours put outside is expected to have no
+    /// blob (being lost there costs nothing).
+    pub view: Option<View>,
+}
+
+/// Matches every reference marker to at most one blob of the frame, each frame on its own.
+pub fn track(reference: &TrackReference, blobs: &[Blob], params: &TrackParams) -> TrackResult {
+    track_with(reference, blobs, params, TrackHints::default())
+}
+
+/// Matches every reference marker to at most one blob of the frame, with `hints`: markers cut
+/// by the border, a temporal prior (without one, tracking starts from the reference after the
+/// registration's overall motion) and the view.
+pub fn track_with(
+    reference: &TrackReference,
+    blobs: &[Blob],
+    params: &TrackParams,
+    hints: TrackHints<'_>,
+) -> TrackResult {
+    let usable = blobs.len() - hints.cut.min(blobs.len());
+    if let Some(sizes) = &reference.ring_sizes_px {
+        return rings::track_rings(reference, sizes, &blobs[..usable]);
+    }
+    let n = reference.positions.len();
+    let prior = hints.prior.filter(|p| p.len() == n);
+    let energy = energy::Energy {
+        reference,
+        params,
+        view: hints.view,
+    };
+    let anchors = match prior {
+        Some(p) => predict::anchors_from_prior(reference, p),
+        None => reference.positions.clone(),
+    };
+    let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
+    if prior.is_none() {
+        m.shift = predict::register(reference, &m.index);
+    }
+    m.seed();
+    m.grow();
+    m.refine(6);
+    if prior.is_none() {
+        m.search_offset(params.reach_pitches.ceil() as usize);
+    }
+    let mut runner_ups = m.slide_regions();
+    if prior.is_none() {
+        runner_ups.extend(m.shift_parts());
+    }
+    let preds = m.predictions();
+    let pieces = pieces::find_pieces(&m, &preds);
+    let ambiguity::Classified {
+        mut status,
+        mut on_blob,
+    } = ambiguity::classify(&m, &preds, &pieces);
+    for r in &runner_ups {
+        for &i in &r.markers {
+            if status[i] == MarkerStatus::Ok {
+                status[i] = MarkerStatus::Ambiguous;
+            }
+        }
+    }
+    let split_px = split::split_pairs(&m, &mut on_blob, &mut status);
+    split::lose_cut(&m, &mut status);
+    let mut held_px = Vec::new();
+    let mut merged_blob = vec![false; blobs.len()];
+    for &(j, i, _) in &on_blob {
+        merged_blob[j] = true;
+        if status[i] == MarkerStatus::Merged {
+            if held_px.is_empty() {
+                held_px = vec![None; n];
+            }
+            held_px[i] = Some((blobs[j].x_px, blobs[j].y_px));
+        }
+    }
+    let mut assignment = m.assignment.clone();
+    for (a, st) in assignment.iter_mut().zip(&status) {
+        if *st != MarkerStatus::Ok {
+            *a = None;
+        }
+    }
+    let mut piece = vec![false; blobs.len()];
+    for &(j, j2) in &pieces {
+        piece[j2] = m.owner[j].is_some_and(|i| status[i] == MarkerStatus::Ok);
+    }
+    let pieces: Vec<(usize, usize)> = pieces.into_iter().filter(|&(_, j2)| piece[j2]).collect();
+    let taken = |j: usize| m.owner[j].is_some() || merged_blob[j] || piece[j];
+    TrackResult {
+        assignment,
+        status,
+        shift_px: m.shift,
+        spurious: (0..usable).filter(|&j| !taken(j)).count(),
+        split_px,
+        held_px,
+        pieces,
+    }
+}

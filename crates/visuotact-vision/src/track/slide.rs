@@ -1,0 +1,585 @@
+//! Regions read a lattice step off: the runner-up every lattice tracker must compare.
+//!
+//! A patch dragged by about a pitch can be read one lattice step off: each marker of a row
+//! takes the blob of the next one along the drag, leaving a hole (a marker in view without a
+//! blob) at one end of the row and a blob without a marker at the other. Shifting the reading
+//! back marker by marker raises the energy (each marker alone then shears against its
+//! neighbours): the region has to move as one. So for every cluster of holes (holes within
+//! two lattice steps of each other) and every lattice direction `d`, the **region** is the
+//! holes' chains along `d` — the hole takes the blob of its neighbour one step along `d`,
+//! that neighbour the next one's, and so on to the first marker whose next one holds no
+//! blob, which takes the free blob of least cost near its new prediction (or none) — and the
+//! whole reading with those chains shifted is refined and compared by energy. A move that
+//! lowers the energy by the margin is kept (and the search repeated); the others are the
+//! runner-ups: a region whose shift costs less than the margin more leaves its markers
+//! ambiguous.
+
+use super::solve::Matching;
+
+/// A runner-up within the margin of the reading kept: the markers whose blob the move changed.
+pub(super) struct RunnerUp {
+    pub markers: Vec<usize>,
+}
+
+impl Matching<'_> {
+    /// Markers without a blob where they should be seen (at least half their lost cost).
+    fn holes(&self) -> Vec<usize> {
+        let half_lost = 0.25 * self.energy.gate_cost();
+        (0..self.assignment.len())
+            .filter(|&i| {
+                if self.assignment[i].is_some() || self.support[i] == 0 {
+                    return false;
+                }
+                let p = self.predict_or_start(i);
+                self.energy.lost_cost_at(i, &p) >= half_lost
+            })
+            .collect()
+    }
+
+    /// The chain from hole `h` along direction `d`: `h`, then each next marker one step along
+    /// `d` while it holds a blob (at most `max_len` markers); and its length up to the first
+    /// marker whose blob has a free blob one lattice step beyond it (where it would go once
+    /// shifted), or its whole length.
+    fn chain(&self, h: usize, d: usize, max_len: usize) -> (Vec<usize>, usize) {
+        let steps = &self.reference.lattice_steps;
+        let mut path = vec![h];
+        let mut end = None;
+        while path.len() < max_len {
+            let last = path[path.len() - 1];
+            let Some(next) = steps[last].get(d).copied().flatten() else {
+                break;
+            };
+            let Some(j) = self.assignment[next].filter(|_| !path.contains(&next)) else {
+                break;
+            };
+            path.push(next);
+            // One lattice step beyond the blob, as the blobs before it are spaced (the
+            // reference's step, scaled, for the first).
+            let b = (self.blobs[j].x_px, self.blobs[j].y_px);
+            let back = self.assignment[last].map_or_else(
+                || {
+                    let (p, q) = (
+                        self.reference.positions[last],
+                        self.reference.positions[next],
+                    );
+                    (b.0 - (q.0 - p.0), b.1 - (q.1 - p.1))
+                },
+                |k| (self.blobs[k].x_px, self.blobs[k].y_px),
+            );
+            let beyond = (2.0 * b.0 - back.0, 2.0 * b.1 - back.1);
+            let gate = self.params_gate_px(next);
+            let mut free = false;
+            self.index.near(beyond, gate, |k, _| {
+                free |= k < self.usable && self.owner[k].is_none()
+            });
+            if free && end.is_none() {
+                end = Some(path.len());
+            }
+        }
+        let len = end.unwrap_or(path.len());
+        (path, len)
+    }
+
+    /// The chain from hole `h` that follows costs: `h`, then the holder of the blob that
+    /// suits the last marker best (other than its own, within its gate), while that blob is
+    /// held, at most `max_len` markers (its whole length to start from).
+    fn chain_by_cost(&self, h: usize, max_len: usize) -> (Vec<usize>, usize) {
+        let mut path = vec![h];
+        let mut cands = Vec::new();
+        while path.len() < max_len {
+            let last = path[path.len() - 1];
+            let pred = self.predict_or_start(last);
+            let own = self.assignment[last];
+            self.candidates(last, pred, |j| Some(j) == own, &mut cands);
+            let Some(&(j, _)) = cands.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+                break;
+            };
+            match self.owner[j] {
+                Some(k) if !path.contains(&k) => path.push(k),
+                _ => break,
+            }
+        }
+        let len = path.len();
+        (path, len)
+    }
+
+    /// The energy of the markers in `area` and the clutter among `blobs`.
+    fn local_energy(&self, area: &[usize], blobs: &[usize]) -> f64 {
+        let clutter = blobs
+            .iter()
+            .filter(|&&j| j < self.usable && self.owner[j].is_none())
+            .count() as f64
+            * self.energy.clutter_cost();
+        let markers: f64 = area
+            .iter()
+            .map(|&i| {
+                let pred = self.predict_or_start(i);
+                match self.assignment[i] {
+                    Some(j) => self.cost(i, pred, j),
+                    None => self.energy.lost_cost_at(i, &pred),
+                }
+            })
+            .sum();
+        clutter + markers
+    }
+
+    /// The markers a change of `path` can affect (it and its neighbours) and the blobs it
+    /// may take or leave.
+    fn reach_of(&self, path: &[usize]) -> (Vec<usize>, Vec<usize>) {
+        let mut area: Vec<usize> = Vec::new();
+        let mut blobs: Vec<usize> = Vec::new();
+        for &i in path {
+            area.push(i);
+            area.extend(self.reference.neighbours[i].iter().copied());
+            blobs.extend(self.assignment[i]);
+            let pred = self.predict_or_start(i);
+            self.index
+                .near(pred.at, 1.5 * self.energy.gate_px(i, &pred), |j, _| {
+                    blobs.push(j)
+                });
+        }
+        area.sort_unstable();
+        area.dedup();
+        blobs.sort_unstable();
+        blobs.dedup();
+        (area, blobs)
+    }
+}
+
+/// One chain of a move: its markers, their blobs before the move, the length it starts at and
+/// the length applied now (1: as before).
+struct Chain {
+    path: Vec<usize>,
+    held: Vec<Option<usize>>,
+    start: usize,
+    len: usize,
+    area: Vec<usize>,
+    blobs: Vec<usize>,
+}
+
+impl Matching<'_> {
+    /// Shifts `c` cut to `len`: each marker takes the next one's blob, the last the free blob
+    /// of least cost within its gate (or none). `c` must be as before the move.
+    fn apply_chain(&mut self, c: &mut Chain, len: usize) {
+        c.len = len;
+        if len < 2 {
+            return;
+        }
+        for &i in &c.path[..len] {
+            self.release(i);
+        }
+        for k in 0..len - 1 {
+            if let Some(j) = c.held[k + 1] {
+                self.take(c.path[k], j);
+            }
+        }
+        let last = c.path[len - 1];
+        let pred = self.predict_or_start(last);
+        let mut cands = Vec::new();
+        self.candidates(last, pred, |j| self.owner[j].is_some(), &mut cands);
+        if let Some(&(j, cost)) = cands.iter().min_by(|a, b| a.1.total_cmp(&b.1)) {
+            if cost < self.energy.unmatched_cost_at(last, &pred) {
+                self.take(last, j);
+            }
+        }
+    }
+
+    /// Puts `c`'s markers back on their blobs from before the move.
+    fn undo_chain(&mut self, c: &mut Chain) {
+        if c.len < 2 {
+            return;
+        }
+        for &i in &c.path[..c.len] {
+            self.release(i);
+        }
+        for k in 0..c.len {
+            if let Some(j) = c.held[k] {
+                self.take(c.path[k], j);
+            }
+        }
+        c.len = 1;
+    }
+
+    /// Sets every chain's length (undoing first), returning the energy of `area`/`blobs`.
+    fn set_lengths(
+        &mut self,
+        chains: &mut [Chain],
+        lens: &[usize],
+        area: (&[usize], &[usize]),
+    ) -> f64 {
+        for c in chains.iter_mut() {
+            self.undo_chain(c);
+        }
+        for (c, &l) in chains.iter_mut().zip(lens) {
+            self.apply_chain(c, l);
+        }
+        self.local_energy(area.0, area.1)
+    }
+
+    /// Coordinate descent over each chain's length from the lengths applied now (one shorter,
+    /// one longer, none, or its start; at least one chain moving), each change measured over
+    /// the markers it can affect; at most three sweeps.
+    fn descend(&mut self, chains: &mut [Chain]) {
+        for _ in 0..3 {
+            let mut changed = false;
+            for k in 0..chains.len() {
+                let cur = chains[k].len;
+                let (ar, bl) = (chains[k].area.clone(), chains[k].blobs.clone());
+                // The energy of the chain's reach as it stands (changed only by a kept move).
+                let mut before: Option<f64> = None;
+                for len in [1, cur.saturating_sub(1), cur + 1, chains[k].start] {
+                    if len == 0 || len > chains[k].path.len() || len == chains[k].len {
+                        continue;
+                    }
+                    if len < 2 && chains.iter().enumerate().all(|(q, c)| q == k || c.len < 2) {
+                        continue;
+                    }
+                    let e0 = *before.get_or_insert_with(|| self.local_energy(&ar, &bl));
+                    let old = chains[k].len;
+                    self.undo_chain(&mut chains[k]);
+                    self.apply_chain(&mut chains[k], len);
+                    let e = self.local_energy(&ar, &bl);
+                    if e < e0 - 1e-9 {
+                        changed = true;
+                        before = Some(e);
+                    } else {
+                        self.undo_chain(&mut chains[k]);
+                        self.apply_chain(&mut chains[k], old);
+                    }
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+    }
+
+    /// The best lengths of `chains` shifted together and the energy change. Two starts —
+    /// every chain to where a free blob lies beyond it, and every chain cut to the one common
+    /// length that costs least — each followed by coordinate descent over each chain's length
+    /// (one shorter, one longer, none, or its start), the change of one chain measured over
+    /// the markers it can affect. A chain cut to length 1 leaves its hole as it is; at least
+    /// one chain must move. Leaves the matching as it was.
+    fn best_lengths(&mut self, paths: Vec<(Vec<usize>, usize)>) -> (Vec<Vec<usize>>, f64) {
+        let mut chains: Vec<Chain> = Vec::new();
+        for (path, start) in paths {
+            // Chains must not share markers.
+            if chains
+                .iter()
+                .any(|c| c.path.iter().any(|i| path.contains(i)))
+            {
+                continue;
+            }
+            let (area, blobs) = self.reach_of(&path);
+            let held = path.iter().map(|&i| self.assignment[i]).collect();
+            chains.push(Chain {
+                path,
+                held,
+                start,
+                len: 1,
+                area,
+                blobs,
+            });
+        }
+        let mut area: Vec<usize> = chains.iter().flat_map(|c| c.area.iter().copied()).collect();
+        let mut blobs: Vec<usize> = chains
+            .iter()
+            .flat_map(|c| c.blobs.iter().copied())
+            .collect();
+        area.sort_unstable();
+        area.dedup();
+        blobs.sort_unstable();
+        blobs.dedup();
+        let e0 = self.local_energy(&area, &blobs);
+        let longest = chains.iter().map(|c| c.path.len()).max().unwrap_or(1);
+        let mut common: Option<(f64, Vec<usize>)> = None;
+        for l in 2..=longest {
+            let lens: Vec<usize> = chains.iter().map(|c| c.path.len().min(l)).collect();
+            let e = self.set_lengths(&mut chains, &lens, (&area, &blobs));
+            if common.as_ref().is_none_or(|c| e < c.0) {
+                common = Some((e, lens));
+            }
+        }
+        let mut starts = vec![chains.iter().map(|c| c.start).collect::<Vec<_>>()];
+        starts.extend(common.map(|c| c.1));
+        let mut best: Option<(f64, Vec<usize>)> = None;
+        for lens in starts {
+            self.set_lengths(&mut chains, &lens, (&area, &blobs));
+            self.descend(&mut chains);
+            // Measured over the whole region: the chains' areas overlap.
+            let e_all = self.local_energy(&area, &blobs);
+            if best.as_ref().is_none_or(|b| e_all < b.0) {
+                best = Some((e_all, chains.iter().map(|c| c.len).collect()));
+            }
+        }
+        for c in chains.iter_mut() {
+            self.undo_chain(c);
+        }
+        let Some((e, lens)) = best else {
+            return (Vec::new(), 0.0);
+        };
+        let moved = chains
+            .iter()
+            .zip(&lens)
+            .filter(|(_, &l)| l >= 2)
+            .map(|(c, &l)| c.path[..l].to_vec())
+            .collect();
+        (moved, e - e0)
+    }
+
+    /// Applies `moved` chains (each cut to its moving part) as a move.
+    fn apply_moved(&mut self, moved: &[Vec<usize>]) {
+        let mut chains: Vec<Chain> = moved
+            .iter()
+            .map(|p| Chain {
+                held: p.iter().map(|&i| self.assignment[i]).collect(),
+                start: p.len(),
+                len: 1,
+                path: p.clone(),
+                area: Vec::new(),
+                blobs: Vec::new(),
+            })
+            .collect();
+        for c in &mut chains {
+            let l = c.path.len();
+            self.apply_chain(c, l);
+        }
+    }
+
+    /// Applies every region shift that lowers the energy by the margin (at most eight
+    /// times), each refined when that lowers the energy further (the refinement matches
+    /// against fixed predictions and may undo a move the energy prefers); returns the
+    /// runner-ups within the margin of the reading kept.
+    pub fn slide_regions(&mut self) -> Vec<RunnerUp> {
+        for _ in 0..8 {
+            let (best, runner_ups) = self.region_moves();
+            match best {
+                Some(moved) => {
+                    self.apply_moved(&moved);
+                    let (moved_to, e) = (self.assignment.clone(), self.total_energy());
+                    self.refine(3);
+                    if self.total_energy() > e {
+                        self.set_assignment(&moved_to);
+                    }
+                }
+                None => return runner_ups,
+            }
+        }
+        self.region_moves().1
+    }
+
+    /// The best region shift lowering the energy by the margin, and the runner-ups within it.
+    fn region_moves(&mut self) -> (Option<Vec<Vec<usize>>>, Vec<RunnerUp>) {
+        let n_dirs = self.reference.lattice_dirs.len();
+        let margin = self.energy.params.margin;
+        let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
+        let mut runner_ups = Vec::new();
+        let holes = self.holes();
+        if holes.is_empty() {
+            return (None, runner_ups);
+        }
+        let mut best: Option<(f64, Vec<Vec<usize>>)> = None;
+        let mut clusters = self.clusters(&holes);
+        if clusters.len() > 1 {
+            // A region read a step off may have holes far apart (at the back of each row).
+            clusters.push(holes.clone());
+        }
+        for cluster in clusters {
+            // Each lattice direction, and the chains that follow each marker's best other
+            // blob (any layout, random dots included).
+            for d in 0..=n_dirs {
+                let paths: Vec<(Vec<usize>, usize)> = cluster
+                    .iter()
+                    .map(|&h| {
+                        if d < n_dirs {
+                            self.chain(h, d, max_len)
+                        } else {
+                            self.chain_by_cost(h, max_len)
+                        }
+                    })
+                    .filter(|c| c.0.len() > 1)
+                    .collect();
+                if paths.is_empty() {
+                    continue;
+                }
+                let (moved, de) = self.best_lengths(paths);
+                if moved.is_empty() {
+                    continue;
+                }
+                if de <= -margin {
+                    if best.as_ref().is_none_or(|b| de < b.0) {
+                        best = Some((de, moved));
+                    }
+                } else if de < margin {
+                    let markers = moved.iter().flat_map(|p| p[1..].iter().copied()).collect();
+                    runner_ups.push(RunnerUp { markers });
+                }
+            }
+        }
+        (best.map(|b| b.1), runner_ups)
+    }
+
+    /// Groups holes lying within two lattice steps of each other.
+    fn clusters(&self, holes: &[usize]) -> Vec<Vec<usize>> {
+        let mut group = vec![usize::MAX; holes.len()];
+        let mut out: Vec<Vec<usize>> = Vec::new();
+        for k in 0..holes.len() {
+            if group[k] != usize::MAX {
+                continue;
+            }
+            let g = out.len();
+            group[k] = g;
+            let mut members = vec![holes[k]];
+            let mut stack = vec![k];
+            while let Some(a) = stack.pop() {
+                let pa = self.reference.positions[holes[a]];
+                let reach = 2.2 * self.reference.spacing_px[holes[a]];
+                for b in 0..holes.len() {
+                    if group[b] == usize::MAX {
+                        let pb = self.reference.positions[holes[b]];
+                        if (pa.0 - pb.0).hypot(pa.1 - pb.1) <= reach {
+                            group[b] = g;
+                            members.push(holes[b]);
+                            stack.push(b);
+                        }
+                    }
+                }
+            }
+            out.push(members);
+        }
+        out
+    }
+}
+
+impl Matching<'_> {
+    /// The matched markers in connected parts whose displacements agree: lattice neighbours
+    /// (one step apart) whose displacements differ by under half a spacing share a part. A
+    /// region read a lattice step off is a part of its own (its displacements differ by a step
+    /// from its neighbours' across its sides). Parts of three or more markers, largest first.
+    fn smooth_parts(&self) -> Vec<Vec<usize>> {
+        let n = self.assignment.len();
+        let mut part = vec![usize::MAX; n];
+        let mut out: Vec<Vec<usize>> = Vec::new();
+        for s0 in 0..n {
+            if self.assignment[s0].is_none() || part[s0] != usize::MAX {
+                continue;
+            }
+            let g = out.len();
+            part[s0] = g;
+            let mut members = vec![s0];
+            let mut stack = vec![s0];
+            while let Some(i) = stack.pop() {
+                for &k in self.reference.lattice_steps[i].iter().flatten() {
+                    let s = 0.5 * self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
+                    let (a, b) = (self.disp[i], self.disp[k]);
+                    if self.assignment[k].is_some()
+                        && part[k] == usize::MAX
+                        && (a.0 - b.0).hypot(a.1 - b.1) < s
+                    {
+                        part[k] = g;
+                        members.push(k);
+                        stack.push(k);
+                    }
+                }
+            }
+            out.push(members);
+        }
+        out.retain(|p| p.len() >= 3);
+        out.sort_by_key(|p| std::cmp::Reverse(p.len()));
+        out
+    }
+
+    /// The lattice offsets a part may be read off by: `a` steps along one direction and `b`
+    /// along the next one around (`a ≥ 1`, `a + b ≤ 2`), as lists of directions. A part is
+    /// grown into from its neighbours, so it is read off them by a step or two, not more.
+    fn offsets(&self) -> Vec<Vec<usize>> {
+        let n = self.reference.lattice_dirs.len();
+        let reach = 2;
+        let mut out = Vec::new();
+        for d in 0..n {
+            for a in 1..=reach {
+                for b in 0..=reach - a {
+                    let mut steps = vec![d; a];
+                    steps.extend(std::iter::repeat_n((d + 1) % n, b));
+                    out.push(steps);
+                }
+            }
+        }
+        out
+    }
+
+    /// The marker `steps` lattice steps from `i` (`None` off the layout).
+    fn stepped(&self, i: usize, steps: &[usize]) -> Option<usize> {
+        steps
+            .iter()
+            .try_fold(i, |k, &d| self.reference.lattice_steps[k][d])
+    }
+
+    /// Shifts each part but the largest by each lattice offset within reach (its markers take
+    /// the blobs of the markers that far along; a marker outside it whose blob it takes is left
+    /// without one), refines, and keeps a move that lowers the energy by the margin; repeated
+    /// while one does (at most eight times). Returns the runner-ups within the margin of the
+    /// reading kept.
+    pub fn shift_parts(&mut self) -> Vec<RunnerUp> {
+        for _ in 0..8 {
+            let (best, runner_ups) = self.part_moves();
+            match best {
+                Some(a) => self.set_assignment(&a),
+                None => return runner_ups,
+            }
+        }
+        self.part_moves().1
+    }
+
+    /// The best part shift lowering the energy by the margin (the whole new assignment), and
+    /// the runner-ups within it.
+    fn part_moves(&mut self) -> (Option<Vec<Option<usize>>>, Vec<RunnerUp>) {
+        let margin = self.energy.params.margin;
+        let mut runner_ups = Vec::new();
+        let offsets = self.offsets();
+        let parts = self.smooth_parts();
+        if offsets.is_empty() || parts.len() < 2 {
+            return (None, runner_ups);
+        }
+        let e0 = self.total_energy();
+        let saved = self.assignment.clone();
+        let mut best: Option<(f64, Vec<Option<usize>>)> = None;
+        for p in &parts[1..] {
+            for steps in &offsets {
+                let moved: Vec<(usize, Option<usize>)> = p
+                    .iter()
+                    .map(|&i| (i, self.stepped(i, steps).and_then(|k| saved[k])))
+                    .collect();
+                for &(i, _) in &moved {
+                    self.release(i);
+                }
+                for &(i, to) in &moved {
+                    if let Some(j) = to {
+                        if let Some(k) = self.owner[j] {
+                            self.release(k);
+                        }
+                        self.take(i, j);
+                    }
+                }
+                self.refine(3);
+                let e = self.total_energy();
+                if e <= e0 - margin {
+                    if best.as_ref().is_none_or(|b| e < b.0) {
+                        best = Some((e, self.assignment.clone()));
+                    }
+                } else if e < e0 + margin {
+                    let changed: Vec<usize> = p
+                        .iter()
+                        .copied()
+                        .filter(|&i| self.assignment[i] != saved[i] && saved[i].is_some())
+                        .collect();
+                    if !changed.is_empty() {
+                        runner_ups.push(RunnerUp { markers: changed });
+                    }
+                }
+                self.set_assignment(&saved);
+            }
+        }
+        (best.map(|b| b.1), runner_ups)
+    }
+}

@@ -1,0 +1,413 @@
+//! The assignment: which blob each marker takes, minimising the energy ([`super::energy`]).
+//!
+//! 1. **Seeds**: markers whose blob near the starting motion is unmistakable (within half the
+//!    gate, no other blob within the gate), keeping only the largest set whose displacements
+//!    agree with their seeded neighbours.
+//! 2. **Growth**, best supported first: a marker predicted from its matched neighbours takes
+//!    the free blob of least cost when that costs less than being lost and the next blob costs
+//!    at least the margin more; otherwise it waits for more neighbours.
+//! 3. **Global refinement**: every marker's prediction is refitted from its neighbours' blobs
+//!    and all markers are matched at once by minimum total cost (one blob per marker, lost at
+//!    its lost cost), until nothing changes: a greedy step taken in the wrong order is undone.
+//! 4. **Lattice offset** (order-free, lattices): a field moved by pitches can be read whole a
+//!    lattice step off; the whole reading shifted by each lattice step is compared by energy
+//!    (read a step off, a row of markers at the layout's edge has no blob) and the lowest
+//!    kept, repeated up to [`TrackParams::reach_pitches`](super::TrackParams) steps.
+
+use std::cell::Cell;
+use std::collections::BinaryHeap;
+
+use super::energy::Energy;
+use super::index::{dist, dist_sq, BlobIndex};
+use super::predict::{local_motion, Prediction};
+use super::TrackReference;
+use crate::assign::{assign_min_cost, Candidates};
+use crate::blobs::Blob;
+
+/// The working state of one frame's matching.
+pub(super) struct Matching<'a> {
+    pub reference: &'a TrackReference,
+    pub blobs: &'a [Blob],
+    /// Blobs from this index on are markers cut by the border.
+    pub usable: usize,
+    pub index: BlobIndex,
+    pub energy: Energy<'a>,
+    /// Where each marker was before the motion being followed (reference or prior).
+    pub anchors: Vec<(f64, f64)>,
+    /// The starting motion added to the anchors (registration; zero when followed).
+    pub shift: (f64, f64),
+    pub assignment: Vec<Option<usize>>,
+    /// The marker holding each blob.
+    pub owner: Vec<Option<usize>>,
+    pub disp: Vec<(f64, f64)>,
+    /// How many of each marker's neighbours hold a blob.
+    pub support: Vec<u32>,
+    /// Each marker's prediction from its neighbours as last computed (`None`: to compute),
+    /// cleared when a neighbour takes or leaves a blob.
+    predicted: Vec<Cell<Option<Option<Prediction>>>>,
+}
+
+impl<'a> Matching<'a> {
+    pub fn new(
+        reference: &'a TrackReference,
+        blobs: &'a [Blob],
+        usable: usize,
+        energy: Energy<'a>,
+        anchors: Vec<(f64, f64)>,
+        shift: (f64, f64),
+    ) -> Self {
+        let n = reference.positions.len();
+        Self {
+            reference,
+            blobs,
+            usable,
+            index: BlobIndex::new(blobs, reference.pitch_px.max(1.0)),
+            energy,
+            anchors,
+            shift,
+            assignment: vec![None; n],
+            owner: vec![None; blobs.len()],
+            disp: vec![(0.0, 0.0); n],
+            support: vec![0; n],
+            predicted: vec![Cell::new(None); n],
+        }
+    }
+
+    pub fn take(&mut self, i: usize, j: usize) {
+        if let Some(old) = self.assignment[i] {
+            self.owner[old] = None;
+        } else {
+            for &k in &self.reference.neighbours[i] {
+                self.support[k] += 1;
+            }
+        }
+        for &k in &self.reference.neighbours[i] {
+            self.predicted[k].set(None);
+        }
+        self.assignment[i] = Some(j);
+        self.owner[j] = Some(i);
+        let a = self.anchors[i];
+        self.disp[i] = (self.blobs[j].x_px - a.0, self.blobs[j].y_px - a.1);
+    }
+
+    pub fn release(&mut self, i: usize) {
+        if let Some(j) = self.assignment[i].take() {
+            self.owner[j] = None;
+            for &k in &self.reference.neighbours[i] {
+                self.support[k] -= 1;
+                self.predicted[k].set(None);
+            }
+        }
+    }
+
+    /// Replaces the whole assignment.
+    pub fn set_assignment(&mut self, a: &[Option<usize>]) {
+        for i in 0..a.len() {
+            self.release(i);
+        }
+        for (i, col) in a.iter().enumerate() {
+            if let Some(j) = *col {
+                self.take(i, j);
+            }
+        }
+    }
+
+    /// The gate of marker `i` at rest (no magnification, no spread), pixels.
+    pub fn params_gate_px(&self, i: usize) -> f64 {
+        self.energy.params.gate_spacings * self.reference.spacing_px[i]
+    }
+
+    pub fn is_cut(&self, j: usize) -> bool {
+        j >= self.usable
+    }
+
+    /// Where `i` should be according to its matched neighbours, and the local magnification.
+    pub fn predict(&self, i: usize) -> Option<Prediction> {
+        if let Some(p) = self.predicted[i].get() {
+            return p;
+        }
+        let p = self.predict_afresh(i);
+        self.predicted[i].set(Some(p));
+        p
+    }
+
+    fn predict_afresh(&self, i: usize) -> Option<Prediction> {
+        let a = &self.assignment;
+        local_motion(
+            i,
+            self.reference,
+            &self.anchors,
+            |k| a[k].is_some(),
+            &self.disp,
+        )
+        .map(|m| {
+            let p = self.anchors[i];
+            Prediction {
+                at: (p.0 + m.disp.0, p.1 + m.disp.1),
+                scale: m.scale,
+                spread_px: m.spread_px,
+                start: (p.0 + self.shift.0, p.1 + self.shift.1),
+            }
+        })
+    }
+
+    /// [`Matching::predict`], or the starting motion when no neighbour holds a blob.
+    pub fn predict_or_start(&self, i: usize) -> Prediction {
+        self.predict(i).unwrap_or_else(|| {
+            let a = self.anchors[i];
+            let start = (a.0 + self.shift.0, a.1 + self.shift.1);
+            Prediction {
+                at: start,
+                scale: 1.0,
+                spread_px: 0.0,
+                start,
+            }
+        })
+    }
+
+    /// The cost of `i` (predicted `pred`) taking blob `j`.
+    pub fn cost(&self, i: usize, pred: Prediction, j: usize) -> f64 {
+        self.energy.cost(i, &pred, &self.blobs[j], self.is_cut(j))
+    }
+
+    /// The blobs within the gate of `pred` with their cost for `i`, those `skip` refuses left
+    /// out.
+    pub(super) fn candidates(
+        &self,
+        i: usize,
+        pred: Prediction,
+        skip: impl Fn(usize) -> bool,
+        out: &mut Vec<(usize, f64)>,
+    ) {
+        out.clear();
+        let gate = self.energy.gate_px(i, &pred);
+        self.index.near(pred.at, gate, |j, _| {
+            if !skip(j) {
+                out.push((j, self.cost(i, pred, j)));
+            }
+        });
+    }
+
+    /// Seeds: markers whose blob near `start` is unmistakable.
+    pub fn seed(&mut self) {
+        let n = self.anchors.len();
+        let gate_cost = self.energy.gate_cost();
+        let mut cands = Vec::new();
+        for i in 0..n {
+            let pred = self.predict_or_start(i);
+            self.candidates(i, pred, |j| self.owner[j].is_some(), &mut cands);
+            let Some(&(j, c)) = cands.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+                continue;
+            };
+            // Within half the gate in position (a quarter of the lost cost), nothing else in it.
+            if c > 0.25 * gate_cost || cands.len() > 1 {
+                continue;
+            }
+            let bj = (self.blobs[j].x_px, self.blobs[j].y_px);
+            let d = dist(bj, pred.at);
+            let mutual = self.reference.neighbours[i].iter().all(|&k| {
+                let a = self.anchors[k];
+                dist_sq((a.0 + self.shift.0, a.1 + self.shift.1), bj) > d * d
+            });
+            if mutual {
+                self.take(i, j);
+            }
+        }
+        self.keep_largest_agreeing_seeds();
+    }
+
+    /// Keeps the largest set of seeds whose displacements agree (within a quarter spacing)
+    /// with their seeded neighbours.
+    fn keep_largest_agreeing_seeds(&mut self) {
+        let n = self.anchors.len();
+        let mut component = vec![usize::MAX; n];
+        let mut sizes = Vec::new();
+        for s0 in 0..n {
+            if self.assignment[s0].is_none() || component[s0] != usize::MAX {
+                continue;
+            }
+            let c = sizes.len();
+            let mut stack = vec![s0];
+            component[s0] = c;
+            let mut size = 0;
+            while let Some(i) = stack.pop() {
+                size += 1;
+                for &k in &self.reference.neighbours[i] {
+                    let s = self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
+                    if self.assignment[k].is_some()
+                        && component[k] == usize::MAX
+                        && dist_sq(self.disp[i], self.disp[k]) < (0.25 * s).powi(2)
+                    {
+                        component[k] = c;
+                        stack.push(k);
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        if let Some(keep) = (0..sizes.len()).max_by_key(|&c| (sizes[c], usize::MAX - c)) {
+            for (i, &c) in component.iter().enumerate() {
+                if c != keep && self.assignment[i].is_some() {
+                    self.release(i);
+                }
+            }
+        }
+    }
+
+    /// Grows the matched set into the neighbours of matched markers, most supported first.
+    pub fn grow(&mut self) {
+        let n = self.assignment.len();
+        let margin = self.energy.params.margin;
+        let mut failed_at: Vec<Option<u32>> = vec![None; n];
+        let mut heap: BinaryHeap<(u32, std::cmp::Reverse<usize>)> = (0..n)
+            .filter(|&i| self.assignment[i].is_none() && self.support[i] > 0)
+            .map(|i| (self.support[i], std::cmp::Reverse(i)))
+            .collect();
+        let mut cands = Vec::new();
+        while let Some((support, std::cmp::Reverse(i))) = heap.pop() {
+            if self.assignment[i].is_some()
+                || support != self.support[i]
+                || failed_at[i].is_some_and(|f| support <= f)
+            {
+                continue;
+            }
+            let Some(pred) = self.predict(i) else {
+                continue;
+            };
+            self.candidates(i, pred, |j| self.owner[j].is_some(), &mut cands);
+            cands.sort_by(|a, b| a.1.total_cmp(&b.1));
+            let lost = self.energy.unmatched_cost_at(i, &pred);
+            let runner_up = cands.get(1).map_or(lost, |c| c.1.min(lost));
+            match cands.first() {
+                Some(&(j, c)) if c < lost && runner_up - c >= margin => {
+                    self.take(i, j);
+                    for &k in &self.reference.neighbours[i] {
+                        if self.assignment[k].is_none() {
+                            heap.push((self.support[k], std::cmp::Reverse(k)));
+                        }
+                    }
+                }
+                _ => failed_at[i] = Some(support),
+            }
+        }
+    }
+
+    /// Every marker's prediction from its neighbours' current blobs (the starting motion for
+    /// a marker none of whose neighbours holds one).
+    pub fn predictions(&self) -> Vec<Prediction> {
+        (0..self.assignment.len())
+            .map(|i| self.predict_or_start(i))
+            .collect()
+    }
+
+    /// Matches every marker at once by minimum total cost from its neighbours' predictions,
+    /// until nothing changes (at most `rounds` times). A marker no neighbour of which holds a
+    /// blob may only keep its own.
+    pub fn refine(&mut self, rounds: usize) {
+        let n = self.assignment.len();
+        let mut cands = Candidates::default();
+        let mut row = Vec::new();
+        for _ in 0..rounds {
+            let preds = self.predictions();
+            cands.clear();
+            for (i, &pred) in preds.iter().enumerate() {
+                if self.support[i] > 0 {
+                    self.candidates(i, pred, |_| false, &mut row);
+                } else {
+                    row.clear();
+                    if let Some(j) = self.assignment[i] {
+                        row.push((j, self.cost(i, pred, j)));
+                    }
+                }
+                cands.push_row(&row, self.energy.unmatched_cost_at(i, &pred));
+            }
+            let a = assign_min_cost(&cands, self.blobs.len());
+            if (0..n).all(|i| a.columns[i] == self.assignment[i]) {
+                break;
+            }
+            self.set_assignment(&a.columns);
+        }
+    }
+
+    /// The energy of the current assignment: each matched marker's cost against its
+    /// neighbours' prediction, each unmatched marker's lost cost and each unclaimed blob's
+    /// clutter cost.
+    pub fn total_energy(&self) -> f64 {
+        let clutter = (0..self.usable)
+            .filter(|&j| self.owner[j].is_none())
+            .count() as f64
+            * self.energy.clutter_cost();
+        clutter
+            + (0..self.assignment.len())
+                .map(|i| {
+                    let pred = self.predict_or_start(i);
+                    match self.assignment[i] {
+                        Some(j) => self.cost(i, pred, j),
+                        None => self.energy.lost_cost_at(i, &pred),
+                    }
+                })
+                .sum::<f64>()
+    }
+
+    /// Whether the reading leaves anything unexplained: a usable blob no marker takes, or a
+    /// marker without a blob where it should be seen. A reading a lattice step off always
+    /// does (a row of markers at one edge without blobs, a row of blobs at the other without
+    /// markers), unless the view's edge hides both, where the energy cannot tell them apart.
+    pub fn leaves_unexplained(&self) -> bool {
+        (0..self.usable).any(|j| self.owner[j].is_none())
+            || (0..self.assignment.len()).any(|i| {
+                self.assignment[i].is_none()
+                    && self.energy.lost_cost_at(i, &self.predict_or_start(i)) > 0.0
+            })
+    }
+
+    /// Order-free on a lattice: shifts the whole reading by a lattice step, refined, while
+    /// that lowers the energy by the margin (at most `max_steps` steps). The two directions
+    /// whose plain shift costs least are refined and compared. A reading that explains every
+    /// blob and every marker in view is kept as it is.
+    pub fn search_offset(&mut self, max_steps: usize) {
+        let n_dirs = self.reference.lattice_dirs.len();
+        if n_dirs == 0 || !self.leaves_unexplained() {
+            return;
+        }
+        let mut e0 = self.total_energy();
+        for _ in 0..max_steps {
+            let saved = self.assignment.clone();
+            let mut plain: Vec<(f64, usize)> = (0..n_dirs)
+                .map(|d| {
+                    self.set_assignment(&self.shifted(&saved, d));
+                    (self.total_energy(), d)
+                })
+                .collect();
+            plain.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let mut best: Option<(f64, Vec<Option<usize>>)> = None;
+            for &(_, d) in plain.iter().take(2) {
+                self.set_assignment(&self.shifted(&saved, d));
+                self.refine(3);
+                let e = self.total_energy();
+                if e < e0 - self.energy.params.margin && best.as_ref().is_none_or(|b| e < b.0) {
+                    best = Some((e, self.assignment.clone()));
+                }
+            }
+            match best {
+                Some((e, a)) => {
+                    self.set_assignment(&a);
+                    e0 = e;
+                }
+                None => {
+                    self.set_assignment(&saved);
+                    break;
+                }
+            }
+        }
+    }
+
+    /// `a` shifted by one lattice step along direction `d`: each marker takes the blob its
+    /// neighbour one step along `d` holds.
+    fn shifted(&self, a: &[Option<usize>], d: usize) -> Vec<Option<usize>> {
+        let steps = &self.reference.lattice_steps;
+        (0..a.len())
+            .map(|i| steps[i].get(d).copied().flatten().and_then(|k| a[k]))
+            .collect()
+    }
+}
