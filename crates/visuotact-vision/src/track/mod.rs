@@ -10,7 +10,9 @@
 //!   marker without a blob costs the lost cost, scaled by how visible it should be, and a
 //!   blob without a marker the same as clutter.
 //! - `solve`: seeds, growth and a global minimum-cost assignment minimise the energy;
-//!   order-free on a lattice, the reading shifted by whole lattice steps is compared too.
+//!   order-free on a lattice, the reading shifted by whole lattice steps is compared too, and
+//!   a reading that leaves a blob or a marker unexplained is searched again from a firmer
+//!   motion prior, the lower energy kept.
 //! - `slide`: the runner-ups a lattice tracker must compare — regions read a lattice step
 //!   off (chains from markers without a blob) and smooth parts shifted by a step or two —
 //!   kept when they lower the energy by the margin.
@@ -387,6 +389,52 @@ pub struct TrackHints<'a> {
     pub view: Option<View>,
 }
 
+/// Seeds, grows and refines `m`; order-free, also searches the offset and shifted parts.
+/// Returns the runner-ups within the margin of the reading kept.
+fn search(m: &mut solve::Matching<'_>, order_free: bool) -> Vec<slide::RunnerUp> {
+    m.seed();
+    m.grow();
+    m.refine(6);
+    if order_free {
+        m.search_offset(m.energy.params.reach_pitches.ceil() as usize);
+    }
+    let mut runner_ups = m.slide_regions();
+    if order_free {
+        runner_ups.extend(m.shift_parts());
+    }
+    runner_ups
+}
+
+/// Order-free, a second start from the registration with the motion prior twice as firm: it
+/// keeps a region near its start from being read a step off where the weak prior lets the
+/// search wander. Its reading replaces `m`'s when its energy (the one energy) is lower by the
+/// margin; then returns the runner-ups of the reading kept.
+fn search_firmer(m: &mut solve::Matching<'_>, view: Option<View>) -> Option<Vec<slide::RunnerUp>> {
+    let params = m.energy.params;
+    let firm = TrackParams {
+        motion_spacings: 0.5 * params.motion_spacings,
+        ..*params
+    };
+    let energy = energy::Energy {
+        reference: m.reference,
+        params: &firm,
+        view,
+    };
+    let anchors = m.reference.positions.clone();
+    let mut second = solve::Matching::new(m.reference, m.blobs, m.usable, energy, anchors, m.shift);
+    search(&mut second, true);
+    let (first, e_first) = (m.assignment.clone(), m.total_energy());
+    m.set_assignment(&second.assignment);
+    if m.total_energy() < e_first - params.margin {
+        let mut runner_ups = m.slide_regions();
+        runner_ups.extend(m.shift_parts());
+        Some(runner_ups)
+    } else {
+        m.set_assignment(&first);
+        None
+    }
+}
+
 /// Matches every reference marker to at most one blob of the frame, each frame on its own.
 pub fn track(reference: &TrackReference, blobs: &[Blob], params: &TrackParams) -> TrackResult {
     track_with(reference, blobs, params, TrackHints::default())
@@ -417,18 +465,15 @@ pub fn track_with(
         None => reference.positions.clone(),
     };
     let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
-    if prior.is_none() {
+    let order_free = prior.is_none();
+    if order_free {
         m.shift = predict::register(reference, &m.index);
     }
-    m.seed();
-    m.grow();
-    m.refine(6);
-    if prior.is_none() {
-        m.search_offset(params.reach_pitches.ceil() as usize);
-    }
-    let mut runner_ups = m.slide_regions();
-    if prior.is_none() {
-        runner_ups.extend(m.shift_parts());
+    let mut runner_ups = search(&mut m, order_free);
+    if order_free && m.leaves_unexplained() {
+        if let Some(r) = search_firmer(&mut m, hints.view) {
+            runner_ups = r;
+        }
     }
     let preds = m.predictions();
     let pieces = pieces::find_pieces(&m, &preds);
