@@ -24,7 +24,7 @@ use crate::layout::{
     annuli_share_centres, median, number_markers, Layout, LayoutChoice, LayoutError,
 };
 use crate::preprocess::gray_from_rgb_into;
-use crate::track::{track, TrackParams, TrackReference, FILL_SIGMA_FLOOR};
+use crate::track::{fill_sigma_from_rest, track, TrackParams, TrackReference};
 use rayon::prelude::*;
 
 /// Identifies sensor files.
@@ -636,25 +636,15 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
         markers.iter().map(|m| m.area_px).collect(),
     );
     // The axes are 4·√λ in the file's convention; the fill counts each pixel as a unit square.
-    // A contact frays blobs about twice as far as rest does (GelSight Mini: the 5th percentile
-    // shortfall 0.29 in contact, 0.14–0.22 at rest): the tolerance is twice the rest's RMS.
     let square = match cal.moment_convention {
         MomentConvention::Pixel => 1.0 / 12.0,
         MomentConvention::Matlab => 0.0,
     };
-    let (mut sum, mut count) = (0.0, 0usize);
-    for m in markers.iter().filter(|m| !m.touches_border) {
+    r.fill_sigma = fill_sigma_from_rest(markers.iter().filter(|m| !m.touches_border).map(|m| {
         let l1 = (m.major_axis_px / 4.0).powi(2) + square;
         let l2 = (m.minor_axis_px / 4.0).powi(2) + square;
-        let fill = m.area_px / (4.0 * std::f64::consts::PI * (l1 * l2).sqrt());
-        if fill.is_finite() {
-            sum += (1.0 - fill).max(0.0).powi(2);
-            count += 1;
-        }
-    }
-    if count > 0 {
-        r.fill_sigma = (2.0 * (sum / count as f64).sqrt()).max(FILL_SIGMA_FLOOR);
-    }
+        (m.area_px, l1 * l2)
+    }));
     if layout == Layout::Rings {
         // Concentric rings share a centre: they are told apart by size.
         r.ring_sizes_px = Some(markers.iter().map(|m| m.major_axis_px).collect());

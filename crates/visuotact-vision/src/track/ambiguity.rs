@@ -141,7 +141,9 @@ fn runner_up_margin(
         f64::INFINITY
     };
     let gate = m.energy.gate_px(i, &pi);
-    let own_cell = nearest_of(m, i, preds, bj);
+    // Whether the marker's own blob lies nearer its prediction than any neighbour's (asked
+    // only of a free blob near it).
+    let mut own_cell: Option<bool> = None;
     m.index.near(pi.at, gate, |j2, _| {
         if j2 == j || j2 >= m.usable {
             return;
@@ -153,8 +155,8 @@ fn runner_up_margin(
             // no blobless marker to take its own: taking it moves the marker by less than its
             // position can be told, it does not change who the marker is.
             None if pieces.contains(&(j, j2))
-                || (own_cell
-                    && dist(m.index.pts[j2], bj) < m.energy.sigma_px(i, &pi)
+                || (dist(m.index.pts[j2], bj) < m.energy.sigma_px(i, &pi)
+                    && *own_cell.get_or_insert_with(|| nearest_of(m, i, preds, bj))
                     && nearest_of(m, i, preds, m.index.pts[j2])) =>
             {
                 return

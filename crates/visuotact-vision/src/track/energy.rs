@@ -165,8 +165,13 @@ pub(super) fn outline_noise(area_px: f64) -> f64 {
 pub(super) fn ellipse_fill(b: &Blob) -> f64 {
     let pixel = 1.0 / 12.0;
     let (xx, xy, yy) = (b.mu20_px2 + pixel, b.mu11_px2, b.mu02_px2 + pixel);
-    let ellipse_px = 4.0 * std::f64::consts::PI * (xx * yy - xy * xy).max(0.0).sqrt();
-    f64::from(b.area_px) / ellipse_px
+    fill_of(f64::from(b.area_px), xx * yy - xy * xy)
+}
+
+/// The share of its moments' ellipse a blob of `area_px` fills, `det_px4` the determinant of
+/// its covariance (`λ1·λ2`, each variance counting the pixel as a unit square).
+pub(super) fn fill_of(area_px: f64, det_px4: f64) -> f64 {
+    area_px / (4.0 * std::f64::consts::PI * det_px4.max(0.0).sqrt())
 }
 
 /// The shape term of blob `b` read as one marker of `one_px` expected: one marker fills its
