@@ -675,6 +675,12 @@ impl MinMax {
         Self { min, max }
     }
 
+    /// Whether it scales rows of `width` columns (as many minima as maxima as columns): what a
+    /// loaded file must hold before [`MinMax::apply`] and [`MinMax::invert`] may index it.
+    pub fn scales(&self, width: usize) -> bool {
+        self.min.len() == width && self.max.len() == width
+    }
+
     /// Scaled copy of a row.
     pub fn apply(&self, row: &[f64]) -> Vec<f64> {
         let mut out = Vec::with_capacity(row.len());

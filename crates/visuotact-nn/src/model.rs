@@ -470,7 +470,7 @@ impl Model {
             Some(p) => {
                 if p.inputs() + m.passthrough != m.feature_columns.len()
                     || p.components.iter().any(|c| c.len() != p.inputs())
-                    || p.score_scaling.min.len() != p.outputs()
+                    || !p.score_scaling.scales(p.outputs())
                 {
                     return Err(bad(
                         "inconsistent model (the projection and the feature columns disagree)"
@@ -485,6 +485,7 @@ impl Model {
             if m.projection.is_some()
                 || f.inputs() + m.passthrough != m.feature_columns.len()
                 || f.components.iter().any(|c| c.len() != f.inputs())
+                || !f.score_scaling.scales(f.outputs())
             {
                 return Err(bad(
                     "inconsistent model (the filler and the feature columns disagree)".to_string(),
@@ -498,8 +499,8 @@ impl Model {
             || m.members
                 .iter()
                 .any(|n| n.sizes != *s || n.params.len() != m.net.params.len())
-            || m.input_scaling.min.len() != m.feature_columns.len()
-            || m.target_scaling.min.len() != s[s.len() - 1]
+            || !m.input_scaling.scales(m.feature_columns.len())
+            || !m.target_scaling.scales(s[s.len() - 1])
         {
             return Err(bad(
                 "inconsistent model (layer sizes, columns and weights disagree)".to_string(),
@@ -581,6 +582,38 @@ pub(crate) mod tests {
             },
             sensor: None,
             held_out: None,
+        }
+    }
+
+    #[test]
+    fn scalings_of_the_wrong_width_are_refused_with_the_file_name() {
+        let good = model(&[3, 4, 2], 0);
+        assert!(Model::from_json(&good.to_json(), "m.json").is_ok());
+        let short_max = |s: &mut MinMax| {
+            s.max.pop();
+        };
+        let mut input = good.clone();
+        short_max(&mut input.input_scaling);
+        let mut target = good.clone();
+        short_max(&mut target.target_scaling);
+        let mut filler = good.clone();
+        let rows: Vec<Vec<f64>> = (0..6)
+            .map(|i| {
+                (0..3)
+                    .map(|j| f64::from(i * j) + f64::from(i).sin())
+                    .collect()
+            })
+            .collect();
+        let mut f = crate::pca::Projection::fit(&rows, 2).unwrap();
+        assert!(f.score_scaling.scales(2));
+        filler.filler = Some(f.clone());
+        assert!(Model::from_json(&filler.to_json(), "m.json").is_ok());
+        short_max(&mut f.score_scaling);
+        filler.filler = Some(f);
+        for bad in [input, target, filler] {
+            let e = Model::from_json(&bad.to_json(), "m.json").unwrap_err();
+            assert!(e.to_string().contains("m.json"), "{e}");
+            assert!(e.to_string().contains("inconsistent model"), "{e}");
         }
     }
 
