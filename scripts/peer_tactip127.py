@@ -6,9 +6,13 @@ nearest blob of every frame (no gate: a pin always gets a blob), the pins' (dx, 
 standardised scikit-learn MLP(64, 64) (Adam, early stopping) predicting the targets together.
 
   python peer_tactip127.py DATA_DIR [--seed N] [--json OUT]
+      [--train CSV --test CSV --targets COL:NAME,...]
 
-DATA_DIR is ../shared/reference/real/tactip127_surface. Prints the mean absolute error of each
-target on the test split, the fit's seconds and the extraction's microseconds per frame.
+DATA_DIR is ../shared/reference/real/tactip127_surface (its train_targets.csv and
+test_targets.csv keyed by image_name); --train, --test and --targets give another set's split
+(keyed by image_name or sensor_image, frames in DATA_DIR/frames), as scripts/real-tactip331
+does. Prints the mean absolute error of each target on the test split, the fit's seconds and
+the extraction's microseconds per frame.
 """
 import argparse
 import csv
@@ -42,9 +46,13 @@ def centroids(path):
     return cent[keep]
 
 
-def rows(data, part):
-    with open(os.path.join(data, f"{part}_targets.csv")) as f:
+def rows(path):
+    with open(path) as f:
         return list(csv.DictReader(f))
+
+
+def key(row):
+    return row["image_name"] if "image_name" in row else row["sensor_image"]
 
 
 def main():
@@ -52,9 +60,14 @@ def main():
     ap.add_argument("data")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json")
+    ap.add_argument("--train")
+    ap.add_argument("--test")
+    ap.add_argument("--targets", help="COL:NAME,... (default: the 127-pin set's four)")
     a = ap.parse_args()
-    train, test = rows(a.data, "train"), rows(a.data, "test")
-    frame = lambda r: os.path.join(a.data, "frames", r["image_name"])  # noqa: E731
+    targets = TARGETS if not a.targets else [tuple(t.split(":")) for t in a.targets.split(",")]
+    train = rows(a.train or os.path.join(a.data, "train_targets.csv"))
+    test = rows(a.test or os.path.join(a.data, "test_targets.csv"))
+    frame = lambda r: os.path.join(a.data, "frames", key(r))  # noqa: E731
     ref = centroids(frame(train[0]))
     t0 = time.perf_counter()
 
@@ -68,8 +81,8 @@ def main():
 
     xtr, xte = features(train), features(test)
     extract_us = (time.perf_counter() - t0) / (len(train) + len(test)) * 1e6
-    ytr = np.array([[float(r[k]) for k, _ in TARGETS] for r in train])
-    yte = np.array([[float(r[k]) for k, _ in TARGETS] for r in test])
+    ytr = np.array([[float(r[k]) for k, _ in targets] for r in train])
+    yte = np.array([[float(r[k]) for k, _ in targets] for r in test])
     xs, ys = StandardScaler().fit(xtr), StandardScaler().fit(ytr)
     net = MLPRegressor(hidden_layer_sizes=(64, 64), max_iter=2000, early_stopping=True,
                        random_state=a.seed)
@@ -80,11 +93,11 @@ def main():
     mae = np.abs(p - yte).mean(axis=0)
     print(f"peer (OpenCV nearest blob + MLP(64,64)): {len(ref)} pins, train {len(xtr)}, "
           f"test {len(xte)}, fit {fit_s:.1f} s, extraction {extract_us:.0f} us/frame")
-    print("  " + " ".join(f"{name}={e:.4f}" for (_, name), e in zip(TARGETS, mae)))
+    print("  " + " ".join(f"{name}={e:.4f}" for (_, name), e in zip(targets, mae)))
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"pins": len(ref), "fit_s": fit_s, "extract_us": extract_us,
-                       "mae": {name: float(e) for (_, name), e in zip(TARGETS, mae)}}, f)
+                       "mae": {name: float(e) for (_, name), e in zip(targets, mae)}}, f)
 
 
 if __name__ == "__main__":

@@ -266,8 +266,16 @@ pub(crate) fn cell_number(
 }
 
 /// The column a table is keyed by: `frame`, or where a table has none, the first of the other
-/// names data sets give the frame's file (a TacTip data set's `image_name`).
-pub const KEY_COLUMNS: [&str; 5] = ["frame", "image_name", "image", "filename", "file"];
+/// names data sets give the frame's file (a TacTip data set's `image_name`, the Franka
+/// TacTip sets' `sensor_image`).
+pub const KEY_COLUMNS: [&str; 6] = [
+    "frame",
+    "image_name",
+    "sensor_image",
+    "image",
+    "filename",
+    "file",
+];
 
 /// Where the key is among `header`'s columns ([`KEY_COLUMNS`]), or why there is none.
 fn key_column(header: &[String]) -> Result<usize, String> {
@@ -414,6 +422,10 @@ mod tests {
         assert_eq!(t.columns, ["pose_2", "move_1"]);
         assert_eq!(t.rows[0], [0.75, -0.1]);
         assert!(t.rows[1][1].is_nan());
+        // The Franka TacTip sets key theirs by `sensor_image`.
+        let franka = "sensor_image,pose_z,shear_x\nimage_1.png,0.5,3.4\n";
+        let t = KeyedTable::from_text(franka, Path::new("labels.csv"), &[]).unwrap();
+        assert_eq!((t.keys[0].as_str(), t.columns.len()), ("image_1.png", 2));
         // Words further down a column of numbers are still an error, with the line.
         let bad = "frame,x_mm\na,1\nb,oops\n";
         let e = KeyedTable::from_text(bad, Path::new("l.csv"), &[]).unwrap_err();
