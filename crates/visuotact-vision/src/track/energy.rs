@@ -88,7 +88,12 @@ impl Energy<'_> {
     /// when smaller). The tolerance is [`TrackParams::area_sigma`](super::TrackParams) widened
     /// by the pixel noise of the marker's outline (about the square root of its length).
     pub fn area_misfit(&self, b: &Blob, expected_px: f64) -> f64 {
-        let (a, o) = (self.params.area_sigma, outline_noise(expected_px));
+        self.area_misfit_with(b, expected_px, outline_noise(expected_px))
+    }
+
+    /// [`Energy::area_misfit`] with the outline's noise `o` at `expected_px` given.
+    fn area_misfit_with(&self, b: &Blob, expected_px: f64, o: f64) -> f64 {
+        let a = self.params.area_sigma;
         let sigma = (a * a + o * o).sqrt();
         (f64::from(b.area_px.max(1)) / expected_px).ln() / sigma
     }
@@ -98,10 +103,14 @@ impl Energy<'_> {
     /// the shade, shrinks to a sliver of itself; only a merge makes one grow: shrinking is
     /// three times as likely.
     pub fn area_cost(&self, b: &Blob, expected_px: f64, cut: bool) -> f64 {
+        self.area_cost_with(b, expected_px, cut, outline_noise(expected_px))
+    }
+
+    fn area_cost_with(&self, b: &Blob, expected_px: f64, cut: bool, o: f64) -> f64 {
         if cut || expected_px <= 0.0 {
             return 0.0;
         }
-        let z = self.area_misfit(b, expected_px);
+        let z = self.area_misfit_with(b, expected_px, o);
         if z < 0.0 {
             (z / 3.0).powi(2)
         } else {
@@ -112,16 +121,29 @@ impl Energy<'_> {
     /// The cost of marker `i`, predicted at `pred` with magnification `scale`, taking `b`
     /// alone: position, area and shape (a blob of two lobes is not one marker).
     pub fn cost(&self, i: usize, p: &Prediction, b: &Blob, cut: bool) -> f64 {
+        self.cost_with(i, p, b, cut, if cut { 0.0 } else { fill_short(b) })
+    }
+
+    /// [`Energy::cost`] with the blob's [`fill_short`] given (computed once per blob).
+    pub fn cost_with(&self, i: usize, p: &Prediction, b: &Blob, cut: bool, short: f64) -> f64 {
         let d = dist((b.x_px, b.y_px), p.at);
         let expected = self.reference.areas_px[i] * p.scale * p.scale;
+        let o = outline_noise(expected.max(1.0));
         let shape = if cut {
             0.0
         } else {
-            shape_cost(b, expected, self.reference.fill_sigma)
+            let f = self.reference.fill_sigma;
+            (short / (f * f + o * o).sqrt()).powi(2)
         };
         let moved = dist((b.x_px, b.y_px), p.start);
+        // The area's outline noise is at the expected area itself, the shape's at least a pixel.
+        let o_area = if expected >= 1.0 {
+            o
+        } else {
+            outline_noise(expected)
+        };
         self.position_cost(i, d, p)
-            + self.area_cost(b, expected, cut)
+            + self.area_cost_with(b, expected, cut, o_area)
             + shape
             + self.motion_cost(i, moved)
     }
@@ -184,5 +206,10 @@ pub(super) fn fill_of(area_px: f64, det_px4: f64) -> f64 {
 pub(super) fn shape_cost(b: &Blob, one_px: f64, fill_sigma: f64) -> f64 {
     let o = outline_noise(one_px.max(1.0));
     let sigma = (fill_sigma * fill_sigma + o * o).sqrt();
-    ((1.0 - ellipse_fill(b)).max(0.0) / sigma).powi(2)
+    (fill_short(b) / sigma).powi(2)
+}
+
+/// How far under 1 blob `b` fills its moments' ellipse ([`ellipse_fill`]; 0 at or over 1).
+pub(super) fn fill_short(b: &Blob) -> f64 {
+    (1.0 - ellipse_fill(b)).max(0.0)
 }

@@ -48,18 +48,49 @@ pub(super) struct LocalMotion {
     pub spread_px: f64,
 }
 
+/// Each marker's neighbours with their offsets from it before the motion (`anchors`) and
+/// their weights in its affine fit, `1 / (|o|² + s²/4)` (`s` its spacing): fixed for a frame,
+/// computed once.
+pub(super) struct Around {
+    /// Where marker `i`'s entries start in `items` (`n + 1` offsets).
+    start: Vec<usize>,
+    /// (neighbour, offset, weight).
+    items: Vec<(usize, (f64, f64), f64)>,
+}
+
+impl Around {
+    pub fn new(reference: &TrackReference, anchors: &[(f64, f64)]) -> Self {
+        let mut start = Vec::with_capacity(anchors.len() + 1);
+        let mut items = Vec::new();
+        for (i, ai) in anchors.iter().enumerate() {
+            start.push(items.len());
+            let s = reference.spacing_px[i];
+            items.extend(reference.neighbours[i].iter().map(|&k| {
+                let o = (anchors[k].0 - ai.0, anchors[k].1 - ai.1);
+                (k, o, 1.0 / (o.0 * o.0 + o.1 * o.1 + 0.25 * s * s))
+            }));
+        }
+        start.push(items.len());
+        Self { start, items }
+    }
+
+    /// Marker `i`'s neighbours: (neighbour, offset, weight).
+    pub fn of(&self, i: usize) -> &[(usize, (f64, f64), f64)] {
+        &self.items[self.start[i]..self.start[i + 1]]
+    }
+}
+
 /// Weighted least-squares affine fit of the displacements `disp` of the matched neighbours of
-/// `i` (`anchors` their positions before the motion), ridge-damped towards a translation; the
-/// marker itself never takes part (leave-one-out).
+/// `i` (`around` their offsets and weights), ridge-damped towards a translation; the marker
+/// itself never takes part (leave-one-out).
 pub(super) fn local_motion(
     i: usize,
     reference: &TrackReference,
-    anchors: &[(f64, f64)],
+    around: &Around,
     matched: impl Fn(usize) -> bool,
     disp: &[(f64, f64)],
 ) -> Option<LocalMotion> {
     let s = reference.spacing_px[i];
-    let ai = anchors[i];
     // Normal equations for [t, g1, g2] per axis: Σ w [1 o][1 o]ᵀ + diag(0, λ, λ).
     let (mut m00, mut m01, mut m02, mut m11, mut m12, mut m22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut bx0, mut bx1, mut bx2) = (0.0, 0.0, 0.0);
@@ -67,13 +98,11 @@ pub(super) fn local_motion(
     let mut count = 0;
     // Each matched neighbour's offset from `i`, weight and displacement.
     let around = || {
-        reference.neighbours[i]
+        around
+            .of(i)
             .iter()
-            .filter(|&&k| matched(k))
-            .map(|&k| {
-                let o = (anchors[k].0 - ai.0, anchors[k].1 - ai.1);
-                (o, 1.0 / (o.0 * o.0 + o.1 * o.1 + 0.25 * s * s), disp[k])
-            })
+            .filter(|e| matched(e.0))
+            .map(|&(k, o, w)| (o, w, disp[k]))
     };
     for (o, w, u) in around() {
         m00 += w;
@@ -206,10 +235,11 @@ pub(super) fn anchors_from_prior(
         .zip(p)
         .map(|(r, q)| q.map_or((0.0, 0.0), |q| (q.0 - r.0, q.1 - r.1)))
         .collect();
+    let around = Around::new(reference, rest);
     (0..rest.len())
         .map(|i| {
             p[i].unwrap_or_else(|| {
-                local_motion(i, reference, rest, |k| p[k].is_some(), &moved)
+                local_motion(i, reference, &around, |k| p[k].is_some(), &moved)
                     .map_or(rest[i], |m| (rest[i].0 + m.disp.0, rest[i].1 + m.disp.1))
             })
         })

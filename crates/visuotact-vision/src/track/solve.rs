@@ -17,9 +17,10 @@
 use std::cell::Cell;
 use std::collections::BinaryHeap;
 
+use super::energy::fill_short;
 use super::energy::Energy;
 use super::index::{dist, dist_sq, BlobIndex};
-use super::predict::{local_motion, Prediction};
+use super::predict::{local_motion, Around, Prediction};
 use super::TrackReference;
 use crate::assign::{assign_min_cost, Candidates};
 use crate::blobs::Blob;
@@ -34,6 +35,10 @@ pub(super) struct Matching<'a> {
     pub energy: Energy<'a>,
     /// Where each marker was before the motion being followed (reference or prior).
     pub anchors: Vec<(f64, f64)>,
+    /// The anchors' neighbours, offsets and weights for the affine fits.
+    around: Around,
+    /// Per blob, how far under 1 it fills its moments' ellipse (the shape term's misfit).
+    fill_short: Vec<f64>,
     /// The starting motion added to the anchors (registration; zero when followed).
     pub shift: (f64, f64),
     pub assignment: Vec<Option<usize>>,
@@ -63,6 +68,8 @@ impl<'a> Matching<'a> {
             usable,
             index: BlobIndex::new(blobs, reference.pitch_px.max(1.0)),
             energy,
+            around: Around::new(reference, &anchors),
+            fill_short: blobs.iter().map(fill_short).collect(),
             anchors,
             shift,
             assignment: vec![None; n],
@@ -136,7 +143,7 @@ impl<'a> Matching<'a> {
         local_motion(
             i,
             self.reference,
-            &self.anchors,
+            &self.around,
             |k| a[k].is_some(),
             &self.disp,
         )
@@ -167,7 +174,9 @@ impl<'a> Matching<'a> {
 
     /// The cost of `i` (predicted `pred`) taking blob `j`.
     pub fn cost(&self, i: usize, pred: Prediction, j: usize) -> f64 {
-        self.energy.cost(i, &pred, &self.blobs[j], self.is_cut(j))
+        let cut = self.is_cut(j);
+        let short = if cut { 0.0 } else { self.fill_short[j] };
+        self.energy.cost_with(i, &pred, &self.blobs[j], cut, short)
     }
 
     /// The blobs within the gate of `pred` with their cost for `i`, those `skip` refuses left
