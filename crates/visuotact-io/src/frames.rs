@@ -218,28 +218,23 @@ pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
     })
 }
 
-/// Writes an RGB image as PNG.
+/// Writes an RGB image as PNG, as one [`crate::output::OutputFile`]: a full disk or a kill
+/// never leaves a torn PNG under the frame's name.
 pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), FrameError> {
-    // Through a temporary file and a rename: a full disk or a kill never leaves a torn PNG
-    // under the frame's name.
-    let tmp = path.with_extension("png.part~");
     let failed = |e: String| FrameError::Io {
         path: path.to_path_buf(),
         source: std::io::Error::other(e),
     };
-    let written = image::save_buffer_with_format(
-        &tmp,
+    let mut out = crate::output::OutputFile::create(path).map_err(|e| failed(e.to_string()))?;
+    image::ImageEncoder::write_image(
+        image::codecs::png::PngEncoder::new(&mut out),
         img.as_slice(),
         img.width() as u32,
         img.height() as u32,
         image::ExtendedColorType::Rgb8,
-        image::ImageFormat::Png,
-    );
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(failed(e.to_string()));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| failed(e.to_string()))
+    )
+    .map_err(|e| failed(e.to_string()))?;
+    out.finish().map_err(|e| failed(e.to_string()))
 }
 
 /// Size and rate of a video, from `ffprobe`.

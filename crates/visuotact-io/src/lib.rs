@@ -16,13 +16,15 @@
 //! v4l2 input: format negotiation, MJPEG splitting and decoding, YUYV conversion, re-opening;
 //! `CameraError`), `queue` (the drop-oldest `LatestQueue` and the `Captured` frame a live run
 //! carries), `guard` (the one output rule: no output on or inside an input, nor on another
-//! output), `read` (bounded reads: regular files only, size and decoded-pixel limits); tables
-//! are written as `NAME.part~` and renamed when whole
+//! output), `output` (the one way a file is written: an exclusively created temporary file
+//! beside it, renamed over the name when whole; special files written through), `read`
+//! (bounded reads: regular files only, size and decoded-pixel limits)
 
 pub mod camera;
 pub mod force;
 pub mod frames;
 pub mod guard;
+pub mod output;
 pub mod queue;
 pub mod read;
 pub mod session;

@@ -341,25 +341,11 @@ fn probe_file(path: &Path, bytes: usize) -> std::io::Result<()> {
     removed.map_err(explain)
 }
 
-/// Writes `text` to `path` through a temporary file and a rename, so a failure never leaves a
-/// half-written file over a good one. Creates the parent folder; errors name the file.
+/// Writes `text` to `path` as one [`crate::output::OutputFile`]: a failure never leaves a
+/// half-written file over a good one, nor writes through a link. Creates the parent folder;
+/// errors name the file.
 pub fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
-    let named = |p: &Path, e: std::io::Error| {
-        std::io::Error::new(e.kind(), format!("{}: cannot write: {e}", p.display()))
-    };
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| named(dir, e))?;
-    }
-    // NAME.part~ beside it (one per target: `a.json` and `a.csv` never share one), removed
-    // when the write or the rename fails, so a failure leaves nothing behind.
-    let tmp = crate::guard::part_path(path);
-    let done = std::fs::write(&tmp, text)
-        .map_err(|e| named(&tmp, e))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| named(path, e)));
-    if done.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    done
+    crate::output::write_whole(path, text.as_bytes())
 }
 
 #[cfg(test)]

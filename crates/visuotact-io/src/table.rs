@@ -1,14 +1,16 @@
 //! Per-frame tables written as they are produced: CSV or JSON lines.
 //!
 //! A row is the frame id, numeric cells and one free-text `flags` cell. Non-finite numbers are
-//! missing values: empty in CSV, `null` in JSON. A table file is written under a temporary name
-//! beside its own (`NAME.part~`) and takes its name only at [`TableWriter::finish`]: a run that
-//! fails or is stopped leaves no torn table under the final name and no temporary behind.
-//! Standard output (`-`) gets every row as it comes.
+//! missing values: empty in CSV, `null` in JSON. A table file is written as one
+//! [`crate::output::OutputFile`] (a temporary file beside it, created exclusively) and takes
+//! its name only at [`TableWriter::finish`]: a run that fails or is stopped leaves no torn
+//! table under the final name and no temporary behind. Standard output (`-`) gets every row as
+//! it comes.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
+
+use crate::output::OutputFile;
 
 /// Table layout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -53,10 +55,8 @@ pub fn push_csv_row(line: &mut String, frame: &str, values: &[f64], flags: &str)
 
 /// Writes rows of `frame`, numeric columns and `flags`.
 pub struct TableWriter {
-    out: Box<dyn Write>,
+    out: TableOut,
     path: PathBuf,
-    /// The temporary file rows go to until [`TableWriter::finish`] (none for standard output).
-    part: Option<PathBuf>,
     format: TableFormat,
     columns: Vec<String>,
     line: String,
@@ -74,19 +74,14 @@ impl TableWriter {
     /// Creates `path` (`-` for standard output) with the given numeric column names; the file
     /// appears under its name at [`TableWriter::finish`].
     pub fn create(path: &Path, format: TableFormat, columns: Vec<String>) -> std::io::Result<Self> {
-        let (out, part): (Box<dyn Write>, _) = if path.as_os_str() == "-" {
-            (Box::new(std::io::stdout()), None)
+        let out = if path.as_os_str() == "-" {
+            TableOut::Stdout(std::io::stdout())
         } else {
-            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)?;
-            }
-            let part = crate::guard::part_path(path);
-            (Box::new(BufWriter::new(File::create(&part)?)), Some(part))
+            TableOut::File(OutputFile::create(path)?)
         };
         let mut w = Self {
             out,
             path: path.to_path_buf(),
-            part,
             format,
             columns,
             line: String::new(),
@@ -105,15 +100,10 @@ impl TableWriter {
     }
 
     /// Flushes the rows and gives the table its name (over any file of that name).
-    pub fn finish(mut self) -> std::io::Result<()> {
-        self.out.flush()?;
-        // Close the file before the rename.
-        self.out = Box::new(std::io::sink());
-        match self.part.take() {
-            Some(part) => std::fs::rename(&part, &self.path).inspect_err(|_| {
-                let _ = std::fs::remove_file(&part);
-            }),
-            None => Ok(()),
+    pub fn finish(self) -> std::io::Result<()> {
+        match self.out {
+            TableOut::Stdout(mut s) => s.flush(),
+            TableOut::File(f) => f.finish(),
         }
     }
 
@@ -154,20 +144,35 @@ impl TableWriter {
             }
         }
         self.line.push('\n');
-        self.out.write_all(self.line.as_bytes())?;
-        if self.part.is_none() {
-            self.out.flush()?;
+        match &mut self.out {
+            TableOut::Stdout(s) => {
+                s.write_all(self.line.as_bytes())?;
+                s.flush()
+            }
+            TableOut::File(f) => f.write_all(self.line.as_bytes()),
         }
-        Ok(())
     }
 }
 
-impl Drop for TableWriter {
-    /// A table not finished leaves nothing behind.
-    fn drop(&mut self) {
-        if let Some(part) = self.part.take() {
-            self.out = Box::new(std::io::sink());
-            let _ = std::fs::remove_file(part);
+/// Where a table's rows go: standard output as they come, or a file that takes its name when
+/// finished (dropped unfinished, it leaves nothing behind).
+enum TableOut {
+    Stdout(std::io::Stdout),
+    File(OutputFile),
+}
+
+impl Write for TableOut {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            Self::Stdout(s) => s.write(buf),
+            Self::File(f) => f.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            Self::Stdout(s) => s.flush(),
+            Self::File(f) => f.flush(),
         }
     }
 }
@@ -461,21 +466,32 @@ mod tests {
         let d = std::env::temp_dir().join(format!("visuotact-part-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         let p = d.join("t.csv");
-        let part = d.join("t.csv.part~");
+        let parts = || {
+            std::fs::read_dir(&d)
+                .unwrap()
+                .filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .file_name()
+                        .to_string_lossy()
+                        .ends_with(".part~")
+                })
+                .count()
+        };
         let mut w = TableWriter::create(&p, TableFormat::Csv, vec!["x".into()]).unwrap();
         w.write_row("a", &[1.5], "").unwrap();
-        assert!(!p.exists() && part.is_file());
+        assert!(!p.exists() && parts() == 1);
         w.finish().unwrap();
         assert_eq!(
             std::fs::read_to_string(&p).unwrap(),
             "frame,x,flags\na,1.5,\n"
         );
-        assert!(!part.exists());
+        assert_eq!(parts(), 0);
         // A table dropped unfinished (an error, Ctrl-C) leaves the old file and no temporary.
         let mut w = TableWriter::create(&p, TableFormat::Csv, vec!["y".into()]).unwrap();
         w.write_row("b", &[2.0], "").unwrap();
         drop(w);
-        assert!(!part.exists());
+        assert_eq!(parts(), 0);
         assert!(std::fs::read_to_string(&p).unwrap().starts_with("frame,x,"));
         std::fs::remove_dir_all(&d).unwrap();
     }
