@@ -172,11 +172,21 @@ where
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // `visuotact extract -o - | head`: the reader had what it wanted.
+        Err(e) if closed_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             note!("error: {}", message(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// Whether `e` is the reader of an output having gone (a closed pipe): not a failure.
+fn closed_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// An error and its causes, each said once: library errors already name their cause, so a

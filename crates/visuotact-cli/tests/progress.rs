@@ -117,6 +117,48 @@ fn interrupt_after_start(args: &[&str], stage: &str) -> (Option<i32>, Vec<String
     (child.wait().unwrap().code(), rest)
 }
 
+/// `extract -o - | head`: the reader leaving after the first rows ends the run with exit 0 and
+/// no error (a closed pipe is not a failure, docs/failure.md).
+#[test]
+fn a_reader_closing_standard_output_is_not_an_error() {
+    let d = fresh_dir("closed-pipe");
+    let (session, sensor, _) = iats_features(&d, "2", "3");
+    let one = std::fs::read_dir(session.join("frames"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "png"))
+        .unwrap();
+    let frames = d.join("many");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..400 {
+        std::fs::hard_link(&one, frames.join(format!("f{k:05}.png"))).unwrap();
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args([
+            "extract",
+            "--sensor",
+            s(&sensor),
+            s(&frames),
+            "-o",
+            "-",
+            "--quiet",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("frame,"), "{first}");
+    // The reader is gone: the rows still to come have nowhere to go.
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(!err.contains("error"), "{err}");
+}
+
 /// An extraction over 3 000 frames (one simulated frame linked under 3 000 names): it says
 /// it started, stops on Ctrl-C with exit 1, and leaves neither the table nor a temporary; so
 /// does the ranking of the same frames for a reference.
