@@ -46,6 +46,21 @@ fn durations_rates_and_counts_are_checked_first() {
         // Nothing was created: the corrected run is not refused as "already holds a session".
         assert!(!session.exists(), "{flag} {bad} left {}", session.display());
     }
+    // Zero touches would simulate or check nothing and report success.
+    for cmd in [
+        &["simulate", "-o", s(&session), "--touches", "0"][..],
+        &["check-tracking", "--touches", "0"][..],
+    ] {
+        // A usage error: exit 2, as clap's own.
+        let o = vt(cmd);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains("--touches") && err.contains("at least 1"),
+            "{err}"
+        );
+        assert!(!session.exists());
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -33,7 +33,7 @@ pub(crate) struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// Touches for the random and shear protocols.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, value_parser = crate::args::count)]
     touches: usize,
     /// No-contact reference frames written first.
     #[arg(long, default_value_t = 10)]

@@ -23,7 +23,7 @@ pub(crate) struct Args {
     #[arg(long, default_value = "shear")]
     protocol: String,
     /// Touches for random and shear.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, value_parser = crate::args::count)]
     touches: usize,
     /// Seed of the touches and noise.
     #[arg(long, default_value_t = 1)]
