@@ -54,17 +54,26 @@ pub enum RerunOutput {
 }
 
 impl RerunOutput {
-    /// `FILE.rrd` is a file; anything else (`HOST:PORT`, empty for the default) a viewer.
-    pub fn parse(s: &str) -> Self {
+    /// `FILE.rrd` is a file, `HOST:PORT` (a numeric port; empty for the default) a viewer;
+    /// anything else — `model.json`, a typo — is refused with what was expected, never looked
+    /// up as a host name.
+    pub fn parse(s: &str) -> Result<Self, String> {
         if Path::new(s)
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("rrd"))
         {
-            RerunOutput::File(PathBuf::from(s))
+            Ok(RerunOutput::File(PathBuf::from(s)))
         } else if s.is_empty() {
-            RerunOutput::Viewer(DEFAULT_VIEWER_ADDR.to_string())
+            Ok(RerunOutput::Viewer(DEFAULT_VIEWER_ADDR.to_string()))
+        } else if s
+            .rsplit_once(':')
+            .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok())
+        {
+            Ok(RerunOutput::Viewer(s.to_string()))
         } else {
-            RerunOutput::Viewer(s.to_string())
+            Err(format!(
+                "expects a recording file FILE.rrd or a viewer's HOST:PORT, got `{s}`"
+            ))
         }
     }
 }
@@ -258,6 +267,37 @@ pub fn export_rerun(
         Err(e) => {
             let _ = std::fs::remove_file(out);
             Err(e)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_output_is_a_recording_file_or_a_viewer_address_never_a_guess() {
+        assert_eq!(
+            RerunOutput::parse("run.RRD"),
+            Ok(RerunOutput::File("run.RRD".into()))
+        );
+        assert_eq!(
+            RerunOutput::parse(""),
+            Ok(RerunOutput::Viewer(DEFAULT_VIEWER_ADDR.into()))
+        );
+        assert_eq!(
+            RerunOutput::parse("viewer.lan:9876"),
+            Ok(RerunOutput::Viewer("viewer.lan:9876".into()))
+        );
+        for typo in [
+            "model.json",
+            "localhost",
+            ":9876",
+            "host:port",
+            "host:99999",
+        ] {
+            let e = RerunOutput::parse(typo).unwrap_err();
+            assert!(e.contains("FILE.rrd") && e.contains(typo), "{e}");
         }
     }
 }

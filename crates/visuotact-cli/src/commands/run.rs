@@ -414,10 +414,10 @@ impl Outputs {
             .rerun
             .as_deref()
             .map(|o| {
-                visuotact_rerun::rerun_sink(
-                    visuotact_rerun::RerunOutput::parse(o),
-                    a.bag.ros.config(a.rerun_images),
-                )
+                let output =
+                    visuotact_rerun::RerunOutput::parse(o).map_err(|e| anyhow::anyhow!("{e}"))?;
+                visuotact_rerun::rerun_sink(output, a.bag.ros.config(a.rerun_images))
+                    .map_err(|e| anyhow::anyhow!("{e}"))
             })
             .transpose()
             .map_err(|e| anyhow::anyhow!("--rerun {e}"))?;
