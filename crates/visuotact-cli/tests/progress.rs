@@ -117,12 +117,10 @@ fn interrupt_after_start(args: &[&str], stage: &str) -> (Option<i32>, Vec<String
     (child.wait().unwrap().code(), rest)
 }
 
-/// `extract -o - | head`: the reader leaving after the first rows ends the run with exit 0 and
-/// no error (a closed pipe is not a failure, docs/failure.md).
-#[test]
-fn a_reader_closing_standard_output_is_not_an_error() {
-    let d = fresh_dir("closed-pipe");
-    let (session, sensor, _) = iats_features(&d, "2", "3");
+/// A simulated session's sensor file and a folder `many/` of one of its frames linked under
+/// `n` names.
+fn linked_frames(d: &Path, n: usize) -> (PathBuf, PathBuf) {
+    let (session, sensor, _) = iats_features(d, "2", "3");
     let one = std::fs::read_dir(session.join("frames"))
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -130,9 +128,18 @@ fn a_reader_closing_standard_output_is_not_an_error() {
         .unwrap();
     let frames = d.join("many");
     std::fs::create_dir_all(&frames).unwrap();
-    for k in 0..400 {
+    for k in 0..n {
         std::fs::hard_link(&one, frames.join(format!("f{k:05}.png"))).unwrap();
     }
+    (sensor, frames)
+}
+
+/// `extract -o - | head`: the reader leaving after the first rows ends the run with exit 0 and
+/// no error (a closed pipe is not a failure, docs/failure.md).
+#[test]
+fn a_reader_closing_standard_output_is_not_an_error() {
+    let d = fresh_dir("closed-pipe");
+    let (sensor, frames) = linked_frames(&d, 400);
     let mut child = Command::new(env!("CARGO_BIN_EXE_visuotact"))
         .args([
             "extract",
@@ -165,17 +172,7 @@ fn a_reader_closing_standard_output_is_not_an_error() {
 #[test]
 fn ctrl_c_stops_an_extraction_or_a_ranking_and_writes_nothing() {
     let d = fresh_dir("interrupt-extract");
-    let (session, sensor, _) = iats_features(&d, "2", "3");
-    let one = std::fs::read_dir(session.join("frames"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|e| e == "png"))
-        .unwrap();
-    let frames = d.join("many");
-    std::fs::create_dir_all(&frames).unwrap();
-    for k in 0..3000 {
-        std::fs::hard_link(&one, frames.join(format!("f{k:05}.png"))).unwrap();
-    }
+    let (sensor, frames) = linked_frames(&d, 3000);
     let out = d.join("many.csv");
     let args = ["extract", "--sensor", s(&sensor), s(&frames), "-o", s(&out)];
     let (code, rest) = interrupt_after_start(&args, "extract");
