@@ -370,6 +370,31 @@ fn models_are_written_only_when_they_load() {
         "-o",
         s(&predictions),
     ]));
+    // Weights of 1e308 overflow every sum: no estimate, each frame's reason, and an error —
+    // not "30 estimates" of empty cells.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    for w in v["net"]["params"].as_array_mut().unwrap() {
+        *w = serde_json::json!(1e308);
+    }
+    let overflowing = d.join("overflow.json");
+    std::fs::write(&overflowing, v.to_string()).unwrap();
+    let err = fails(&vt(&[
+        "predict",
+        "--model",
+        s(&overflowing),
+        "--features",
+        s(&features),
+        "-o",
+        s(&d.join("p_overflow.csv")),
+    ]));
+    assert!(
+        err.contains("0 estimates") && err.contains("no frame got an estimate"),
+        "{err}"
+    );
+    assert!(std::fs::read_to_string(d.join("p_overflow.csv"))
+        .unwrap()
+        .contains("non-finite"));
     std::fs::remove_file(&model).unwrap();
     let huge = d.join("huge.csv");
     let l2: String = l

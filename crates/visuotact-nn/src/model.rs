@@ -165,6 +165,13 @@ pub enum EstimateError {
         /// Inputs missing.
         missing: usize,
     },
+    /// The networks give a value that is not a finite number (weights so large that the
+    /// sums overflow): no estimate rather than an empty one.
+    #[error("the model gives a non-finite `{target}` (its weights overflow)")]
+    NonFinite {
+        /// The first target without a finite value.
+        target: String,
+    },
 }
 
 /// Why a model file does not load.
@@ -368,6 +375,11 @@ impl Model {
         for (net, out) in self.networks().zip(&mut s.outs) {
             self.target_scaling
                 .invert_into(net.forward_with(&s.z, &mut s.acts), out);
+            if let Some(k) = out.iter().position(|v| !v.is_finite()) {
+                return Err(EstimateError::NonFinite {
+                    target: self.target_columns.get(k).cloned().unwrap_or_default(),
+                });
+            }
         }
         s.n = n;
         Ok(missing)
@@ -583,6 +595,15 @@ pub(crate) mod tests {
             sensor: None,
             held_out: None,
         }
+    }
+
+    #[test]
+    fn weights_that_overflow_give_no_estimate_with_the_reason() {
+        let mut m = model(&[3, 4, 2], 0);
+        m.net.params.iter_mut().for_each(|w| *w = 1e308);
+        let e = m.estimate(&[0.5, 0.5, 0.5]).unwrap_err();
+        assert!(matches!(e, EstimateError::NonFinite { .. }), "{e}");
+        assert!(e.to_string().contains("non-finite `t0`"), "{e}");
     }
 
     #[test]
