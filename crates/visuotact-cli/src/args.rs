@@ -251,16 +251,6 @@ where
     })
 }
 
-/// Clap's parser for a count that must be at least one (a run of zero touches does nothing
-/// and would report success).
-pub(crate) fn count(s: &str) -> Result<usize, String> {
-    match s.parse::<usize>() {
-        Ok(0) => Err("must be at least 1".to_string()),
-        Ok(n) => Ok(n),
-        Err(e) => Err(e.to_string()),
-    }
-}
-
 /// The training objective and input reduction, shared by `train` and `sweep`.
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct AlgorithmArg {

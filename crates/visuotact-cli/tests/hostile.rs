@@ -56,7 +56,7 @@ fn durations_rates_and_counts_are_checked_first() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{err}");
         assert!(
-            err.contains("--touches") && err.contains("at least 1"),
+            err.contains("--touches") && err.contains("not in 1.."),
             "{err}"
         );
         assert!(!session.exists());
@@ -370,8 +370,8 @@ fn models_are_written_only_when_they_load() {
         "-o",
         s(&predictions),
     ]));
-    // Weights of 1e308 overflow every sum: no estimate, each frame's reason, and an error —
-    // not "30 estimates" of empty cells.
+    // Weights of 1e308 overflow every sum: no estimate, an error with the reason and no
+    // table — not "30 estimates" of empty cells.
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     for w in v["net"]["params"].as_array_mut().unwrap() {
@@ -389,12 +389,10 @@ fn models_are_written_only_when_they_load() {
         s(&d.join("p_overflow.csv")),
     ]));
     assert!(
-        err.contains("0 estimates") && err.contains("no frame got an estimate"),
+        err.contains("no frame got an estimate") && err.contains("non-finite"),
         "{err}"
     );
-    assert!(std::fs::read_to_string(d.join("p_overflow.csv"))
-        .unwrap()
-        .contains("non-finite"));
+    assert!(!d.join("p_overflow.csv").exists());
     std::fs::remove_file(&model).unwrap();
     let huge = d.join("huge.csv");
     let l2: String = l

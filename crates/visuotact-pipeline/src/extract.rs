@@ -132,7 +132,8 @@ pub struct Predicted {
 /// Estimates every row of `keys` with `model` from `sources` into the CSV at `output` (the
 /// model's estimate columns; an ensemble's spreads too). Lost markers are filled by a model on
 /// principal components; a missing reading, too many lost markers or a model without
-/// components gives no estimate rather than a wrong one, with the reason in the flags.
+/// components gives no estimate rather than a wrong one, with the reason in the flags. When no
+/// row gets one, nothing is written ([`ReplayError::NoEstimate`], with the first reason).
 pub fn predict_table(
     model: &Model,
     sources: &InputSources<'_>,
@@ -148,6 +149,7 @@ pub fn predict_table(
     let mut out = TableWriter::create(output, TableFormat::Csv, columns).map_err(write_err)?;
     let mut done = Predicted::default();
     let mut x = Vec::with_capacity(model.feature_columns.len());
+    let mut first_why = None;
     for (r, key) in keys.iter().enumerate() {
         sources.row_into(r, &mut x);
         let written = match model.estimate(&x) {
@@ -163,10 +165,20 @@ pub fn predict_table(
             }
             Err(why) => {
                 done.missing += 1;
-                out.write_row(key, &nan, &why.to_string())
+                let why = why.to_string();
+                let row = out.write_row(key, &nan, &why);
+                first_why.get_or_insert(why);
+                row
             }
         };
         written.map_err(write_err)?;
+    }
+    if let (0, Some(why)) = (done.written, first_why) {
+        return Err(ReplayError::NoEstimate {
+            path: output.to_path_buf(),
+            frames: done.missing,
+            why,
+        });
     }
     out.finish().map_err(write_err)?;
     Ok(done)

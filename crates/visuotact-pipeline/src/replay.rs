@@ -63,6 +63,16 @@ pub enum ReplayError {
         /// Frames through when it stopped.
         frames: usize,
     },
+    /// No row got an estimate: the output is not written.
+    #[error("{}: not written, no frame got an estimate (the first of {frames}: {why})", path.display())]
+    NoEstimate {
+        /// The output.
+        path: PathBuf,
+        /// Frames tried.
+        frames: usize,
+        /// The first frame's reason.
+        why: String,
+    },
     /// Writing the output failed.
     #[error("{}: {source}", path.display())]
     Write {

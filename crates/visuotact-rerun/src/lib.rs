@@ -57,7 +57,7 @@ impl RerunOutput {
     /// `FILE.rrd` is a file, `HOST:PORT` (a numeric port; empty for the default) a viewer;
     /// anything else — `model.json`, a typo — is refused with what was expected, never looked
     /// up as a host name.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, BadOutput> {
         if Path::new(s)
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("rrd"))
@@ -71,12 +71,15 @@ impl RerunOutput {
         {
             Ok(RerunOutput::Viewer(s.to_string()))
         } else {
-            Err(format!(
-                "expects a recording file FILE.rrd or a viewer's HOST:PORT, got `{s}`"
-            ))
+            Err(BadOutput(s.to_string()))
         }
     }
 }
+
+/// A recording output that is neither `FILE.rrd` nor `HOST:PORT`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("expects a recording file FILE.rrd or a viewer's HOST:PORT, got `{0}`")]
+pub struct BadOutput(pub String);
 
 fn target_err(e: impl std::fmt::Display) -> RosError {
     RosError::Target(format!("Rerun: {e}"))
@@ -296,7 +299,7 @@ mod tests {
             "host:port",
             "host:99999",
         ] {
-            let e = RerunOutput::parse(typo).unwrap_err();
+            let e = RerunOutput::parse(typo).unwrap_err().to_string();
             assert!(e.contains("FILE.rrd") && e.contains(typo), "{e}");
         }
     }

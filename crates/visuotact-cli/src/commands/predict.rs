@@ -101,11 +101,5 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         String::new()
     };
     note!("{written} estimates{filled_note}, {missing} frames without");
-    if written == 0 {
-        bail!(
-            "no frame got an estimate: {} holds each frame's reason in its flags",
-            a.output.display()
-        );
-    }
     Ok(())
 }

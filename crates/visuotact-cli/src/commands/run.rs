@@ -413,11 +413,12 @@ impl Outputs {
         let rerun = a
             .rerun
             .as_deref()
-            .map(|o| {
-                let output =
-                    visuotact_rerun::RerunOutput::parse(o).map_err(|e| anyhow::anyhow!("{e}"))?;
-                visuotact_rerun::rerun_sink(output, a.bag.ros.config(a.rerun_images))
-                    .map_err(|e| anyhow::anyhow!("{e}"))
+            .map(|o| -> anyhow::Result<_> {
+                let output = visuotact_rerun::RerunOutput::parse(o)?;
+                Ok(visuotact_rerun::rerun_sink(
+                    output,
+                    a.bag.ros.config(a.rerun_images),
+                )?)
             })
             .transpose()
             .map_err(|e| anyhow::anyhow!("--rerun {e}"))?;

@@ -33,8 +33,8 @@ pub(crate) struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// Touches for the random and shear protocols.
-    #[arg(long, default_value_t = 200, value_parser = crate::args::count)]
-    touches: usize,
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(1..))]
+    touches: u32,
     /// No-contact reference frames written first.
     #[arg(long, default_value_t = 10)]
     references: usize,
@@ -111,7 +111,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         variant: a.variant,
         seed: a.seed,
         output: a.output.clone(),
-        touches: a.touches,
+        touches: a.touches as usize,
         references: a.references,
         fps: a.fps,
         cone: ConeSession {

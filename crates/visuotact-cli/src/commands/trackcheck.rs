@@ -23,8 +23,8 @@ pub(crate) struct Args {
     #[arg(long, default_value = "shear")]
     protocol: String,
     /// Touches for random and shear.
-    #[arg(long, default_value_t = 200, value_parser = crate::args::count)]
-    touches: usize,
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(1..))]
+    touches: u32,
     /// Seed of the touches and noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -116,7 +116,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         let cfg = CheckConfig {
             sensor,
             protocol: a.protocol.clone(),
-            touches: a.touches,
+            touches: a.touches as usize,
             seed: a.seed,
             references: a.references,
             detector,
