@@ -33,8 +33,8 @@ pub(crate) struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// Touches for the random and shear protocols.
-    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(1..))]
-    touches: u32,
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
+    touches: u64,
     /// No-contact reference frames written first.
     #[arg(long, default_value_t = 10)]
     references: usize,

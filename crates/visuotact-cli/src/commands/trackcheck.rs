@@ -23,8 +23,8 @@ pub(crate) struct Args {
     #[arg(long, default_value = "shear")]
     protocol: String,
     /// Touches for random and shear.
-    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(1..))]
-    touches: u32,
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
+    touches: u64,
     /// Seed of the touches and noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
