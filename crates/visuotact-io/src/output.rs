@@ -27,12 +27,15 @@ enum Inner {
     Direct(BufWriter<File>),
 }
 
+/// `e` naming the file it happened to.
+fn named(path: &Path, e: io::Error) -> io::Error {
+    io::Error::new(e.kind(), format!("{}: cannot write: {e}", path.display()))
+}
+
 impl OutputFile {
     /// Starts writing `path` (its folder created when missing). Errors name the file.
     pub fn create(path: &Path) -> io::Result<Self> {
-        let named = |e: io::Error| {
-            io::Error::new(e.kind(), format!("{}: cannot write: {e}", path.display()))
-        };
+        let named = |e| named(path, e);
         if let Ok(meta) = std::fs::metadata(path) {
             if meta.is_dir() {
                 return Err(named(io::Error::new(
@@ -81,9 +84,7 @@ impl OutputFile {
     /// Flushes, syncs and gives the file its name (over any regular file of that name).
     pub fn finish(self) -> io::Result<()> {
         let path = self.path;
-        let named = |e: io::Error| {
-            io::Error::new(e.kind(), format!("{}: cannot write: {e}", path.display()))
-        };
+        let named = |e| named(&path, e);
         match self.inner {
             Inner::Direct(mut w) => w.flush().map_err(named),
             Inner::Temp(w) => {
@@ -104,13 +105,6 @@ impl Write for OutputFile {
         }
     }
 
-    fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
-        match &mut self.inner {
-            Inner::Temp(w) => w.write_all(buf),
-            Inner::Direct(w) => w.write_all(buf),
-        }
-    }
-
     fn flush(&mut self) -> io::Result<()> {
         match &mut self.inner {
             Inner::Temp(w) => w.flush(),
@@ -122,8 +116,7 @@ impl Write for OutputFile {
 /// Writes `bytes` to `path` as one [`OutputFile`].
 pub fn write_whole(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut f = OutputFile::create(path)?;
-    f.write_all(bytes)
-        .map_err(|e| io::Error::new(e.kind(), format!("{}: cannot write: {e}", path.display())))?;
+    f.write_all(bytes).map_err(|e| named(path, e))?;
     f.finish()
 }
 

@@ -144,12 +144,11 @@ impl TableWriter {
             }
         }
         self.line.push('\n');
+        self.out.write_all(self.line.as_bytes())?;
+        // Standard output gets every row as it comes; a file is whole only when finished.
         match &mut self.out {
-            TableOut::Stdout(s) => {
-                s.write_all(self.line.as_bytes())?;
-                s.flush()
-            }
-            TableOut::File(f) => f.write_all(self.line.as_bytes()),
+            TableOut::Stdout(s) => s.flush(),
+            TableOut::File(_) => Ok(()),
         }
     }
 }
