@@ -10,18 +10,23 @@ use common::{fails, fresh_dir, ok, s, vt};
 #[test]
 fn durations_rates_and_counts_are_checked_first() {
     let d = fresh_dir("hostile-durations");
-    for bad in ["-1", "NaN", "1e300"] {
-        let arg = format!("--duration-s={bad}");
+    for (arg, names) in [
+        ("--duration-s=-1", "duration_s"),
+        ("--duration-s=NaN", "duration_s"),
+        ("--duration-s=1e300", "duration_s"),
+        // Was an abort (a billion frames' queue reserved up front).
+        ("--queue=1000000000", "at most 1000 frames"),
+    ] {
         let err = fails(&vt(&[
             "run",
             "--source",
             "sim:iats",
             "--sensor",
             "none.json",
-            &arg,
+            arg,
         ]));
         // Checked before any file is read.
-        assert!(err.contains("duration_s"), "{bad}: {err}");
+        assert!(err.contains(names), "{arg}: {err}");
     }
     let session = d.join("rec");
     for (flag, bad, names) in [

@@ -445,6 +445,72 @@ fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// Exports find the sensor in the model a session was recorded with (`record --model` alone:
+/// was "no sensor file", no marker cloud), and a session is a closed world: a `frames.csv` row
+/// naming a file outside it (`../../secret.png`) is refused by every export, naming the row,
+/// with nothing written (was: the file embedded into MCAP, LeRobot and Rerun).
+#[test]
+fn exports_take_the_models_sensor_and_read_nothing_outside_the_session() {
+    let d = fresh_dir("hostile-export-closed");
+    let (session, sensor, features) = common::iats_features(&d, "40", "1");
+    let model = d.join("m.json");
+    ok(&vt(&[
+        "train",
+        "--features",
+        s(&features),
+        "--labels",
+        s(&session.join("labels.csv")),
+        "--targets",
+        "x_mm,y_mm,depth_mm",
+        "--hidden",
+        "4",
+        "--ensemble",
+        "1",
+        "--drop-incomplete",
+        "--sensor",
+        s(&sensor),
+        "-o",
+        s(&model),
+        "--quiet",
+    ]));
+    let rec = d.join("rec");
+    ok(&vt(&[
+        "record",
+        "--source",
+        s(&session.join("frames")),
+        "--model",
+        s(&model),
+        "--max-frames",
+        "3",
+        "-o",
+        s(&rec),
+    ]));
+    let err = ok(&vt(&[
+        "export",
+        "mcap",
+        s(&rec),
+        "-o",
+        s(&d.join("a.mcap")),
+    ]));
+    assert!(!err.contains("no marker cloud"), "{err}");
+    std::fs::write(d.join("secret.png"), b"secret").unwrap();
+    let index = rec.join("frames.csv");
+    let text = std::fs::read_to_string(&index).unwrap();
+    std::fs::write(&index, format!("{text}../../secret.png,9,9.0,touch\n")).unwrap();
+    for (format, out) in [
+        ("mcap", d.join("b.mcap")),
+        ("rerun", d.join("b.rrd")),
+        ("lerobot", d.join("b-lerobot")),
+    ] {
+        refused(
+            &["export", format, s(&rec), "-o", s(&out)],
+            &["frames.csv", "../../secret.png", "plain file name"],
+            &out,
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// `--ros-network` on an address this machine does not have (TEST-NET-1, never assigned) or on
 /// the unspecified address published to nobody in silence; now refused before the run.
 #[test]

@@ -141,6 +141,17 @@ fn simulated_touches_stream_as_json_lines_with_an_ensemble() {
     assert_eq!(summary["frames_estimated"], 60);
     assert!(summary["processing_ms_median"].as_f64().unwrap() > 0.0);
     assert!(err.contains("UDP errors"), "{err}");
+    // Frames that come but cannot be estimated (1 × 1 pixels) are no result: an error naming
+    // why, not "0 estimated" and exit 0.
+    let tiny = d.join("tiny");
+    std::fs::create_dir_all(&tiny).unwrap();
+    for k in 0..3 {
+        image::GrayImage::new(1, 1)
+            .save(tiny.join(format!("f{k}.png")))
+            .unwrap();
+    }
+    let err = fails(&vt(&["run", "--model", s(&m), "--source", s(&tiny)]));
+    assert!(err.contains("none of the 3 frames"), "{err}");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -261,6 +261,39 @@ pub struct ForceTable {
 pub const AXES: [&str; 6] = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"];
 
 impl ForceTable {
+    /// How far the recorder's clock is ahead of the sender's, s: the smallest `recv_s −
+    /// timestamp_s` (the least-delayed sample's). 0 for a table without receive times (a
+    /// force source on the recorder's own clock). A real F/T box stamps samples on its own
+    /// clock (often seconds since it was powered), not the recording's.
+    pub fn sender_offset_s(&self) -> f64 {
+        self.recv_s.as_ref().map_or(0.0, |r| {
+            let least = r
+                .iter()
+                .zip(&self.timestamp_s)
+                .map(|(r, t)| r - t)
+                .filter(|d| d.is_finite())
+                .fold(f64::INFINITY, f64::min);
+            if least.is_finite() {
+                least
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// The samples' times on the recorder's clock (the session's, the frames'): each
+    /// `timestamp_s` plus [`ForceTable::sender_offset_s`].
+    pub fn recorder_times_s(&self) -> Vec<f64> {
+        let offset = self.sender_offset_s();
+        self.timestamp_s.iter().map(|t| t + offset).collect()
+    }
+
+    /// Puts the samples on the recorder's clock ([`ForceTable::recorder_times_s`]); the receive
+    /// times stay as they are.
+    pub fn onto_recorder_clock(&mut self) {
+        self.timestamp_s = self.recorder_times_s();
+    }
+
     /// Reads a force CSV; errors name the file, line and column. A last line without a line end
     /// (a recorder stopped mid-row) is left out and reported in `dropped_partial_line`.
     pub fn read(path: &std::path::Path) -> Result<Self, TableError> {

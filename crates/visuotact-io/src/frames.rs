@@ -208,6 +208,23 @@ pub fn read_image(path: &Path) -> Result<RgbImage, FrameError> {
             crate::read::MAX_IMAGE_PIXELS
         )));
     }
+    // And so is the memory decoding takes: the decoder's buffer (16-bit and alpha channels
+    // make it up to 8 bytes a pixel) and, unless it is 8-bit RGB already, the RGB copy.
+    let pixels = u64::from(w) * u64::from(h);
+    let color = image::ImageDecoder::color_type(&decoder);
+    let rgb_copy = if color == image::ColorType::Rgb8 {
+        0
+    } else {
+        3
+    };
+    let needed = pixels * (u64::from(color.bytes_per_pixel()) + rgb_copy);
+    if needed > crate::read::MAX_DECODED_BYTES {
+        return Err(decode_err(format!(
+            "{w}×{h} pixels of {color:?} need {} MiB to decode, beyond the limit of {} MiB",
+            needed >> 20,
+            crate::read::MAX_DECODED_BYTES >> 20
+        )));
+    }
     let img = image::DynamicImage::from_decoder(decoder)
         .map_err(|e| decode_err(e.to_string()))?
         .into_rgb8();
@@ -714,27 +731,43 @@ mod limit_tests {
         out
     }
 
-    /// A 100 000 × 100 000 PNG header with no pixel data (a decompression bomb's shape):
-    /// refused from its header, naming the limit, before a pixel is allocated.
-    #[test]
-    fn an_image_claiming_too_many_pixels_is_refused_before_decoding() {
-        let mut ihdr = 100_000u32.to_be_bytes().to_vec();
-        ihdr.extend(100_000u32.to_be_bytes());
-        ihdr.extend([8, 2, 0, 0, 0]);
-        let png = [
+    /// A PNG header of `side`² pixels of `depth` bits, colour type `color`, with no pixel data.
+    fn header_only_png(side: u32, depth: u8, color: u8) -> Vec<u8> {
+        let mut ihdr = side.to_be_bytes().to_vec();
+        ihdr.extend(side.to_be_bytes());
+        ihdr.extend([depth, color, 0, 0, 0]);
+        [
             b"\x89PNG\r\n\x1a\n".to_vec(),
             chunk(b"IHDR", &ihdr),
             // An empty zlib stream: nothing to inflate.
             chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0, 0, 0, 0, 1]),
             chunk(b"IEND", &[]),
         ]
-        .concat();
+        .concat()
+    }
+
+    /// A 100 000 × 100 000 PNG header with no pixel data (a decompression bomb's shape), and
+    /// a 16 000² 16-bit RGB one (fewer pixels than the limit, but 1.5 GiB to decode, 2.76 GB
+    /// taken before): refused from the header, naming the limit, before a pixel is allocated.
+    #[test]
+    fn an_image_claiming_too_many_pixels_is_refused_before_decoding() {
         let d = std::env::temp_dir().join(format!("visuotact-bomb-{}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
         let p = d.join("bomb.png");
-        std::fs::write(&p, png).unwrap();
-        let e = read_image(&p).unwrap_err().to_string();
-        assert!(e.contains("100000×100000 pixels, beyond the limit"), "{e}");
+        for (png, says) in [
+            (
+                header_only_png(100_000, 8, 2),
+                "100000×100000 pixels, beyond the limit",
+            ),
+            (
+                header_only_png(16_000, 16, 2),
+                "16000×16000 pixels of Rgb16 need 2197 MiB to decode, beyond the limit of 1024 MiB",
+            ),
+        ] {
+            std::fs::write(&p, png).unwrap();
+            let e = read_image(&p).unwrap_err().to_string();
+            assert!(e.contains(says), "{e}");
+        }
         std::fs::remove_dir_all(&d).unwrap();
     }
 }

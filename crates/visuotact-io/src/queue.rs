@@ -37,7 +37,8 @@ impl<T> LatestQueue<T> {
     /// An empty queue holding at most `cap` items (at least 1).
     pub fn new(cap: usize) -> Self {
         Self {
-            inner: Mutex::new((VecDeque::with_capacity(cap.max(1)), false)),
+            // Grown as items come: a large cap reserves nothing up front.
+            inner: Mutex::new((VecDeque::with_capacity(cap.clamp(1, 64)), false)),
             ready: Condvar::new(),
             cap: cap.max(1),
             dropped: AtomicU64::new(0),

@@ -17,6 +17,11 @@ pub const MAX_IMAGE_BYTES: u64 = 512 << 20;
 /// The most pixels a decoded image may have: 2^28 (16 384 × 16 384); 768 MiB as RGB.
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 28;
 
+/// The most memory decoding one image may take, bytes: 1 GiB (the decoder's buffer and the
+/// RGB copy). A 16 384² 8-bit RGB frame fits; a 16 000² 16-bit RGB one (1.5 GiB before the
+/// copy) does not.
+pub const MAX_DECODED_BYTES: u64 = 1 << 30;
+
 /// The bytes of `path`: refused unless it is a regular file (links followed) of at most
 /// `limit` bytes.
 pub fn bytes_of_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {

@@ -352,6 +352,49 @@ pub fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
 mod tests {
     use super::*;
 
+    /// A session is a closed world: a `frames.csv` row naming a file outside `frames/` (a
+    /// folder, `..`, an absolute path, a link out of the session) or stamped NaN is an error
+    /// naming the row; plain names and links inside the session read.
+    #[test]
+    fn frame_index_refuses_paths_leaving_the_session() {
+        let root = std::env::temp_dir().join(format!("vt-closed-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let dir = root.join("s");
+        std::fs::create_dir_all(dir.join("frames")).unwrap();
+        std::fs::write(root.join("secret.png"), b"x").unwrap();
+        std::fs::write(dir.join("frames").join("a.png"), b"x").unwrap();
+        std::os::unix::fs::symlink(root.join("secret.png"), dir.join("frames").join("out.png"))
+            .unwrap();
+        std::os::unix::fs::symlink(dir.join("frames").join("a.png"), dir.join("frames/in.png"))
+            .unwrap();
+        let header = "frame,index,timestamp_s,kind\n";
+        let write = |row: &str| {
+            std::fs::write(
+                dir.join("frames.csv"),
+                format!("{header}a.png,0,0,touch\n{row}\n"),
+            )
+            .unwrap()
+        };
+        for (row, why) in [
+            ("../../secret.png,1,0.1,touch", "plain file name"),
+            ("/etc/passwd,1,0.1,touch", "plain file name"),
+            ("sub/a.png,1,0.1,touch", "plain file name"),
+            ("..,1,0.1,touch", "plain file name"),
+            ("out.png,1,0.1,touch", "outside the session"),
+            ("in.png,1,nan,touch", "not a finite"),
+        ] {
+            write(row);
+            let e = frame_index(&dir).unwrap_err();
+            assert_eq!(e.line, Some(3), "{row}: {e}");
+            assert!(e.to_string().contains(why), "{row}: {e}");
+        }
+        write("in.png,1,0.1,touch");
+        let frames = frame_index(&dir).unwrap();
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[1].name, "in.png");
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
     #[test]
     fn append_logs_resume_after_a_partial_line() {
         let dir = std::env::temp_dir().join(format!("vt-append-{}", std::process::id()));
@@ -405,16 +448,59 @@ pub fn frame_index(dir: &Path) -> Result<Vec<IndexedFrame>, TableError> {
     let ts = t
         .column("timestamp_s")
         .ok_or_else(|| TableError::new(&path, Some(1), "no timestamp_s column".into()))?;
-    Ok(t.keys
-        .iter()
-        .zip(&t.rows)
-        .zip(&t.text)
-        .map(|((name, row), text)| IndexedFrame {
+    let mut out = Vec::with_capacity(t.keys.len());
+    for (k, ((name, row), text)) in t.keys.iter().zip(&t.rows).zip(&t.text).enumerate() {
+        let line = Some(k + 2);
+        let reference = text.first().is_some_and(|c| c == "reference");
+        let folder = if reference { "reference" } else { "frames" };
+        inside_session(dir, folder, name)
+            .map_err(|why| TableError::new(&path, line, format!("frame {name:?}: {why}")))?;
+        if !row[ts].is_finite() {
+            return Err(TableError::new(
+                &path,
+                line,
+                format!("frame {name:?}: timestamp_s is not a finite number of seconds"),
+            ));
+        }
+        out.push(IndexedFrame {
             name: name.clone(),
             timestamp_s: row[ts],
-            reference: text.first().is_some_and(|k| k == "reference"),
-        })
-        .collect())
+            reference,
+        });
+    }
+    Ok(out)
+}
+
+/// Checks that frame `name` of a session names a file of `dir/folder` itself: one plain file
+/// name (no folder, no `..`, not absolute), and, when it is a link, one that stays inside the
+/// session. A session is a closed world: nothing it lists may make a reader open a file
+/// outside it.
+fn inside_session(dir: &Path, folder: &str, name: &str) -> Result<(), String> {
+    let mut parts = Path::new(name).components();
+    let plain = matches!(
+        (parts.next(), parts.next()),
+        (Some(std::path::Component::Normal(_)), None)
+    );
+    if !plain || name.contains('\\') {
+        return Err(format!(
+            "expected a plain file name inside the session's {folder}/ (no folder, no `..`, \
+             not absolute)"
+        ));
+    }
+    let file = dir.join(folder).join(name);
+    let is_link = std::fs::symlink_metadata(&file).is_ok_and(|m| m.file_type().is_symlink());
+    if is_link {
+        let (Ok(target), Ok(root)) = (file.canonicalize(), dir.canonicalize()) else {
+            return Err("a link that does not resolve".into());
+        };
+        if !target.starts_with(&root) {
+            return Err(format!(
+                "a link to {} outside the session",
+                target.display()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// What a session's `session.json` says, as the tools that read sessions use it. Every field

@@ -111,6 +111,8 @@ impl Episode {
         let force_path = dir.join("force.csv");
         let force = if force_path.is_file() {
             let mut f = ForceTable::read(&force_path)?;
+            // Interpolated at the frames' times, on their clock, not the sender's.
+            f.onto_recorder_clock();
             sort_by_time(&mut f);
             Some(
                 frames
@@ -179,5 +181,30 @@ mod tests {
         assert_eq!(force_at(&f, 1.0)[0], 2.0);
         assert_eq!(force_at(&f, 1.5)[5], 3.0);
         assert!(force_at(&f, -0.1)[0].is_nan() && force_at(&f, 2.1)[0].is_nan());
+    }
+
+    /// A force sender on its own clock (a real F/T box's starts at 1 000 s) is put on the
+    /// frames' clock by its receive times: every frame gets its force, not NaN.
+    #[test]
+    fn force_on_the_senders_clock_meets_the_frames() {
+        let dir = std::env::temp_dir().join(format!("vt-episode-clock-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("frames")).unwrap();
+        std::fs::write(
+            dir.join("frames.csv"),
+            "frame,index,timestamp_s,kind\na.png,0,0.2,touch\nb.png,1,0.6,touch\n",
+        )
+        .unwrap();
+        // Received 10 ms after sending (the least delay), one packet late by 30 ms more.
+        std::fs::write(
+            dir.join("force.csv"),
+            "timestamp_s,recv_s,fz_n\n1000.0,0.01,0\n1000.5,0.54,5\n1001.0,1.01,10\n",
+        )
+        .unwrap();
+        let e = Episode::read(&dir).unwrap();
+        let force = e.force.unwrap();
+        assert!((force[0][2] - 1.9).abs() < 1e-9, "{:?}", force[0]);
+        assert!((force[1][2] - 5.9).abs() < 1e-9, "{:?}", force[1]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -239,15 +239,14 @@ fn encode_video(
         let mut stats = Stats::new(3);
         for k in 0..ep.frames.len() {
             let p = ep.frame_path(k);
-            let img = image::open(&p)
-                .map_err(|e| {
-                    LeRobotError::Frame(
-                        p.clone(),
-                        format!("{e} (export needs the frames: record --save-frames, or no video)"),
-                    )
-                })?
-                .into_rgb8();
-            let dims = img.dimensions();
+            // Decoded within the project's limits on pixels and memory.
+            let img = visuotact_io::frames::read_image(&p).map_err(|e| {
+                LeRobotError::Frame(
+                    p.clone(),
+                    format!("{e} (export needs the frames: record --save-frames, or no video)"),
+                )
+            })?;
+            let dims = (img.width() as u32, img.height() as u32);
             let e = match enc.as_mut() {
                 Some(e) if dims == size => e,
                 Some(_) => {
@@ -264,8 +263,8 @@ fn encode_video(
                     enc.insert(Encoder::start(cfg, &path, dims, fps)?)
                 }
             };
-            e.push(img.as_raw())?;
-            stats.push_rgb(img.as_raw());
+            e.push(img.as_slice())?;
+            stats.push_rgb(img.as_slice());
             done += 1;
             if progress(done, total).is_break() {
                 return Err(LeRobotError::Stopped(done));

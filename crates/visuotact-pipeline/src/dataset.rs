@@ -315,12 +315,7 @@ fn labels_from_force(
         ));
     }
     // Sender clock → recorder clock.
-    let offset = table.recv_s.as_ref().map_or(0.0, |r| {
-        r.iter()
-            .zip(&table.timestamp_s)
-            .map(|(r, t)| r - t)
-            .fold(f64::INFINITY, f64::min)
-    });
+    let offset = table.sender_offset_s();
     let (c, _) = clean_table(&mut table, &cfg.clean).map_err(|source| DatasetError::Force {
         path: path.to_path_buf(),
         source,

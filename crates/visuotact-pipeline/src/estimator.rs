@@ -221,6 +221,18 @@ pub struct Estimator {
     mm: MmColumns,
 }
 
+/// The sensor calibration a model file holds (`None`: it holds none).
+pub fn sensor_of_model(model: &Model) -> Result<Option<SensorCalibration>, PipelineError> {
+    model
+        .sensor
+        .as_ref()
+        .map(|v| {
+            SensorCalibration::from_json(&v.to_string(), "the model's sensor")
+                .map_err(PipelineError::ModelSensor)
+        })
+        .transpose()
+}
+
 impl Estimator {
     /// Features from `sensor` (or, when `None`, the calibration stored in the model), and
     /// estimates when a model is given. The feature set is the model's, else the sensor's.
@@ -293,11 +305,7 @@ impl Estimator {
     ) -> Result<Self, PipelineError> {
         let cal = match (sensor, &model) {
             (Some(c), _) => c,
-            (None, Some(m)) => match &m.sensor {
-                Some(v) => SensorCalibration::from_json(&v.to_string(), "the model's sensor")
-                    .map_err(PipelineError::ModelSensor)?,
-                None => return Err(PipelineError::NoSensor),
-            },
+            (None, Some(m)) => sensor_of_model(m)?.ok_or(PipelineError::NoSensor)?,
             (None, None) => return Err(PipelineError::NoSensor),
         };
         let (markers, extra_inputs): (Vec<String>, Vec<String>) = model

@@ -62,7 +62,9 @@ pub mod schema;
 pub mod several;
 pub mod table;
 
-pub use estimator::{feature_set_of, Estimate, Estimator, PipelineError, TargetValue};
+pub use estimator::{
+    feature_set_of, sensor_of_model, Estimate, Estimator, PipelineError, TargetValue,
+};
 pub use live::{LiveConfig, LiveEstimate, LiveEstimator, LiveFrame};
 pub use visuotact_io::queue::{self, Captured, LatestQueue};
 

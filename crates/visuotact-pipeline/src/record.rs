@@ -166,6 +166,9 @@ pub enum RecordError {
     /// The folder holds a session and `resume` was not asked for.
     #[error("{}: already holds a session; resume it (--resume) or choose a new folder", .0.display())]
     Exists(PathBuf),
+    /// Another recording is writing into the folder (it holds the session's lock).
+    #[error("{}: another recording is writing into this session; wait for it to end or choose a new folder", .0.display())]
+    Busy(PathBuf),
     /// `resume` was asked for and the folder holds no session.
     #[error("{}: no session to resume", .0.display())]
     NothingToResume(PathBuf),
@@ -310,7 +313,8 @@ pub fn record_observed(
         _ => None,
     };
     let force_input = ForceInput::open(cfg)?;
-    let created = check(cfg)?;
+    // The session's lock is held until the recording has concluded.
+    let (created, _session_lock) = check(cfg)?;
     let mut tables = Tables::open(cfg, estimator.as_ref(), rig.as_ref())?;
     let mut summary = RecordSummary {
         started_unix_s: started_unix_s(cfg),
@@ -450,8 +454,15 @@ fn validate(cfg: &RecordConfig) -> Result<(), RecordError> {
 
 /// The session folder: refused when it holds a session and `resume` was not asked for (or
 /// the other way round), then created and probed for space. Returns whether this run made it.
-fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
+fn check(cfg: &RecordConfig) -> Result<(bool, std::fs::File), RecordError> {
     let out = &cfg.output;
+    // A folder that is there is locked before it is looked at: a second recording (or a
+    // resume) into a session being recorded is refused, not interleaved with it.
+    let early = if out.is_dir() {
+        Some(lock_session(out)?)
+    } else {
+        None
+    };
     let exists = holds_session(out);
     if exists && !cfg.resume {
         return Err(RecordError::Exists(out.clone()));
@@ -469,6 +480,14 @@ fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
             format!("cannot create the session folder {}: {e}", out.display()),
         )
     })?;
+    let lock = match early {
+        Some(l) => l,
+        None => lock_session(out)?,
+    };
+    if created && holds_session(out) {
+        // Another recording made the folder and started writing in between.
+        return Err(RecordError::Exists(out.clone()));
+    }
     if let Err(e) = probe_writable(out, 1 << 20) {
         // A folder made only for this run goes again, so that the corrected run is not
         // refused; `remove_dir` leaves a folder that is not empty.
@@ -480,7 +499,21 @@ fn check(cfg: &RecordConfig) -> Result<bool, RecordError> {
     if cfg.save_frames {
         std::fs::create_dir_all(out.join("frames"))?;
     }
-    Ok(created)
+    Ok((created, lock))
+}
+
+/// An exclusive advisory lock on session folder `dir`, held as long as the returned handle.
+fn lock_session(dir: &Path) -> Result<std::fs::File, RecordError> {
+    let f = std::fs::File::open(dir)?;
+    match f.try_lock() {
+        Ok(()) => Ok(f),
+        Err(std::fs::TryLockError::WouldBlock) => Err(RecordError::Busy(dir.to_path_buf())),
+        Err(std::fs::TryLockError::Error(e)) => Err(std::io::Error::new(
+            e.kind(),
+            format!("cannot lock the session folder {}: {e}", dir.display()),
+        )
+        .into()),
+    }
 }
 
 /// A session may be resumed only by the recording that made it: its `session.json` must read
@@ -1095,23 +1128,24 @@ fn spawn_receiver(
             let got = rx.recv(Duration::from_millis(50), || {
                 t_offset + clock.elapsed().as_secs_f64()
             })?;
-            match got {
-                Some(r) => {
-                    // Shortest round-trip numbers: the table holds the sample exactly.
-                    line.clear();
-                    line.push_str(&format_number(r.sample.timestamp_s));
-                    for v in r.sample.values {
-                        line.push(',');
-                        line.push_str(&format_number(v));
-                    }
+            if let Some(r) = got {
+                // Shortest round-trip numbers: the table holds the sample exactly.
+                line.clear();
+                line.push_str(&format_number(r.sample.timestamp_s));
+                for v in r.sample.values {
                     line.push(',');
-                    line.push_str(&format_number(r.recv_s));
-                    log.line(&line)?;
-                    observe(observer.as_ref(), |o| o.force(&r.sample))
-                        .map_err(std::io::Error::other)?;
+                    line.push_str(&format_number(v));
                 }
-                None if stop.load(Ordering::Relaxed) => break,
-                None => {}
+                line.push(',');
+                line.push_str(&format_number(r.recv_s));
+                log.line(&line)?;
+                observe(observer.as_ref(), |o| o.force(&r.sample))
+                    .map_err(std::io::Error::other)?;
+            }
+            // Checked after every packet too: a sender that never pauses must not keep the
+            // recording open (it ran 20.8 s for `--duration-s 2`).
+            if stop.load(Ordering::Relaxed) {
+                break;
             }
         }
         log.sync()?;
@@ -1122,4 +1156,84 @@ fn spawn_receiver(
 /// Whether `dir` holds a recorded session (its frame index or description).
 pub fn holds_session(dir: &Path) -> bool {
     dir.join("frames.csv").exists() || dir.join("session.json").exists()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A session being recorded is locked: a second recording or a resume into it is refused
+    /// by name (was: two writers interleaving rows), and the folder is free again after.
+    #[test]
+    fn a_session_being_recorded_is_refused_to_a_second_writer() {
+        let dir = std::env::temp_dir().join(format!("vt-rec-lock-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let cfg = RecordConfig {
+            output: dir.clone(),
+            ..RecordConfig::default()
+        };
+        let (created, held) = check(&cfg).unwrap();
+        assert!(created);
+        std::fs::write(dir.join("frames.csv"), "frame,index,timestamp_s,kind\n").unwrap();
+        for resume in [false, true] {
+            let again = RecordConfig {
+                resume,
+                ..cfg.clone()
+            };
+            let e = check(&again).unwrap_err();
+            assert!(matches!(e, RecordError::Busy(_)), "{e}");
+            assert!(e.to_string().contains("another recording"), "{e}");
+        }
+        drop(held);
+        let e = check(&cfg).unwrap_err();
+        assert!(matches!(e, RecordError::Exists(_)), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A force sender that never pauses (a real F/T box streams at 1 kHz and up) does not keep
+    /// the receiver, and so the recording, open once it is told to stop: it was only asked
+    /// when a wait for a packet timed out (20.8 s for a 2-second recording).
+    #[test]
+    fn a_streaming_force_sender_does_not_hold_the_receiver_open() {
+        let rx = ForceReceiver::bind("127.0.0.1:0", ForceLayout::default(), None).unwrap();
+        let to = rx.local_addr().unwrap();
+        let dir = std::env::temp_dir().join(format!("vt-rec-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let every = Duration::from_secs(1);
+        let (log, _) = AppendLog::open(&dir.join("force.csv"), FORCE_HEADER, false, every).unwrap();
+        let sending = Arc::new(AtomicBool::new(true));
+        let sender = {
+            let sending = sending.clone();
+            std::thread::spawn(move || {
+                let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+                let layout = ForceLayout::default();
+                // Up to 20 s of samples at ~2 kHz, on the sender's own clock.
+                for i in 0..40_000u64 {
+                    if !sending.load(Ordering::Relaxed) {
+                        return true;
+                    }
+                    let s = ForceSample {
+                        timestamp_s: 1000.0 + i as f64 * 5e-4,
+                        values: [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+                    };
+                    let _ = sock.send_to(&layout.encode(&s, i), to);
+                    std::thread::sleep(Duration::from_micros(500));
+                }
+                false
+            })
+        };
+        let stop = Arc::new(AtomicBool::new(false));
+        let receiver = spawn_receiver(rx, log, (Instant::now(), 0.0, stop.clone()), None);
+        std::thread::sleep(Duration::from_millis(300));
+        stop.store(true, Ordering::Relaxed);
+        let stats = receiver.join().unwrap().unwrap();
+        // The receiver returned while the sender was still streaming.
+        sending.store(false, Ordering::Relaxed);
+        assert!(
+            sender.join().unwrap(),
+            "the sender ran out before the receiver stopped"
+        );
+        assert!(stats.kept > 0, "{stats:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -192,12 +192,12 @@ impl Readings {
 
 /// A session's saved frames in recorded order; `warn` hears how many listed are missing.
 fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, ReplayError> {
-    let t = KeyedTable::read(&s.join("frames.csv"), &["kind"])?;
-    let listed = t.keys.len();
-    let frames: Vec<PathBuf> = t
-        .keys
+    let index = visuotact_io::session::frame_index(s)?;
+    let listed = index.iter().filter(|f| !f.reference).count();
+    let frames: Vec<PathBuf> = index
         .iter()
-        .map(|k| s.join("frames").join(k))
+        .filter(|f| !f.reference)
+        .map(|f| s.join("frames").join(&f.name))
         .filter(|p| p.is_file())
         .collect();
     if frames.is_empty() {

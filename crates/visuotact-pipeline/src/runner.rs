@@ -59,6 +59,9 @@ pub const SIM_FRAMES_UP_FRONT: usize = 256;
 /// Most distinct frames a simulated source loops over.
 pub const MAX_SIM_FRAMES: usize = 1_000_000;
 
+/// Most frames the capture queue may hold (`run --queue`).
+pub const MAX_QUEUE: usize = 1_000;
+
 impl Default for RunConfig {
     fn default() -> Self {
         Self {
@@ -83,6 +86,13 @@ impl RunConfig {
             return Err(RunError::Config(
                 "max_frames, queue and sim_frames must be at least 1".into(),
             ));
+        }
+        if self.queue > MAX_QUEUE {
+            return Err(RunError::Config(format!(
+                "queue {}: at most {MAX_QUEUE} frames wait (each holds a whole image; a \
+                 longer queue only adds latency)",
+                self.queue
+            )));
         }
         if self.sim_frames > MAX_SIM_FRAMES {
             return Err(RunError::Config(format!(
@@ -119,6 +129,18 @@ pub enum RunError {
     /// The source gave no frame (nothing readable, or stopped at once).
     #[error("{0}: the source gave no frame")]
     NoFrames(String),
+    /// Frames came but none could be estimated: the run produced no result.
+    #[error(
+        "{source_name}: none of the {captured} frames captured could be estimated (first: {first})"
+    )]
+    NoEstimate {
+        /// The source.
+        source_name: String,
+        /// Frames the source delivered.
+        captured: u64,
+        /// Why the first frame could not be estimated.
+        first: String,
+    },
 }
 
 /// Where estimates go.
@@ -412,6 +434,15 @@ pub fn run(
     if captured == 0 {
         return Err(RunError::NoFrames(cfg.source.to_string()));
     }
+    if stats.latency_ms.is_empty() {
+        if let Some(first) = stats.first_error.take() {
+            return Err(RunError::NoEstimate {
+                source_name: cfg.source.to_string(),
+                captured,
+                first,
+            });
+        }
+    }
     Ok(stats.summary(captured, queue.dropped(), clock))
 }
 
@@ -424,6 +455,8 @@ struct Stats {
     rss_after_1000: Option<u64>,
     max_rss: u64,
     markers: Vec<MarkerView>,
+    /// Why the first frame that could not be estimated could not.
+    first_error: Option<String>,
 }
 
 impl Stats {
@@ -469,7 +502,9 @@ fn estimate_one(
     } = match result {
         Ok(r) => r,
         Err(e) => {
-            warn(&format!("frame {}: {e}", cap.id));
+            let why = format!("frame {}: {e}", cap.id);
+            warn(&why);
+            stats.first_error.get_or_insert(why);
             return ControlFlow::Continue(());
         }
     };

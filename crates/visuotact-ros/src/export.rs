@@ -181,16 +181,30 @@ fn described(session: &Path) -> Result<Option<SessionDescription>, RosError> {
     SessionDescription::read(session).map_err(|e| RosError::Config(e.to_string()))
 }
 
-/// The sensor file the export was given or the session names.
+/// The sensor file the export was given or the session names, else the calibration held by
+/// the model the session was recorded with.
 fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibration>, RosError> {
+    let described = match &cfg.sensor {
+        Some(_) => None,
+        None => described(session)?,
+    };
     let path = match &cfg.sensor {
         Some(p) => Some(p.clone()),
-        None => described(session)?
-            .and_then(|d| d.sensor_file)
+        None => described
+            .as_ref()
+            .and_then(|d| d.sensor_file.clone())
             .filter(|p| p.is_file()),
     };
     let Some(path) = path else {
-        return Ok(None);
+        let Some(model_path) = described.and_then(|d| d.model_file).filter(|p| p.is_file()) else {
+            return Ok(None);
+        };
+        let text = visuotact_io::read::text_of_file(&model_path)
+            .map_err(|e| RosError::Io(model_path.clone(), e))?;
+        let model = visuotact_nn::model::Model::from_json(&text, &model_path.display().to_string())
+            .map_err(|e| RosError::Config(e.to_string()))?;
+        return visuotact_pipeline::sensor_of_model(&model)
+            .map_err(|e| RosError::Config(format!("{}: {e}", model_path.display())));
     };
     let text =
         visuotact_io::read::text_of_file(&path).map_err(|e| RosError::Io(path.clone(), e))?;
@@ -209,7 +223,10 @@ fn read_tables(
     let features = optional_table(session, "features.csv", &["flags"], notes)?.map(keyed);
     let force_path = session.join("force.csv");
     let force = if force_path.is_file() {
-        Some(ForceTable::read(&force_path)?)
+        // Wrenches are stamped on the frames' clock, not the sender's.
+        let mut f = ForceTable::read(&force_path)?;
+        f.onto_recorder_clock();
+        Some(f)
     } else {
         notes.push("no force.csv".into());
         None
@@ -218,7 +235,7 @@ fn read_tables(
     if let Some((f, _)) = &features {
         match sensor_of(session, cfg)? {
             Some(cal) => markers = MarkerColumns::new(&cal, &f.columns),
-            None => notes.push("no sensor file: no marker cloud".into()),
+            None => notes.push("no sensor file or model with one: no marker cloud".into()),
         }
     }
     Ok(SessionTables {
