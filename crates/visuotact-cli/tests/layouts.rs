@@ -386,3 +386,65 @@ fn warnings_are_one_short_line_per_frame_and_max_zero_is_silent() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The real 127-pin TacTip calibrated as a user with no contact-free frame would, from ONE
+/// in-contact frame (`frame_0_0.png`): a speck on the tip's rim (12 px² beside a 37 px² pin,
+/// one lattice step past the array's corner) was numbered as a marker and then missed in 70 % of
+/// the frames (0.80 % of pin-frames missing). It is a speck, not a marker: no marker of the
+/// sensor hangs on the array by one neighbour while under half its size, and over every frame
+/// of the set at most 0.5 % of pin-frames are missing (0.19 % measured).
+#[test]
+fn a_speck_on_the_rim_of_one_in_contact_frame_is_no_marker() {
+    let Some(data) = shared_real("tactip127_surface/frames") else {
+        return;
+    };
+    let d = fresh_dir("layouts-one-frame");
+    let sensor = d.join("tip.json");
+    ok(&vt(&[
+        "calibrate",
+        s(&data.join("frame_0_0.png")),
+        "-o",
+        s(&sensor),
+    ]));
+    let markers = sensor_json(&sensor)["markers"].as_array().unwrap().clone();
+    for m in &markers {
+        let nb = m["neighbours"].as_array().unwrap();
+        if nb.len() == 1 {
+            let other = &markers[nb[0].as_u64().unwrap() as usize];
+            let (a, b) = (
+                m["area_px"].as_f64().unwrap(),
+                other["area_px"].as_f64().unwrap(),
+            );
+            assert!(2.0 * a >= b, "a speck numbered as a marker: {m}");
+        }
+    }
+    let features = d.join("f.csv");
+    ok(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&data),
+        "-o",
+        s(&features),
+        "--max-warnings",
+        "0",
+    ]));
+    let text = std::fs::read_to_string(&features).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let dx: Vec<usize> = (0..header.len())
+        .filter(|&k| header[k].ends_with("_dx_px"))
+        .collect();
+    assert_eq!(dx.len(), markers.len());
+    let (mut cells, mut empty) = (0usize, 0usize);
+    for line in text.lines().skip(1) {
+        let row: Vec<&str> = line.split(',').collect();
+        cells += dx.len();
+        empty += dx.iter().filter(|&&k| row[k].is_empty()).count();
+    }
+    assert!(cells > 600_000, "{cells} pin-frames");
+    assert!(
+        200 * empty <= cells,
+        "{empty} of {cells} pin-frames missing (over 0.5 %)"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

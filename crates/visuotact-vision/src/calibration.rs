@@ -442,6 +442,26 @@ fn number_blobs(
     })
 }
 
+/// The blobs of a lattice numbering that are specks, not markers: each hangs on the array by one
+/// neighbour and has under half that neighbour's area. Every marker of a two-dimensional array
+/// has at least two neighbours (a grid's corner two, a hexagonal array's three), and markers
+/// side by side have about one size; a speck beyond the array (the rim of a TacTip in one
+/// in-contact frame: 12 px² beside a 37 px² pin) can still land on a free lattice site.
+fn specks_of(numbered: &Ordered) -> Vec<Blob> {
+    if !matches!(numbered.layout, Layout::Hex | Layout::Grid) {
+        return Vec::new();
+    }
+    numbered
+        .neighbours
+        .iter()
+        .zip(&numbered.blobs)
+        .filter_map(|(nb, (b, _, _))| match nb.as_slice() {
+            [k] if 2 * b.area_px < numbered.blobs[*k as usize].0.area_px => Some(*b),
+            _ => None,
+        })
+        .collect()
+}
+
 /// The reference markers of numbered blobs (jitter still unknown).
 fn reference_markers(numbered: &Ordered, convention: MomentConvention) -> Vec<ReferenceMarker> {
     numbered
@@ -540,7 +560,15 @@ where
         level: detection.level,
         ..Default::default()
     };
-    let numbered = number_blobs(&blobs, cfg.layout, convention, &mut report)?;
+    let mut numbered = number_blobs(&blobs, cfg.layout, convention, &mut report)?;
+    let specks = specks_of(&numbered);
+    if !specks.is_empty() {
+        blobs.retain(|b| !specks.iter().any(|s| s.x_px == b.x_px && s.y_px == b.y_px));
+        numbered = number_blobs(&blobs, cfg.layout, convention, &mut report)?;
+        report
+            .off_grid
+            .extend(specks.iter().map(|b| (b.x_px, b.y_px)));
+    }
     report.layout = numbered.layout;
     let (layout, pitch) = (numbered.layout, numbered.pitch_px);
     let mut cal = SensorCalibration {
