@@ -580,3 +580,37 @@ fn a_full_disk_stops_recording_without_loss() {
     assert!(!early.exists(), "the refused run left {}", early.display());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A Rerun recording that cannot be written whole (a full disk; here a file-size limit) is an
+/// error naming the file, and no truncated `.rrd` is left (was: "wrote x.rrd (300 frames)",
+/// exit 0, a cut file). The SDK's file sink only logs a failed write, so the file is read back.
+#[cfg(unix)]
+#[test]
+fn a_rerun_recording_cut_by_a_full_disk_is_an_error() {
+    let d = fresh_dir("hostile-rerun-full");
+    let session = d.join("s");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "random",
+        "--touches",
+        "30",
+        "-o",
+        s(&session),
+    ]));
+    let whole = d.join("whole.rrd");
+    let err = ok(&vt(&["export", "rerun", s(&session), "-o", s(&whole)]));
+    assert!(err.contains("(40 frames)"), "{err}");
+    let cut = d.join("cut.rrd");
+    let o = vt_with_file_limit(200, &["export", "rerun", s(&session), "-o", s(&cut)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cut.rrd") && err.contains("breaks off"),
+        "{err}"
+    );
+    assert!(!cut.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}

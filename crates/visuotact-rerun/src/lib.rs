@@ -130,10 +130,7 @@ impl RerunTarget {
         self.rec.flush_blocking();
         self.rec.disconnect();
         if let RerunOutput::File(p) = &self.output {
-            let ok = std::fs::metadata(p).is_ok_and(|m| m.len() > 0);
-            if !ok {
-                return Err(target_err(format!("{}: nothing was written", p.display())));
-            }
+            verify_recording(p)?;
         }
         Ok(self.frames)
     }
@@ -246,6 +243,44 @@ pub struct RerunExport {
     pub frames: u64,
     /// Parts of the session that were not there.
     pub notes: Vec<String>,
+}
+
+/// Reads the recording file at `p` back to its end: the SDK's file sink reports a failed write
+/// (a full disk, a file-size limit) only in its log, so a file that does not decode whole — up
+/// to its last byte, ending in the stream's end marker (a 16-byte header of kind 0, length 0) —
+/// is the error here, never "wrote x.rrd". Returns the messages it holds.
+fn verify_recording(p: &Path) -> Result<u64, RosError> {
+    use rerun::external::re_log_encoding::decoder::Decoder;
+    use std::io::{Read, Seek};
+    let bad = |why: String| target_err(format!("{}: {why}", p.display()));
+    let broken = |n: u64| {
+        bad(format!(
+            "the recording breaks off after {n} messages (a full disk?)"
+        ))
+    };
+    let open = || std::fs::File::open(p).map_err(|e| bad(format!("nothing was written ({e})")));
+    let mut file = open()?;
+    let len = file.metadata().map_err(|e| bad(e.to_string()))?.len();
+    let mut tail = [0xffu8; 16];
+    if len >= 16 {
+        file.seek(std::io::SeekFrom::End(-16))
+            .and_then(|_| file.read_exact(&mut tail))
+            .map_err(|e| bad(e.to_string()))?;
+    }
+    let mut decoder = Decoder::new(std::io::BufReader::new(open()?))
+        .map_err(|e| bad(format!("not a whole recording (a full disk?): {e}")))?;
+    let mut messages = 0u64;
+    for m in decoder.by_ref() {
+        let _message = m.map_err(|e| bad(format!("after {messages} messages: {e}")))?;
+        messages += 1;
+    }
+    if messages == 0 {
+        return Err(bad("nothing was written".into()));
+    }
+    if decoder.size_bytes() != len || tail != [0u8; 16] {
+        return Err(broken(messages));
+    }
+    Ok(messages)
 }
 
 /// Exports `session` into a new `.rrd` file at `out`, the parts `export mcap` writes
