@@ -130,6 +130,18 @@ fn nothing_done_is_an_error() {
     );
     // No empty session is left to refuse the corrected run; a zero duration is refused first.
     assert!(!d.join("rec").exists());
+    // A source folder with no image at all: refused, and no session folder left either.
+    let empty = d.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let err = fails(&vt(&[
+        "record",
+        "--source",
+        s(&empty),
+        "-o",
+        s(&d.join("rec")),
+    ]));
+    assert!(err.contains("no image files"), "{err}");
+    assert!(!d.join("rec").exists());
     let err = fails(&vt(&[
         "record",
         "--source",
@@ -170,6 +182,38 @@ fn nothing_done_is_an_error() {
     ]));
     assert!(err.contains("no row to estimate"), "{err}");
     assert!(!out.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Extracting frames none of which can be processed (1 × 480, not the sensor's size) is an
+/// error naming the first one's reason, and no header-only table is left under the output's
+/// name (was: exit 1 beside a header-only CSV).
+#[test]
+fn extracting_nothing_leaves_no_table() {
+    let d = fresh_dir("hostile-extract-nothing");
+    let thin = d.join("thin");
+    std::fs::create_dir_all(&thin).unwrap();
+    visuotact_io::frames::write_png(
+        &thin.join("t.png"),
+        &visuotact_image::RgbImage::from_fn(1, 480, |_, _| [128; 3]),
+    )
+    .unwrap();
+    std::fs::create_dir_all(d.join("sim")).unwrap();
+    let (_, sensor, _) = common::iats_features(&d.join("sim"), "2", "1");
+    let table = d.join("thin.csv");
+    let err = fails(&vt(&[
+        "extract",
+        "--sensor",
+        s(&sensor),
+        s(&thin),
+        "-o",
+        s(&table),
+    ]));
+    assert!(
+        err.contains("no frame could be processed") && err.contains("1×480"),
+        "{err}"
+    );
+    assert!(!table.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -260,6 +260,21 @@ pub struct ForceTable {
 /// Names of the six axes in files.
 pub const AXES: [&str; 6] = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"];
 
+/// The least `recv_s − timestamp_s` so far (`least`, updated with the sample at `timestamp_s`
+/// received at `recv_s`; non-finite pairs leave it): the sender-to-recorder clock offset as
+/// known at that sample. 0 until a finite pair is seen.
+pub fn to_recorder(timestamp_s: f64, recv_s: f64, least: &mut f64) -> f64 {
+    let d = recv_s - timestamp_s;
+    if d.is_finite() && d < *least {
+        *least = d;
+    }
+    if least.is_finite() {
+        *least
+    } else {
+        0.0
+    }
+}
+
 impl ForceTable {
     /// How far the recorder's clock is ahead of the sender's, s: the smallest `recv_s −
     /// timestamp_s` (the least-delayed sample's). 0 for a table without receive times (a
@@ -282,10 +297,24 @@ impl ForceTable {
     }
 
     /// The samples' times on the recorder's clock (the session's, the frames'): each
-    /// `timestamp_s` plus [`ForceTable::sender_offset_s`].
+    /// `timestamp_s` plus the least `recv_s − timestamp_s` of the samples up to it in file (arrival)
+    /// order — what `record` itself computes as the packets arrive, so a bag written live
+    /// (`record --mcap`) and one exported from the session carry the same stamps. After the
+    /// first packets it is [`ForceTable::sender_offset_s`]. Without receive times, the times
+    /// as they are.
     pub fn recorder_times_s(&self) -> Vec<f64> {
-        let offset = self.sender_offset_s();
-        self.timestamp_s.iter().map(|t| t + offset).collect()
+        let Some(recv) = &self.recv_s else {
+            return self.timestamp_s.clone();
+        };
+        let mut least = f64::INFINITY;
+        self.timestamp_s
+            .iter()
+            .zip(recv)
+            .map(|(&t, &r)| {
+                least = to_recorder(t, r, &mut least);
+                t + least
+            })
+            .collect()
     }
 
     /// Puts the samples on the recorder's clock ([`ForceTable::recorder_times_s`]); the receive

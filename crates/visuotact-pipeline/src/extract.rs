@@ -52,11 +52,14 @@ pub fn extract(
     let mut out =
         TableWriter::create(output, format, feature_columns(&names, &mm)).map_err(write_err)?;
     let mut done = Extracted::default();
+    let mut first_skip: Option<String> = None;
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
     while let Some(frame) = pass.next(obs)? {
         if let Err(e) = ex.extract_into(&frame.image, &mut f) {
             done.skipped += 1;
-            obs.warn(&format!("frame {}: {e}; skipped", frame.id));
+            let why = format!("frame {}: {e}", frame.id);
+            obs.warn(&format!("{why}; skipped"));
+            first_skip.get_or_insert(why);
             continue;
         }
         let missing = n_markers - f.found;
@@ -80,6 +83,14 @@ pub fn extract(
         done.written += 1;
     }
     done.skipped += pass.unreadable;
+    if done.written == 0 {
+        // A table of a header only is no result: nothing is left under the output's name.
+        return Err(ReplayError::NothingExtracted {
+            path: output.to_path_buf(),
+            frames: done.skipped,
+            why: first_skip.unwrap_or_else(|| "no frame could be read".into()),
+        });
+    }
     out.finish().map_err(write_err)?;
     Ok(done)
 }

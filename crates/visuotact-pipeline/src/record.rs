@@ -23,7 +23,9 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use visuotact_image::RgbImage;
 use visuotact_io::camera::{CameraError, CameraRequest};
-use visuotact_io::force::{ForceLayout, ForceReceiver, ForceSample, ForceTable, ReceiveStats};
+use visuotact_io::force::{
+    to_recorder, ForceLayout, ForceReceiver, ForceSample, ForceTable, ReceiveStats,
+};
 use visuotact_io::frames::{write_png, FrameError, FrameStream};
 use visuotact_io::queue::{Captured, LatestQueue};
 use visuotact_io::session::{
@@ -339,7 +341,17 @@ pub fn record_observed(
         (clock, t_offset),
         (stop, observer.clone()),
     )?;
-    let mut frames = Frames::open(cfg, rig, clock, stop)?;
+    let mut frames = match Frames::open(cfg, rig, clock, stop) {
+        Ok(f) => f,
+        Err(e) => {
+            // Nothing was recorded: the force side stops and a folder this run made goes again,
+            // so that the corrected run is not refused for it.
+            stop.store(true, Ordering::Relaxed);
+            let _ = force.finish();
+            discard_unrecorded(cfg, created);
+            return Err(e);
+        }
+    };
     let mut k = tables.first_index;
     let result: Result<(), RecordError> = (|| {
         while !stop.load(Ordering::Relaxed)
@@ -392,6 +404,9 @@ fn conclude(
         result.is_ok() && summary.written > 0 && !none_estimated,
         summary,
     );
+    if result.is_err() && summary.written == 0 {
+        discard_unrecorded(cfg, created);
+    }
     result?;
     described?;
     if none_estimated {
@@ -400,9 +415,7 @@ fn conclude(
     if summary.written == 0 {
         // A session this run made and filled with nothing goes again, so that the corrected
         // run is not refused for it.
-        if created && !cfg.resume {
-            let _ = std::fs::remove_dir_all(&cfg.output);
-        }
+        discard_unrecorded(cfg, created);
         return Err(RecordError::NothingRecorded(if cfg.resume {
             format!(
                 "the session already holds {} frames and the source gave no later one",
@@ -413,6 +426,14 @@ fn conclude(
         }));
     }
     Ok(())
+}
+
+/// Removes the session folder this run made (`created`, not a resume) when it recorded
+/// nothing: a half-made session would refuse the corrected run.
+fn discard_unrecorded(cfg: &RecordConfig, created: bool) {
+    if created && !cfg.resume {
+        let _ = std::fs::remove_dir_all(&cfg.output);
+    }
 }
 
 /// The session clock's zero as UNIX time: now; when resuming, the first run's value from its
@@ -1124,6 +1145,9 @@ fn spawn_receiver(
 ) -> JoinHandle<Result<ReceiveStats, std::io::Error>> {
     std::thread::spawn(move || {
         let mut line = String::new();
+        // The sender's clock onto the recorder's, as `ForceTable::recorder_times_s` maps it
+        // from the finished table: observers (a live bag) stamp what an export stamps.
+        let mut least = f64::INFINITY;
         loop {
             let got = rx.recv(Duration::from_millis(50), || {
                 t_offset + clock.elapsed().as_secs_f64()
@@ -1139,8 +1163,12 @@ fn spawn_receiver(
                 line.push(',');
                 line.push_str(&format_number(r.recv_s));
                 log.line(&line)?;
-                observe(observer.as_ref(), |o| o.force(&r.sample))
-                    .map_err(std::io::Error::other)?;
+                let offset = to_recorder(r.sample.timestamp_s, r.recv_s, &mut least);
+                let sample = ForceSample {
+                    timestamp_s: r.sample.timestamp_s + offset,
+                    values: r.sample.values,
+                };
+                observe(observer.as_ref(), |o| o.force(&sample)).map_err(std::io::Error::other)?;
             }
             // Checked after every packet too: a sender that never pauses must not keep the
             // recording open (it ran 20.8 s for `--duration-s 2`).

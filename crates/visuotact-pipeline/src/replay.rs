@@ -73,6 +73,16 @@ pub enum ReplayError {
         /// The first frame's reason.
         why: String,
     },
+    /// No frame could be processed: the feature table is not written.
+    #[error("{}: not written, no frame could be processed (the first of {frames}: {why})", path.display())]
+    NothingExtracted {
+        /// The output.
+        path: PathBuf,
+        /// Frames tried.
+        frames: usize,
+        /// The first frame's reason.
+        why: String,
+    },
     /// Writing the output failed.
     #[error("{}: {source}", path.display())]
     Write {
