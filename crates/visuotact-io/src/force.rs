@@ -277,44 +277,37 @@ pub fn to_recorder(timestamp_s: f64, recv_s: f64, least: &mut f64) -> f64 {
 
 impl ForceTable {
     /// How far the recorder's clock is ahead of the sender's, s: the smallest `recv_s −
-    /// timestamp_s` (the least-delayed sample's). 0 for a table without receive times (a
-    /// force source on the recorder's own clock). A real F/T box stamps samples on its own
-    /// clock (often seconds since it was powered), not the recording's.
+    /// timestamp_s` (the least-delayed sample's), the last of [`ForceTable::recorder_times_s`]'s
+    /// running offsets. 0 for a table without receive times (a force source on the recorder's
+    /// own clock). A real F/T box stamps samples on its own clock (often seconds since it was
+    /// powered), not the recording's.
     pub fn sender_offset_s(&self) -> f64 {
-        self.recv_s.as_ref().map_or(0.0, |r| {
-            let least = r
-                .iter()
-                .zip(&self.timestamp_s)
-                .map(|(r, t)| r - t)
-                .filter(|d| d.is_finite())
-                .fold(f64::INFINITY, f64::min);
-            if least.is_finite() {
-                least
-            } else {
-                0.0
-            }
-        })
+        self.running_offsets_s().last().unwrap_or(0.0)
     }
 
     /// The samples' times on the recorder's clock (the session's, the frames'): each
-    /// `timestamp_s` plus the least `recv_s − timestamp_s` of the samples up to it in file (arrival)
-    /// order — what `record` itself computes as the packets arrive, so a bag written live
-    /// (`record --mcap`) and one exported from the session carry the same stamps. After the
-    /// first packets it is [`ForceTable::sender_offset_s`]. Without receive times, the times
-    /// as they are.
+    /// `timestamp_s` plus the least `recv_s − timestamp_s` of the samples up to it in file
+    /// (arrival) order ([`to_recorder`]) — what `record` itself computes as the packets
+    /// arrive, so a bag written live (`record --mcap`) and one exported from the session carry
+    /// the same stamps. After the first packets the offset is [`ForceTable::sender_offset_s`].
     pub fn recorder_times_s(&self) -> Vec<f64> {
-        let Some(recv) = &self.recv_s else {
-            return self.timestamp_s.clone();
-        };
-        let mut least = f64::INFINITY;
         self.timestamp_s
             .iter()
-            .zip(recv)
-            .map(|(&t, &r)| {
-                least = to_recorder(t, r, &mut least);
-                t + least
-            })
+            .zip(self.running_offsets_s())
+            .map(|(t, offset)| t + offset)
             .collect()
+    }
+
+    /// Each sample's sender-to-recorder offset as known at it ([`to_recorder`]); all 0 without
+    /// receive times.
+    fn running_offsets_s(&self) -> impl Iterator<Item = f64> + '_ {
+        let mut least = f64::INFINITY;
+        self.timestamp_s.iter().enumerate().map(move |(k, &t)| {
+            match self.recv_s.as_ref().and_then(|r| r.get(k)) {
+                Some(&r) => to_recorder(t, r, &mut least),
+                None => 0.0,
+            }
+        })
     }
 
     /// Puts the samples on the recorder's clock ([`ForceTable::recorder_times_s`]); the receive
@@ -692,6 +685,28 @@ impl ForceReceiver {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The sender's clock onto the recorder's: each sample shifted by the least delay seen up
+    /// to it (a sample without a finite receive time leaves the offset as it is, 0 before any).
+    #[test]
+    fn sender_times_go_onto_the_recorder_clock_by_the_least_delay_so_far() {
+        let t = ForceTable {
+            timestamp_s: vec![1000.0, 1000.5, 1001.0, 1001.5],
+            values: vec![[0.0; 6]; 4],
+            present: [true; 6],
+            recv_s: Some(vec![f64::NAN, 0.54, 1.01, 1.52]),
+            dropped_partial_line: false,
+        };
+        let got = t.recorder_times_s();
+        let want = [1000.0, 0.54, 1.01, 1.51];
+        for (g, w) in got.iter().zip(want) {
+            assert!((g - w).abs() < 1e-9, "{got:?}");
+        }
+        assert!((t.sender_offset_s() + 999.99).abs() < 1e-9);
+        let plain = ForceTable { recv_s: None, ..t };
+        assert_eq!(plain.recorder_times_s(), plain.timestamp_s);
+        assert_eq!(plain.sender_offset_s(), 0.0);
+    }
 
     #[test]
     fn layouts_round_trip_and_reject_bad_packets() {

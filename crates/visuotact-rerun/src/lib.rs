@@ -253,11 +253,6 @@ fn verify_recording(p: &Path) -> Result<u64, RosError> {
     use rerun::external::re_log_encoding::decoder::Decoder;
     use std::io::{Read, Seek};
     let bad = |why: String| target_err(format!("{}: {why}", p.display()));
-    let broken = |n: u64| {
-        bad(format!(
-            "the recording breaks off after {n} messages (a full disk?)"
-        ))
-    };
     let open = || std::fs::File::open(p).map_err(|e| bad(format!("nothing was written ({e})")));
     let mut file = open()?;
     let len = file.metadata().map_err(|e| bad(e.to_string()))?.len();
@@ -278,7 +273,9 @@ fn verify_recording(p: &Path) -> Result<u64, RosError> {
         return Err(bad("nothing was written".into()));
     }
     if decoder.size_bytes() != len || tail != [0u8; 16] {
-        return Err(broken(messages));
+        return Err(bad(format!(
+            "the recording breaks off after {messages} messages (a full disk?)"
+        )));
     }
     Ok(messages)
 }

@@ -184,33 +184,29 @@ fn described(session: &Path) -> Result<Option<SessionDescription>, RosError> {
 /// The sensor file the export was given or the session names, else the calibration held by
 /// the model the session was recorded with.
 fn sensor_of(session: &Path, cfg: &ExportConfig) -> Result<Option<SensorCalibration>, RosError> {
-    let described = match &cfg.sensor {
-        Some(_) => None,
-        None => described(session)?,
+    let file =
+        |p: &Path| visuotact_io::read::text_of_file(p).map_err(|e| RosError::Io(p.into(), e));
+    let sensor_file = |p: &Path| {
+        SensorCalibration::from_json(&file(p)?, &p.display().to_string())
+            .map(Some)
+            .map_err(|e| RosError::Config(e.to_string()))
     };
-    let path = match &cfg.sensor {
-        Some(p) => Some(p.clone()),
-        None => described
-            .as_ref()
-            .and_then(|d| d.sensor_file.clone())
-            .filter(|p| p.is_file()),
+    if let Some(p) = &cfg.sensor {
+        return sensor_file(p);
+    }
+    let Some(d) = described(session)? else {
+        return Ok(None);
     };
-    let Some(path) = path else {
-        let Some(model_path) = described.and_then(|d| d.model_file).filter(|p| p.is_file()) else {
-            return Ok(None);
-        };
-        let text = visuotact_io::read::text_of_file(&model_path)
-            .map_err(|e| RosError::Io(model_path.clone(), e))?;
-        let model = visuotact_nn::model::Model::from_json(&text, &model_path.display().to_string())
-            .map_err(|e| RosError::Config(e.to_string()))?;
-        return visuotact_pipeline::sensor_of_model(&model)
-            .map_err(|e| RosError::Config(format!("{}: {e}", model_path.display())));
+    if let Some(p) = d.sensor_file.filter(|p| p.is_file()) {
+        return sensor_file(&p);
+    }
+    let Some(p) = d.model_file.filter(|p| p.is_file()) else {
+        return Ok(None);
     };
-    let text =
-        visuotact_io::read::text_of_file(&path).map_err(|e| RosError::Io(path.clone(), e))?;
-    SensorCalibration::from_json(&text, &path.display().to_string())
-        .map(Some)
-        .map_err(|e| RosError::Config(e.to_string()))
+    let model = visuotact_nn::model::Model::from_json(&file(&p)?, &p.display().to_string())
+        .map_err(|e| RosError::Config(e.to_string()))?;
+    visuotact_pipeline::sensor_of_model(&model)
+        .map_err(|e| RosError::Config(format!("{}: {e}", p.display())))
 }
 
 fn read_tables(
