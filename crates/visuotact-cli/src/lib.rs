@@ -28,7 +28,7 @@ mod slurm;
 
 use commands::{
     bench, blobs, calibrate, dataset, demo, eval, export, extract, filter, pattern, predict,
-    record, replay, run, simulate, sweep, trackcheck, train,
+    record, replay, run, simulate, slip, sweep, trackcheck, train,
 };
 pub(crate) use files::{
     estimator, fit_error, load_model, load_sensor, reference_note, write_atomically,
@@ -88,6 +88,9 @@ enum Command {
     /// Live estimation: camera, video, frames or simulator → estimates on stdout (JSON lines),
     /// UDP and the dashboard (`--serve`), with latency measured per frame.
     Run(run::Args),
+    /// Slip over time from the marker field: `slip fit` a detector on labelled videos, `slip
+    /// detect` each video's verdict and onset.
+    Slip(slip::Args),
     /// Sessions into the robot's formats: `export mcap` (a ROS 2 bag).
     Export(export::Args),
     /// List the V4L2 cameras (`/dev/videoN`) and their names.
@@ -154,6 +157,7 @@ where
         Command::Replay(a) => replay::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Export(a) => export::run(&a),
+        Command::Slip(a) => slip::run(&a),
         Command::Cameras => {
             let list = visuotact_io::camera::list_devices();
             if list.is_empty() {

@@ -71,6 +71,11 @@ pub enum FrameError {
 const IMAGE_EXT: [&str; 6] = ["png", "jpg", "jpeg", "ppm", "pgm", "pnm"];
 const VIDEO_EXT: [&str; 8] = ["avi", "mp4", "mkv", "mov", "webm", "m4v", "mpg", "mpeg"];
 
+/// Whether `p` names a video file by its extension (avi, mp4, mkv, mov, webm, m4v, mpg, mpeg).
+pub fn is_video_path(p: &Path) -> bool {
+    VIDEO_EXT.contains(&ext_of(p).as_str())
+}
+
 fn ext_of(p: &Path) -> String {
     p.extension()
         .and_then(|e| e.to_str())

@@ -7,7 +7,8 @@
 //!
 //! ## Modules and what each owns
 //!
-//! `br` (Bayesian regularisation, MATLAB `trainbr`: LM on β·E_D + α·E_W through the dual
+//! `logistic` (L2-regularised logistic regression by Newton's method, matched to scikit-learn;
+//! the slip detector's fit), `br` (Bayesian regularisation, MATLAB `trainbr`: LM on β·E_D + α·E_W through the dual
 //! system, γ from the trace of the shifted Gram inverse, α and β re-estimated each epoch;
 //! `mlp::Settle` stops it once E_D and γ have settled), `adam` (mini-batch Adam on the MSE plus
 //! an L2 penalty with early stopping, batched forward and backward passes as faer products over
@@ -51,6 +52,7 @@ pub mod dual;
 pub mod fit;
 pub mod heldout;
 pub mod lm;
+pub mod logistic;
 pub mod metrics;
 pub mod mlp;
 pub mod model;

@@ -45,7 +45,10 @@
 //! force labels; `clean_table`; `DatasetConfig`, `DatasetError`), `table` (a feature table
 //! joined with labels on `frame`, inputs picked by name from it or a readings table, lost
 //! markers kept, left out or refused; `JoinError`), `evaluation` (estimates against labels:
-//! figures per target, contact distance D, plot and map points). No clap, axum or tokio: the
+//! figures per target, contact distance D, plot and map points), `slip` (slip over time: the
+//! field's signals summed up per sequence, a logistic detector giving each frame `stick`,
+//! `incipient` or `slip` and each sequence a verdict and onset; `SlipMonitor` for the live loop,
+//! fitting on labelled videos and cross-validation by object beside two baselines). No clap, axum or tokio: the
 //! CLI, the Python package and live runners call it
 
 pub mod calibrate;
@@ -60,6 +63,7 @@ mod rig;
 pub mod runner;
 pub mod schema;
 pub mod several;
+pub mod slip;
 pub mod table;
 
 pub use estimator::{

@@ -20,7 +20,9 @@
 //! and chain slides when a marker or blob is left over; temporal prior; markers cut by the
 //! border or a circular view), `calibration` (sensor file; references from still or the
 //! lightest frames), `features` (feature vectors, and the field summary every row ends with:
-//! how much the markers moved and where), `options` (`DetectorOptions`: a preset, or `auto`
+//! how much the markers moved and where), `field` (the displacement field's dynamics frame to
+//! frame: shift, spread, curl, divergence, affine residual, entropy, the increments' rigid motion
+//! and the residual from it — what the slip detector reads), `options` (`DetectorOptions`: a preset, or `auto`
 //! told from the first frame, with settings changed over it — what the CLI's detection options
 //! and Python's keyword arguments build; `sized` fits the opening and smallest blob to the
 //! markers), `sizing` (`MarkerSize`: the markers' size and spacing measured in a frame, and the
@@ -36,6 +38,7 @@ pub mod blobs;
 pub mod calibration;
 pub mod detect;
 pub mod features;
+pub mod field;
 pub mod kernels;
 pub mod layout;
 pub mod options;

@@ -17,6 +17,7 @@ pub(crate) mod record;
 pub(crate) mod replay;
 pub(crate) mod run;
 pub(crate) mod simulate;
+pub(crate) mod slip;
 pub(crate) mod sweep;
 pub(crate) mod trackcheck;
 pub(crate) mod train;

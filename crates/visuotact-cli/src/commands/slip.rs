@@ -1,0 +1,182 @@
+//! `visuotact slip fit | detect`: slip over time from the marker field of videos.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use visuotact_pipeline::slip::{
+    cross_validate, detect, evidence_of, fit_detector, labels_of, read_labels, sequences_in,
+    track_sequences, verdicts_csv, Scores, SlipConfig, SlipDetector, SlipSettings, TrackedSequence,
+};
+
+use crate::progress::Reporter;
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    #[command(subcommand)]
+    which: Which,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum Which {
+    /// Fit a detector on labelled videos → slip.json (`--cv-by object`: held-out figures).
+    Fit(FitArgs),
+    /// Each video's verdict (`video,slip,onset_s,score`), or with `--frames` each frame's state.
+    Detect(DetectArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct Common {
+    /// Videos, or folders searched for videos.
+    #[arg(required = true)]
+    videos: Vec<PathBuf>,
+    /// Sensor file for every video (default: each calibrates from its first frames).
+    #[arg(long)]
+    sensor: Option<PathBuf>,
+    /// Frames each video calibrates its reference from.
+    #[arg(long, default_value_t = 5)]
+    calibration_frames: usize,
+    /// Track each frame from the last one's positions (as `extract --temporal`).
+    #[arg(long)]
+    temporal: bool,
+    /// No progress lines.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+#[derive(clap::Args, Debug)]
+struct FitArgs {
+    #[command(flatten)]
+    common: Common,
+    /// CSV with columns `video,slip` (paths relative to the current folder, or absolute).
+    #[arg(long)]
+    labels: PathBuf,
+    /// Detector file to write.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also cross-validate leaving one value of this labels column out at a time (e.g. object).
+    #[arg(long, value_name = "COLUMN")]
+    cv_by: Option<String>,
+}
+
+#[derive(clap::Args, Debug)]
+struct DetectArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Detector file (default: the built-in one, fitted on real GelSight Mini grasps).
+    #[arg(long)]
+    detector: Option<PathBuf>,
+    /// CSV to write.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// One row per frame instead of one per video.
+    #[arg(long)]
+    frames: bool,
+}
+
+pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
+    match &a.which {
+        Which::Fit(f) => fit(f),
+        Which::Detect(d) => detect_videos(d),
+    }
+}
+
+/// The videos' tracked markers, with progress lines.
+fn tracked(c: &Common) -> anyhow::Result<(Vec<PathBuf>, Vec<TrackedSequence>)> {
+    let videos = sequences_in(&c.videos)?;
+    let sensor = c.sensor.as_deref().map(crate::load_sensor).transpose()?;
+    let cfg = SlipConfig {
+        calibration_frames: c.calibration_frames.max(1),
+        temporal: c.temporal,
+    };
+    let r = Reporter::new(c.quiet);
+    r.stage("tracking");
+    let seqs = track_sequences(&videos, sensor.as_ref(), &cfg, &|d, t| {
+        r.items(d, Some(t), "videos")
+    })?;
+    Ok((videos, seqs))
+}
+
+fn fit(a: &FitArgs) -> anyhow::Result<()> {
+    let videos = sequences_in(&a.common.videos)?;
+    let labels = labels_of(
+        &videos,
+        &read_labels(&a.labels, a.cv_by.as_deref())?,
+        &a.labels,
+    )?;
+    let (_, seqs) = tracked(&a.common)?;
+    let like = SlipSettings::default();
+    let ev: Vec<_> = seqs
+        .iter()
+        .map(|s| evidence_of(s, like.lag_frames, like.smooth_frames))
+        .collect();
+    let y: Vec<bool> = labels.iter().map(|l| l.slip).collect();
+    let det = fit_detector(&ev, &y, &like)?;
+    crate::write_atomically(&a.output, &det.to_json())?;
+    let slips = y.iter().filter(|&&s| s).count();
+    note!(
+        "fitted on {} videos ({slips} slip); wrote {}",
+        y.len(),
+        a.output.display()
+    );
+    if a.cv_by.is_some() {
+        let groups: Vec<String> = labels
+            .iter()
+            .map(|l| l.group.clone().unwrap_or_default())
+            .collect();
+        let shipped = SlipDetector::try_default();
+        let cv = cross_validate(&ev, &y, &groups, &like, shipped.as_ref())?;
+        say!(
+            "cross-validated by {} ({} folds, {} videos):",
+            a.cv_by.as_deref().unwrap_or(""),
+            cv.folds,
+            y.len()
+        );
+        say!("classifier\taccuracy\tbalanced_accuracy\tanswered");
+        let line = |name: &str, s: Scores| {
+            say!(
+                "{name}\t{:.3}\t{:.3}\t{}",
+                s.accuracy,
+                s.balanced_accuracy,
+                s.answered
+            );
+        };
+        line("fitted detector (held out)", cv.fitted);
+        line("largest mean displacement, threshold", cv.largest_shift);
+        line("displacement entropy and its rate", cv.entropy);
+        if let Some(s) = cv.default {
+            line(
+                "built-in detector (as shipped, fitted on the GelSight set)",
+                s,
+            );
+        }
+    }
+    Ok(())
+}
+
+fn detect_videos(a: &DetectArgs) -> anyhow::Result<()> {
+    let det = match &a.detector {
+        Some(p) => {
+            let text = visuotact_io::read::text_of_file(p)
+                .with_context(|| format!("{}: cannot read detector file", p.display()))?;
+            SlipDetector::from_json(&text, &p.display().to_string())?
+        }
+        None => SlipDetector::default(),
+    };
+    let (videos, seqs) = tracked(&a.common)?;
+    let verdicts: Vec<_> = videos
+        .into_iter()
+        .zip(&seqs)
+        .map(|(v, s)| {
+            let d = detect(s, &det);
+            (v, s, d)
+        })
+        .collect();
+    let slips = verdicts.iter().filter(|(_, _, v)| v.slip).count();
+    crate::write_atomically(&a.output, &verdicts_csv(&verdicts, a.frames))?;
+    note!(
+        "{} videos, {slips} slipping; wrote {}",
+        verdicts.len(),
+        a.output.display()
+    );
+    Ok(())
+}

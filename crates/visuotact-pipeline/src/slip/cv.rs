@@ -1,0 +1,179 @@
+//! Held-out figures for slip detection: cross-validation by group (leave one group — one
+//! object — out), with beside the detector the baselines a user would try first on the same
+//! folds: a threshold on the largest mean marker displacement, and a logistic regression on a
+//! published field statistic (the displacement entropy and its rate).
+
+use visuotact_nn::logistic::{fit_logistic, LogisticConfig};
+
+use super::{fit_detector, SlipDetector, SlipError, SlipSettings, EVIDENCE_LEN};
+
+/// Index of `max_shift_pitches` in the evidence.
+const MAX_SHIFT: usize = 0;
+/// Indices of `max_entropy_nats` and `max_rate_entropy_nats`.
+const ENTROPY: [usize; 2] = [5, 25];
+
+/// Accuracy figures of one classifier.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Scores {
+    /// Sequences answered.
+    pub answered: usize,
+    /// Share of sequences classified right.
+    pub accuracy: f64,
+    /// Mean of the share of slip sequences found and the share of the others left alone.
+    pub balanced_accuracy: f64,
+}
+
+impl Scores {
+    /// The scores of `predicted` against `truth`.
+    pub fn of(predicted: &[bool], truth: &[bool]) -> Self {
+        let count = |p: bool, t: bool| {
+            predicted
+                .iter()
+                .zip(truth)
+                .filter(|&(&a, &b)| a == p && b == t)
+                .count() as f64
+        };
+        let (tp, tn, fp, fn_) = (
+            count(true, true),
+            count(false, false),
+            count(true, false),
+            count(false, true),
+        );
+        let rate = |a: f64, b: f64| if a + b > 0.0 { a / (a + b) } else { 0.0 };
+        Self {
+            answered: predicted.len(),
+            accuracy: rate(tp + tn, fp + fn_),
+            balanced_accuracy: 0.5 * (rate(tp, fn_) + rate(tn, fp)),
+        }
+    }
+}
+
+/// What [`cross_validate`] measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CrossValidation {
+    /// Folds (groups).
+    pub folds: usize,
+    /// The detector fitted on the other groups.
+    pub fitted: Scores,
+    /// The naive baseline: the best threshold on the largest mean displacement.
+    pub largest_shift: Scores,
+    /// The displacement entropy and its rate, logistic regression.
+    pub entropy: Scores,
+    /// `default` as it is, on every sequence (not held out when it was fitted on them).
+    pub default: Option<Scores>,
+    /// Each sequence's held-out score from the fitted detector.
+    pub held_out_scores: Vec<f64>,
+}
+
+/// Leave-one-group-out figures on the sequences' `evidence` labelled `slip`, in `groups`, of
+/// detectors fitted with `settings` (and of `default` as it is).
+pub fn cross_validate(
+    evidence: &[[f64; EVIDENCE_LEN]],
+    slip: &[bool],
+    groups: &[String],
+    settings: &SlipSettings,
+    default: Option<&SlipDetector>,
+) -> Result<CrossValidation, SlipError> {
+    let mut names: Vec<&String> = groups.iter().collect();
+    names.sort();
+    names.dedup();
+    let n = evidence.len();
+    let (mut fitted, mut shift, mut entropy) = (vec![false; n], vec![false; n], vec![false; n]);
+    let mut held_out_scores = vec![0.0; n];
+    for g in &names {
+        let train: Vec<usize> = (0..n).filter(|&i| &groups[i] != *g).collect();
+        let test: Vec<usize> = (0..n).filter(|&i| &groups[i] == *g).collect();
+        let ev: Vec<_> = train.iter().map(|&i| evidence[i]).collect();
+        let y: Vec<bool> = train.iter().map(|&i| slip[i]).collect();
+        let d = fit_detector(&ev, &y, settings)?;
+        let cut = best_threshold(
+            &train
+                .iter()
+                .map(|&i| evidence[i][MAX_SHIFT])
+                .collect::<Vec<_>>(),
+            &y,
+        );
+        let ent = small_logistic(&ev, &y);
+        for &i in &test {
+            held_out_scores[i] = d.score(&evidence[i]);
+            fitted[i] = held_out_scores[i] >= d.threshold;
+            shift[i] = (evidence[i][MAX_SHIFT] >= cut.0) == cut.1;
+            entropy[i] = ent(&evidence[i]);
+        }
+    }
+    let by_default = default.map(|d| {
+        let p: Vec<bool> = evidence.iter().map(|e| d.score(e) >= d.threshold).collect();
+        Scores::of(&p, slip)
+    });
+    Ok(CrossValidation {
+        folds: names.len(),
+        fitted: Scores::of(&fitted, slip),
+        largest_shift: Scores::of(&shift, slip),
+        entropy: Scores::of(&entropy, slip),
+        default: by_default,
+        held_out_scores,
+    })
+}
+
+/// The threshold on `x` (and whether slip lies at or above it) of best balanced accuracy.
+fn best_threshold(x: &[f64], y: &[bool]) -> (f64, bool) {
+    let mut cuts: Vec<f64> = x.to_vec();
+    cuts.sort_by(f64::total_cmp);
+    let mut best = (f64::NEG_INFINITY, (0.0, true));
+    for w in cuts.windows(2) {
+        let c = 0.5 * (w[0] + w[1]);
+        for above in [true, false] {
+            let p: Vec<bool> = x.iter().map(|&v| (v >= c) == above).collect();
+            let b = Scores::of(&p, y).balanced_accuracy;
+            if b > best.0 {
+                best = (b, (c, above));
+            }
+        }
+    }
+    best.1
+}
+
+/// A logistic regression on the entropy statistics of `ev`, standardised on them.
+fn small_logistic(ev: &[[f64; EVIDENCE_LEN]], y: &[bool]) -> impl Fn(&[f64; EVIDENCE_LEN]) -> bool {
+    let n = ev.len().max(1) as f64;
+    let stats: Vec<(f64, f64)> = ENTROPY
+        .iter()
+        .map(|&j| {
+            let m = ev.iter().map(|e| e[j]).sum::<f64>() / n;
+            let s = (ev.iter().map(|e| (e[j] - m).powi(2)).sum::<f64>() / n).sqrt();
+            (m, if s > 1e-18 { s } else { 1.0 })
+        })
+        .collect();
+    let row = move |e: &[f64; EVIDENCE_LEN]| -> Vec<f64> {
+        ENTROPY
+            .iter()
+            .zip(&stats)
+            .map(|(&j, (m, s))| (e[j] - m) / s)
+            .collect()
+    };
+    let rows: Vec<Vec<f64>> = ev.iter().map(&row).collect();
+    let fit = fit_logistic(&rows, y, &LogisticConfig::default());
+    move |e| fit.probability(&row(e)) >= 0.5
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn balanced_accuracy_weighs_both_classes() {
+        let t = [true, true, false, false, false, false];
+        let s = Scores::of(&[true, false, false, false, false, false], &t);
+        assert!((s.accuracy - 5.0 / 6.0).abs() < 1e-12);
+        assert!((s.balanced_accuracy - 0.75).abs() < 1e-12);
+        assert_eq!(Scores::of(&[false; 6], &t).balanced_accuracy, 0.5);
+    }
+
+    #[test]
+    fn the_threshold_baseline_finds_the_cut_and_its_side() {
+        let x = [0.1, 0.2, 0.3, 0.9, 1.0, 1.1];
+        let y = [true, true, true, false, false, false];
+        let (c, above) = best_threshold(&x, &y);
+        assert!(!above && (c - 0.6).abs() < 1e-12, "{c} {above}");
+    }
+}

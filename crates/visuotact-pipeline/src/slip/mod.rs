@@ -1,0 +1,831 @@
+//! Slip over time: from a sequence's tracked markers, a state per frame (`stick`, `incipient`,
+//! `slip`) with a score, and a verdict per sequence with its onset.
+//!
+//! Contract. Each frame's displacement field gives ten signals
+//! ([`visuotact_vision::field::FieldDynamics`]: shift, spread, curl, divergence, affine
+//! residual, entropy, and the rigid motion of the increments with the residual from it). Each
+//! signal `x` is taken as `ln(1 + 10 |x|)`, averaged over the last `smooth_frames` frames, and
+//! summed up over the sequence so far by three statistics — its largest value, its mean and its
+//! largest change between frames — the thirty numbers of the [`SlipEvidence`]. The detector is a
+//! logistic regression on them, standardised ([`SlipDetector`], a JSON file of thirty weights):
+//! the frame's score is the probability of slip given the sequence up to that frame, its state
+//! `slip` at or above [`SlipDetector::threshold`], `incipient` at or above
+//! [`SlipDetector::incipient_threshold`], `stick` below. The sequence's verdict is its last
+//! frame's state; the onset is the first frame of the run of `slip` frames that ends the
+//! sequence. The statistics need no onset label: a detector is fitted on sequences labelled
+//! slip or not ([`fit_detector`]).
+//!
+//! Why these: stick moves the markers under an object together with it, slip leaves some
+//! behind (the partial-slip annulus: the increments' residual from a rigid motion grows against
+//! the motion) or lets the object go (the shear relaxes, the field's divergence and spread
+//! change for the rest of the grasp); a shake moves the markers as far as a slip, but as one.
+//!
+//! [`SlipDetector::default`] is the detector fitted on the 300 sequences of the real GelSight
+//! Mini grasps (`../shared/reference/real/gelsight_slip`, 130 slip); its figures on that set
+//! are not held out. [`cross_validate`] gives held-out ones, by group (object).
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use visuotact_io::frames::{is_video_path, FrameError, FrameStream};
+use visuotact_nn::logistic::{fit_logistic, sigmoid, LogisticConfig};
+use visuotact_vision::calibration::{CalibrationConfig, SensorCalibration};
+use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use visuotact_vision::field::{FieldDynamics, FieldTracker};
+use visuotact_vision::options::{DetectorOptions, Purpose};
+use visuotact_vision::track::TrackParams;
+
+use crate::calibrate::{calibrate_frames, CalibrateError, ReferenceSource};
+
+mod cv;
+mod labels;
+
+pub use cv::{cross_validate, CrossValidation, Scores};
+pub use labels::{labels_of, normalised, read_labels, Label};
+
+/// Statistics per signal in [`SlipEvidence`].
+pub const STATISTICS: [&str; 3] = ["max", "mean", "max_rate"];
+/// Numbers in [`SlipEvidence`]: ten signals × three statistics.
+pub const EVIDENCE_LEN: usize = 30;
+/// The frame rate assumed for a folder of images (videos carry their own).
+const IMAGE_FPS: f64 = 25.0;
+
+/// Why slip could not be detected or fitted.
+#[derive(Debug, thiserror::Error)]
+pub enum SlipError {
+    /// A sequence's frames could not be read.
+    #[error("{}: {source}", video.display())]
+    Frames {
+        /// The sequence.
+        video: PathBuf,
+        /// The reader's error.
+        source: FrameError,
+    },
+    /// A sequence's first frames did not calibrate.
+    #[error("{}: calibrating from its first {frames} frames: {source}", video.display())]
+    Calibrate {
+        /// The sequence.
+        video: PathBuf,
+        /// Frames tried.
+        frames: usize,
+        /// Why.
+        source: CalibrateError,
+    },
+    /// A frame did not match the sensor.
+    #[error("{}: frame {frame}: {why}", video.display())]
+    Frame {
+        /// The sequence.
+        video: PathBuf,
+        /// The frame's id.
+        frame: String,
+        /// Why.
+        why: String,
+    },
+    /// A folder with no video in it, or a file that is no video.
+    #[error("{}: {why}", path.display())]
+    NoSequence {
+        /// The path given.
+        path: PathBuf,
+        /// What was expected.
+        why: &'static str,
+    },
+    /// A labels file that does not read as `video,slip`.
+    #[error("{}:{line}: {why}", path.display())]
+    Labels {
+        /// The file.
+        path: PathBuf,
+        /// Its line (1-based).
+        line: usize,
+        /// What was expected.
+        why: String,
+    },
+    /// A sequence given with no label.
+    #[error("{}: no label for this video in {}", video.display(), labels.display())]
+    Unlabelled {
+        /// The sequence.
+        video: PathBuf,
+        /// The labels file.
+        labels: PathBuf,
+    },
+    /// A labelled sequence that was not given.
+    #[error("{}:{line}: {} is labelled but not among the videos given", labels.display(), video.display())]
+    LabelledMissing {
+        /// The labels file.
+        labels: PathBuf,
+        /// Its line.
+        line: usize,
+        /// The video named.
+        video: PathBuf,
+    },
+    /// Fitting needs both classes.
+    #[error("fitting needs sequences of both classes: {slip} slip, {stick} without")]
+    OneClass {
+        /// Sequences labelled slip.
+        slip: usize,
+        /// Sequences labelled no slip.
+        stick: usize,
+    },
+    /// A detector file that cannot be read.
+    #[error("{source_name}: not a slip detector: {why}")]
+    Detector {
+        /// Where it came from.
+        source_name: String,
+        /// Why.
+        why: String,
+    },
+    /// The progress callback stopped the pass.
+    #[error("stopped after {done} of {total} sequences")]
+    Stopped {
+        /// Sequences done.
+        done: usize,
+        /// Sequences in all.
+        total: usize,
+    },
+}
+
+/// How sequences are followed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlipConfig {
+    /// Frames a sequence calibrates its reference from when no sensor is given.
+    pub calibration_frames: usize,
+    /// Track each frame from the last one's positions (the temporal prior) rather than from
+    /// the reference.
+    pub temporal: bool,
+}
+
+impl Default for SlipConfig {
+    fn default() -> Self {
+        Self {
+            calibration_frames: 5,
+            temporal: false,
+        }
+    }
+}
+
+/// The running statistics of a sequence's signals ([module docs](self)).
+#[derive(Clone, Debug)]
+pub struct SlipEvidence {
+    smooth: usize,
+    /// The last `smooth` frames' transformed signals.
+    window: std::collections::VecDeque<[f64; 10]>,
+    last: Option<[f64; 10]>,
+    max: [f64; 10],
+    sum: [f64; 10],
+    max_rate: [f64; 10],
+    frames: usize,
+}
+
+impl SlipEvidence {
+    /// Statistics over windows of `smooth_frames` frames (at least 1).
+    pub fn new(smooth_frames: usize) -> Self {
+        Self {
+            smooth: smooth_frames.max(1),
+            window: std::collections::VecDeque::new(),
+            last: None,
+            max: [0.0; 10],
+            sum: [0.0; 10],
+            max_rate: [0.0; 10],
+            frames: 0,
+        }
+    }
+
+    /// Adds one frame's signals.
+    pub fn push(&mut self, f: &FieldDynamics) {
+        if self.window.len() == self.smooth {
+            self.window.pop_front();
+        }
+        self.window
+            .push_back(f.signals().map(|x| (10.0 * x.abs()).ln_1p()));
+        let n = self.window.len() as f64;
+        let mut s = [0.0; 10];
+        for w in &self.window {
+            for (a, b) in s.iter_mut().zip(w) {
+                *a += b / n;
+            }
+        }
+        for j in 0..10 {
+            self.max[j] = self.max[j].max(s[j]);
+            self.sum[j] += s[j];
+            if let Some(l) = self.last {
+                self.max_rate[j] = self.max_rate[j].max((s[j] - l[j]).abs());
+            }
+        }
+        self.last = Some(s);
+        self.frames += 1;
+    }
+
+    /// The thirty numbers, [`STATISTICS`] by [`FieldDynamics::NAMES`].
+    pub fn values(&self) -> [f64; EVIDENCE_LEN] {
+        let mut v = [0.0; EVIDENCE_LEN];
+        let n = self.frames.max(1) as f64;
+        for j in 0..10 {
+            v[j] = self.max[j];
+            v[10 + j] = self.sum[j] / n;
+            v[20 + j] = self.max_rate[j];
+        }
+        v
+    }
+
+    /// The evidence's names: `max_shift_pitches`, …, `max_rate_nonrigid`.
+    pub fn names() -> Vec<String> {
+        STATISTICS
+            .iter()
+            .flat_map(|s| FieldDynamics::NAMES.iter().map(move |n| format!("{s}_{n}")))
+            .collect()
+    }
+}
+
+/// A frame's slip state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SlipState {
+    /// Nothing points to slip.
+    Stick,
+    /// The score is rising towards slip.
+    Incipient,
+    /// Slipping.
+    Slip,
+}
+
+impl SlipState {
+    /// `stick`, `incipient` or `slip`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Stick => "stick",
+            Self::Incipient => "incipient",
+            Self::Slip => "slip",
+        }
+    }
+}
+
+/// The detector's settings that are not fitted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipSettings {
+    /// Frames an increment spans (2: 80 ms at 25 fps).
+    pub lag_frames: usize,
+    /// Frames the signals are averaged over (5: 200 ms at 25 fps).
+    pub smooth_frames: usize,
+    /// Score at or above which a frame is `slip`.
+    pub threshold: f64,
+    /// Score at or above which a frame is `incipient`.
+    pub incipient_threshold: f64,
+}
+
+impl Default for SlipSettings {
+    fn default() -> Self {
+        Self {
+            lag_frames: 2,
+            smooth_frames: 5,
+            threshold: 0.5,
+            incipient_threshold: 0.25,
+        }
+    }
+}
+
+/// The slip detector: a logistic regression on the standardised [`SlipEvidence`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SlipDetector {
+    /// `visuotact-slip`.
+    pub format: String,
+    /// File version (1).
+    pub version: u32,
+    /// Frames an increment spans.
+    pub lag_frames: usize,
+    /// Frames the signals are averaged over.
+    pub smooth_frames: usize,
+    /// The evidence's names, in order.
+    pub inputs: Vec<String>,
+    /// Subtracted from each number of the evidence.
+    pub center: Vec<f64>,
+    /// Each number of the evidence is divided by this.
+    pub scale: Vec<f64>,
+    /// The logistic regression's weights.
+    pub weights: Vec<f64>,
+    /// Its intercept.
+    pub bias: f64,
+    /// Score at or above which a frame is `slip`.
+    pub threshold: f64,
+    /// Score at or above which a frame is `incipient`.
+    pub incipient_threshold: f64,
+    /// Sequences it was fitted on, and of them labelled slip.
+    pub fitted_on: [usize; 2],
+}
+
+const FORMAT: &str = "visuotact-slip";
+
+impl Default for SlipDetector {
+    /// Fitted on the real GelSight Mini grasps ([module docs](self)).
+    fn default() -> Self {
+        Self::try_default().unwrap_or_else(|| unreachable!("the built-in detector reads (test)"))
+    }
+}
+
+impl SlipDetector {
+    /// The built-in detector ([`SlipDetector::default`]); `None` only if its file were broken,
+    /// which a test rules out.
+    pub fn try_default() -> Option<Self> {
+        Self::from_json(include_str!("slip_default.json"), "the built-in detector").ok()
+    }
+
+    /// Reads a detector file's text; `source_name` names it in errors.
+    pub fn from_json(text: &str, source_name: &str) -> Result<Self, SlipError> {
+        let bad = |why: String| SlipError::Detector {
+            source_name: source_name.to_string(),
+            why,
+        };
+        let d: Self = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        if d.format != FORMAT || d.version != 1 {
+            return Err(bad(format!(
+                "format {:?} version {}: expected {FORMAT:?} version 1",
+                d.format, d.version
+            )));
+        }
+        let n = EVIDENCE_LEN;
+        if d.inputs != SlipEvidence::names()
+            || d.center.len() != n
+            || d.scale.len() != n
+            || d.weights.len() != n
+        {
+            return Err(bad(format!("expected {n} inputs named as this version's evidence, with a center, scale and weight each")));
+        }
+        let finite = d
+            .center
+            .iter()
+            .chain(&d.weights)
+            .chain([&d.bias])
+            .all(|x| x.is_finite());
+        if !finite || d.scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(bad(
+                "every center, weight and the bias must be finite, every scale positive".into(),
+            ));
+        }
+        let unit = |t: f64| (0.0..=1.0).contains(&t);
+        if !(unit(d.threshold)
+            && unit(d.incipient_threshold)
+            && d.incipient_threshold <= d.threshold)
+        {
+            return Err(bad(
+                "expected 0 ≤ incipient_threshold ≤ threshold ≤ 1".into()
+            ));
+        }
+        if d.lag_frames == 0 || d.smooth_frames == 0 {
+            return Err(bad("lag_frames and smooth_frames must be at least 1".into()));
+        }
+        Ok(d)
+    }
+
+    /// Its settings that are not fitted.
+    pub fn settings(&self) -> SlipSettings {
+        SlipSettings {
+            lag_frames: self.lag_frames,
+            smooth_frames: self.smooth_frames,
+            threshold: self.threshold,
+            incipient_threshold: self.incipient_threshold,
+        }
+    }
+
+    /// The detector file's text.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// The probability of slip given `evidence`.
+    pub fn score(&self, evidence: &[f64; EVIDENCE_LEN]) -> f64 {
+        let z: f64 = evidence
+            .iter()
+            .zip(&self.center)
+            .zip(&self.scale)
+            .zip(&self.weights)
+            .map(|(((x, c), s), w)| w * (x - c) / s)
+            .sum();
+        sigmoid(z + self.bias)
+    }
+
+    /// The state a score stands for.
+    pub fn state_of(&self, score: f64) -> SlipState {
+        if score >= self.threshold {
+            SlipState::Slip
+        } else if score >= self.incipient_threshold {
+            SlipState::Incipient
+        } else {
+            SlipState::Stick
+        }
+    }
+}
+
+/// One frame's slip estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipFrame {
+    /// The frame's time, seconds from the sequence's start.
+    pub timestamp_s: f64,
+    /// The state.
+    pub state: SlipState,
+    /// The probability of slip given the sequence so far.
+    pub score: f64,
+    /// The field's signals this frame.
+    pub field: FieldDynamics,
+}
+
+/// The live form: frame after frame, the slip state ([`SlipMonitor::update`]).
+#[derive(Clone, Debug)]
+pub struct SlipMonitor {
+    detector: SlipDetector,
+    tracker: FieldTracker,
+    evidence: SlipEvidence,
+    field: FieldDynamics,
+}
+
+impl SlipMonitor {
+    /// A monitor of markers at `reference_px`, `pitch_px` apart, with `detector`.
+    pub fn new(detector: SlipDetector, reference_px: &[(f64, f64)], pitch_px: f64) -> Self {
+        Self {
+            tracker: FieldTracker::new(reference_px, pitch_px, detector.lag_frames),
+            evidence: SlipEvidence::new(detector.smooth_frames),
+            detector,
+            field: FieldDynamics::default(),
+        }
+    }
+
+    /// A monitor of `sensor`'s markers.
+    pub fn of_sensor(detector: SlipDetector, sensor: &SensorCalibration) -> Self {
+        let reference: Vec<(f64, f64)> = sensor.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+        Self::new(detector, &reference, sensor.pitch_px)
+    }
+
+    /// Starts a new sequence.
+    pub fn reset(&mut self) {
+        self.tracker.reset();
+        self.evidence = SlipEvidence::new(self.detector.smooth_frames);
+    }
+
+    /// This frame's state from the markers' displacements (pixels, `None`: not tracked).
+    pub fn update(
+        &mut self,
+        displacement_px: &[Option<(f64, f64)>],
+        timestamp_s: f64,
+    ) -> SlipFrame {
+        self.tracker.update_into(displacement_px, &mut self.field);
+        self.evidence.push(&self.field);
+        let score = self.detector.score(&self.evidence.values());
+        SlipFrame {
+            timestamp_s,
+            state: self.detector.state_of(score),
+            score,
+            field: self.field,
+        }
+    }
+
+    /// The evidence so far.
+    pub fn evidence(&self) -> &SlipEvidence {
+        &self.evidence
+    }
+}
+
+/// The displacement of each marker from `values` (a [`FrameFeatures`] row of dx, dy per
+/// marker), into `out`.
+pub fn displacements_into(f: &FrameFeatures, markers: usize, out: &mut Vec<Option<(f64, f64)>>) {
+    out.clear();
+    out.extend((0..markers).map(|i| {
+        let (x, y) = (f.values[2 * i], f.values[2 * i + 1]);
+        (x.is_finite() && y.is_finite()).then_some((x, y))
+    }));
+}
+
+/// A sequence's displacements, frame by frame.
+#[derive(Clone, Debug, Default)]
+pub struct TrackedSequence {
+    /// The sensor it was tracked with.
+    pub markers_px: Vec<(f64, f64)>,
+    /// Its marker pitch.
+    pub pitch_px: f64,
+    /// Its frames.
+    pub frames: Vec<TrackedFrame>,
+}
+
+/// One frame of a [`TrackedSequence`].
+#[derive(Clone, Debug, Default)]
+pub struct TrackedFrame {
+    /// Seconds from the sequence's start.
+    pub timestamp_s: f64,
+    /// The frame's id (a video frame's index).
+    pub id: String,
+    /// Each marker's displacement from the reference, pixels (`None`: not tracked).
+    pub displacement_px: Vec<Option<(f64, f64)>>,
+}
+
+/// The sensor a sequence calibrates from its first frames.
+pub fn calibrate_sequence(video: &Path, cfg: &SlipConfig) -> Result<SensorCalibration, SlipError> {
+    let frames = cfg.calibration_frames.max(1);
+    let open = || Ok(FrameStream::open(&[video.to_path_buf()], IMAGE_FPS)?.take_first(frames));
+    let calib_err = |source| SlipError::Calibrate {
+        video: video.to_path_buf(),
+        frames,
+        source,
+    };
+    let opts = DetectorOptions {
+        keep_border: true,
+        ..DetectorOptions::default()
+    };
+    let fc = opts
+        .config_for_frames(Purpose::Tracking, || {
+            open().ok()?.next()?.ok().map(|f| f.image)
+        })
+        .map_err(|e| calib_err(CalibrateError::Calibration(e.into())))?;
+    let cfg = CalibrationConfig {
+        detector: fc.detector,
+        layout: Default::default(),
+        features: fc.features,
+        track: TrackParams::DEFAULT,
+    };
+    let mut done = calibrate_frames(open, ReferenceSource::Still, &cfg, &mut |_, _| {
+        ControlFlow::Continue(())
+    })
+    .map_err(calib_err)?;
+    done.calibration.marker_size = fc.size;
+    Ok(done.calibration)
+}
+
+/// Tracks `video`'s markers with `sensor`, or with the sensor its first frames calibrate.
+pub fn track_sequence(
+    video: &Path,
+    sensor: Option<&SensorCalibration>,
+    cfg: &SlipConfig,
+) -> Result<TrackedSequence, SlipError> {
+    let cal = match sensor {
+        Some(s) => s.clone(),
+        None => calibrate_sequence(video, cfg)?,
+    };
+    let frame_err = |frame: String, why: String| SlipError::Frame {
+        video: video.to_path_buf(),
+        frame,
+        why,
+    };
+    let mut out = TrackedSequence {
+        markers_px: cal.markers.iter().map(|m| (m.x_px, m.y_px)).collect(),
+        pitch_px: cal.pitch_px,
+        frames: Vec::new(),
+    };
+    let n = cal.markers.len();
+    let set = FeatureSet {
+        dx: true,
+        dy: true,
+        area: false,
+        eccentricity: false,
+    };
+    let mut ex =
+        FeatureExtractor::new(cal, set).map_err(|e| frame_err("-".into(), e.to_string()))?;
+    ex.set_temporal_prior(cfg.temporal);
+    let frames_err = |source| SlipError::Frames {
+        video: video.to_path_buf(),
+        source,
+    };
+    let mut f = FrameFeatures::default();
+    for frame in FrameStream::open(&[video.to_path_buf()], IMAGE_FPS).map_err(frames_err)? {
+        let frame = frame.map_err(frames_err)?;
+        ex.extract_into(&frame.image, &mut f)
+            .map_err(|e| frame_err(frame.id.clone(), e.to_string()))?;
+        let mut d = Vec::with_capacity(n);
+        displacements_into(&f, n, &mut d);
+        out.frames.push(TrackedFrame {
+            timestamp_s: frame.timestamp_s,
+            id: frame.id,
+            displacement_px: d,
+        });
+    }
+    Ok(out)
+}
+
+/// A sequence's verdict.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlipVerdict {
+    /// Whether the sequence ends slipping.
+    pub slip: bool,
+    /// When the final run of `slip` frames began, seconds (`None` without slip).
+    pub onset_s: Option<f64>,
+    /// The last frame's score.
+    pub score: f64,
+    /// Every frame's estimate.
+    pub frames: Vec<SlipFrame>,
+    /// The whole sequence's evidence.
+    pub evidence: [f64; EVIDENCE_LEN],
+}
+
+/// Runs `detector` over a tracked sequence.
+pub fn detect(seq: &TrackedSequence, detector: &SlipDetector) -> SlipVerdict {
+    let mut m = SlipMonitor::new(detector.clone(), &seq.markers_px, seq.pitch_px);
+    let frames: Vec<SlipFrame> = seq
+        .frames
+        .iter()
+        .map(|f| m.update(&f.displacement_px, f.timestamp_s))
+        .collect();
+    let score = frames.last().map_or(0.0, |f| f.score);
+    let slip = frames.last().is_some_and(|f| f.state == SlipState::Slip);
+    let onset_s = slip
+        .then(|| {
+            let start = frames
+                .iter()
+                .rposition(|f| f.state != SlipState::Slip)
+                .map_or(0, |i| i + 1);
+            frames.get(start).map(|f| f.timestamp_s)
+        })
+        .flatten();
+    SlipVerdict {
+        slip,
+        onset_s,
+        score,
+        frames,
+        evidence: m.evidence().values(),
+    }
+}
+
+/// The evidence of a whole tracked sequence, with a lag and smoothing (a detector's).
+pub fn evidence_of(
+    seq: &TrackedSequence,
+    lag_frames: usize,
+    smooth_frames: usize,
+) -> [f64; EVIDENCE_LEN] {
+    let mut t = FieldTracker::new(&seq.markers_px, seq.pitch_px, lag_frames);
+    let mut e = SlipEvidence::new(smooth_frames);
+    let mut f = FieldDynamics::default();
+    for frame in &seq.frames {
+        t.update_into(&frame.displacement_px, &mut f);
+        e.push(&f);
+    }
+    e.values()
+}
+
+/// Fits a detector with `settings` on evidences labelled slip or not (taken with the same
+/// lag and smoothing).
+pub fn fit_detector(
+    evidence: &[[f64; EVIDENCE_LEN]],
+    slip: &[bool],
+    like: &SlipSettings,
+) -> Result<SlipDetector, SlipError> {
+    let pos = slip.iter().filter(|&&s| s).count();
+    if pos == 0 || pos == slip.len() {
+        return Err(SlipError::OneClass {
+            slip: pos,
+            stick: slip.len() - pos,
+        });
+    }
+    let n = evidence.len() as f64;
+    let mut center = vec![0.0; EVIDENCE_LEN];
+    let mut scale = vec![0.0; EVIDENCE_LEN];
+    for j in 0..EVIDENCE_LEN {
+        center[j] = evidence.iter().map(|e| e[j]).sum::<f64>() / n;
+        let var = evidence
+            .iter()
+            .map(|e| (e[j] - center[j]).powi(2))
+            .sum::<f64>()
+            / n;
+        scale[j] = if var > 1e-18 { var.sqrt() } else { 1.0 };
+    }
+    let rows: Vec<Vec<f64>> = evidence
+        .iter()
+        .map(|e| {
+            (0..EVIDENCE_LEN)
+                .map(|j| (e[j] - center[j]) / scale[j])
+                .collect()
+        })
+        .collect();
+    let fit = fit_logistic(&rows, slip, &LogisticConfig::default());
+    Ok(SlipDetector {
+        format: FORMAT.into(),
+        version: 1,
+        lag_frames: like.lag_frames,
+        smooth_frames: like.smooth_frames,
+        inputs: SlipEvidence::names(),
+        center,
+        scale,
+        weights: fit.weights,
+        bias: fit.bias,
+        threshold: like.threshold,
+        incipient_threshold: like.incipient_threshold,
+        fitted_on: [slip.len(), pos],
+    })
+}
+
+/// Videos among `paths`: a video file is one sequence, a folder every video under it (sorted).
+pub fn sequences_in(paths: &[PathBuf]) -> Result<Vec<PathBuf>, SlipError> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+        let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?
+            .map(|e| e.map(|e| e.path()))
+            .collect::<Result<_, _>>()?;
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                walk(&p, out)?;
+            } else if is_video_path(&p) {
+                out.push(p);
+            }
+        }
+        Ok(())
+    }
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let before = out.len();
+            walk(p, &mut out).map_err(|source| SlipError::Frames {
+                video: p.clone(),
+                source: FrameError::Io {
+                    path: p.clone(),
+                    source,
+                },
+            })?;
+            if out.len() == before {
+                return Err(SlipError::NoSequence {
+                    path: p.clone(),
+                    why: "folder has no video (avi, mp4, mkv, mov, webm, m4v, mpg, mpeg) under it",
+                });
+            }
+        } else if is_video_path(p) {
+            out.push(p.clone());
+        } else {
+            return Err(SlipError::NoSequence {
+                path: p.clone(),
+                why: "expected a video (avi, mp4, mkv, mov, webm, m4v, mpg, mpeg) or a folder of them",
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Tracks every sequence in parallel; `progress(done, total)` may stop the pass.
+pub fn track_sequences(
+    videos: &[PathBuf],
+    sensor: Option<&SensorCalibration>,
+    cfg: &SlipConfig,
+    progress: &(dyn Fn(usize, usize) -> ControlFlow<()> + Sync),
+) -> Result<Vec<TrackedSequence>, SlipError> {
+    let (done, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let total = videos.len();
+    let out: Vec<Result<TrackedSequence, SlipError>> = videos
+        .par_iter()
+        .map(|v| {
+            if stop.load(Ordering::Relaxed) {
+                return Err(SlipError::Stopped { done: 0, total });
+            }
+            let r = track_sequence(v, sensor, cfg);
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if progress(d, total).is_break() {
+                stop.store(true, Ordering::Relaxed);
+            }
+            r
+        })
+        .collect();
+    if stop.load(Ordering::Relaxed) {
+        return Err(SlipError::Stopped {
+            done: done.load(Ordering::Relaxed),
+            total,
+        });
+    }
+    out.into_iter().collect()
+}
+
+/// The CSV of verdicts: one row per sequence (`video,slip,onset_s,score`), or with
+/// `per_frame` one per frame (`video,frame,timestamp_s,state,score` and the field's signals).
+pub fn verdicts_csv(
+    verdicts: &[(PathBuf, &TrackedSequence, SlipVerdict)],
+    per_frame: bool,
+) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    if per_frame {
+        s.push_str("video,frame,timestamp_s,state,score");
+        for n in FieldDynamics::NAMES {
+            let _ = write!(s, ",{n}");
+        }
+        s.push('\n');
+    } else {
+        s.push_str("video,slip,onset_s,score\n");
+    }
+    for (video, seq, v) in verdicts {
+        let name = video.display();
+        if !per_frame {
+            let onset = v.onset_s.map_or(String::new(), |t| format!("{t:.3}"));
+            let _ = writeln!(s, "{name},{},{onset},{:.4}", u8::from(v.slip), v.score);
+            continue;
+        }
+        for (frame, f) in seq.frames.iter().zip(&v.frames) {
+            let id = &frame.id;
+            let _ = write!(
+                s,
+                "{name},{id},{:.4},{},{:.4}",
+                f.timestamp_s,
+                f.state.name(),
+                f.score
+            );
+            for x in f.field.signals() {
+                let _ = write!(s, ",{x:.5}");
+            }
+            s.push('\n');
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,181 @@
+use super::*;
+
+/// A 7 × 9 grid 30 px apart, as a GelSight Mini's dots.
+fn grid() -> Vec<(f64, f64)> {
+    (0..7)
+        .flat_map(|r| (0..9).map(move |c| (20.0 + 30.0 * c as f64, 15.0 + 30.0 * r as f64)))
+        .collect()
+}
+
+/// A seeded sequence of `n` frames: the object shaken sideways (every marker moving with it),
+/// and with `slip` its imprint sliding from frame `n / 2`: the centre keeps following the
+/// object while the rim is left behind by a growing share (partial slip spreading inwards).
+fn sequence(n: usize, slip: bool, seed: u64) -> TrackedSequence {
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut noise = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.1
+    };
+    let markers = grid();
+    let (cx, cy) = (140.0, 105.0);
+    let frames = (0..n)
+        .map(|k| {
+            let shake = 3.0 * (k as f64 * 0.6 + seed as f64).sin();
+            let d = markers
+                .iter()
+                .map(|&(x, y)| {
+                    let r = (x - cx).hypot(y - cy) / 120.0;
+                    let sliding = slip && k >= n / 2;
+                    let left_behind = if sliding {
+                        let spread = (k - n / 2) as f64 / (n / 2) as f64;
+                        (r - (1.0 - spread)).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    let drag = if sliding {
+                        0.4 * (k - n / 2) as f64
+                    } else {
+                        0.0
+                    };
+                    Some((shake + drag * (1.0 - left_behind) + noise(), noise()))
+                })
+                .collect();
+            TrackedFrame {
+                timestamp_s: k as f64 / 25.0,
+                id: k.to_string(),
+                displacement_px: d,
+            }
+        })
+        .collect();
+    TrackedSequence {
+        markers_px: markers,
+        pitch_px: 30.0,
+        frames,
+    }
+}
+
+#[test]
+fn the_built_in_detector_reads_and_broken_files_are_named() {
+    let d = SlipDetector::default();
+    assert_eq!(d.inputs, SlipEvidence::names());
+    assert_eq!(d.fitted_on, [300, 130]);
+    let mut bad = d.clone();
+    bad.weights.pop();
+    let e = SlipDetector::from_json(&bad.to_json(), "x.json")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("x.json: not a slip detector") && e.contains("30 inputs"),
+        "{e}"
+    );
+    let mut bad = d.clone();
+    bad.scale[3] = 0.0;
+    assert!(SlipDetector::from_json(&bad.to_json(), "x").is_err());
+    let mut bad = d.clone();
+    bad.incipient_threshold = 0.9;
+    assert!(SlipDetector::from_json(&bad.to_json(), "x")
+        .unwrap_err()
+        .to_string()
+        .contains("incipient_threshold"));
+    let e = SlipDetector::from_json("{\"format\": \"visuotact-model\"}", "m.json").unwrap_err();
+    assert!(e.to_string().starts_with("m.json"), "{e}");
+}
+
+#[test]
+fn evidence_of_steady_signals_is_their_value_with_no_rate() {
+    let mut e = SlipEvidence::new(3);
+    let f = FieldDynamics {
+        shift_pitches: 0.5,
+        curl: -0.2,
+        ..FieldDynamics::default()
+    };
+    for _ in 0..10 {
+        e.push(&f);
+    }
+    let v = e.values();
+    let g = |x: f64| (10.0 * x).ln_1p();
+    assert!((v[0] - g(0.5)).abs() < 1e-12 && (v[10] - g(0.5)).abs() < 1e-12);
+    assert!(
+        (v[2] - g(0.2)).abs() < 1e-12,
+        "the curl's size counts, not its sign"
+    );
+    assert!(v[20..].iter().all(|&r| r == 0.0));
+    assert_eq!(SlipEvidence::names()[25], "max_rate_entropy_nats");
+}
+
+#[test]
+fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
+    let s = SlipSettings::default();
+    let train: Vec<(TrackedSequence, bool)> = (0..40)
+        .map(|k| (sequence(100, k % 2 == 0, k), k % 2 == 0))
+        .collect();
+    let ev: Vec<_> = train
+        .iter()
+        .map(|(q, _)| evidence_of(q, s.lag_frames, s.smooth_frames))
+        .collect();
+    let y: Vec<bool> = train.iter().map(|(_, l)| *l).collect();
+    let d = fit_detector(&ev, &y, &s).unwrap();
+    assert_eq!(d.fitted_on, [40, 20]);
+    let mut right = 0;
+    for k in 100..120 {
+        let slip = k % 2 == 0;
+        let v = detect(&sequence(100, slip, k), &d);
+        right += usize::from(v.slip == slip);
+        assert_eq!(v.frames.len(), 100);
+        assert_eq!(v.score, v.frames[99].score);
+        if let Some(t) = v.onset_s {
+            assert!(slip, "seed {k}: a shake called slip at {t} s");
+            // The slide starts at frame 50 (2.0 s).
+            assert!(t >= 1.9, "seed {k}: onset {t} s before the slide");
+            assert!(v
+                .frames
+                .iter()
+                .skip_while(|f| f.timestamp_s < t)
+                .all(|f| f.state == SlipState::Slip));
+        }
+    }
+    assert!(right >= 18, "{right} of 20 held-out sequences right");
+    let only_slips = vec![true; ev.len()];
+    assert!(matches!(
+        fit_detector(&ev, &only_slips, &s),
+        Err(SlipError::OneClass { .. })
+    ));
+}
+
+#[test]
+fn verdicts_are_written_one_row_per_video_or_per_frame() {
+    let q = sequence(20, false, 1);
+    let v = detect(&q, &SlipDetector::default());
+    let rows = [(PathBuf::from("a.avi"), &q, v)];
+    let per_video = verdicts_csv(&rows, false);
+    let lines: Vec<&str> = per_video.lines().collect();
+    assert_eq!(lines[0], "video,slip,onset_s,score");
+    assert_eq!(lines.len(), 2);
+    assert!(lines[1].starts_with("a.avi,"));
+    let per_frame = verdicts_csv(&rows, true);
+    assert_eq!(per_frame.lines().count(), 21);
+    assert_eq!(per_frame.lines().next().unwrap().split(',').count(), 15);
+}
+
+#[test]
+fn sequences_are_videos_or_folders_of_them() {
+    let dir = std::env::temp_dir().join(format!("vt-seq-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("b")).unwrap();
+    for f in ["b/2.avi", "1.mp4", "notes.txt"] {
+        std::fs::write(dir.join(f), b"").unwrap();
+    }
+    let got = sequences_in(std::slice::from_ref(&dir)).unwrap();
+    assert_eq!(got, vec![dir.join("1.mp4"), dir.join("b/2.avi")]);
+    let e = sequences_in(&[dir.join("notes.txt")])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("notes.txt: expected a video"), "{e}");
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    let e = sequences_in(&[dir.join("empty")]).unwrap_err().to_string();
+    assert!(e.contains("folder has no video"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
