@@ -107,7 +107,14 @@ def live(
     sensor: Sensor | None = None,
     fps: float = 25.0,
     temporal: bool = False,
+    slip: str | None = None,
 ) -> Live: ...
+def slip_detect(
+    videos: str | PathLike[str] | Sequence[str | PathLike[str]],
+    detector: str = "builtin",
+    sensor: Sensor | None = None,
+    calibration_frames: int = 5,
+) -> list[dict[str, object]]: ...
 def filtfilt(
     b: npt.NDArray[np.float64], a: npt.NDArray[np.float64], x: npt.NDArray[np.float64]
 ) -> npt.NDArray[np.float64]: ...

@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::{bail, Context};
 use visuotact_nn::fit::FitError;
 use visuotact_nn::model::Model;
+use visuotact_pipeline::slip::SlipDetector;
 use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{ReferenceInfo, SensorCalibration};
 
@@ -14,6 +15,16 @@ pub(crate) fn load_sensor(path: &Path) -> anyhow::Result<SensorCalibration> {
     let text = visuotact_io::read::text_of_file(path)
         .map_err(|e| anyhow::anyhow!("{}: cannot read sensor file: {e}", path.display()))?;
     SensorCalibration::from_json(&text, &path.display().to_string()).map_err(anyhow::Error::msg)
+}
+
+/// Reads a slip detector file, naming it in errors; `builtin`: the built-in detector.
+pub(crate) fn load_slip(p: &Path) -> anyhow::Result<SlipDetector> {
+    if p == Path::new("builtin") {
+        return Ok(SlipDetector::default());
+    }
+    let text = visuotact_io::read::text_of_file(p)
+        .with_context(|| format!("{}: cannot read slip detector file", p.display()))?;
+    Ok(SlipDetector::from_json(&text, &p.display().to_string())?)
 }
 
 /// Reads a model file, naming it in errors.

@@ -31,7 +31,7 @@ use commands::{
     record, replay, run, simulate, slip, sweep, trackcheck, train,
 };
 pub(crate) use files::{
-    estimator, fit_error, load_model, load_sensor, reference_note, write_atomically,
+    estimator, fit_error, load_model, load_sensor, load_slip, reference_note, write_atomically,
 };
 
 /// Camera-based soft tactile sensors: frames in, contact position, depth and force out.

@@ -183,6 +183,30 @@ fn record_dataset_train_replay_on_the_simulated_cone() {
     ok(&o);
     let ev: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(ev["targets"][0]["r"].as_f64().unwrap() > 0.98, "{ev}");
+    // With the built-in slip detector: the same estimates, then a score and a state.
+    ok(&vt(&[
+        "replay",
+        "--model",
+        s(&d.join("model.json")),
+        "--slip",
+        "builtin",
+        s(&b),
+        "-o",
+        s(&d.join("replay_slip.csv")),
+    ]));
+    let text = std::fs::read_to_string(d.join("replay_slip.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    assert_eq!(
+        header[header.len() - 3..],
+        ["slip_score", "slip_state", "flags"],
+        "{header:?}"
+    );
+    for line in text.lines().skip(1) {
+        let c: Vec<&str> = line.split(',').collect();
+        let score: f64 = c[c.len() - 3].parse().unwrap();
+        assert!((0.0..=1.0).contains(&score), "{line}");
+        assert!(["0", "1", "2"].contains(&c[c.len() - 2]), "{line}");
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -181,6 +181,8 @@ fn gelsight_video_contact_only_during_the_press() {
         "--unpaced",
         "--queue",
         "1000",
+        "--slip",
+        "builtin",
     ]);
     ok(&o);
     let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
@@ -199,6 +201,12 @@ fn gelsight_video_contact_only_during_the_press() {
     assert!(rows
         .iter()
         .all(|r| r["health"]["ok"].as_u64().unwrap() >= 74));
+    // `--slip builtin`: every estimate carries a slip state and score.
+    assert!(rows.iter().all(|r| {
+        let score = r["slip"]["score"].as_f64().unwrap();
+        ["stick", "incipient", "slip"].contains(&r["slip"]["state"].as_str().unwrap())
+            && (0.0..=1.0).contains(&score)
+    }));
     std::fs::remove_dir_all(&d).unwrap();
 }
 

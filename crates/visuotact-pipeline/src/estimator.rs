@@ -24,6 +24,9 @@ use visuotact_vision::features::{
 /// Why an estimator could not be built or a frame not processed.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum PipelineError {
+    /// Slip detection cannot run with these settings.
+    #[error("{0}")]
+    Slip(&'static str),
     /// Neither a sensor calibration nor a model holding one was given.
     #[error("the model holds no sensor calibration: give the sensor file")]
     NoSensor,
@@ -406,6 +409,11 @@ impl Estimator {
             .iter()
             .map(|c| feature_index(cal, &names, c))
             .collect()
+    }
+
+    /// The last frame's features ([`Estimator::features`]; empty before the first frame).
+    pub fn last_features(&self) -> &FrameFeatures {
+        &self.features
     }
 
     /// One frame's features only (no estimate).

@@ -10,6 +10,7 @@ use visuotact_nn::model::{EstimateScratch, Model};
 use visuotact_vision::features::{FieldSummary, FIELD_COLUMNS};
 use visuotact_vision::track::MarkerStatus;
 
+use crate::slip::{SlipDetector, SlipEstimate, SlipMonitor};
 use crate::{Estimator, PipelineError};
 
 /// The contact and re-zeroing rules of [`LiveEstimator`].
@@ -123,6 +124,8 @@ pub struct LiveFrame {
     pub targets: Vec<TargetEstimate>,
     /// Marker health.
     pub health: Health,
+    /// The slip state, when a detector was given ([`LiveEstimator::set_slip`]).
+    pub slip: Option<SlipEstimate>,
 }
 
 impl LiveFrame {
@@ -137,6 +140,7 @@ impl LiveFrame {
             max_displacement_px,
             targets,
             health,
+            slip: None,
         }
     }
 }
@@ -169,6 +173,9 @@ pub struct LiveEstimate {
     pub health: Health,
     /// Frames dropped by the capture queue so far.
     pub dropped_frames: u64,
+    /// The slip state and score (`run --slip`): absent without a slip detector.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slip: Option<SlipEstimate>,
     /// The sensor's scale (`calibrate --pitch-mm`), for outputs that give the markers'
     /// displacements in millimetres too; not in the JSON line.
     #[serde(skip)]
@@ -224,6 +231,10 @@ pub struct LiveEstimator {
     x: Vec<f64>,
     /// Each model's estimation buffers (kept between frames).
     scratch: Vec<EstimateScratch>,
+    /// The slip detector following the frames, and its displacement buffer.
+    slip: Option<SlipMonitor>,
+    /// Whether the last frame was in contact (a new contact starts a new slip sequence).
+    was_contact: bool,
 }
 
 impl LiveEstimator {
@@ -298,7 +309,24 @@ impl LiveEstimator {
             x: Vec::new(),
             scratch: vec![EstimateScratch::default(); models.len()],
             ensemble: models,
+            slip: None,
+            was_contact: false,
         })
+    }
+
+    /// Follows the frames with a slip detector: every frame then carries its slip state
+    /// ([`LiveFrame::slip`]), from the markers' displacements from the sensor's reference.
+    /// Each contact is one sequence: the detector starts afresh when a contact begins (and on
+    /// re-zeroing). Needs a feature set with `dx` and `dy`.
+    pub fn set_slip(&mut self, detector: SlipDetector) -> Result<(), PipelineError> {
+        if !SlipMonitor::reads(self.est.feature_set()) {
+            return Err(PipelineError::Slip(
+                "slip detection reads the markers' displacements: the features must include x and y",
+            ));
+        }
+        let monitor = SlipMonitor::of_sensor(detector, self.est.calibration());
+        self.slip = Some(monitor);
+        Ok(())
     }
 
     /// Names the sensor: its estimates carry the name ([`LiveEstimate::sensor`]).
@@ -321,6 +349,9 @@ impl LiveEstimator {
 
     /// Sets the baseline to the current frame's features (the re-zero button).
     pub fn rezero_now(&mut self) {
+        if let Some(m) = self.slip.as_mut() {
+            m.reset();
+        }
         let n = self.marker_values();
         for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
             if z.is_finite() {
@@ -352,16 +383,32 @@ impl LiveEstimator {
         self.rezero_field();
         let (mut health, max_disp, moved) = self.motion();
         let contact = moved >= self.cfg.contact_markers.min(self.marker_px.len().max(1));
+        let slip = self.slip_of(contact);
         if let Some(out) = markers {
             self.marker_views(out);
         }
         // No contact: follow the rest position (automatic re-zeroing), report no targets.
         if !contact {
             self.follow_rest();
-            return Ok(LiveFrame::new(false, max_disp, Vec::new(), health));
+            let mut out = LiveFrame::new(false, max_disp, Vec::new(), health);
+            out.slip = slip;
+            return Ok(out);
         }
         let targets = self.ensemble_targets(&mut health);
-        Ok(LiveFrame::new(true, max_disp, targets, health))
+        let mut out = LiveFrame::new(true, max_disp, targets, health);
+        out.slip = slip;
+        Ok(out)
+    }
+
+    /// The slip state of this frame's displacements: each contact is a sequence of its own,
+    /// followed from its first frame until the next contact starts.
+    fn slip_of(&mut self, contact: bool) -> Option<SlipEstimate> {
+        let monitor = self.slip.as_mut()?;
+        if contact && !self.was_contact {
+            monitor.reset();
+        }
+        self.was_contact = contact;
+        Some(monitor.estimate_features(self.est.last_features(), self.est.feature_set()))
     }
 
     /// The field summary of the re-zeroed displacements (the baseline never moves it).
@@ -540,6 +587,63 @@ mod tests {
             ..FitConfig::default()
         };
         fit(&data, &cfg, quietly).unwrap()
+    }
+
+    #[test]
+    fn a_slip_detector_gives_every_frame_a_state_and_starts_afresh_with_each_contact() {
+        let cfg = IatsConfig::SEED000;
+        let mut live = LiveEstimator::new(sensor(), vec![], &LiveConfig::default()).unwrap();
+        assert!(live
+            .process(&render(&cfg, &Touch::default(), 3).unwrap().0, None)
+            .unwrap()
+            .slip
+            .is_none());
+        live.set_slip(SlipDetector::default()).unwrap();
+        let touch = |k: usize| Touch {
+            x_mm: 20.0 + 2.0 * k as f64,
+            y_mm: 22.0,
+            depth_mm: 3.0,
+            ..Touch::default()
+        };
+        let mut first_of_contact = Vec::new();
+        for round in 0..2 {
+            for k in 0..3 {
+                let r = live
+                    .process(&render(&cfg, &Touch::default(), 20 + k).unwrap().0, None)
+                    .unwrap();
+                assert!(!r.contact && r.slip.is_some());
+            }
+            for k in 0..4 {
+                let r = live
+                    .process(&render(&cfg, &touch(k), 30 + k as u64).unwrap().0, None)
+                    .unwrap();
+                let s = r.slip.unwrap();
+                assert!(
+                    r.contact && (0.0..=1.0).contains(&s.score),
+                    "{round} {k}: {r:?}"
+                );
+                if k == 0 {
+                    first_of_contact.push(s.score);
+                }
+            }
+        }
+        assert_eq!(
+            first_of_contact[0], first_of_contact[1],
+            "each contact is a sequence of its own"
+        );
+        let mut cal = sensor().calibration().clone();
+        cal.features = visuotact_vision::features::FeatureSet::parse("area").unwrap();
+        let mut live = LiveEstimator::new(
+            Estimator::new(Some(cal), None).unwrap(),
+            vec![],
+            &LiveConfig::default(),
+        )
+        .unwrap();
+        let e = live
+            .set_slip(SlipDetector::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must include x and y"), "{e}");
     }
 
     #[test]

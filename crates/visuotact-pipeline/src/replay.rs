@@ -19,7 +19,8 @@ use visuotact_image::Frame;
 use visuotact_io::frames::{FrameError, FrameStream};
 use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 
-use crate::Estimator;
+use crate::slip::SlipMonitor;
+use crate::{Estimator, PipelineError};
 
 /// What to replay.
 #[derive(Clone, Debug)]
@@ -32,6 +33,9 @@ pub struct ReplayConfig {
     pub fps: f64,
     /// The readings table (default: a session's `labels.csv` when the model needs readings).
     pub readings: Option<PathBuf>,
+    /// A slip detector: the table then ends with `slip_score` and `slip_state` (0 stick,
+    /// 1 incipient, 2 slip), the whole replay followed as one sequence.
+    pub slip: Option<crate::slip::SlipDetector>,
 }
 
 /// Why a replay or an extraction could not run.
@@ -54,6 +58,9 @@ pub enum ReplayError {
     /// A table does not read.
     #[error(transparent)]
     Table(#[from] TableError),
+    /// The estimator refused a setting.
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
     /// The frames do not open.
     #[error(transparent)]
     Frames(#[from] FrameError),
@@ -255,9 +262,20 @@ pub fn replay(
         path: cfg.output.clone(),
         source,
     };
-    let mut out =
-        TableWriter::create(&cfg.output, TableFormat::Csv, targets.clone()).map_err(write_err)?;
+    let mut columns = targets.clone();
+    let mut slip = cfg.slip.clone().map(|d| {
+        columns.extend(["slip_score".to_string(), "slip_state".to_string()]);
+        SlipMonitor::of_sensor(d, est.calibration())
+    });
+    let set = est.feature_set();
+    if slip.is_some() && !SlipMonitor::reads(set) {
+        return Err(ReplayError::Pipeline(PipelineError::Slip(
+            "slip detection reads the markers' displacements: the features must include x and y",
+        )));
+    }
+    let mut out = TableWriter::create(&cfg.output, TableFormat::Csv, columns).map_err(write_err)?;
     let nan = vec![f64::NAN; targets.len()];
+    let mut row = Vec::new();
     let mut done = Replayed::default();
     let mut extra_values = Vec::with_capacity(extra.len());
     let t0 = std::time::Instant::now();
@@ -272,17 +290,26 @@ pub fn replay(
                     .map(|&c| row.map_or(f64::NAN, |row| row[c])),
             );
         }
-        let written = match est.process_with(&frame.image, &extra_values) {
-            Ok((_, Some(v))) => out.write_row(&frame.id, &v, ""),
-            Ok((_, None)) => {
-                done.missing += 1;
-                out.write_row(&frame.id, &nan, "missing features")
+        let result = est.process_with(&frame.image, &extra_values);
+        let state = match (&mut slip, &result) {
+            (Some(monitor), Ok((f, _))) => {
+                let e = monitor.estimate_features(f, set);
+                [e.score, f64::from(e.state as u8)]
             }
-            Err(e) => {
-                done.missing += 1;
-                out.write_row(&frame.id, &nan, &format!("error: {e}"))
-            }
+            _ => [f64::NAN; 2],
         };
+        let (values, flag) = match result {
+            Ok((_, Some(v))) => (v, String::new()),
+            Ok((_, None)) => (nan.clone(), "missing features".to_string()),
+            Err(e) => (nan.clone(), format!("error: {e}")),
+        };
+        done.missing += usize::from(!flag.is_empty());
+        row.clear();
+        row.extend_from_slice(&values);
+        if slip.is_some() {
+            row.extend_from_slice(&state);
+        }
+        let written = out.write_row(&frame.id, &row, &flag);
         written.map_err(write_err)?;
         done.frames += 1;
     }

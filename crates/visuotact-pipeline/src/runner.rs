@@ -499,6 +499,7 @@ fn estimate_one(
         max_displacement_px,
         targets,
         health,
+        slip,
     } = match result {
         Ok(r) => r,
         Err(e) => {
@@ -520,6 +521,7 @@ fn estimate_one(
         targets,
         health,
         dropped_frames: queue.dropped(),
+        slip,
         mm_per_px: live.calibration().mm_per_px(),
     };
     stats.latency_ms.push(e.latency_ms);

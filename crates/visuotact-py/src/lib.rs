@@ -35,6 +35,9 @@ use visuotact_nn::fit::{
 };
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
+use visuotact_pipeline::slip::{
+    detect, sequences_in, track_sequences, SlipConfig, SlipDetector, SlipMonitor,
+};
 use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
 use visuotact_vision::features::{is_field_column, FrameFeatures, FIELD_COLUMNS, FIELD_COLUMNS_MM};
@@ -592,6 +595,18 @@ struct Live {
     est: Estimator,
     /// The estimate's columns (targets, then spreads).
     targets: Vec<String>,
+    /// The slip detector following the frames, and its displacement buffer.
+    slip: Option<SlipMonitor>,
+}
+
+/// The slip detector a Python argument names: a file, or `"builtin"`.
+fn slip_detector(path: &str) -> PyResult<SlipDetector> {
+    if path == "builtin" {
+        return Ok(SlipDetector::default());
+    }
+    let text = visuotact_io::read::text_of_file(std::path::Path::new(path))
+        .map_err(|e| error(format!("{path}: cannot read slip detector file: {e}")))?;
+    SlipDetector::from_json(&text, path).map_err(error)
 }
 
 #[pymethods]
@@ -605,18 +620,29 @@ impl Live {
             return Ok(None);
         };
         let frame = item.map_err(error)?;
-        let (found, estimate) = {
+        let set = self.est.feature_set();
+        let (found, estimate, slip) = {
             let (f, e) = self
                 .est
                 .estimate_with(&frame.image, &[])
                 .map_err(|e| error(format!("frame {}: {e}", frame.id)))?;
-            (f.found, e.map(|r| r.map_err(|why| why.to_string())))
+            let slip = self.slip.as_mut().map(|m| m.estimate_features(f, set));
+            (f.found, e.map(|r| r.map_err(|why| why.to_string())), slip)
         };
         let d = PyDict::new(py);
         d.set_item("frame", &frame.id)?;
         d.set_item("index", frame.index)?;
         d.set_item("timestamp_s", frame.timestamp_s)?;
         d.set_item("found", found)?;
+        match slip {
+            Some(e) => {
+                let sd = PyDict::new(py);
+                sd.set_item("state", e.state.name())?;
+                sd.set_item("score", e.score)?;
+                d.set_item("slip", sd)?;
+            }
+            None => d.set_item("slip", py.None())?,
+        }
         match estimate.unwrap_or_else(|| Err("no model".to_string())) {
             Ok(e) => {
                 let est = PyDict::new(py);
@@ -639,13 +665,14 @@ impl Live {
 /// of them) through `model` (with `sensor`, or the calibration stored in the model): an
 /// iterator of estimate dicts. Without a model it yields features counts only.
 #[pyfunction]
-#[pyo3(signature = (source, model = None, sensor = None, fps = 25.0, temporal = false))]
+#[pyo3(signature = (source, model = None, sensor = None, fps = 25.0, temporal = false, slip = None))]
 fn live(
     source: &Bound<'_, PyAny>,
     model: Option<&Model>,
     sensor: Option<&Sensor>,
     fps: f64,
     temporal: bool,
+    slip: Option<&str>,
 ) -> PyResult<Live> {
     let paths: Vec<PathBuf> = match source.extract::<PathBuf>() {
         Ok(p) => vec![p],
@@ -655,11 +682,65 @@ fn live(
     let cal = sensor.map(|s| s.est.calibration().clone());
     let mut est = Estimator::new(cal, model.map(|m| m.m.clone())).map_err(error)?;
     est.set_temporal_prior(temporal);
+    let slip = match slip {
+        Some(p) => {
+            if !SlipMonitor::reads(est.feature_set()) {
+                return Err(error("slip detection reads the markers' displacements: the sensor's features must include x and y"));
+            }
+            Some(SlipMonitor::of_sensor(slip_detector(p)?, est.calibration()))
+        }
+        None => None,
+    };
     Ok(Live {
         stream,
         targets: est.target_columns(),
         est,
+        slip,
     })
+}
+
+/// Each video's slip verdict (videos, or folders searched for videos): a list of dicts with
+/// `video`, `slip` (bool), `onset_s` (`None` without slip) and `score`; each video calibrates
+/// its reference from its first `calibration_frames` frames unless `sensor` is given.
+/// `detector`: a file from `visuotact slip fit`, or `"builtin"`.
+#[pyfunction]
+#[pyo3(signature = (videos, detector = "builtin", sensor = None, calibration_frames = 5))]
+fn slip_detect<'py>(
+    py: Python<'py>,
+    videos: &Bound<'py, PyAny>,
+    detector: &str,
+    sensor: Option<&Sensor>,
+    calibration_frames: usize,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let paths: Vec<PathBuf> = match videos.extract::<PathBuf>() {
+        Ok(p) => vec![p],
+        Err(_) => videos.extract()?,
+    };
+    let det = slip_detector(detector)?;
+    let paths = sequences_in(&paths).map_err(error)?;
+    let cal = sensor.map(|s| s.est.calibration().clone());
+    let cfg = SlipConfig {
+        calibration_frames: calibration_frames.max(1),
+        ..SlipConfig::default()
+    };
+    let seqs = py
+        .detach(|| {
+            track_sequences(&paths, cal.as_ref(), &cfg, &|_, _| {
+                std::ops::ControlFlow::Continue(())
+            })
+        })
+        .map_err(error)?;
+    let mut out = Vec::with_capacity(seqs.len());
+    for (p, q) in paths.iter().zip(&seqs) {
+        let v = detect(q, &det);
+        let d = PyDict::new(py);
+        d.set_item("video", p)?;
+        d.set_item("slip", v.slip)?;
+        d.set_item("onset_s", v.onset_s)?;
+        d.set_item("score", v.score)?;
+        out.push(d);
+    }
+    Ok(out)
 }
 
 /// Zero-phase filtering, equal to `scipy.signal.filtfilt(b, a, x)` (odd padding of
@@ -906,6 +987,7 @@ fn visuotact(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<Live>()?;
     m.add_function(wrap_pyfunction!(live, m)?)?;
+    m.add_function(wrap_pyfunction!(slip_detect, m)?)?;
     m.add_function(wrap_pyfunction!(filtfilt, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(export_mcap, m)?)?;

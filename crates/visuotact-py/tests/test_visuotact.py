@@ -158,6 +158,27 @@ def test_training_and_prediction_match_the_cli(session):
     for r, want in zip(rows, cli_pred):
         got = [r["estimate"][n] for n in p_header]
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+        assert r["slip"] is None
+    # With the built-in slip detector: the same estimates, and a slip state on every frame.
+    slipping = list(vt.live(str(session / "s" / "frames"), model=loaded, slip="builtin"))
+    assert [r["estimate"] for r in slipping] == [r["estimate"] for r in rows]
+    assert all(r["slip"]["state"] in ("stick", "incipient", "slip") for r in slipping)
+    assert all(0.0 <= r["slip"]["score"] <= 1.0 for r in slipping)
+    with pytest.raises(vt.VisuotactError, match="nope.json"):
+        vt.live(str(session / "s" / "frames"), model=loaded, slip="nope.json")
+
+
+def test_slip_verdicts_match_the_cli(tmp_path):
+    video = Path(__file__).parents[4] / "shared/reference/real/gelsight_slip/videos/nylon_thread/exp_num_1/camera_0.avi"
+    if not video.exists():
+        pytest.skip(f"{video} absent")
+    out = tmp_path / "v.csv"
+    cli("slip", "detect", "-q", "-o", out, video)
+    row = list(csv.DictReader(open(out)))[0]
+    got = vt.slip_detect(str(video))
+    assert len(got) == 1
+    assert got[0]["slip"] == (row["slip"] == "1")
+    assert abs(got[0]["score"] - float(row["score"])) < 1e-4
 
 
 def test_filtfilt_equals_scipy():

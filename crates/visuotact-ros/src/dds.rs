@@ -249,7 +249,7 @@ mod tests {
         };
         let p = DdsPublisher::new(&cfg).unwrap();
         let topics = p.topics();
-        assert_eq!(topics.len(), 11, "{topics:?}");
+        assert_eq!(topics.len(), 15, "{topics:?}");
         assert_eq!(topics[0], "/diagnostics");
         for side in ["left", "right"] {
             for t in [
@@ -257,6 +257,8 @@ mod tests {
                 "contact/active",
                 "ft_sensor/wrench",
                 "markers",
+                "slip",
+                "slip/state",
                 "wrench",
             ] {
                 let name = format!("/visuotact/{side}/{t}");
@@ -268,7 +270,7 @@ mod tests {
             ..DdsConfig::default()
         })
         .unwrap();
-        assert_eq!(one.topics().len(), 6, "{:?}", one.topics());
+        assert_eq!(one.topics().len(), 8, "{:?}", one.topics());
         assert_eq!(p.messages + one.messages, 0);
     }
 }

@@ -144,6 +144,30 @@ impl RosMessage for Bool {
     }
 }
 
+/// `std_msgs/Float64`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Float64(pub f64);
+
+impl RosMessage for Float64 {
+    const NAME: &'static str = "std_msgs/msg/Float64";
+    const DEFINITION: &'static str = "float64 data\n";
+    fn encode(&self, w: &mut CdrWriter) {
+        w.f64(self.0);
+    }
+}
+
+/// `std_msgs/String`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StringMsg(pub String);
+
+impl RosMessage for StringMsg {
+    const NAME: &'static str = "std_msgs/msg/String";
+    const DEFINITION: &'static str = "string data\n";
+    fn encode(&self, w: &mut CdrWriter) {
+        w.string(&self.0);
+    }
+}
+
 /// One field of a point cloud (`sensor_msgs/PointField`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointField {

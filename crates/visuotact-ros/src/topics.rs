@@ -6,6 +6,8 @@
 //! | `NS/ft_sensor/wrench` | `geometry_msgs/msg/WrenchStamped` | the measured force/torque sensor (a session's `force.csv`), same axes |
 //! | `NS/contact` | `geometry_msgs/msg/PointStamped` | the estimated contact in metres: x = `x_mm`/1000, y = `y_mm`/1000, z = −`depth_mm`/1000 (NaN without depth); published when x and y are estimated |
 //! | `NS/contact/active` | `std_msgs/msg/Bool` | the contact rule (live runs) |
+//! | `NS/slip` | `std_msgs/msg/Float64` | the slip score, the probability that the object slips (live runs with `--slip`) |
+//! | `NS/slip/state` | `std_msgs/msg/String` | the slip state: `stick`, `incipient` or `slip` (live runs with `--slip`) |
 //! | `NS/markers` | `sensor_msgs/msg/PointCloud2` | one point per marker: `x`, `y`, `z` (= 0) its reference position and `dx`, `dy` its displacement, image pixels, `float32`; `status` `uint8` (0 found, 1 lost); with a scaled sensor (`calibrate --pitch-mm`) also `dx_mm`, `dy_mm` (`float32`, millimetres) |
 //! | `NS/image/compressed` | `sensor_msgs/msg/CompressedImage` | the frame, PNG |
 //! | `/diagnostics` | `diagnostic_msgs/msg/DiagnosticArray` | marker health: one status named `NS: markers`, level OK, WARN (markers lost or filled, reference under contact) or ERROR (none found) |
@@ -20,8 +22,8 @@ use visuotact_pipeline::live::{Health, TargetEstimate};
 
 use crate::bag::Bag;
 use crate::msg::{
-    level, Bool, CompressedImage, DiagnosticArray, DiagnosticStatus, Header, PointCloud2,
-    PointField, PointStamped, RosMessage, WrenchStamped, FLOAT32, UINT8,
+    level, Bool, CompressedImage, DiagnosticArray, DiagnosticStatus, Float64, Header, PointCloud2,
+    PointField, PointStamped, RosMessage, StringMsg, WrenchStamped, FLOAT32, UINT8,
 };
 use crate::RosError;
 
@@ -154,6 +156,8 @@ pub struct FrameMessages<'a> {
     pub png: Option<Vec<u8>>,
     /// Marker health and the figures to report with it.
     pub health: Option<(&'a Health, Vec<(String, String)>)>,
+    /// The slip score and state (live runs with a slip detector).
+    pub slip: Option<(f64, &'static str)>,
 }
 
 /// The force/torque axes as target names.
@@ -329,6 +333,8 @@ pub fn declare_frame_topics<D: Declare>(d: &mut D, cfg: &RosConfig) -> Result<()
     d.declare::<WrenchStamped>(&cfg.topic("ft_sensor/wrench"))?;
     d.declare::<PointStamped>(&cfg.topic("contact"))?;
     d.declare::<Bool>(&cfg.topic("contact/active"))?;
+    d.declare::<Float64>(&cfg.topic("slip"))?;
+    d.declare::<StringMsg>(&cfg.topic("slip/state"))?;
     d.declare::<PointCloud2>(&cfg.topic("markers"))?;
     if cfg.images {
         d.declare::<CompressedImage>(&cfg.topic("image/compressed"))?;
@@ -394,6 +400,10 @@ pub fn write_frame<P: Publish>(
     }
     if let Some(c) = f.contact {
         bag.publish(&cfg.topic("contact/active"), at, &Bool(c))?;
+    }
+    if let Some((score, state)) = f.slip {
+        bag.publish(&cfg.topic("slip"), at, &Float64(score))?;
+        bag.publish(&cfg.topic("slip/state"), at, &StringMsg(state.into()))?;
     }
     if let Some(markers) = f.markers {
         let m = marker_cloud(Header::at_ns(at, &image_frame), markers, f.mm_per_px);
@@ -486,13 +496,17 @@ mod tests {
                 markers: Some(&markers),
                 png: images.then(Vec::new),
                 health: Some((&health, Vec::new())),
+                slip: Some((0.7, "slip")),
                 ..FrameMessages::default()
             };
             let (mut published, mut declared) = (Seen::default(), Seen::default());
             write_frame(&mut published, &cfg, frame).unwrap();
             declare_frame_topics(&mut declared, &cfg).unwrap();
             assert_eq!(declared.0, published.0);
-            assert_eq!(declared.0.len(), 6 + usize::from(images));
+            assert_eq!(declared.0.len(), 8 + usize::from(images));
+            assert!(declared
+                .0
+                .contains(&("/visuotact/left/slip/state".into(), StringMsg::NAME)));
             assert!(declared
                 .0
                 .contains(&("/visuotact/left/contact/active".into(), Bool::NAME)));

@@ -118,6 +118,11 @@ impl FieldTracker {
         }
     }
 
+    /// Markers followed.
+    pub fn markers(&self) -> usize {
+        self.reference.len()
+    }
+
     /// Forgets the frames seen (a new sequence starts).
     pub fn reset(&mut self) {
         self.history.clear();

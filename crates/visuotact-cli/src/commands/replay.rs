@@ -20,6 +20,10 @@ pub(crate) struct Args {
     /// marker positions (the reference stays the fallback).
     #[arg(long)]
     temporal: bool,
+    /// Slip detection: the table ends with `slip_score` and `slip_state` (0 stick, 1
+    /// incipient, 2 slip), the replay followed as one sequence. `builtin`: the built-in detector.
+    #[arg(long, value_name = "slip.json|builtin")]
+    slip: Option<PathBuf>,
     /// A session folder (its frames/, in frames.csv order), or videos / images / folders.
     #[arg(required = true)]
     input: Vec<PathBuf>,
@@ -58,6 +62,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         output: a.output.clone(),
         fps: a.fps,
         readings: a.readings.clone(),
+        slip: a.slip.as_ref().map(|p| crate::load_slip(p)).transpose()?,
     };
     let reporter = Reporter::new(a.quiet);
     reporter.stage("replay");

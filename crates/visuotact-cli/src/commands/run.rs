@@ -25,6 +25,10 @@ pub(crate) struct Args {
     /// marker positions (the reference stays the fallback).
     #[arg(long)]
     temporal: bool,
+    /// Slip detection: every estimate carries `slip` (state and score; ROS 2 `NS/slip`), each
+    /// contact followed as one sequence. `builtin`: the built-in detector.
+    #[arg(long, value_name = "slip.json|builtin")]
+    slip: Option<PathBuf>,
     /// sim:iats, sim:cone, video:FILE, frames:DIR (or a path), camera:/dev/videoN.
     #[arg(long, required_unless_present = "sensors")]
     source: Option<String>,
@@ -173,6 +177,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let mut est = crate::estimator(a.sensor.as_deref(), models.first().cloned())?;
     est.set_temporal_prior(a.temporal);
     let mut live = LiveEstimator::new(est, models, &a.live_config())?;
+    if let Some(p) = &a.slip {
+        live.set_slip(crate::load_slip(p)?)?;
+    }
     let stop = stop_on_ctrl_c();
     let dashboard = match &a.serve {
         Some(addr) => Some(
@@ -341,7 +348,10 @@ fn named_sensors(
         let mut est =
             crate::estimator(s.sensor.as_deref(), models.first().cloned()).map_err(|e| at(&e))?;
         est.set_temporal_prior(a.temporal);
-        let live = LiveEstimator::new(est, models, &a.live_config()).map_err(|e| at(&e))?;
+        let mut live = LiveEstimator::new(est, models, &a.live_config()).map_err(|e| at(&e))?;
+        if let Some(p) = &a.slip {
+            live.set_slip(crate::load_slip(p)?).map_err(|e| at(&e))?;
+        }
         let cfg = RunConfig {
             source: s.source.as_str().into(),
             seed: a.seed.wrapping_add(k as u64),

@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use visuotact_pipeline::slip::{
     cross_validate, detect, evidence_of, fit_detector, labels_of, read_labels, sequences_in,
     track_sequences, verdicts_csv, Scores, SlipConfig, SlipDetector, SlipSettings, TrackedSequence,
@@ -62,9 +61,9 @@ struct FitArgs {
 struct DetectArgs {
     #[command(flatten)]
     common: Common,
-    /// Detector file (default: the built-in one, fitted on real GelSight Mini grasps).
-    #[arg(long)]
-    detector: Option<PathBuf>,
+    /// Detector file, or `builtin` (fitted on real GelSight Mini grasps).
+    #[arg(long, default_value = "builtin")]
+    detector: PathBuf,
     /// CSV to write.
     #[arg(short, long)]
     output: PathBuf,
@@ -154,14 +153,7 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
 }
 
 fn detect_videos(a: &DetectArgs) -> anyhow::Result<()> {
-    let det = match &a.detector {
-        Some(p) => {
-            let text = visuotact_io::read::text_of_file(p)
-                .with_context(|| format!("{}: cannot read detector file", p.display()))?;
-            SlipDetector::from_json(&text, &p.display().to_string())?
-        }
-        None => SlipDetector::default(),
-    };
+    let det = crate::load_slip(&a.detector)?;
     let (videos, seqs) = tracked(&a.common)?;
     let verdicts: Vec<_> = videos
         .into_iter()

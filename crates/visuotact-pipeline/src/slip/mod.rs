@@ -243,11 +243,11 @@ impl SlipEvidence {
 #[serde(rename_all = "lowercase")]
 pub enum SlipState {
     /// Nothing points to slip.
-    Stick,
+    Stick = 0,
     /// The score is rising towards slip.
-    Incipient,
+    Incipient = 1,
     /// Slipping.
-    Slip,
+    Slip = 2,
 }
 
 impl SlipState {
@@ -436,6 +436,8 @@ pub struct SlipMonitor {
     tracker: FieldTracker,
     evidence: SlipEvidence,
     field: FieldDynamics,
+    /// The displacements of [`SlipMonitor::estimate_features`] (kept between frames).
+    displacements: Vec<Option<(f64, f64)>>,
 }
 
 impl SlipMonitor {
@@ -446,6 +448,7 @@ impl SlipMonitor {
             evidence: SlipEvidence::new(detector.smooth_frames),
             detector,
             field: FieldDynamics::default(),
+            displacements: Vec::new(),
         }
     }
 
@@ -467,15 +470,39 @@ impl SlipMonitor {
         displacement_px: &[Option<(f64, f64)>],
         timestamp_s: f64,
     ) -> SlipFrame {
+        let e = self.estimate(displacement_px);
+        SlipFrame {
+            timestamp_s,
+            state: e.state,
+            score: e.score,
+            field: self.field,
+        }
+    }
+
+    /// [`SlipMonitor::update`]'s state and score only (the live loop's form).
+    pub fn estimate(&mut self, displacement_px: &[Option<(f64, f64)>]) -> SlipEstimate {
         self.tracker.update_into(displacement_px, &mut self.field);
         self.evidence.push(&self.field);
         let score = self.detector.score(&self.evidence.values());
-        SlipFrame {
-            timestamp_s,
+        SlipEstimate {
             state: self.detector.state_of(score),
             score,
-            field: self.field,
         }
+    }
+
+    /// [`SlipMonitor::estimate`] from a frame's features of `set` (which must hold `dx` and
+    /// `dy`: [`SlipMonitor::reads`]), allocating nothing once warm.
+    pub fn estimate_features(&mut self, f: &FrameFeatures, set: FeatureSet) -> SlipEstimate {
+        let mut d = std::mem::take(&mut self.displacements);
+        displacements_into(f, set, self.tracker.markers(), &mut d);
+        let e = self.estimate(&d);
+        self.displacements = d;
+        e
+    }
+
+    /// Whether features of `set` carry what the monitor reads (the displacements).
+    pub fn reads(set: FeatureSet) -> bool {
+        set.dx && set.dy
     }
 
     /// The evidence so far.
@@ -484,14 +511,35 @@ impl SlipMonitor {
     }
 }
 
-/// The displacement of each marker from `values` (a [`FrameFeatures`] row of dx, dy per
-/// marker), into `out`.
-pub fn displacements_into(f: &FrameFeatures, markers: usize, out: &mut Vec<Option<(f64, f64)>>) {
+/// Each marker's displacement in `f` (features of `set`, in column order), into `out`;
+/// `None` where it was not tracked. Empty unless `set` has both `dx` and `dy`.
+pub fn displacements_into(
+    f: &FrameFeatures,
+    set: FeatureSet,
+    markers: usize,
+    out: &mut Vec<Option<(f64, f64)>>,
+) {
     out.clear();
+    if !(set.dx && set.dy) {
+        return;
+    }
+    let per = set.per_marker();
     out.extend((0..markers).map(|i| {
-        let (x, y) = (f.values[2 * i], f.values[2 * i + 1]);
+        let (x, y) = (
+            f.values.get(per * i).copied().unwrap_or(f64::NAN),
+            f.values.get(per * i + 1).copied().unwrap_or(f64::NAN),
+        );
         (x.is_finite() && y.is_finite()).then_some((x, y))
     }));
+}
+
+/// A frame's slip estimate, as live outputs send it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SlipEstimate {
+    /// `stick`, `incipient` or `slip`.
+    pub state: SlipState,
+    /// The probability of slip given the sequence so far.
+    pub score: f64,
 }
 
 /// A sequence's displacements, frame by frame.
@@ -588,7 +636,7 @@ pub fn track_sequence(
         ex.extract_into(&frame.image, &mut f)
             .map_err(|e| frame_err(frame.id.clone(), e.to_string()))?;
         let mut d = Vec::with_capacity(n);
-        displacements_into(&f, n, &mut d);
+        displacements_into(&f, set, n, &mut d);
         out.frames.push(TrackedFrame {
             timestamp_s: frame.timestamp_s,
             id: frame.id,
