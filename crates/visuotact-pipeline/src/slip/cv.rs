@@ -5,7 +5,7 @@
 
 use visuotact_nn::logistic::{fit_logistic, LogisticConfig};
 
-use super::{fit_detector, SlipDetector, SlipError, SlipSettings, EVIDENCE_LEN};
+use super::{fit_detector, SequenceEvidence, SlipDetector, SlipError, SlipSettings, EVIDENCE_LEN};
 
 /// Index of `max_shift_pitches` in the evidence.
 const MAX_SHIFT: usize = 0;
@@ -63,12 +63,15 @@ pub struct CrossValidation {
     pub default: Option<Scores>,
     /// Each sequence's held-out score from the fitted detector.
     pub held_out_scores: Vec<f64>,
+    /// Share of the held-out beginnings (every second) of sequences without slip that the
+    /// fitted detector scored as slip: the live false alarms.
+    pub false_alarms: f64,
 }
 
 /// Leave-one-group-out figures on the sequences' `evidence` labelled `slip`, in `groups`, of
 /// detectors fitted with `settings` (and of `default` as it is).
 pub fn cross_validate(
-    evidence: &[[f64; EVIDENCE_LEN]],
+    evidence: &[SequenceEvidence],
     slip: &[bool],
     groups: &[String],
     settings: &SlipSettings,
@@ -78,31 +81,42 @@ pub fn cross_validate(
     names.sort();
     names.dedup();
     let n = evidence.len();
+    let whole: Vec<[f64; EVIDENCE_LEN]> = evidence.iter().map(|e| e.whole).collect();
     let (mut fitted, mut shift, mut entropy) = (vec![false; n], vec![false; n], vec![false; n]);
     let mut held_out_scores = vec![0.0; n];
+    let (mut alarms, mut beginnings) = (0usize, 0usize);
     for g in &names {
         let train: Vec<usize> = (0..n).filter(|&i| &groups[i] != *g).collect();
         let test: Vec<usize> = (0..n).filter(|&i| &groups[i] == *g).collect();
-        let ev: Vec<_> = train.iter().map(|&i| evidence[i]).collect();
+        let ev: Vec<_> = train.iter().map(|&i| evidence[i].clone()).collect();
         let y: Vec<bool> = train.iter().map(|&i| slip[i]).collect();
         let d = fit_detector(&ev, &y, settings)?;
+        let ev_whole: Vec<_> = train.iter().map(|&i| whole[i]).collect();
         let cut = best_threshold(
             &train
                 .iter()
-                .map(|&i| evidence[i][MAX_SHIFT])
+                .map(|&i| whole[i][MAX_SHIFT])
                 .collect::<Vec<_>>(),
             &y,
         );
-        let ent = small_logistic(&ev, &y);
+        let ent = small_logistic(&ev_whole, &y);
         for &i in &test {
-            held_out_scores[i] = d.score(&evidence[i]);
+            held_out_scores[i] = d.score(&whole[i]);
             fitted[i] = held_out_scores[i] >= d.threshold;
-            shift[i] = (evidence[i][MAX_SHIFT] >= cut.0) == cut.1;
-            entropy[i] = ent(&evidence[i]);
+            shift[i] = (whole[i][MAX_SHIFT] >= cut.0) == cut.1;
+            entropy[i] = ent(&whole[i]);
+            if !slip[i] {
+                beginnings += evidence[i].prefixes.len();
+                alarms += evidence[i]
+                    .prefixes
+                    .iter()
+                    .filter(|p| d.score(p) >= d.threshold)
+                    .count();
+            }
         }
     }
     let by_default = default.map(|d| {
-        let p: Vec<bool> = evidence.iter().map(|e| d.score(e) >= d.threshold).collect();
+        let p: Vec<bool> = whole.iter().map(|e| d.score(e) >= d.threshold).collect();
         Scores::of(&p, slip)
     });
     Ok(CrossValidation {
@@ -112,6 +126,7 @@ pub fn cross_validate(
         entropy: Scores::of(&entropy, slip),
         default: by_default,
         held_out_scores,
+        false_alarms: alarms as f64 / beginnings.max(1) as f64,
     })
 }
 

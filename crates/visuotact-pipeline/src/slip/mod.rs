@@ -21,8 +21,9 @@
 //! change for the rest of the grasp); a shake moves the markers as far as a slip, but as one.
 //!
 //! [`SlipDetector::default`] is the detector fitted on the 300 sequences of the real GelSight
-//! Mini grasps (`../shared/reference/real/gelsight_slip`, 130 slip); its figures on that set
-//! are not held out. [`cross_validate`] gives held-out ones, by group (object).
+//! Mini grasps (`../shared/reference/real/gelsight_slip`, 130 slip; [`fit_detector`] with the
+//! beginnings of the no-slip grasps); its figures on that set are not held out.
+//! [`cross_validate`] gives held-out ones, by group (object).
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -272,6 +273,8 @@ pub struct SlipSettings {
     pub threshold: f64,
     /// Score at or above which a frame is `incipient`.
     pub incipient_threshold: f64,
+    /// Fit on the beginnings of sequences without slip too ([`fit_detector`]).
+    pub stick_prefixes: bool,
 }
 
 impl Default for SlipSettings {
@@ -281,6 +284,7 @@ impl Default for SlipSettings {
             smooth_frames: 5,
             threshold: 0.5,
             incipient_threshold: 0.25,
+            stick_prefixes: true,
         }
     }
 }
@@ -384,6 +388,7 @@ impl SlipDetector {
             smooth_frames: self.smooth_frames,
             threshold: self.threshold,
             incipient_threshold: self.incipient_threshold,
+            stick_prefixes: true,
         }
     }
 
@@ -689,28 +694,46 @@ pub fn detect(seq: &TrackedSequence, detector: &SlipDetector) -> SlipVerdict {
     }
 }
 
-/// The evidence of a whole tracked sequence, with a lag and smoothing (a detector's).
-pub fn evidence_of(
-    seq: &TrackedSequence,
-    lag_frames: usize,
-    smooth_frames: usize,
-) -> [f64; EVIDENCE_LEN] {
-    let mut t = FieldTracker::new(&seq.markers_px, seq.pitch_px, lag_frames);
-    let mut e = SlipEvidence::new(smooth_frames);
-    let mut f = FieldDynamics::default();
-    for frame in &seq.frames {
-        t.update_into(&frame.displacement_px, &mut f);
-        e.push(&f);
-    }
-    e.values()
+/// Frames between two snapshots of [`SequenceEvidence::prefixes`] (1 s at 25 fps).
+pub const PREFIX_EVERY: usize = 25;
+
+/// A sequence's evidence: over the whole of it, and over its beginnings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SequenceEvidence {
+    /// Over the whole sequence (what its verdict reads).
+    pub whole: [f64; EVIDENCE_LEN],
+    /// Over its first 25, 50, … frames (short of the whole): what the live score read then.
+    pub prefixes: Vec<[f64; EVIDENCE_LEN]>,
 }
 
-/// Fits a detector with `settings` on evidences labelled slip or not (taken with the same
-/// lag and smoothing).
+/// The evidence of a tracked sequence under `settings`' lag and smoothing.
+pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEvidence {
+    let mut t = FieldTracker::new(&seq.markers_px, seq.pitch_px, settings.lag_frames);
+    let mut e = SlipEvidence::new(settings.smooth_frames);
+    let mut f = FieldDynamics::default();
+    let mut prefixes = Vec::new();
+    for (k, frame) in seq.frames.iter().enumerate() {
+        t.update_into(&frame.displacement_px, &mut f);
+        e.push(&f);
+        if (k + 1) % PREFIX_EVERY == 0 && k + 1 < seq.frames.len() {
+            prefixes.push(e.values());
+        }
+    }
+    SequenceEvidence {
+        whole: e.values(),
+        prefixes,
+    }
+}
+
+/// Fits a detector with `settings` on sequences labelled slip or not. Each sequence counts by
+/// its whole evidence, and a sequence without slip also by each of its beginnings (no slip
+/// had happened there either): so that the live score stays low through a grasp that holds,
+/// not only at its end. (A slipping sequence's beginnings are left out: when it slipped is
+/// not labelled.) Both classes weigh the same.
 pub fn fit_detector(
-    evidence: &[[f64; EVIDENCE_LEN]],
+    evidence: &[SequenceEvidence],
     slip: &[bool],
-    like: &SlipSettings,
+    settings: &SlipSettings,
 ) -> Result<SlipDetector, SlipError> {
     let pos = slip.iter().filter(|&&s| s).count();
     if pos == 0 || pos == slip.len() {
@@ -719,19 +742,32 @@ pub fn fit_detector(
             stick: slip.len() - pos,
         });
     }
-    let n = evidence.len() as f64;
+    let mut rows: Vec<[f64; EVIDENCE_LEN]> = Vec::new();
+    let mut labels = Vec::new();
+    for (e, &y) in evidence.iter().zip(slip) {
+        rows.push(e.whole);
+        labels.push(y);
+        if !y && settings.stick_prefixes {
+            rows.extend_from_slice(&e.prefixes);
+            labels.extend(std::iter::repeat_n(false, e.prefixes.len()));
+        }
+    }
+    let mut d = fit_rows(&rows, &labels, settings);
+    d.fitted_on = [slip.len(), pos];
+    Ok(d)
+}
+
+/// The logistic regression of `labels` on the standardised `rows`.
+fn fit_rows(rows: &[[f64; EVIDENCE_LEN]], labels: &[bool], like: &SlipSettings) -> SlipDetector {
+    let n = rows.len().max(1) as f64;
     let mut center = vec![0.0; EVIDENCE_LEN];
     let mut scale = vec![0.0; EVIDENCE_LEN];
     for j in 0..EVIDENCE_LEN {
-        center[j] = evidence.iter().map(|e| e[j]).sum::<f64>() / n;
-        let var = evidence
-            .iter()
-            .map(|e| (e[j] - center[j]).powi(2))
-            .sum::<f64>()
-            / n;
+        center[j] = rows.iter().map(|e| e[j]).sum::<f64>() / n;
+        let var = rows.iter().map(|e| (e[j] - center[j]).powi(2)).sum::<f64>() / n;
         scale[j] = if var > 1e-18 { var.sqrt() } else { 1.0 };
     }
-    let rows: Vec<Vec<f64>> = evidence
+    let x: Vec<Vec<f64>> = rows
         .iter()
         .map(|e| {
             (0..EVIDENCE_LEN)
@@ -739,8 +775,8 @@ pub fn fit_detector(
                 .collect()
         })
         .collect();
-    let fit = fit_logistic(&rows, slip, &LogisticConfig::default());
-    Ok(SlipDetector {
+    let fit = fit_logistic(&x, labels, &LogisticConfig::default());
+    SlipDetector {
         format: FORMAT.into(),
         version: 1,
         lag_frames: like.lag_frames,
@@ -752,8 +788,8 @@ pub fn fit_detector(
         bias: fit.bias,
         threshold: like.threshold,
         incipient_threshold: like.incipient_threshold,
-        fitted_on: [slip.len(), pos],
-    })
+        fitted_on: [rows.len(), labels.iter().filter(|&&y| y).count()],
+    }
 }
 
 /// Videos among `paths`: a video file is one sequence, a folder every video under it (sorted).

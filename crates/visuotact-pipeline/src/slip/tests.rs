@@ -113,13 +113,15 @@ fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
     let train: Vec<(TrackedSequence, bool)> = (0..40)
         .map(|k| (sequence(100, k % 2 == 0, k), k % 2 == 0))
         .collect();
-    let ev: Vec<_> = train
-        .iter()
-        .map(|(q, _)| evidence_of(q, s.lag_frames, s.smooth_frames))
-        .collect();
+    let ev: Vec<_> = train.iter().map(|(q, _)| evidence_of(q, &s)).collect();
     let y: Vec<bool> = train.iter().map(|(_, l)| *l).collect();
     let d = fit_detector(&ev, &y, &s).unwrap();
     assert_eq!(d.fitted_on, [40, 20]);
+    assert_eq!(
+        ev[0].prefixes.len(),
+        3,
+        "100 frames: beginnings at 25, 50, 75"
+    );
     let mut right = 0;
     for k in 100..120 {
         let slip = k % 2 == 0;
