@@ -12,11 +12,14 @@
 //! `SimulateConfig`, `SimulateError`), `trackcheck` (simulated sensors tracked in memory against
 //! the simulator's per-marker truth: lost markers, wrong identities, displacement error, per
 //! motion band; `CheckConfig`, `CheckReport`), `scorecard` (the tracking scorecard: the zoo's
-//! drawn variants through every protocol, per family × motion band, held to a baseline table)
+//! drawn variants through every protocol, per family × motion band, held to a baseline table),
+//! `slipcheck` (simulated grasps that slip or hold, tracked and run through a slip detector:
+//! the first alarm against the true slip frame)
 
 pub mod demo;
 pub mod pages;
 pub mod scorecard;
+pub mod slipcheck;
 pub mod synth;
 pub mod tables;
 pub mod trackcheck;

@@ -274,6 +274,7 @@ fn the_temporal_prior_follows_the_drag_order_free_matching_takes_a_step_short() 
         shear_x_mm: -2.655,
         shear_y_mm: 0.223,
         twist_deg: -3.181,
+        slip_annulus: 0.0,
     };
     let touches: Vec<ZooTouch> = (0..=30)
         .map(|step| {

@@ -15,7 +15,9 @@
 //! with exact area/centroid, blur), `iats` (seed 000's clamped membrane under a spherical tip,
 //! with drag), `cone` (seed 001's inflated cone bent and shortened by a force, pressure drift),
 //! `jr3` (6-axis force/torque stream with noise and drifting bias), `protocol` (grid, random,
-//! shear, line, press, press-rotate; zoo grid, random, shear, drag), `pattern` (simple marker
+//! shear, line, press, press-rotate; zoo grid, random, shear, drag; `zoo_slip`: grasps that
+//! press, drag under the friction limit, twist or slip past it — Cattaneo–Mindlin partial slip
+//! with the slip frame in the truth), `pattern` (simple marker
 //! grids for vision tests), `zoo` (sensors the pipeline was not written for: a TacTip-like dome
 //! with a hexagonal pin array (also `tactip-small`, as published data sets store it: 128 × 128
 //! binarised), a GelSight-like dark-dot grid on a shaded gel, random dots; every parameter

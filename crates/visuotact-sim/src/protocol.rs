@@ -499,3 +499,164 @@ mod tests {
         assert!((r.load_at(&c, 10.0, 0.0).azimuth_rad - std::f64::consts::PI).abs() < 1e-9);
     }
 }
+
+/// What a simulated grasp does ([`zoo_slip`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GraspKind {
+    /// A press, held.
+    Press,
+    /// A press, then a sideways load that stays under the friction limit (60 % of it): the
+    /// rim slides a little, the centre sticks, the object does not slip.
+    Drag,
+    /// A press, then a twist of up to 10°, held.
+    Twist,
+    /// A press, then a sideways load that reaches the friction limit: the sliding annulus
+    /// grows inwards until the whole contact slides, and the object slides over the skin.
+    Slip,
+}
+
+/// A simulated grasp frame by frame, with when it slipped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GraspSequence {
+    /// One touch per frame.
+    pub touches: Vec<ZooTouch>,
+    /// The first frame under a sideways load (the rim starts to slide), if any.
+    pub incipient_frame: Option<usize>,
+    /// The first frame at the friction limit: the whole contact slides from here.
+    pub slip_frame: Option<usize>,
+}
+
+/// A grasp of `frames` frames (at least 60) on `cfg`'s skin: 10 frames of rest, a press over
+/// 10, then what `kind` does, seeded by `seed` (where, how deep, which way). The sideways load
+/// `q` (a share of the friction limit) rises linearly over 40 frames; by Cattaneo–Mindlin the
+/// sticking centre's radius is `a (1 − q)^{1/3}` and the skin's drag `δ (1 − (1 − q)^{2/3})`,
+/// with `δ` 0.6 marker pitches at the limit. Past the limit (`Slip`) the drag stays at `δ`
+/// and the contact slides over the skin by 0.04 pitches a frame.
+pub fn zoo_slip(cfg: &ZooConfig, kind: GraspKind, frames: usize, seed: u64) -> GraspSequence {
+    let frames = frames.max(60);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x511F_0400);
+    let half = 0.2 * cfg.field_width_mm.min(cfg.field_height_mm);
+    let (x0, y0) = (
+        rng.random_range(-half..=half),
+        rng.random_range(-half..=half),
+    );
+    let depth = rng.random_range(0.5..=0.9) * cfg.max_depth_mm.min(2.0);
+    let ang = rng.random_range(0.0..std::f64::consts::TAU);
+    let (cx, sy) = (ang.cos(), ang.sin());
+    let delta = 0.6 * cfg.pitch_mm;
+    let (rest, pressed, ramp) = (10, 20, 40.0);
+    let q_end = match kind {
+        GraspKind::Slip => 1.0,
+        GraspKind::Drag => 0.6,
+        GraspKind::Press | GraspKind::Twist => 0.0,
+    };
+    let mut out = GraspSequence {
+        touches: Vec::with_capacity(frames),
+        incipient_frame: (q_end > 0.0).then_some(pressed + 1),
+        slip_frame: None,
+    };
+    let mut slid = 0.0;
+    for k in 0..frames {
+        let mut t = ZooTouch {
+            x_mm: x0,
+            y_mm: y0,
+            ..ZooTouch::default()
+        };
+        if k >= rest {
+            t.depth_mm = depth * ((k - rest) as f64 / (pressed - rest) as f64).min(1.0);
+        }
+        if k > pressed {
+            let along = (k - pressed) as f64 / ramp;
+            let q = (q_end * along).min(q_end);
+            if q >= 1.0 {
+                out.slip_frame.get_or_insert(k);
+                slid += 0.04 * cfg.pitch_mm;
+            }
+            let drag = delta * (1.0 - (1.0 - q).max(0.0).powf(2.0 / 3.0));
+            t.shear_x_mm = drag * cx;
+            t.shear_y_mm = drag * sy;
+            t.slip_annulus = 1.0 - (1.0 - q).max(0.0).cbrt();
+            t.x_mm += slid * cx;
+            t.y_mm += slid * sy;
+            if kind == GraspKind::Twist {
+                t.twist_deg = 10.0
+                    * along.min(1.0)
+                    * if ang > std::f64::consts::PI {
+                        -1.0
+                    } else {
+                        1.0
+                    };
+            }
+        }
+        out.touches.push(t);
+    }
+    out
+}
+
+#[cfg(test)]
+mod slip_tests {
+    use super::*;
+    use crate::zoo::displacement_mm;
+
+    #[test]
+    fn a_slip_grows_its_annulus_to_the_whole_contact_then_slides_and_a_drag_never_does() {
+        let cfg = ZooConfig::GELSIGHT;
+        let s = zoo_slip(&cfg, GraspKind::Slip, 90, 3);
+        assert_eq!((s.incipient_frame, s.slip_frame), (Some(21), Some(60)));
+        let annulus: Vec<f64> = s.touches.iter().map(|t| t.slip_annulus).collect();
+        assert!(annulus.windows(2).all(|w| w[1] >= w[0]));
+        assert_eq!(annulus[59] < 1.0, annulus[60] == 1.0);
+        let moved = |t: &ZooTouch| (t.x_mm - s.touches[0].x_mm).hypot(t.y_mm - s.touches[0].y_mm);
+        assert!(s.touches[..60].iter().all(|t| moved(t) == 0.0));
+        assert!((moved(&s.touches[89]) - 30.0 * 0.04 * cfg.pitch_mm).abs() < 1e-9);
+        for t in &s.touches {
+            t.validate(&cfg).unwrap();
+        }
+        let d = zoo_slip(&cfg, GraspKind::Drag, 90, 3);
+        assert_eq!(d.slip_frame, None);
+        let most = d.touches.iter().map(|t| t.slip_annulus).fold(0.0, f64::max);
+        assert!((most - (1.0 - 0.4f64.cbrt())).abs() < 1e-12, "{most}");
+        for kind in [GraspKind::Press, GraspKind::Twist] {
+            let p = zoo_slip(&cfg, kind, 60, 3);
+            assert_eq!((p.incipient_frame, p.slip_frame), (None, None));
+            assert!(p
+                .touches
+                .iter()
+                .all(|t| t.slip_annulus == 0.0 && t.shear_x_mm == 0.0));
+        }
+    }
+
+    #[test]
+    fn under_partial_slip_the_centre_follows_the_drag_and_the_rim_lags() {
+        let cfg = ZooConfig::GELSIGHT;
+        let stuck = ZooTouch {
+            depth_mm: 1.0,
+            shear_x_mm: 0.5,
+            ..ZooTouch::default()
+        };
+        let a = (cfg.tip_radius_mm * stuck.depth_mm).sqrt();
+        let slipping = ZooTouch {
+            slip_annulus: 0.5,
+            ..stuck
+        };
+        let along = |t: &ZooTouch, r: f64| {
+            displacement_mm(&cfg, t, r, 0.0)[0]
+                - displacement_mm(
+                    &cfg,
+                    &ZooTouch {
+                        shear_x_mm: 0.0,
+                        ..*t
+                    },
+                    r,
+                    0.0,
+                )[0]
+        };
+        // The centre, inside the sticking radius a/2: the whole drag, with or without slip.
+        assert!((along(&slipping, 0.2 * a) - 0.5).abs() < 1e-12);
+        assert!((along(&stuck, 0.2 * a) - 0.5).abs() < 1e-12);
+        // Halfway across the annulus: 7/8 of it; at the edge, 3/4.
+        assert!((along(&slipping, 0.75 * a) - 0.5 * 0.875).abs() < 1e-12);
+        assert!((along(&slipping, a) - 0.5 * 0.75).abs() < 1e-12);
+        assert!((along(&stuck, a) - 0.5).abs() < 1e-12);
+    }
+}

@@ -766,6 +766,12 @@ pub struct ZooTouch {
     pub shear_y_mm: f64,
     /// Twist of the skin under the tip, degrees.
     pub twist_deg: f64,
+    /// Partial slip (Cattaneo–Mindlin): the share of the contact radius that slides, 0 (the
+    /// whole contact sticks: the skin under it follows the drag) to 1 (it all slides). The
+    /// centre of radius `a (1 − slip_annulus)` follows the drag; the annulus around it lags,
+    /// up to half the drag at the contact's edge. See [`crate::protocol::zoo_slip`].
+    #[serde(default)]
+    pub slip_annulus: f64,
 }
 
 impl ZooTouch {
@@ -791,6 +797,7 @@ impl ZooTouch {
             self.shear_x_mm,
             self.shear_y_mm,
             self.twist_deg,
+            self.slip_annulus,
         ];
         if !v.iter().all(|x| x.is_finite()) {
             return Err(crate::SimError(format!(
@@ -818,6 +825,12 @@ impl ZooTouch {
         if drag > 2.0 * cfg.pitch_mm {
             return Err(crate::SimError(format!(
                 "drag of {drag:.2} mm exceeds two marker pitches"
+            )));
+        }
+        if !(0.0..=1.0).contains(&self.slip_annulus) {
+            return Err(crate::SimError(format!(
+                "slip annulus {} outside 0..1",
+                self.slip_annulus
             )));
         }
         if self.twist_deg.abs() > 30.0 {
@@ -861,14 +874,28 @@ pub fn displacement_mm(cfg: &ZooConfig, touch: &ZooTouch, u: f64, v: f64) -> [f6
     } else {
         (0.0, 0.0)
     };
-    // The tip's drag and twist, carried with the contact.
+    // The tip's drag and twist, carried with the contact; under partial slip the annulus
+    // beyond the sticking centre lags behind the drag.
     let (ts, tc) = (touch.twist_deg.to_radians() * fade).sin_cos();
     let twist = (tc * dx - ts * dy - dx, ts * dx + tc * dy - dy);
+    let drag = fade * stick_share(touch.slip_annulus, r / a);
     [
-        radial * ux + touch.shear_x_mm * fade + twist.0,
-        radial * uy + touch.shear_y_mm * fade + twist.1,
+        radial * ux + touch.shear_x_mm * drag + twist.0,
+        radial * uy + touch.shear_y_mm * drag + twist.1,
         w,
     ]
+}
+
+/// The share of the drag the skin at `rho = r/a` follows under partial slip with `annulus`
+/// (the sliding share of the contact radius): 1 in the sticking centre `rho ≤ 1 − annulus`,
+/// falling linearly to `1 − annulus / 2` at the contact's edge, and that beyond it.
+fn stick_share(annulus: f64, rho: f64) -> f64 {
+    let c = 1.0 - annulus;
+    if annulus <= 0.0 || rho <= c {
+        1.0
+    } else {
+        1.0 - 0.5 * annulus * ((rho - c) / annulus).min(1.0)
+    }
 }
 
 /// Point on the dome at chart position `(u, v)`, and its outward unit normal.
@@ -1210,6 +1237,7 @@ mod tests {
             shear_x_mm: 0.8,
             shear_y_mm: -0.3,
             twist_deg: 0.0,
+            slip_annulus: 0.0,
         };
         let under = displacement_mm(&c, &t, 1.0, -2.0);
         assert!((under[2] - 1.2).abs() < 1e-12);
@@ -1269,6 +1297,7 @@ mod tests {
             shear_x_mm: 1.0,
             shear_y_mm: 0.0,
             twist_deg: 5.0,
+            slip_annulus: 0.0,
         };
         let (a, _) = render(&c, &t, 5).unwrap();
         let (b, _) = render(&c, &t, 5).unwrap();
