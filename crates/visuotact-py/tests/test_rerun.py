@@ -110,11 +110,13 @@ def test_live_run_into_a_recording(session):
     d, _ = session
     out = d / "live.rrd"
     cli("run", "--source", "sim:cone", "--sensor", d / "sensor.json", "--max-frames", "8",
-        "--unpaced", "--quiet", "--rerun", out, "--rerun-images")
+        "--unpaced", "--quiet", "--rerun", out, "--rerun-images", "--slip", "builtin")
     t = [r for r in table(out, "frame") if r["frame"] is not None]
     assert [r["frame"] for r in t] == list(range(8))
     for r in t:
         assert one(r, "/visuotact/contact:Scalars:scalars") in (0.0, 1.0)
+        assert 0.0 <= one(r, "/visuotact/slip:Scalars:scalars") <= 1.0
+        assert one(r, "/visuotact/slip/state:Scalars:scalars") in (0.0, 1.0, 2.0)
         assert one(r, "/visuotact/health/found:Scalars:scalars") >= 1
         assert r["/visuotact/image:EncodedImage:blob"] is not None
         assert r["/visuotact/image/markers:Points2D:positions"]

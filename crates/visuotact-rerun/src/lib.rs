@@ -16,6 +16,7 @@
 //! | `NS/estimate/NAME` | `Scalars` | each estimated target (`x_mm`, `depth_mm`, `fz_n`, …) |
 //! | `NS/force/AXIS` | `Scalars` | the force/torque sensor (`fx_n` … `tz_nm`), each sample at its own time (no `frame`) |
 //! | `NS/contact` | `Scalars` | the live contact rule, 1 or 0 |
+//! | `NS/slip`, `NS/slip/state` | `Scalars` | the slip score (0 to 1) and state (0 stick, 1 incipient, 2 slip): live runs with `--slip` |
 //! | `NS/health/found`, `NS/health/lost` | `Scalars` | markers found and lost |
 //!
 //! The parts are the frame parts every other output writes ([`FrameMessages`]): the values
@@ -208,6 +209,14 @@ impl FrameTarget for RerunTarget {
                 format!("{ns}/contact"),
                 &Scalars::single(f64::from(u8::from(c))),
             )?;
+        }
+        if let Some((score, state)) = f.slip {
+            let code = ["stick", "incipient", "slip"]
+                .iter()
+                .position(|s| *s == state)
+                .unwrap_or(0);
+            self.log(format!("{ns}/slip"), &Scalars::single(score))?;
+            self.log(format!("{ns}/slip/state"), &Scalars::single(code as f64))?;
         }
         if let Some((h, _)) = &f.health {
             self.log(format!("{ns}/health/found"), &Scalars::single(h.ok as f64))?;

@@ -729,7 +729,8 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
 /// its whole evidence, and a sequence without slip also by each of its beginnings (no slip
 /// had happened there either): so that the live score stays low through a grasp that holds,
 /// not only at its end. (A slipping sequence's beginnings are left out: when it slipped is
-/// not labelled.) Both classes weigh the same.
+/// not labelled.) A still field (no marker moved) counts as no slip too, as often as there
+/// are slipping sequences. Both classes weigh the same.
 pub fn fit_detector(
     evidence: &[SequenceEvidence],
     slip: &[bool],
@@ -742,8 +743,15 @@ pub fn fit_detector(
             stick: slip.len() - pos,
         });
     }
-    let mut rows: Vec<[f64; EVIDENCE_LEN]> = Vec::new();
-    let mut labels = Vec::new();
+    // A skin that has not moved has not slipped: the evidence of a still field (every
+    // statistic 0), once per no-slip sequence, so that it weighs as a sequence of its own.
+    let still = if settings.stick_prefixes {
+        pos.min(slip.len() - pos)
+    } else {
+        0
+    };
+    let mut rows: Vec<[f64; EVIDENCE_LEN]> = vec![[0.0; EVIDENCE_LEN]; still];
+    let mut labels = vec![false; still];
     for (e, &y) in evidence.iter().zip(slip) {
         rows.push(e.whole);
         labels.push(y);

@@ -63,6 +63,11 @@ fn the_built_in_detector_reads_and_broken_files_are_named() {
     let d = SlipDetector::default();
     assert_eq!(d.inputs, SlipEvidence::names());
     assert_eq!(d.fitted_on, [300, 130]);
+    assert_eq!(
+        d.state_of(d.score(&[0.0; EVIDENCE_LEN])),
+        SlipState::Stick,
+        "a still field has not slipped"
+    );
     let mut bad = d.clone();
     bad.weights.pop();
     let e = SlipDetector::from_json(&bad.to_json(), "x.json")
