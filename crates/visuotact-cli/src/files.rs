@@ -17,14 +17,9 @@ pub(crate) fn load_sensor(path: &Path) -> anyhow::Result<SensorCalibration> {
     SensorCalibration::from_json(&text, &path.display().to_string()).map_err(anyhow::Error::msg)
 }
 
-/// Reads a slip detector file, naming it in errors; `builtin`: the built-in detector.
+/// The slip detector at `p`, or the built-in one for `builtin`.
 pub(crate) fn load_slip(p: &Path) -> anyhow::Result<SlipDetector> {
-    if p == Path::new("builtin") {
-        return Ok(SlipDetector::default());
-    }
-    let text = visuotact_io::read::text_of_file(p)
-        .with_context(|| format!("{}: cannot read slip detector file", p.display()))?;
-    Ok(SlipDetector::from_json(&text, &p.display().to_string())?)
+    Ok(SlipDetector::load(p)?)
 }
 
 /// Reads a model file, naming it in errors.

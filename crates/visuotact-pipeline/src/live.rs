@@ -319,13 +319,7 @@ impl LiveEstimator {
     /// Each contact is one sequence: the detector starts afresh when a contact begins (and on
     /// re-zeroing). Needs a feature set with `dx` and `dy`.
     pub fn set_slip(&mut self, detector: SlipDetector) -> Result<(), PipelineError> {
-        if !SlipMonitor::reads(self.est.feature_set()) {
-            return Err(PipelineError::Slip(
-                "slip detection reads the markers' displacements: the features must include x and y",
-            ));
-        }
-        let monitor = SlipMonitor::of_sensor(detector, self.est.calibration());
-        self.slip = Some(monitor);
+        self.slip = Some(SlipMonitor::for_estimator(detector, &self.est)?);
         Ok(())
     }
 

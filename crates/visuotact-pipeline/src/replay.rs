@@ -263,16 +263,14 @@ pub fn replay(
         source,
     };
     let mut columns = targets.clone();
-    let mut slip = cfg.slip.clone().map(|d| {
-        columns.extend(["slip_score".to_string(), "slip_state".to_string()]);
-        SlipMonitor::of_sensor(d, est.calibration())
-    });
+    let mut slip = match cfg.slip.clone() {
+        Some(d) => {
+            columns.extend(["slip_score".to_string(), "slip_state".to_string()]);
+            Some(SlipMonitor::for_estimator(d, est)?)
+        }
+        None => None,
+    };
     let set = est.feature_set();
-    if slip.is_some() && !SlipMonitor::reads(set) {
-        return Err(ReplayError::Pipeline(PipelineError::Slip(
-            "slip detection reads the markers' displacements: the features must include x and y",
-        )));
-    }
     let mut out = TableWriter::create(&cfg.output, TableFormat::Csv, columns).map_err(write_err)?;
     let nan = vec![f64::NAN; targets.len()];
     let mut row = Vec::new();

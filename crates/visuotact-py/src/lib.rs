@@ -599,16 +599,6 @@ struct Live {
     slip: Option<SlipMonitor>,
 }
 
-/// The slip detector a Python argument names: a file, or `"builtin"`.
-fn slip_detector(path: &str) -> PyResult<SlipDetector> {
-    if path == "builtin" {
-        return Ok(SlipDetector::default());
-    }
-    let text = visuotact_io::read::text_of_file(std::path::Path::new(path))
-        .map_err(|e| error(format!("{path}: cannot read slip detector file: {e}")))?;
-    SlipDetector::from_json(&text, path).map_err(error)
-}
-
 #[pymethods]
 impl Live {
     fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
@@ -682,15 +672,12 @@ fn live(
     let cal = sensor.map(|s| s.est.calibration().clone());
     let mut est = Estimator::new(cal, model.map(|m| m.m.clone())).map_err(error)?;
     est.set_temporal_prior(temporal);
-    let slip = match slip {
-        Some(p) => {
-            if !SlipMonitor::reads(est.feature_set()) {
-                return Err(error("slip detection reads the markers' displacements: the sensor's features must include x and y"));
-            }
-            Some(SlipMonitor::of_sensor(slip_detector(p)?, est.calibration()))
-        }
-        None => None,
-    };
+    let slip = slip
+        .map(|p| {
+            let d = SlipDetector::load(std::path::Path::new(p)).map_err(error)?;
+            SlipMonitor::for_estimator(d, &est).map_err(error)
+        })
+        .transpose()?;
     Ok(Live {
         stream,
         targets: est.target_columns(),
@@ -716,7 +703,7 @@ fn slip_detect<'py>(
         Ok(p) => vec![p],
         Err(_) => videos.extract()?,
     };
-    let det = slip_detector(detector)?;
+    let det = SlipDetector::load(std::path::Path::new(detector)).map_err(error)?;
     let paths = sequences_in(&paths).map_err(error)?;
     let cal = sensor.map(|s| s.est.calibration().clone());
     let cfg = SlipConfig {

@@ -334,6 +334,20 @@ impl SlipDetector {
         Self::from_json(include_str!("slip_default.json"), "the built-in detector").ok()
     }
 
+    /// The detector at `path`, or the built-in one for `builtin` (what `--slip`, `--detector`
+    /// and Python's `slip=` accept).
+    pub fn load(path: &Path) -> Result<Self, SlipError> {
+        if path == Path::new("builtin") {
+            return Ok(Self::default());
+        }
+        let name = path.display().to_string();
+        let text = visuotact_io::read::text_of_file(path).map_err(|e| SlipError::Detector {
+            source_name: name.clone(),
+            why: format!("cannot read it: {e}"),
+        })?;
+        Self::from_json(&text, &name)
+    }
+
     /// Reads a detector file's text; `source_name` names it in errors.
     pub fn from_json(text: &str, source_name: &str) -> Result<Self, SlipError> {
         let bad = |why: String| SlipError::Detector {
@@ -455,6 +469,19 @@ impl SlipMonitor {
             field: FieldDynamics::default(),
             displacements: Vec::new(),
         }
+    }
+
+    /// A monitor of `est`'s markers, refused when its features lack the displacements.
+    pub fn for_estimator(
+        detector: SlipDetector,
+        est: &crate::Estimator,
+    ) -> Result<Self, crate::PipelineError> {
+        if !Self::reads(est.feature_set()) {
+            return Err(crate::PipelineError::Slip(
+                "slip detection reads the markers' displacements: the features must include x and y",
+            ));
+        }
+        Ok(Self::of_sensor(detector, est.calibration()))
     }
 
     /// A monitor of `sensor`'s markers.
