@@ -473,10 +473,11 @@ impl FeatureExtractor {
         names
     }
 
-    /// The blobs of the last frame (those the filter kept; blob indices of
-    /// [`FeatureExtractor::last_track`] point into them).
+    /// The blobs of the last frame: those the filter kept, then the markers cut by the
+    /// image's edge (a marker whose cut blob is as big as a whole marker keeps it). Blob
+    /// indices of [`FeatureExtractor::last_track`] point into them.
     pub fn last_blobs(&self) -> &[Blob] {
-        &self.blobs[..self.blobs.len() - self.cut]
+        &self.blobs
     }
 
     /// The tracking result of the last frame.

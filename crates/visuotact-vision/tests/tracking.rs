@@ -843,3 +843,60 @@ fn two_rows_dragged_past_a_pitch_are_in_doubt_not_read_a_step_short() {
         }
     }
 }
+
+/// A wide grid twisted about its centre moves its rim by more than a pitch while its centre
+/// stays: read order-free, every marker keeps its own blob (none is read a step along the
+/// twist, no seam of lost markers where regions read from different seeds meet).
+#[test]
+fn a_twisted_wide_grid_keeps_every_identity() {
+    use visuotact_vision::track::{track, MarkerStatus, TrackParams, TrackReference};
+    let (n, pitch) = (15usize, 20.0);
+    let rest: Vec<(f64, f64)> = (0..n * n)
+        .map(|k| (40.0 + pitch * (k % n) as f64, 40.0 + pitch * (k / n) as f64))
+        .collect();
+    let reference = TrackReference::new(rest.clone(), vec![30.0; n * n]);
+    let c = 40.0 + pitch * (n - 1) as f64 / 2.0;
+    for deg in [-14.0f64, -11.0, -8.0, -5.0, 5.0, 8.0, 11.0, 14.0] {
+        let (s, co) = deg.to_radians().sin_cos();
+        let moved: Vec<(f64, f64)> = rest
+            .iter()
+            .map(|&(x, y)| {
+                let (dx, dy) = (x - c, y - c);
+                (c + co * dx - s * dy + 3.0, c + s * dx + co * dy - 2.0)
+            })
+            .collect();
+        // Blobs in another order than the markers.
+        let blobs: Vec<_> = moved
+            .iter()
+            .rev()
+            .map(|&(x, y)| disc_blob(x, y, 30, false))
+            .collect();
+        let t = track(&reference, &blobs, &TrackParams::DEFAULT);
+        for k in 0..n * n {
+            assert_eq!(t.status[k], MarkerStatus::Ok, "{deg}°: marker {k}");
+            assert_eq!(t.assignment[k], Some(n * n - 1 - k), "{deg}°: marker {k}");
+        }
+    }
+}
+
+/// The tracker's settings parse from `name=value` pairs over the defaults, every bad one
+/// named; a sensor file written before `spread_sigmas` existed gets its default.
+#[test]
+fn tracker_settings_parse_and_default() {
+    use visuotact_vision::track::TrackParams;
+    let p = TrackParams::DEFAULT
+        .parse_over("spread_sigmas=1, margin=3")
+        .unwrap();
+    assert_eq!((p.spread_sigmas, p.margin), (1.0, 3.0));
+    assert_eq!(p.gate_spacings, TrackParams::DEFAULT.gate_spacings);
+    for bad in ["spread_sigmas=0", "spread_sigmas=x", "spread=1", "margin"] {
+        let e = TrackParams::DEFAULT
+            .parse_over(bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(bad.split('=').next().unwrap()), "{bad}: {e}");
+    }
+    let old: TrackParams = serde_json::from_str(r#"{"margin": 2.5}"#).unwrap();
+    assert_eq!(old.spread_sigmas, TrackParams::DEFAULT.spread_sigmas);
+    assert_eq!(old.margin, 2.5);
+}

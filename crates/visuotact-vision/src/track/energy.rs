@@ -6,7 +6,11 @@
 //! (|b_j − q_i| / (σ · s_i · m_i))²  +  (ln(A_j / (k · a_i · m_i²)) / σ_a,i)²
 //! ```
 //!
-//! with `q_i` its prediction from its neighbours ([`super::predict`]), `s_i` its spacing,
+//! with `q_i` its prediction from its neighbours ([`super::predict`]), `s_i` its spacing
+//! (the position's scale `σ · s_i · m_i` widened by the neighbours' spread about their affine
+//! fit, that spread bounded by
+//! [`TrackParams::spread_sigmas`](super::TrackParams::spread_sigmas) times the scale: a skin
+//! does not tear, and a spread without bound would excuse a reading torn at its seam),
 //! `m_i` the local magnification, `a_i` its area at rest and `k` the number of markers the
 //! blob holds (1, or 2 when two markers squeezed together show as one blob, whose centroid is
 //! then compared with their predictions' area-weighted mean; a blob smaller than expected
@@ -73,10 +77,14 @@ impl Energy<'_> {
     }
 
     /// The prediction's uncertainty, pixels: σ spacings scaled by the magnification, widened
-    /// by how far the neighbours' motion strays from affine.
+    /// by how far the neighbours' motion strays from affine, that spread counting up to
+    /// [`TrackParams::spread_sigmas`](super::TrackParams::spread_sigmas) times σ. A skin does not
+    /// tear: a spread that widened without bound would excuse a reading torn by a lattice step
+    /// at its seam (a region read a step off would cost little more than the right reading).
     pub fn sigma_px(&self, i: usize, p: &Prediction) -> f64 {
         let s = self.params.sigma_spacings * self.reference.spacing_px[i] * p.scale;
-        (s * s + p.spread_px * p.spread_px).sqrt()
+        let spread = p.spread_px.min(s * self.params.spread_sigmas);
+        (s * s + spread * spread).sqrt()
     }
 
     /// The position term: `(distance / σ_px)²`.

@@ -10,9 +10,10 @@
 //!   marker without a blob costs the lost cost, scaled by how visible it should be, and a
 //!   blob without a marker the same as clutter.
 //! - `solve`: seeds, growth and a global minimum-cost assignment minimise the energy;
-//!   order-free on a lattice, the reading shifted by whole lattice steps is compared too, and
-//!   a reading that leaves a blob or a marker unexplained is searched again from a firmer
-//!   motion prior, the lower energy kept.
+//!   order-free on a lattice, the reading shifted by whole lattice steps is compared too. A
+//!   multi-start search: a reading that leaves a blob or a marker unexplained is searched
+//!   again from a firmer motion prior, then from seeds judged each on its own, the lowest
+//!   energy kept.
 //! - `slide`: the runner-ups a lattice tracker must compare — regions read a lattice step
 //!   off (chains from markers without a blob) and smooth parts shifted by a step or two —
 //!   kept when they lower the energy by the margin.
@@ -116,6 +117,14 @@ pub struct TrackParams {
     /// position term. 0.2: the residual of a local affine fit under a deep press or a drag of
     /// a pitch.
     pub sigma_spacings: f64,
+    /// How far the neighbours' disagreement (the spread of their displacements about one
+    /// affine motion) may widen the position's scale, in multiples of
+    /// [`TrackParams::sigma_spacings`]. 3: a drag shears a large dot a pitch and a half
+    /// against the neighbours that lag it (the simulator's dots); 1 suits a sensor whose
+    /// skin moves smoothly between sparse markers (real GelSight Mini under large slides:
+    /// marker-frames read over 10 px off the vendor's, 464 → 191), where a wider bound
+    /// excuses a region read a lattice step off.
+    pub spread_sigmas: f64,
     /// Typical relative change of a marker's blob area from its expected size: the scale of
     /// the area term (widened by the pixel noise of a small marker's outline). 0.35: binarised
     /// pins swell and shrink by about a third with the light.
@@ -133,6 +142,7 @@ impl TrackParams {
         motion_spacings: 4.0,
         gate_spacings: 0.6,
         sigma_spacings: 0.2,
+        spread_sigmas: 3.0,
         area_sigma: 0.35,
         margin: 2.0,
     };
@@ -152,12 +162,14 @@ impl TrackParams {
                 "motion_spacings" => &mut self.motion_spacings,
                 "gate_spacings" => &mut self.gate_spacings,
                 "sigma_spacings" => &mut self.sigma_spacings,
+                "spread_sigmas" => &mut self.spread_sigmas,
                 "area_sigma" => &mut self.area_sigma,
                 "margin" => &mut self.margin,
                 other => {
                     return Err(crate::ConfigError(format!(
                         "unknown tracker setting {other:?}: expected reach_pitches, \
-                         motion_spacings, gate_spacings, sigma_spacings, area_sigma or margin"
+                         motion_spacings, gate_spacings, sigma_spacings, spread_sigmas, \
+                         area_sigma or margin"
                     )))
                 }
             };
@@ -175,6 +187,7 @@ impl TrackParams {
             ("motion_spacings", self.motion_spacings, 100.0),
             ("gate_spacings", self.gate_spacings, 100.0),
             ("sigma_spacings", self.sigma_spacings, 100.0),
+            ("spread_sigmas", self.spread_sigmas, 1e6),
             ("area_sigma", self.area_sigma, 100.0),
             ("margin", self.margin, 1e6),
         ] {
@@ -411,8 +424,25 @@ pub struct TrackHints<'a> {
 
 /// Seeds, grows and refines `m`; order-free, also searches the offset and shifted parts.
 /// Returns the runner-ups within the margin of the reading kept.
-fn search(m: &mut solve::Matching<'_>, order_free: bool) -> Vec<slide::RunnerUp> {
-    m.seed();
+/// Where a search starts: how its seeds are judged and how firm its motion prior is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Start {
+    /// Seeds judged one after another, each from the seeds already taken: a field moved
+    /// far from the registration is carried from seed to seed.
+    Chained,
+    /// As [`Start::Chained`] with the motion prior twice as firm: a region near its start
+    /// is not read a step off where the weak prior lets the search wander.
+    ChainedFirm,
+    /// Each seed judged from the registration alone: one wrong seed cannot carry a chain of
+    /// others a step off (a twist or a tilt moves a wide layout's regions by different
+    /// pitches, and a chain grown from one of them tears the field where they meet).
+    Independent,
+}
+
+/// Seeds, grows and refines `m` from `start`; order-free, also searches the offset and
+/// shifted parts. Returns the runner-ups within the margin of the reading kept.
+fn search(m: &mut solve::Matching<'_>, order_free: bool, start: Start) -> Vec<slide::RunnerUp> {
+    m.seed(start == Start::Independent);
     m.grow();
     m.refine(6);
     if order_free {
@@ -425,24 +455,32 @@ fn search(m: &mut solve::Matching<'_>, order_free: bool) -> Vec<slide::RunnerUp>
     runner_ups
 }
 
-/// Order-free, a second start from the registration with the motion prior twice as firm: it
-/// keeps a region near its start from being read a step off where the weak prior lets the
-/// search wander. Its reading replaces `m`'s when its energy (the one energy) is lower by the
-/// margin; then returns the runner-ups of the reading kept.
-fn search_firmer(m: &mut solve::Matching<'_>, view: Option<View>) -> Option<Vec<slide::RunnerUp>> {
+/// Order-free, another start from the registration. Its reading replaces `m`'s when its
+/// energy (the one energy, with `m`'s own parameters) is lower by the margin; then returns
+/// the runner-ups of the reading kept.
+fn restart(
+    m: &mut solve::Matching<'_>,
+    view: Option<View>,
+    start: Start,
+) -> Option<Vec<slide::RunnerUp>> {
     let params = m.energy.params;
-    let firm = TrackParams {
-        motion_spacings: 0.5 * params.motion_spacings,
+    let firmness = if start == Start::ChainedFirm {
+        0.5
+    } else {
+        1.0
+    };
+    let own = TrackParams {
+        motion_spacings: firmness * params.motion_spacings,
         ..*params
     };
     let energy = energy::Energy {
         reference: m.reference,
-        params: &firm,
+        params: &own,
         view,
     };
     let anchors = m.reference.positions.clone();
     let mut second = solve::Matching::new(m.reference, m.blobs, m.usable, energy, anchors, m.shift);
-    search(&mut second, true);
+    search(&mut second, true, start);
     let (first, e_first) = (m.assignment.clone(), m.total_energy());
     m.set_assignment(&second.assignment);
     if m.total_energy() < e_first - params.margin {
@@ -484,15 +522,19 @@ pub fn track_with(
         Some(p) => predict::anchors_from_prior(reference, p),
         None => reference.positions.clone(),
     };
-    let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
     let order_free = prior.is_none();
+    let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
     if order_free {
         m.shift = predict::register(reference, &m.index);
     }
-    let mut runner_ups = search(&mut m, order_free);
-    if order_free && m.leaves_unexplained() {
-        if let Some(r) = search_firmer(&mut m, hints.view) {
-            runner_ups = r;
+    // A multi-start search on the one energy: while a reading leaves a blob or a marker in
+    // view unexplained, another start may find a lower energy.
+    let mut runner_ups = search(&mut m, order_free, Start::Chained);
+    for start in [Start::ChainedFirm, Start::Independent] {
+        if order_free && m.leaves_unexplained() {
+            if let Some(r) = restart(&mut m, hints.view, start) {
+                runner_ups = r;
+            }
         }
     }
     let preds = m.predictions();

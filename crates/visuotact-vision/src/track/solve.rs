@@ -1,8 +1,10 @@
 //! The assignment: which blob each marker takes, minimising the energy ([`super::energy`]).
 //!
-//! 1. **Seeds**: markers whose blob near the starting motion is unmistakable (within half the
-//!    gate, no other blob within the gate), keeping only the largest set whose displacements
-//!    agree with their seeded neighbours.
+//! 1. **Seeds**: markers whose blob near where they are expected is unmistakable (within half
+//!    the gate, no other blob within the gate), keeping only the largest set whose
+//!    displacements agree with their seeded neighbours. Expected: from the seeds already
+//!    taken (chained), or from the starting motion alone (independent; one of the starts
+//!    [`super`] compares).
 //! 2. **Growth**, best supported first: a marker predicted from its matched neighbours takes
 //!    the free blob of least cost when that costs less than being lost and the next blob costs
 //!    at least the margin more; otherwise it waits for more neighbours.
@@ -160,16 +162,19 @@ impl<'a> Matching<'a> {
 
     /// [`Matching::predict`], or the starting motion when no neighbour holds a blob.
     pub fn predict_or_start(&self, i: usize) -> Prediction {
-        self.predict(i).unwrap_or_else(|| {
-            let a = self.anchors[i];
-            let start = (a.0 + self.shift.0, a.1 + self.shift.1);
-            Prediction {
-                at: start,
-                scale: 1.0,
-                spread_px: 0.0,
-                start,
-            }
-        })
+        self.predict(i).unwrap_or_else(|| self.start_of(i))
+    }
+
+    /// Where the starting motion alone puts `i`: its anchor moved by the shift.
+    fn start_of(&self, i: usize) -> Prediction {
+        let a = self.anchors[i];
+        let start = (a.0 + self.shift.0, a.1 + self.shift.1);
+        Prediction {
+            at: start,
+            scale: 1.0,
+            spread_px: 0.0,
+            start,
+        }
     }
 
     /// The cost of `i` (predicted `pred`) taking blob `j`.
@@ -197,13 +202,19 @@ impl<'a> Matching<'a> {
         });
     }
 
-    /// Seeds: markers whose blob near `start` is unmistakable.
-    pub fn seed(&mut self) {
+    /// Seeds: markers whose blob near where they are expected is unmistakable. Expected:
+    /// `independent`, where the starting motion puts each; otherwise from the seeds already
+    /// taken among its neighbours (in marker order), the starting motion for the first.
+    pub fn seed(&mut self, independent: bool) {
         let n = self.anchors.len();
         let gate_cost = self.energy.gate_cost();
         let mut cands = Vec::new();
         for i in 0..n {
-            let pred = self.predict_or_start(i);
+            let pred = if independent {
+                self.start_of(i)
+            } else {
+                self.predict_or_start(i)
+            };
             self.candidates(i, pred, |j| self.owner[j].is_some(), &mut cands);
             let Some(&(j, c)) = cands.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
                 continue;
