@@ -210,13 +210,10 @@ impl FrameTarget for RerunTarget {
                 &Scalars::single(f64::from(u8::from(c))),
             )?;
         }
-        if let Some((score, state)) = f.slip {
-            let code = ["stick", "incipient", "slip"]
-                .iter()
-                .position(|s| *s == state)
-                .unwrap_or(0);
-            self.log(format!("{ns}/slip"), &Scalars::single(score))?;
-            self.log(format!("{ns}/slip/state"), &Scalars::single(code as f64))?;
+        if let Some(s) = f.slip {
+            self.log(format!("{ns}/slip"), &Scalars::single(s.score))?;
+            let code = f64::from(s.state as u8);
+            self.log(format!("{ns}/slip/state"), &Scalars::single(code))?;
         }
         if let Some((h, _)) = &f.health {
             self.log(format!("{ns}/health/found"), &Scalars::single(h.ok as f64))?;

@@ -146,7 +146,7 @@ pub(crate) fn live_frame<'a>(
         mm_per_px: e.mm_per_px,
         png,
         health: Some((&e.health, values)),
-        slip: e.slip.map(|s| (s.score, s.state.name())),
+        slip: e.slip,
     })
 }
 

@@ -19,6 +19,7 @@
 //! `FRAME_ID/image` (x right, y down, pixels). Stamps: each frame's timestamp.
 
 use visuotact_pipeline::live::{Health, TargetEstimate};
+use visuotact_pipeline::slip::SlipEstimate;
 
 use crate::bag::Bag;
 use crate::msg::{
@@ -157,7 +158,7 @@ pub struct FrameMessages<'a> {
     /// Marker health and the figures to report with it.
     pub health: Option<(&'a Health, Vec<(String, String)>)>,
     /// The slip score and state (live runs with a slip detector).
-    pub slip: Option<(f64, &'static str)>,
+    pub slip: Option<SlipEstimate>,
 }
 
 /// The force/torque axes as target names.
@@ -401,9 +402,13 @@ pub fn write_frame<P: Publish>(
     if let Some(c) = f.contact {
         bag.publish(&cfg.topic("contact/active"), at, &Bool(c))?;
     }
-    if let Some((score, state)) = f.slip {
-        bag.publish(&cfg.topic("slip"), at, &Float64(score))?;
-        bag.publish(&cfg.topic("slip/state"), at, &StringMsg(state.into()))?;
+    if let Some(s) = f.slip {
+        bag.publish(&cfg.topic("slip"), at, &Float64(s.score))?;
+        bag.publish(
+            &cfg.topic("slip/state"),
+            at,
+            &StringMsg(s.state.name().into()),
+        )?;
     }
     if let Some(markers) = f.markers {
         let m = marker_cloud(Header::at_ns(at, &image_frame), markers, f.mm_per_px);
@@ -496,7 +501,10 @@ mod tests {
                 markers: Some(&markers),
                 png: images.then(Vec::new),
                 health: Some((&health, Vec::new())),
-                slip: Some((0.7, "slip")),
+                slip: Some(SlipEstimate {
+                    state: visuotact_pipeline::slip::SlipState::Slip,
+                    score: 0.7,
+                }),
                 ..FrameMessages::default()
             };
             let (mut published, mut declared) = (Seen::default(), Seen::default());

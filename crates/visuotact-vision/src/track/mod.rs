@@ -422,8 +422,6 @@ pub struct TrackHints<'a> {
     pub view: Option<View>,
 }
 
-/// Seeds, grows and refines `m`; order-free, also searches the offset and shifted parts.
-/// Returns the runner-ups within the margin of the reading kept.
 /// Where a search starts: how its seeds are judged and how firm its motion prior is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Start {
