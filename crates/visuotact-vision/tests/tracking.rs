@@ -632,6 +632,27 @@ fn a_blob_without_a_waist_is_split_only_as_far_apart_as_predicted() {
     assert!((x13.unwrap() - 86.0).abs() < 0.3, "{x13:?}");
 }
 
+/// Order-free, on a 5 × 5 grid of 30-px markers 20 px apart (gate 12 px), one free blob of
+/// two markers' area and two touching lobes along x, 7.5 px below the midpoint of markers 12
+/// and 13 (two pins joined by a bridge on a TacTip's rim, its centroid between them): 12.5 px
+/// from either prediction, beyond both gates, but 7.5 px from where the pair's centroid is
+/// expected. The pair is read on it (split or merged), neither marker lost.
+#[test]
+fn two_blobless_neighbours_share_the_blob_between_them() {
+    let (positions, reference) = grid_reference();
+    let mut pair = disc_blob(80.0, 77.5, 60, false);
+    pair.mu20_px2 = 2.0 * 30.0 / (4.0 * std::f64::consts::PI) + 100.0;
+    pair.mu02_px2 = 30.0 / (4.0 * std::f64::consts::PI);
+    let (r, _) = pair_on_one_blob(&positions, &reference, 30, pair);
+    for k in [12, 13] {
+        assert!(
+            matches!(r.status[k], MarkerStatus::Merged | MarkerStatus::Split),
+            "marker {k}: {:?}",
+            r.status[k]
+        );
+    }
+}
+
 /// Order-free, marker 13 hidden (no blob) and marker 12's blob, at its rest place 1 spacing
 /// from 13's prediction, of one marker's area but two lobes (the moments of two half-size discs
 /// 8 px apart: it fills 0.73 of its ellipse): two markers shrunk under the contact and touching,
@@ -659,6 +680,41 @@ fn a_two_lobed_blob_beside_a_hidden_neighbour_is_not_the_holders_alone() {
     assert_eq!(status_12(64, 0.0), MarkerStatus::Ok);
     assert_eq!(small.areas_px[0], 30.0);
     assert_eq!(status_12(30, 4.0), MarkerStatus::Ok);
+}
+
+/// Order-free, every marker of the grid in view and marker 12's blob carrying a tail: its
+/// own disc (120 px) joined by a speck of 18 px 11 px from its centre, as binarised TacTip pins fray
+/// in contact (the blob fills 0.8 of its moments' ellipse). The pin is still 12, measured,
+/// and no neighbour is put in doubt: with no neighbour hidden that could be its other lobe, a
+/// misshapen blob costs at most a speck of clutter (beside a hidden neighbour it does not:
+/// `a_two_lobed_blob_beside_a_hidden_neighbour_is_not_the_holders_alone`).
+#[test]
+fn a_pin_with_a_tail_is_still_the_pin() {
+    use visuotact_vision::track::{track, TrackParams, TrackReference};
+    let (positions, _) = grid_reference();
+    let reference = TrackReference::new(positions.clone(), vec![120.0; 25]);
+    let mut blobs: Vec<_> = positions
+        .iter()
+        .map(|&(x, y)| disc_blob(x, y, 120, false))
+        .collect();
+    // The disc's variance is 120/(4π) ≈ 9.5 px², the speck's 18/(4π); the speck 11 px out
+    // along x shifts the centroid by 18·11/138 ≈ 1.4 px and widens the variance along x by
+    // 120·18·11²/138² ≈ 13.7 px².
+    let (a, s, r) = (120.0, 18.0, 11.0);
+    let w = a + s;
+    let own = (a * a + s * s) / (4.0 * std::f64::consts::PI * w);
+    let b = &mut blobs[12];
+    b.area_px = 138;
+    b.x_px += s * r / w;
+    b.mu20_px2 = own + a * s * r * r / (w * w);
+    b.mu02_px2 = own;
+    let fill = 138.0 / (4.0 * std::f64::consts::PI * (b.mu20_px2 * b.mu02_px2).sqrt());
+    assert!((0.75..0.85).contains(&fill), "{fill}");
+    let t = track(&reference, &blobs, &TrackParams::default());
+    for k in 0..25 {
+        assert_eq!(t.status[k], MarkerStatus::Ok, "marker {k}");
+        assert_eq!(t.assignment[k], Some(k), "marker {k}");
+    }
 }
 
 /// Followed tracking of the grid with markers 12 and 13 (the middle row's centre and its

@@ -173,7 +173,8 @@ fn runner_up_margin(
 }
 
 /// The blobs blobless marker `i` may share, with the marker it would share each with: the one
-/// nearest its prediction (its holder, or a blobless neighbour nearest it too), and those of its
+/// nearest its prediction (its holder, or a blobless neighbour nearest it too), a free one
+/// nearest the mean of its and a blobless neighbour's predictions, and those of its
 /// neighbours within half again its gate (a hidden marker's prediction lags).
 fn shared_blobs(
     m: &Matching<'_>,
@@ -192,6 +193,26 @@ fn shared_blobs(
         shared.extend(partner.map(|k| (j, k)));
     }
     for &k in &m.reference.neighbours[i] {
+        if k > i && m.assignment[k].is_none() {
+            // Two blobless neighbours may share a free blob that lies between them, nearer
+            // their predictions' area-weighted mean (where the pair's centroid is expected)
+            // than either prediction.
+            let (pi, pk) = (preds[i], preds[k]);
+            let (ai, ak) = (
+                m.reference.areas_px[i] * pi.scale * pi.scale,
+                m.reference.areas_px[k] * pk.scale * pk.scale,
+            );
+            let w = ai + ak;
+            let mean = (
+                (ai * pi.at.0 + ak * pk.at.0) / w,
+                (ai * pi.at.1 + ak * pk.at.1) / w,
+            );
+            if let Some(j) = m.index.nearest(mean, m.energy.gate_px(i, &pi)) {
+                if j < m.usable && m.owner[j].is_none() && !shared.contains(&(j, k)) {
+                    shared.push((j, k));
+                }
+            }
+        }
         if let Some(j) = m.assignment[k] {
             let b = (m.blobs[j].x_px, m.blobs[j].y_px);
             let d = (b.0 - preds[i].at.0).hypot(b.1 - preds[i].at.1);

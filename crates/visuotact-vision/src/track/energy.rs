@@ -20,7 +20,9 @@
 //! tolerance [`TrackParams::area_sigma`](super::TrackParams::area_sigma) widened by the pixel
 //! noise of a small marker's outline. A blob cut by the image border carries no area term; a
 //! blob of two lobes pays a shape term (how far under 1 it fills its moments' ellipse, in the
-//! sensor's own markers' shortfall at rest). A weak
+//! sensor's own markers' shortfall at rest) — bounded by a speck of clutter's cost when the
+//! blob holds at least the marker's area and no neighbour is without a blob (then the second
+//! lobe can only be a speck joined to the marker, not another marker). A weak
 //! motion prior adds `(|b_j − o_i| / (M · s_i))²`, `o_i` where the starting motion puts the
 //! marker and `M` [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings): it
 //! decides between readings the rest cannot tell apart (half a grid hidden, the other half read
@@ -51,6 +53,14 @@ impl Energy<'_> {
     /// that of a blob without a marker.
     pub fn gate_cost(&self) -> f64 {
         (self.params.gate_spacings / self.params.sigma_spacings).powi(2)
+    }
+
+    /// The most a blob's shape may cost one marker when no neighbour without a blob could be
+    /// its other lobe: the blob is then at worst the marker joined by a speck of clutter, and
+    /// costs no more than that speck alone (a binarised TacTip pin frays in contact into a
+    /// pin with a tail, filling 0.8 of its ellipse).
+    pub fn speck_cost(&self) -> f64 {
+        self.clutter_cost()
     }
 
     /// The cost of a blob taken by no marker (clutter).
@@ -129,11 +139,21 @@ impl Energy<'_> {
     /// The cost of marker `i`, predicted at `pred` with magnification `scale`, taking `b`
     /// alone: position, area and shape (a blob of two lobes is not one marker).
     pub fn cost(&self, i: usize, p: &Prediction, b: &Blob, cut: bool) -> f64 {
-        self.cost_with(i, p, b, cut, if cut { 0.0 } else { fill_short(b) })
+        let short = if cut { 0.0 } else { fill_short(b) };
+        self.cost_with(i, p, b, cut, (short, f64::INFINITY))
     }
 
-    /// [`Energy::cost`] with the blob's [`fill_short`] given (computed once per blob).
-    pub fn cost_with(&self, i: usize, p: &Prediction, b: &Blob, cut: bool, short: f64) -> f64 {
+    /// [`Energy::cost`] with the blob's [`fill_short`] given (computed once per blob) and the
+    /// shape term bounded by `shape_cap` ([`Energy::speck_cost`] where no second marker
+    /// can be the blob's other lobe, infinite otherwise).
+    pub fn cost_with(
+        &self,
+        i: usize,
+        p: &Prediction,
+        b: &Blob,
+        cut: bool,
+        (short, shape_cap): (f64, f64),
+    ) -> f64 {
         let d = dist((b.x_px, b.y_px), p.at);
         let expected = self.reference.areas_px[i] * p.scale * p.scale;
         let o = outline_noise(expected.max(1.0));
@@ -141,7 +161,13 @@ impl Energy<'_> {
             0.0
         } else {
             let f = self.reference.fill_sigma;
-            (short / (f * f + o * o).sqrt()).powi(2)
+            let shape = (short / (f * f + o * o).sqrt()).powi(2);
+            // A marker joined by a speck holds at least the marker's own area.
+            if f64::from(b.area_px) >= expected {
+                shape.min(shape_cap)
+            } else {
+                shape
+            }
         };
         let moved = dist((b.x_px, b.y_px), p.start);
         // The area's outline noise is at the expected area itself, the shape's at least a pixel.

@@ -181,7 +181,25 @@ impl<'a> Matching<'a> {
     pub fn cost(&self, i: usize, pred: Prediction, j: usize) -> f64 {
         let cut = self.is_cut(j);
         let short = if cut { 0.0 } else { self.fill_short[j] };
-        self.energy.cost_with(i, &pred, &self.blobs[j], cut, short)
+        // The shape term is at most (short / fill_sigma)²: the cap matters only above it.
+        let f = self.reference.fill_sigma;
+        let capped = short * short > self.energy.speck_cost() * f * f;
+        let cap = if !capped || self.lobe_of_another(i) {
+            f64::INFINITY
+        } else {
+            self.energy.speck_cost()
+        };
+        self.energy
+            .cost_with(i, &pred, &self.blobs[j], cut, (short, cap))
+    }
+
+    /// Whether a neighbour of `i` has no blob: it may be hidden under `i`'s blob (a drag
+    /// carries a dot onto its neighbour, and the hidden one's prediction lags), so a blob of
+    /// two lobes there is evidence of two markers, not of a speck.
+    fn lobe_of_another(&self, i: usize) -> bool {
+        self.reference.neighbours[i]
+            .iter()
+            .any(|&k| self.assignment[k].is_none())
     }
 
     /// The blobs within the gate of `pred` with their cost for `i`, those `skip` refuses left
