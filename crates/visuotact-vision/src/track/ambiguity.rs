@@ -28,13 +28,13 @@ pub(super) struct Classified {
     pub on_blob: Vec<(usize, usize, Prediction)>,
 }
 
-/// The cost of blob `j` holding both `i` and `k`.
-fn pair_cost(
+/// Where a blob holding both `i` and `k` is expected: their predictions' mean weighted by
+/// their expected areas (returned too).
+fn pair_centre(
     m: &Matching<'_>,
     (i, pi): (usize, Prediction),
     (k, pk): (usize, Prediction),
-    j: usize,
-) -> f64 {
+) -> ((f64, f64), f64, f64) {
     let areas = &m.reference.areas_px;
     let (ai, ak) = (
         areas[i] * pi.scale * pi.scale,
@@ -45,6 +45,18 @@ fn pair_cost(
         (ai * pi.at.0 + ak * pk.at.0) / w,
         (ai * pi.at.1 + ak * pk.at.1) / w,
     );
+    (centre, ai, ak)
+}
+
+/// The cost of blob `j` holding both `i` and `k`.
+fn pair_cost(
+    m: &Matching<'_>,
+    (i, pi): (usize, Prediction),
+    (k, pk): (usize, Prediction),
+    j: usize,
+) -> f64 {
+    let (centre, ai, ak) = pair_centre(m, (i, pi), (k, pk));
+    let w = ai + ak;
     let b = &m.blobs[j];
     let d = (b.x_px - centre.0).hypot(b.y_px - centre.1);
     let e: &Energy<'_> = &m.energy;
@@ -197,17 +209,8 @@ fn shared_blobs(
             // Two blobless neighbours may share a free blob that lies between them, nearer
             // their predictions' area-weighted mean (where the pair's centroid is expected)
             // than either prediction.
-            let (pi, pk) = (preds[i], preds[k]);
-            let (ai, ak) = (
-                m.reference.areas_px[i] * pi.scale * pi.scale,
-                m.reference.areas_px[k] * pk.scale * pk.scale,
-            );
-            let w = ai + ak;
-            let mean = (
-                (ai * pi.at.0 + ak * pk.at.0) / w,
-                (ai * pi.at.1 + ak * pk.at.1) / w,
-            );
-            if let Some(j) = m.index.nearest(mean, m.energy.gate_px(i, &pi)) {
+            let (mean, _, _) = pair_centre(m, (i, preds[i]), (k, preds[k]));
+            if let Some(j) = m.index.nearest(mean, m.energy.gate_px(i, &preds[i])) {
                 if j < m.usable && m.owner[j].is_none() && !shared.contains(&(j, k)) {
                     shared.push((j, k));
                 }
