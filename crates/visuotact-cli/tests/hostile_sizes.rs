@@ -445,6 +445,61 @@ fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A link left under an export's temporary name (`OUT.mcap.part~`, the folder bag's
+/// `OUT.part~`) to a file or to nowhere is never followed: the bag is refused, naming the
+/// unfinished name, and nothing is written where the link points (was: a dangling link's
+/// target created). A LeRobot data set is built under a random name of its own, so a leftover
+/// link under its old temporary name is left alone and the export lands (was: followed).
+#[test]
+fn links_under_an_exports_temporary_name_are_never_followed() {
+    let d = fresh_dir("hostile-part-links");
+    let (session, _, _) = common::iats_features(&d, "2", "1");
+    let rec = d.join("rec");
+    ok(&vt(&[
+        "record",
+        "--source",
+        s(&session.join("frames")),
+        "--max-frames",
+        "2",
+        "-o",
+        s(&rec),
+    ]));
+    let labels = session.join("labels.csv");
+    let before = std::fs::read(&labels).unwrap();
+    let nowhere = d.join("nowhere");
+    let link = |out: &Path, to: &Path| {
+        let mut part = out.as_os_str().to_owned();
+        part.push(".part~");
+        std::os::unix::fs::symlink(to, &part).unwrap();
+    };
+    for (out, to) in [
+        (d.join("a.mcap"), &labels),
+        (d.join("b.mcap"), &nowhere),
+        (d.join("c"), &nowhere),
+    ] {
+        link(&out, to);
+        refused(
+            &["export", "mcap", s(&rec), "-o", s(&out)],
+            &["unfinished bag"],
+            &out,
+        );
+    }
+    let set = d.join("set");
+    link(&set, &nowhere);
+    ok(&vt(&[
+        "export",
+        "lerobot",
+        s(&rec),
+        "-o",
+        s(&set),
+        "--no-video",
+    ]));
+    assert!(set.join("meta/info.json").exists());
+    assert_eq!(std::fs::read(&labels).unwrap(), before);
+    assert!(!nowhere.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// Exports find the sensor in the model a session was recorded with (`record --model` alone:
 /// was "no sensor file", no marker cloud), and a session is a closed world: a `frames.csv` row
 /// naming a file outside it (`../../secret.png`) is refused by every export, naming the row,

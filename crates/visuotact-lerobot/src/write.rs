@@ -460,10 +460,35 @@ fn write_meta(dir: &Path, w: &Written<'_>, cfg: &LeRobotConfig) -> Result<(), Le
     write_episodes(dir, w, &cfg.task)
 }
 
+/// A new folder beside `out` to build the data set in, created exclusively under a random
+/// name; removed with its contents when dropped.
+fn building_dir(out: &Path) -> Result<tempfile::TempDir, LeRobotError> {
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).map_err(|e| LeRobotError::Io(dir.into(), e))?;
+    let name = out.file_name().unwrap_or_default().to_string_lossy();
+    // Short enough that a name at the system's limit still has room (255 bytes).
+    let stem: String = name.chars().take(40).collect();
+    let prefix = format!(".{stem}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".part~");
+    // As a plain mkdir would: open to all, less the umask (a temporary folder is private by
+    // default; the data set is not).
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o777));
+    builder
+        .tempdir_in(dir)
+        .map_err(|e| LeRobotError::Io(out.into(), e))
+}
+
 /// Exports `sessions` (one episode each, in the order given) into a new LeRobot v3.0 data set
 /// at `out`; `progress(done, total)` hears of each frame encoded and may stop the export
-/// ([`LeRobotError::Stopped`]). The data set is built in `OUT.part~` and takes its name only
-/// when whole: a failed or stopped export leaves nothing behind.
+/// ([`LeRobotError::Stopped`]). The data set is built in a folder of its own beside `out`,
+/// created exclusively under a random name (`.OUT.XXXXXX.part~`: never one that is there, so
+/// neither a leftover nor a link is followed, and two exports do not share it), and takes its
+/// name only when whole: a failed or stopped export leaves nothing behind.
 pub fn export_lerobot(
     sessions: &[PathBuf],
     out: &Path,
@@ -487,12 +512,8 @@ pub fn export_lerobot(
     let mut notes: Vec<String> = eps.iter().filter_map(|e| e.incomplete.clone()).collect();
     let features = features_of(&eps, fps, &mut notes)?;
     let final_out = out;
-    let out = &visuotact_io::guard::part_path(out);
-    // A killed export's leftovers: exports are made again from the sessions, nothing is lost.
-    if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|e| LeRobotError::Io(out.into(), e))?;
-    }
-    std::fs::create_dir_all(out).map_err(|e| LeRobotError::Io(out.into(), e))?;
+    let building = building_dir(out)?;
+    let out = building.path();
     let result = (|| {
         let video = match &cfg.video {
             Some(v) => Some(encode_video(&eps, out, v, fps, progress)?),
@@ -515,13 +536,18 @@ pub fn export_lerobot(
             .map(|f| ranges.iter().map(|r| f.stats(r.clone())).collect())
             .collect();
         write_meta(out, &w, cfg)?;
+        // A data set that appeared under the name meanwhile is not replaced (a rename over
+        // a folder that is not empty fails).
+        if std::fs::symlink_metadata(final_out).is_ok() {
+            return Err(LeRobotError::Exists(final_out.into()));
+        }
         std::fs::rename(out, final_out).map_err(|e| LeRobotError::Io(final_out.into(), e))
     })();
-    if let Err(e) = result {
-        // Nothing half-written stays behind to be mistaken for a data set.
-        let _ = std::fs::remove_dir_all(out);
-        return Err(e);
-    }
+    // Dropped unrenamed on an error, the building folder goes with everything in it: nothing
+    // half-written stays behind to be mistaken for a data set.
+    result?;
+    // Renamed: nothing left to remove.
+    let _ = building.keep();
     let mut names: Vec<String> = features.iter().map(|f| f.key.clone()).collect();
     if cfg.video.is_some() {
         names.push(IMAGE_KEY.into());

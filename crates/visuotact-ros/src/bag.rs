@@ -69,19 +69,42 @@ impl Bag {
             return Err(RosError::Exists(path.to_path_buf()));
         }
         let part = visuotact_io::guard::part_path(path);
-        if part.exists() {
+        // Anything under the temporary name, a link included (never followed), is an earlier
+        // run's or another writer's: refused, and both the folder and the file are created
+        // exclusively, so a second writer racing for the name is refused too.
+        let taken = |e: &std::io::Error| e.kind() == std::io::ErrorKind::AlreadyExists;
+        if std::fs::symlink_metadata(&part).is_ok() {
             return Err(RosError::Unfinished(part));
         }
         let (file, folder) = if path.extension().is_some_and(|e| e == "mcap") {
             (part.clone(), None)
         } else {
-            std::fs::create_dir_all(&part).map_err(|e| io(&part, e))?;
+            if let Some(parent) = part.parent().filter(|p| !p.as_os_str().is_empty()) {
+                std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
+            }
+            std::fs::create_dir(&part).map_err(|e| {
+                if taken(&e) {
+                    RosError::Unfinished(part.clone())
+                } else {
+                    io(&part, e)
+                }
+            })?;
             let name = path
                 .file_name()
                 .map_or_else(|| "bag".into(), |n| n.to_string_lossy().into_owned());
             (part.join(format!("{name}_0.mcap")), Some(part.clone()))
         };
-        let out = File::create(&file).map_err(|e| io(&file, e))?;
+        let out = File::options()
+            .write(true)
+            .create_new(true)
+            .open(&file)
+            .map_err(|e| {
+                if taken(&e) {
+                    RosError::Unfinished(part.clone())
+                } else {
+                    io(&file, e)
+                }
+            })?;
         let writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("visuotact ", env!("CARGO_PKG_VERSION")))
@@ -243,5 +266,62 @@ impl Bag {
             self.messages
         );
         y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("visuotact-bag-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// A link left under a bag's temporary name (to a file that exists, or to none yet) is
+    /// refused, never followed: nothing is written where it points.
+    #[test]
+    fn a_link_under_the_temporary_name_is_refused_not_followed() {
+        let d = dir("link");
+        let labels = d.join("labels.csv");
+        std::fs::write(&labels, b"frame,x\n").unwrap();
+        let elsewhere = d.join("elsewhere.mcap");
+        for (out, to) in [
+            (d.join("a.mcap"), &labels),
+            (d.join("b.mcap"), &elsewhere),
+            (d.join("c"), &elsewhere),
+        ] {
+            std::os::unix::fs::symlink(to, part_of(&out)).unwrap();
+            let r = Bag::create(&out, &BagConfig::default());
+            assert!(
+                matches!(r, Err(RosError::Unfinished(_))),
+                "{}",
+                out.display()
+            );
+        }
+        assert_eq!(std::fs::read(&labels).unwrap(), b"frame,x\n");
+        assert!(!elsewhere.exists());
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// Two writers of one bag: the second is refused while the first writes, and the first
+    /// finishes whole.
+    #[test]
+    fn a_second_writer_of_one_bag_is_refused() {
+        let d = dir("two");
+        for out in [d.join("s.mcap"), d.join("s")] {
+            let first = Bag::create(&out, &BagConfig::default()).unwrap();
+            let second = Bag::create(&out, &BagConfig::default());
+            assert!(matches!(second, Err(RosError::Unfinished(_))));
+            assert_eq!(first.finish().unwrap(), out);
+            assert!(out.exists());
+        }
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    fn part_of(p: &Path) -> PathBuf {
+        visuotact_io::guard::part_path(p)
     }
 }
