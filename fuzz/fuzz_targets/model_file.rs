@@ -1,5 +1,6 @@
 //! A model file: loaded or refused with the file's name, never a panic; one that loads
-//! estimates from any row of its input width (or says why) with one value per target.
+//! estimates from any row of its input width (or says why) with one finite value per target
+//! (weights that overflow are refused as such, never an estimate of NaN or infinity).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -13,6 +14,7 @@ fuzz_target!(|data: &[u8]| {
             for row in [vec![0.0; n], vec![1e300; n], vec![f64::NAN; n]] {
                 if let Ok(e) = m.estimate(&row) {
                     assert_eq!(e.values.len(), m.target_columns.len());
+                    assert!(e.values.iter().all(|v| v.is_finite()), "{:?}", e.values);
                 }
             }
         }
