@@ -658,3 +658,36 @@ fn a_rerun_recording_cut_by_a_full_disk_is_an_error() {
     assert!(!cut.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A FIFO given as `run --sensors` (nothing ever written into it) is refused at once as not a
+/// regular file (was: the run waited on it for ever). The child is killed after 30 s so that a
+/// regression fails instead of hanging the suite.
+#[test]
+fn a_fifo_as_the_sensors_file_is_refused_not_waited_on() {
+    let d = fresh_dir("hostile-fifo-sensors");
+    let fifo = d.join("sensors.toml");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo");
+    assert!(made.success());
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(["run", "--sensors", s(&fifo), "--max-frames", "1", "--quiet"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(30) {
+            let _ = child.kill();
+            panic!("run --sensors FIFO still waiting after 30 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let err = fails(&child.wait_with_output().unwrap());
+    assert!(
+        err.contains("not a regular file") && err.contains("--sensors"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -267,7 +267,8 @@ fn print_summary(summary: &visuotact_pipeline::runner::RunSummary) {
 
 /// `run --sensors FILE`: every sensor of the run file at once, into the same outputs.
 fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(file)
+    // A regular file only: a FIFO or a device would block the run before it starts.
+    let text = visuotact_io::read::text_of_file(file)
         .map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
     let plan: RunFile =
         toml::from_str(&text).map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
