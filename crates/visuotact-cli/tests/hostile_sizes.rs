@@ -500,6 +500,47 @@ fn links_under_an_exports_temporary_name_are_never_followed() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A session whose `force.csv` was stamped on the force sensor's own clock (from 1 000 s, as
+/// a real F/T box's) with no `recv_s` to put it on the recording's: no sample meets a frame,
+/// so every export refuses, naming the file and why, and writes nothing (was: wrenches
+/// 1 000 s after the frames in MCAP and Rerun, `observation.force` NaN in every LeRobot frame,
+/// exit 0).
+#[test]
+fn exports_refuse_force_that_meets_no_frame() {
+    let d = fresh_dir("hostile-export-clock");
+    let (session, _, _) = common::iats_features(&d, "2", "1");
+    let rec = d.join("rec");
+    ok(&vt(&[
+        "record",
+        "--source",
+        s(&session.join("frames")),
+        "--max-frames",
+        "2",
+        "-o",
+        s(&rec),
+    ]));
+    let rows: String = (0..50)
+        .map(|k| format!("{},0.1,0.2,{}\n", 1000.0 + 0.01 * f64::from(k), 1.0))
+        .collect();
+    std::fs::write(
+        rec.join("force.csv"),
+        format!("timestamp_s,fx_n,fy_n,fz_n\n{rows}"),
+    )
+    .unwrap();
+    for (format, out) in [
+        ("mcap", d.join("a.mcap")),
+        ("rerun", d.join("a.rrd")),
+        ("lerobot", d.join("a-lerobot")),
+    ] {
+        refused(
+            &["export", format, s(&rec), "-o", s(&out)],
+            &["force.csv", "no force sample meets a frame", "recv_s"],
+            &out,
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// Exports find the sensor in the model a session was recorded with (`record --model` alone:
 /// was "no sensor file", no marker cloud), and a session is a closed world: a `frames.csv` row
 /// naming a file outside it (`../../secret.png`) is refused by every export, naming the row,

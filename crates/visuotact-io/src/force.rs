@@ -316,6 +316,46 @@ impl ForceTable {
         self.timestamp_s = self.recorder_times_s();
     }
 
+    /// Checks that the samples, on the recorder's clock ([`ForceTable::onto_recorder_clock`]
+    /// first), meet the frames, which span `frames_s` (first, last) on it: their spans must
+    /// overlap. An export or replay that could not put a sample beside any frame says so,
+    /// naming `path`, instead of writing a force record that lies beside nothing. No samples
+    /// at all meet nothing too.
+    pub fn check_meets_frames(
+        &self,
+        path: &std::path::Path,
+        (first_s, last_s): (f64, f64),
+    ) -> Result<(), TableError> {
+        let (lo, hi) = self
+            .timestamp_s
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+                (lo.min(t), hi.max(t))
+            });
+        if hi >= first_s && lo <= last_s {
+            return Ok(());
+        }
+        let span = if lo.is_finite() {
+            format!("its samples span {lo:.3}–{hi:.3} s")
+        } else {
+            "it has no samples".to_string()
+        };
+        let why = if self.recv_s.is_none() && lo.is_finite() {
+            " (a force sensor stamps its own clock; without a recv_s column the samples cannot \
+             be put on the recording's)"
+        } else {
+            ""
+        };
+        Err(TableError::new(
+            path,
+            None,
+            format!(
+                "{span} and the frames {first_s:.3}–{last_s:.3} s: no force sample meets a \
+                 frame{why}"
+            ),
+        ))
+    }
+
     /// Reads a force CSV; errors name the file, line and column. A last line without a line end
     /// (a recorder stopped mid-row) is left out and reported in `dropped_partial_line`.
     pub fn read(path: &std::path::Path) -> Result<Self, TableError> {

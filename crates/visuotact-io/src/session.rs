@@ -441,6 +441,16 @@ pub struct IndexedFrame {
     pub reference: bool,
 }
 
+/// The first and last of `frames`' times, seconds on the recorder's clock (infinities, the
+/// wrong way round, for none).
+pub fn frames_span_s(frames: &[IndexedFrame]) -> (f64, f64) {
+    frames
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
+            (lo.min(f.timestamp_s), hi.max(f.timestamp_s))
+        })
+}
+
 /// A session's frames in recorded order, from its `frames.csv`.
 pub fn frame_index(dir: &Path) -> Result<Vec<IndexedFrame>, TableError> {
     let path = dir.join("frames.csv");

@@ -113,6 +113,7 @@ impl Episode {
             let mut f = ForceTable::read(&force_path)?;
             // Interpolated at the frames' times, on their clock, not the sender's.
             f.onto_recorder_clock();
+            f.check_meets_frames(&force_path, visuotact_io::session::frames_span_s(&frames))?;
             sort_by_time(&mut f);
             Some(
                 frames

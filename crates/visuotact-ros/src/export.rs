@@ -222,6 +222,7 @@ fn read_tables(
         // Wrenches are stamped on the frames' clock, not the sender's.
         let mut f = ForceTable::read(&force_path)?;
         f.onto_recorder_clock();
+        f.check_meets_frames(&force_path, visuotact_io::session::frames_span_s(&frames))?;
         Some(f)
     } else {
         notes.push("no force.csv".into());
