@@ -111,11 +111,18 @@ pub fn refuse_outputs_over_inputs(outputs: &[&Path], inputs: &[&Path]) -> Result
 }
 
 /// The temporary name an output at `path` is written under until it is whole (`NAME.part~`
-/// beside it): tables, bags and data sets take their name only when finished.
+/// beside it): bags take their name only when finished. A name too long for the suffix within
+/// the system's 255 bytes is cut, at a character, to make room (two such names alike in their
+/// first 249 bytes then share a temporary name, which a bag refuses while one holds it).
 pub fn part_path(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".part~");
-    path.with_file_name(name)
+    const SUFFIX: &str = ".part~";
+    const MAX_NAME: usize = 255;
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let mut cut = name.len().min(MAX_NAME - SUFFIX.len());
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    path.with_file_name(format!("{}{SUFFIX}", &name[..cut]))
 }
 
 /// Checks that `output` can be written before any work: its folder is created and a probe
@@ -158,6 +165,22 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
         d
+    }
+
+    #[test]
+    fn a_temporary_name_fits_the_systems_limit() {
+        let d = dir("long");
+        assert_eq!(part_path(&d.join("s.mcap")), d.join("s.mcap.part~"));
+        for long in ["a".repeat(255), format!("{}.mcap", "é".repeat(125))] {
+            let out = d.join(&long);
+            let part = part_path(&out);
+            let name = part.file_name().unwrap().to_str().unwrap();
+            assert!(name.len() <= 255 && name.ends_with(".part~"), "{name}");
+            assert!(long.starts_with(name.trim_end_matches(".part~")));
+            // The system takes it.
+            std::fs::write(&part, b"x").unwrap();
+            std::fs::remove_file(&part).unwrap();
+        }
     }
 
     #[test]
