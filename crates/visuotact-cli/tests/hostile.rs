@@ -691,3 +691,32 @@ fn a_fifo_as_the_sensors_file_is_refused_not_waited_on() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Two runs writing one output: while one holds the output's lock (`.NAME.lock~`, taken here
+/// by the test as another run would), a second is refused, naming the output and saying why,
+/// and the output is left as it was (was: both wrote, the last rename won); once the lock is
+/// let go the same command writes it.
+#[test]
+fn a_second_writer_of_one_output_is_refused() {
+    let d = fresh_dir("hostile-two-writers");
+    let (session, _, _) = common::iats_features(&d, "2", "1");
+    let out = d.join("s.json");
+    std::fs::write(&out, "old").unwrap();
+    let lock = std::fs::File::create(d.join(".s.json.lock~")).unwrap();
+    lock.try_lock().unwrap();
+    let reference = session.join("reference");
+    let args = ["calibrate", s(&reference), "-o", s(&out)];
+    let err = fails(&vt(&args));
+    assert!(
+        err.contains("s.json") && err.contains("another run is writing it"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "old");
+    lock.unlock().unwrap();
+    drop(lock);
+    ok(&vt(&args));
+    assert!(std::fs::read_to_string(&out)
+        .unwrap()
+        .contains("visuotact-sensor"));
+    std::fs::remove_dir_all(&d).unwrap();
+}

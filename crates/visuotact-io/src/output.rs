@@ -6,7 +6,8 @@
 //! a leftover file, a symbolic link or a hard link of that name cannot be followed, and two runs
 //! writing the same output never share one. [`OutputFile::finish`] flushes it, syncs it to the
 //! disk and renames it over the final name; dropped unfinished (an error, a stop), it is
-//! removed. A destination that is not a regular file — a character device such as
+//! removed. While it is written, an advisory lock (`.NAME.lock~` beside it) refuses a second
+//! writer of the same output with a message saying so. A destination that is not a regular file — a character device such as
 //! `/dev/null`, a FIFO, a socket — is written through as it is, never replaced; a folder is
 //! refused.
 
@@ -18,6 +19,78 @@ use std::path::{Path, PathBuf};
 pub struct OutputFile {
     path: PathBuf,
     inner: Inner,
+    /// Held while the file is written (none for a special file written through).
+    _lock: Option<WriteLock>,
+}
+
+/// An exclusive advisory lock on writing one output: `.NAME.lock~` beside it, locked with
+/// [`File::try_lock`] (the name cut, at a character, to fit the system's 255 bytes). A second
+/// writer of the same output — another run, or this one — is refused while it is held. The
+/// lock file is removed while still locked, when the writer is done; a writer that locked a
+/// file removed meanwhile locks the new one instead. A killed run's lock file is left behind,
+/// unlocked: the next writer takes it.
+struct WriteLock {
+    file: File,
+    path: PathBuf,
+}
+
+impl WriteLock {
+    fn take(output: &Path) -> io::Result<Self> {
+        let name = output.file_name().unwrap_or_default().to_string_lossy();
+        let mut cut = name.len().min(255 - ".".len() - ".lock~".len());
+        while !name.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        let path = output.with_file_name(format!(".{}.lock~", &name[..cut]));
+        loop {
+            if std::fs::symlink_metadata(&path).is_ok_and(|m| !m.is_file()) {
+                return Err(io::Error::new(
+                    io::ErrorKind::AlreadyExists,
+                    format!("{} is in the way of its lock (not a file)", path.display()),
+                ));
+            }
+            let file = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .open(&path)?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(std::fs::TryLockError::WouldBlock) => {
+                    return Err(io::Error::new(
+                        io::ErrorKind::ResourceBusy,
+                        format!(
+                            "another run is writing it now (it holds {}); wait for it to end",
+                            path.display()
+                        ),
+                    ))
+                }
+                Err(std::fs::TryLockError::Error(e)) => return Err(e),
+            }
+            if same_file(&file, &path) {
+                return Ok(Self { file, path });
+            }
+            // The writer before us removed the file we locked: lock the name afresh.
+        }
+    }
+}
+
+/// Whether `path` names the open `file` itself (same device and inode).
+fn same_file(file: &File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+impl Drop for WriteLock {
+    fn drop(&mut self) {
+        // Removed while locked: a writer waiting on this file sees it gone and starts afresh.
+        let _ = std::fs::remove_file(&self.path);
+        let _ = self.file.unlock();
+    }
 }
 
 enum Inner {
@@ -51,6 +124,7 @@ impl OutputFile {
                 return Ok(Self {
                     path: path.to_path_buf(),
                     inner: Inner::Direct(BufWriter::new(f)),
+                    _lock: None,
                 });
             }
         }
@@ -59,6 +133,7 @@ impl OutputFile {
             .filter(|d| !d.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
         std::fs::create_dir_all(dir).map_err(named)?;
+        let lock = WriteLock::take(path).map_err(named)?;
         let name = path.file_name().unwrap_or_default().to_string_lossy();
         // Short enough that a name at the system's limit still has room (255 bytes).
         let stem: String = name.chars().take(40).collect();
@@ -73,6 +148,7 @@ impl OutputFile {
         Ok(Self {
             path: path.to_path_buf(),
             inner: Inner::Temp(BufWriter::new(tmp)),
+            _lock: Some(lock),
         })
     }
 
@@ -83,9 +159,15 @@ impl OutputFile {
 
     /// Flushes, syncs and gives the file its name (over any regular file of that name).
     pub fn finish(self) -> io::Result<()> {
-        let path = self.path;
+        let Self {
+            path,
+            inner,
+            _lock: lock,
+        } = self;
         let named = |e| named(&path, e);
-        match self.inner {
+        // The lock is let go only once the file has its name (dropped at the end).
+        let _held = lock;
+        match inner {
             Inner::Direct(mut w) => w.flush().map_err(named),
             Inner::Temp(w) => {
                 let tmp = w.into_inner().map_err(|e| named(e.into_error()))?;
@@ -167,21 +249,41 @@ mod tests {
     }
 
     #[test]
-    fn unfinished_writes_leave_nothing_and_two_writers_do_not_share_a_file() {
+    fn unfinished_writes_leave_nothing_and_a_second_writer_is_refused() {
         let d = dir("unfinished");
         let out = d.join("t.csv");
         std::fs::write(&out, "old\n").unwrap();
         let mut a = OutputFile::create(&out).unwrap();
-        let mut b = OutputFile::create(&out).unwrap();
+        let e = OutputFile::create(&out).err().unwrap();
+        assert!(
+            e.to_string().contains("t.csv") && e.to_string().contains("another run is writing it"),
+            "{e}"
+        );
         a.write_all(b"from a\n").unwrap();
-        b.write_all(b"from b\n").unwrap();
-        assert_eq!(leftovers(&d).len(), 2);
-        drop(b);
-        // The old file stands until a writer finishes; the one that does is whole.
+        assert_eq!(leftovers(&d).len(), 1);
+        // The old file stands until the writer finishes; then it is whole.
         assert_eq!(std::fs::read_to_string(&out).unwrap(), "old\n");
         a.finish().unwrap();
         assert_eq!(std::fs::read_to_string(&out).unwrap(), "from a\n");
         assert!(leftovers(&d).is_empty());
+        // The lock went with the writer; the next one writes, and a dropped one leaves nothing.
+        let names = || -> Vec<String> {
+            let mut v: Vec<String> = std::fs::read_dir(&d)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            v.sort();
+            v
+        };
+        assert_eq!(names(), ["t.csv"]);
+        let b = OutputFile::create(&out).unwrap();
+        drop(b);
+        assert_eq!(names(), ["t.csv"]);
+        // A killed run's lock file, unlocked, does not stand in the way.
+        std::fs::write(d.join(".t.csv.lock~"), b"").unwrap();
+        write_whole(&out, b"from c\n").unwrap();
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), "from c\n");
+        assert_eq!(names(), ["t.csv"]);
         std::fs::remove_dir_all(&d).unwrap();
     }
 
