@@ -66,6 +66,11 @@ impl WriteLock {
                         ),
                     ))
                 }
+                // A file system without locks (some network mounts): written unguarded,
+                // as before the lock, rather than not at all.
+                Err(std::fs::TryLockError::Error(e)) if e.kind() == io::ErrorKind::Unsupported => {
+                    return Ok(Self { file, path });
+                }
                 Err(std::fs::TryLockError::Error(e)) => return Err(e),
             }
             if same_file(&file, &path) {
