@@ -5,7 +5,7 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use common::{fails, fresh_dir, ok, s, vt};
@@ -406,12 +406,10 @@ fn what_was_accepted_in_silence_is_said() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
-/// Exports say when a session's recording did not complete, and refuse a `session.json` that
-/// does not read (was: exported without a word, the description's fields silently ignored).
-#[test]
-fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
-    let d = fresh_dir("hostile-export-incomplete");
-    let (session, _, _) = common::iats_features(&d, "2", "1");
+/// A simulated IATS session of two touches under `d` and a recording of its two frames
+/// (`d/rec`, no model): (the simulated session, the recording).
+fn recorded_session(d: &Path) -> (PathBuf, PathBuf) {
+    let (session, _, _) = common::iats_features(d, "2", "1");
     let rec = d.join("rec");
     ok(&vt(&[
         "record",
@@ -422,6 +420,15 @@ fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
         "-o",
         s(&rec),
     ]));
+    (session, rec)
+}
+
+/// Exports say when a session's recording did not complete, and refuse a `session.json` that
+/// does not read (was: exported without a word, the description's fields silently ignored).
+#[test]
+fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
+    let d = fresh_dir("hostile-export-incomplete");
+    let (_, rec) = recorded_session(&d);
     let described = rec.join("session.json");
     let text = std::fs::read_to_string(&described).unwrap();
     std::fs::write(
@@ -453,17 +460,7 @@ fn exports_say_a_session_is_incomplete_and_refuse_an_unreadable_description() {
 #[test]
 fn links_under_an_exports_temporary_name_are_never_followed() {
     let d = fresh_dir("hostile-part-links");
-    let (session, _, _) = common::iats_features(&d, "2", "1");
-    let rec = d.join("rec");
-    ok(&vt(&[
-        "record",
-        "--source",
-        s(&session.join("frames")),
-        "--max-frames",
-        "2",
-        "-o",
-        s(&rec),
-    ]));
+    let (session, rec) = recorded_session(&d);
     let labels = session.join("labels.csv");
     let before = std::fs::read(&labels).unwrap();
     let nowhere = d.join("nowhere");
@@ -508,17 +505,7 @@ fn links_under_an_exports_temporary_name_are_never_followed() {
 #[test]
 fn exports_refuse_force_that_meets_no_frame() {
     let d = fresh_dir("hostile-export-clock");
-    let (session, _, _) = common::iats_features(&d, "2", "1");
-    let rec = d.join("rec");
-    ok(&vt(&[
-        "record",
-        "--source",
-        s(&session.join("frames")),
-        "--max-frames",
-        "2",
-        "-o",
-        s(&rec),
-    ]));
+    let (_, rec) = recorded_session(&d);
     let rows: String = (0..50)
         .map(|k| format!("{},0.1,0.2,{}\n", 1000.0 + 0.01 * f64::from(k), 1.0))
         .collect();
