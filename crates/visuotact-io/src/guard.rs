@@ -115,14 +115,18 @@ pub fn refuse_outputs_over_inputs(outputs: &[&Path], inputs: &[&Path]) -> Result
 /// the system's 255 bytes is cut, at a character, to make room (two such names alike in their
 /// first 249 bytes then share a temporary name, which a bag refuses while one holds it).
 pub fn part_path(path: &Path) -> PathBuf {
-    const SUFFIX: &str = ".part~";
-    const MAX_NAME: usize = 255;
+    name_beside(path, "", ".part~")
+}
+
+/// `prefix` + `path`'s name + `suffix` beside it, the name cut at a character so that the
+/// whole fits the system's 255 bytes.
+pub fn name_beside(path: &Path, prefix: &str, suffix: &str) -> PathBuf {
     let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let mut cut = name.len().min(MAX_NAME - SUFFIX.len());
+    let mut cut = name.len().min(255 - prefix.len() - suffix.len());
     while !name.is_char_boundary(cut) {
         cut -= 1;
     }
-    path.with_file_name(format!("{}{SUFFIX}", &name[..cut]))
+    path.with_file_name(format!("{prefix}{}{suffix}", &name[..cut]))
 }
 
 /// Checks that `output` can be written before any work: its folder is created and a probe

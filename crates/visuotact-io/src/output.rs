@@ -36,12 +36,7 @@ struct WriteLock {
 
 impl WriteLock {
     fn take(output: &Path) -> io::Result<Self> {
-        let name = output.file_name().unwrap_or_default().to_string_lossy();
-        let mut cut = name.len().min(255 - ".".len() - ".lock~".len());
-        while !name.is_char_boundary(cut) {
-            cut -= 1;
-        }
-        let path = output.with_file_name(format!(".{}.lock~", &name[..cut]));
+        let path = crate::guard::name_beside(output, ".", ".lock~");
         loop {
             if std::fs::symlink_metadata(&path).is_ok_and(|m| !m.is_file()) {
                 return Err(io::Error::new(
@@ -139,17 +134,9 @@ impl OutputFile {
             .unwrap_or(Path::new("."));
         std::fs::create_dir_all(dir).map_err(named)?;
         let lock = WriteLock::take(path).map_err(named)?;
-        let name = path.file_name().unwrap_or_default().to_string_lossy();
-        // Short enough that a name at the system's limit still has room (255 bytes).
-        let stem: String = name.chars().take(40).collect();
-        let prefix = format!(".{stem}.");
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(&prefix).suffix(".part~");
         // As a plain create would: read-write for all, less the umask (a temporary file is
         // private by default; the output is not).
-        #[cfg(unix)]
-        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-        let tmp = builder.tempfile_in(dir).map_err(named)?;
+        let tmp = temp_beside(path, 0o666, |b, dir| b.tempfile_in(dir)).map_err(named)?;
         Ok(Self {
             path: path.to_path_buf(),
             inner: Inner::Temp(BufWriter::new(tmp)),
@@ -198,6 +185,39 @@ impl Write for OutputFile {
             Inner::Direct(w) => w.flush(),
         }
     }
+}
+
+/// Makes a temporary file or folder beside `path` with `make`, under a random name
+/// (`.NAME.XXXXXX.part~`, the name's first 40 characters: room to spare within 255 bytes)
+/// created exclusively, with `mode` less the umask (as a plain create or mkdir gives).
+fn temp_beside<T>(
+    path: &Path,
+    mode: u32,
+    make: impl FnOnce(&tempfile::Builder<'_, '_>, &Path) -> io::Result<T>,
+) -> io::Result<T> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let stem: String = name.chars().take(40).collect();
+    let prefix = format!(".{stem}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".part~");
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(mode));
+    make(&builder, dir)
+}
+
+/// A new folder beside `path` to build an output of several files in (a data set), created
+/// exclusively under a random name (`.NAME.XXXXXX.part~`; its folder created when missing)
+/// with a plain mkdir's permissions;
+/// removed with its contents when dropped. Rename it to `path` when whole.
+pub fn temp_dir_beside(path: &Path) -> io::Result<tempfile::TempDir> {
+    temp_beside(path, 0o777, |b, dir| {
+        std::fs::create_dir_all(dir)?;
+        b.tempdir_in(dir)
+    })
 }
 
 /// Writes `bytes` to `path` as one [`OutputFile`].

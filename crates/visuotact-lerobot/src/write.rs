@@ -460,29 +460,6 @@ fn write_meta(dir: &Path, w: &Written<'_>, cfg: &LeRobotConfig) -> Result<(), Le
     write_episodes(dir, w, &cfg.task)
 }
 
-/// A new folder beside `out` to build the data set in, created exclusively under a random
-/// name; removed with its contents when dropped.
-fn building_dir(out: &Path) -> Result<tempfile::TempDir, LeRobotError> {
-    let dir = out
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| LeRobotError::Io(dir.into(), e))?;
-    let name = out.file_name().unwrap_or_default().to_string_lossy();
-    // Short enough that a name at the system's limit still has room (255 bytes).
-    let stem: String = name.chars().take(40).collect();
-    let prefix = format!(".{stem}.");
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".part~");
-    // As a plain mkdir would: open to all, less the umask (a temporary folder is private by
-    // default; the data set is not).
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o777));
-    builder
-        .tempdir_in(dir)
-        .map_err(|e| LeRobotError::Io(out.into(), e))
-}
-
 /// Exports `sessions` (one episode each, in the order given) into a new LeRobot v3.0 data set
 /// at `out`; `progress(done, total)` hears of each frame encoded and may stop the export
 /// ([`LeRobotError::Stopped`]). The data set is built in a folder of its own beside `out`,
@@ -512,7 +489,8 @@ pub fn export_lerobot(
     let mut notes: Vec<String> = eps.iter().filter_map(|e| e.incomplete.clone()).collect();
     let features = features_of(&eps, fps, &mut notes)?;
     let final_out = out;
-    let building = building_dir(out)?;
+    let building =
+        visuotact_io::output::temp_dir_beside(out).map_err(|e| LeRobotError::Io(out.into(), e))?;
     let out = building.path();
     let result = (|| {
         let video = match &cfg.video {
