@@ -90,7 +90,7 @@ fn the_9dtact_options_work_as_written() {
 
 /// The TacTip data set commands on the real 127-pin set: every test frame estimated, each
 /// target's mean absolute error under the naive OpenCV + scikit-learn MLP(64, 64) peer's on the
-/// same split (`scripts/peer_tactip127.py`, measured 0.1648 mm, 2.0715°, 0.4837 mm, 1.3798°),
+/// same split (`scripts/bench/peer_tactip127.py`, measured 0.1648 mm, 2.0715°, 0.4837 mm, 1.3798°),
 /// and the pose's (y, rotation) at most half the peer's, as issue 34 asks. Shear and twist stay
 /// above half the peer's (the frames' limit there, docs/benchmarks.md); the bounds on them
 /// (0.81 and 0.73 of the peer's: 0.392 mm, 1.007°) hold the gain of reading the binarised pins

@@ -1,7 +1,7 @@
 //! The LM core on the 27 NIST StRD nonlinear regression problems, both starting points, with
 //! `LmConfig::PRECISE`: at least as many fits reach 4 certified digits in every parameter and in
 //! the residual sum of squares as scipy's MINPACK LM (`least_squares(method='lm')`, tolerances
-//! 1e-15: 49 of 54, measured with `scripts/nist_scipy.py`). The problems are in the repository
+//! 1e-15: 49 of 54, measured with `scripts/bench/nist_scipy.py`). The problems are in the repository
 //! (`testdata/reference/nist_strd`): the test always runs.
 
 use std::path::PathBuf;
@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use visuotact_nn::lm::{minimize, Control, LmConfig};
 use visuotact_nn::nist::{certified_digits, Dataset, NistProblem};
 
-/// Fits scipy's MINPACK LM brings to 4+ digits (scripts/nist_scipy.py, scipy 1.17).
+/// Fits scipy's MINPACK LM brings to 4+ digits (scripts/bench/nist_scipy.py, scipy 1.17).
 const SCIPY_MINPACK_FOUR_DIGITS: usize = 49;
 
 #[test]

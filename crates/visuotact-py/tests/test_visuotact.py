@@ -1,6 +1,6 @@
 """The Python package against the command line on the same frames, and against scipy.
 
-Needs the package installed (scripts/python-test builds the wheel) and the `visuotact`
+Needs the package installed (scripts/ci/python-test builds the wheel) and the `visuotact`
 binary in VISUOTACT_BIN (scripts/test passes the one cargo built).
 """
 

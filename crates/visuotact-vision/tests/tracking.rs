@@ -850,7 +850,7 @@ fn two_rows_dragged() -> DraggedRows {
 }
 
 /// Two rows of a 12 × 8 grid (pitch 22 px) dragged left by up to 1.5 pitches near the top
-/// edge (the drag of `scripts/drag-matrix`'s GelSight variant 1, seed 2, frame 5): in each,
+/// edge (the drag of `scripts/bench/drag-matrix`'s GelSight variant 1, seed 2, frame 5): in each,
 /// the fifth and sixth markers are squeezed into one blob of about one marker's size (seen as
 /// the fifth) and the next two slid past their rest places, so the rows read one lattice step
 /// short are about as smooth as the truth — but only when both rows slide together (each alone

@@ -3,7 +3,7 @@
 the certified digits it reaches, for the side-by-side with
 `cargo run --release -p visuotact-nn --example nist`.
 
-Usage: PEER_WORK=/tmp/visuotact-peers $PEER_WORK/venv/bin/python scripts/nist_scipy.py [DIR]
+Usage: PEER_WORK=/tmp/visuotact-peers $PEER_WORK/venv/bin/python scripts/bench/nist_scipy.py [DIR]
 """
 import glob
 import math
@@ -64,7 +64,7 @@ def lre(e, c):
 
 
 def main():
-    d = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "../testdata/reference/nist_strd")
+    d = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "../../testdata/reference/nist_strd")
     four = total = 0
     print(f"{'problem':<10} {'start':>5} {'params':>8} {'rss':>8}")
     for p in sorted(glob.glob(os.path.join(d, "*.dat"))):

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Marker tracking against the simulator's truth: visuotact beside the OpenCV peer.
 
-For each case folder (written by scripts/peers-tracking) holding a simulated `session/`, the
+For each case folder (written by scripts/bench/peers-tracking) holding a simulated `session/`, the
 sensor file `visuotact.json` that `visuotact calibrate` made from its reference frames and the
 feature table `visuotact.csv` that `visuotact extract` made from its frames, three trackers are
 scored with one rule, the one of `visuotact check-tracking`:

@@ -1,13 +1,13 @@
 """How far shear and twist can be read from the pins of the real 127-pin TacTip set.
 
-Fits other learners on the same feature table `scripts/real-tactip127` extracted
+Fits other learners on the same feature table `scripts/bench/real-tactip127` extracted
 ($PEER_WORK/tactip127/features.csv, every marker's dx, dy, darea and the field summary) and the
 data set's own train/test split, and prints each one's test mean absolute error, then the
 gradient-boosted trees' shear error by shear size and by indentation depth, and how the
 residual correlates with the previous touch's labels (skin memory).
 
-Usage (after scripts/real-tactip127; the peers' venv, with pandas):
-    $PEER_WORK/venv/bin/python scripts/tactip127_ceiling.py
+Usage (after scripts/bench/real-tactip127; the peers' venv, with pandas):
+    $PEER_WORK/venv/bin/python research/tactip127_ceiling.py
 """
 import os
 import sys

@@ -8,10 +8,10 @@ nearest at the first frame (within half the pitch); per frame and paired marker 
 either reports a position or not, and a reported one is compared with the vendor's.
 
 - visuotact: `calibrate VIDEO --first 5 --keep-border` and `extract` with its defaults (the
-  driver, scripts/peers-tracking-real, runs them); a marker is reported when its cells are filled;
+  driver, scripts/bench/peers-tracking-real, runs them); a marker is reported when its cells are filled;
 - peer NN: the OpenCV peer's blobs (../shared/peers/opencv_pipeline.py `process` on the inverted
   frame: dark markers) of the first frame are the markers, each taking the nearest blob within
-  half a pitch in every frame (scripts/peers_tracking.py's rule).
+  half a pitch in every frame (scripts/bench/peers_tracking.py's rule).
 
 Usage: peers_tracking_real.py SHARED_PEERS VIDEO MARKERS_CSV SENSOR_JSON FEATURES_CSV
 The vendor's positions are not truth: in some frames of video 5 they repeat the previous

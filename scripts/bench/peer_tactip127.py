@@ -10,7 +10,7 @@ standardised scikit-learn MLP(64, 64) (Adam, early stopping) predicting the targ
 
 DATA_DIR is ../shared/reference/real/tactip127_surface (its train_targets.csv and
 test_targets.csv keyed by image_name); --train, --test and --targets give another set's split
-(keyed by image_name or sensor_image, frames in DATA_DIR/frames), as scripts/real-tactip331
+(keyed by image_name or sensor_image, frames in DATA_DIR/frames), as scripts/bench/real-tactip331
 does. Prints the mean absolute error of each target on the test split, the fit's seconds and
 the extraction's microseconds per frame.
 """

@@ -6,12 +6,12 @@ five conv 3x3 + batch-norm + ReLU + max-pool blocks (32, 32, 64, 64, 64 channels
 layer, the four standardised targets; Adam with a cosine schedule over EPOCHS (default 30),
 batches of 64, the epoch with the lowest error on a tenth of the training frames held out kept.
 Prints the test mean absolute error per target after every epoch and at the end, then the
-correlation of its errors with visuotact's (the estimates `scripts/real-tactip127` wrote): two
+correlation of its errors with visuotact's (the estimates `scripts/bench/real-tactip127` wrote): two
 learners that read the frames differently failing on the same frames is what a limit in the
 frames looks like. Seeded; about a minute an epoch on 2 cores at 128 x 128.
 
-Usage (after scripts/real-tactip127; needs torch, e.g. the venv scripts/lerobot-test makes):
-    target/lerobot-venv/bin/python scripts/tactip127_cnn.py
+Usage (after scripts/bench/real-tactip127; needs torch, e.g. the venv scripts/ci/lerobot-test makes):
+    target/lerobot-venv/bin/python research/tactip127_cnn.py
 """
 
 import csv
@@ -124,7 +124,7 @@ def main():
 
     ours = os.path.join(work, "p.csv")
     if not os.path.exists(ours):
-        print(f"no {ours}: run scripts/real-tactip127 first for the comparison with visuotact")
+        print(f"no {ours}: run scripts/bench/real-tactip127 first for the comparison with visuotact")
         return
     rows = {r["frame"].split("/")[-1]: r for r in csv.DictReader(open(ours))}
     v = np.array([[float(rows[n][t]) for t in TARGETS] for n in test_names])

@@ -1,14 +1,14 @@
 """Whether the pins' area changes help a learner read the real 127-pin TacTip set.
 
 Fits scikit-learn MLPs (128, 128 and 64, 64; five seeds, their mean as an ensemble) on the
-feature table `scripts/real-tactip127` extracted ($PEER_WORK/tactip127/features.csv) and the
+feature table `scripts/bench/real-tactip127` extracted ($PEER_WORK/tactip127/features.csv) and the
 data set's own train/test split, twice: every marker's dx, dy and darea, then dx and dy alone,
 and prints each one's test mean absolute error per target (y mm, rotation deg, shear mm, twist
 deg). The binarised pins' areas move in whole pixels; this is the check behind the training's
 input set without the markers' shape columns (docs/benchmarks.md).
 
-Usage (after scripts/real-tactip127; the peers' venv):
-    $PEER_WORK/venv/bin/python scripts/tactip127_areas.py
+Usage (after scripts/bench/real-tactip127; the peers' venv):
+    $PEER_WORK/venv/bin/python research/tactip127_areas.py
 """
 import csv
 import os

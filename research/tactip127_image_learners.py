@@ -5,10 +5,10 @@ train/test split from other inputs than visuotact's pin displacements: the whole
 64 x 64), the tip's rim alone (the ring outside 26 of those pixels from the centre), and each
 pin's second moments (the shape of its blob, as a tilted pin would change it), each beside the
 pins' displacements where that makes sense. Prints every learner's mean absolute error per
-target. Companion of scripts/tactip127_ceiling.py (other learners on visuotact's own features).
+target. Companion of research/tactip127_ceiling.py (other learners on visuotact's own features).
 
-Usage (after scripts/real-tactip127, whose sensor file and features it reads; the peers' venv):
-    $PEER_WORK/venv/bin/python scripts/tactip127_image_learners.py
+Usage (after scripts/bench/real-tactip127, whose sensor file and features it reads; the peers' venv):
+    $PEER_WORK/venv/bin/python research/tactip127_image_learners.py
 """
 
 import csv
