@@ -15,8 +15,31 @@ use crate::table::{cell_number, TableError};
 
 /// Why a packet layout does not parse or a packet does not decode.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct PacketError(pub String);
+pub enum PacketError {
+    /// A layout names a field there is not.
+    #[error("unknown force field {0:?}")]
+    UnknownField(String),
+    /// A layout with no field.
+    #[error("the force layout is empty")]
+    EmptyLayout,
+    /// A layout naming a field twice.
+    #[error("the force layout names {0} twice")]
+    Twice(&'static str),
+    /// A layout without exactly one time field.
+    #[error("the force layout must name one time field (timestamp_s or counter), got {0}")]
+    TimeFields(usize),
+    /// A packet of another length than the layout's.
+    #[error("packet of {got} bytes, expected {expected}")]
+    Length {
+        /// Bytes received.
+        got: usize,
+        /// Bytes the layout makes.
+        expected: usize,
+    },
+    /// A field that decodes to NaN or an infinity.
+    #[error("field {0} is not a finite number")]
+    NotFinite(&'static str),
+}
 
 /// One field of a packet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,19 +151,16 @@ impl ForceLayout {
             .split(',')
             .map(|p| {
                 ForceField::from_name(p.trim())
-                    .ok_or_else(|| PacketError(format!("unknown force field {:?}", p.trim())))
+                    .ok_or_else(|| PacketError::UnknownField(p.trim().to_string()))
             })
             .collect();
         let fields = fields?;
         if fields.is_empty() {
-            return Err(PacketError("the force layout is empty".to_string()));
+            return Err(PacketError::EmptyLayout);
         }
         for (k, f) in fields.iter().enumerate() {
             if fields[..k].contains(f) {
-                return Err(PacketError(format!(
-                    "the force layout names {} twice",
-                    f.name()
-                )));
+                return Err(PacketError::Twice(f.name()));
             }
         }
         let times = fields
@@ -148,9 +168,7 @@ impl ForceLayout {
             .filter(|f| matches!(f, ForceField::Timestamp | ForceField::Counter))
             .count();
         if times != 1 {
-            return Err(PacketError(format!(
-                "the force layout must name one time field (timestamp_s or counter), got {times}"
-            )));
+            return Err(PacketError::TimeFields(times));
         }
         Ok(Self { fields })
     }
@@ -183,11 +201,10 @@ impl ForceLayout {
     /// timestamp in samples). Fails on a wrong length or a non-finite value.
     pub fn decode(&self, bytes: &[u8]) -> Result<ForceSample, PacketError> {
         if bytes.len() != self.packet_len() {
-            return Err(PacketError(format!(
-                "packet of {} bytes, expected {}",
-                bytes.len(),
-                self.packet_len()
-            )));
+            return Err(PacketError::Length {
+                got: bytes.len(),
+                expected: self.packet_len(),
+            });
         }
         let mut s = ForceSample {
             timestamp_s: 0.0,
@@ -198,10 +215,7 @@ impl ForceLayout {
             b.copy_from_slice(chunk);
             let v = f64::from_le_bytes(b);
             if !v.is_finite() {
-                return Err(PacketError(format!(
-                    "field {} is not a finite number",
-                    f.name()
-                )));
+                return Err(PacketError::NotFinite(f.name()));
             }
             match f {
                 ForceField::Timestamp | ForceField::Counter => s.timestamp_s = v,

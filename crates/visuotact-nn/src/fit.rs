@@ -26,6 +26,7 @@ use crate::metrics::target_errors;
 use crate::mlp::{Algorithm, MinMax, Mlp, Settle, TrainConfig};
 use crate::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 use crate::pca::Projection;
+use crate::pca::ProjectionError;
 
 /// Components `auto` keeps for sensors with many inputs. Tables of thousands of frames get
 /// their capacity from the wide network ([`InputSet::wide`]) instead: twice as many
@@ -520,7 +521,15 @@ pub enum FitError {
     Components(String),
     /// The principal components could not be taken.
     #[error("principal components: {0}")]
-    Projection(#[from] crate::pca::ProjectionError),
+    Projection(#[from] ProjectionError),
+    /// A model fitted in cross-validation could not estimate one of its held-out samples.
+    #[error("held-out sample {sample}: {source}")]
+    HeldOut {
+        /// The sample (from 0).
+        sample: usize,
+        /// Why.
+        source: crate::model::EstimateError,
+    },
 }
 
 /// Most networks in one ensemble.
@@ -741,11 +750,9 @@ fn project(
             .iter()
             .enumerate()
             .map(|(row, r)| {
-                let mut z = p.apply_partial(&r[..projected]).ok_or_else(|| {
-                    FitError::Projection(crate::pca::ProjectionError(format!(
-                        "sample {row} has fewer inputs left than components"
-                    )))
-                })?;
+                let mut z = p
+                    .apply_partial(&r[..projected])
+                    .ok_or(FitError::Projection(ProjectionError::Sparse(row)))?;
                 z.extend_from_slice(&r[projected..]);
                 Ok(z)
             })
@@ -882,9 +889,7 @@ fn fill(
     let filler = Projection::fit(&complete, k)?;
     for (row, r) in xs.iter_mut().enumerate() {
         if !filler.fill_missing(&mut r[..markers]) {
-            return Err(FitError::Projection(crate::pca::ProjectionError(format!(
-                "sample {row} has fewer inputs left than components"
-            ))));
+            return Err(FitError::Projection(ProjectionError::Sparse(row)));
         }
     }
     Ok((Some(filler), xs))
@@ -1235,11 +1240,9 @@ fn cross_validated(
                 .filter(|&i| fold_of[i] == k)
                 .map(|i| {
                     let row: Vec<f64> = sets[s].columns.iter().map(|&c| data.x[i][c]).collect();
-                    let e = model.estimate(&row).map_err(|why| {
-                        FitError::Projection(crate::pca::ProjectionError(format!(
-                            "held-out sample {i}: {why}"
-                        )))
-                    })?;
+                    let e = model
+                        .estimate(&row)
+                        .map_err(|source| FitError::HeldOut { sample: i, source })?;
                     Ok((i, e.values))
                 })
                 .collect::<Result<_, FitError>>()

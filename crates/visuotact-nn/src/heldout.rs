@@ -50,8 +50,34 @@ pub struct HeldOutErrors {
 
 /// Why a [`HeldOutErrors`] read from a file is unusable.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("held-out errors: {0}")]
-pub struct HeldOutError(pub String);
+pub enum HeldOutError {
+    /// No neighbours, or more than there are samples.
+    #[error("held-out errors: {neighbours} neighbours of {samples} samples")]
+    Neighbours {
+        /// Neighbours asked for.
+        neighbours: usize,
+        /// Samples held.
+        samples: usize,
+    },
+    /// The error rows do not pair with the estimate rows.
+    #[error("held-out errors: {estimates} estimates but {errors} errors")]
+    Unpaired {
+        /// Estimate rows.
+        estimates: usize,
+        /// Error rows.
+        errors: usize,
+    },
+    /// A row of the wrong length or with a value that is not finite.
+    #[error("held-out errors: row {row} has {values} values (expected {targets} finite ones)")]
+    Row {
+        /// The row (0-based, in the estimates and in the errors alike).
+        row: usize,
+        /// Values it has.
+        values: usize,
+        /// Targets the model has.
+        targets: usize,
+    },
+}
 
 /// The nearest samples found by one lookup, kept between frames.
 #[derive(Clone, Debug, Default)]
@@ -91,31 +117,28 @@ impl HeldOutErrors {
     /// Whether the table is usable for a model with `targets` targets; the error says what is
     /// wrong.
     pub fn check(&self, targets: usize) -> Result<(), HeldOutError> {
-        let bad = |why: String| Err(HeldOutError(why));
         if self.neighbours == 0 || self.estimates.len() < self.neighbours {
-            return bad(format!(
-                "{} neighbours of {} samples",
-                self.neighbours,
-                self.estimates.len()
-            ));
+            return Err(HeldOutError::Neighbours {
+                neighbours: self.neighbours,
+                samples: self.estimates.len(),
+            });
         }
         if self.errors.len() != self.estimates.len() {
-            return bad(format!(
-                "{} estimates but {} errors",
-                self.estimates.len(),
-                self.errors.len()
-            ));
+            return Err(HeldOutError::Unpaired {
+                estimates: self.estimates.len(),
+                errors: self.errors.len(),
+            });
         }
         let rows = self.estimates.iter().chain(&self.errors);
         if let Some((i, r)) = rows
             .enumerate()
             .find(|(_, r)| r.len() != targets || r.iter().any(|v| !v.is_finite()))
         {
-            return bad(format!(
-                "row {} has {} values (expected {targets} finite ones)",
-                i % self.estimates.len(),
-                r.len()
-            ));
+            return Err(HeldOutError::Row {
+                row: i % self.estimates.len(),
+                values: r.len(),
+                targets,
+            });
         }
         Ok(())
     }

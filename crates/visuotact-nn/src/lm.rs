@@ -171,10 +171,27 @@ pub struct LmConfig {
     pub damping: Damping,
 }
 
-/// Levenberg–Marquardt settings that cannot work; the message says which.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct LmConfigError(pub String);
+/// Levenberg–Marquardt settings that cannot work: which one, and the value given.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum LmConfigError {
+    /// `mu` is not a positive finite number.
+    #[error("mu must be positive, got {0}")]
+    Mu(f64),
+    /// `mu_inc` does not exceed 1 (μ could never grow).
+    #[error("mu_inc must exceed 1, got {0}")]
+    MuInc(f64),
+    /// `mu_dec` is not in (0, 1) (μ could never shrink).
+    #[error("mu_dec must lie in (0, 1), got {0}")]
+    MuDec(f64),
+    /// `mu_max` is below `mu`.
+    #[error("mu_max ({mu_max}) must be at least mu ({mu})")]
+    MuMax {
+        /// The ceiling given.
+        mu_max: f64,
+        /// The starting μ.
+        mu: f64,
+    },
+}
 
 impl LmConfig {
     /// MATLAB `trainlm` defaults: μ = 1e−3, ×0.1 / ×10, μ_max 1e10, min gradient 1e−7,
@@ -209,28 +226,19 @@ impl LmConfig {
     /// `mu_max ≥ mu`.
     pub fn validate(&self) -> Result<(), LmConfigError> {
         if !(self.mu > 0.0 && self.mu.is_finite()) {
-            return Err(LmConfigError(format!(
-                "mu must be positive, got {}",
-                self.mu
-            )));
+            return Err(LmConfigError::Mu(self.mu));
         }
         if !(self.mu_inc > 1.0 && self.mu_inc.is_finite()) {
-            return Err(LmConfigError(format!(
-                "mu_inc must exceed 1, got {}",
-                self.mu_inc
-            )));
+            return Err(LmConfigError::MuInc(self.mu_inc));
         }
         if !(self.mu_dec > 0.0 && self.mu_dec < 1.0) {
-            return Err(LmConfigError(format!(
-                "mu_dec must lie in (0, 1), got {}",
-                self.mu_dec
-            )));
+            return Err(LmConfigError::MuDec(self.mu_dec));
         }
         if self.mu_max.is_nan() || self.mu_max < self.mu {
-            return Err(LmConfigError(format!(
-                "mu_max ({}) must be at least mu ({})",
-                self.mu_max, self.mu
-            )));
+            return Err(LmConfigError::MuMax {
+                mu_max: self.mu_max,
+                mu: self.mu,
+            });
         }
         Ok(())
     }

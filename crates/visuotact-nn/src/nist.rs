@@ -46,18 +46,26 @@ fn numbers(line: &str) -> Vec<f64> {
 
 /// Why a NIST StRD file does not parse.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct NistError(pub String);
-
-impl From<String> for NistError {
-    fn from(why: String) -> Self {
-        Self(why)
-    }
+pub enum NistError {
+    /// A section the format always has is not there.
+    #[error("no {0}")]
+    Missing(&'static str),
+    /// A line of a section does not hold the numbers it should.
+    #[error("bad {section} line {line:?}")]
+    Line {
+        /// `parameter`, `RSS` or `data`.
+        section: &'static str,
+        /// The line.
+        line: String,
+    },
 }
 
-impl From<&str> for NistError {
-    fn from(why: &str) -> Self {
-        Self(why.to_string())
+impl NistError {
+    fn line(section: &'static str, line: &str) -> Self {
+        Self::Line {
+            section,
+            line: line.to_string(),
+        }
     }
 }
 
@@ -65,11 +73,11 @@ impl Dataset {
     /// Parses a `.dat` file's text; `name` is the dataset name (the file stem).
     pub fn parse(name: &str, text: &str) -> Result<Self, NistError> {
         let lines: Vec<&str> = text.lines().collect();
-        let (s0, s1) =
-            line_range(text, "Starting Values").ok_or("no starting-values line range")?;
+        let (s0, s1) = line_range(text, "Starting Values")
+            .ok_or(NistError::Missing("starting-values line range"))?;
         let (d0, d1) = line_range(text, "Data ")
             .or_else(|| line_range(text, "Data"))
-            .ok_or("no data line range")?;
+            .ok_or(NistError::Missing("data line range"))?;
         let mut starts = [Vec::new(), Vec::new()];
         let mut certified = Vec::new();
         for l in &lines[s0 - 1..s1] {
@@ -77,10 +85,10 @@ impl Dataset {
             let v = numbers(
                 l.split('=')
                     .nth(1)
-                    .ok_or_else(|| format!("bad parameter line {l:?}"))?,
+                    .ok_or_else(|| NistError::line("parameter", l))?,
             );
             if v.len() < 4 {
-                return Err(NistError(format!("bad parameter line {l:?}")));
+                return Err(NistError::line("parameter", l));
             }
             starts[0].push(v[0]);
             starts[1].push(v[1]);
@@ -89,8 +97,10 @@ impl Dataset {
         let rss_line = lines
             .iter()
             .find(|l| l.contains("Residual Sum of Squares"))
-            .ok_or("no certified RSS")?;
-        let certified_rss = *numbers(rss_line).last().ok_or("bad RSS line")?;
+            .ok_or(NistError::Missing("certified RSS"))?;
+        let certified_rss = *numbers(rss_line)
+            .last()
+            .ok_or_else(|| NistError::line("RSS", rss_line))?;
         let (mut y, mut x) = (Vec::new(), Vec::new());
         for l in &lines[d0 - 1..d1.min(lines.len())] {
             let v = numbers(l);
@@ -103,7 +113,7 @@ impl Dataset {
                     y.push(v[0]);
                     x.push([v[1], v[2]]);
                 }
-                _ => return Err(NistError(format!("bad data line {l:?}"))),
+                _ => return Err(NistError::line("data", l)),
             }
         }
         Ok(Self {

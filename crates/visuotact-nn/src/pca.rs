@@ -27,15 +27,33 @@ pub struct Projection {
     pub score_scaling: MinMax,
 }
 
-/// Why principal components could not be taken.
+/// Why principal components could not be taken or applied.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct ProjectionError(pub String);
-
-impl From<String> for ProjectionError {
-    fn from(why: String) -> Self {
-        Self(why)
-    }
+pub enum ProjectionError {
+    /// Fewer than two samples, or samples of no input.
+    #[error("principal components need at least 2 samples of 1 input, got {samples} of {inputs}")]
+    TooFew {
+        /// Samples given.
+        samples: usize,
+        /// Inputs per sample.
+        inputs: usize,
+    },
+    /// More components asked for than the data have, or none.
+    #[error("asked for {asked} components of {inputs} inputs and {samples} samples: at most {}", inputs.min(samples))]
+    Components {
+        /// Components asked for.
+        asked: usize,
+        /// Inputs per sample.
+        inputs: usize,
+        /// Samples given.
+        samples: usize,
+    },
+    /// faer's eigendecomposition of the covariance failed (its error, as faer words it).
+    #[error("eigendecomposition failed ({0})")]
+    Eigen(String),
+    /// A sample has so many inputs missing that fewer are left than components.
+    #[error("sample {0} has fewer inputs left than components")]
+    Sparse(usize),
 }
 
 impl Projection {
@@ -44,15 +62,17 @@ impl Projection {
     pub fn fit(rows: &[Vec<f64>], k: usize) -> Result<Self, ProjectionError> {
         let (n, f) = (rows.len(), rows.first().map_or(0, Vec::len));
         if n < 2 || f == 0 {
-            return Err(ProjectionError(format!(
-                "principal components need at least 2 samples of 1 input, got {n} of {f}"
-            )));
+            return Err(ProjectionError::TooFew {
+                samples: n,
+                inputs: f,
+            });
         }
         if k == 0 || k > f.min(n) {
-            return Err(ProjectionError(format!(
-                "asked for {k} components of {f} inputs and {n} samples: at most {}",
-                f.min(n)
-            )));
+            return Err(ProjectionError::Components {
+                asked: k,
+                inputs: f,
+                samples: n,
+            });
         }
         let (mean, values, vectors) = eigen(rows)?;
         let total: f64 = values.iter().map(|v| v.max(0.0)).sum();
@@ -204,12 +224,13 @@ impl Projection {
 /// Mean, eigenvalues (largest first) and eigenvectors of the sample covariance of `rows`.
 type Eigen = (Vec<f64>, Vec<f64>, Vec<Vec<f64>>);
 
-fn eigen(rows: &[Vec<f64>]) -> Result<Eigen, String> {
+fn eigen(rows: &[Vec<f64>]) -> Result<Eigen, ProjectionError> {
     let (n, f) = (rows.len(), rows.first().map_or(0, Vec::len));
     if n < 2 || f == 0 {
-        return Err(format!(
-            "principal components need at least 2 samples of 1 input, got {n} of {f}"
-        ));
+        return Err(ProjectionError::TooFew {
+            samples: n,
+            inputs: f,
+        });
     }
     let mean: Vec<f64> = (0..f)
         .map(|j| rows.iter().map(|r| r[j]).sum::<f64>() / n as f64)
@@ -218,7 +239,7 @@ fn eigen(rows: &[Vec<f64>]) -> Result<Eigen, String> {
     let cov = xc.transpose() * &xc * (1.0 / (n - 1) as f64);
     let evd = cov
         .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| format!("principal components: eigendecomposition failed ({e:?})"))?;
+        .map_err(|e| ProjectionError::Eigen(format!("{e:?}")))?;
     let (s, u) = (evd.S(), evd.U());
     // faer sorts eigenvalues in nondecreasing order: take them from the end.
     let values: Vec<f64> = (0..f).rev().map(|i| s[i]).collect();

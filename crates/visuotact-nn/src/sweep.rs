@@ -342,35 +342,83 @@ pub const PART_FORMAT: &str = "visuotact-sweep-part";
 
 /// Sweep parts that do not make one sweep (the message names the part or the shards).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct MergeError(pub String);
+pub enum MergeError {
+    /// No part given.
+    #[error("no part to merge")]
+    NoParts,
+    /// A file that is not a sweep part.
+    #[error("{part}: not a sweep part (format {format:?})")]
+    NotAPart {
+        /// The part's name (its file).
+        part: String,
+        /// The format it names.
+        format: String,
+    },
+    /// A part of another sweep than the first part's.
+    #[error("{part}: from another sweep than {first} ({sweep} of {count} shards, {first_sweep} against {first_count})")]
+    OtherSweep {
+        /// The part's name.
+        part: String,
+        /// The first part's name.
+        first: String,
+        /// The part's sweep.
+        sweep: String,
+        /// Its shard count.
+        count: usize,
+        /// The first part's sweep.
+        first_sweep: String,
+        /// The first part's shard count.
+        first_count: usize,
+    },
+    /// A shard given twice.
+    #[error("{part}: shard {index}/{count} again (also {other})")]
+    Again {
+        /// The part's name.
+        part: String,
+        /// The shard (from 1).
+        index: usize,
+        /// Shards in the sweep.
+        count: usize,
+        /// The other part holding it.
+        other: String,
+    },
+    /// Shards no part holds, as `k/count`.
+    #[error("shards missing: {}", .0.join(", "))]
+    Missing(Vec<String>),
+}
 
 /// Checks that `parts` are every shard of one sweep, once each, and gives their trainings.
 pub fn merge_parts(parts: Vec<(String, SweepPart)>) -> Result<Vec<Trained>, MergeError> {
     let Some((first_name, first)) = parts.first() else {
-        return Err(MergeError("no part to merge".into()));
+        return Err(MergeError::NoParts);
     };
     let (sweep, count) = (first.sweep.clone(), first.shard.count);
     let mut seen = vec![None::<&str>; count];
     for (name, p) in &parts {
         if p.format != PART_FORMAT {
-            return Err(MergeError(format!(
-                "{name}: not a sweep part (format {:?})",
-                p.format
-            )));
+            return Err(MergeError::NotAPart {
+                part: name.clone(),
+                format: p.format.clone(),
+            });
         }
         if p.sweep != sweep || p.shard.count != count {
-            return Err(MergeError(format!(
-                "{name}: from another sweep than {first_name} ({} of {} shards, {} against {})",
-                p.sweep, p.shard.count, sweep, count
-            )));
+            return Err(MergeError::OtherSweep {
+                part: name.clone(),
+                first: first_name.clone(),
+                sweep: p.sweep.clone(),
+                count: p.shard.count,
+                first_sweep: sweep,
+                first_count: count,
+            });
         }
         let slot = &mut seen[p.shard.index - 1];
         if let Some(other) = slot {
-            return Err(MergeError(format!(
-                "{name}: shard {}/{count} again (also {other})",
-                p.shard.index
-            )));
+            return Err(MergeError::Again {
+                part: name.clone(),
+                index: p.shard.index,
+                count,
+                other: (*other).to_string(),
+            });
         }
         *slot = Some(name);
     }
@@ -379,10 +427,7 @@ pub fn merge_parts(parts: Vec<(String, SweepPart)>) -> Result<Vec<Trained>, Merg
         .map(|k| format!("{k}/{count}"))
         .collect();
     if !missing.is_empty() {
-        return Err(MergeError(format!(
-            "shards missing: {}",
-            missing.join(", ")
-        )));
+        return Err(MergeError::Missing(missing));
     }
     Ok(parts.into_iter().flat_map(|(_, p)| p.trained).collect())
 }
@@ -468,10 +513,23 @@ mod tests {
         let ok = merge_parts(vec![part(2, 2, "a"), part(1, 2, "a")]).unwrap();
         assert_eq!(ok.len(), 2);
         let e = merge_parts(vec![part(1, 3, "a"), part(3, 3, "a")]).unwrap_err();
-        assert!(e.0.contains("shards missing: 2/3"), "{e}");
+        assert_eq!(e, MergeError::Missing(vec!["2/3".into()]));
+        assert!(e.to_string().contains("shards missing: 2/3"), "{e}");
         let e = merge_parts(vec![part(1, 2, "a"), part(1, 2, "a")]).unwrap_err();
-        assert!(e.0.contains("again"), "{e}");
+        assert!(
+            matches!(
+                e,
+                MergeError::Again {
+                    index: 1,
+                    count: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("again"), "{e}");
         let e = merge_parts(vec![part(1, 2, "a"), part(2, 2, "b")]).unwrap_err();
-        assert!(e.0.contains("another sweep"), "{e}");
+        assert!(matches!(e, MergeError::OtherSweep { .. }), "{e}");
+        assert!(e.to_string().contains("another sweep"), "{e}");
     }
 }
