@@ -1,6 +1,7 @@
-//! ARCHITECTURE.md's checkable claims, checked: a row per crate and a crate per row, rows of at
-//! most 25 words, the command line's source under the line count it states, no public function
-//! returning `Result<_, String>`, and no command module importing another.
+//! ARCHITECTURE.md's checkable claims, checked: a row per crate and a crate per row, each
+//! crate's dependencies above its row, rows of at most 25 words, the command line's source
+//! under the line count it states, no public function returning `Result<_, String>`, and no
+//! command module importing another.
 
 use std::path::{Path, PathBuf};
 
@@ -154,4 +155,62 @@ fn the_pipeline_needs_the_simulator_only_for_simulated_sources() {
             }
         }
     }
+}
+
+/// The crates in the order of ARCHITECTURE.md's table.
+fn table_order() -> Vec<String> {
+    architecture()
+        .lines()
+        .filter(|l| l.starts_with("| `visuotact"))
+        .filter_map(|l| l.split('`').nth(1).map(str::to_string))
+        .collect()
+}
+
+/// "Each depends only on those above it in the table": every workspace crate's normal
+/// dependencies on other workspace crates, from `cargo metadata`, lie above its row.
+#[test]
+fn every_crate_depends_only_on_crates_above_it() {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--no-deps",
+            "--offline",
+        ])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "cargo metadata: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let order = table_order();
+    let row = |name: &str| order.iter().position(|n| n == name);
+    let mut checked = 0;
+    for package in meta["packages"].as_array().unwrap() {
+        let name = package["name"].as_str().unwrap();
+        let Some(me) = row(name) else {
+            panic!("{name} has no row in ARCHITECTURE.md");
+        };
+        for dep in package["dependencies"].as_array().unwrap() {
+            let dep_name = dep["name"].as_str().unwrap();
+            if !dep["kind"].is_null() {
+                continue; // dev- and build-dependencies: tests may use any crate
+            }
+            if let Some(there) = row(dep_name) {
+                assert!(
+                    there < me,
+                    "{name} depends on {dep_name}, which ARCHITECTURE.md's table puts below it"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(
+        checked > 20,
+        "only {checked} dependencies between crates seen"
+    );
 }
