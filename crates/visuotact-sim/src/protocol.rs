@@ -93,19 +93,60 @@ pub fn iats_named(cfg: &IatsConfig, name: &str, n: usize, seed: u64) -> Option<V
     }
 }
 
-/// The names [`zoo_named`] knows.
-pub const ZOO_PROTOCOLS: [&str; 4] = ["grid", "random", "shear", "drag"];
+/// The names [`zoo_named`] knows (`plate` on a dome only).
+pub const ZOO_PROTOCOLS: [&str; 5] = ["grid", "random", "shear", "drag", "plate"];
 
-/// A zoo protocol by name: `grid`, `random`, `shear` or `drag` (`n` touches from `seed`);
-/// `None` for any other name.
+/// A zoo protocol by name: `grid`, `random`, `shear`, `drag` or `plate` (`n` touches from
+/// `seed`); `None` for any other name, and for `plate` on a flat skin.
 pub fn zoo_named(cfg: &ZooConfig, name: &str, n: usize, seed: u64) -> Option<Vec<ZooTouch>> {
     match name {
         "grid" => Some(zoo_grid(cfg)),
         "random" => Some(zoo_random(cfg, n, seed)),
         "shear" => Some(zoo_shear(cfg, n, seed)),
         "drag" => Some(zoo_drag(cfg, n, seed)),
+        "plate" => zoo_plate(cfg, n, seed),
         _ => None,
     }
+}
+
+/// Steepest tilt of [`zoo_plate`]'s plate, degrees (the real 331-pin TacTip set reaches 25°).
+pub const PLATE_TILT_DEG: f64 = 25.0;
+
+/// `n` presses of a flat plate on a dome, as a robot arm presses a TacTip on a table: the plate
+/// tilted by up to [`PLATE_TILT_DEG`] about a random axis, so it touches the dome of radius `R`
+/// at arc `R θ` from the apex, as a ball of radius `R` ([`ZooTouch::indenter_radius_mm`]);
+/// depth uniform from 10 % to 60 % of the skin's limit; slid by up to two pitches (the touch's
+/// limit) in a random direction and twisted by up to ±10°. `None` on a flat skin: a tilted
+/// plate meets a flat gel with its edge, which the zoo's Hertzian contact does not model.
+pub fn zoo_plate(cfg: &ZooConfig, n: usize, seed: u64) -> Option<Vec<ZooTouch>> {
+    if cfg.surface != Surface::Dome {
+        return None;
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x91A7_0400);
+    let r = cfg.dome_radius_mm;
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let tilt = rng
+            .random_range(-PLATE_TILT_DEG..=PLATE_TILT_DEG)
+            .to_radians();
+        let axis = rng.random_range(0.0..std::f64::consts::PI);
+        let slide_dir = rng.random_range(0.0..std::f64::consts::TAU);
+        let slide = rng.random_range(0.0..=2.0) * cfg.pitch_mm;
+        let t = ZooTouch {
+            x_mm: r * tilt * axis.cos(),
+            y_mm: r * tilt * axis.sin(),
+            depth_mm: rng.random_range(0.1..=0.6) * cfg.max_depth_mm,
+            shear_x_mm: slide * slide_dir.cos(),
+            shear_y_mm: slide * slide_dir.sin(),
+            twist_deg: rng.random_range(-10.0..=10.0),
+            slip_annulus: 0.0,
+            indenter_radius_mm: Some(r),
+        };
+        if cfg.field_contains(t.x_mm, t.y_mm) {
+            out.push(t);
+        }
+    }
+    Some(out)
 }
 
 /// `a, b or c` from a list of names, for error messages.
@@ -434,9 +475,36 @@ mod tests {
         );
         assert_eq!(zoo_named(&zoo, "shear", 9, 1), Some(zoo_shear(&zoo, 9, 1)));
         assert_eq!(zoo_named(&zoo, "line", 9, 1), None);
-        assert_eq!(names_listed(&ZOO_PROTOCOLS), "grid, random, shear or drag");
+        assert_eq!(zoo_named(&zoo, "plate", 9, 1), zoo_plate(&zoo, 9, 1));
+        assert_eq!(
+            names_listed(&ZOO_PROTOCOLS),
+            "grid, random, shear, drag or plate"
+        );
         assert_eq!(names_listed(&["a"]), "a");
         assert_eq!(names_listed(&[]), "");
+    }
+
+    /// A plate on a dome touches where its tilt points (arc `R θ`, `θ` ≤ 25°) as a ball of the
+    /// dome's radius, slid up to two pitches; a flat skin has no plate protocol.
+    #[test]
+    fn plate_presses_touch_where_the_tilt_points() {
+        let dome = ZooConfig::variant(crate::zoo::ZooKind::Tactip, 3);
+        let touches = zoo_plate(&dome, 200, 5).unwrap();
+        assert_eq!(touches.len(), 200);
+        assert_eq!(touches, zoo_plate(&dome, 200, 5).unwrap());
+        let r = dome.dome_radius_mm;
+        let mut steepest = 0.0f64;
+        for t in &touches {
+            t.validate(&dome).unwrap();
+            assert_eq!(t.indenter_radius_mm, Some(r));
+            let tilt_deg = (t.x_mm.hypot(t.y_mm) / r).to_degrees();
+            assert!(tilt_deg <= PLATE_TILT_DEG + 1e-9, "{t:?}");
+            steepest = steepest.max(tilt_deg);
+            assert!(t.shear_x_mm.hypot(t.shear_y_mm) <= 2.0 * dome.pitch_mm + 1e-9);
+        }
+        assert!(steepest > 0.9 * PLATE_TILT_DEG, "steepest tilt {steepest}°");
+        assert_eq!(zoo_plate(&ZooConfig::GELSIGHT, 5, 5), None);
+        assert_eq!(zoo_named(&ZooConfig::GELSIGHT, "plate", 5, 5), None);
     }
 
     #[test]

@@ -772,9 +772,20 @@ pub struct ZooTouch {
     /// up to half the drag at the contact's edge. See [`crate::protocol::zoo_slip`].
     #[serde(default)]
     pub slip_annulus: f64,
+    /// Radius of what presses, mm, where it is not the sensor's spherical tip
+    /// ([`ZooConfig::tip_radius_mm`]). A flat plate on a dome of radius `R` touches as a ball
+    /// of radius `R` on a plane does (Hertz: `1/R_eff = 1/R + 1/∞`), so a plate on a TacTip is
+    /// `Some(dome_radius_mm)` ([`crate::protocol::zoo_plate`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indenter_radius_mm: Option<f64>,
 }
 
 impl ZooTouch {
+    /// Radius of what presses on `cfg`'s skin, mm: the touch's own indenter, or the sensor's tip.
+    pub fn indenter_mm(&self, cfg: &ZooConfig) -> f64 {
+        self.indenter_radius_mm.unwrap_or(cfg.tip_radius_mm)
+    }
+
     /// The touch part of the way there, as a video shows it being made: the depth scaled by
     /// `press`, the drag and twist by `drag` (each 0..1; 1 and 1: the touch itself).
     pub fn partway(&self, press: f64, drag: f64) -> Self {
@@ -798,6 +809,7 @@ impl ZooTouch {
             self.shear_y_mm,
             self.twist_deg,
             self.slip_annulus,
+            self.indenter_mm(cfg),
         ];
         if !v.iter().all(|x| x.is_finite()) {
             return Err(crate::SimError(format!(
@@ -839,6 +851,12 @@ impl ZooTouch {
                 self.twist_deg
             )));
         }
+        if self.indenter_mm(cfg) <= 0.0 {
+            return Err(crate::SimError(format!(
+                "indenter radius {} mm must be positive",
+                self.indenter_mm(cfg)
+            )));
+        }
         Ok(())
     }
 }
@@ -859,9 +877,8 @@ pub fn displacement_mm(cfg: &ZooConfig, touch: &ZooTouch, u: f64, v: f64) -> [f6
     if d <= 0.0 {
         return [0.0, 0.0, 0.0];
     }
-    let a = (cfg.tip_radius_mm * d)
-        .sqrt()
-        .clamp(0.05, cfg.tip_radius_mm);
+    let tip = touch.indenter_mm(cfg);
+    let a = (tip * d).sqrt().clamp(0.05, tip);
     let t = cfg.skin_thickness_mm;
     let (dx, dy) = (u - touch.x_mm, v - touch.y_mm);
     let r = dx.hypot(dy);
@@ -1107,7 +1124,7 @@ fn shading_map(cfg: &ZooConfig, touch: &ZooTouch) -> Option<ShadingMap> {
         return None;
     }
     let cam = &cfg.camera;
-    let a = (cfg.tip_radius_mm * touch.depth_mm).sqrt();
+    let a = (touch.indenter_mm(cfg) * touch.depth_mm).sqrt();
     let reach = a + 6.0 * cfg.skin_thickness_mm;
     let z = cfg.camera_distance_mm;
     // Pixel bounds of the reached square (the lens maps the square's corners outwards or
@@ -1238,6 +1255,7 @@ mod tests {
             shear_y_mm: -0.3,
             twist_deg: 0.0,
             slip_annulus: 0.0,
+            indenter_radius_mm: None,
         };
         let under = displacement_mm(&c, &t, 1.0, -2.0);
         assert!((under[2] - 1.2).abs() < 1e-12);
@@ -1254,6 +1272,29 @@ mod tests {
                 "{inside:?} {outside:?}"
             );
         }
+    }
+
+    /// A touch's own indenter sets the contact radius `sqrt(R d)`: Hertz's profile reaches
+    /// `d / 2` at the contact's edge, for the sensor's tip and for a plate's larger radius.
+    #[test]
+    fn the_indenter_sets_the_contact_radius() {
+        let c = ZooConfig::TACTIP;
+        for indenter in [None, Some(c.dome_radius_mm)] {
+            let t = ZooTouch {
+                depth_mm: 2.0,
+                indenter_radius_mm: indenter,
+                ..ZooTouch::default()
+            };
+            let a = (t.indenter_mm(&c) * t.depth_mm).sqrt();
+            let edge = displacement_mm(&c, &t, a, 0.0);
+            assert!((edge[2] - 1.0).abs() < 1e-12, "{indenter:?}: {edge:?}");
+        }
+        let bad = ZooTouch {
+            depth_mm: 1.0,
+            indenter_radius_mm: Some(0.0),
+            ..ZooTouch::default()
+        };
+        assert!(bad.validate(&c).is_err());
     }
 
     #[test]
@@ -1298,6 +1339,7 @@ mod tests {
             shear_y_mm: 0.0,
             twist_deg: 5.0,
             slip_annulus: 0.0,
+            indenter_radius_mm: None,
         };
         let (a, _) = render(&c, &t, 5).unwrap();
         let (b, _) = render(&c, &t, 5).unwrap();

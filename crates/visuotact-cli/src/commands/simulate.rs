@@ -19,7 +19,7 @@ pub(crate) struct Args {
     #[arg(long, value_parser = crate::args::choice::<SimKind>(SimKind::NAMES))]
     sensor: SimKind,
     /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random, drag,
-    /// shear.
+    /// shear, and on the domes (tactip, tactip-small) plate.
     #[arg(long)]
     protocol: String,
     /// iats and zoo sensors: draw the sensor's parameters (pitch, marker size, colours, skin,
