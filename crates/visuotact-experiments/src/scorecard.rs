@@ -4,13 +4,17 @@
 //!
 //! Every family is run with drawn variants (never the preset the code was written on) through
 //! the `random`, `shear` and `drag` protocols order-free, and the `drag` protocol followed
-//! (each touch built up in six frames), for each seed. A frame's band is the largest true motion
+//! (each touch built up in six frames), for each seed; the domes also through `plate` (a flat
+//! plate tilted up to 25° and slid up to two pitches) against a reference that is itself such
+//! a press (rows `… plate`). A frame's band is the largest true motion
 //! of a visible marker in it: under 0.5, 0.5–1, 1–1.5 and over 1.5 pitches
 //! ([`MOTION_BANDS`](crate::trackcheck::MOTION_BANDS)).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use visuotact_sim::protocol::zoo_plate;
+use visuotact_sim::zoo::ZooTouch;
 use visuotact_vision::track::TrackParams;
 
 use crate::trackcheck::{check, BandCounts, CheckConfig, CheckError, SimSensor};
@@ -79,15 +83,20 @@ fn cases(seed: u64) -> Vec<Case> {
         } else {
             vec![1 + seed % variants, 1 + (seed / 3 + 1) % variants]
         };
-        for v in picks {
+        for v in &picks {
             for protocol in ["random", "shear", "drag"] {
                 if family == "iats" && protocol == "drag" {
                     continue;
                 }
-                out.push((family, v, protocol, 0));
+                out.push((family, *v, protocol, 0));
             }
             if family != "iats" {
-                out.push((family, v, "drag", 6));
+                out.push((family, *v, "drag", 6));
+            }
+        }
+        if family.starts_with("tactip") {
+            for v in &picks {
+                out.push((family, *v, "plate", 0));
             }
         }
     }
@@ -215,6 +224,17 @@ pub fn scorecard_table(
     Ok((card.to_tsv().trim_end().to_string(), worse))
 }
 
+/// The reference of a `plate` run: itself a plate press drawn from `seed` (as a sensor that is
+/// never out of contact is calibrated); `None` (rest) for every other protocol.
+fn touched_reference(sensor: &SimSensor, protocol: &str, seed: u64) -> Option<ZooTouch> {
+    match sensor {
+        SimSensor::Zoo(cfg) if protocol == "plate" => {
+            zoo_plate(cfg, 1, seed ^ 0x5EF0).and_then(|t| t.first().copied())
+        }
+        _ => None,
+    }
+}
+
 /// Runs the scorecard (runs in parallel inside each check).
 pub fn scorecard(c: &ScorecardConfig) -> Result<Scorecard, CheckError> {
     let mut card = Scorecard::default();
@@ -229,10 +249,13 @@ pub fn scorecard(c: &ScorecardConfig) -> Result<Scorecard, CheckError> {
             let r = check(&CheckConfig {
                 followed_steps: followed,
                 track: c.track,
+                reference_touch: touched_reference(&sensor, protocol, seed),
                 ..CheckConfig::zoo(sensor, protocol, touches, seed)
             })?;
             let name = if followed > 0 {
                 format!("{family} followed")
+            } else if protocol == "plate" {
+                format!("{family} plate")
             } else {
                 family.to_string()
             };

@@ -131,6 +131,10 @@ pub struct CheckConfig {
     pub seed: u64,
     /// Rest frames averaged into the reference.
     pub references: usize,
+    /// The touch the reference frames are made under (zoo sensors only): `None` at rest, or a
+    /// touch, as a user calibrates a sensor that is never out of contact (the real 331-pin set).
+    /// Motion is then measured from that reference.
+    pub reference_touch: Option<ZooTouch>,
     /// How markers are detected.
     pub detector: DetectorConfig,
     /// The layout calibration uses.
@@ -158,6 +162,7 @@ impl CheckConfig {
             touches,
             seed,
             references: 10,
+            reference_touch: None,
             detector: sensor.detector(Centroid::Grey),
             layout: LayoutChoice::Auto,
             motion_limit_pitches: MOTION_LIMIT_PITCHES,
@@ -216,6 +221,9 @@ pub struct CheckReport {
     /// The same counts per motion band ([`MOTION_BANDS`]: the frame's largest motion of a
     /// visible marker under 0.5, 0.5–1, 1–1.5 and over 1.5 pitches).
     pub bands: [BandCounts; 4],
+    /// Per touch frame in order: its largest motion of a visible marker (pitches) and its
+    /// counts (`frames` 1), to find the frames a problem is in.
+    pub per_frame: Vec<(f64, BandCounts)>,
 }
 
 /// Upper edges of the motion bands, pitches (the last band has none).
@@ -340,19 +348,24 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> Result<(RgbImage, 
     }
 }
 
-fn rest(sensor: &SimSensor) -> AnyTouch {
-    match sensor {
-        SimSensor::Iats(_) => AnyTouch::Iats(Touch::default()),
-        SimSensor::Zoo(_) => AnyTouch::Zoo(ZooTouch::default()),
+/// The touch the reference is made under: `c.reference_touch`, or rest.
+fn reference(c: &CheckConfig) -> Result<AnyTouch, CheckError> {
+    match (&c.sensor, c.reference_touch) {
+        (SimSensor::Iats(_), None) => Ok(AnyTouch::Iats(Touch::default())),
+        (SimSensor::Iats(_), Some(_)) => Err(CheckError::Sim(SimError(
+            "a reference in contact is for zoo sensors only".into(),
+        ))),
+        (SimSensor::Zoo(_), t) => Ok(AnyTouch::Zoo(t.unwrap_or_default())),
     }
 }
 
 /// Calibrates on rendered rest frames and tracks every touch frame against the truth.
 pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
     let seed_of = |k: u64| visuotact_sim::rig::frame_seed(c.seed, k);
+    let reference = reference(c)?;
     let refs: Vec<(RgbImage, Truth)> = (0..c.references.max(1) as u64)
         .into_par_iter()
-        .map(|k| render(&c.sensor, &rest(&c.sensor), seed_of(k)))
+        .map(|k| render(&c.sensor, &reference, seed_of(k)))
         .collect::<Result<_, SimError>>()?;
     let ids: Vec<String> = (0..refs.len()).map(|k| format!("ref{k}")).collect();
     // The opening and smallest blob sized from the markers, as `calibrate` does.
@@ -368,20 +381,20 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
             track: c.track,
         },
     )?;
-    let rest_truth = &refs[0].1;
-    let pairing = pair(&cal, rest_truth);
+    let ref_truth = &refs[0].1;
+    let pairing = pair(&cal, ref_truth);
     let mut report = CheckReport {
-        sim_markers: rest_truth.len(),
+        sim_markers: ref_truth.len(),
         calibrated: cal.markers.len(),
         layout: Some(cal.layout),
         pitch_px: cal.pitch_px,
         ..Default::default()
     };
-    let mut taken = vec![false; rest_truth.len()];
+    let mut taken = vec![false; ref_truth.len()];
     for t in pairing.iter().flatten() {
         taken[*t] = true;
     }
-    report.uncalibrated = rest_truth
+    report.uncalibrated = ref_truth
         .iter()
         .zip(&taken)
         .filter(|(t, k)| t.3 && !**k)
@@ -391,7 +404,7 @@ pub fn check(c: &CheckConfig) -> Result<CheckReport, CheckError> {
         c,
         cal: &cal,
         pairing: &pairing,
-        rest: rest_truth,
+        rest: ref_truth,
         first: c.references.max(1) as u64,
     };
     let per_frame = if c.followed_steps > 0 {
@@ -515,12 +528,15 @@ impl CheckReport {
             } else if fc.max_motion_in_view > motion_limit_pitches {
                 report.hidden_beyond_lost += fc.lost;
             }
-            let band = &mut report.bands[band_of(fc.max_motion)];
-            band.frames += 1;
-            band.visible += fc.visible;
-            band.lost += fc.lost - fc.ambiguous;
-            band.ambiguous += fc.ambiguous;
-            band.wrong += fc.wrong;
+            let counts = BandCounts {
+                frames: 1,
+                visible: fc.visible,
+                lost: fc.lost - fc.ambiguous,
+                ambiguous: fc.ambiguous,
+                wrong: fc.wrong,
+            };
+            report.bands[band_of(fc.max_motion)].add(&counts);
+            report.per_frame.push((fc.max_motion, counts));
             report.visible += fc.visible;
             report.lost += fc.lost;
             report.wrong += fc.wrong;

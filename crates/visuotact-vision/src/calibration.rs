@@ -673,6 +673,9 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
         let l2 = (m.minor_axis_px / 4.0).powi(2) + square;
         (m.area_px, l1 * l2)
     }));
+    if matches!(layout, Layout::Grid | Layout::Hex) {
+        r.take_steps_both_ways();
+    }
     if layout == Layout::Rings {
         // Concentric rings share a centre: they are told apart by size.
         r.ring_sizes_px = Some(markers.iter().map(|m| m.major_axis_px).collect());

@@ -19,10 +19,10 @@ pub(crate) struct Args {
     /// Sensor variants: a number or a range `A..B` (inclusive; 0 is the preset).
     #[arg(long, default_value = "0")]
     variants: String,
-    /// grid, random or shear.
+    /// grid, random, shear, drag, or on the domes plate (iats: grid, random, shear or line).
     #[arg(long, default_value = "shear")]
     protocol: String,
-    /// Touches for random and shear.
+    /// Touches for every protocol but grid.
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
     touches: u64,
     /// Seed of the touches and noise.
@@ -119,6 +119,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             touches: a.touches as usize,
             seed: a.seed,
             references: a.references,
+            reference_touch: None,
             detector,
             layout: LayoutChoice::Auto,
             motion_limit_pitches: a.motion_limit,

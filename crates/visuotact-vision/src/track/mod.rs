@@ -305,7 +305,7 @@ impl TrackReference {
             }
         }
         let (lattice_dirs, lattice_steps) =
-            predict::lattice_steps(&positions, &neighbours, &spacing_px);
+            predict::lattice_steps(&positions, &neighbours, &spacing_px, false);
         Self {
             positions,
             areas_px,
@@ -317,6 +317,18 @@ impl TrackReference {
             lattice_dirs,
             lattice_steps,
         }
+    }
+}
+
+impl TrackReference {
+    /// Takes the markers as a lattice (a grid or hexagonal layout): every step between
+    /// neighbours is taken both ways, also where the reference is stretched so that a step one
+    /// way is longer than the centre marker's near neighbours (a reference in contact). The
+    /// order-free search can then shift a reading back along every step it can shift it
+    /// forward; on a pattern with no lattice a step back is no step, and it is left as built.
+    pub fn take_steps_both_ways(&mut self) {
+        (self.lattice_dirs, self.lattice_steps) =
+            predict::lattice_steps(&self.positions, &self.neighbours, &self.spacing_px, true);
     }
 }
 
