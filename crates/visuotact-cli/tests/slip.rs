@@ -124,3 +124,92 @@ fn a_detector_fitted_on_real_grasps_is_read_back_and_run_per_video_and_per_frame
         .all(|l| ["stick", "incipient", "slip"].contains(&l.split(',').nth(3).unwrap())));
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A CSV file's header and rows, split at commas.
+fn csv_cells(p: &std::path::Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(p).unwrap();
+    let mut lines = text.lines();
+    let split = |l: &str| l.split(',').map(String::from).collect::<Vec<_>>();
+    let header = split(lines.next().unwrap());
+    (header, lines.map(split).collect())
+}
+
+/// `extract --temporal` ends each row with the displacement field's dynamics: the signals
+/// `slip detect --frames` gives for the same sensor and tracking (equal to its 5 decimals), on a
+/// real GelSight Mini video.
+#[test]
+fn extract_in_order_writes_the_fields_dynamics_that_slip_detect_reads() {
+    let Some(root) = shared_real("gelsight_mini") else {
+        return;
+    };
+    let d = fresh_dir("slip-extract");
+    let video = root.join("video_1.avi");
+    let sensor = d.join("s.json");
+    ok(&vt(&[
+        "calibrate",
+        "-q",
+        s(&video),
+        "--first",
+        "5",
+        "-o",
+        s(&sensor),
+    ]));
+    let table = d.join("f.csv");
+    ok(&vt(&[
+        "extract",
+        "-q",
+        "--sensor",
+        s(&sensor),
+        "--temporal",
+        "--features",
+        "x,y",
+        s(&video),
+        "-o",
+        s(&table),
+    ]));
+    let frames = d.join("frames.csv");
+    ok(&vt(&[
+        "slip",
+        "detect",
+        "-q",
+        "--sensor",
+        s(&sensor),
+        "--temporal",
+        "--frames",
+        "-o",
+        s(&frames),
+        s(&video),
+    ]));
+    let (th, tr) = csv_cells(&table);
+    let (sh, sr) = csv_cells(&frames);
+    assert_eq!(tr.len(), sr.len());
+    assert!(tr.len() >= 10, "{} frames", tr.len());
+    let mut moved = 0.0f64;
+    for n in visuotact_vision::field::FieldDynamics::NAMES {
+        let (ti, si) = (
+            th.iter()
+                .position(|c| c == n)
+                .unwrap_or_else(|| panic!("extract: no {n}")),
+            sh.iter().position(|c| c == n).unwrap(),
+        );
+        for (t, r) in tr.iter().zip(&sr) {
+            let (a, b): (f64, f64) = (t[ti].parse().unwrap(), r[si].parse().unwrap());
+            assert!((a - b).abs() <= 6e-6, "{n}: {a} against {b}");
+            moved = moved.max(a.abs());
+        }
+    }
+    assert!(moved > 0.0, "the signals are all zero");
+    // Frames not in order get no dynamics: the table ends with the markers and the flags.
+    ok(&vt(&[
+        "extract",
+        "-q",
+        "--sensor",
+        s(&sensor),
+        s(&video),
+        "-o",
+        s(&table),
+    ]));
+    let (th, _) = csv_cells(&table);
+    assert!(!th.iter().any(|c| c == "shift_pitches"), "{th:?}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -11,11 +11,13 @@ use visuotact_nn::model::Model;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures, MmColumns};
+use visuotact_vision::field::{FieldDynamics, FieldTracker};
 
 use crate::replay::{Pass, PassObserver, ReplayError};
 use crate::schema::{
     blob_row, feature_columns, feature_row_into, flags_of, missing_summary, BLOB_COLUMNS,
 };
+use crate::slip::{displacements_into, SlipMonitor, SlipSettings};
 use crate::table::InputSources;
 
 /// What an extraction did.
@@ -32,7 +34,10 @@ pub struct Extracted {
 }
 
 /// Writes the feature table of `frames` (image files, folders, videos at `fps`) to `output`
-/// in `format`: one row per frame ([`crate::schema`]). `obs` hears of the progress and of every frame skipped
+/// in `format`: one row per frame ([`crate::schema`]). With `ex` following the frames in order
+/// ([`FeatureExtractor::set_temporal_prior`]) and features holding x and y, each row ends with
+/// the displacement field's dynamics over the sequence ([`FieldDynamics::NAMES`], as
+/// `slip detect --frames` writes them; an increment spans the slip detector's lag). `obs` hears of the progress and of every frame skipped
 /// or with markers not found.
 pub fn extract(
     ex: &mut FeatureExtractor,
@@ -49,8 +54,21 @@ pub fn extract(
     };
     let names = ex.column_names();
     let mm = MmColumns::of_sensor(ex.calibration(), &names);
-    let mut out =
-        TableWriter::create(output, format, feature_columns(&names, &mm)).map_err(write_err)?;
+    let mut columns = feature_columns(&names, &mm);
+    // Frames in order: the field's dynamics over the sequence, as `slip detect --frames` gives
+    // them (the displacements need x and y among the features).
+    let mut dynamics = (ex.temporal_prior() && SlipMonitor::reads(ex.feature_set())).then(|| {
+        columns.extend(FieldDynamics::NAMES.iter().map(|n| n.to_string()));
+        let cal = ex.calibration();
+        let reference: Vec<(f64, f64)> = cal.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+        let lag = SlipSettings::default().lag_frames;
+        (
+            FieldTracker::new(&reference, cal.pitch_px, lag),
+            Vec::new(),
+            FieldDynamics::default(),
+        )
+    });
+    let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
     let mut done = Extracted::default();
     let mut first_skip: Option<String> = None;
     let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
@@ -78,6 +96,11 @@ pub fn extract(
             ));
         }
         feature_row_into(&mut row, frame.timestamp_s, n_markers, &f, &mm);
+        if let Some((tracker, displacements, field)) = &mut dynamics {
+            displacements_into(&f, ex.feature_set(), n_markers, displacements);
+            tracker.update_into(displacements, field);
+            row.extend_from_slice(&field.signals());
+        }
         out.write_row(&frame.id, &row, &flags_of(&f))
             .map_err(write_err)?;
         done.written += 1;

@@ -24,7 +24,8 @@ pub(crate) struct Args {
     #[arg(long)]
     features: Option<String>,
     /// Frames are in order (a video, frames in time order): start each frame's tracking from the last one's
-    /// marker positions (the reference stays the fallback).
+    /// marker positions (the reference stays the fallback), and end each row with the displacement
+    /// field's dynamics (the signals `slip detect` reads; docs/file-formats.md).
     #[arg(long)]
     temporal: bool,
     /// Table format: csv or jsonl.
