@@ -258,8 +258,9 @@ pub(crate) struct AlgorithmArg {
     /// trains, no validation subset; on 280 simulated touches of four sensors it generalised
     /// best, docs/benchmarks.md) or trainlm (MATLAB's default: LM on the squared errors,
     /// 70/15/15 split, stopped by the validation subset).
-    #[arg(long = "algorithm", default_value = FitConfig::default().algorithm.name(), value_parser = choice::<Algorithm>(Algorithm::NAMES))]
-    pub(crate) name: Algorithm,
+    /// Set, it is the trainer of every network (`train` then tries no wide network).
+    #[arg(long = "algorithm", value_parser = choice::<Algorithm>(Algorithm::NAMES))]
+    pub(crate) name: Option<Algorithm>,
     /// Feed the network the K leading principal components of the scaled inputs (kept in the
     /// model file): auto (10 when there are over 20 inputs, otherwise the inputs themselves),
     /// 0 (the inputs themselves) or K.
@@ -283,12 +284,10 @@ pub(crate) struct AlgorithmArg {
     pub(crate) max_memory_gib: Option<f64>,
 }
 
-/// `train`'s hidden layers when not told otherwise ([`FitConfig::default`]'s, as text).
-pub(crate) const DEFAULT_HIDDEN: &str = "20";
-
 impl AlgorithmArg {
+    /// The trainer: the one set, or the default (trainbr).
     pub(crate) fn algorithm(&self) -> Algorithm {
-        self.name
+        self.name.unwrap_or(FitConfig::default().algorithm)
     }
 
     /// Whether the field summary is an input.
@@ -316,6 +315,16 @@ impl AlgorithmArg {
     pub(crate) fn components(&self, inputs: usize) -> anyhow::Result<Option<usize>> {
         components_from_name(&self.components, inputs)
             .map_err(|e| anyhow::anyhow!("--components {e}"))
+    }
+
+    /// The components as the user set them for `inputs` marker inputs: `None` for `auto`
+    /// (the training policy decides), else `Some` of [`AlgorithmArg::components`].
+    pub(crate) fn wanted_components(&self, inputs: usize) -> anyhow::Result<Option<Option<usize>>> {
+        if self.components.trim() == "auto" {
+            Ok(None)
+        } else {
+            self.components(inputs).map(Some)
+        }
     }
 }
 

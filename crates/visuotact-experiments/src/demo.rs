@@ -12,11 +12,12 @@ use std::time::Instant;
 use rayon::prelude::*;
 use visuotact_image::RgbImage;
 use visuotact_nn::fit::{
-    candidate_inputs, column_kinds, ensemble_for, fit_choosing_ensemble, folds_trained, quietly,
-    wide_candidate, FieldInputs, FitConfig, FitData, FitError, InputSet, SELECTION_FOLDS,
+    ensemble_for, fit_choosing_ensemble, folds_trained, quietly, FitConfig, FitData, FitError,
+    InputSet,
 };
 use visuotact_nn::metrics::{target_errors, TargetErrors};
-use visuotact_nn::model::{is_marker_column, EstimateError, Model};
+use visuotact_nn::model::{EstimateError, Model};
+use visuotact_nn::plan::{Plan, Wanted};
 use visuotact_nn::sweep::{self, Sweep};
 use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
@@ -267,19 +268,9 @@ fn train(
 /// No input sets to choose between: [`train`] reads every column.
 const EVERY_COLUMN: (&[InputSet], usize) = (&[], 0);
 
-/// `visuotact train`'s defaults for some columns: the configuration, the input sets it
-/// chooses between and the folds it chooses by.
-struct Defaults {
-    cfg: FitConfig,
-    sets: Vec<InputSet>,
-    folds: usize,
-}
-
-impl Defaults {
-    /// The input sets and folds, as [`train`] takes them.
-    fn choice(&self) -> (&[InputSet], usize) {
-        (&self.sets, self.folds)
-    }
+/// The input sets and folds of `plan`, as [`train`] takes them.
+fn choice(plan: &Plan) -> (&[InputSet], usize) {
+    (&plan.sets, plan.folds)
 }
 
 /// Networks in a quick demo's default ensemble (the full run trains `visuotact train`'s).
@@ -300,28 +291,26 @@ fn quick_note(a: &DemoConfig) -> String {
     }
 }
 
-/// [`Defaults`] for `columns` (markers' features first, then the rest); `--quick` trains
-/// [`QUICK_ENSEMBLE`] networks of at most [`QUICK_EPOCHS`] epochs and chooses the inputs by
-/// [`QUICK_FOLDS`] folds — the demo prints how many networks, epochs and folds it used.
-fn default_config(columns: &[String], samples: usize, a: &DemoConfig) -> Defaults {
-    let markers = columns.iter().filter(|c| is_marker_column(c)).count();
-    let mut cfg = FitConfig {
-        seed: a.seed,
-        ..FitConfig::auto(markers, columns.len() - markers)
+/// `visuotact train`'s [`Plan`] for `columns` (markers' features first, then the rest);
+/// `--quick` trains [`QUICK_ENSEMBLE`] networks of at most [`QUICK_EPOCHS`] epochs and chooses
+/// the inputs by [`QUICK_FOLDS`] folds — the demo prints how many networks, epochs and folds it
+/// used.
+fn default_config(columns: &[String], samples: usize, a: &DemoConfig) -> Plan {
+    let wanted = if a.quick {
+        Wanted {
+            ensemble: Some(FitConfig::default().ensemble.min(QUICK_ENSEMBLE)),
+            max_epochs: Some(FitConfig::default().max_epochs.min(QUICK_EPOCHS)),
+            folds: Some(QUICK_FOLDS),
+            seed: a.seed,
+            ..Wanted::default()
+        }
+    } else {
+        Wanted {
+            seed: a.seed,
+            ..Wanted::default()
+        }
     };
-    let mut folds = SELECTION_FOLDS;
-    if a.quick {
-        cfg.ensemble = cfg.ensemble.min(QUICK_ENSEMBLE);
-        cfg.max_epochs = cfg.max_epochs.min(QUICK_EPOCHS);
-        folds = QUICK_FOLDS;
-    }
-    let sets = candidate_inputs(
-        &column_kinds(columns, &FIELD_COLUMNS),
-        cfg.components,
-        FieldInputs::Auto,
-        wide_candidate(samples, &cfg),
-    );
-    Defaults { cfg, sets, folds }
+    Plan::new(columns, samples, &wanted)
 }
 
 /// `model`'s inputs picked by name from rows whose columns are `columns` (the model may read
@@ -459,7 +448,7 @@ pub fn iats(a: &DemoConfig) -> Result<IatsDemo, DemoError> {
         &columns,
         &targets,
         &defaults.cfg,
-        defaults.choice(),
+        choice(&defaults),
     )?;
     let mut demo = IatsDemo {
         quick_note: quick_note(a),
@@ -930,9 +919,9 @@ fn cone_table(
         EVERY_COLUMN,
     )?;
     let d = default_config(columns, x.len(), a);
-    let default = train(&x, &t, columns, &force, &d.cfg, d.choice())?.model;
+    let default = train(&x, &t, columns, &force, &d.cfg, choice(&d))?.model;
     let dg = default_config(gauge_columns, xg.len(), a);
-    let default_g = train(&xg, &tg, gauge_columns, &force, &dg.cfg, dg.choice())?.model;
+    let default_g = train(&xg, &tg, gauge_columns, &force, &dg.cfg, choice(&dg))?.model;
     let repeats: u64 = if a.quick { 2 } else { 5 };
     let archs = one_layer_archs(40, 1);
     let sw = best_of_sweep(a, (&x, &t), columns, (&archs, repeats))?;
@@ -986,4 +975,40 @@ fn cone_table(
         pressure_drop_percent: 100.0
             * (1.0 - later.loads[0].pressure_kpa / first.loads[0].pressure_kpa),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// The demo trains by `visuotact train`'s plan: its own training path and the plan's fit
+    /// give the same model file, full and quick.
+    #[test]
+    fn the_demo_trains_as_the_plan_does() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let x: Vec<Vec<f64>> = (0..60)
+            .map(|_| (0..4).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let t: Vec<Vec<f64>> = x.iter().map(|r| vec![r[0] * r[1] + r[2]]).collect();
+        let columns: Vec<String> = (0..2)
+            .flat_map(|i| [format!("m{i:03}_dx_px"), format!("m{i:03}_dy_px")])
+            .collect();
+        for quick in [false, true] {
+            let a = DemoConfig { quick, seed: 4 };
+            let plan = default_config(&columns, x.len(), &a);
+            let demo = train(&x, &t, &columns, &["y"], &plan.cfg, choice(&plan))
+                .unwrap()
+                .model;
+            let targets = vec!["y".to_string()];
+            let data = FitData {
+                x: &x,
+                t: &t,
+                feature_columns: &columns,
+                targets: &targets,
+            };
+            let planned = plan.fit(&data, quietly).unwrap();
+            assert_eq!(demo.to_json(), planned.to_json(), "quick {quick}");
+        }
+    }
 }

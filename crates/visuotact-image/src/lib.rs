@@ -310,6 +310,39 @@ pub struct Frame {
     pub image: RgbImage,
 }
 
+/// The field-summary columns that follow the markers' columns in a feature table, in the
+/// order of the vision crate's `FieldSummary::values`.
+pub const FIELD_COLUMNS: [&str; 6] = [
+    "field_rms_px",
+    "field_max_px",
+    "field_top_px",
+    "field_cx_px",
+    "field_cy_px",
+    "field_spread_px",
+];
+
+/// The millimetre twins of [`FIELD_COLUMNS`], for a sensor with a scale.
+pub const FIELD_COLUMNS_MM: [&str; 6] = [
+    "field_rms_mm",
+    "field_max_mm",
+    "field_top_mm",
+    "field_cx_mm",
+    "field_cy_mm",
+    "field_spread_mm",
+];
+
+/// Whether a column is one of the [`FIELD_COLUMNS`] or their millimetre twins
+/// ([`FIELD_COLUMNS_MM`]).
+///
+/// ```
+/// use visuotact_image::is_field_column;
+/// assert!(is_field_column("field_rms_px") && is_field_column("field_spread_mm"));
+/// assert!(!is_field_column("m017_dx_px"));
+/// ```
+pub fn is_field_column(c: &str) -> bool {
+    FIELD_COLUMNS.contains(&c) || FIELD_COLUMNS_MM.contains(&c)
+}
+
 /// Whether a feature column is a marker's: `m`, three digits, `_` (`m017_dx_px`,
 /// `m017_dx_mm`), the names feature tables give each marker's values.
 ///

@@ -316,7 +316,7 @@ impl InputSet {
 /// choice picked them. With [`FieldInputs::Auto`], the field summary and enough markers'
 /// features for [`auto_field`]: the two together (the markers' projected by `components`)
 /// against the field summary alone — which generalises better depends on the sensor
-/// (docs/benchmarks.md) — and, when `wide` (a large table, see [`wide_candidate`]), every
+/// (docs/benchmarks.md) — and, when `wide` (a large table: [`crate::plan::Plan`]), every
 /// column into the wide network ([`InputSet::wide`]) and, where the table has markers' shape
 /// columns ([`ColumnKind::MarkerShape`]), every column but those into it too (the binarised
 /// pins of the real 127-pin TacTip set are better read without their areas:
@@ -350,14 +350,6 @@ pub fn candidate_inputs(
     } else {
         vec![all]
     }
-}
-
-/// Whether the wide network is a candidate for `samples` training samples: from
-/// [`LARGE_TABLE`] on, when training is left to choose (`algorithm` is the default's and the
-/// hidden layers are too).
-pub fn wide_candidate(samples: usize, cfg: &FitConfig) -> bool {
-    let default = FitConfig::default();
-    samples >= LARGE_TABLE && cfg.algorithm == default.algorithm && cfg.hidden == default.hidden
 }
 
 /// Folds of the cross-validation that chooses between input sets.
@@ -1741,7 +1733,6 @@ mod tests {
             ensemble: 1,
             ..FitConfig::default()
         };
-        assert!(wide_candidate(n, &cfg) && !wide_candidate(n - 200, &cfg));
         let sets = candidate_inputs(&kinds, Some(10), FieldInputs::Auto, true);
         assert_eq!(
             sets.iter().map(|s| s.wide).collect::<Vec<_>>(),

@@ -58,6 +58,7 @@ pub mod mlp;
 pub mod model;
 pub mod nist;
 pub mod pca;
+pub mod plan;
 pub mod sweep;
 pub mod tansig;
 

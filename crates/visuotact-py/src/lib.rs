@@ -29,18 +29,16 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::{read_image, FrameStream};
-use visuotact_nn::fit::{
-    candidate_inputs, column_kinds, components_from_name, ensemble_for, fit_choosing_ensemble,
-    quietly, wide_candidate, FieldInputs, FitConfig, FitData, SELECTION_FOLDS,
-};
+use visuotact_nn::fit::{components_from_name, quietly, FieldInputs, FitData};
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
+use visuotact_nn::plan::{Plan, Wanted};
 use visuotact_pipeline::slip::{
     detect, sequences_in, track_sequences, SlipConfig, SlipDetector, SlipMonitor,
 };
 use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
-use visuotact_vision::features::{is_field_column, FrameFeatures, FIELD_COLUMNS, FIELD_COLUMNS_MM};
+use visuotact_vision::features::{is_field_column, FrameFeatures};
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::Purpose;
 
@@ -356,10 +354,12 @@ impl Model {
     /// layer of 20, 5 networks (from 1 000 samples 3, or 4 wide ones; `ensemble` fixes it);
     /// on wide sensors the field summary with 10 principal components of the markers'
     /// features, or the field summary alone, whichever 5-fold cross-validation prefers, and
-    /// from 1 000 samples the wide network too (`Model.selection` has the scores).
-    /// `components`: "auto", 0 (none) or a count.
+    /// from 1 000 samples the wide network too, unless `hidden` or `algorithm` is given
+    /// (`Model.selection` has the scores). `components`: "auto", 0 (none) or a count. The same
+    /// plan as `visuotact train` (`visuotact_nn::plan::Plan`): the same table and arguments
+    /// give the same model.
     #[staticmethod]
-    #[pyo3(signature = (features, labels, columns, targets, hidden = None, algorithm = "trainbr", components = "auto".to_string(), field = "auto", ensemble = None, seed = 1, max_epochs = 1000, sensor = None))]
+    #[pyo3(signature = (features, labels, columns, targets, hidden = None, algorithm = None, components = "auto".to_string(), field = "auto", ensemble = None, seed = 1, max_epochs = 1000, sensor = None))]
     #[allow(
         clippy::too_many_arguments,
         reason = "Python keyword arguments, each with a default"
@@ -371,7 +371,7 @@ impl Model {
         columns: Vec<String>,
         targets: Vec<String>,
         hidden: Option<Vec<usize>>,
-        algorithm: &str,
+        algorithm: Option<&str>,
         components: String,
         field: &str,
         ensemble: Option<usize>,
@@ -396,40 +396,41 @@ impl Model {
             .collect();
         let t = rows_of(&labels);
         let markers = names.iter().filter(|c| is_marker_column(c)).count();
-        let auto = FitConfig::auto(markers, names.len() - markers);
-        let cfg = FitConfig {
-            hidden: hidden.unwrap_or(auto.hidden.clone()),
-            algorithm: Algorithm::from_name(algorithm).ok_or_else(|| {
-                error(format!(
-                    "algorithm {algorithm:?}: expected trainlm, trainbr or adam"
-                ))
-            })?,
-            components: components_from_name(&components, markers)
-                .map_err(|e| error(format!("components {e}")))?,
-            ensemble: ensemble.unwrap_or(auto.ensemble),
-            seed,
-            max_epochs,
-            ..auto
+        let algorithm = algorithm
+            .map(|a| {
+                Algorithm::from_name(a).ok_or_else(|| {
+                    error(format!(
+                        "algorithm {a:?}: expected trainlm, trainbr or adam"
+                    ))
+                })
+            })
+            .transpose()?;
+        let components = if components.trim() == "auto" {
+            None
+        } else {
+            Some(
+                components_from_name(&components, markers)
+                    .map_err(|e| error(format!("components {e}")))?,
+            )
         };
-        let sets = candidate_inputs(
-            &column_kinds(&names, &[FIELD_COLUMNS, FIELD_COLUMNS_MM].concat()),
-            cfg.components,
-            FieldInputs::from_name(field).unwrap_or(FieldInputs::Auto),
-            wide_candidate(x.len(), &cfg),
-        );
+        let wanted = Wanted {
+            hidden,
+            algorithm,
+            components,
+            field: FieldInputs::from_name(field).unwrap_or(FieldInputs::Auto),
+            ensemble,
+            seed,
+            max_epochs: Some(max_epochs),
+            folds: None,
+        };
+        let plan = Plan::new(&names, x.len(), &wanted);
         let data = FitData {
             x: &x,
             t: &t,
             feature_columns: &names,
             targets: &targets,
         };
-        let mut m = py
-            .detach(|| {
-                let networks =
-                    |set: &_| ensemble.unwrap_or_else(|| ensemble_for(x.len(), set, &cfg));
-                fit_choosing_ensemble(&data, &cfg, (&sets, SELECTION_FOLDS), networks, quietly)
-            })
-            .map_err(error)?;
+        let mut m = py.detach(|| plan.fit(&data, quietly)).map_err(error)?;
         if let Some(s) = sensor {
             m.sensor = Some(
                 serde_json::from_str(&s.est.calibration().to_json())

@@ -123,33 +123,7 @@ impl Default for FeatureSet {
     }
 }
 
-/// The field-summary columns that follow the markers' columns, in the order of
-/// [`FieldSummary::values`].
-pub const FIELD_COLUMNS: [&str; 6] = [
-    "field_rms_px",
-    "field_max_px",
-    "field_top_px",
-    "field_cx_px",
-    "field_cy_px",
-    "field_spread_px",
-];
-
-/// Whether a column is one of the [`FIELD_COLUMNS`] or their millimetre twins
-/// ([`FIELD_COLUMNS_MM`]).
-pub fn is_field_column(c: &str) -> bool {
-    FIELD_COLUMNS.contains(&c) || FIELD_COLUMNS_MM.contains(&c)
-}
-
-/// The millimetre twins of [`FIELD_COLUMNS`], for a sensor with a scale
-/// ([`SensorCalibration::mm_per_px`]).
-pub const FIELD_COLUMNS_MM: [&str; 6] = [
-    "field_rms_mm",
-    "field_max_mm",
-    "field_top_mm",
-    "field_cx_mm",
-    "field_cy_mm",
-    "field_spread_mm",
-];
+pub use visuotact_image::{is_field_column, FIELD_COLUMNS, FIELD_COLUMNS_MM};
 
 /// Pixel column suffixes with a length unit, their millimetre twins, and the power of the scale
 /// that converts one into the other.

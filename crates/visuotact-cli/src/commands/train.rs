@@ -5,15 +5,14 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use visuotact_nn::fit::{
-    candidate_inputs, choose_inputs, column_kinds, ensemble_for, fit_set, folds_trained,
-    wide_candidate, with_held_out_errors, FitConfig, FitData, InputScore, InputSet,
-    SELECTION_FOLDS,
+    choose_inputs, fit_set, folds_trained, with_held_out_errors, FitConfig, FitData, InputScore,
+    InputSet,
 };
 use visuotact_nn::model::Model;
+use visuotact_nn::plan::{Plan, Wanted};
 use visuotact_pipeline::table::TrainingTable;
-use visuotact_vision::features::{FIELD_COLUMNS, FIELD_COLUMNS_MM};
 
-use crate::args::{parse_list, AlgorithmArg, DataArgs, DEFAULT_HIDDEN};
+use crate::args::{parse_list, AlgorithmArg, DataArgs};
 use crate::fit_error;
 use crate::progress::Reporter;
 
@@ -21,9 +20,11 @@ use crate::progress::Reporter;
 pub(crate) struct Args {
     #[command(flatten)]
     data: DataArgs,
-    /// Hidden layer sizes, comma-separated (e.g. 20 or 20,20).
-    #[arg(long, default_value = DEFAULT_HIDDEN)]
-    hidden: String,
+    /// Hidden layer sizes, comma-separated (e.g. 20 or 20,20). Default: one layer of 20, and on
+    /// tables of 1 000 frames or more the wide network (Adam) is a candidate too; set, it is
+    /// what trains (docs/cli.md).
+    #[arg(long)]
+    hidden: Option<String>,
     /// Model file to write.
     #[arg(short, long)]
     output: PathBuf,
@@ -53,10 +54,16 @@ pub(crate) struct Args {
 }
 
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
-    let hidden: Vec<usize> = parse_list(&a.hidden, "hidden")?;
-    if hidden.is_empty() || hidden.contains(&0) {
-        bail!("--hidden needs positive layer sizes, got {:?}", a.hidden);
-    }
+    let hidden = match &a.hidden {
+        Some(h) => {
+            let hidden: Vec<usize> = parse_list(h, "hidden")?;
+            if hidden.is_empty() || hidden.contains(&0) {
+                bail!("--hidden needs positive layer sizes, got {h:?}");
+            }
+            Some(hidden)
+        }
+        None => None,
+    };
     check_output(a)?;
     let sensor = match &a.sensor {
         Some(p) => Some(serde_json::to_value(crate::load_sensor(p)?)?),
@@ -65,49 +72,39 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let (targets, data) = a.data.load(a.algorithm.field(), |n| {
         matches!(a.algorithm.components(n), Ok(Some(_)))
     })?;
-    let components = a.algorithm.components(data.marker_inputs())?;
+    let wanted = Wanted {
+        hidden,
+        algorithm: a.algorithm.name,
+        components: a.algorithm.wanted_components(data.marker_inputs())?,
+        field: a.algorithm.field(),
+        ensemble: a.ensemble,
+        seed: a.seed,
+        max_epochs: Some(a.max_epochs),
+        folds: None,
+    };
     let TrainingTable {
         x,
         t,
         feature_columns,
-        passthrough,
         ..
     } = data;
     let t0 = std::time::Instant::now();
-    let mut cfg = FitConfig {
-        hidden,
-        seed: a.seed,
-        max_epochs: a.max_epochs,
-        algorithm: a.algorithm.algorithm(),
-        hold_out: false,
-        components,
-        passthrough,
-        ensemble: a.ensemble.unwrap_or(FitConfig::default().ensemble),
-        fill: None,
-    };
-    let sets = candidate_inputs(
-        &column_kinds(
-            &feature_columns,
-            &[FIELD_COLUMNS, FIELD_COLUMNS_MM].concat(),
-        ),
-        components,
-        a.algorithm.field(),
-        wide_candidate(x.len(), &cfg),
-    );
+    let plan = Plan::new(&feature_columns, x.len(), &wanted);
     let data = FitData {
         x: &x,
         t: &t,
         feature_columns: &feature_columns,
         targets: &targets,
     };
-    check_memory(a, &data, &sets, &cfg)?;
+    check_memory(a, &data, &plan)?;
     let reporter = Reporter::new(a.quiet);
-    let (best, mut selection) = choose(&data, &cfg, &sets, &reporter)?;
+    let (best, mut selection) = choose(&data, &plan, &reporter)?;
     interrupted(&reporter)?;
-    let set = &sets[best];
-    if a.ensemble.is_none() {
-        cfg.ensemble = ensemble_for(x.len(), set, &cfg);
-    }
+    let set = &plan.sets[best];
+    let cfg = FitConfig {
+        ensemble: plan.networks(set, x.len()),
+        ..plan.cfg.clone()
+    };
     note!(
         "training {}, {}) on {} frames, {} network{}",
         set.network_in_words(&cfg.hidden, targets.len()),
@@ -135,13 +132,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
 
 /// States the memory the training needs (refused over the limit) and warns of constant
 /// targets.
-fn check_memory(
-    a: &Args,
-    data: &FitData<'_>,
-    sets: &[InputSet],
-    cfg: &FitConfig,
-) -> anyhow::Result<()> {
-    let widest = sets
+fn check_memory(a: &Args, data: &FitData<'_>, plan: &Plan) -> anyhow::Result<()> {
+    let widest = plan
+        .sets
         .iter()
         .filter(|s| !s.wide)
         .map(InputSet::network_inputs)
@@ -149,7 +142,7 @@ fn check_memory(
         .unwrap_or(0);
     let need = a
         .algorithm
-        .check_memory((widest, data.x.len(), data.targets.len()), cfg)?;
+        .check_memory((widest, data.x.len(), data.targets.len()), &plan.cfg)?;
     crate::print::memory("this training needs", need);
     for c in data.constant_targets() {
         note!("warning: target `{c}` has the same value in every frame: nothing to learn about it (its R is 0)");
@@ -177,16 +170,19 @@ fn interrupted(reporter: &Reporter) -> anyhow::Result<()> {
 /// Chooses the input set by cross-validation when there is a choice, saying so.
 fn choose(
     data: &FitData<'_>,
-    cfg: &FitConfig,
-    sets: &[InputSet],
+    plan: &Plan,
     reporter: &Reporter,
 ) -> anyhow::Result<(usize, Vec<InputScore>)> {
+    let (cfg, sets) = (&plan.cfg, plan.sets.as_slice());
     if sets.len() > 1 {
-        let folds = folds_trained(data.x.len(), SELECTION_FOLDS);
+        let folds = folds_trained(data.x.len(), plan.folds);
         note!(
             "choosing the inputs by {}: {}",
-            if folds == SELECTION_FOLDS {
-                format!("{SELECTION_FOLDS}-fold cross-validation (one network per fold)")
+            if folds == plan.folds {
+                format!(
+                    "{}-fold cross-validation (one network per fold)",
+                    plan.folds
+                )
             } else {
                 format!(
                     "one network each, scored on a fifth of the {} frames held out",
@@ -200,10 +196,9 @@ fn choose(
         );
         reporter.stage("choosing the inputs");
     }
-    let (best, selection) = choose_inputs(data, cfg, sets, SELECTION_FOLDS, |p: &_| {
-        reporter.training(p)
-    })
-    .map_err(fit_error)?;
+    let (best, selection) =
+        choose_inputs(data, cfg, sets, plan.folds, |p: &_| reporter.training(p))
+            .map_err(fit_error)?;
     for (score, set) in selection.iter().zip(sets) {
         note!(
             "  {} {}{}: held-out error / variance {:.3e} (per target {})",
@@ -269,16 +264,5 @@ fn print_trained(model: &Model, targets: &[String], secs: f64) {
     }
     if let Some(words) = model.spread_in_words() {
         note!("spread (<target>_std): {words}");
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_default_hidden_layers_are_the_librarys() {
-        let parsed: Vec<usize> = parse_list(DEFAULT_HIDDEN, "hidden").unwrap();
-        assert_eq!(parsed, FitConfig::default().hidden);
     }
 }

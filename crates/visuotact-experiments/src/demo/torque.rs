@@ -17,8 +17,8 @@ use visuotact_vision::detect::Detector;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 
 use super::{
-    calibrated_cone, complete_markers, cone_fps, default_config, inputs_of_rows, marker_columns,
-    train, DemoConfig, DemoError,
+    calibrated_cone, choice, complete_markers, cone_fps, default_config, inputs_of_rows,
+    marker_columns, train, DemoConfig, DemoError,
 };
 
 /// The torque experiment's outcome.
@@ -173,11 +173,11 @@ pub fn cone_torque(a: &DemoConfig) -> Result<TorqueDemo, DemoError> {
         .unzip();
     let targets = ["force_n", "torque_nmm"];
     let d = default_config(&with_t, x.len(), a);
-    let model = train(&x, &t, &with_t, &targets, &d.cfg, d.choice())?.model;
+    let model = train(&x, &t, &with_t, &targets, &d.cfg, choice(&d))?.model;
     let rings_of = |r: &[f64]| -> Vec<f64> { ring_cols.iter().map(|&i| r[i]).collect() };
     let rings_x: Vec<Vec<f64>> = x.iter().map(|r| rings_of(r)).collect();
     let dr = default_config(&rings, rings_x.len(), a);
-    let rings_model = train(&rings_x, &t, &rings, &targets, &dr.cfg, dr.choice())?.model;
+    let rings_model = train(&rings_x, &t, &rings, &targets, &dr.cfg, choice(&dr))?.model;
     let (pick, pick_r) = (
         inputs_of_rows(&model, &with_t)?,
         inputs_of_rows(&rings_model, &rings)?,
