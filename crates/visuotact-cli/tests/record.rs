@@ -196,16 +196,24 @@ fn record_dataset_train_replay_on_the_simulated_cone() {
     ]));
     let text = std::fs::read_to_string(d.join("replay_slip.csv")).unwrap();
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    // The score, the state, then the field's ten signals the detector read.
+    let names = visuotact_vision::field::FieldDynamics::NAMES;
+    let at = header.len() - 3 - names.len();
     assert_eq!(
-        header[header.len() - 3..],
-        ["slip_score", "slip_state", "flags"],
+        header[at..at + 2],
+        ["slip_score", "slip_state"],
         "{header:?}"
     );
+    assert_eq!(header[at + 2..header.len() - 1], names, "{header:?}");
+    assert_eq!(header[header.len() - 1], "flags");
     for line in text.lines().skip(1) {
         let c: Vec<&str> = line.split(',').collect();
-        let score: f64 = c[c.len() - 3].parse().unwrap();
+        let score: f64 = c[at].parse().unwrap();
         assert!((0.0..=1.0).contains(&score), "{line}");
-        assert!(["0", "1", "2"].contains(&c[c.len() - 2]), "{line}");
+        assert!(["0", "1", "2"].contains(&c[at + 1]), "{line}");
+        for v in &c[at + 2..c.len() - 1] {
+            assert!(v.parse::<f64>().unwrap().is_finite(), "{line}");
+        }
     }
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -21,6 +21,7 @@ use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 
 use crate::slip::SlipMonitor;
 use crate::{Estimator, PipelineError};
+use visuotact_vision::field::FieldDynamics;
 
 /// What to replay.
 #[derive(Clone, Debug)]
@@ -34,7 +35,8 @@ pub struct ReplayConfig {
     /// The readings table (default: a session's `labels.csv` when the model needs readings).
     pub readings: Option<PathBuf>,
     /// A slip detector: the table then ends with `slip_score` and `slip_state` (0 stick,
-    /// 1 incipient, 2 slip), the whole replay followed as one sequence.
+    /// 1 incipient, 2 slip) and the displacement field's signals it read
+    /// ([`FieldDynamics::NAMES`]), the whole replay followed as one sequence.
     pub slip: Option<crate::slip::SlipDetector>,
 }
 
@@ -266,6 +268,7 @@ pub fn replay(
     let mut slip = match cfg.slip.clone() {
         Some(d) => {
             columns.extend(["slip_score".to_string(), "slip_state".to_string()]);
+            columns.extend(FieldDynamics::NAMES.iter().map(|n| n.to_string()));
             Some(SlipMonitor::for_estimator(d, est)?)
         }
         None => None,
@@ -289,12 +292,9 @@ pub fn replay(
             );
         }
         let result = est.process_with(&frame.image, &extra_values);
-        let state = match (&mut slip, &result) {
-            (Some(monitor), Ok((f, _))) => {
-                let e = monitor.estimate_features(f, set);
-                [e.score, f64::from(e.state as u8)]
-            }
-            _ => [f64::NAN; 2],
+        let slip_cells = match (&mut slip, &result) {
+            (Some(monitor), Ok((f, _))) => slip_cells(monitor, f, set),
+            _ => [f64::NAN; SLIP_CELLS],
         };
         let (values, flag) = match result {
             Ok((_, Some(v))) => (v, String::new()),
@@ -305,7 +305,7 @@ pub fn replay(
         row.clear();
         row.extend_from_slice(&values);
         if slip.is_some() {
-            row.extend_from_slice(&state);
+            row.extend_from_slice(&slip_cells);
         }
         let written = out.write_row(&frame.id, &row, &flag);
         written.map_err(write_err)?;
@@ -315,6 +315,24 @@ pub fn replay(
     done.seconds = t0.elapsed().as_secs_f64();
     done.session = session;
     Ok(done)
+}
+
+/// Cells a slip detector adds to a replayed frame's row.
+const SLIP_CELLS: usize = 2 + FieldDynamics::NAMES.len();
+
+/// A frame's slip cells: the score, the state (0 stick, 1 incipient, 2 slip) and the field's
+/// signals the detector read.
+fn slip_cells(
+    monitor: &mut SlipMonitor,
+    f: &visuotact_vision::features::FrameFeatures,
+    set: visuotact_vision::features::FeatureSet,
+) -> [f64; SLIP_CELLS] {
+    let e = monitor.estimate_features(f, set);
+    let mut cells = [f64::NAN; SLIP_CELLS];
+    cells[0] = e.score;
+    cells[1] = f64::from(e.state as u8);
+    cells[2..].copy_from_slice(&monitor.field().signals());
+    cells
 }
 
 #[cfg(test)]

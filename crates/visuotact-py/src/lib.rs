@@ -39,6 +39,7 @@ use visuotact_pipeline::slip::{
 use visuotact_pipeline::Estimator;
 use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
 use visuotact_vision::features::{is_field_column, FrameFeatures};
+use visuotact_vision::field::FieldDynamics;
 use visuotact_vision::layout::LayoutChoice;
 use visuotact_vision::options::Purpose;
 
@@ -617,7 +618,10 @@ impl Live {
                 .est
                 .estimate_with(&frame.image, &[])
                 .map_err(|e| error(format!("frame {}: {e}", frame.id)))?;
-            let slip = self.slip.as_mut().map(|m| m.estimate_features(f, set));
+            let slip = self
+                .slip
+                .as_mut()
+                .map(|m| (m.estimate_features(f, set), m.field().signals()));
             (f.found, e.map(|r| r.map_err(|why| why.to_string())), slip)
         };
         let d = PyDict::new(py);
@@ -626,10 +630,15 @@ impl Live {
         d.set_item("timestamp_s", frame.timestamp_s)?;
         d.set_item("found", found)?;
         match slip {
-            Some(e) => {
+            Some((e, signals)) => {
                 let sd = PyDict::new(py);
                 sd.set_item("state", e.state.name())?;
                 sd.set_item("score", e.score)?;
+                let field = PyDict::new(py);
+                for (name, v) in FieldDynamics::NAMES.iter().zip(signals) {
+                    field.set_item(*name, v)?;
+                }
+                sd.set_item("field", field)?;
                 d.set_item("slip", sd)?;
             }
             None => d.set_item("slip", py.None())?,
@@ -654,7 +663,9 @@ impl Live {
 
 /// Frames from `source` (an image, a folder of images in natural order, a video, or a list
 /// of them) through `model` (with `sensor`, or the calibration stored in the model): an
-/// iterator of estimate dicts. Without a model it yields features counts only.
+/// iterator of estimate dicts. Without a model it yields features counts only. With `slip`
+/// (`"builtin"` or a file from `visuotact slip fit`) each dict's `slip` holds the `state`, the
+/// `score` and the displacement `field`'s ten signals the detector read (by name).
 #[pyfunction]
 #[pyo3(signature = (source, model = None, sensor = None, fps = 25.0, temporal = false, slip = None))]
 fn live(

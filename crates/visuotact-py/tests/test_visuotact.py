@@ -164,6 +164,10 @@ def test_training_and_prediction_match_the_cli(session):
     assert [r["estimate"] for r in slipping] == [r["estimate"] for r in rows]
     assert all(r["slip"]["state"] in ("stick", "incipient", "slip") for r in slipping)
     assert all(0.0 <= r["slip"]["score"] <= 1.0 for r in slipping)
+    # Beside the state, the displacement field's ten signals the detector read.
+    assert all(len(r["slip"]["field"]) == 10 for r in slipping)
+    assert all(np.isfinite(list(r["slip"]["field"].values())).all() for r in slipping)
+    assert "shift_pitches" in slipping[0]["slip"]["field"]
     with pytest.raises(vt.VisuotactError, match="nope.json"):
         vt.live(str(session / "s" / "frames"), model=loaded, slip="nope.json")
 

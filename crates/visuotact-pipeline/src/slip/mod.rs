@@ -541,6 +541,11 @@ impl SlipMonitor {
     pub fn evidence(&self) -> &SlipEvidence {
         &self.evidence
     }
+
+    /// The last frame's displacement-field signals (what [`SlipMonitor::estimate`] read).
+    pub fn field(&self) -> &FieldDynamics {
+        &self.field
+    }
 }
 
 /// Each marker's displacement in `f` (features of `set`, in column order), into `out`;
