@@ -201,11 +201,16 @@ fn gelsight_video_contact_only_during_the_press() {
     assert!(rows
         .iter()
         .all(|r| r["health"]["ok"].as_u64().unwrap() >= 74));
-    // `--slip builtin`: every estimate carries a slip state and score.
+    // `--slip builtin`: every estimate carries a slip state and score, and the field's signals
+    // the detector read.
     assert!(rows.iter().all(|r| {
         let score = r["slip"]["score"].as_f64().unwrap();
         ["stick", "incipient", "slip"].contains(&r["slip"]["state"].as_str().unwrap())
             && (0.0..=1.0).contains(&score)
+            && r["slip"]["field"]["nonrigid"]
+                .as_f64()
+                .is_some_and(f64::is_finite)
+            && r["slip"]["field"]["shift_pitches"].as_f64().is_some()
     }));
     std::fs::remove_dir_all(&d).unwrap();
 }

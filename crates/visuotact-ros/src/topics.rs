@@ -504,6 +504,7 @@ mod tests {
                 slip: Some(SlipEstimate {
                     state: visuotact_pipeline::slip::SlipState::Slip,
                     score: 0.7,
+                    field: Default::default(),
                 }),
                 ..FrameMessages::default()
             };

@@ -24,7 +24,7 @@ pub const MIN_MARKERS: usize = 6;
 const ENTROPY_BINS: usize = 10;
 
 /// One frame's displacement-field signals (lengths in marker pitches).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FieldDynamics {
     /// Markers with a displacement this frame.
     pub markers: usize,

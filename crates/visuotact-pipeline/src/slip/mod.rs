@@ -511,7 +511,7 @@ impl SlipMonitor {
         }
     }
 
-    /// [`SlipMonitor::update`]'s state and score only (the live loop's form).
+    /// [`SlipMonitor::update`]'s state, score and field signals (the live loop's form).
     pub fn estimate(&mut self, displacement_px: &[Option<(f64, f64)>]) -> SlipEstimate {
         self.tracker.update_into(displacement_px, &mut self.field);
         self.evidence.push(&self.field);
@@ -519,6 +519,7 @@ impl SlipMonitor {
         SlipEstimate {
             state: self.detector.state_of(score),
             score,
+            field: self.field,
         }
     }
 
@@ -577,6 +578,8 @@ pub struct SlipEstimate {
     pub state: SlipState,
     /// The probability of slip given the sequence so far.
     pub score: f64,
+    /// The displacement field's signals this frame, which the detector read.
+    pub field: FieldDynamics,
 }
 
 /// A sequence's displacements, frame by frame.
