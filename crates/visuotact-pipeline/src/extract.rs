@@ -11,13 +11,13 @@ use visuotact_nn::model::Model;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures, MmColumns};
-use visuotact_vision::field::{FieldDynamics, FieldTracker};
+use visuotact_vision::field::FieldDynamics;
 
 use crate::replay::{Pass, PassObserver, ReplayError};
 use crate::schema::{
     blob_row, feature_columns, feature_row_into, flags_of, missing_summary, BLOB_COLUMNS,
 };
-use crate::slip::{displacements_into, SlipMonitor, SlipSettings};
+use crate::slip::{FieldFollower, SlipMonitor, SlipSettings};
 use crate::table::InputSources;
 
 /// What an extraction did.
@@ -59,14 +59,7 @@ pub fn extract(
     // them (the displacements need x and y among the features).
     let mut dynamics = (ex.temporal_prior() && SlipMonitor::reads(ex.feature_set())).then(|| {
         columns.extend(FieldDynamics::NAMES.iter().map(|n| n.to_string()));
-        let cal = ex.calibration();
-        let reference: Vec<(f64, f64)> = cal.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
-        let lag = SlipSettings::default().lag_frames;
-        (
-            FieldTracker::new(&reference, cal.pitch_px, lag),
-            Vec::new(),
-            FieldDynamics::default(),
-        )
+        FieldFollower::of_sensor(ex.calibration(), SlipSettings::default().lag_frames)
     });
     let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
     let mut done = Extracted::default();
@@ -96,10 +89,8 @@ pub fn extract(
             ));
         }
         feature_row_into(&mut row, frame.timestamp_s, n_markers, &f, &mm);
-        if let Some((tracker, displacements, field)) = &mut dynamics {
-            displacements_into(&f, ex.feature_set(), n_markers, displacements);
-            tracker.update_into(displacements, field);
-            row.extend_from_slice(&field.signals());
+        if let Some(follower) = &mut dynamics {
+            row.extend_from_slice(&follower.update_features(&f, ex.feature_set()).signals());
         }
         out.write_row(&frame.id, &row, &flags_of(&f))
             .map_err(write_err)?;

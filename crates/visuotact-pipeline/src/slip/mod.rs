@@ -448,26 +448,74 @@ pub struct SlipFrame {
     pub field: FieldDynamics,
 }
 
+/// The displacement field's dynamics of a sensor's frames in order, from their features: what
+/// [`SlipMonitor`] reads and `extract --temporal` writes.
+#[derive(Clone, Debug)]
+pub struct FieldFollower {
+    tracker: FieldTracker,
+    field: FieldDynamics,
+    /// The displacements of the last frame (kept between frames: no allocation once warm).
+    displacements: Vec<Option<(f64, f64)>>,
+}
+
+impl FieldFollower {
+    /// A follower of markers at `reference_px`, `pitch_px` apart, increments over `lag_frames`.
+    pub fn new(reference_px: &[(f64, f64)], pitch_px: f64, lag_frames: usize) -> Self {
+        Self {
+            tracker: FieldTracker::new(reference_px, pitch_px, lag_frames),
+            field: FieldDynamics::default(),
+            displacements: Vec::new(),
+        }
+    }
+
+    /// A follower of `sensor`'s markers.
+    pub fn of_sensor(sensor: &SensorCalibration, lag_frames: usize) -> Self {
+        let reference: Vec<(f64, f64)> = sensor.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+        Self::new(&reference, sensor.pitch_px, lag_frames)
+    }
+
+    /// Starts a new sequence.
+    pub fn reset(&mut self) {
+        self.tracker.reset();
+    }
+
+    /// This frame's dynamics from the markers' displacements (pixels, `None`: not tracked).
+    pub fn update(&mut self, displacement_px: &[Option<(f64, f64)>]) -> &FieldDynamics {
+        self.tracker.update_into(displacement_px, &mut self.field);
+        &self.field
+    }
+
+    /// [`FieldFollower::update`] from a frame's features of `set` (which must hold `dx` and
+    /// `dy`: [`SlipMonitor::reads`]).
+    pub fn update_features(&mut self, f: &FrameFeatures, set: FeatureSet) -> &FieldDynamics {
+        let mut d = std::mem::take(&mut self.displacements);
+        displacements_into(f, set, self.tracker.markers(), &mut d);
+        self.tracker.update_into(&d, &mut self.field);
+        self.displacements = d;
+        &self.field
+    }
+
+    /// The last frame's dynamics.
+    pub fn field(&self) -> &FieldDynamics {
+        &self.field
+    }
+}
+
 /// The live form: frame after frame, the slip state ([`SlipMonitor::update`]).
 #[derive(Clone, Debug)]
 pub struct SlipMonitor {
     detector: SlipDetector,
-    tracker: FieldTracker,
+    follower: FieldFollower,
     evidence: SlipEvidence,
-    field: FieldDynamics,
-    /// The displacements of [`SlipMonitor::estimate_features`] (kept between frames).
-    displacements: Vec<Option<(f64, f64)>>,
 }
 
 impl SlipMonitor {
     /// A monitor of markers at `reference_px`, `pitch_px` apart, with `detector`.
     pub fn new(detector: SlipDetector, reference_px: &[(f64, f64)], pitch_px: f64) -> Self {
         Self {
-            tracker: FieldTracker::new(reference_px, pitch_px, detector.lag_frames),
+            follower: FieldFollower::new(reference_px, pitch_px, detector.lag_frames),
             evidence: SlipEvidence::new(detector.smooth_frames),
             detector,
-            field: FieldDynamics::default(),
-            displacements: Vec::new(),
         }
     }
 
@@ -486,13 +534,16 @@ impl SlipMonitor {
 
     /// A monitor of `sensor`'s markers.
     pub fn of_sensor(detector: SlipDetector, sensor: &SensorCalibration) -> Self {
-        let reference: Vec<(f64, f64)> = sensor.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
-        Self::new(detector, &reference, sensor.pitch_px)
+        Self {
+            follower: FieldFollower::of_sensor(sensor, detector.lag_frames),
+            evidence: SlipEvidence::new(detector.smooth_frames),
+            detector,
+        }
     }
 
     /// Starts a new sequence.
     pub fn reset(&mut self) {
-        self.tracker.reset();
+        self.follower.reset();
         self.evidence = SlipEvidence::new(self.detector.smooth_frames);
     }
 
@@ -507,30 +558,32 @@ impl SlipMonitor {
             timestamp_s,
             state: e.state,
             score: e.score,
-            field: self.field,
+            field: e.field,
         }
     }
 
     /// [`SlipMonitor::update`]'s state, score and field signals (the live loop's form).
     pub fn estimate(&mut self, displacement_px: &[Option<(f64, f64)>]) -> SlipEstimate {
-        self.tracker.update_into(displacement_px, &mut self.field);
-        self.evidence.push(&self.field);
+        let field = *self.follower.update(displacement_px);
+        self.score(field)
+    }
+
+    /// The state and score once `field` is this frame's dynamics.
+    fn score(&mut self, field: FieldDynamics) -> SlipEstimate {
+        self.evidence.push(&field);
         let score = self.detector.score(&self.evidence.values());
         SlipEstimate {
             state: self.detector.state_of(score),
             score,
-            field: self.field,
+            field,
         }
     }
 
     /// [`SlipMonitor::estimate`] from a frame's features of `set` (which must hold `dx` and
     /// `dy`: [`SlipMonitor::reads`]), allocating nothing once warm.
     pub fn estimate_features(&mut self, f: &FrameFeatures, set: FeatureSet) -> SlipEstimate {
-        let mut d = std::mem::take(&mut self.displacements);
-        displacements_into(f, set, self.tracker.markers(), &mut d);
-        let e = self.estimate(&d);
-        self.displacements = d;
-        e
+        let field = *self.follower.update_features(f, set);
+        self.score(field)
     }
 
     /// Whether features of `set` carry what the monitor reads (the displacements).
@@ -545,7 +598,7 @@ impl SlipMonitor {
 
     /// The last frame's displacement-field signals (what [`SlipMonitor::estimate`] read).
     pub fn field(&self) -> &FieldDynamics {
-        &self.field
+        self.follower.field()
     }
 }
 
