@@ -320,11 +320,8 @@ impl AlgorithmArg {
     /// The components as the user set them for `inputs` marker inputs: `None` for `auto`
     /// (the training policy decides), else `Some` of [`AlgorithmArg::components`].
     pub(crate) fn wanted_components(&self, inputs: usize) -> anyhow::Result<Option<Option<usize>>> {
-        if self.components.trim() == "auto" {
-            Ok(None)
-        } else {
-            self.components(inputs).map(Some)
-        }
+        visuotact_nn::plan::wanted_components(&self.components, inputs)
+            .map_err(|e| anyhow::anyhow!("--components {e}"))
     }
 }
 

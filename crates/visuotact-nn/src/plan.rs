@@ -21,8 +21,9 @@
 use visuotact_image::{is_marker_column, FIELD_COLUMNS, FIELD_COLUMNS_MM};
 
 use crate::fit::{
-    auto_components, candidate_inputs, column_kinds, ensemble_for, fit_choosing_ensemble,
-    FieldInputs, FitConfig, FitData, FitError, InputSet, Progress, LARGE_TABLE, SELECTION_FOLDS,
+    auto_components, candidate_inputs, column_kinds, components_from_name, ensemble_for,
+    fit_choosing_ensemble, FieldInputs, FitConfig, FitData, FitError, InputSet, Progress,
+    LARGE_TABLE, SELECTION_FOLDS,
 };
 use crate::mlp::Algorithm;
 use crate::model::Model;
@@ -61,6 +62,19 @@ impl Default for Wanted {
             max_epochs: None,
             folds: None,
         }
+    }
+}
+
+/// [`Wanted::components`] from its name as `train --components` and Python take it: `auto`
+/// leaves it to the policy (`None`); `0` or a count is the user's ([`components_from_name`]).
+pub fn wanted_components(
+    name: &str,
+    marker_inputs: usize,
+) -> Result<Option<Option<usize>>, FitError> {
+    if name.trim() == "auto" {
+        Ok(None)
+    } else {
+        components_from_name(name, marker_inputs).map(Some)
     }
 }
 

@@ -29,10 +29,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 use visuotact_image::RgbImage;
 use visuotact_io::frames::{read_image, FrameStream};
-use visuotact_nn::fit::{components_from_name, quietly, FieldInputs, FitData};
+use visuotact_nn::fit::{quietly, FieldInputs, FitData};
 use visuotact_nn::mlp::Algorithm;
 use visuotact_nn::model::{is_marker_column, Model as NnModel};
-use visuotact_nn::plan::{Plan, Wanted};
+use visuotact_nn::plan::{wanted_components, Plan, Wanted};
 use visuotact_pipeline::slip::{
     detect, sequences_in, track_sequences, SlipConfig, SlipDetector, SlipMonitor,
 };
@@ -406,14 +406,8 @@ impl Model {
                 })
             })
             .transpose()?;
-        let components = if components.trim() == "auto" {
-            None
-        } else {
-            Some(
-                components_from_name(&components, markers)
-                    .map_err(|e| error(format!("components {e}")))?,
-            )
-        };
+        let components = wanted_components(&components, markers)
+            .map_err(|e| error(format!("components {e}")))?;
         let wanted = Wanted {
             hidden,
             algorithm,
