@@ -673,7 +673,8 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
         let l2 = (m.minor_axis_px / 4.0).powi(2) + square;
         (m.area_px, l1 * l2)
     }));
-    if matches!(layout, Layout::Grid | Layout::Hex) {
+    if layout == Layout::Hex {
+        // Pin arrays stretched by a reference in contact (TrackReference::take_steps_both_ways).
         r.take_steps_both_ways();
     }
     if layout == Layout::Rings {
