@@ -100,9 +100,15 @@ impl Plan {
     pub fn new(columns: &[String], samples: usize, wanted: &Wanted) -> Self {
         let default = FitConfig::default();
         let markers = columns.iter().filter(|c| is_marker_column(c)).count();
+        let folds = wanted.folds.unwrap_or(SELECTION_FOLDS);
+        // The policy's projection fits every fold's training rows: a fold leaves out up to
+        // ⌈samples / folds⌉ of them, and k components need k rows.
+        let fold_rows = samples
+            .saturating_sub(samples.div_ceil(folds.max(1)))
+            .max(1);
         let components = wanted
             .components
-            .unwrap_or_else(|| auto_components(markers));
+            .unwrap_or_else(|| auto_components(markers).map(|k| k.min(fold_rows)));
         let cfg = FitConfig {
             hidden: wanted.hidden.clone().unwrap_or(default.hidden.clone()),
             seed: wanted.seed,
@@ -116,6 +122,9 @@ impl Plan {
         let mut why = Vec::new();
         if wanted.components.is_none() {
             why.push(match components {
+                Some(k) if k == fold_rows => format!(
+                    "{markers} markers' features: projected on {k} components (as many as a fold's training rows)"
+                ),
                 Some(k) => format!("{markers} markers' features: projected on {k} components"),
                 None => format!("{markers} markers' features: read as they are"),
             });
@@ -138,7 +147,7 @@ impl Plan {
         Self {
             cfg,
             sets,
-            folds: wanted.folds.unwrap_or(SELECTION_FOLDS),
+            folds,
             ensemble: wanted.ensemble,
             why,
         }
@@ -202,6 +211,27 @@ mod tests {
         }
         let small = Plan::new(&c, LARGE_TABLE - 1, &Wanted::default());
         assert!(!small.sets.iter().any(|s| s.wide));
+    }
+
+    /// A table too short for the default projection gets as many components as a
+    /// cross-validation fold has training rows (was: an error, "asked for 10 components of
+    /// 351 inputs and 9 samples", on a 12-frame table the user set nothing for); the user's
+    /// own count is left as it is, to be refused when it cannot fit.
+    #[test]
+    fn the_policys_projection_fits_a_short_tables_folds() {
+        let c = columns(127, true);
+        assert_eq!(
+            Plan::new(&c, 300, &Wanted::default()).cfg.components,
+            Some(10)
+        );
+        let short = Plan::new(&c, 12, &Wanted::default());
+        assert_eq!(short.cfg.components, Some(9), "{:?}", short.why);
+        assert!(short.why[0].contains("as many as a fold's training rows"));
+        let asked = Wanted {
+            components: Some(Some(10)),
+            ..Wanted::default()
+        };
+        assert_eq!(Plan::new(&c, 12, &asked).cfg.components, Some(10));
     }
 
     /// The ensemble: the user's number whatever the set, else by the table's size.
