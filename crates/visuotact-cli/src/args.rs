@@ -377,7 +377,12 @@ impl ExtraInputs {
 
 /// A readings table keyed by `frame` (every column numeric), when one is given.
 pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedTable>> {
-    Ok(path.map(|p| KeyedTable::read(p, &[])).transpose()?)
+    let Some(p) = path else { return Ok(None) };
+    let t = KeyedTable::read(p, &[])?;
+    if let Some(n) = t.partial_line_note(&p.display().to_string()) {
+        note!("note: {n}");
+    }
+    Ok(Some(t))
 }
 
 impl DataArgs {

@@ -625,3 +625,73 @@ fn ros_on_an_address_the_machine_lacks_is_refused() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Appends an unfinished row (no line end: a writer killed mid-row) to the table at `p`.
+fn cut_mid_row(p: &Path, row: &str) {
+    let text = std::fs::read_to_string(p).unwrap();
+    std::fs::write(p, format!("{text}{row}")).unwrap();
+}
+
+/// A table whose last line a writer was killed in the middle of is read to its last whole
+/// row, and every reader says so, naming the file: `predict` (features), `train` (labels),
+/// `eval` (predictions), `dataset` and the exports (a session's frames.csv). Was: the row
+/// dropped in silence by all but `filter` and `dataset`'s force record.
+#[test]
+fn an_unfinished_last_line_is_left_out_and_said_by_every_reader() {
+    let d = fresh_dir("hostile-torn-rows");
+    let (_, rec) = recorded_session(&d.join("rec"));
+    let (session, _, features) = common::iats_features(&d, "30", "1");
+    let labels = session.join("labels.csv");
+    let said = |err: &str, name: &str| {
+        assert!(
+            err.contains(&format!(
+                "{name}: an unfinished last line (no line end) was left out"
+            )),
+            "{name} not said in {err}"
+        );
+    };
+    cut_mid_row(&labels, "frame_999999.png,1.0");
+    let model = d.join("m.json");
+    let err = ok(&vt(&[
+        "train",
+        "--features",
+        s(&features),
+        "--labels",
+        s(&labels),
+        "--targets",
+        "x_mm",
+        "--ensemble",
+        "1",
+        "-o",
+        s(&model),
+    ]));
+    said(&err, s(&labels));
+    cut_mid_row(&features, "frame_999999.png,0.0,1");
+    let pred = d.join("p.csv");
+    let err = ok(&vt(&[
+        "predict",
+        "--model",
+        s(&model),
+        "--features",
+        s(&features),
+        "-o",
+        s(&pred),
+    ]));
+    said(&err, s(&features));
+    assert!(err.contains("30 estimates"), "{err}");
+    cut_mid_row(&pred, "frame_999999.png,1");
+    let err = ok(&vt(&[
+        "eval",
+        "--predictions",
+        s(&pred),
+        "--labels",
+        s(&labels),
+    ]));
+    said(&err, s(&pred));
+    said(&err, s(&labels));
+    cut_mid_row(&rec.join("frames.csv"), "frame_000002.png,2,0.");
+    let bag = d.join("a.mcap");
+    let err = ok(&vt(&["export", "mcap", s(&rec), "-o", s(&bag)]));
+    said(&err, s(&rec.join("frames.csv")));
+    std::fs::remove_dir_all(&d).unwrap();
+}

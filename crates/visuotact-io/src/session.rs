@@ -384,14 +384,24 @@ mod tests {
             ("in.png,1,nan,touch", "not a finite"),
         ] {
             write(row);
-            let e = frame_index(&dir).unwrap_err();
+            let e = frame_index(&dir, &mut Vec::new()).unwrap_err();
             assert_eq!(e.line, Some(3), "{row}: {e}");
             assert!(e.to_string().contains(why), "{row}: {e}");
         }
         write("in.png,1,0.1,touch");
-        let frames = frame_index(&dir).unwrap();
+        let mut notes = Vec::new();
+        let frames = frame_index(&dir, &mut notes).unwrap();
         assert_eq!(frames.len(), 2);
         assert_eq!(frames[1].name, "in.png");
+        assert!(notes.is_empty(), "{notes:?}");
+        // A row a recorder was killed in the middle of is left out and said.
+        let text = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
+        std::fs::write(dir.join("frames.csv"), format!("{text}in2.png,2,0.")).unwrap();
+        assert_eq!(frame_index(&dir, &mut notes).unwrap().len(), 2);
+        assert!(
+            notes[0].ends_with("frames.csv: an unfinished last line (no line end) was left out"),
+            "{notes:?}"
+        );
         std::fs::remove_dir_all(&root).unwrap();
     }
 
@@ -451,10 +461,12 @@ pub fn frames_span_s(frames: &[IndexedFrame]) -> (f64, f64) {
         })
 }
 
-/// A session's frames in recorded order, from its `frames.csv`.
-pub fn frame_index(dir: &Path) -> Result<Vec<IndexedFrame>, TableError> {
+/// A session's frames in recorded order, from its `frames.csv`; an unfinished last line left
+/// out (a recorder killed mid-row) is said in `notes`.
+pub fn frame_index(dir: &Path, notes: &mut Vec<String>) -> Result<Vec<IndexedFrame>, TableError> {
     let path = dir.join("frames.csv");
     let t = KeyedTable::read(&path, &["kind"])?;
+    notes.extend(t.partial_line_note(&path.display().to_string()));
     let ts = t
         .column("timestamp_s")
         .ok_or_else(|| TableError::new(&path, Some(1), "no timestamp_s column".into()))?;

@@ -413,6 +413,18 @@ impl KeyedTable {
     pub fn column(&self, name: &str) -> Option<usize> {
         self.columns.iter().position(|c| c == name)
     }
+
+    /// The note a reader of the table at `name` gives when its unfinished last line was left
+    /// out ([`partial_line_note`]), so that no reader drops it in silence.
+    pub fn partial_line_note(&self, name: &str) -> Option<String> {
+        partial_line_note(self.dropped_partial_line, name)
+    }
+}
+
+/// `NAME: an unfinished last line (no line end) was left out` when `dropped`: the one wording
+/// of what a table reader says of a row a writer was killed in the middle of.
+pub fn partial_line_note(dropped: bool, name: &str) -> Option<String> {
+    dropped.then(|| format!("{name}: an unfinished last line (no line end) was left out"))
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
 use visuotact_io::session::{frame_index, IndexedFrame, SessionDescription};
-use visuotact_io::table::KeyedTable;
+use visuotact_io::table::{partial_line_note, KeyedTable};
 
 use crate::LeRobotError;
 
@@ -36,8 +36,9 @@ pub struct Episode {
     pub force: Option<Vec<[f64; 6]>>,
     /// The session's frame rate as `session.json` gives it.
     pub fps: Option<f64>,
-    /// Said when `session.json` reports the recording did not complete.
-    pub incomplete: Option<String>,
+    /// What the episode is missing, one line each: the recording did not complete
+    /// (`session.json`), a table's unfinished last line was left out.
+    pub notes: Vec<String>,
 }
 
 fn aligned(
@@ -45,12 +46,14 @@ fn aligned(
     name: &str,
     frames: &[IndexedFrame],
     drop: &[&str],
+    notes: &mut Vec<String>,
 ) -> Result<Option<Aligned>, LeRobotError> {
     let path = dir.join(name);
     if !path.is_file() {
         return Ok(None);
     }
     let t = KeyedTable::read(&path, &["flags"])?;
+    notes.extend(t.partial_line_note(&path.display().to_string()));
     let keep: Vec<usize> = (0..t.columns.len())
         .filter(|&i| !drop.contains(&t.columns[i].as_str()))
         .collect();
@@ -101,7 +104,8 @@ fn force_at(f: &ForceTable, t: f64) -> [f64; 6] {
 impl Episode {
     /// Reads the session in `dir`.
     pub fn read(dir: &Path) -> Result<Self, LeRobotError> {
-        let frames = frame_index(dir)?;
+        let mut notes = Vec::new();
+        let frames = frame_index(dir, &mut notes)?;
         if frames.is_empty() {
             return Err(LeRobotError::Invalid(format!(
                 "{}: no frames",
@@ -111,6 +115,10 @@ impl Episode {
         let force_path = dir.join("force.csv");
         let force = if force_path.is_file() {
             let mut f = ForceTable::read(&force_path)?;
+            notes.extend(partial_line_note(
+                f.dropped_partial_line,
+                &force_path.display().to_string(),
+            ));
             // Interpolated at the frames' times, on their clock, not the sender's.
             f.onto_recorder_clock();
             f.check_meets_frames(&force_path, visuotact_io::session::frames_span_s(&frames))?;
@@ -127,17 +135,19 @@ impl Episode {
         let described =
             SessionDescription::read(dir).map_err(|e| LeRobotError::Invalid(e.to_string()))?;
         let fps = described.as_ref().and_then(|d| d.fps);
-        let incomplete = described
-            .and_then(|d| d.incomplete_note())
-            .map(|n| format!("{}: {n}", dir.display()));
+        notes.extend(
+            described
+                .and_then(|d| d.incomplete_note())
+                .map(|n| format!("{}: {n}", dir.display())),
+        );
         Ok(Self {
             dir: dir.to_path_buf(),
-            features: aligned(dir, "features.csv", &frames, &["timestamp_s"])?,
-            estimates: aligned(dir, "estimates.csv", &frames, &[])?,
+            features: aligned(dir, "features.csv", &frames, &["timestamp_s"], &mut notes)?,
+            estimates: aligned(dir, "estimates.csv", &frames, &[], &mut notes)?,
             frames,
             force,
             fps,
-            incomplete,
+            notes,
         })
     }
 

@@ -486,7 +486,7 @@ pub fn export_lerobot(
         .map(|s| Episode::read(s))
         .collect::<Result<Vec<_>, _>>()?;
     let fps = fps_of(cfg, &eps)?;
-    let mut notes: Vec<String> = eps.iter().filter_map(|e| e.incomplete.clone()).collect();
+    let mut notes: Vec<String> = eps.iter().flat_map(|e| e.notes.iter().cloned()).collect();
     let features = features_of(&eps, fps, &mut notes)?;
     let final_out = out;
     let building =

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use visuotact_io::force::{ForceTable, AXES};
 use visuotact_io::frames::FrameStream;
-use visuotact_io::table::{KeyedTable, TableError};
+use visuotact_io::table::{partial_line_note, KeyedTable, TableError};
 use visuotact_nn::model::is_marker_column;
 use visuotact_signal::align::{AlignError, Resampler};
 use visuotact_signal::clean::{clean, CleanConfig, CleanError, Cleaned};
@@ -186,13 +186,23 @@ pub fn build(
     Ok(out)
 }
 
-fn read_table(path: &Path, text: &[&str]) -> Result<KeyedTable, DatasetError> {
-    Ok(KeyedTable::read(path, text)?)
+/// The table at `path`; an unfinished last line left out is said in `notes`.
+fn read_table(
+    path: &Path,
+    text: &[&str],
+    notes: &mut Vec<String>,
+) -> Result<KeyedTable, DatasetError> {
+    let t = KeyedTable::read(path, text)?;
+    notes.extend(t.partial_line_note(&path.display().to_string()));
+    Ok(t)
 }
 
 /// Touch frames of a session and their timestamps, from frames.csv.
-fn touch_frames(session: &Path) -> Result<Vec<(String, f64)>, DatasetError> {
-    Ok(visuotact_io::session::frame_index(session)?
+fn touch_frames(
+    session: &Path,
+    notes: &mut Vec<String>,
+) -> Result<Vec<(String, f64)>, DatasetError> {
+    Ok(visuotact_io::session::frame_index(session, notes)?
         .into_iter()
         .filter(|f| !f.reference)
         .map(|f| (f.name, f.timestamp_s))
@@ -208,9 +218,9 @@ fn session(
     cfg: &DatasetConfig,
     notes: &mut Vec<String>,
 ) -> Result<Session, DatasetError> {
-    let frames = touch_frames(s)?;
+    let frames = touch_frames(s, notes)?;
     let (feature_columns, features) = if s.join("features.csv").exists() {
-        features_from_table(&s.join("features.csv"))?
+        features_from_table(&s.join("features.csv"), notes)?
     } else {
         let sensor = sensor.ok_or_else(|| DatasetError::Missing {
             path: s.to_path_buf(),
@@ -222,7 +232,7 @@ fn session(
     let (label_columns, labels) = if s.join("force.csv").exists() {
         labels_from_force(&s.join("force.csv"), &frames, cfg, notes)?
     } else if s.join("labels.csv").exists() {
-        let t = read_table(&s.join("labels.csv"), &[])?;
+        let t = read_table(&s.join("labels.csv"), &[], notes)?;
         let m = t.keys.iter().cloned().zip(t.rows.iter().cloned()).collect();
         (t.columns.clone(), m)
     } else {
@@ -253,8 +263,8 @@ fn session(
 }
 
 /// The markers' features and the field summary of a feature table.
-fn features_from_table(path: &Path) -> Result<Columns, DatasetError> {
-    let t = read_table(path, &["flags"])?;
+fn features_from_table(path: &Path, notes: &mut Vec<String>) -> Result<Columns, DatasetError> {
+    let t = read_table(path, &["flags"], notes)?;
     let idx: Vec<usize> = (0..t.columns.len())
         .filter(|&i| is_marker_column(&t.columns[i]) || is_field_column(&t.columns[i]))
         .collect();
@@ -292,12 +302,10 @@ fn labels_from_force(
     notes: &mut Vec<String>,
 ) -> Result<Columns, DatasetError> {
     let mut table = ForceTable::read(path)?;
-    if table.dropped_partial_line {
-        notes.push(format!(
-            "{}: an unfinished last line was left out",
-            path.display()
-        ));
-    }
+    notes.extend(partial_line_note(
+        table.dropped_partial_line,
+        &path.display().to_string(),
+    ));
     // Only the force axes the record has: an absent one is not a measured zero.
     let axes: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
     if axes.is_empty() {

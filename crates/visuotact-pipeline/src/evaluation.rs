@@ -117,10 +117,16 @@ pub enum EvaluationError {
 pub fn evaluate_files(predictions: &Path, labels: &Path) -> Result<Evaluation, EvaluationError> {
     let p = KeyedTable::read(predictions, &["flags"])?;
     let l = KeyedTable::read(labels, &[])?;
-    evaluate(&p, &l).ok_or_else(|| EvaluationError::NoTargets {
+    let torn: Vec<String> = [(&p, predictions), (&l, labels)]
+        .into_iter()
+        .filter_map(|(t, path)| t.partial_line_note(&path.display().to_string()))
+        .collect();
+    let mut e = evaluate(&p, &l).ok_or_else(|| EvaluationError::NoTargets {
         predictions: predictions.display().to_string(),
         labels: labels.display().to_string(),
-    })
+    })?;
+    e.notes.splice(0..0, torn);
+    Ok(e)
 }
 
 /// Evaluates `p` against `l` on the rows whose `frame` both have; `None` when no column of

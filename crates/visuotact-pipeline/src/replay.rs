@@ -211,7 +211,11 @@ impl Readings {
 
 /// A session's saved frames in recorded order; `warn` hears how many listed are missing.
 fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, ReplayError> {
-    let index = visuotact_io::session::frame_index(s)?;
+    let mut notes = Vec::new();
+    let index = visuotact_io::session::frame_index(s, &mut notes)?;
+    for n in &notes {
+        warn(n);
+    }
     let listed = index.iter().filter(|f| !f.reference).count();
     let frames: Vec<PathBuf> = index
         .iter()
@@ -252,7 +256,11 @@ pub fn replay(
             .or_else(|| session.as_ref().map(|s| s.join("labels.csv")))
             .filter(|p| p.is_file())
             .ok_or_else(|| ReplayError::NoReadings(extra.join(", ")))?;
-        Some(Readings::open(&path, &extra)?)
+        let r = Readings::open(&path, &extra)?;
+        if let Some(n) = r.table.partial_line_note(&path.display().to_string()) {
+            obs.warn(&n);
+        }
+        Some(r)
     };
     let by_key = readings.as_ref().map(|r| r.table.rows_by_key());
     let paths = match &session {

@@ -284,6 +284,16 @@ fn target_columns(labels: Named<'_>, targets: &[String]) -> Result<Vec<usize>, J
         .collect()
 }
 
+/// What a reader says of the tables whose unfinished last line was left out.
+fn partial_line_notes(tables: &[Option<Named<'_>>]) -> Vec<String> {
+    tables
+        .iter()
+        .flatten()
+        .filter_map(|t| t.table.partial_line_note(t.name))
+        .map(|n| format!("note: {n}"))
+        .collect()
+}
+
 /// Joins `features` (and the extra inputs, from it or `readings`) with `labels` on `frame`.
 pub fn training_table(
     features: Named<'_>,
@@ -291,7 +301,7 @@ pub fn training_table(
     readings: Option<Named<'_>>,
     cfg: &JoinConfig<'_>,
 ) -> Result<TrainingTable, JoinError> {
-    let mut notes = Vec::new();
+    let mut notes = partial_line_notes(&[Some(features), Some(labels), readings]);
     let names = input_names(features, cfg, &mut notes)?;
     let marker_inputs = names.iter().filter(|c| is_marker_column(c)).count();
     let sources = InputSources::new(&names, features, readings, "an input named by --inputs")?;

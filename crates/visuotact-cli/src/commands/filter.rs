@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use visuotact_io::force::{ForceTable, AXES};
+use visuotact_io::table::partial_line_note;
 use visuotact_pipeline::dataset::clean_table;
 use visuotact_report::figures::{ForcePlot, ForceRecord};
 
@@ -29,11 +30,8 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     outputs.extend(a.plot.as_deref());
     visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &[&a.input])?;
     let mut table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
-    if table.dropped_partial_line {
-        note!(
-            "note: {}: an unfinished last line was left out",
-            a.input.display()
-        );
+    if let Some(n) = partial_line_note(table.dropped_partial_line, &a.input.display().to_string()) {
+        note!("note: {n}");
     }
     let (p, duplicates) = clean_table(&mut table, &a.force.config()?)
         .with_context(|| a.input.display().to_string())?;

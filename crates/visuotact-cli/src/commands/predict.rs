@@ -46,10 +46,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let model = crate::load_model(&a.model)?;
     let (f, source) = match (&a.features, &a.sensor) {
-        (Some(p), _) => (
-            KeyedTable::read(p, &["flags"]).map_err(anyhow::Error::msg)?,
-            p.display().to_string(),
-        ),
+        (Some(p), _) => {
+            let t = KeyedTable::read(p, &["flags"]).map_err(anyhow::Error::msg)?;
+            if let Some(n) = t.partial_line_note(&p.display().to_string()) {
+                note!("note: {n}");
+            }
+            (t, p.display().to_string())
+        }
         (None, Some(sensor)) => {
             let set = visuotact_pipeline::feature_set_of(&model.feature_columns)?;
             let cal = crate::load_sensor(sensor)?;
