@@ -185,6 +185,30 @@ fn nothing_done_is_an_error() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A session whose frames.csv lists no frame: every export refuses it and writes nothing
+/// (was: "wrote z.mcap (0 frames, 0 messages)", exit 0, for MCAP and Rerun).
+#[test]
+fn exporting_a_session_without_frames_is_an_error() {
+    let d = fresh_dir("hostile-export-nothing");
+    let session = d.join("session");
+    std::fs::create_dir_all(session.join("frames")).unwrap();
+    std::fs::write(
+        session.join("frames.csv"),
+        "frame,frame_index,timestamp_s,kind\n",
+    )
+    .unwrap();
+    for (format, out) in [("mcap", "z.mcap"), ("rerun", "z.rrd"), ("lerobot", "zl")] {
+        let out = d.join(out);
+        let err = fails(&vt(&["export", format, s(&session), "-o", s(&out)]));
+        assert!(
+            err.contains("frames.csv") && err.contains("no frames"),
+            "{format}: {err}"
+        );
+        assert!(!out.exists(), "{format} left {}", out.display());
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// Extracting frames none of which can be processed (1 × 480, not the sensor's size) is an
 /// error naming the first one's reason, and no header-only table is left under the output's
 /// name (was: exit 1 beside a header-only CSV).

@@ -469,3 +469,86 @@ fn resume_refuses_a_session_it_did_not_record() {
     assert_eq!(rows.lines().count(), 1 + 6, "{rows}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A force sender on its own clock (stamps from 1 000 s, as a real F/T box's) streaming
+/// 56-byte packets at about 1 kHz to `port` until `stop` is set.
+fn stream_force(
+    port: u16,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let start = std::time::Instant::now();
+        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            let t = 1000.0 + start.elapsed().as_secs_f64();
+            let packet: Vec<u8> = [t, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect();
+            let _ = sock.send_to(&packet, ("127.0.0.1", port));
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+    })
+}
+
+/// A force sender that never stops does not keep a recording going: `--max-frames`,
+/// `--duration-s` and Ctrl-C each end `record` while packets stream, with a complete session
+/// (was: a 2-second recording ran 20.8 s, for as long as the sender streamed). The sender
+/// streams for the whole test; a recording still running after 30 s is killed and fails.
+#[test]
+fn a_streaming_force_sender_never_keeps_a_recording_going() {
+    let d = fresh_dir("record-endless-force");
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let sender = stream_force(port, stop.clone());
+    let udp = format!("udp:127.0.0.1:{port}");
+    let record = |name: &str, until: &[&str]| {
+        let mut args = vec![
+            "record", "--source", "sim:iats", "--fps", "10", "--force", &udp,
+        ];
+        args.extend(until);
+        let out = d.join(name);
+        args.extend(["-o", s(&out)]);
+        Command::new(env!("CARGO_BIN_EXE_visuotact"))
+            .args(args)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let described = |name: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join(name).join("session.json")).unwrap())
+            .unwrap()
+    };
+    let o = finished_within(
+        record("frames", &["--max-frames", "3"]),
+        30,
+        "--max-frames 3",
+    );
+    ok(&o);
+    assert_eq!(described("frames")["complete"], true);
+    assert_eq!(rows(&d.join("frames").join("frames.csv")).len(), 3);
+    let o = finished_within(
+        record("seconds", &["--duration-s", "1"]),
+        30,
+        "--duration-s 1",
+    );
+    ok(&o);
+    assert_eq!(described("seconds")["complete"], true);
+    let child = record("interrupted", &[]);
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let o = finished_within(child, 30, "Ctrl-C");
+    ok(&o);
+    assert_eq!(described("interrupted")["complete"], true);
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    sender.join().unwrap();
+    std::fs::remove_dir_all(&d).unwrap();
+}

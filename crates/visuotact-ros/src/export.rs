@@ -217,6 +217,9 @@ fn read_tables(
     notes: &mut Vec<String>,
 ) -> Result<SessionTables, RosError> {
     let frames = frame_index(session, notes)?;
+    if frames.is_empty() {
+        return Err(RosError::NoFrames(session.join("frames.csv")));
+    }
     let estimates = optional_table(session, "estimates.csv", &["flags"], notes)?.map(keyed);
     let features = optional_table(session, "features.csv", &["flags"], notes)?.map(keyed);
     let force_path = session.join("force.csv");

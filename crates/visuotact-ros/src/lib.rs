@@ -62,6 +62,9 @@ pub enum RosError {
     /// An unfinished bag of an earlier run holds the temporary name.
     #[error("{}: an unfinished bag of an earlier run (readable up to its last chunk; `mcap recover` rebuilds it): move or remove it first", .0.display())]
     Unfinished(PathBuf),
+    /// The session's `frames.csv` lists no frame: there is nothing to export.
+    #[error("{}: lists no frames: nothing to export", .0.display())]
+    NoFrames(PathBuf),
     /// The progress callback stopped the export.
     #[error("stopped after {0} frames: nothing written")]
     Stopped(usize),

@@ -271,3 +271,18 @@ pub fn shared_real(rel: &str) -> Option<PathBuf> {
     eprintln!("skipping: {} absent", p.display());
     None
 }
+
+/// Waits for `child` up to `limit_s` seconds; a child still running then is killed and the
+/// test fails naming `what` (a hang fails instead of stalling the suite).
+pub fn finished_within(mut child: std::process::Child, limit_s: u64, what: &str) -> Output {
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(limit_s) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{what}: still running after {limit_s} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
