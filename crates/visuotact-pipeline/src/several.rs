@@ -223,6 +223,39 @@ pub struct RunFile {
     pub sensor: Vec<SensorEntry>,
 }
 
+/// Most sensors one run file may name: each holds its own capture queue and estimator, and a
+/// simulated one renders [`crate::runner::SIM_FRAMES_UP_FRONT`] frames before the run (about
+/// 77 MB at 640 × 480), so a run of many stays within a workstation's memory. A gripper or a
+/// hand has a few to a dozen.
+pub const MAX_RUN_SENSORS: usize = 32;
+
+/// Why a run file does not describe a run.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RunFileError {
+    /// Not TOML of the run file's shape.
+    #[error("{0}")]
+    Syntax(String),
+    /// No `[[sensor]]` table.
+    #[error("no [[sensor]] table (each needs name and source)")]
+    NoSensor,
+    /// More sensors than [`MAX_RUN_SENSORS`].
+    #[error("{0} sensors: at most {MAX_RUN_SENSORS} in one run (each holds its own frames and estimator)")]
+    TooMany(usize),
+}
+
+impl RunFile {
+    /// Parses and checks the text of a run file: at least one sensor, at most
+    /// [`MAX_RUN_SENSORS`].
+    pub fn from_toml(text: &str) -> Result<Self, RunFileError> {
+        let plan: Self = toml::from_str(text).map_err(|e| RunFileError::Syntax(e.to_string()))?;
+        match plan.sensor.len() {
+            0 => Err(RunFileError::NoSensor),
+            n if n > MAX_RUN_SENSORS => Err(RunFileError::TooMany(n)),
+            _ => Ok(plan),
+        }
+    }
+}
+
 /// One sensor of a run file. Paths are as on the command line (relative to the working
 /// folder).
 #[derive(Clone, Debug, Default, PartialEq, serde::Deserialize)]
@@ -238,4 +271,40 @@ pub struct SensorEntry {
     /// Its model files (several: one ensemble); none: contact and marker health only.
     #[serde(default)]
     pub model: Vec<std::path::PathBuf>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run file names one to [`MAX_RUN_SENSORS`] sensors; more is refused before anything is
+    /// opened (was: no cap, each simulated entry ~77 MB).
+    #[test]
+    fn a_run_file_names_one_to_the_most_sensors() {
+        let entries = |n: usize| -> String {
+            (0..n)
+                .map(|k| format!("[[sensor]]\nname = \"s{k}\"\nsource = \"sim:iats\"\n"))
+                .collect()
+        };
+        assert_eq!(RunFile::from_toml(""), Err(RunFileError::NoSensor));
+        assert_eq!(
+            RunFile::from_toml(&entries(2)).unwrap().sensor[1].name,
+            "s1"
+        );
+        assert_eq!(
+            RunFile::from_toml(&entries(MAX_RUN_SENSORS))
+                .unwrap()
+                .sensor
+                .len(),
+            MAX_RUN_SENSORS
+        );
+        assert_eq!(
+            RunFile::from_toml(&entries(MAX_RUN_SENSORS + 1)),
+            Err(RunFileError::TooMany(MAX_RUN_SENSORS + 1))
+        );
+        assert!(matches!(
+            RunFile::from_toml("[[sensor]]\nname = \"a\"\nsource = \"sim:iats\"\nspeed = 3\n"),
+            Err(RunFileError::Syntax(e)) if e.contains("speed")
+        ));
+    }
 }

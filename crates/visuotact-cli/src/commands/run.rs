@@ -270,14 +270,8 @@ fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
     // A regular file only: a FIFO or a device would block the run before it starts.
     let text = visuotact_io::read::text_of_file(file)
         .map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
-    let plan: RunFile =
-        toml::from_str(&text).map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
-    if plan.sensor.is_empty() {
-        anyhow::bail!(
-            "--sensors {}: no [[sensor]] table (each needs name and source)",
-            file.display()
-        );
-    }
+    let plan = RunFile::from_toml(&text)
+        .map_err(|e| anyhow::anyhow!("--sensors {}: {e}", file.display()))?;
     let mut inputs: Vec<&std::path::Path> = vec![file];
     for s in &plan.sensor {
         inputs.extend(s.model.iter().map(PathBuf::as_path));
