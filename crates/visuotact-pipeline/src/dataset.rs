@@ -3,8 +3,9 @@
 //! calibration) joined on `frame` with labels — from its force record (cleaned by
 //! [`visuotact_signal::clean`], resampled onto the frame times with a latency offset) or,
 //! without one, from its `labels.csv`. Force samples received over the network carry the
-//! sender's clock and the recorder's receive time (`recv_s`); the sender's clock is mapped onto
-//! the recorder's by the smallest `recv_s − timestamp_s` (the least-delayed packet).
+//! sender's clock and the recorder's receive time (`recv_s`); they are put on the recorder's
+//! clock by [`ForceTable::onto_recorder_clock`] (the least `recv_s − timestamp_s` seen so far),
+//! the one mapping the exports and `record --mcap` use too.
 //! `visuotact dataset` writes the result as two tables.
 
 use std::collections::HashMap;
@@ -322,13 +323,13 @@ fn labels_from_force(
             names.join(", ")
         ));
     }
-    // Sender clock → recorder clock.
-    let offset = table.sender_offset_s();
+    // Sender clock → recorder clock, as the exports and `record --mcap` map it.
+    table.onto_recorder_clock();
     let (c, _) = clean_table(&mut table, &cfg.clean).map_err(|source| DatasetError::Force {
         path: path.to_path_buf(),
         source,
     })?;
-    let times: Vec<f64> = frames.iter().map(|(_, t)| t - offset).collect();
+    let times: Vec<f64> = frames.iter().map(|(_, t)| *t).collect();
     let rs = Resampler::new(
         &c.t,
         &times,
@@ -516,6 +517,35 @@ mod tests {
         }
         assert_eq!(ds.features[2], [2.0, 0.5, 2.0]);
         assert!(ds.notes.is_empty(), "{:?}", ds.notes);
+        let _ = std::fs::remove_dir_all(d);
+    }
+
+    /// A force sensor stamping its own clock (from 1 000 s) with receive times on the
+    /// recorder's, the first packet late: frames get the force of the sample received at their
+    /// time less the least delay (2 ms), i.e. the exports' mapping.
+    #[test]
+    fn a_senders_clock_is_put_on_the_recorders_as_the_exports_put_it() {
+        let d = session_dir("sender-clock");
+        let mut force = String::from("timestamp_s,fx_n,fy_n,fz_n,recv_s\n");
+        for i in 0..5000 {
+            let t = f64::from(i) / 1000.0;
+            let delay_s = if i == 0 { 0.05 } else { 0.002 };
+            force.push_str(&format!("{},0,0,{t},{}\n", 1000.0 + t, t + delay_s));
+        }
+        std::fs::write(d.join("force.csv"), force).unwrap();
+        let cfg = DatasetConfig {
+            clean: CleanConfig {
+                bias: visuotact_signal::clean::BiasRemoval::None,
+                ..CleanConfig::default()
+            },
+            ..DatasetConfig::default()
+        };
+        let ds = build(std::slice::from_ref(&d), None, &cfg).unwrap();
+        assert_eq!(ds.keys.len(), 5, "{:?}", ds.notes);
+        for (k, l) in ds.labels.iter().enumerate() {
+            let want = 1.0 + 0.5 * k as f64 - 0.002;
+            assert!((l[3] - want).abs() < 1e-3, "{k}: {l:?}");
+        }
         let _ = std::fs::remove_dir_all(d);
     }
 
