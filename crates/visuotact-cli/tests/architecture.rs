@@ -2,6 +2,7 @@
 //! crate's dependencies above its row, rows of at most 25 words, the command line's source
 //! under the line count it states, no public function returning `Result<_, String>`, no error
 //! type that is a `String` newtype (two left, listed), and no command module importing another.
+//! Also docs/failure.md's promises: each names the tests that check it, and those exist.
 
 use std::path::{Path, PathBuf};
 
@@ -237,4 +238,80 @@ fn every_crate_depends_only_on_crates_above_it() {
         checked > 20,
         "only {checked} dependencies between crates seen"
     );
+}
+
+/// docs/failure.md states the promises the tests check, and nothing else: every bullet of its
+/// sections up to "Tests that cannot pass by skipping", and the limits table, ends with
+/// `Tests: `name`, …`, and each name is a test function in the workspace (Rust `fn`, or a
+/// Python test's `def`).
+#[test]
+fn every_promise_of_the_failure_doc_names_tests_that_exist() {
+    let doc = std::fs::read_to_string(root().join("docs/failure.md")).unwrap();
+    let promises = doc
+        .split("## Tests that cannot pass by skipping")
+        .next()
+        .unwrap();
+    let mut sources: Vec<String> = rust_files(&root().join("crates"))
+        .iter()
+        .map(|p| std::fs::read_to_string(p).unwrap())
+        .collect();
+    for e in std::fs::read_dir(root().join("crates/visuotact-py/tests")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "py") {
+            sources.push(std::fs::read_to_string(p).unwrap());
+        }
+    }
+    let exists = |name: &str| {
+        sources
+            .iter()
+            .any(|s| s.contains(&format!("fn {name}(")) || s.contains(&format!("def {name}(")))
+    };
+    // Bullets ("- " and their indented lines) and tables (with the `Tests:` paragraph after).
+    #[derive(PartialEq)]
+    enum In {
+        Other,
+        Bullet,
+        Table,
+        TableTests,
+    }
+    let (mut units, mut state): (Vec<String>, In) = (Vec::new(), In::Other);
+    for line in promises.lines() {
+        state = match state {
+            _ if line.starts_with("- ") => {
+                units.push(String::new());
+                In::Bullet
+            }
+            In::Bullet if line.starts_with("  ") => In::Bullet,
+            In::Table if line.starts_with('|') => In::Table,
+            _ if line.starts_with('|') => {
+                units.push(String::new());
+                In::Table
+            }
+            In::Table if line.is_empty() => In::Table,
+            In::Table if line.starts_with("Tests:") => In::TableTests,
+            In::TableTests if !line.is_empty() => In::TableTests,
+            _ => In::Other,
+        };
+        if state != In::Other {
+            let last = units.last_mut().unwrap();
+            last.push_str(line);
+            last.push('\n');
+        }
+    }
+    let units: Vec<&String> = units.iter().filter(|u| !u.is_empty()).collect();
+    assert!(units.len() > 30, "{} promises found", units.len());
+    for u in units {
+        let tests = u
+            .split("Tests: ")
+            .nth(1)
+            .unwrap_or_else(|| panic!("a promise names no test:\n{u}"));
+        let names: Vec<&str> = tests.split('`').skip(1).step_by(2).collect();
+        assert!(!names.is_empty(), "no test named in:\n{u}");
+        for n in names {
+            assert!(
+                exists(n),
+                "docs/failure.md names `{n}`, which is no test:\n{u}"
+            );
+        }
+    }
 }

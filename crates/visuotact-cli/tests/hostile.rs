@@ -744,3 +744,58 @@ fn a_second_writer_of_one_output_is_refused() {
         .contains("visuotact-sensor"));
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A run whose frames came but none could be estimated (1 × 1 frames for a 640 × 480 sensor)
+/// is an error naming why, each frame a warning naming it (was: "0 estimated, latency NaN
+/// ms", exit 0).
+#[test]
+fn a_run_that_estimates_nothing_is_an_error() {
+    let d = fresh_dir("hostile-run-nothing");
+    let (_, sensor, _) = common::iats_features(&d, "2", "1");
+    let frames = d.join("tiny");
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..3 {
+        std::fs::write(frames.join(format!("f{k}.pgm")), b"P5\n1 1\n255\n\x00").unwrap();
+    }
+    let err = fails(&vt(&[
+        "run",
+        "--source",
+        s(&frames),
+        "--sensor",
+        s(&sensor),
+        "--unpaced",
+        "--quiet",
+    ]));
+    assert!(
+        err.contains("none of the 3 frames captured could be estimated")
+            && err.contains("frame f0.pgm: expected 640×480 like the reference, got 1×1"),
+        "{err}"
+    );
+    assert!(err.contains("warning: frame f2.pgm"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A reader that closes the run's standard output (`visuotact run | head -1`) ends a run that
+/// would go on for ever, cleanly (exit 0, its summary said). The child is killed after 30 s
+/// so that a regression fails instead of hanging the suite.
+#[test]
+fn a_closed_standard_output_ends_a_run_cleanly() {
+    use std::io::BufRead;
+    let d = fresh_dir("hostile-run-closed-stdout");
+    let (_, sensor, _) = common::iats_features(&d, "2", "1");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_visuotact"))
+        .args(["run", "--source", "sim:iats", "--sensor", s(&sensor)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("{\"frame\":"), "{first}");
+    let o = common::finished_within(child, 30, "run with its standard output closed");
+    let err = ok(&o);
+    assert!(err.contains("estimated"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
