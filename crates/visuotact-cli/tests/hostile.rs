@@ -680,6 +680,13 @@ fn a_rerun_recording_cut_by_a_full_disk_is_an_error() {
         "{err}"
     );
     assert!(!cut.exists());
+    // Nor its temporary file: the retry starts clean.
+    let left: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".part~"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

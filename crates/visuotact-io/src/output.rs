@@ -220,6 +220,39 @@ pub fn temp_dir_beside(path: &Path) -> io::Result<tempfile::TempDir> {
     })
 }
 
+/// An empty file created exclusively beside an output under a random name
+/// (`.NAME.XXXXXX.part~`), for a writer that opens a path itself (the Rerun SDK's file sink):
+/// removed when dropped, renamed onto the output by [`TempBeside::land`] when whole. A
+/// killed run leaves only the hidden temporary name, never a torn output under the final one.
+#[derive(Debug)]
+pub struct TempBeside {
+    path: tempfile::TempPath,
+}
+
+impl TempBeside {
+    /// The temporary file beside `target`.
+    pub fn new(target: &Path) -> io::Result<Self> {
+        let file = temp_beside(target, 0o666, |b, dir| b.tempfile_in(dir))
+            .map_err(|e| named(target, e))?;
+        Ok(Self {
+            path: file.into_temp_path(),
+        })
+    }
+
+    /// Where the writer writes.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the whole file onto `target`, which must not exist (never replaced: a file
+    /// that appeared there meanwhile is another writer's); on failure the file is removed.
+    pub fn land(self, target: &Path) -> io::Result<()> {
+        self.path
+            .persist_noclobber(target)
+            .map_err(|e| named(target, e.error))
+    }
+}
+
 /// Writes `bytes` to `path` as one [`OutputFile`].
 pub fn write_whole(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut f = OutputFile::create(path)?;
@@ -237,6 +270,27 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
         d
+    }
+
+    /// A file another writer fills through its path lands whole under the target's name,
+    /// never over a file there; dropped unlanded, it leaves nothing.
+    #[test]
+    fn a_temporary_file_beside_lands_whole_or_leaves_nothing() {
+        let d = dir("temp-beside");
+        let target = d.join("x.rrd");
+        let t = TempBeside::new(&target).unwrap();
+        assert!(t.path().is_file() && !target.exists());
+        std::fs::write(t.path(), b"whole").unwrap();
+        t.land(&target).unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"whole");
+        let t = TempBeside::new(&target).unwrap();
+        std::fs::write(t.path(), b"second").unwrap();
+        let e = t.land(&target).unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::AlreadyExists, "{e}");
+        assert_eq!(std::fs::read(&target).unwrap(), b"whole");
+        drop(TempBeside::new(&d.join("y.rrd")).unwrap());
+        assert!(leftovers(&d).is_empty(), "{:?}", leftovers(&d));
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     fn leftovers(d: &Path) -> Vec<String> {

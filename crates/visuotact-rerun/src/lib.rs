@@ -90,22 +90,31 @@ fn target_err(e: impl std::fmt::Display) -> RosError {
 pub struct RerunTarget {
     rec: RecordingStream,
     output: RerunOutput,
+    /// A file output's temporary file, renamed onto it when the recording is whole.
+    temp: Option<visuotact_io::output::TempBeside>,
     /// Frames logged.
     pub frames: u64,
 }
 
 impl RerunTarget {
-    /// A recording into `output`: a new `.rrd` file (an existing one is refused) or a viewer.
+    /// A recording into `output`: a new `.rrd` file (an existing one is refused), written
+    /// under a temporary name beside it and renamed when whole ([`RerunTarget::finish`]), or a
+    /// viewer.
     pub fn open(output: RerunOutput) -> Result<Self, RosError> {
         let builder = rerun::RecordingStreamBuilder::new(APPLICATION_ID);
+        let mut temp = None;
         let rec = match &output {
             RerunOutput::File(p) => {
-                if p.exists() {
+                if p.symlink_metadata().is_ok() {
                     return Err(RosError::Exists(p.clone()));
                 }
-                builder
-                    .save(p)
-                    .map_err(|e| target_err(format!("{}: {e}", p.display())))?
+                let t = visuotact_io::output::TempBeside::new(p)
+                    .map_err(|e| RosError::Io(p.clone(), e))?;
+                let rec = builder
+                    .save(t.path())
+                    .map_err(|e| target_err(format!("{}: {e}", p.display())))?;
+                temp = Some(t);
+                rec
             }
             RerunOutput::Viewer(addr) => builder
                 .connect_grpc_opts(
@@ -117,8 +126,14 @@ impl RerunTarget {
         Ok(Self {
             rec,
             output,
+            temp,
             frames: 0,
         })
+    }
+
+    /// Closes the recording without keeping it: a file output's temporary file is removed.
+    pub fn abandon(self) {
+        self.rec.disconnect();
     }
 
     /// Where the recording goes.
@@ -126,12 +141,14 @@ impl RerunTarget {
         &self.output
     }
 
-    /// Flushes and closes the recording: the file is whole once this returns.
+    /// Flushes and closes the recording; a file is read back whole and only then renamed onto
+    /// its name (otherwise the temporary file is removed and nothing is left there).
     pub fn finish(self) -> Result<u64, RosError> {
         self.rec.flush_blocking();
         self.rec.disconnect();
-        if let RerunOutput::File(p) = &self.output {
-            verify_recording(p)?;
+        if let (RerunOutput::File(p), Some(t)) = (self.output, self.temp) {
+            verify_recording(t.path(), &p)?;
+            t.land(&p).map_err(|e| RosError::Io(p.clone(), e))?;
         }
         Ok(self.frames)
     }
@@ -254,11 +271,12 @@ pub struct RerunExport {
 /// Reads the recording file at `p` back to its end: the SDK's file sink reports a failed write
 /// (a full disk, a file-size limit) only in its log, so a file that does not decode whole — up
 /// to its last byte, ending in the stream's end marker (a 16-byte header of kind 0, length 0) —
-/// is the error here, never "wrote x.rrd". Returns the messages it holds.
-fn verify_recording(p: &Path) -> Result<u64, RosError> {
+/// is the error here, never "wrote x.rrd". `p` is read; errors give it `name`. Returns the
+/// messages it holds.
+fn verify_recording(p: &Path, name: &Path) -> Result<u64, RosError> {
     use rerun::external::re_log_encoding::decoder::Decoder;
     use std::io::{Read, Seek};
-    let bad = |why: String| target_err(format!("{}: {why}", p.display()));
+    let bad = |why: String| target_err(format!("{}: {why}", name.display()));
     let open = || std::fs::File::open(p).map_err(|e| bad(format!("nothing was written ({e})")));
     let mut file = open()?;
     let len = file.metadata().map_err(|e| bad(e.to_string()))?.len();
@@ -297,19 +315,19 @@ pub fn export_rerun(
 ) -> Result<RerunExport, RosError> {
     let plan = SessionExport::read(session, cfg)?;
     let mut target = RerunTarget::open(RerunOutput::File(out.to_path_buf()))?;
-    let written = plan.write_to(&mut target, cfg, progress);
-    let closed = target.finish();
-    match written.and(closed) {
-        Ok(frames) => Ok(RerunExport {
-            path: out.to_path_buf(),
-            frames,
-            notes: plan.notes().to_vec(),
-        }),
+    // A failed or stopped export never renames its temporary file onto `out`: nothing to remove.
+    let frames = match plan.write_to(&mut target, cfg, progress) {
+        Ok(_) => target.finish()?,
         Err(e) => {
-            let _ = std::fs::remove_file(out);
-            Err(e)
+            target.abandon();
+            return Err(e);
         }
-    }
+    };
+    Ok(RerunExport {
+        path: out.to_path_buf(),
+        frames,
+        notes: plan.notes().to_vec(),
+    })
 }
 
 #[cfg(test)]
