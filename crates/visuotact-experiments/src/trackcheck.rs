@@ -344,7 +344,7 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> Result<(RgbImage, 
                     .collect(),
             ))
         }
-        _ => Err(SimError("a touch of another sensor".into())),
+        _ => Err(SimError::WrongSensor("a touch of another sensor")),
     }
 }
 
@@ -352,8 +352,8 @@ fn render(sensor: &SimSensor, touch: &AnyTouch, seed: u64) -> Result<(RgbImage, 
 fn reference(c: &CheckConfig) -> Result<AnyTouch, CheckError> {
     match (&c.sensor, c.reference_touch) {
         (SimSensor::Iats(_), None) => Ok(AnyTouch::Iats(Touch::default())),
-        (SimSensor::Iats(_), Some(_)) => Err(CheckError::Sim(SimError(
-            "a reference in contact is for zoo sensors only".into(),
+        (SimSensor::Iats(_), Some(_)) => Err(CheckError::Sim(SimError::WrongSensor(
+            "a reference in contact is for zoo sensors only",
         ))),
         (SimSensor::Zoo(_), t) => Ok(AnyTouch::Zoo(t.unwrap_or_default())),
     }

@@ -50,30 +50,38 @@ impl Camera {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), crate::SimError> {
         if self.width == 0 || self.height == 0 {
-            return Err(crate::SimError(format!(
-                "camera size {}×{} must be positive",
-                self.width, self.height
-            )));
+            return Err(crate::SimError::Size {
+                what: "camera size",
+                width: self.width,
+                height: self.height,
+                limit: "must be positive".to_string(),
+            });
         }
         if self.width > crate::MAX_CAMERA_SIDE_PX || self.height > crate::MAX_CAMERA_SIDE_PX {
-            return Err(crate::SimError(format!(
-                "camera size {}×{} exceeds the simulator's limit of {} px a side",
-                self.width,
-                self.height,
-                crate::MAX_CAMERA_SIDE_PX
-            )));
+            return Err(crate::SimError::Size {
+                what: "camera size",
+                width: self.width,
+                height: self.height,
+                limit: format!(
+                    "exceeds the simulator's limit of {} px a side",
+                    crate::MAX_CAMERA_SIDE_PX
+                ),
+            });
         }
         if !(self.fx_px > 0.0 && self.fy_px > 0.0) {
-            return Err(crate::SimError(
-                "camera focal lengths must be positive".to_string(),
-            ));
+            let (name, v) = if self.fx_px > 0.0 {
+                ("camera fy_px", self.fy_px)
+            } else {
+                ("camera fx_px", self.fx_px)
+            };
+            return Err(crate::SimError::out_of_range(name, v, "positive"));
         }
         if ![self.cx_px, self.cy_px, self.k1, self.k2]
             .iter()
             .all(|v| v.is_finite())
         {
-            return Err(crate::SimError(
-                "camera principal point and distortion must be finite".to_string(),
+            return Err(crate::SimError::NotFinite(
+                "the camera's principal point and distortion",
             ));
         }
         Ok(())

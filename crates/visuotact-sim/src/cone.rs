@@ -123,22 +123,27 @@ impl ConeConfig {
             ("max_twist_rad", self.max_twist_rad),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(crate::SimError(format!("{name} must be positive, got {v}")));
+                return Err(crate::SimError::out_of_range(name, v, "positive"));
             }
         }
         if !(self.t_marker_mm.is_finite() && self.t_marker_mm >= 0.0) {
-            return Err(crate::SimError(format!(
-                "t_marker_mm must be ≥ 0 (0: no T), got {}",
-                self.t_marker_mm
-            )));
+            return Err(crate::SimError::out_of_range(
+                "t_marker_mm",
+                self.t_marker_mm,
+                "≥ 0 (0: no T)",
+            ));
         }
         crate::check_blur_px(self.blur_px)?;
         for z in self.ring_heights_mm {
             if !(z > self.ring_width_mm && z < self.length_mm) {
-                return Err(crate::SimError(format!(
-                    "ring height {z} mm must lie inside the cone (0..{} mm)",
-                    self.length_mm
-                )));
+                return Err(crate::SimError::Mismatch {
+                    a: "ring_heights_mm",
+                    b: "length_mm",
+                    why: format!(
+                        "a ring at {z} mm does not lie inside the cone ({} .. {} mm)",
+                        self.ring_width_mm, self.length_mm
+                    ),
+                });
             }
         }
         Ok(())
@@ -193,24 +198,24 @@ impl ConeLoad {
     /// Checks the load.
     pub fn validate(&self) -> Result<(), crate::SimError> {
         if !(self.force_n.is_finite() && self.force_n >= 0.0) {
-            return Err(crate::SimError(format!(
-                "force must be ≥ 0 N, got {}",
-                self.force_n
-            )));
+            return Err(crate::SimError::out_of_range(
+                "force_n",
+                self.force_n,
+                "≥ 0 N",
+            ));
         }
         if !(self.pressure_kpa.is_finite() && self.pressure_kpa > 0.0) {
-            return Err(crate::SimError(format!(
-                "pressure must be positive, got {} kPa",
-                self.pressure_kpa
-            )));
+            return Err(crate::SimError::out_of_range(
+                "pressure_kpa",
+                self.pressure_kpa,
+                "positive",
+            ));
         }
         if !self.torque_nmm.is_finite() {
-            return Err(crate::SimError("torque must be finite".to_string()));
+            return Err(crate::SimError::NotFinite("torque_nmm"));
         }
         if !self.elevation_rad.is_finite() || !self.azimuth_rad.is_finite() {
-            return Err(crate::SimError(
-                "force direction must be finite".to_string(),
-            ));
+            return Err(crate::SimError::NotFinite("the force direction"));
         }
         Ok(())
     }

@@ -141,16 +141,20 @@ impl IatsConfig {
     pub fn validate(&self) -> Result<(), crate::SimError> {
         self.camera.validate()?;
         if self.cols < 2 || self.rows < 2 {
-            return Err(crate::SimError(format!(
-                "need at least 2 × 2 markers, got {} × {}",
-                self.cols, self.rows
-            )));
+            return Err(crate::SimError::Size {
+                what: "marker grid",
+                width: self.cols,
+                height: self.rows,
+                limit: "at least 2 × 2 markers".to_string(),
+            });
         }
         if self.cols > 200 || self.rows > 200 {
-            return Err(crate::SimError(format!(
-                "at most 200 × 200 markers, got {} × {}",
-                self.cols, self.rows
-            )));
+            return Err(crate::SimError::Size {
+                what: "marker grid",
+                width: self.cols,
+                height: self.rows,
+                limit: "at most 200 × 200 markers".to_string(),
+            });
         }
         crate::check_blur_px(self.blur_px)?;
         for (name, v) in [
@@ -162,25 +166,29 @@ impl IatsConfig {
             ("camera_distance_mm", self.camera_distance_mm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(crate::SimError(format!("{name} must be positive, got {v}")));
+                return Err(crate::SimError::out_of_range(name, v, "positive"));
             }
         }
         if !(self.frame_margin_mm.is_finite() && self.frame_margin_mm >= 0.0) {
-            return Err(crate::SimError(format!(
-                "frame_margin_mm must be ≥ 0, got {}",
-                self.frame_margin_mm
-            )));
+            return Err(crate::SimError::out_of_range(
+                "frame_margin_mm",
+                self.frame_margin_mm,
+                "≥ 0",
+            ));
         }
         if !(0.0..=1.0).contains(&self.stretch_coupling) {
-            return Err(crate::SimError(format!(
-                "stretch_coupling must be in 0..1, got {}",
-                self.stretch_coupling
-            )));
+            return Err(crate::SimError::out_of_range(
+                "stretch_coupling",
+                self.stretch_coupling,
+                "in 0..1",
+            ));
         }
         if self.max_depth_mm >= self.camera_distance_mm {
-            return Err(crate::SimError(
-                "max_depth_mm must be less than camera_distance_mm".to_string(),
-            ));
+            return Err(crate::SimError::Mismatch {
+                a: "max_depth_mm",
+                b: "camera_distance_mm",
+                why: "a press would reach the camera".to_string(),
+            });
         }
         Ok(())
     }
@@ -230,34 +238,34 @@ impl Touch {
             self.shear_y_mm,
         ];
         if !finite.iter().all(|v| v.is_finite()) {
-            return Err(crate::SimError(format!(
-                "touch values must be finite: {self:?}"
-            )));
+            return Err(crate::SimError::NotFinite("every value of a touch"));
         }
         if self.depth_mm < 0.0 || self.depth_mm > cfg.max_depth_mm {
-            return Err(crate::SimError(format!(
-                "depth {} mm outside 0..{} mm",
-                self.depth_mm, cfg.max_depth_mm
-            )));
+            return Err(crate::SimError::out_of_range(
+                "depth_mm",
+                self.depth_mm,
+                format!("in 0..{} mm", cfg.max_depth_mm),
+            ));
         }
         if !(0.0..=cfg.span_x_mm).contains(&self.x_mm)
             || !(0.0..=cfg.span_y_mm).contains(&self.y_mm)
         {
-            return Err(crate::SimError(format!(
-                "touch at ({}, {}) mm is outside the sensor's 0..{} × 0..{} mm marker area",
-                self.x_mm, self.y_mm, cfg.span_x_mm, cfg.span_y_mm
-            )));
+            return Err(crate::SimError::OffField {
+                x_mm: self.x_mm,
+                y_mm: self.y_mm,
+            });
         }
         let drag = self.shear_x_mm.hypot(self.shear_y_mm);
         if drag > 0.0 && self.depth_mm <= 0.0 {
-            return Err(crate::SimError(
-                "a sideways drag needs contact (depth > 0)".to_string(),
-            ));
+            return Err(crate::SimError::DragWithoutContact);
         }
-        if drag > 2.0 * cfg.pitch_x_mm().max(cfg.pitch_y_mm()) {
-            return Err(crate::SimError(format!(
-                "drag of {drag:.2} mm exceeds two marker pitches"
-            )));
+        let limit_mm = 2.0 * cfg.pitch_x_mm().max(cfg.pitch_y_mm());
+        if drag > limit_mm {
+            return Err(crate::SimError::out_of_range(
+                "drag (mm)",
+                drag,
+                format!("at most two marker pitches ({limit_mm} mm)"),
+            ));
         }
         Ok(())
     }

@@ -44,22 +44,22 @@ impl Jr3Config {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), crate::SimError> {
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= MAX_RATE_HZ) {
-            return Err(crate::SimError(format!(
-                "force sample rate must be positive and at most {MAX_RATE_HZ} Hz, got {} Hz",
-                self.rate_hz
-            )));
-        }
-        let all = [
-            self.noise_n,
-            self.noise_nm,
-            self.bias_walk_n,
-            self.bias_walk_nm,
-            self.lever_arm_mm,
-        ];
-        if !all.iter().all(|v| v.is_finite() && *v >= 0.0) {
-            return Err(crate::SimError(
-                "force sensor noise, drift and lever arm must be ≥ 0".to_string(),
+            return Err(crate::SimError::out_of_range(
+                "force sample rate",
+                self.rate_hz,
+                format!("positive and at most {MAX_RATE_HZ} Hz"),
             ));
+        }
+        for (name, v) in [
+            ("force noise_n", self.noise_n),
+            ("force noise_nm", self.noise_nm),
+            ("force bias_walk_n", self.bias_walk_n),
+            ("force bias_walk_nm", self.bias_walk_nm),
+            ("force lever_arm_mm", self.lever_arm_mm),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(crate::SimError::out_of_range(name, v, "≥ 0"));
+            }
         }
         Ok(())
     }

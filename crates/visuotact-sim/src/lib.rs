@@ -26,11 +26,73 @@
 //! looping simulated camera of a live run, `SimRig`: the recorder's simulated cone and membrane
 //! with their labels)
 
-/// Settings a simulated sensor cannot be drawn with, or a touch it cannot take; the message
-/// says which and why.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct SimError(pub String);
+/// Settings a simulated sensor cannot be drawn with, or a touch it cannot take: which, and why.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// A setting or a touch's value outside its range (`range` in words, with its unit).
+    #[error("{name} must be {range}, got {value}")]
+    OutOfRange {
+        /// The setting or value, as files and options name it.
+        name: &'static str,
+        /// What was given.
+        value: f64,
+        /// What it must be.
+        range: String,
+    },
+    /// A value that must be finite is not.
+    #[error("{0} must be finite")]
+    NotFinite(&'static str),
+    /// Two settings that cannot hold together.
+    #[error("{a} and {b} do not fit together: {why}")]
+    Mismatch {
+        /// The first setting.
+        a: &'static str,
+        /// The second.
+        b: &'static str,
+        /// Why, with their values.
+        why: String,
+    },
+    /// A camera or marker grid size outside the simulator's limits.
+    #[error("{what} {width}×{height}: {limit}")]
+    Size {
+        /// The camera or the marker grid.
+        what: &'static str,
+        /// Columns or pixels across.
+        width: usize,
+        /// Rows or pixels down.
+        height: usize,
+        /// The limit it breaks.
+        limit: String,
+    },
+    /// A touch off the marker field.
+    #[error("touch at ({x_mm}, {y_mm}) mm is off the marker field")]
+    OffField {
+        /// Where, mm.
+        x_mm: f64,
+        /// Where, mm.
+        y_mm: f64,
+    },
+    /// A drag or twist at zero depth.
+    #[error("a drag or twist needs contact (depth > 0)")]
+    DragWithoutContact,
+    /// A simulated source other than `sim:iats` or `sim:cone`.
+    #[error("sim:{0}: expected sim:iats or sim:cone")]
+    UnknownRig(String),
+    /// A touch or reference the sensor at hand cannot take (a touch of another family).
+    #[error("{0}")]
+    WrongSensor(&'static str),
+}
+
+impl SimError {
+    /// `name` = `value` is not `range`.
+    pub fn out_of_range(name: &'static str, value: f64, range: impl Into<String>) -> Self {
+        Self::OutOfRange {
+            name,
+            value,
+            range: range.into(),
+        }
+    }
+}
 
 /// Largest image side the simulator draws, pixels: a 4K camera. Beyond it one frame's
 /// canvases alone need gigabytes.
@@ -52,9 +114,11 @@ pub fn check_blur_px(blur_px: f64) -> Result<(), SimError> {
     if blur_px.is_finite() && (0.0..=MAX_BLUR_PX).contains(&blur_px) {
         Ok(())
     } else {
-        Err(SimError(format!(
-            "blur_px must be in 0..{MAX_BLUR_PX} px (Gaussian σ), got {blur_px}"
-        )))
+        Err(SimError::out_of_range(
+            "blur_px",
+            blur_px,
+            format!("in 0..{MAX_BLUR_PX} px (Gaussian σ)"),
+        ))
     }
 }
 

@@ -391,19 +391,21 @@ impl ConePress {
     /// Checks the protocol.
     pub fn validate(&self) -> Result<(), crate::SimError> {
         if !(self.max_torque_nmm.is_finite() && self.torque_phase_rad.is_finite()) {
-            return Err(crate::SimError("peak torque must be finite".to_string()));
+            return Err(crate::SimError::NotFinite("the peak torque and its phase"));
         }
         if !(self.max_force_n.is_finite() && self.max_force_n >= 0.0) {
-            return Err(crate::SimError(format!(
-                "peak force must be ≥ 0 N, got {}",
-                self.max_force_n
-            )));
+            return Err(crate::SimError::out_of_range(
+                "peak force",
+                self.max_force_n,
+                "≥ 0 N",
+            ));
         }
         if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
-            return Err(crate::SimError(format!(
-                "press duration must be positive, got {} s",
-                self.duration_s
-            )));
+            return Err(crate::SimError::out_of_range(
+                "press duration (s)",
+                self.duration_s,
+                "positive",
+            ));
         }
         Ok(())
     }

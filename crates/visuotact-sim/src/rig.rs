@@ -87,11 +87,7 @@ impl LiveFrames {
                     ..ConePress::SEED001
                 },
             },
-            other => {
-                return Err(crate::SimError(format!(
-                    "sim:{other}: expected sim:iats or sim:cone"
-                )))
-            }
+            other => return Err(crate::SimError::UnknownRig(other.to_string())),
         };
         Ok(Self { scene, n, seed })
     }
@@ -181,7 +177,7 @@ impl SimRig {
         };
         press.validate()?;
         if !(rest_s.is_finite() && rest_s >= 0.0) {
-            return Err(SimError(format!("rest of {rest_s} s: must be ≥ 0")));
+            return Err(SimError::out_of_range("rest (s)", rest_s, "≥ 0"));
         }
         Ok(Self::Cone {
             cfg: ConeConfig::SEED001,
@@ -289,9 +285,9 @@ mod tests {
         assert_eq!(f.len(), 5);
         assert_eq!(f[4].0, "iats_0004");
         assert_ne!(f[0].1, f[1].1, "noise differs frame to frame");
-        assert!(live_frames("gelsight", 2, 1)
-            .unwrap_err()
-            .0
-            .contains("expected sim:iats"));
+        assert_eq!(
+            live_frames("gelsight", 2, 1).unwrap_err(),
+            crate::SimError::UnknownRig("gelsight".into())
+        );
     }
 }

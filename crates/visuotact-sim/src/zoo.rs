@@ -510,37 +510,43 @@ impl ZooConfig {
             ("camera_distance_mm", self.camera_distance_mm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(crate::SimError(format!("{name} must be positive, got {v}")));
+                return Err(crate::SimError::out_of_range(name, v, "positive"));
             }
         }
         if !(self.position_jitter_mm.is_finite() && self.position_jitter_mm >= 0.0) {
-            return Err(crate::SimError(format!(
-                "position_jitter_mm must be ≥ 0, got {}",
-                self.position_jitter_mm
-            )));
+            return Err(crate::SimError::out_of_range(
+                "position_jitter_mm",
+                self.position_jitter_mm,
+                "≥ 0",
+            ));
         }
         crate::check_blur_px(self.blur_px)?;
         if !(self.radial_coupling.is_finite() && self.radial_coupling.abs() <= 1.0) {
-            return Err(crate::SimError(format!(
-                "radial_coupling must be in −1..1, got {}",
-                self.radial_coupling
-            )));
+            return Err(crate::SimError::out_of_range(
+                "radial_coupling",
+                self.radial_coupling,
+                "in −1..1",
+            ));
         }
         if !self.pattern_angle_deg.is_finite() {
-            return Err(crate::SimError(
-                "pattern_angle_deg must be finite".to_string(),
-            ));
+            return Err(crate::SimError::NotFinite("pattern_angle_deg"));
         }
         if self.marker_radius_mm >= 0.5 * self.pitch_mm {
-            return Err(crate::SimError(format!(
-                "marker_radius_mm {} must be under half the pitch ({} mm): markers would touch",
-                self.marker_radius_mm, self.pitch_mm
-            )));
+            return Err(crate::SimError::Mismatch {
+                a: "marker_radius_mm",
+                b: "pitch_mm",
+                why: format!(
+                    "a radius of {} mm is not under half the {} mm pitch: markers would touch",
+                    self.marker_radius_mm, self.pitch_mm
+                ),
+            });
         }
         if self.field_width_mm / self.pitch_mm > 200.0 {
-            return Err(crate::SimError(
-                "more than 200 pitches across the field".to_string(),
-            ));
+            return Err(crate::SimError::Mismatch {
+                a: "field_width_mm",
+                b: "pitch_mm",
+                why: "more than 200 pitches across the field".to_string(),
+            });
         }
         self.validate_surface()
     }
@@ -550,47 +556,64 @@ impl ZooConfig {
         match self.surface {
             Surface::Flat => {
                 if !(self.field_height_mm.is_finite() && self.field_height_mm > 0.0) {
-                    return Err(crate::SimError(format!(
-                        "field_height_mm must be positive, got {}",
-                        self.field_height_mm
-                    )));
+                    return Err(crate::SimError::out_of_range(
+                        "field_height_mm",
+                        self.field_height_mm,
+                        "positive",
+                    ));
                 }
                 if self.max_depth_mm >= self.camera_distance_mm {
-                    return Err(crate::SimError(
-                        "max_depth_mm must be less than camera_distance_mm".to_string(),
-                    ));
+                    return Err(crate::SimError::Mismatch {
+                        a: "max_depth_mm",
+                        b: "camera_distance_mm",
+                        why: "a press would reach the camera".to_string(),
+                    });
                 }
                 if self.field_height_mm / self.pitch_mm > 200.0 {
-                    return Err(crate::SimError(
-                        "more than 200 pitches down the field".to_string(),
-                    ));
+                    return Err(crate::SimError::Mismatch {
+                        a: "field_height_mm",
+                        b: "pitch_mm",
+                        why: "more than 200 pitches down the field".to_string(),
+                    });
                 }
             }
             Surface::Dome => {
                 let rd = self.dome_radius_mm;
                 if !(rd.is_finite() && rd > 0.0) {
-                    return Err(crate::SimError(format!(
-                        "dome_radius_mm must be positive, got {rd}"
-                    )));
+                    return Err(crate::SimError::out_of_range(
+                        "dome_radius_mm",
+                        rd,
+                        "positive",
+                    ));
                 }
                 let theta = (0.5 * self.field_width_mm + 0.5 * self.pitch_mm) / rd;
                 if theta > 0.47 * std::f64::consts::PI {
-                    return Err(crate::SimError(format!(
-                        "field_width_mm {} reaches beyond the dome's side ({:.1} mm across at most)",
-                        self.field_width_mm,
-                        2.0 * (0.47 * std::f64::consts::PI * rd - 0.5 * self.pitch_mm)
-                    )));
+                    return Err(crate::SimError::Mismatch {
+                        a: "field_width_mm",
+                        b: "dome_radius_mm",
+                        why: format!(
+                            "{} mm reaches beyond the dome's side ({:.1} mm across at most)",
+                            self.field_width_mm,
+                            2.0 * (0.47 * std::f64::consts::PI * rd - 0.5 * self.pitch_mm)
+                        ),
+                    });
                 }
                 if self.camera_distance_mm <= rd {
-                    return Err(crate::SimError(format!(
-                        "camera_distance_mm {} must exceed dome_radius_mm {rd}: the camera sits below the dome's base",
-                        self.camera_distance_mm
-                    )));
+                    return Err(crate::SimError::Mismatch {
+                        a: "camera_distance_mm",
+                        b: "dome_radius_mm",
+                        why: format!(
+                            "{} mm is not beyond the dome's {rd} mm: the camera sits below the dome's base",
+                            self.camera_distance_mm
+                        ),
+                    });
                 }
                 if self.max_depth_mm >= 0.5 * rd {
-                    return Err(crate::SimError(
-                        "max_depth_mm must be under half the dome radius".to_string(),
-                    ));
+                    return Err(crate::SimError::Mismatch {
+                        a: "max_depth_mm",
+                        b: "dome_radius_mm",
+                        why: "a press must stay under half the dome's radius".to_string(),
+                    });
                 }
             }
         }
@@ -812,50 +835,52 @@ impl ZooTouch {
             self.indenter_mm(cfg),
         ];
         if !v.iter().all(|x| x.is_finite()) {
-            return Err(crate::SimError(format!(
-                "touch values must be finite: {self:?}"
-            )));
+            return Err(crate::SimError::NotFinite("every value of a touch"));
         }
         if !(0.0..=cfg.max_depth_mm).contains(&self.depth_mm) {
-            return Err(crate::SimError(format!(
-                "depth {} mm outside the skin's 0..{} mm",
-                self.depth_mm, cfg.max_depth_mm
-            )));
+            return Err(crate::SimError::out_of_range(
+                "depth_mm",
+                self.depth_mm,
+                format!("in the skin's 0..{} mm", cfg.max_depth_mm),
+            ));
         }
         if !cfg.field_contains(self.x_mm, self.y_mm) {
-            return Err(crate::SimError(format!(
-                "touch at ({}, {}) mm is off the marker field",
-                self.x_mm, self.y_mm
-            )));
+            return Err(crate::SimError::OffField {
+                x_mm: self.x_mm,
+                y_mm: self.y_mm,
+            });
         }
         let drag = self.shear_x_mm.hypot(self.shear_y_mm);
         if (drag > 0.0 || self.twist_deg != 0.0) && self.depth_mm <= 0.0 {
-            return Err(crate::SimError(
-                "a drag or twist needs contact (depth > 0)".to_string(),
-            ));
+            return Err(crate::SimError::DragWithoutContact);
         }
         if drag > 2.0 * cfg.pitch_mm {
-            return Err(crate::SimError(format!(
-                "drag of {drag:.2} mm exceeds two marker pitches"
-            )));
+            return Err(crate::SimError::out_of_range(
+                "drag (mm)",
+                drag,
+                format!("at most two marker pitches ({} mm)", 2.0 * cfg.pitch_mm),
+            ));
         }
         if !(0.0..=1.0).contains(&self.slip_annulus) {
-            return Err(crate::SimError(format!(
-                "slip annulus {} outside 0..1",
-                self.slip_annulus
-            )));
+            return Err(crate::SimError::out_of_range(
+                "slip_annulus",
+                self.slip_annulus,
+                "in 0..1",
+            ));
         }
         if self.twist_deg.abs() > 30.0 {
-            return Err(crate::SimError(format!(
-                "twist of {}° exceeds 30°",
-                self.twist_deg
-            )));
+            return Err(crate::SimError::out_of_range(
+                "twist_deg",
+                self.twist_deg,
+                "within ±30°",
+            ));
         }
         if self.indenter_mm(cfg) <= 0.0 {
-            return Err(crate::SimError(format!(
-                "indenter radius {} mm must be positive",
-                self.indenter_mm(cfg)
-            )));
+            return Err(crate::SimError::out_of_range(
+                "indenter radius (mm)",
+                self.indenter_mm(cfg),
+                "positive",
+            ));
         }
         Ok(())
     }
