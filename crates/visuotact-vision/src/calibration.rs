@@ -272,15 +272,18 @@ impl SensorCalibration {
     /// positive length.
     pub fn set_pitch_mm(&mut self, pitch_mm: f64) -> Result<(), crate::ConfigError> {
         if !(pitch_mm.is_finite() && pitch_mm > 0.0) {
-            return Err(crate::ConfigError(format!(
-                "marker pitch {pitch_mm} mm: expected a positive length in millimetres"
-            )));
+            return Err(crate::ConfigError::out_of_range(
+                "marker pitch (mm)",
+                pitch_mm,
+                "a positive length in millimetres",
+            ));
         }
         if !(self.pitch_px.is_finite() && self.pitch_px > 0.0) {
-            return Err(crate::ConfigError(format!(
-                "the calibration's marker pitch is {} px: no scale can be taken from it",
-                self.pitch_px
-            )));
+            return Err(crate::ConfigError::out_of_range(
+                "the calibration's marker pitch (px)",
+                self.pitch_px,
+                "positive to take a scale from it",
+            ));
         }
         self.scale = Some(PixelScale {
             mm_per_px: pitch_mm / self.pitch_px,
@@ -318,6 +321,9 @@ pub enum CalibrationError {
     /// Invalid settings.
     #[error("invalid settings: {0}")]
     Config(#[from] crate::ConfigError),
+    /// An image buffer that does not hold its size's pixels.
+    #[error(transparent)]
+    Image(#[from] visuotact_image::ImageError),
     /// No marker passed the filter.
     #[error("no markers found in the reference image (threshold {threshold}; {raw} blobs before the area/border filter)")]
     NoMarkers {
@@ -378,7 +384,7 @@ fn mean_frame(
         h,
         sum.iter().map(|&s| ((2 * s + n) / (2 * n)) as u8).collect(),
     )
-    .map_err(|e| CalibrationError::Config(crate::ConfigError(e.to_string())))
+    .map_err(CalibrationError::Image)
 }
 
 /// Markers are alike in size: interior blobs under a fifth of the median interior area are

@@ -151,10 +151,10 @@ impl Detector {
     pub fn new(cfg: DetectorConfig) -> Result<Self, crate::ConfigError> {
         cfg.preprocess.validate()?;
         if cfg.filter.min_area_px > cfg.filter.max_area_px {
-            return Err(crate::ConfigError(format!(
-                "minimum area {} px exceeds maximum area {} px",
-                cfg.filter.min_area_px, cfg.filter.max_area_px
-            )));
+            return Err(crate::ConfigError::AreaRange {
+                min_px: cfg.filter.min_area_px,
+                max_px: cfg.filter.max_area_px,
+            });
         }
         Ok(Self {
             cfg,

@@ -70,14 +70,16 @@ impl FeatureSet {
                 "ecc" | "eccentricity" => f.eccentricity = true,
                 "all" => f = Self::ALL,
                 other => {
-                    return Err(ConfigError(format!(
-                        "unknown feature {other:?}: expected a list of x, y, area, ecc (or all)"
-                    )))
+                    return Err(ConfigError::unknown(
+                        "feature",
+                        other,
+                        "a list of x, y, area, ecc (or all)",
+                    ))
                 }
             }
         }
         if f.per_marker() == 0 {
-            return Err(ConfigError("the feature set is empty".to_string()));
+            return Err(ConfigError::NoFeatures);
         }
         Ok(f)
     }

@@ -112,10 +112,11 @@ impl LayoutChoice {
             .find(|l| l.name() == s)
             .map(Self::Only)
             .ok_or_else(|| {
-                crate::ConfigError(format!(
-                    "unknown layout {s:?}: expected auto, {}",
-                    Layout::ALL.map(Layout::name).join(", ")
-                ))
+                crate::ConfigError::unknown(
+                    "layout",
+                    s,
+                    format!("auto, {}", Layout::ALL.map(Layout::name).join(", ")),
+                )
             })
     }
 }

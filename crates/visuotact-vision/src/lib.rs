@@ -28,10 +28,83 @@
 //! markers), `sizing` (`MarkerSize`: the markers' size and spacing measured in a frame, and the
 //! opening and area rules they call for)
 
-/// Settings that do not fit together or do not parse; the message says which and why.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct ConfigError(pub String);
+/// Settings that do not fit together or do not parse: which, and why.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    /// A setting outside its range (`range` in words, with its unit).
+    #[error("{name} must be {range}, got {value}")]
+    OutOfRange {
+        /// The setting, as options and files name it.
+        name: &'static str,
+        /// What was given.
+        value: f64,
+        /// What it must be.
+        range: String,
+    },
+    /// A name that is none of the choices.
+    #[error("{what} {given:?}: expected {expected}")]
+    Unknown {
+        /// What was named (a feature, a layout, a threshold, a tracker setting).
+        what: &'static str,
+        /// The name given.
+        given: String,
+        /// The choices, in words.
+        expected: String,
+    },
+    /// A `name=value` setting whose value is not a number.
+    #[error("{name}: {value:?} is not a number")]
+    NotANumber {
+        /// The setting.
+        name: String,
+        /// Its text.
+        value: String,
+    },
+    /// The smallest marker area above the largest.
+    #[error("smallest marker area {min_px} px exceeds the largest, {max_px} px")]
+    AreaRange {
+        /// The smallest area, pixels.
+        min_px: u32,
+        /// The largest, pixels.
+        max_px: u32,
+    },
+    /// A region of interest without a pixel.
+    #[error("region of interest of {width} × {height} px holds no pixel")]
+    EmptyRegion {
+        /// Its width, pixels.
+        width: usize,
+        /// Its height, pixels.
+        height: usize,
+    },
+    /// A circular mask with no finite centre or no positive radius.
+    #[error("circular mask needs a finite centre and a positive radius")]
+    BadCircle,
+    /// A window or offset given with a threshold other than the adaptive one.
+    #[error("the window and offset apply to the adaptive threshold only")]
+    NotAdaptive,
+    /// No feature chosen.
+    #[error("the feature set is empty")]
+    NoFeatures,
+}
+
+impl ConfigError {
+    /// `name` = `value` is not `range`.
+    pub fn out_of_range(name: &'static str, value: f64, range: impl Into<String>) -> Self {
+        Self::OutOfRange {
+            name,
+            value,
+            range: range.into(),
+        }
+    }
+
+    /// `given` is no `what` of `expected`.
+    pub fn unknown(what: &'static str, given: &str, expected: impl Into<String>) -> Self {
+        Self::Unknown {
+            what,
+            given: given.to_string(),
+            expected: expected.into(),
+        }
+    }
+}
 
 pub mod assign;
 pub mod blobs;

@@ -52,9 +52,11 @@ impl ThresholdChoice {
             "otsu-sampled" => Ok(Self::OtsuSampled),
             "adaptive" => Ok(Self::Adaptive),
             other => other.parse::<f64>().map(Self::Fixed).map_err(|_| {
-                ConfigError(format!(
-                    "threshold {other:?}: expected otsu, otsu-sampled, adaptive or a level in 0..1"
-                ))
+                ConfigError::unknown(
+                    "threshold",
+                    other,
+                    "otsu, otsu-sampled, adaptive or a level in 0..1",
+                )
             }),
         }
     }
@@ -172,9 +174,10 @@ impl DetectorOptions {
         p.threshold = self.threshold_over(p.threshold)?;
         if let Some(r) = self.roi {
             if r.width == 0 || r.height == 0 {
-                return Err(ConfigError(
-                    "the region of interest needs a positive size".into(),
-                ));
+                return Err(ConfigError::EmptyRegion {
+                    width: r.width,
+                    height: r.height,
+                });
             }
             p.roi = Some(r);
         }
@@ -187,10 +190,10 @@ impl DetectorOptions {
             connectivity: self.connectivity,
         };
         if filter.min_area_px > filter.max_area_px {
-            return Err(ConfigError(format!(
-                "smallest marker area {} px exceeds the largest, {} px",
-                filter.min_area_px, filter.max_area_px
-            )));
+            return Err(ConfigError::AreaRange {
+                min_px: filter.min_area_px,
+                max_px: filter.max_area_px,
+            });
         }
         let centroid = self.centroid.unwrap_or(default_centroid);
         let cfg = DetectorConfig {
@@ -268,9 +271,7 @@ impl DetectorOptions {
                 *offset = self.offset.unwrap_or(*offset);
             }
             _ if self.window_px.is_some() || self.offset.is_some() => {
-                return Err(ConfigError(
-                    "the window and offset apply to the adaptive threshold only".into(),
-                ))
+                return Err(ConfigError::NotAdaptive)
             }
             _ => {}
         }

@@ -217,43 +217,51 @@ impl PreprocessConfig {
     pub fn validate(&self) -> Result<(), crate::ConfigError> {
         if (self.open || self.close) && (self.morph_size == 0 || self.morph_size.is_multiple_of(2))
         {
-            return Err(crate::ConfigError(format!(
-                "morphology size must be odd and ≥ 1, got {}",
-                self.morph_size
-            )));
+            return Err(crate::ConfigError::out_of_range(
+                "morphology size",
+                self.morph_size as f64,
+                "odd and ≥ 1",
+            ));
         }
         match self.threshold {
             Threshold::Fixed { level } if !(0.0..=1.0).contains(&level) => {
-                return Err(crate::ConfigError(format!(
-                    "fixed threshold must be in 0..1 of full scale, got {level}"
-                )))
+                return Err(crate::ConfigError::out_of_range(
+                    "fixed threshold",
+                    level,
+                    "in 0..1 of full scale",
+                ))
             }
             Threshold::Adaptive { window_px, offset } => {
                 if window_px < 3 || window_px % 2 == 0 {
-                    return Err(crate::ConfigError(format!(
-                        "adaptive window must be odd and ≥ 3, got {window_px}"
-                    )));
+                    return Err(crate::ConfigError::out_of_range(
+                        "adaptive window",
+                        window_px as f64,
+                        "odd and ≥ 3",
+                    ));
                 }
                 if !(-1.0..=1.0).contains(&offset) {
-                    return Err(crate::ConfigError(format!(
-                        "adaptive offset must be in −1..1, got {offset}"
-                    )));
+                    return Err(crate::ConfigError::out_of_range(
+                        "adaptive offset",
+                        offset,
+                        "in −1..1",
+                    ));
                 }
             }
             _ => {}
         }
         if self.morph_size > MAX_MORPH_SIZE {
-            return Err(crate::ConfigError(format!(
-                "morphology size {} is over the limit of {MAX_MORPH_SIZE} px",
-                self.morph_size
-            )));
+            return Err(crate::ConfigError::out_of_range(
+                "morphology size",
+                self.morph_size as f64,
+                format!("at most {MAX_MORPH_SIZE} px"),
+            ));
         }
         if let Some(r) = self.roi {
             if r.width == 0 || r.height == 0 {
-                return Err(crate::ConfigError(format!(
-                    "region of interest of {} × {} px holds no pixel",
-                    r.width, r.height
-                )));
+                return Err(crate::ConfigError::EmptyRegion {
+                    width: r.width,
+                    height: r.height,
+                });
             }
         }
         if let Some(c) = self.circle {
@@ -262,9 +270,7 @@ impl PreprocessConfig {
                 || !c.cx_px.is_finite()
                 || !c.cy_px.is_finite()
             {
-                return Err(crate::ConfigError(
-                    "circular mask needs a finite centre and a positive radius".into(),
-                ));
+                return Err(crate::ConfigError::BadCircle);
             }
         }
         Ok(())

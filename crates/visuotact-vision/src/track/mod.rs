@@ -152,11 +152,15 @@ impl TrackParams {
     pub fn parse_over(mut self, text: &str) -> Result<Self, crate::ConfigError> {
         for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
             let (name, value) = pair.split_once('=').ok_or_else(|| {
-                crate::ConfigError(format!("tracker setting {pair:?}: expected name=value"))
+                crate::ConfigError::unknown("tracker setting", pair, "name=value")
             })?;
-            let v: f64 = value.trim().parse().map_err(|_| {
-                crate::ConfigError(format!("tracker {name}: {value:?} is not a number"))
-            })?;
+            let v: f64 = value
+                .trim()
+                .parse()
+                .map_err(|_| crate::ConfigError::NotANumber {
+                    name: format!("tracker {name}"),
+                    value: value.to_string(),
+                })?;
             let slot = match name.trim() {
                 "reach_pitches" => &mut self.reach_pitches,
                 "motion_spacings" => &mut self.motion_spacings,
@@ -166,11 +170,12 @@ impl TrackParams {
                 "area_sigma" => &mut self.area_sigma,
                 "margin" => &mut self.margin,
                 other => {
-                    return Err(crate::ConfigError(format!(
-                        "unknown tracker setting {other:?}: expected reach_pitches, \
-                         motion_spacings, gate_spacings, sigma_spacings, spread_sigmas, \
-                         area_sigma or margin"
-                    )))
+                    return Err(crate::ConfigError::unknown(
+                        "tracker setting",
+                        other,
+                        "reach_pitches, motion_spacings, gate_spacings, sigma_spacings, \
+                         spread_sigmas, area_sigma or margin",
+                    ))
                 }
             };
             *slot = v;
@@ -192,9 +197,11 @@ impl TrackParams {
             ("margin", self.margin, 1e6),
         ] {
             if !(v.is_finite() && v > 0.0 && v <= hi) {
-                return Err(crate::ConfigError(format!(
-                    "tracker {name} must be in (0, {hi}], got {v}"
-                )));
+                return Err(crate::ConfigError::out_of_range(
+                    name,
+                    v,
+                    format!("in (0, {hi}] (a tracker setting)"),
+                ));
             }
         }
         Ok(())
