@@ -806,3 +806,72 @@ fn a_closed_standard_output_ends_a_run_cleanly() {
     assert!(err.contains("estimated"), "{err}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// The round-three report's worst writes, on the command line: a leftover link under the old
+/// fixed temporary name (`m.json.part~` → the labels) is never followed, so `train` leaves the
+/// labels as they were and writes a plain `m.json` (was: the labels overwritten by the model,
+/// `m.json` a link to them, exit 0); `-o /dev/null` and a FIFO are written through and stay
+/// what they were (was: `/dev/null` replaced by a regular file when run as root).
+#[cfg(unix)]
+#[test]
+fn writes_land_only_in_their_own_file() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = fresh_dir("hostile-own-file");
+    let (features, labels, labels_text) = literal_tables(&d);
+    let model = d.join("m.json");
+    std::os::unix::fs::symlink(&labels, d.join("m.json.part~")).unwrap();
+    let train = |out: &std::path::Path| {
+        vt(&[
+            "train",
+            "--features",
+            s(&features),
+            "--labels",
+            s(&labels),
+            "--targets",
+            "x_mm",
+            "--ensemble",
+            "1",
+            "--quiet",
+            "-o",
+            s(out),
+        ])
+    };
+    ok(&train(&model));
+    assert_eq!(std::fs::read_to_string(&labels).unwrap(), labels_text);
+    let meta = std::fs::symlink_metadata(&model).unwrap();
+    assert!(meta.file_type().is_file(), "m.json is not a plain file");
+    let predict = |out: &str| {
+        vt(&[
+            "predict",
+            "--model",
+            s(&model),
+            "--features",
+            s(&features),
+            "--quiet",
+            "-o",
+            out,
+        ])
+    };
+    ok(&predict("/dev/null"));
+    assert!(std::fs::metadata("/dev/null")
+        .unwrap()
+        .file_type()
+        .is_char_device());
+    let fifo = d.join("out.fifo");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    ok(&predict(s(&fifo)));
+    assert!(reader.join().unwrap().starts_with("frame,x_mm"));
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
+    std::fs::remove_dir_all(&d).unwrap();
+}
