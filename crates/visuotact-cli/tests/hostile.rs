@@ -702,20 +702,12 @@ fn a_fifo_as_the_sensors_file_is_refused_not_waited_on() {
         .status()
         .expect("mkfifo");
     assert!(made.success());
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_visuotact"))
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_visuotact"))
         .args(["run", "--sensors", s(&fifo), "--max-frames", "1", "--quiet"])
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    let start = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > std::time::Duration::from_secs(30) {
-            let _ = child.kill();
-            panic!("run --sensors FIFO still waiting after 30 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let err = fails(&child.wait_with_output().unwrap());
+    let err = fails(&common::finished_within(child, 30, "run --sensors FIFO"));
     assert!(
         err.contains("not a regular file") && err.contains("--sensors"),
         "{err}"
