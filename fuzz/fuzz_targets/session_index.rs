@@ -29,8 +29,13 @@ fuzz_target!(|data: &[u8]| {
     let dir = session();
     let index = dir.join("frames.csv");
     std::fs::write(&index, data).unwrap();
-    match frame_index(dir) {
+    let mut notes = Vec::new();
+    match frame_index(dir, &mut notes) {
         Ok(frames) => {
+            // What is said is said of the index, by name.
+            for n in &notes {
+                assert!(n.contains("frames.csv"), "{n}");
+            }
             for f in frames {
                 let mut parts = Path::new(&f.name).components();
                 assert!(
