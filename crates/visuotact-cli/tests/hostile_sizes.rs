@@ -695,3 +695,40 @@ fn an_unfinished_last_line_is_left_out_and_said_by_every_reader() {
     said(&err, s(&rec.join("frames.csv")));
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// An export says which images it could not write: a session recorded without
+/// `--save-frames` has none, and a frame listed in frames.csv but gone from `frames/` is
+/// counted (was: "wrote a.mcap (2 frames, 1 messages)" without a word). Both exports say it.
+#[test]
+fn exports_say_which_frames_have_no_image() {
+    let d = fresh_dir("hostile-export-images");
+    let (session, rec) = recorded_session(&d);
+    let bag = d.join("a.mcap");
+    let err = ok(&vt(&["export", "mcap", s(&rec), "-o", s(&bag)]));
+    assert!(
+        err.contains("no frames/ (recorded without --save-frames): no images"),
+        "{err}"
+    );
+    let saved = d.join("saved");
+    ok(&vt(&[
+        "record",
+        "--source",
+        s(&session.join("frames")),
+        "--max-frames",
+        "2",
+        "--save-frames",
+        "-o",
+        s(&saved),
+    ]));
+    std::fs::remove_file(saved.join("frames/frame_000001.png")).unwrap();
+    for (format, out) in [("mcap", "b.mcap"), ("rerun", "b.rrd")] {
+        let err = ok(&vt(&["export", format, s(&saved), "-o", s(&d.join(out))]));
+        assert!(
+            err.contains(
+                "1 of the 2 frames listed in frames.csv are not in frames/: written without their image"
+            ),
+            "{format}: {err}"
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -50,6 +50,8 @@ pub struct ExportSummary {
 /// The session's per-frame tables, keyed by frame.
 struct SessionTables {
     frames: Vec<IndexedFrame>,
+    /// Per frame, whether its PNG is in `frames/` (all false when images are not wanted).
+    has_png: Vec<bool>,
     estimates: Option<(KeyedTable, HashMap<String, usize>)>,
     features: Option<(KeyedTable, HashMap<String, usize>)>,
     markers: MarkerColumns,
@@ -234,6 +236,7 @@ fn read_tables(
         notes.push("no force.csv".into());
         None
     };
+    let has_png = frames_with_png(session, &frames, cfg.ros.images, notes);
     let mut markers = MarkerColumns::default();
     if let Some((f, _)) = &features {
         match sensor_of(session, cfg)? {
@@ -243,11 +246,43 @@ fn read_tables(
     }
     Ok(SessionTables {
         frames,
+        has_png,
         estimates,
         features,
         markers,
         force,
     })
+}
+
+/// Which touch frames have their PNG in `frames/`, when images are wanted; what is missing is
+/// said in `notes` (no `frames/`: recorded without `--save-frames`; some frames missing: how
+/// many, written without their image). Reference frames are never exported as images.
+fn frames_with_png(
+    session: &Path,
+    frames: &[IndexedFrame],
+    images: bool,
+    notes: &mut Vec<String>,
+) -> Vec<bool> {
+    if !images {
+        return vec![false; frames.len()];
+    }
+    let dir = session.join("frames");
+    if !dir.is_dir() {
+        notes.push("no frames/ (recorded without --save-frames): no images".into());
+        return vec![false; frames.len()];
+    }
+    let has: Vec<bool> = frames
+        .iter()
+        .map(|f| !f.reference && dir.join(&f.name).is_file())
+        .collect();
+    let touch = frames.iter().filter(|f| !f.reference).count();
+    let missing = touch - has.iter().filter(|&&h| h).count();
+    if missing > 0 {
+        notes.push(format!(
+            "{missing} of the {touch} frames listed in frames.csv are not in frames/: written without their image"
+        ));
+    }
+    has
 }
 
 fn targets_of(est: &(KeyedTable, HashMap<String, usize>), frame: &str) -> Vec<TargetEstimate> {
@@ -405,8 +440,9 @@ fn write_session<W: FrameTarget>(
             .map(|e| targets_of(e, frame))
             .unwrap_or_default();
         let health = markers_of(t, frame, &mut markers);
+        // A frame there when the export began and gone now is damage, not a note.
         let png_path = session.join("frames").join(frame);
-        let png = if cfg.ros.images && png_path.is_file() {
+        let png = if t.has_png[k] {
             Some(std::fs::read(&png_path).map_err(|e| RosError::Io(png_path.clone(), e))?)
         } else {
             None
