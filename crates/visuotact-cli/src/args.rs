@@ -375,14 +375,19 @@ impl ExtraInputs {
     }
 }
 
-/// A readings table keyed by `frame` (every column numeric), when one is given.
-pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedTable>> {
-    let Some(p) = path else { return Ok(None) };
-    let t = KeyedTable::read(p, &[])?;
-    if let Some(n) = t.partial_line_note(&p.display().to_string()) {
+/// The table at `path` ([`KeyedTable::read_noting`]), its notes printed.
+pub(crate) fn read_table(path: &Path, text_columns: &[&str]) -> anyhow::Result<KeyedTable> {
+    let mut notes = Vec::new();
+    let t = KeyedTable::read_noting(path, text_columns, &mut notes)?;
+    for n in notes {
         note!("note: {n}");
     }
-    Ok(Some(t))
+    Ok(t)
+}
+
+/// A readings table keyed by `frame` (every column numeric), when one is given.
+pub(crate) fn read_readings(path: Option<&Path>) -> anyhow::Result<Option<KeyedTable>> {
+    path.map(|p| read_table(p, &[])).transpose()
 }
 
 impl DataArgs {

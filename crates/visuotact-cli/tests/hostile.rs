@@ -489,21 +489,7 @@ fn oversized_trainings_are_refused_first() {
         &["--hidden", "1000000,1000000"][..],
         &["--max-memory-gib", "0.000001"],
     ] {
-        let mut args = vec![
-            "train",
-            "--features",
-            s(&features),
-            "--labels",
-            s(&labels),
-            "--targets",
-            "x_mm",
-            "--ensemble",
-            "1",
-            "-o",
-            s(&model),
-        ];
-        args.extend_from_slice(extra);
-        let err = fails(&vt(&args));
+        let err = fails(&common::train(&features, &labels, "x_mm", &model, extra));
         assert!(
             err.contains("this training needs about"),
             "{extra:?}: {err}"
@@ -812,23 +798,13 @@ fn writes_land_only_in_their_own_file() {
     let (features, labels, labels_text) = literal_tables(&d);
     let model = d.join("m.json");
     std::os::unix::fs::symlink(&labels, d.join("m.json.part~")).unwrap();
-    let train = |out: &std::path::Path| {
-        vt(&[
-            "train",
-            "--features",
-            s(&features),
-            "--labels",
-            s(&labels),
-            "--targets",
-            "x_mm",
-            "--ensemble",
-            "1",
-            "--quiet",
-            "-o",
-            s(out),
-        ])
-    };
-    ok(&train(&model));
+    ok(&common::train(
+        &features,
+        &labels,
+        "x_mm",
+        &model,
+        &["--quiet"],
+    ));
     assert_eq!(std::fs::read_to_string(&labels).unwrap(), labels_text);
     let meta = std::fs::symlink_metadata(&model).unwrap();
     assert!(meta.file_type().is_file(), "m.json is not a plain file");

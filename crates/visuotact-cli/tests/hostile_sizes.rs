@@ -411,16 +411,24 @@ fn what_was_accepted_in_silence_is_said() {
 fn recorded_session(d: &Path) -> (PathBuf, PathBuf) {
     let (session, _, _) = common::iats_features(d, "2", "1");
     let rec = d.join("rec");
-    ok(&vt(&[
+    record_two_frames(&session, &rec, &[]);
+    (session, rec)
+}
+
+/// Records the first two frames of the simulated `session` into `rec`, with `extra` options.
+fn record_two_frames(session: &Path, rec: &Path, extra: &[&str]) {
+    let frames = session.join("frames");
+    let mut args = vec![
         "record",
         "--source",
-        s(&session.join("frames")),
+        s(&frames),
         "--max-frames",
         "2",
         "-o",
-        s(&rec),
-    ]));
-    (session, rec)
+        s(rec),
+    ];
+    args.extend_from_slice(extra);
+    ok(&vt(&args));
 }
 
 /// Exports say when a session's recording did not complete, and refuse a `session.json` that
@@ -652,19 +660,7 @@ fn an_unfinished_last_line_is_left_out_and_said_by_every_reader() {
     };
     cut_mid_row(&labels, "frame_999999.png,1.0");
     let model = d.join("m.json");
-    let err = ok(&vt(&[
-        "train",
-        "--features",
-        s(&features),
-        "--labels",
-        s(&labels),
-        "--targets",
-        "x_mm",
-        "--ensemble",
-        "1",
-        "-o",
-        s(&model),
-    ]));
+    let err = ok(&common::train(&features, &labels, "x_mm", &model, &[]));
     said(&err, s(&labels));
     cut_mid_row(&features, "frame_999999.png,0.0,1");
     let pred = d.join("p.csv");
@@ -710,16 +706,7 @@ fn exports_say_which_frames_have_no_image() {
         "{err}"
     );
     let saved = d.join("saved");
-    ok(&vt(&[
-        "record",
-        "--source",
-        s(&session.join("frames")),
-        "--max-frames",
-        "2",
-        "--save-frames",
-        "-o",
-        s(&saved),
-    ]));
+    record_two_frames(&session, &saved, &["--save-frames"]);
     std::fs::remove_file(saved.join("frames/frame_000001.png")).unwrap();
     for (format, out) in [("mcap", "b.mcap"), ("rerun", "b.rrd")] {
         let err = ok(&vt(&["export", format, s(&saved), "-o", s(&d.join(out))]));

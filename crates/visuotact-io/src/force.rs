@@ -378,6 +378,20 @@ impl ForceTable {
         Self::from_text(&text, path)
     }
 
+    /// Reads a force CSV ([`ForceTable::read`]); an unfinished last line left out is said in
+    /// `notes`, naming the file ([`crate::table::partial_line_note`]).
+    pub fn read_noting(
+        path: &std::path::Path,
+        notes: &mut Vec<String>,
+    ) -> Result<Self, TableError> {
+        let t = Self::read(path)?;
+        notes.extend(crate::table::partial_line_note(
+            t.dropped_partial_line,
+            &path.display().to_string(),
+        ));
+        Ok(t)
+    }
+
     /// Parses a force CSV already in memory; `path` is the name errors give it.
     pub fn from_text(text: &str, path: &std::path::Path) -> Result<Self, TableError> {
         let fail = |line, why| TableError::new(path, line, why);

@@ -465,8 +465,7 @@ pub fn frames_span_s(frames: &[IndexedFrame]) -> (f64, f64) {
 /// out (a recorder killed mid-row) is said in `notes`.
 pub fn frame_index(dir: &Path, notes: &mut Vec<String>) -> Result<Vec<IndexedFrame>, TableError> {
     let path = dir.join("frames.csv");
-    let t = KeyedTable::read(&path, &["kind"])?;
-    notes.extend(t.partial_line_note(&path.display().to_string()));
+    let t = KeyedTable::read_noting(&path, &["kind"], notes)?;
     let ts = t
         .column("timestamp_s")
         .ok_or_else(|| TableError::new(&path, Some(1), "no timestamp_s column".into()))?;

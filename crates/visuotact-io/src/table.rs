@@ -324,6 +324,19 @@ impl KeyedTable {
         Self::from_text(&text, path, text_columns)
     }
 
+    /// Reads `path` ([`KeyedTable::read`]); an unfinished last line left out is said in
+    /// `notes`, naming the file ([`partial_line_note`]): what every reader that reports to a
+    /// user calls.
+    pub fn read_noting(
+        path: &Path,
+        text_columns: &[&str],
+        notes: &mut Vec<String>,
+    ) -> Result<Self, TableError> {
+        let t = Self::read(path, text_columns)?;
+        notes.extend(t.partial_line_note(&path.display().to_string()));
+        Ok(t)
+    }
+
     /// Parses a table already in memory; `path` is the name errors give it.
     pub fn from_text(text: &str, path: &Path, text_columns: &[&str]) -> Result<Self, TableError> {
         let fail = |line, why| TableError::new(path, line, why);

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
 use visuotact_io::session::{frame_index, IndexedFrame, SessionDescription};
-use visuotact_io::table::{partial_line_note, KeyedTable};
+use visuotact_io::table::KeyedTable;
 
 use crate::LeRobotError;
 
@@ -52,8 +52,7 @@ fn aligned(
     if !path.is_file() {
         return Ok(None);
     }
-    let t = KeyedTable::read(&path, &["flags"])?;
-    notes.extend(t.partial_line_note(&path.display().to_string()));
+    let t = KeyedTable::read_noting(&path, &["flags"], notes)?;
     let keep: Vec<usize> = (0..t.columns.len())
         .filter(|&i| !drop.contains(&t.columns[i].as_str()))
         .collect();
@@ -114,11 +113,7 @@ impl Episode {
         }
         let force_path = dir.join("force.csv");
         let force = if force_path.is_file() {
-            let mut f = ForceTable::read(&force_path)?;
-            notes.extend(partial_line_note(
-                f.dropped_partial_line,
-                &force_path.display().to_string(),
-            ));
+            let mut f = ForceTable::read_noting(&force_path, &mut notes)?;
             // Interpolated at the frames' times, on their clock, not the sender's.
             f.onto_recorder_clock();
             f.check_meets_frames(&force_path, visuotact_io::session::frames_span_s(&frames))?;

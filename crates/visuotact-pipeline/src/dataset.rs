@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use visuotact_io::force::{ForceTable, AXES};
 use visuotact_io::frames::FrameStream;
-use visuotact_io::table::{partial_line_note, KeyedTable, TableError};
+use visuotact_io::table::{KeyedTable, TableError};
 use visuotact_nn::model::is_marker_column;
 use visuotact_signal::align::{AlignError, Resampler};
 use visuotact_signal::clean::{clean, CleanConfig, CleanError, Cleaned};
@@ -187,17 +187,6 @@ pub fn build(
     Ok(out)
 }
 
-/// The table at `path`; an unfinished last line left out is said in `notes`.
-fn read_table(
-    path: &Path,
-    text: &[&str],
-    notes: &mut Vec<String>,
-) -> Result<KeyedTable, DatasetError> {
-    let t = KeyedTable::read(path, text)?;
-    notes.extend(t.partial_line_note(&path.display().to_string()));
-    Ok(t)
-}
-
 /// Touch frames of a session and their timestamps, from frames.csv.
 fn touch_frames(
     session: &Path,
@@ -233,7 +222,7 @@ fn session(
     let (label_columns, labels) = if s.join("force.csv").exists() {
         labels_from_force(&s.join("force.csv"), &frames, cfg, notes)?
     } else if s.join("labels.csv").exists() {
-        let t = read_table(&s.join("labels.csv"), &[], notes)?;
+        let t = KeyedTable::read_noting(&s.join("labels.csv"), &[], notes)?;
         let m = t.keys.iter().cloned().zip(t.rows.iter().cloned()).collect();
         (t.columns.clone(), m)
     } else {
@@ -265,7 +254,7 @@ fn session(
 
 /// The markers' features and the field summary of a feature table.
 fn features_from_table(path: &Path, notes: &mut Vec<String>) -> Result<Columns, DatasetError> {
-    let t = read_table(path, &["flags"], notes)?;
+    let t = KeyedTable::read_noting(path, &["flags"], notes)?;
     let idx: Vec<usize> = (0..t.columns.len())
         .filter(|&i| is_marker_column(&t.columns[i]) || is_field_column(&t.columns[i]))
         .collect();
@@ -302,11 +291,7 @@ fn labels_from_force(
     cfg: &DatasetConfig,
     notes: &mut Vec<String>,
 ) -> Result<Columns, DatasetError> {
-    let mut table = ForceTable::read(path)?;
-    notes.extend(partial_line_note(
-        table.dropped_partial_line,
-        &path.display().to_string(),
-    ));
+    let mut table = ForceTable::read_noting(path, notes)?;
     // Only the force axes the record has: an absent one is not a measured zero.
     let axes: Vec<usize> = (0..3).filter(|&k| table.present[k]).collect();
     if axes.is_empty() {
@@ -457,6 +442,17 @@ mod tests {
         d
     }
 
+    /// The defaults without bias removal: a test's ramp is its own truth.
+    fn no_bias_removal() -> DatasetConfig {
+        DatasetConfig {
+            clean: CleanConfig {
+                bias: visuotact_signal::clean::BiasRemoval::None,
+                ..CleanConfig::default()
+            },
+            ..DatasetConfig::default()
+        }
+    }
+
     #[test]
     fn a_force_record_without_some_axes_labels_only_those_it_has() {
         let d = session_dir("axes");
@@ -466,13 +462,7 @@ mod tests {
             force.push_str(&format!("{t},{t}\n"));
         }
         std::fs::write(d.join("force.csv"), force).unwrap();
-        let cfg = DatasetConfig {
-            clean: CleanConfig {
-                bias: visuotact_signal::clean::BiasRemoval::None,
-                ..CleanConfig::default()
-            },
-            ..DatasetConfig::default()
-        };
+        let cfg = no_bias_removal();
         let ds = build(std::slice::from_ref(&d), None, &cfg).unwrap();
         assert_eq!(ds.label_columns, ["force_n", "fz_n"]);
         assert!((ds.labels[2][1] - 2.0).abs() < 1e-3, "{:?}", ds.labels[2]);
@@ -494,11 +484,7 @@ mod tests {
         let d = session_dir("latency");
         let cfg = DatasetConfig {
             latency_s: 0.1,
-            clean: CleanConfig {
-                bias: visuotact_signal::clean::BiasRemoval::None,
-                ..CleanConfig::default()
-            },
-            ..DatasetConfig::default()
+            ..no_bias_removal()
         };
         let ds = build(std::slice::from_ref(&d), None, &cfg).unwrap();
         assert_eq!(ds.keys, ["f0.png", "f1.png", "f2.png", "f3.png", "f4.png"]);
@@ -533,13 +519,7 @@ mod tests {
             force.push_str(&format!("{},0,0,{t},{}\n", 1000.0 + t, t + delay_s));
         }
         std::fs::write(d.join("force.csv"), force).unwrap();
-        let cfg = DatasetConfig {
-            clean: CleanConfig {
-                bias: visuotact_signal::clean::BiasRemoval::None,
-                ..CleanConfig::default()
-            },
-            ..DatasetConfig::default()
-        };
+        let cfg = no_bias_removal();
         let ds = build(std::slice::from_ref(&d), None, &cfg).unwrap();
         assert_eq!(ds.keys.len(), 5, "{:?}", ds.notes);
         for (k, l) in ds.labels.iter().enumerate() {

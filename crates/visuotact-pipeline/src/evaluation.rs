@@ -115,12 +115,9 @@ pub enum EvaluationError {
 /// Reads and evaluates a predictions table (`predict`'s output; a `flags` text column is
 /// skipped) against a labels table, both keyed by `frame`.
 pub fn evaluate_files(predictions: &Path, labels: &Path) -> Result<Evaluation, EvaluationError> {
-    let p = KeyedTable::read(predictions, &["flags"])?;
-    let l = KeyedTable::read(labels, &[])?;
-    let torn: Vec<String> = [(&p, predictions), (&l, labels)]
-        .into_iter()
-        .filter_map(|(t, path)| t.partial_line_note(&path.display().to_string()))
-        .collect();
+    let mut torn = Vec::new();
+    let p = KeyedTable::read_noting(predictions, &["flags"], &mut torn)?;
+    let l = KeyedTable::read_noting(labels, &[], &mut torn)?;
     let mut e = evaluate(&p, &l).ok_or_else(|| EvaluationError::NoTargets {
         predictions: predictions.display().to_string(),
         labels: labels.display().to_string(),

@@ -193,9 +193,10 @@ struct Readings {
 }
 
 impl Readings {
-    /// Finds `names` in the table at `path`.
-    fn open(path: &Path, names: &[String]) -> Result<Self, ReplayError> {
-        let table = KeyedTable::read(path, &[])?;
+    /// Finds `names` in the table at `path`; an unfinished last line left out is said in
+    /// `notes`.
+    fn open(path: &Path, names: &[String], notes: &mut Vec<String>) -> Result<Self, ReplayError> {
+        let table = KeyedTable::read_noting(path, &[], notes)?;
         let columns = names
             .iter()
             .map(|c| {
@@ -213,9 +214,7 @@ impl Readings {
 fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, ReplayError> {
     let mut notes = Vec::new();
     let index = visuotact_io::session::frame_index(s, &mut notes)?;
-    for n in &notes {
-        warn(n);
-    }
+    notes.iter().for_each(|n| warn(n));
     let listed = index.iter().filter(|f| !f.reference).count();
     let frames: Vec<PathBuf> = index
         .iter()
@@ -256,10 +255,9 @@ pub fn replay(
             .or_else(|| session.as_ref().map(|s| s.join("labels.csv")))
             .filter(|p| p.is_file())
             .ok_or_else(|| ReplayError::NoReadings(extra.join(", ")))?;
-        let r = Readings::open(&path, &extra)?;
-        if let Some(n) = r.table.partial_line_note(&path.display().to_string()) {
-            obs.warn(&n);
-        }
+        let mut notes = Vec::new();
+        let r = Readings::open(&path, &extra, &mut notes)?;
+        notes.iter().for_each(|n| obs.warn(n));
         Some(r)
     };
     let by_key = readings.as_ref().map(|r| r.table.rows_by_key());

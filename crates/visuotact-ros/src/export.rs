@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use visuotact_io::force::ForceTable;
 use visuotact_io::session::{frame_index, IndexedFrame, SessionDescription};
-use visuotact_io::table::{partial_line_note, KeyedTable};
+use visuotact_io::table::KeyedTable;
 use visuotact_pipeline::live::{Health, TargetEstimate};
 use visuotact_vision::calibration::SensorCalibration;
 
@@ -174,9 +174,7 @@ fn optional_table(
         notes.push(format!("no {name}"));
         return Ok(None);
     }
-    let t = KeyedTable::read(&p, text)?;
-    notes.extend(t.partial_line_note(name));
-    Ok(Some(t))
+    Ok(Some(KeyedTable::read_noting(&p, text, notes)?))
 }
 
 /// The session's description (`None`: it has no `session.json`); one that does not read is
@@ -227,8 +225,7 @@ fn read_tables(
     let force_path = session.join("force.csv");
     let force = if force_path.is_file() {
         // Wrenches are stamped on the frames' clock, not the sender's.
-        let mut f = ForceTable::read(&force_path)?;
-        notes.extend(partial_line_note(f.dropped_partial_line, "force.csv"));
+        let mut f = ForceTable::read_noting(&force_path, notes)?;
         f.onto_recorder_clock();
         f.check_meets_frames(&force_path, visuotact_io::session::frames_span_s(&frames))?;
         Some(f)

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use visuotact_io::force::{ForceTable, AXES};
-use visuotact_io::table::partial_line_note;
 use visuotact_pipeline::dataset::clean_table;
 use visuotact_report::figures::{ForcePlot, ForceRecord};
 
@@ -29,8 +28,9 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let mut outputs = vec![a.output.as_path()];
     outputs.extend(a.plot.as_deref());
     visuotact_io::guard::refuse_outputs_over_inputs(&outputs, &[&a.input])?;
-    let mut table = ForceTable::read(&a.input).map_err(anyhow::Error::msg)?;
-    if let Some(n) = partial_line_note(table.dropped_partial_line, &a.input.display().to_string()) {
+    let mut notes = Vec::new();
+    let mut table = ForceTable::read_noting(&a.input, &mut notes).map_err(anyhow::Error::msg)?;
+    for n in notes {
         note!("note: {n}");
     }
     let (p, duplicates) = clean_table(&mut table, &a.force.config()?)

@@ -4,7 +4,6 @@
 use std::path::PathBuf;
 
 use anyhow::bail;
-use visuotact_io::table::KeyedTable;
 use visuotact_pipeline::extract::{features_table, predict_table, Predicted};
 use visuotact_pipeline::table::{InputSources, Named};
 use visuotact_vision::features::FeatureExtractor;
@@ -46,13 +45,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     visuotact_io::guard::refuse_output_over_input(&a.output, &inputs)?;
     let model = crate::load_model(&a.model)?;
     let (f, source) = match (&a.features, &a.sensor) {
-        (Some(p), _) => {
-            let t = KeyedTable::read(p, &["flags"]).map_err(anyhow::Error::msg)?;
-            if let Some(n) = t.partial_line_note(&p.display().to_string()) {
-                note!("note: {n}");
-            }
-            (t, p.display().to_string())
-        }
+        (Some(p), _) => (
+            crate::args::read_table(p, &["flags"])?,
+            p.display().to_string(),
+        ),
         (None, Some(sensor)) => {
             let set = visuotact_pipeline::feature_set_of(&model.feature_columns)?;
             let cal = crate::load_sensor(sensor)?;

@@ -43,6 +43,26 @@ pub fn fresh_dir(name: &str) -> PathBuf {
     d
 }
 
+/// `visuotact train` of `target` on the tables `features` and `labels` into `model`, one
+/// network, with `extra` options.
+pub fn train(features: &Path, labels: &Path, target: &str, model: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "train",
+        "--features",
+        s(features),
+        "--labels",
+        s(labels),
+        "--targets",
+        target,
+        "--ensemble",
+        "1",
+        "-o",
+        s(model),
+    ];
+    args.extend_from_slice(extra);
+    vt(&args)
+}
+
 /// Seed 000's simulated membrane under `touches` random touches (session seed `seed`) in
 /// `dir/session`, calibrated into `dir/sensor.json` and extracted into `dir/f.csv`, all with
 /// the defaults; returns (session, sensor file, feature table).
