@@ -351,18 +351,30 @@ impl Matching<'_> {
     /// against fixed predictions and may undo a move the energy prefers); returns the
     /// runner-ups within the margin of the reading kept.
     pub fn slide_regions(&mut self) -> Vec<RunnerUp> {
+        let margin = self.energy.params.margin;
         for _ in 0..8 {
-            let (best, runner_ups) = self.region_moves();
-            match best {
-                Some(moved) => {
-                    self.apply_moved(&moved);
-                    let (moved_to, e) = (self.assignment.clone(), self.total_energy());
-                    self.refine(3);
-                    if self.total_energy() > e {
-                        self.set_assignment(&moved_to);
-                    }
+            let (best, mut runner_ups) = self.region_moves();
+            let Some(moved) = best else {
+                return runner_ups;
+            };
+            let (before, e_before) = (self.assignment.clone(), self.total_energy());
+            self.apply_moved(&moved);
+            let (moved_to, e) = (self.assignment.clone(), self.total_energy());
+            self.refine(3);
+            if self.total_energy() > e {
+                self.set_assignment(&moved_to);
+            }
+            // The move is chosen on the energy of its own reach; it is kept only when it
+            // lowers the whole reading's energy by the margin too (moved markers change their
+            // neighbours' predictions, and theirs of further markers).
+            let e_after = self.total_energy();
+            if e_after > e_before - margin {
+                self.set_assignment(&before);
+                if e_after < e_before + margin {
+                    let markers = moved.iter().flat_map(|p| p[1..].iter().copied()).collect();
+                    runner_ups.push(RunnerUp { markers });
                 }
-                None => return runner_ups,
+                return runner_ups;
             }
         }
         self.region_moves().1
