@@ -106,29 +106,19 @@ impl Energy<'_> {
     /// when smaller). The tolerance is [`TrackParams::area_sigma`](super::TrackParams) widened
     /// by the pixel noise of the marker's outline (about the square root of its length).
     pub fn area_misfit(&self, b: &Blob, expected_px: f64) -> f64 {
-        self.area_misfit_with(b, expected_px, outline_noise(expected_px))
-    }
-
-    /// [`Energy::area_misfit`] with the outline's noise `o` at `expected_px` given.
-    fn area_misfit_with(&self, b: &Blob, expected_px: f64, o: f64) -> f64 {
-        let a = self.params.area_sigma;
-        let sigma = (a * a + o * o).sqrt();
-        (f64::from(b.area_px.max(1)) / expected_px).ln() / sigma
+        let (a, o) = (self.params.area_sigma, outline_noise(expected_px));
+        (f64::from(b.area_px.max(1)) / expected_px).ln() / (a * a + o * o).sqrt()
     }
 
     /// The area term of blob `b` holding markers of expected total area `expected_px`
     /// (0 for a blob cut by the border). A marker squeezed at the edge of a contact, or in
     /// the shade, shrinks to a sliver of itself; only a merge makes one grow: shrinking is
     /// three times as likely.
-    pub fn area_cost(&self, b: &Blob, expected_px: f64, cut: bool) -> f64 {
-        self.area_cost_with(b, expected_px, cut, outline_noise(expected_px))
-    }
-
-    fn area_cost_with(&self, b: &Blob, expected_px: f64, cut: bool, o: f64) -> f64 {
+    fn area_cost(&self, b: &Blob, expected_px: f64, cut: bool) -> f64 {
         if cut || expected_px <= 0.0 {
             return 0.0;
         }
-        let z = self.area_misfit_with(b, expected_px, o);
+        let z = self.area_misfit(b, expected_px);
         if z < 0.0 {
             (z / 3.0).powi(2)
         } else {
@@ -154,13 +144,11 @@ impl Energy<'_> {
         cut: bool,
         (short, shape_cap): (f64, f64),
     ) -> f64 {
-        let d = dist((b.x_px, b.y_px), p.at);
         let expected = self.reference.areas_px[i] * p.scale * p.scale;
-        let o = outline_noise(expected.max(1.0));
         let shape = if cut {
             0.0
         } else {
-            let f = self.reference.fill_sigma;
+            let (f, o) = (self.reference.fill_sigma, outline_noise(expected.max(1.0)));
             let shape = (short / (f * f + o * o).sqrt()).powi(2);
             // A marker joined by a speck holds at least the marker's own area.
             if f64::from(b.area_px) >= expected {
@@ -169,27 +157,18 @@ impl Energy<'_> {
                 shape
             }
         };
-        let moved = dist((b.x_px, b.y_px), p.start);
-        // The area's outline noise is at the expected area itself, the shape's at least a pixel.
-        let o_area = if expected >= 1.0 {
-            o
-        } else {
-            outline_noise(expected)
-        };
-        self.position_cost(i, d, p)
-            + self.area_cost_with(b, expected, cut, o_area)
+        let at = (b.x_px, b.y_px);
+        self.position_cost(i, dist(at, p.at), p)
+            + self.area_cost(b, expected, cut)
             + shape
-            + self.motion_cost(i, moved)
+            + self.motion_cost(i, dist(at, p.start))
     }
 
     /// The cost of marker `i` taking `b`, the union of pieces of its dot: position and area
     /// as [`Energy::cost`], no shape term (the pieces leave the gap that broke them between
     /// them; that they are one marker's is the pieces' own test).
     pub fn pieces_cost(&self, i: usize, p: &Prediction, b: &Blob) -> f64 {
-        let expected = self.reference.areas_px[i] * p.scale * p.scale;
-        self.position_cost(i, dist((b.x_px, b.y_px), p.at), p)
-            + self.area_cost(b, expected, false)
-            + self.motion_cost(i, dist((b.x_px, b.y_px), p.start))
+        self.cost_with(i, p, b, false, (0.0, f64::INFINITY))
     }
 
     /// The motion prior: a marker `moved_px` from where the starting motion puts it (the
