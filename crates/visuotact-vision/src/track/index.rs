@@ -10,6 +10,38 @@ pub(super) fn dist_sq(a: (f64, f64), b: (f64, f64)) -> f64 {
     (a.0 - b.0) * (a.0 - b.0) + (a.1 - b.1) * (a.1 - b.1)
 }
 
+/// The connected parts of the items `0..n` that are `member`s, two items linked when one is
+/// among the other's `near` items and `linked(from, to)` holds: each part starts at its lowest
+/// item and lists its members in the order a depth-first walk finds them; parts in the order
+/// of their lowest items.
+pub(super) fn parts<I: IntoIterator<Item = usize>>(
+    n: usize,
+    member: impl Fn(usize) -> bool,
+    near: impl Fn(usize) -> I,
+    linked: impl Fn(usize, usize) -> bool,
+) -> Vec<Vec<usize>> {
+    let mut seen = vec![false; n];
+    let mut out = Vec::new();
+    for s0 in 0..n {
+        if seen[s0] || !member(s0) {
+            continue;
+        }
+        seen[s0] = true;
+        let (mut members, mut stack) = (vec![s0], vec![s0]);
+        while let Some(i) = stack.pop() {
+            for k in near(i) {
+                if !seen[k] && member(k) && linked(i, k) {
+                    seen[k] = true;
+                    members.push(k);
+                    stack.push(k);
+                }
+            }
+        }
+        out.push(members);
+    }
+    out
+}
+
 /// Blob centroids bucketed on a square grid of cell size `cell`.
 pub(super) struct BlobIndex {
     cell: f64,

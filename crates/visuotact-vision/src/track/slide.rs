@@ -14,6 +14,7 @@
 //! runner-ups: a region whose shift costs less than the margin more leaves its markers
 //! ambiguous.
 
+use super::index::parts;
 use super::solve::Matching;
 
 /// A runner-up within the margin of the reading kept: the markers whose blob the move changed.
@@ -433,33 +434,21 @@ impl Matching<'_> {
 
     /// Groups holes lying within two lattice steps of each other.
     fn clusters(&self, holes: &[usize]) -> Vec<Vec<usize>> {
-        let mut group = vec![usize::MAX; holes.len()];
-        let mut out: Vec<Vec<usize>> = Vec::new();
-        for k in 0..holes.len() {
-            if group[k] != usize::MAX {
-                continue;
-            }
-            let g = out.len();
-            group[k] = g;
-            let mut members = vec![holes[k]];
-            let mut stack = vec![k];
-            while let Some(a) = stack.pop() {
-                let pa = self.reference.positions[holes[a]];
-                let reach = 2.2 * self.reference.spacing_px[holes[a]];
-                for b in 0..holes.len() {
-                    if group[b] == usize::MAX {
-                        let pb = self.reference.positions[holes[b]];
-                        if (pa.0 - pb.0).hypot(pa.1 - pb.1) <= reach {
-                            group[b] = g;
-                            members.push(holes[b]);
-                            stack.push(b);
-                        }
-                    }
-                }
-            }
-            out.push(members);
-        }
-        out
+        let r = self.reference;
+        let at = |a: usize| r.positions[holes[a]];
+        let groups = parts(
+            holes.len(),
+            |_| true,
+            |_| 0..holes.len(),
+            |a, b| {
+                let (pa, pb) = (at(a), at(b));
+                (pa.0 - pb.0).hypot(pa.1 - pb.1) <= 2.2 * r.spacing_px[holes[a]]
+            },
+        );
+        groups
+            .into_iter()
+            .map(|g| g.into_iter().map(|a| holes[a]).collect())
+            .collect()
     }
 }
 
@@ -469,33 +458,17 @@ impl Matching<'_> {
     /// region read a lattice step off is a part of its own (its displacements differ by a step
     /// from its neighbours' across its sides). Parts of three or more markers, largest first.
     fn smooth_parts(&self) -> Vec<Vec<usize>> {
-        let n = self.assignment.len();
-        let mut part = vec![usize::MAX; n];
-        let mut out: Vec<Vec<usize>> = Vec::new();
-        for s0 in 0..n {
-            if self.assignment[s0].is_none() || part[s0] != usize::MAX {
-                continue;
-            }
-            let g = out.len();
-            part[s0] = g;
-            let mut members = vec![s0];
-            let mut stack = vec![s0];
-            while let Some(i) = stack.pop() {
-                for &k in self.reference.lattice_steps[i].iter().flatten() {
-                    let s = 0.5 * self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
-                    let (a, b) = (self.disp[i], self.disp[k]);
-                    if self.assignment[k].is_some()
-                        && part[k] == usize::MAX
-                        && (a.0 - b.0).hypot(a.1 - b.1) < s
-                    {
-                        part[k] = g;
-                        members.push(k);
-                        stack.push(k);
-                    }
-                }
-            }
-            out.push(members);
-        }
+        let r = self.reference;
+        let mut out = parts(
+            self.assignment.len(),
+            |i| self.assignment[i].is_some(),
+            |i| r.lattice_steps[i].iter().flatten().copied(),
+            |i, k| {
+                let s = 0.5 * r.spacing_px[i].min(r.spacing_px[k]);
+                let (a, b) = (self.disp[i], self.disp[k]);
+                (a.0 - b.0).hypot(a.1 - b.1) < s
+            },
+        );
         out.retain(|p| p.len() >= 3);
         out.sort_by_key(|p| std::cmp::Reverse(p.len()));
         out

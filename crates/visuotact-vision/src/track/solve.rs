@@ -21,7 +21,7 @@ use std::collections::BinaryHeap;
 
 use super::energy::fill_short;
 use super::energy::Energy;
-use super::index::{dist, dist_sq, BlobIndex};
+use super::index::{dist, dist_sq, parts, BlobIndex};
 use super::predict::{local_motion, Around, Prediction};
 use super::TrackReference;
 use crate::assign::{assign_min_cost, Candidates};
@@ -257,35 +257,21 @@ impl<'a> Matching<'a> {
     /// Keeps the largest set of seeds whose displacements agree (within a quarter spacing)
     /// with their seeded neighbours.
     fn keep_largest_agreeing_seeds(&mut self) {
-        let n = self.anchors.len();
-        let mut component = vec![usize::MAX; n];
-        let mut sizes = Vec::new();
-        for s0 in 0..n {
-            if self.assignment[s0].is_none() || component[s0] != usize::MAX {
-                continue;
-            }
-            let c = sizes.len();
-            let mut stack = vec![s0];
-            component[s0] = c;
-            let mut size = 0;
-            while let Some(i) = stack.pop() {
-                size += 1;
-                for &k in &self.reference.neighbours[i] {
-                    let s = self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
-                    if self.assignment[k].is_some()
-                        && component[k] == usize::MAX
-                        && dist_sq(self.disp[i], self.disp[k]) < (0.25 * s).powi(2)
-                    {
-                        component[k] = c;
-                        stack.push(k);
-                    }
-                }
-            }
-            sizes.push(size);
-        }
-        if let Some(keep) = (0..sizes.len()).max_by_key(|&c| (sizes[c], usize::MAX - c)) {
-            for (i, &c) in component.iter().enumerate() {
-                if c != keep && self.assignment[i].is_some() {
+        let r = self.reference;
+        let seeds = parts(
+            self.anchors.len(),
+            |i| self.assignment[i].is_some(),
+            |i| r.neighbours[i].iter().copied(),
+            |i, k| {
+                let s = r.spacing_px[i].min(r.spacing_px[k]);
+                dist_sq(self.disp[i], self.disp[k]) < (0.25 * s).powi(2)
+            },
+        );
+        // The largest; of equal ones, the first.
+        let keep = (0..seeds.len()).max_by_key(|&c| (seeds[c].len(), usize::MAX - c));
+        for (c, part) in seeds.iter().enumerate() {
+            if Some(c) != keep {
+                for &i in part {
                     self.release(i);
                 }
             }
