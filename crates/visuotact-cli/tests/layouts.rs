@@ -392,7 +392,7 @@ fn warnings_are_one_short_line_per_frame_and_max_zero_is_silent() {
 /// one lattice step past the array's corner) was numbered as a marker and then missed in 70 % of
 /// the frames (0.80 % of pin-frames missing). It is a speck, not a marker: no marker of the
 /// sensor hangs on the array by one neighbour while under half its size, and over every frame
-/// of the set at most 0.5 % of pin-frames are missing (0.19 % measured).
+/// of the set at most 0.5 % of pin-frames are missing (0.057 % measured at 85d0a79).
 #[test]
 fn a_speck_on_the_rim_of_one_in_contact_frame_is_no_marker() {
     let Some(data) = shared_real("tactip127_surface/frames") else {
@@ -445,6 +445,58 @@ fn a_speck_on_the_rim_of_one_in_contact_frame_is_no_marker() {
     assert!(
         200 * empty <= cells,
         "{empty} of {cells} pin-frames missing (over 0.5 %)"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The real 331-pin TacTip set (`tactip331_franka`: binarised frames, every one in contact, tilt
+/// up to 25°, slides up to 5 mm) calibrated as a user with no contact-free frame would, on its
+/// shallowest training frame (`image_1.png`, itself tilted and slid), on every fifth frame (the
+/// workflow's test split, 400 frames): every frame gets its row, and at most 1.25 % of
+/// pin-frames are missing. Measured at 85d0a79: 1.08 % on these frames, 0.99 % over all 2 000
+/// (issue 60 asks at most 1 % of the whole set; the tracker before it missed 27.9 %).
+#[test]
+fn the_real_331_pin_set_calibrated_in_contact_keeps_its_pins() {
+    let Some(data) = shared_real("tactip331_franka/frames") else {
+        return;
+    };
+    let d = fresh_dir("layouts-331");
+    let sensor = d.join("tip.json");
+    ok(&vt(&[
+        "calibrate",
+        s(&data.join("image_1.png")),
+        "-o",
+        s(&sensor),
+    ]));
+    let pins = sensor_json(&sensor)["markers"].as_array().unwrap().len();
+    assert_eq!(pins, 331, "pins numbered");
+    let features = d.join("f.csv");
+    let frames: Vec<PathBuf> = (1..=400)
+        .map(|k| data.join(format!("image_{}.png", 5 * k)))
+        .collect();
+    let mut args = vec!["extract", "--sensor", s(&sensor), "-o", s(&features)];
+    args.extend(["--max-warnings", "0"]);
+    args.extend(frames.iter().map(|p| s(p)));
+    ok(&vt(&args));
+    let text = std::fs::read_to_string(&features).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let dx: Vec<usize> = (0..header.len())
+        .filter(|&k| header[k].ends_with("_dx_px"))
+        .collect();
+    assert_eq!(dx.len(), pins);
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), 400, "a row per frame");
+    let empty: usize = rows
+        .iter()
+        .map(|line| {
+            let row: Vec<&str> = line.split(',').collect();
+            dx.iter().filter(|&&k| row[k].is_empty()).count()
+        })
+        .sum();
+    let cells = rows.len() * pins;
+    assert!(
+        80 * empty <= cells,
+        "{empty} of {cells} pin-frames missing (over 1.25 %)"
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
