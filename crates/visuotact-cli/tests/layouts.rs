@@ -429,18 +429,8 @@ fn a_speck_on_the_rim_of_one_in_contact_frame_is_no_marker() {
         "--max-warnings",
         "0",
     ]));
-    let text = std::fs::read_to_string(&features).unwrap();
-    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let dx: Vec<usize> = (0..header.len())
-        .filter(|&k| header[k].ends_with("_dx_px"))
-        .collect();
-    assert_eq!(dx.len(), markers.len());
-    let (mut cells, mut empty) = (0usize, 0usize);
-    for line in text.lines().skip(1) {
-        let row: Vec<&str> = line.split(',').collect();
-        cells += dx.len();
-        empty += dx.iter().filter(|&&k| row[k].is_empty()).count();
-    }
+    let (rows, empty) = rows_and_empty_cells(&features, markers.len());
+    let cells = rows * markers.len();
     assert!(cells > 600_000, "{cells} pin-frames");
     assert!(
         200 * empty <= cells,
@@ -478,25 +468,30 @@ fn the_real_331_pin_set_calibrated_in_contact_keeps_its_pins() {
     args.extend(["--max-warnings", "0"]);
     args.extend(frames.iter().map(|p| s(p)));
     ok(&vt(&args));
-    let text = std::fs::read_to_string(&features).unwrap();
-    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let dx: Vec<usize> = (0..header.len())
-        .filter(|&k| header[k].ends_with("_dx_px"))
-        .collect();
-    assert_eq!(dx.len(), pins);
-    let rows: Vec<&str> = text.lines().skip(1).collect();
-    assert_eq!(rows.len(), 400, "a row per frame");
-    let empty: usize = rows
-        .iter()
-        .map(|line| {
-            let row: Vec<&str> = line.split(',').collect();
-            dx.iter().filter(|&&k| row[k].is_empty()).count()
-        })
-        .sum();
-    let cells = rows.len() * pins;
+    let (rows, empty) = rows_and_empty_cells(&features, pins);
+    assert_eq!(rows, 400, "a row per frame");
+    let cells = rows * pins;
     assert!(
         80 * empty <= cells,
         "{empty} of {cells} pin-frames missing (over 1.25 %)"
     );
     std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A features table's rows and its markers' empty `dx` cells (markers without a position),
+/// checking that it has a `dx` column for each of `markers`.
+fn rows_and_empty_cells(features: &Path, markers: usize) -> (usize, usize) {
+    let text = std::fs::read_to_string(features).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let dx: Vec<usize> = (0..header.len())
+        .filter(|&k| header[k].ends_with("_dx_px"))
+        .collect();
+    assert_eq!(dx.len(), markers, "a dx column per marker");
+    let (mut rows, mut empty) = (0, 0);
+    for line in text.lines().skip(1) {
+        let row: Vec<&str> = line.split(',').collect();
+        rows += 1;
+        empty += dx.iter().filter(|&&k| row[k].is_empty()).count();
+    }
+    (rows, empty)
 }
