@@ -347,9 +347,9 @@ impl Matching<'_> {
         }
     }
 
-    /// Applies every region shift that lowers the energy by the margin (at most eight
-    /// times), each refined when that lowers the energy further (the refinement matches
-    /// against fixed predictions and may undo a move the energy prefers); returns the
+    /// Applies every region shift that lowers the whole reading's energy by the margin (at
+    /// most eight times), each refined when that lowers the energy further (the refinement
+    /// matches against fixed predictions and may undo a move the energy prefers); returns the
     /// runner-ups within the margin of the reading kept.
     pub fn slide_regions(&mut self) -> Vec<RunnerUp> {
         let margin = self.energy.params.margin;
@@ -360,15 +360,16 @@ impl Matching<'_> {
             };
             let (before, e_before) = (self.assignment.clone(), self.total_energy());
             self.apply_moved(&moved);
-            let (moved_to, e) = (self.assignment.clone(), self.total_energy());
+            let (moved_to, e_moved) = (self.assignment.clone(), self.total_energy());
             self.refine(3);
-            if self.total_energy() > e {
+            let mut e_after = self.total_energy();
+            if e_after > e_moved {
                 self.set_assignment(&moved_to);
+                e_after = e_moved;
             }
             // The move is chosen on the energy of its own reach; it is kept only when it
             // lowers the whole reading's energy by the margin too (moved markers change their
             // neighbours' predictions, and theirs of further markers).
-            let e_after = self.total_energy();
             if e_after > e_before - margin {
                 self.set_assignment(&before);
                 if e_after < e_before + margin {
