@@ -32,7 +32,9 @@
 //! half is scaled by how visible it is expected to be (0 outside the view, 1 a radius inside
 //! it) where its neighbours or the starting motion put it, whichever is deeper inside — a
 //! reading does not get to push markers out of the view for free — and a blob cut by the
-//! border is no clutter (it explains a marker leaving the view). The total is the energy; the assignment minimises it and the
+//! border is no clutter (it explains a marker leaving the view), nor, order-free, is a piece of
+//! a marker's dot broken by the threshold or a line drawn across it: the marker is measured on
+//! its pieces together where that costs less ([`super::pieces`]). The total is the energy; the assignment minimises it and the
 //! ambiguity is a margin on it. Read a lattice step off, a field leaves a row of markers at
 //! one edge without blobs or a row of blobs at the other edge without markers: either costs.
 

@@ -18,7 +18,9 @@
 //!   off (chains from markers without a blob) and smooth parts shifted by a step or two —
 //!   kept when they lower the energy by the margin.
 //! - `pieces`: a marker's dot broken in pieces (by the threshold, or a line drawn across it) is
-//!   measured on its pieces together when that lowers the energy.
+//!   measured on its pieces together when that lowers the energy; order-free, every reading
+//!   the search compares is charged so (a broken dot is one marker's, not two markers' a step
+//!   apart).
 //! - `ambiguity`, `split`: a blob may hold two markers (a hypothesis on the energy, split by
 //!   its moments when they are two discs'); a marker is ambiguous when a runner-up reading
 //!   costs less than one margin more than the best.
@@ -543,6 +545,7 @@ pub fn track_with(
     };
     let order_free = prior.is_none();
     let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
+    m.charge_pieces = order_free;
     if order_free {
         m.shift = predict::register(reference, &m.index);
     }

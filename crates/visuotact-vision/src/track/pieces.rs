@@ -23,6 +23,16 @@ pub(super) fn nearest_of(m: &Matching<'_>, i: usize, preds: &[Prediction], p: (f
 
 /// Every marker's further pieces: (the marker's blob, a piece), at most two pieces a marker.
 pub(super) fn find_pieces(m: &Matching<'_>, preds: &[Prediction]) -> Vec<(usize, usize)> {
+    pieces_and_gain(m, preds).0
+}
+
+/// [`find_pieces`], and the energy they save: each marker measured on its pieces together
+/// instead of its own blob with the pieces left as clutter.
+pub(super) fn pieces_and_gain(
+    m: &Matching<'_>,
+    preds: &[Prediction],
+) -> (Vec<(usize, usize)>, f64) {
+    let mut saved = 0.0;
     let mut pieces = Vec::new();
     let mut used = vec![false; m.blobs.len()];
     let clutter = m.energy.clutter_cost();
@@ -58,11 +68,12 @@ pub(super) fn find_pieces(m: &Matching<'_>, preds: &[Prediction]) -> Vec<(usize,
                     best = Some((gain, j2, both));
                 }
             });
-            let Some((_, j2, both)) = best else { break };
+            let Some((gain, j2, both)) = best else { break };
+            saved += gain;
             used[j2] = true;
             pieces.push((j, j2));
             whole = both;
         }
     }
-    pieces
+    (pieces, saved)
 }

@@ -43,6 +43,10 @@ pub(super) struct Matching<'a> {
     fill_short: Vec<f64>,
     /// The starting motion added to the anchors (registration; zero when followed).
     pub shift: (f64, f64),
+    /// Whether the energy measures a marker on its dot's pieces together: order-free only.
+    /// Followed, the last frame's positions decide, and a sliver squeezed off a dot dragged
+    /// onto a neighbour would pass for the neighbour's piece.
+    pub charge_pieces: bool,
     pub assignment: Vec<Option<usize>>,
     /// The marker holding each blob.
     pub owner: Vec<Option<usize>>,
@@ -74,6 +78,7 @@ impl<'a> Matching<'a> {
             fill_short: blobs.iter().map(fill_short).collect(),
             anchors,
             shift,
+            charge_pieces: true,
             assignment: vec![None; n],
             owner: vec![None; blobs.len()],
             disp: vec![(0.0, 0.0); n],
@@ -354,9 +359,21 @@ impl<'a> Matching<'a> {
     }
 
     /// The energy of the current assignment: each matched marker's cost against its
-    /// neighbours' prediction, each unmatched marker's lost cost and each unclaimed blob's
-    /// clutter cost.
+    /// neighbours' prediction (with [`Matching::charge_pieces`], measured on its pieces
+    /// together where that costs less, [`super::pieces`]), each unmatched marker's lost cost
+    /// and each unclaimed blob's clutter cost. A dot broken in two by a line drawn across it is
+    /// one marker's, not two markers' read a step apart.
     pub fn total_energy(&self) -> f64 {
+        let pieces = if self.charge_pieces {
+            super::pieces::pieces_and_gain(self, &self.predictions()).1
+        } else {
+            0.0
+        };
+        self.energy_without_pieces() - pieces
+    }
+
+    /// [`Matching::total_energy`] with every piece of a dot counted as clutter.
+    fn energy_without_pieces(&self) -> f64 {
         let clutter = (0..self.usable)
             .filter(|&j| self.owner[j].is_none())
             .count() as f64
