@@ -18,8 +18,8 @@
 //! grow); `σ` is
 //! [`TrackParams::sigma_spacings`](super::TrackParams::sigma_spacings) and `σ_a,i` the area
 //! tolerance [`TrackParams::area_sigma`](super::TrackParams::area_sigma) widened by the pixel
-//! noise of a small marker's outline. A blob cut by the image border carries no area term; a
-//! blob of two lobes pays a shape term (how far under 1 it fills its moments' ellipse, in the
+//! noise of a small marker's outline. A blob cut by the image border (dropped as cut, or kept
+//! though it touches the border) carries no area or shape term; a blob of two lobes pays a shape term (how far under 1 it fills its moments' ellipse, in the
 //! sensor's own markers' shortfall at rest) — bounded by a speck of clutter's cost when the
 //! blob holds at least the marker's area and no neighbour is without a blob (then the second
 //! lobe can only be a speck joined to the marker, not another marker). A weak

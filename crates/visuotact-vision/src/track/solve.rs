@@ -135,6 +135,13 @@ impl<'a> Matching<'a> {
         j >= self.usable
     }
 
+    /// Whether blob `j`'s outline is cut by the border: dropped as cut by the detector, or
+    /// kept whole though it touches the border (`keep_border`). Its area and shape then say
+    /// nothing of the marker's.
+    pub fn outline_cut(&self, j: usize) -> bool {
+        self.is_cut(j) || self.blobs[j].touches_border
+    }
+
     /// Where `i` should be according to its matched neighbours, and the local magnification.
     pub fn predict(&self, i: usize) -> Option<Prediction> {
         if let Some(p) = self.predicted[i].get() {
@@ -184,7 +191,7 @@ impl<'a> Matching<'a> {
 
     /// The cost of `i` (predicted `pred`) taking blob `j`.
     pub fn cost(&self, i: usize, pred: Prediction, j: usize) -> f64 {
-        let cut = self.is_cut(j);
+        let cut = self.outline_cut(j);
         let short = if cut { 0.0 } else { self.fill_short[j] };
         // The shape term is at most (short / fill_sigma)²: the cap matters only above it.
         let f = self.reference.fill_sigma;
