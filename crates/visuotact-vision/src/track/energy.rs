@@ -19,13 +19,14 @@
 //! [`TrackParams::sigma_spacings`](super::TrackParams::sigma_spacings) and `σ_a,i` the area
 //! tolerance [`TrackParams::area_sigma`](super::TrackParams::area_sigma) widened by the pixel
 //! noise of a small marker's outline. A blob cut by the image border (dropped as cut, or kept
-//! though it touches the border) carries no area or shape term; a blob of two lobes pays a shape term (how far under 1 it fills its moments' ellipse, in the
-//! sensor's own markers' shortfall at rest) — bounded by a speck of clutter's cost when the
-//! blob holds at least the marker's area and no neighbour is without a blob (then the second
-//! lobe can only be a speck joined to the marker, not another marker). A weak
-//! motion prior adds `(|b_j − o_i| / (M · s_i))²`, `o_i` where the starting motion puts the
-//! marker and `M` [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings): it
-//! decides between readings the rest cannot tell apart (half a grid hidden, the other half read
+//! though it touches the border) carries no area or shape term; a blob of two lobes pays a
+//! shape term (how far under 1 it fills its moments' ellipse, in the sensor's own markers'
+//! shortfall at rest) — bounded by a speck of clutter's cost when the blob holds at least the
+//! marker's area and no neighbour is without a blob (then the second lobe can only be a speck
+//! joined to the marker, not another marker). A weak motion prior adds
+//! `(|b_j − o_i| / (M · s_i))²`, `o_i` where the starting motion puts the marker and `M`
+//! [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings): it decides between
+//! readings the rest cannot tell apart (half a grid hidden, the other half read
 //! where it is or a step along).
 //! A marker taking no blob and a blob taken by no marker (clutter) each cost half of
 //! `(gate / σ)²`, so that a blob at the gate is as likely the marker's as not; the marker's
@@ -34,9 +35,10 @@
 //! reading does not get to push markers out of the view for free — and a blob cut by the
 //! border is no clutter (it explains a marker leaving the view), nor, order-free, is a piece of
 //! a marker's dot broken by the threshold or a line drawn across it: the marker is measured on
-//! its pieces together where that costs less ([`super::pieces`]). The total is the energy; the assignment minimises it and the
-//! ambiguity is a margin on it. Read a lattice step off, a field leaves a row of markers at
-//! one edge without blobs or a row of blobs at the other edge without markers: either costs.
+//! its pieces together where that costs less ([`super::pieces`]). The total is the energy;
+//! the assignment minimises it and the ambiguity is a margin on it. Read a lattice step off, a
+//! field leaves a row of markers at one edge without blobs or a row of blobs at the other edge
+//! without markers: either costs.
 
 use super::index::dist;
 use super::predict::Prediction;

@@ -5,8 +5,9 @@
 //! of `i`'s expected area (their centroids' distance plus their radii within its diameter, the
 //! radius allowed one area tolerance), and `i` taking both as one blob costs less than `i`
 //! taking its own with the piece left as clutter: the energy's own choice between the two
-//! readings (the pieces' union pays no shape term: the gap that broke them lies between them). The marker is then measured on its pieces together ([`Blob::union`]); a piece is
-//! never another marker's runner-up.
+//! readings (the pieces' union pays no shape term: the gap that broke them lies between them).
+//! The marker is then measured on its pieces together ([`Blob::union`]); a piece is never
+//! another marker's runner-up.
 
 use super::index::dist;
 use super::predict::Prediction;
@@ -45,11 +46,9 @@ pub(super) fn pieces_and_gain(
         let expected = m.reference.areas_px[i] * p.scale * p.scale;
         let disc = 2.0 * radius(expected) * m.energy.params.area_sigma.exp();
         for k in 0..2 {
-            let now = if k == 0 {
-                m.energy.cost(i, p, &whole, false)
-            } else {
-                m.energy.pieces_cost(i, p, &whole)
-            };
+            // The marker's cost as it stands, computed only once a piece is in reach (the
+            // energy asks this of every marker in every reading it compares).
+            let mut now = None;
             let mut best: Option<(f64, usize, Blob)> = None;
             m.index.near(p.at, m.energy.gate_px(i, p), |j2, _| {
                 if j2 >= m.usable || m.owner[j2].is_some() || used[j2] {
@@ -62,6 +61,13 @@ pub(super) fn pieces_and_gain(
                 if span > disc || !nearest_of(m, i, preds, (b2.x_px, b2.y_px)) {
                     return;
                 }
+                let now = *now.get_or_insert_with(|| {
+                    if k == 0 {
+                        m.energy.cost(i, p, &whole, false)
+                    } else {
+                        m.energy.pieces_cost(i, p, &whole)
+                    }
+                });
                 let both = whole.union(b2);
                 let gain = now + clutter - m.energy.pieces_cost(i, p, &both);
                 if gain > 0.0 && best.as_ref().is_none_or(|b| gain > b.0) {

@@ -371,12 +371,13 @@ impl<'a> Matching<'a> {
     /// and each unclaimed blob's clutter cost. A dot broken in two by a line drawn across it is
     /// one marker's, not two markers' read a step apart.
     pub fn total_energy(&self) -> f64 {
-        let pieces = if self.charge_pieces {
-            super::pieces::pieces_and_gain(self, &self.predictions()).1
+        let plain = self.energy_without_pieces();
+        if self.charge_pieces {
+            // The predictions are cached by `energy_without_pieces`.
+            plain - super::pieces::pieces_and_gain(self, &self.predictions()).1
         } else {
-            0.0
-        };
-        self.energy_without_pieces() - pieces
+            plain
+        }
     }
 
     /// [`Matching::total_energy`] with every piece of a dot counted as clutter.
