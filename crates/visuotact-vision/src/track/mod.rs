@@ -123,8 +123,8 @@ pub struct TrackParams {
     /// affine motion) may widen the position's scale, in multiples of
     /// [`TrackParams::sigma_spacings`]. 3: a drag shears a large dot a pitch and a half
     /// against the neighbours that lag it (the simulator's dots); 1 suits a sensor whose
-    /// skin moves smoothly between sparse markers (real GelSight Mini under large slides:
-    /// marker-frames read over 10 px off the vendor's, 464 → 191), where a wider bound
+    /// skin moves smoothly between sparse markers (real GelSight Mini video 5 under large
+    /// slides: marker-frames read over 10 px off the vendor's, 82 → 49), where a wider bound
     /// excuses a region read a lattice step off.
     pub spread_sigmas: f64,
     /// Typical relative change of a marker's blob area from its expected size: the scale of
