@@ -14,7 +14,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use visuotact_nn::fit::{training_memory_bytes, FitConfig};
 use visuotact_nn::lm::{Control, LmConfig};
-use visuotact_nn::mlp::{train, MinMax, Mlp, TrainConfig};
+use visuotact_nn::mlp::{train, LmTraining, MinMax, Mlp, TrainConfig, Trainer};
 use visuotact_sim::iats::{markers, IatsConfig, Touch};
 
 /// Features (dx, dy, d-area per marker) and targets (x, y, depth) of `n` seeded touches.
@@ -66,12 +66,14 @@ fn main() {
     let hidden = vec![20; 5];
     let sizes: Vec<usize> = [351].into_iter().chain(hidden.clone()).chain([3]).collect();
     let cfg = TrainConfig {
-        lm: LmConfig {
-            max_iterations: epochs,
-            ..LmConfig::TRAINLM
-        },
-        max_fail: usize::MAX,
-        whole_jacobian,
+        trainer: Trainer::Lm(LmTraining {
+            lm: LmConfig {
+                max_iterations: epochs,
+                ..LmConfig::TRAINLM
+            },
+            max_fail: usize::MAX,
+            whole_jacobian,
+        }),
         ..TrainConfig::TRAINLM
     };
     let train_samples = (frames as f64 * 0.7).round() as usize;

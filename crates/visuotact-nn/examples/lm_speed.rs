@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use visuotact_nn::lm::{Control, LmConfig};
+use visuotact_nn::lm::Control;
 use visuotact_nn::mlp::{train, Mlp, TrainConfig};
 
 fn data(n: usize, d_in: usize, d_out: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
@@ -45,10 +45,7 @@ fn main() {
     let mut last = Instant::now();
     // All 1 280 samples in the fit (3 840 residuals) and 16 iterations, as the peer's.
     let cfg = TrainConfig {
-        lm: LmConfig {
-            max_iterations: 16,
-            ..LmConfig::TRAINLM
-        },
+        trainer: TrainConfig::TRAINLM.trainer.with_max_epochs(16),
         split: [1.0, 0.0, 0.0],
         ..TrainConfig::TRAINLM
     };

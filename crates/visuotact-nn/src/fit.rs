@@ -21,9 +21,9 @@
 use rayon::prelude::*;
 
 use crate::heldout::HeldOutErrors;
-use crate::lm::{Control, LmConfig};
+use crate::lm::Control;
 use crate::metrics::target_errors;
-use crate::mlp::{Algorithm, MinMax, Mlp, Settle, TrainConfig};
+use crate::mlp::{Algorithm, BrTraining, MinMax, Mlp, Settle, TrainConfig, Trainer};
 use crate::model::{Model, TrainingSummary, MODEL_FORMAT, MODEL_VERSION};
 use crate::pca::Projection;
 use crate::pca::ProjectionError;
@@ -784,29 +784,27 @@ pub fn settle_for(samples: usize) -> Option<Settle> {
 
 /// The trainer's settings for `cfg`: its algorithm's, with its epochs, seed and subsets.
 fn train_config(cfg: &FitConfig, samples: usize) -> TrainConfig {
-    let base = match cfg.algorithm {
-        Algorithm::Trainlm => TrainConfig::TRAINLM,
-        Algorithm::Trainbr => TrainConfig::TRAINBR,
-        Algorithm::Adam => TrainConfig::ADAM,
-    };
-    // Adam's epochs are cheap passes that its own stop ends; it keeps its own cap too.
-    let most = match cfg.algorithm {
-        Algorithm::Adam => cfg.max_epochs.min(base.adam.max_epochs),
-        Algorithm::Trainlm | Algorithm::Trainbr => cfg.max_epochs,
+    let base = TrainConfig::of(cfg.algorithm);
+    let trainer = match base.trainer {
+        // Adam's epochs are cheap passes that its own stop ends; it keeps its own cap too.
+        Trainer::Adam(adam) => {
+            Trainer::Adam(adam).with_max_epochs(cfg.max_epochs.min(adam.max_epochs))
+        }
+        Trainer::Br(br) => Trainer::Br(BrTraining {
+            settle: br.settle.and(settle_for(samples)),
+            ..br
+        })
+        .with_max_epochs(cfg.max_epochs),
+        Trainer::Lm(_) => base.trainer.with_max_epochs(cfg.max_epochs),
     };
     TrainConfig {
-        lm: LmConfig {
-            max_iterations: most,
-            ..base.lm
-        },
+        trainer,
         seed: cfg.seed,
-        settle: base.settle.and(settle_for(samples)),
         split: if cfg.hold_out {
             TrainConfig::TRAINLM.split
         } else {
             base.split
         },
-        ..base
     }
 }
 
@@ -1283,6 +1281,34 @@ mod tests {
 
     fn names(prefix: &str, n: usize) -> Vec<String> {
         (0..n).map(|i| format!("{prefix}{i}")).collect()
+    }
+
+    #[test]
+    fn each_algorithm_trains_with_its_own_settings_and_the_users_epochs() {
+        let with = |algorithm, max_epochs| FitConfig {
+            algorithm,
+            max_epochs,
+            seed: 9,
+            ..FitConfig::default()
+        };
+        let lm = train_config(&with(Algorithm::Trainlm, 50), 100);
+        assert_eq!(lm.trainer, TrainConfig::TRAINLM.trainer.with_max_epochs(50));
+        assert_eq!((lm.seed, lm.split), (9, TrainConfig::TRAINLM.split));
+        // trainbr settles early only on a large table.
+        let br = |samples| match train_config(&with(Algorithm::Trainbr, 50), samples).trainer {
+            Trainer::Br(br) => (br.settle, br.lm.max_iterations),
+            other => panic!("trainbr trained by {other:?}"),
+        };
+        assert_eq!(br(LARGE_TABLE - 1), (None, 50));
+        assert_eq!(br(LARGE_TABLE), (Some(Settle::DEFAULT), 50));
+        // Adam keeps its own cap and patience.
+        let adam = crate::adam::AdamConfig::DEFAULT;
+        for (asked, got) in [(50, 50), (100_000, adam.max_epochs)] {
+            let cfg = train_config(&with(Algorithm::Adam, asked), 100);
+            assert_eq!(cfg.trainer, Trainer::Adam(adam).with_max_epochs(got));
+            assert_eq!(cfg.trainer.algorithm(), Algorithm::Adam);
+            assert_eq!(cfg.trainer.max_epochs(), got);
+        }
     }
 
     #[test]

@@ -764,28 +764,92 @@ impl Algorithm {
     }
 }
 
-/// Training settings.
+/// Levenberg–Marquardt on the sum of squared errors, stopped early on the validation subset
+/// (MATLAB `trainlm`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TrainConfig {
-    /// The objective.
-    pub algorithm: Algorithm,
-    /// The LM settings (MATLAB `trainlm` by default).
+pub struct LmTraining {
+    /// The solver's settings (MATLAB `trainlm`'s by default).
     pub lm: LmConfig,
-    /// Fractions of samples for training, validation, test (random split).
-    pub split: [f64; 3],
     /// Stop after this many epochs without a better validation error (MATLAB `max_fail`).
     pub max_fail: usize,
-    /// Seed for the split and the initial weights.
-    pub seed: u64,
-    /// Hold the whole Jacobian (residuals × weights) on the primal path instead of
-    /// accumulating `JᵀJ` over blocks of samples — the path before blocks, kept for
-    /// comparisons; the same results to rounding, more memory and time.
+    /// Hold the whole Jacobian (residuals × weights) instead of accumulating `JᵀJ` over
+    /// blocks of samples — the path before blocks, kept for comparisons; the same results to
+    /// rounding, more memory and time.
     pub whole_jacobian: bool,
-    /// Adam's settings ([`Algorithm::Adam`]; `lm.max_iterations` is its most epochs).
-    pub adam: crate::adam::AdamConfig,
-    /// trainbr: stop once the training error and the effective number of parameters have
-    /// settled (`None`: run to `lm.max_iterations` or another of LM's stops).
+}
+
+/// Levenberg–Marquardt on errors plus weights, with the evidence framework's α and β (MATLAB
+/// `trainbr`, [`crate::br`]): no early stopping, the last weights are kept.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BrTraining {
+    /// The solver's settings (μ starts at trainbr's 0.005).
+    pub lm: LmConfig,
+    /// Stop once the training error and the effective number of parameters have settled
+    /// (`None`: run to `lm.max_iterations` or another of LM's stops).
     pub settle: Option<Settle>,
+    /// As [`LmTraining::whole_jacobian`].
+    pub whole_jacobian: bool,
+}
+
+/// Which trainer, with the settings that trainer reads and no others.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Trainer {
+    /// [`Algorithm::Trainlm`].
+    Lm(LmTraining),
+    /// [`Algorithm::Trainbr`].
+    Br(BrTraining),
+    /// [`Algorithm::Adam`]: mini-batch Adam with an L2 penalty, stopped on the validation
+    /// subset after `patience` epochs without a better error ([`crate::adam`]).
+    Adam(crate::adam::AdamConfig),
+}
+
+impl Trainer {
+    /// The algorithm this trainer runs (its name in model files).
+    pub const fn algorithm(&self) -> Algorithm {
+        match self {
+            Trainer::Lm(_) => Algorithm::Trainlm,
+            Trainer::Br(_) => Algorithm::Trainbr,
+            Trainer::Adam(_) => Algorithm::Adam,
+        }
+    }
+
+    /// The most epochs it runs.
+    pub const fn max_epochs(&self) -> usize {
+        match self {
+            Trainer::Lm(t) => t.lm.max_iterations,
+            Trainer::Br(t) => t.lm.max_iterations,
+            Trainer::Adam(a) => a.max_epochs,
+        }
+    }
+
+    /// The same trainer stopped after at most `epochs` epochs.
+    pub const fn with_max_epochs(self, epochs: usize) -> Self {
+        match self {
+            Trainer::Lm(mut t) => {
+                t.lm.max_iterations = epochs;
+                Trainer::Lm(t)
+            }
+            Trainer::Br(mut t) => {
+                t.lm.max_iterations = epochs;
+                Trainer::Br(t)
+            }
+            Trainer::Adam(mut a) => {
+                a.max_epochs = epochs;
+                Trainer::Adam(a)
+            }
+        }
+    }
+}
+
+/// Training settings: the trainer, and the subsets and seed every trainer shares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainConfig {
+    /// The trainer and its own settings.
+    pub trainer: Trainer,
+    /// Fractions of samples for training, validation, test (random split).
+    pub split: [f64; 3],
+    /// Seed for the split (and Adam's batches; the initial weights are the network's).
+    pub seed: u64,
 }
 
 /// When trainbr has settled: over the last `window` epochs the sum of squared errors fell by
@@ -823,45 +887,45 @@ impl Settle {
 impl TrainConfig {
     /// MATLAB's defaults: trainlm, 70/15/15, 6 validation failures.
     pub const TRAINLM: Self = Self {
-        algorithm: Algorithm::Trainlm,
-        lm: LmConfig::TRAINLM,
+        trainer: Trainer::Lm(LmTraining {
+            lm: LmConfig::TRAINLM,
+            max_fail: 6,
+            whole_jacobian: false,
+        }),
         split: [0.70, 0.15, 0.15],
-        max_fail: 6,
         seed: 1,
-        whole_jacobian: false,
-        adam: crate::adam::AdamConfig::DEFAULT,
-        settle: None,
     };
 
     /// MATLAB's trainbr: μ = 0.005, no validation stop; here every sample trains (a test
     /// subset can still be asked for with `split`), and it stops once settled
     /// ([`Settle::DEFAULT`]).
     pub const TRAINBR: Self = Self {
-        algorithm: Algorithm::Trainbr,
-        lm: crate::br::TRAINBR,
+        trainer: Trainer::Br(BrTraining {
+            lm: crate::br::TRAINBR,
+            settle: Some(Settle::DEFAULT),
+            whole_jacobian: false,
+        }),
         split: [1.0, 0.0, 0.0],
-        max_fail: 6,
         seed: 1,
-        whole_jacobian: false,
-        adam: crate::adam::AdamConfig::DEFAULT,
-        settle: Some(Settle::DEFAULT),
     };
 
     /// Mini-batch Adam ([`crate::adam::AdamConfig::DEFAULT`]), a tenth of the samples held
     /// out to stop it (scikit-learn's `early_stopping`).
     pub const ADAM: Self = Self {
-        algorithm: Algorithm::Adam,
-        lm: LmConfig {
-            max_iterations: crate::adam::AdamConfig::DEFAULT.max_epochs,
-            ..LmConfig::TRAINLM
-        },
+        trainer: Trainer::Adam(crate::adam::AdamConfig::DEFAULT),
         split: [0.9, 0.1, 0.0],
-        max_fail: crate::adam::AdamConfig::DEFAULT.patience,
         seed: 1,
-        whole_jacobian: false,
-        adam: crate::adam::AdamConfig::DEFAULT,
-        settle: None,
     };
+
+    /// The defaults of `algorithm`: [`TrainConfig::TRAINLM`], [`TrainConfig::TRAINBR`] or
+    /// [`TrainConfig::ADAM`].
+    pub const fn of(algorithm: Algorithm) -> Self {
+        match algorithm {
+            Algorithm::Trainlm => Self::TRAINLM,
+            Algorithm::Trainbr => Self::TRAINBR,
+            Algorithm::Adam => Self::ADAM,
+        }
+    }
 }
 
 impl Default for TrainConfig {
@@ -885,7 +949,7 @@ pub struct TrainOutcome {
     pub subsets: [Vec<usize>; 3],
     /// trainbr's final α, β and effective number of parameters γ.
     pub evidence: Option<crate::br::Evidence>,
-    /// Whether trainbr stopped because it had settled ([`TrainConfig::settle`]).
+    /// Whether trainbr stopped because it had settled ([`BrTraining::settle`]).
     pub settled: bool,
 }
 
@@ -897,7 +961,7 @@ struct Fit<'a> {
     /// The inputs with a column of ones, and the lower triangle of their Gram matrix: the first
     /// layer's part of every [`LayerJacobian`], made once.
     inputs: Option<SharedGram>,
-    /// [`TrainConfig::whole_jacobian`]: no blocked normal equations.
+    /// [`LmTraining::whole_jacobian`]: no blocked normal equations.
     whole_jacobian: bool,
 }
 
@@ -1046,14 +1110,14 @@ fn mse(net: &Mlp, p: &[f64], x: &[&[f64]], t: &[&[f64]]) -> f64 {
 }
 
 /// [`train`] by [`crate::br::minimize_br`] on `fit` (the training rows, from `start`), stopped
-/// when settled ([`TrainConfig::settle`]); no early stopping: the weight penalty regularises
+/// when settled ([`BrTraining::settle`]); no early stopping: the weight penalty regularises
 /// and the last weights are kept.
 fn train_br(
     net: &mut Mlp,
     (fit, start): (&mut Fit<'_>, &Mlp),
     (xs, ts): (&[Rows], &[Rows]),
     subsets: [Vec<usize>; 3],
-    cfg: &TrainConfig,
+    cfg: &BrTraining,
     mut progress: impl FnMut(usize, f64, f64) -> Control,
 ) -> TrainOutcome {
     let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
@@ -1092,18 +1156,13 @@ fn train_adam(
     net: &mut Mlp,
     (xs, ts): (&[Rows], &[Rows]),
     subsets: [Vec<usize>; 3],
-    cfg: &TrainConfig,
+    (adam, seed): (&crate::adam::AdamConfig, u64),
     mut progress: impl FnMut(usize, f64, f64) -> Control,
 ) -> TrainOutcome {
-    use crate::adam::{minimize_adam, AdamConfig, AdamStop, Samples};
+    use crate::adam::{minimize_adam, AdamStop, Samples};
     let (x0, t0, x1, t1) = (refs(&xs[0]), refs(&ts[0]), refs(&xs[1]), refs(&ts[1]));
-    let adam = AdamConfig {
-        max_epochs: cfg.lm.max_iterations,
-        patience: cfg.max_fail,
-        ..cfg.adam
-    };
     let samples = (Samples { x: &x0, t: &t0 }, Samples { x: &x1, t: &t1 });
-    let out = minimize_adam(net, &net.params, samples, &adam, cfg.seed, |p| {
+    let out = minimize_adam(net, &net.params, samples, adam, seed, |p| {
         progress(p.epoch, p.train_mse, p.validation_mse)
     });
     net.params = out.params.clone();
@@ -1149,14 +1208,15 @@ pub fn random_split(n: usize, split: [f64; 3], seed: u64) -> [Vec<usize>; 3] {
     [idx, val, test]
 }
 
-/// Trains `net` on scaled inputs `x` and targets `t` (rows are samples), keeping the weights
-/// with the best validation error; `progress(epoch, train_mse, val_mse)` can stop it.
+/// Trains `net` on scaled inputs `x` and targets `t` (rows are samples) with `cfg.trainer`,
+/// keeping the weights with the best validation error (trainbr: the last ones);
+/// `progress(epoch, train_mse, val_mse)` can stop it.
 pub fn train(
     net: &mut Mlp,
     x: &[Vec<f64>],
     t: &[Vec<f64>],
     cfg: &TrainConfig,
-    mut progress: impl FnMut(usize, f64, f64) -> Control,
+    progress: impl FnMut(usize, f64, f64) -> Control,
 ) -> TrainOutcome {
     assert_eq!(x.len(), t.len(), "one target row per input row");
     let subsets = random_split(x.len(), cfg.split, cfg.seed);
@@ -1167,35 +1227,59 @@ pub fn train(
     let xs: Vec<Rows> = subsets.iter().map(|ids| pick(ids, x)).collect();
     let ts: Vec<Rows> = subsets.iter().map(|ids| pick(ids, t)).collect();
     let snapshot = net.clone();
-    let mut fit = Fit {
+    let fit = |whole_jacobian| Fit {
         net: &snapshot,
         x: refs(&xs[0]),
         t: refs(&ts[0]),
         acts: Vec::new(),
         inputs: None,
-        whole_jacobian: cfg.whole_jacobian,
+        whole_jacobian,
     };
+    match &cfg.trainer {
+        Trainer::Lm(lm) => {
+            let mut fit = fit(lm.whole_jacobian);
+            train_lm(
+                net,
+                (&mut fit, &snapshot),
+                (&xs, &ts),
+                subsets,
+                lm,
+                progress,
+            )
+        }
+        Trainer::Br(br) => {
+            let mut fit = fit(br.whole_jacobian);
+            train_br(
+                net,
+                (&mut fit, &snapshot),
+                (&xs, &ts),
+                subsets,
+                br,
+                progress,
+            )
+        }
+        Trainer::Adam(adam) => train_adam(net, (&xs, &ts), subsets, (adam, cfg.seed), progress),
+    }
+}
+
+/// [`train`] by [`minimize`] on `fit` (the training rows, from `start`), stopped early after
+/// `cfg.max_fail` epochs without a better validation error; the best weights are kept.
+fn train_lm(
+    net: &mut Mlp,
+    (fit, start): (&mut Fit<'_>, &Mlp),
+    (xs, ts): (&[Rows], &[Rows]),
+    subsets: [Vec<usize>; 3],
+    cfg: &LmTraining,
+    mut progress: impl FnMut(usize, f64, f64) -> Control,
+) -> TrainOutcome {
     let (xv, tv) = (refs(&xs[1]), refs(&ts[1]));
-    let n_out = snapshot.sizes[snapshot.sizes.len() - 1];
-    if cfg.algorithm == Algorithm::Adam {
-        return train_adam(net, (&xs, &ts), subsets, cfg, progress);
-    }
-    if cfg.algorithm == Algorithm::Trainbr {
-        return train_br(
-            net,
-            (&mut fit, &snapshot),
-            (&xs, &ts),
-            subsets,
-            cfg,
-            progress,
-        );
-    }
+    let n_out = start.sizes[start.sizes.len() - 1];
     let mut best = (f64::INFINITY, net.params.clone(), 0usize);
     let mut fails = 0;
     let mut validation_stop = false;
-    let lm = minimize(&mut fit, &snapshot.params, &cfg.lm, |p| {
+    let lm = minimize(fit, &start.params, &cfg.lm, |p| {
         let train_mse = p.cost / (xs[0].len() * n_out).max(1) as f64;
-        let v = mse(&snapshot, p.params, &xv, &tv);
+        let v = mse(start, p.params, &xv, &tv);
         if xv.is_empty() || v < best.0 {
             best = (v, p.params.to_vec(), p.iteration);
             fails = 0;
