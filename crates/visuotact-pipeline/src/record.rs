@@ -193,9 +193,12 @@ pub enum RecordError {
     /// A capture or force thread stopped unexpectedly.
     #[error("the {0} thread stopped unexpectedly")]
     Thread(&'static str),
-    /// The [`RecordObserver`] failed (its message).
+    /// The [`RecordObserver`] failed (its error, as it says it).
     #[error("{0}")]
-    Observer(String),
+    Observer(#[source] ObserverError),
+    /// A thread panicked while it held the [`RecordObserver`].
+    #[error("a thread panicked while writing")]
+    ObserverPanicked,
     /// The recording ended without a frame written (the session says so too).
     #[error("nothing recorded: {0}")]
     NothingRecorded(String),
@@ -254,19 +257,23 @@ pub struct RecordedRow<'a> {
     pub estimates: Option<(&'a [String], &'a [f64])>,
 }
 
+/// What a [`RecordObserver`] fails with: its own error type, kept whole (message and source
+/// chain) in [`RecordError::Observer`].
+pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
+
 /// Hears of what a recording writes as it writes it — a bag writer, a monitor. Frames come
 /// from the recording thread, force samples from the force receiver's, each after its row is
 /// written. The first error ends the recording as a failed write would.
 pub trait RecordObserver: Send {
     /// The recording starts; its clock's zero is `started_unix_s` (UNIX time, s).
-    fn start(&mut self, started_unix_s: f64) -> Result<(), String> {
+    fn start(&mut self, started_unix_s: f64) -> Result<(), ObserverError> {
         let _ = started_unix_s;
         Ok(())
     }
     /// A frame's rows were written.
-    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), String>;
+    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), ObserverError>;
     /// A force sample was written (its `timestamp_s` on the session clock).
-    fn force(&mut self, sample: &ForceSample) -> Result<(), String>;
+    fn force(&mut self, sample: &ForceSample) -> Result<(), ObserverError>;
 }
 
 /// A [`RecordObserver`] shared by the recording and force threads.
@@ -274,14 +281,12 @@ pub type SharedObserver = Arc<Mutex<dyn RecordObserver>>;
 
 fn observe<T>(
     observer: Option<&SharedObserver>,
-    f: impl FnOnce(&mut dyn RecordObserver) -> Result<T, String>,
+    f: impl FnOnce(&mut dyn RecordObserver) -> Result<T, ObserverError>,
 ) -> Result<Option<T>, RecordError> {
     let Some(o) = observer else {
         return Ok(None);
     };
-    let mut guard = o
-        .lock()
-        .map_err(|_| RecordError::Observer("a thread panicked while writing".into()))?;
+    let mut guard = o.lock().map_err(|_| RecordError::ObserverPanicked)?;
     f(&mut *guard).map(Some).map_err(RecordError::Observer)
 }
 

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use visuotact_image::RgbImage;
 use visuotact_io::force::ForceSample;
 use visuotact_pipeline::live::MarkerView;
-use visuotact_pipeline::record::{RecordObserver, RecordedRow};
+use visuotact_pipeline::record::{ObserverError, RecordObserver, RecordedRow};
 use visuotact_pipeline::runner::Sink;
 use visuotact_pipeline::LiveEstimate;
 
@@ -245,21 +245,21 @@ impl McapRecorder {
 }
 
 impl RecordObserver for McapRecorder {
-    fn start(&mut self, started_unix_s: f64) -> Result<(), String> {
+    fn start(&mut self, started_unix_s: f64) -> Result<(), ObserverError> {
         self.origin_unix_s = started_unix_s;
         Ok(())
     }
 
-    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), String> {
-        self.write_row(row).map_err(|e| e.to_string())
+    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), ObserverError> {
+        Ok(self.write_row(row)?)
     }
 
-    fn force(&mut self, sample: &ForceSample) -> Result<(), String> {
+    fn force(&mut self, sample: &ForceSample) -> Result<(), ObserverError> {
         let frame = FrameMessages {
             stamp_ns: ns_from_s(self.origin_unix_s + sample.timestamp_s),
             measured: Some(sample.values),
             ..FrameMessages::default()
         };
-        write_frame(&mut self.bag, &self.cfg, frame).map_err(|e| e.to_string())
+        Ok(write_frame(&mut self.bag, &self.cfg, frame)?)
     }
 }
