@@ -785,17 +785,17 @@ pub fn settle_for(samples: usize) -> Option<Settle> {
 /// The trainer's settings for `cfg`: its algorithm's, with its epochs, seed and subsets.
 fn train_config(cfg: &FitConfig, samples: usize) -> TrainConfig {
     let base = TrainConfig::of(cfg.algorithm);
-    let trainer = match base.trainer {
-        // Adam's epochs are cheap passes that its own stop ends; it keeps its own cap too.
-        Trainer::Adam(adam) => {
-            Trainer::Adam(adam).with_max_epochs(cfg.max_epochs.min(adam.max_epochs))
-        }
+    // Adam's epochs are cheap passes that its own stop ends; it keeps its own cap too.
+    let most = match base.trainer {
+        Trainer::Adam(adam) => cfg.max_epochs.min(adam.max_epochs),
+        Trainer::Lm(_) | Trainer::Br(_) => cfg.max_epochs,
+    };
+    let trainer = match base.trainer.with_max_epochs(most) {
         Trainer::Br(br) => Trainer::Br(BrTraining {
             settle: br.settle.and(settle_for(samples)),
             ..br
-        })
-        .with_max_epochs(cfg.max_epochs),
-        Trainer::Lm(_) => base.trainer.with_max_epochs(cfg.max_epochs),
+        }),
+        other => other,
     };
     TrainConfig {
         trainer,
