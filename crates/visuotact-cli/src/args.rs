@@ -486,8 +486,8 @@ pub(crate) struct RosArgs {
 }
 
 impl RosArgs {
-    pub(crate) fn config(&self, images: bool) -> visuotact_ros::RosConfig {
-        visuotact_ros::RosConfig {
+    pub(crate) fn config(&self, images: bool) -> visuotact_pipeline::output::OutputConfig {
+        visuotact_pipeline::output::OutputConfig {
             namespace: self.namespace.clone(),
             frame_id: self.frame_id.clone(),
             images,

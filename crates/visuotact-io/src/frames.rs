@@ -259,6 +259,23 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), FrameError> {
     out.finish().map_err(|e| failed(e.to_string()))
 }
 
+/// An RGB image as PNG bytes, encoded fast (live outputs send one per frame).
+pub fn png_bytes_from_rgb(img: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
+    let mut out = Vec::new();
+    image::ImageEncoder::write_image(
+        image::codecs::png::PngEncoder::new_with_quality(
+            &mut out,
+            image::codecs::png::CompressionType::Fast,
+            image::codecs::png::FilterType::Sub,
+        ),
+        img.as_slice(),
+        u32::try_from(img.width()).unwrap_or(u32::MAX),
+        u32::try_from(img.height()).unwrap_or(u32::MAX),
+        image::ExtendedColorType::Rgb8,
+    )?;
+    Ok(out)
+}
+
 /// Size and rate of a video, from `ffprobe`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VideoInfo {

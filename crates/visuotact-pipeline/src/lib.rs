@@ -48,8 +48,11 @@
 //! figures per target, contact distance D, plot and map points), `slip` (slip over time: the
 //! field's signals summed up per sequence, a logistic detector giving each frame `stick`,
 //! `incipient` or `slip` and each sequence a verdict and onset; `SlipMonitor` for the live loop,
-//! fitting on labelled videos and cross-validation by object beside two baselines). No clap, axum or tokio: the
-//! CLI, the Python package and live runners call it
+//! fitting on labelled videos and cross-validation by object beside two baselines), `output`
+//! (a frame's parts — targets, contact, force, marker cloud, image, health, slip — and the
+//! `FrameTarget` every output writes them to; `LiveSink`, the runner's sink into any target),
+//! `session_export` (a recorded session folder as frame parts into any target). No clap,
+//! axum or tokio: the CLI, the Python package and live runners call it
 
 pub mod calibrate;
 pub mod dataset;
@@ -57,11 +60,13 @@ pub mod estimator;
 pub mod evaluation;
 pub mod extract;
 pub mod live;
+pub mod output;
 pub mod record;
 pub mod replay;
 mod rig;
 pub mod runner;
 pub mod schema;
+pub mod session_export;
 pub mod several;
 pub mod slip;
 pub mod table;

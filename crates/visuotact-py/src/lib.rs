@@ -829,19 +829,19 @@ fn export_mcap<'py>(
     images: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let cfg = visuotact_ros::ExportConfig {
-        ros: visuotact_ros::RosConfig {
+    let cfg = visuotact_pipeline::session_export::ExportConfig {
+        output: visuotact_pipeline::output::OutputConfig {
             namespace,
             frame_id,
             images,
         },
         sensor,
         start_unix_s,
-        ..Default::default()
     };
+    let bag = visuotact_ros::BagConfig::default();
     let mut cb = progress_of(progress);
     let s = py
-        .detach(|| visuotact_ros::export_mcap(&session, &output, &cfg, &mut cb))
+        .detach(|| visuotact_ros::export_mcap(&session, &output, (&cfg, &bag), &mut cb))
         .map_err(error)?;
     let d = PyDict::new(py);
     d.set_item("path", s.path)?;

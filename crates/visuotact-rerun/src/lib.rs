@@ -19,7 +19,7 @@
 //! | `NS/slip`, `NS/slip/state` | `Scalars` | the slip score (0 to 1) and state (0 stick, 1 incipient, 2 slip): live runs with `--slip` |
 //! | `NS/health/found`, `NS/health/lost` | `Scalars` | markers found and lost |
 //!
-//! The parts are the frame parts every other output writes ([`FrameMessages`]): the values
+//! The parts are the frame parts every other output writes ([`FrameParts`]): the values
 //! are those of the JSON lines, the bags and the session's tables. Test:
 //! `crates/visuotact-cli/tests/rerun.rs` reads the files back with the `rerun-sdk` Python
 //! package's dataframe API and compares them with the session tables.
@@ -27,17 +27,17 @@
 //! ## Modules and what each owns
 //!
 //! One file: [`RerunTarget`] (a [`FrameTarget`]: frame parts → Rerun archetypes), the live
-//! sink [`RerunSink`] and [`export_rerun`]. Depends on ros (frame parts, session export) and
-//! pipeline; no clap.
+//! sink [`RerunSink`] and [`export_rerun`]. Depends on pipeline (frame parts, the live sink,
+//! the session export); no clap.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use rerun::{Arrows2D, Color, EncodedImage, Points2D, RecordingStream, Scalars};
-use visuotact_ros::export::ExportConfig;
-use visuotact_ros::sink::LiveSink;
-use visuotact_ros::topics::WRENCH_TARGETS;
-use visuotact_ros::{FrameMessages, FrameTarget, RosConfig, RosError, SessionExport};
+use visuotact_pipeline::output::{
+    FrameParts, FrameTarget, LiveSink, OutputConfig, OutputError, WRENCH_TARGETS,
+};
+use visuotact_pipeline::session_export::{ExportConfig, SessionExport};
 
 /// The application id the recordings carry.
 pub const APPLICATION_ID: &str = "visuotact";
@@ -82,8 +82,25 @@ impl RerunOutput {
 #[error("expects a recording file FILE.rrd or a viewer's HOST:PORT, got `{0}`")]
 pub struct BadOutput(pub String);
 
-fn target_err(e: impl std::fmt::Display) -> RosError {
-    RosError::Target(format!("Rerun: {e}"))
+/// Why a recording could not be made, written or closed.
+#[derive(Debug, thiserror::Error)]
+pub enum RerunError {
+    /// A file could not be read or written.
+    #[error("{}: {}", .0.display(), .1)]
+    Io(PathBuf, #[source] std::io::Error),
+    /// The output exists already.
+    #[error("{}: already exists; choose a new name", .0.display())]
+    Exists(PathBuf),
+    /// The Rerun SDK failed, or the recording did not read back whole.
+    #[error("Rerun: {0}")]
+    Recording(String),
+    /// Reading the session or writing a frame's parts failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+fn target_err(e: impl std::fmt::Display) -> RerunError {
+    RerunError::Recording(e.to_string())
 }
 
 /// A Rerun recording stream taking frame parts.
@@ -100,16 +117,16 @@ impl RerunTarget {
     /// A recording into `output`: a new `.rrd` file (an existing one is refused), written
     /// under a temporary name beside it and renamed when whole ([`RerunTarget::finish`]), or a
     /// viewer.
-    pub fn open(output: RerunOutput) -> Result<Self, RosError> {
+    pub fn open(output: RerunOutput) -> Result<Self, RerunError> {
         let builder = rerun::RecordingStreamBuilder::new(APPLICATION_ID);
         let mut temp = None;
         let rec = match &output {
             RerunOutput::File(p) => {
                 if p.symlink_metadata().is_ok() {
-                    return Err(RosError::Exists(p.clone()));
+                    return Err(RerunError::Exists(p.clone()));
                 }
                 let t = visuotact_io::output::TempBeside::new(p)
-                    .map_err(|e| RosError::Io(p.clone(), e))?;
+                    .map_err(|e| RerunError::Io(p.clone(), e))?;
                 let rec = builder
                     .save(t.path())
                     .map_err(|e| target_err(format!("{}: {e}", p.display())))?;
@@ -143,17 +160,17 @@ impl RerunTarget {
 
     /// Flushes and closes the recording; a file is read back whole and only then renamed onto
     /// its name (otherwise the temporary file is removed and nothing is left there).
-    pub fn finish(self) -> Result<u64, RosError> {
+    pub fn finish(self) -> Result<u64, RerunError> {
         self.rec.flush_blocking();
         self.rec.disconnect();
         if let (RerunOutput::File(p), Some(t)) = (self.output, self.temp) {
             verify_recording(t.path(), &p)?;
-            t.land(&p).map_err(|e| RosError::Io(p.clone(), e))?;
+            t.land(&p).map_err(|e| RerunError::Io(p.clone(), e))?;
         }
         Ok(self.frames)
     }
 
-    fn log(&self, path: String, what: &impl rerun::AsComponents) -> Result<(), RosError> {
+    fn log(&self, path: String, what: &impl rerun::AsComponents) -> Result<(), RerunError> {
         self.rec.log(path, what).map_err(target_err)
     }
 }
@@ -167,7 +184,13 @@ fn colour([r, g, b]: [u8; 3]) -> Color {
 }
 
 impl FrameTarget for RerunTarget {
-    fn write_frame(&mut self, cfg: &RosConfig, f: FrameMessages<'_>) -> Result<(), RosError> {
+    fn write_frame(&mut self, cfg: &OutputConfig, f: FrameParts<'_>) -> Result<(), OutputError> {
+        self.write_parts(cfg, f).map_err(OutputError::target)
+    }
+}
+
+impl RerunTarget {
+    fn write_parts(&mut self, cfg: &OutputConfig, f: FrameParts<'_>) -> Result<(), RerunError> {
         let ns = cfg.namespace.trim_end_matches('/');
         match f.index {
             Some(k) => self
@@ -244,16 +267,16 @@ impl FrameTarget for RerunTarget {
 }
 
 /// A live run's estimates logged to Rerun: a [`LiveSink`] (a `Sink` of the live runner),
-/// stamped on the wall clock like [`visuotact_ros::McapSink`].
+/// stamped on the wall clock.
 pub type RerunSink = LiveSink<RerunTarget>;
 
 /// A live run into `output` under `cfg` (`cfg.images`: the frames too, PNG-encoded).
-pub fn rerun_sink(output: RerunOutput, cfg: RosConfig) -> Result<RerunSink, RosError> {
-    LiveSink::new(RerunTarget::open(output)?, cfg)
+pub fn rerun_sink(output: RerunOutput, cfg: OutputConfig) -> Result<RerunSink, RerunError> {
+    Ok(LiveSink::new(RerunTarget::open(output)?, cfg)?)
 }
 
 /// Closes a live run's recording: frames logged, or the run's first error.
-pub fn finish_sink(sink: RerunSink) -> Result<u64, RosError> {
+pub fn finish_sink(sink: RerunSink) -> Result<u64, RerunError> {
     sink.finish_with(RerunTarget::finish)
 }
 
@@ -273,7 +296,7 @@ pub struct RerunExport {
 /// to its last byte, ending in the stream's end marker (a 16-byte header of kind 0, length 0) —
 /// is the error here, never "wrote x.rrd". `p` is read; errors give it `name`. Returns the
 /// messages it holds.
-fn verify_recording(p: &Path, name: &Path) -> Result<u64, RosError> {
+fn verify_recording(p: &Path, name: &Path) -> Result<u64, RerunError> {
     use rerun::external::re_log_encoding::decoder::Decoder;
     use std::io::{Read, Seek};
     let bad = |why: String| target_err(format!("{}: {why}", name.display()));
@@ -305,14 +328,14 @@ fn verify_recording(p: &Path, name: &Path) -> Result<u64, RosError> {
 }
 
 /// Exports `session` into a new `.rrd` file at `out`, the parts `export mcap` writes
-/// ([`SessionExport`]); `progress(done, total)` may stop it ([`RosError::Stopped`]). A failed
+/// ([`SessionExport`]); `progress(done, total)` may stop it ([`OutputError::Stopped`]). A failed
 /// or stopped export removes the file.
 pub fn export_rerun(
     session: &Path,
     out: &Path,
     cfg: &ExportConfig,
     progress: &mut dyn FnMut(usize, usize) -> ControlFlow<()>,
-) -> Result<RerunExport, RosError> {
+) -> Result<RerunExport, RerunError> {
     let plan = SessionExport::read(session, cfg)?;
     let mut target = RerunTarget::open(RerunOutput::File(out.to_path_buf()))?;
     // A failed or stopped export never renames its temporary file onto `out`: nothing to remove.
@@ -320,7 +343,7 @@ pub fn export_rerun(
         Ok(_) => target.finish()?,
         Err(e) => {
             target.abandon();
-            return Err(e);
+            return Err(e.into());
         }
     };
     Ok(RerunExport {

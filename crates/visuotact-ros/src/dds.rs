@@ -24,15 +24,16 @@ use rustdds::{
 };
 
 use crate::msg::RosMessage;
-use crate::sink::LiveSink;
-use crate::topics::{declare_sensor_topics, typed_entry, Declare, Publish, RosConfig};
+use visuotact_pipeline::output::{FrameParts, FrameTarget, LiveSink, OutputConfig, OutputError};
+
+use crate::topics::{declare_sensor_topics, typed_entry, write_frame, Declare, Publish};
 use crate::RosError;
 
 /// Where and how the live topics are published.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DdsConfig {
     /// Topics and frames.
-    pub ros: RosConfig,
+    pub ros: OutputConfig,
     /// DDS domain (ROS 2's `ROS_DOMAIN_ID`).
     pub domain_id: u16,
     /// The network interface's address to publish on (`None`: loopback only).
@@ -44,9 +45,9 @@ pub struct DdsConfig {
 impl Default for DdsConfig {
     fn default() -> Self {
         Self {
-            ros: RosConfig {
+            ros: OutputConfig {
                 images: false,
-                ..RosConfig::default()
+                ..OutputConfig::default()
             },
             domain_id: 0,
             network: None,
@@ -199,6 +200,12 @@ impl Declare for DdsPublisher {
     }
 }
 
+impl FrameTarget for DdsPublisher {
+    fn write_frame(&mut self, cfg: &OutputConfig, f: FrameParts<'_>) -> Result<(), OutputError> {
+        write_frame(self, cfg, f).map_err(OutputError::target)
+    }
+}
+
 impl Publish for DdsPublisher {
     fn publish<M: RosMessage>(
         &mut self,
@@ -220,17 +227,15 @@ impl Publish for DdsPublisher {
 /// of the live runner, stamped on the wall clock like [`crate::McapSink`].
 pub type DdsSink = LiveSink<DdsPublisher>;
 
-impl LiveSink<DdsPublisher> {
-    /// Joins the domain; stamps count from now.
-    pub fn create(cfg: &DdsConfig) -> Result<Self, RosError> {
-        cfg.ros.validate()?;
-        Self::new(DdsPublisher::new(cfg)?, cfg.ros.clone())
-    }
+/// Joins the domain; stamps count from now.
+pub fn dds_sink(cfg: &DdsConfig) -> Result<DdsSink, RosError> {
+    cfg.ros.validate()?;
+    Ok(LiveSink::new(DdsPublisher::new(cfg)?, cfg.ros.clone())?)
+}
 
-    /// Leaves the domain: the messages published, or the run's first error.
-    pub fn finish(self) -> Result<u64, RosError> {
-        self.finish_with(|out| Ok(out.messages))
-    }
+/// Leaves the domain: the messages published, or the run's first error.
+pub fn finish_dds(sink: DdsSink) -> Result<u64, RosError> {
+    sink.finish_with(|out| Ok(out.messages))
 }
 
 #[cfg(test)]

@@ -24,15 +24,16 @@ use foxglove::{
 };
 
 use crate::msg::RosMessage;
-use crate::sink::LiveSink;
-use crate::topics::{declare_sensor_topics, typed_entry, Declare, Publish, RosConfig};
+use visuotact_pipeline::output::{FrameParts, FrameTarget, LiveSink, OutputConfig, OutputError};
+
+use crate::topics::{declare_sensor_topics, typed_entry, write_frame, Declare, Publish};
 use crate::RosError;
 
 /// Where and how the live topics are served.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FoxgloveConfig {
     /// Topics and frames.
-    pub ros: RosConfig,
+    pub ros: OutputConfig,
     /// Address to listen on (port 0: any free port, see [`FoxglovePublisher::addr`]).
     pub addr: SocketAddr,
     /// Messages queued per client before its oldest are dropped.
@@ -49,9 +50,9 @@ impl FoxgloveConfig {
 impl Default for FoxgloveConfig {
     fn default() -> Self {
         Self {
-            ros: RosConfig {
+            ros: OutputConfig {
                 images: false,
-                ..RosConfig::default()
+                ..OutputConfig::default()
             },
             addr: SocketAddr::from(([127, 0, 0, 1], 8765)),
             backlog: 1024,
@@ -156,6 +157,12 @@ impl Drop for FoxglovePublisher {
     }
 }
 
+impl FrameTarget for FoxglovePublisher {
+    fn write_frame(&mut self, cfg: &OutputConfig, f: FrameParts<'_>) -> Result<(), OutputError> {
+        write_frame(self, cfg, f).map_err(OutputError::target)
+    }
+}
+
 impl Publish for FoxglovePublisher {
     fn publish<M: RosMessage>(
         &mut self,
@@ -176,24 +183,20 @@ impl Publish for FoxglovePublisher {
 /// of the live runner, stamped on the wall clock like [`crate::McapSink`].
 pub type FoxgloveSink = LiveSink<FoxglovePublisher>;
 
-impl LiveSink<FoxglovePublisher> {
-    /// Starts the server; stamps count from now.
-    pub fn create(cfg: &FoxgloveConfig) -> Result<Self, RosError> {
-        cfg.ros.validate()?;
-        Self::new(FoxglovePublisher::start(cfg)?, cfg.ros.clone())
-    }
+/// Starts the server; stamps count from now.
+pub fn foxglove_sink(cfg: &FoxgloveConfig) -> Result<FoxgloveSink, RosError> {
+    cfg.ros.validate()?;
+    Ok(LiveSink::new(
+        FoxglovePublisher::start(cfg)?,
+        cfg.ros.clone(),
+    )?)
+}
 
-    /// The address the server listens on.
-    pub fn addr(&self) -> SocketAddr {
-        self.target().addr()
-    }
-
-    /// Stops the server: the messages published, or the run's first error.
-    pub fn finish(self) -> Result<u64, RosError> {
-        self.finish_with(|out| {
-            let n = out.messages;
-            out.stop();
-            Ok(n)
-        })
-    }
+/// Stops the server: the messages published, or the run's first error.
+pub fn finish_foxglove(sink: FoxgloveSink) -> Result<u64, RosError> {
+    sink.finish_with(|out| {
+        let n = out.messages;
+        out.stop();
+        Ok(n)
+    })
 }

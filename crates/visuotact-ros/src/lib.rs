@@ -11,14 +11,16 @@
 //! ROS 2 without ROS: `cdr` (XCDR1 little-endian), `msg` (WrenchStamped, PointStamped, Bool,
 //! PointCloud2, CompressedImage, DiagnosticArray with their `ros2msg` schemas), `bag` (MCAP
 //! with the ROS 2 profile: one file or a rosbag2 folder with `metadata.yaml`; chunks flushed
-//! every second of stamps), `topics` (the documented topic mapping under a namespace), `sink`
-//! (`LiveSink`, a live runner `Sink` into any target, `McapSink` the one into a bag;
-//! `McapRecorder`, a recording's `RecordObserver`), `dds`
+//! every second of stamps), `topics` (the documented topic mapping under a namespace: frame
+//! parts → messages, and the `FrameTarget` of every ROS 2 target), `sink` (`McapSink`, the
+//! pipeline's `LiveSink` into a bag; `McapRecorder`, a recording's `RecordObserver`), `dds`
 //! (feature `dds`, default: `DdsSink` publishes the topics live with RustDDS, ROS 2 names and
 //! default QoS, loopback unless told an interface), `foxglove` (feature `foxglove`, default:
 //! `FoxgloveSink` serves the same topics live to the Foxglove app over its WebSocket protocol
 //! with the official `foxglove` crate, CDR with `ros2msg` schemas), `export` (a session folder
-//! → a bag, values copied from its tables). Depends on pipeline; no clap
+//! → a bag, read by the pipeline's `session_export`). Frame parts, `FrameTarget`, `LiveSink`
+//! and the session export live in the pipeline (`visuotact_pipeline::output`), shared with
+//! the Rerun crate. Depends on pipeline; no clap
 
 pub mod bag;
 pub mod cdr;
@@ -33,19 +35,14 @@ pub mod topics;
 
 use std::path::PathBuf;
 
-use image::ImageEncoder;
-
 pub use bag::{Bag, BagConfig};
 #[cfg(feature = "dds")]
-pub use dds::{DdsConfig, DdsSink};
-pub use export::{export_mcap, ExportConfig, ExportSummary, SessionExport};
+pub use dds::{dds_sink, finish_dds, DdsConfig, DdsSink};
+pub use export::{export_mcap, ExportSummary};
 #[cfg(feature = "foxglove")]
-pub use foxglove::{FoxgloveConfig, FoxgloveSink};
-pub use sink::{LiveSink, McapRecorder, McapSink};
-pub use topics::{
-    declare_frame_topics, declare_sensor_topics, Declare, FrameMessages, FrameTarget, MarkerPoint,
-    RosConfig,
-};
+pub use foxglove::{finish_foxglove, foxglove_sink, FoxgloveConfig, FoxgloveSink};
+pub use sink::{finish_mcap, mcap_sink, McapRecorder, McapSink};
+pub use topics::{declare_frame_topics, declare_sensor_topics, Declare};
 
 /// Errors of the ROS 2 outputs.
 #[derive(Debug, thiserror::Error)]
@@ -62,12 +59,6 @@ pub enum RosError {
     /// An unfinished bag of an earlier run holds the temporary name.
     #[error("{}: an unfinished bag of an earlier run (readable up to its last chunk; `mcap recover` rebuilds it): move or remove it first", .0.display())]
     Unfinished(PathBuf),
-    /// The session's `frames.csv` lists no frame: there is nothing to export.
-    #[error("{}: lists no frames: nothing to export", .0.display())]
-    NoFrames(PathBuf),
-    /// The progress callback stopped the export.
-    #[error("stopped after {0} frames: nothing written")]
-    Stopped(usize),
     /// A setting is out of range.
     #[error("{0}")]
     Config(String),
@@ -87,28 +78,7 @@ pub enum RosError {
     /// DDS (live publishing) failed.
     #[error("DDS: {0}")]
     Dds(String),
-    /// A frame could not be encoded.
-    #[error("encoding a frame as PNG: {0}")]
-    Encode(String),
-    /// Another frame target (a Rerun recording) failed.
-    #[error("{0}")]
-    Target(String),
-}
-
-/// A frame as PNG bytes.
-pub fn png_from_rgb(img: &visuotact_image::RgbImage) -> Result<Vec<u8>, RosError> {
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new_with_quality(
-        &mut out,
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Sub,
-    )
-    .write_image(
-        img.as_slice(),
-        u32::try_from(img.width()).unwrap_or(u32::MAX),
-        u32::try_from(img.height()).unwrap_or(u32::MAX),
-        image::ExtendedColorType::Rgb8,
-    )
-    .map_err(|e| RosError::Encode(e.to_string()))?;
-    Ok(out)
+    /// Reading a session or writing a frame's parts failed.
+    #[error(transparent)]
+    Output(#[from] visuotact_pipeline::output::OutputError),
 }

@@ -12,14 +12,16 @@
 //! | `NS/image/compressed` | `sensor_msgs/msg/CompressedImage` | the frame, PNG |
 //! | `/diagnostics` | `diagnostic_msgs/msg/DiagnosticArray` | marker health: one status named `NS: markers`, level OK, WARN (markers lost or filled, reference under contact) or ERROR (none found) |
 //!
-//! `NS` is [`RosConfig::namespace`] (`/visuotact`; one per sensor when several run side by
-//! side). Frames: the wrench and contact are in the sensor frame [`RosConfig::frame_id`]
+//! `NS` is [`OutputConfig::namespace`] (`/visuotact`; one per sensor when several run side by
+//! side). Frames: the wrench and contact are in the sensor frame [`OutputConfig::frame_id`]
 //! (origin and x, y axes as the sensor's labels define them — for seed 000's membrane its
 //! centre, x and y in the skin plane — z out of the skin), the marker cloud and image in
 //! `FRAME_ID/image` (x right, y down, pixels). Stamps: each frame's timestamp.
 
 use visuotact_pipeline::live::{Health, TargetEstimate};
-use visuotact_pipeline::slip::SlipEstimate;
+use visuotact_pipeline::output::{
+    FrameParts, FrameTarget, MarkerPoint, OutputConfig, OutputError, WRENCH_TARGETS,
+};
 
 use crate::bag::Bag;
 use crate::msg::{
@@ -27,142 +29,6 @@ use crate::msg::{
     PointField, PointStamped, RosMessage, StringMsg, WrenchStamped, FLOAT32, UINT8,
 };
 use crate::RosError;
-
-/// Topic names and frames.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RosConfig {
-    /// Topic namespace, e.g. `/visuotact` or `/left_finger`.
-    pub namespace: String,
-    /// The sensor frame's `frame_id`.
-    pub frame_id: String,
-    /// Also publish each frame as a PNG `CompressedImage`.
-    pub images: bool,
-}
-
-impl Default for RosConfig {
-    fn default() -> Self {
-        Self {
-            namespace: "/visuotact".into(),
-            frame_id: "visuotact".into(),
-            images: true,
-        }
-    }
-}
-
-impl RosConfig {
-    /// Checks the namespace and frame: a namespace starts with `/` and holds letters, digits,
-    /// `_` and `/` (ROS 2 name rules), a frame is not empty.
-    pub fn validate(&self) -> Result<(), RosError> {
-        let ns = &self.namespace;
-        let ok = ns.starts_with('/')
-            && !ns.ends_with('/')
-            && !ns.contains("//")
-            && ns[1..]
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/');
-        if !ok {
-            return Err(RosError::Config(format!(
-                "namespace {ns:?}: expected `/name` (letters, digits, `_`, `/`), e.g. /visuotact"
-            )));
-        }
-        if self.frame_id.is_empty() {
-            return Err(RosError::Config("frame_id is empty".into()));
-        }
-        Ok(())
-    }
-
-    /// `NS/suffix`.
-    pub fn topic(&self, suffix: &str) -> String {
-        format!("{}/{suffix}", self.namespace)
-    }
-
-    /// The configuration of sensor `name` in a run of several: its topics under `NS/name`,
-    /// its frame `frame_id_name`.
-    pub fn for_sensor(&self, name: &str) -> Self {
-        Self {
-            namespace: format!("{}/{name}", self.namespace),
-            frame_id: format!("{}_{name}", self.frame_id),
-            images: self.images,
-        }
-    }
-}
-
-/// The configuration of each sensor a live sink has seen (made once per name): the base for
-/// estimates without a sensor name, [`RosConfig::for_sensor`] for those with one.
-#[derive(Clone, Debug)]
-pub struct SensorConfigs {
-    base: RosConfig,
-    named: Vec<(String, RosConfig)>,
-}
-
-impl SensorConfigs {
-    /// Every sensor under `base`.
-    pub fn new(base: RosConfig) -> Self {
-        Self {
-            base,
-            named: Vec::new(),
-        }
-    }
-
-    /// The configuration for an estimate of `sensor`.
-    pub fn get(&mut self, sensor: Option<&str>) -> &RosConfig {
-        let Some(name) = sensor else {
-            return &self.base;
-        };
-        let at = match self.named.iter().position(|(n, _)| n == name) {
-            Some(k) => k,
-            None => {
-                self.named
-                    .push((name.to_string(), self.base.for_sensor(name)));
-                self.named.len() - 1
-            }
-        };
-        &self.named[at].1
-    }
-}
-
-/// One marker of the cloud.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MarkerPoint {
-    /// Reference position, pixels.
-    pub x_px: f32,
-    /// Reference position, pixels.
-    pub y_px: f32,
-    /// Displacement, pixels (NaN when lost).
-    pub dx_px: f32,
-    /// Displacement, pixels (NaN when lost).
-    pub dy_px: f32,
-    /// Found this frame.
-    pub found: bool,
-}
-
-/// What one frame publishes; absent parts publish nothing.
-#[derive(Clone, Debug, Default)]
-pub struct FrameMessages<'a> {
-    /// Nanoseconds since the UNIX epoch.
-    pub stamp_ns: u64,
-    /// The frame's place in its run or session (`None` for a force sample between frames).
-    pub index: Option<u64>,
-    /// Estimated targets (`fx_n`, `x_mm`, `depth_mm`, …).
-    pub targets: &'a [TargetEstimate],
-    /// The contact rule's verdict (live).
-    pub contact: Option<bool>,
-    /// Measured force and torque.
-    pub measured: Option<[f64; 6]>,
-    /// Marker cloud.
-    pub markers: Option<&'a [MarkerPoint]>,
-    /// The sensor's scale: the marker cloud then also carries its displacements in mm.
-    pub mm_per_px: Option<f64>,
-    /// The frame, PNG-encoded.
-    pub png: Option<Vec<u8>>,
-    /// Marker health and the figures to report with it.
-    pub health: Option<(&'a Health, Vec<(String, String)>)>,
-    /// The slip score and state (live runs with a slip detector).
-    pub slip: Option<SlipEstimate>,
-}
-
-/// The force/torque axes as target names.
-pub const WRENCH_TARGETS: [&str; 6] = ["fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"];
 
 /// The wrench among `targets` (NaN for axes not estimated); `None` when none is.
 pub fn wrench_from_targets(targets: &[TargetEstimate]) -> Option<[f64; 6]> {
@@ -244,7 +110,7 @@ pub fn marker_cloud(
 
 /// The marker health as one diagnostic status.
 pub fn health_status(
-    cfg: &RosConfig,
+    cfg: &OutputConfig,
     h: &Health,
     mut values: Vec<(String, String)>,
 ) -> DiagnosticStatus {
@@ -329,7 +195,7 @@ pub trait Declare {
 
 /// Declares every topic [`write_frame`] may publish under `cfg`: wrench, measured wrench,
 /// contact, contact rule, marker cloud, the frames when `cfg.images`, and `/diagnostics`.
-pub fn declare_frame_topics<D: Declare>(d: &mut D, cfg: &RosConfig) -> Result<(), RosError> {
+pub fn declare_frame_topics<D: Declare>(d: &mut D, cfg: &OutputConfig) -> Result<(), RosError> {
     d.declare::<WrenchStamped>(&cfg.topic("wrench"))?;
     d.declare::<WrenchStamped>(&cfg.topic("ft_sensor/wrench"))?;
     d.declare::<PointStamped>(&cfg.topic("contact"))?;
@@ -344,10 +210,10 @@ pub fn declare_frame_topics<D: Declare>(d: &mut D, cfg: &RosConfig) -> Result<()
 }
 
 /// Declares the topics of one sensor under `cfg` (`sensors` empty) or of each sensor of a run
-/// of several under [`RosConfig::for_sensor`].
+/// of several under [`OutputConfig::for_sensor`].
 pub fn declare_sensor_topics<D: Declare>(
     d: &mut D,
-    cfg: &RosConfig,
+    cfg: &OutputConfig,
     sensors: &[String],
 ) -> Result<(), RosError> {
     if sensors.is_empty() {
@@ -359,24 +225,17 @@ pub fn declare_sensor_topics<D: Declare>(
     Ok(())
 }
 
-/// Where whole frames go: every [`Publish`] target as ROS 2 messages ([`write_frame`]), or
-/// another format that takes a frame's parts as they are (a Rerun recording).
-pub trait FrameTarget {
-    /// Writes one frame's parts under `cfg`'s namespace.
-    fn write_frame(&mut self, cfg: &RosConfig, frame: FrameMessages<'_>) -> Result<(), RosError>;
-}
-
-impl<P: Publish> FrameTarget for P {
-    fn write_frame(&mut self, cfg: &RosConfig, frame: FrameMessages<'_>) -> Result<(), RosError> {
-        write_frame(self, cfg, frame)
+impl FrameTarget for Bag {
+    fn write_frame(&mut self, cfg: &OutputConfig, f: FrameParts<'_>) -> Result<(), OutputError> {
+        write_frame(self, cfg, f).map_err(OutputError::target)
     }
 }
 
 /// Publishes one frame's messages to `bag` (or any [`Publish`]).
 pub fn write_frame<P: Publish>(
     bag: &mut P,
-    cfg: &RosConfig,
-    f: FrameMessages<'_>,
+    cfg: &OutputConfig,
+    f: FrameParts<'_>,
 ) -> Result<(), RosError> {
     let at = f.stamp_ns;
     let header = || Header::at_ns(at, &cfg.frame_id);
@@ -432,18 +291,10 @@ pub fn write_frame<P: Publish>(
     Ok(())
 }
 
-/// Nanoseconds since the UNIX epoch from seconds (clamped at 0).
-pub fn ns_from_s(s: f64) -> u64 {
-    if s.is_finite() && s > 0.0 {
-        (s * 1e9).round() as u64
-    } else {
-        0
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use visuotact_pipeline::slip::SlipEstimate;
 
     fn f32_at(data: &[u8], at: usize) -> f32 {
         f32::from_le_bytes(data[at..at + 4].try_into().unwrap())
@@ -489,12 +340,12 @@ mod tests {
         }];
         let health = Health::default();
         for images in [true, false] {
-            let cfg = RosConfig {
+            let cfg = OutputConfig {
                 images,
-                ..RosConfig::default()
+                ..OutputConfig::default()
             }
             .for_sensor("left");
-            let frame = FrameMessages {
+            let frame = FrameParts {
                 targets: &targets,
                 contact: Some(true),
                 measured: Some([0.0; 6]),
@@ -506,7 +357,7 @@ mod tests {
                     score: 0.7,
                     field: Default::default(),
                 }),
-                ..FrameMessages::default()
+                ..FrameParts::default()
             };
             let (mut published, mut declared) = (Seen::default(), Seen::default());
             write_frame(&mut published, &cfg, frame).unwrap();

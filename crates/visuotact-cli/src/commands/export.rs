@@ -5,6 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
+use visuotact_pipeline::output::OutputError;
+use visuotact_pipeline::session_export::ExportConfig;
+use visuotact_rerun::RerunError;
+use visuotact_ros::RosError;
+
 use crate::progress::Reporter;
 
 #[derive(clap::Args, Debug)]
@@ -139,23 +144,23 @@ fn lerobot(l: &Lerobot) -> anyhow::Result<()> {
 }
 
 /// The export's settings, its output checked not to overwrite an input.
-fn session_export(m: &Mcap) -> anyhow::Result<visuotact_ros::ExportConfig> {
+fn session_export(m: &Mcap) -> anyhow::Result<ExportConfig> {
     let mut inputs = vec![m.session.as_path()];
     inputs.extend(m.sensor.as_deref());
     visuotact_io::guard::refuse_output_over_input(&m.output, &inputs)?;
-    Ok(visuotact_ros::ExportConfig {
-        ros: m.ros.config(!m.no_images),
+    Ok(ExportConfig {
+        output: m.ros.config(!m.no_images),
         sensor: m.sensor.clone(),
         start_unix_s: m.start_unix_s,
-        ..Default::default()
     })
 }
 
-/// An export's error; Ctrl-C says what was not written.
-fn ros_error(e: visuotact_ros::RosError, m: &Mcap) -> anyhow::Error {
-    match e {
-        visuotact_ros::RosError::Stopped(n) => interrupted(n, &m.output),
-        e => e.into(),
+/// An export's error (`stopped`: the frames written when Ctrl-C stopped it, which then says
+/// what was not written).
+fn export_error(e: impl Into<anyhow::Error>, stopped: Option<usize>, m: &Mcap) -> anyhow::Error {
+    match stopped {
+        Some(n) => interrupted(n, &m.output),
+        None => e.into(),
     }
 }
 
@@ -172,7 +177,13 @@ fn rerun(m: &Mcap) -> anyhow::Result<()> {
     let s = visuotact_rerun::export_rerun(&m.session, &m.output, &cfg, &mut |done, total| {
         r.items(done, Some(total), "frames")
     })
-    .map_err(|e| ros_error(e, m))?;
+    .map_err(|e| {
+        let stopped = match &e {
+            RerunError::Output(OutputError::Stopped(n)) => Some(*n),
+            _ => None,
+        };
+        export_error(e, stopped, m)
+    })?;
     session_notes(m, &s.notes);
     note!("wrote {} ({} frames)", s.path.display(), s.frames);
     Ok(())
@@ -181,10 +192,17 @@ fn rerun(m: &Mcap) -> anyhow::Result<()> {
 fn mcap(m: &Mcap) -> anyhow::Result<()> {
     let cfg = session_export(m)?;
     let r = reporter(m.quiet);
-    let s = visuotact_ros::export_mcap(&m.session, &m.output, &cfg, &mut |done, total| {
+    let bag = visuotact_ros::BagConfig::default();
+    let s = visuotact_ros::export_mcap(&m.session, &m.output, (&cfg, &bag), &mut |done, total| {
         r.items(done, Some(total), "frames")
     })
-    .map_err(|e| ros_error(e, m))?;
+    .map_err(|e| {
+        let stopped = match &e {
+            RosError::Output(OutputError::Stopped(n)) => Some(*n),
+            _ => None,
+        };
+        export_error(e, stopped, m)
+    })?;
     session_notes(m, &s.notes);
     note!(
         "wrote {} ({} frames, {} messages)",

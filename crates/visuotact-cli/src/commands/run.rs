@@ -10,7 +10,10 @@ use visuotact_io::camera::CameraRequest;
 use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
 use visuotact_pipeline::several::{check_sensor_names, run_several, NamedSensor, RunFile};
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
-use visuotact_ros::{BagConfig, DdsConfig, DdsSink, FoxgloveConfig, FoxgloveSink, McapSink};
+use visuotact_ros::{
+    dds_sink, finish_dds, finish_foxglove, finish_mcap, foxglove_sink, mcap_sink, BagConfig,
+    DdsConfig, DdsSink, FoxgloveConfig, FoxgloveSink, McapSink,
+};
 
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct Args {
@@ -213,7 +216,7 @@ fn ros_sinks(a: &Args, sensors: &[String]) -> anyhow::Result<(Option<McapSink>, 
         .mcap
         .as_deref()
         .map(|p| {
-            McapSink::create(
+            mcap_sink(
                 p,
                 a.bag.ros.config(a.bag.mcap_images),
                 &BagConfig::default(),
@@ -224,7 +227,7 @@ fn ros_sinks(a: &Args, sensors: &[String]) -> anyhow::Result<(Option<McapSink>, 
     let dds = a
         .ros2
         .then(|| {
-            DdsSink::create(&DdsConfig {
+            dds_sink(&DdsConfig {
                 ros: a.bag.ros.config(false),
                 domain_id: a.ros_domain_id,
                 network: a.ros_network,
@@ -238,11 +241,11 @@ fn ros_sinks(a: &Args, sensors: &[String]) -> anyhow::Result<(Option<McapSink>, 
 
 fn finish_ros_sinks(mcap: Option<McapSink>, dds: Option<DdsSink>) -> anyhow::Result<()> {
     if let Some(m) = mcap {
-        let (path, n) = m.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+        let (path, n) = finish_mcap(m).map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
         note!("wrote {} ({n} messages)", path.display());
     }
     if let Some(d) = dds {
-        let n = d.finish().map_err(|e| anyhow::anyhow!("--ros2 {e}"))?;
+        let n = finish_dds(d).map_err(|e| anyhow::anyhow!("--ros2 {e}"))?;
         note!("published {n} messages over DDS");
     }
     Ok(())
@@ -400,7 +403,7 @@ impl Outputs {
         let foxglove = a
             .foxglove
             .map(|addr| {
-                FoxgloveSink::create(&FoxgloveConfig {
+                foxglove_sink(&FoxgloveConfig {
                     ros: a.bag.ros.config(a.foxglove_images),
                     addr,
                     sensors: sensors.to_vec(),
@@ -412,7 +415,7 @@ impl Outputs {
         if let Some(f) = &foxglove {
             note!(
                 "foxglove: serving ws://{} (Foxglove: Open connection → Foxglove WebSocket)",
-                f.addr()
+                f.target().addr()
             );
         }
         let rerun = a
@@ -473,7 +476,7 @@ impl Outputs {
         drop(self.stdout);
         finish_ros_sinks(self.mcap, self.dds)?;
         if let Some(f) = self.foxglove {
-            let n = f.finish().map_err(|e| anyhow::anyhow!("--foxglove {e}"))?;
+            let n = finish_foxglove(f).map_err(|e| anyhow::anyhow!("--foxglove {e}"))?;
             note!("served {n} messages to Foxglove");
         }
         if let Some(r) = self.rerun {
