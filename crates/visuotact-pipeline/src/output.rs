@@ -1,5 +1,6 @@
 //! A frame's parts and where they go: the one mapping every output shares. A live run's
-//! estimate ([`LiveSink`], a [`Sink`] of the runner) or a recorded session's rows
+//! estimate ([`LiveSink`], a [`Sink`] of the runner), a recording's rows as they are written
+//! ([`RecordingTarget`], a [`RecordObserver`]) or a recorded session's tables
 //! ([`crate::session_export`]) become [`FrameParts`] — the targets, the contact rule, the
 //! measured force, the marker cloud, the image, the health, the slip state — and a
 //! [`FrameTarget`] writes them: as ROS 2 messages into a bag, over DDS or to Foxglove (crate
@@ -11,9 +12,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use visuotact_image::RgbImage;
+use visuotact_io::force::ForceSample;
+use visuotact_vision::calibration::SensorCalibration;
 
 use crate::live::{Health, MarkerView, TargetEstimate};
+use crate::record::{ObserverError, RecordObserver, RecordedRow};
 use crate::runner::Sink;
+use crate::session_export::{targets_from_row, MarkerColumns};
 use crate::slip::SlipEstimate;
 use crate::LiveEstimate;
 
@@ -335,5 +340,94 @@ impl<P: FrameTarget> Sink for LiveSink<P> {
                 ControlFlow::Break(())
             }
         }
+    }
+}
+
+/// A recording into any [`FrameTarget`] while it is recorded: a [`RecordObserver`] that
+/// writes what [`crate::session_export`] reads from the finished session — estimates, marker
+/// cloud and health from the rows as they are written, the frame as PNG, each force sample —
+/// stamped with the session's start plus its clock.
+pub struct RecordingTarget<T> {
+    out: T,
+    cfg: OutputConfig,
+    sensor: Option<SensorCalibration>,
+    /// Built from the first feature row's columns.
+    columns: Option<MarkerColumns>,
+    cloud: Vec<MarkerPoint>,
+    origin_unix_s: f64,
+}
+
+impl<T: FrameTarget> RecordingTarget<T> {
+    /// Into `out` under `cfg` (checked); `sensor` places the marker cloud (without it there is
+    /// none).
+    pub fn new(
+        out: T,
+        cfg: OutputConfig,
+        sensor: Option<SensorCalibration>,
+    ) -> Result<Self, OutputError> {
+        cfg.validate()?;
+        Ok(Self {
+            out,
+            cfg,
+            sensor,
+            columns: None,
+            cloud: Vec::new(),
+            origin_unix_s: 0.0,
+        })
+    }
+
+    /// The target, to close it.
+    pub fn into_target(self) -> T {
+        self.out
+    }
+
+    fn write_row(&mut self, row: &RecordedRow<'_>) -> Result<(), OutputError> {
+        let targets = row
+            .estimates
+            .map(|(c, r)| targets_from_row(c, r))
+            .unwrap_or_default();
+        let mut health = None;
+        if let (Some((cols, values)), Some(cal)) = (row.features, &self.sensor) {
+            let columns = self
+                .columns
+                .get_or_insert_with(|| MarkerColumns::new(cal, cols));
+            health = columns.cloud_from_row(values, &mut self.cloud);
+        }
+        let png = if self.cfg.images {
+            Some(png_from_rgb(row.image)?)
+        } else {
+            None
+        };
+        let has_cloud = health.is_some() && !self.cloud.is_empty();
+        let frame = FrameParts {
+            stamp_ns: ns_from_s(self.origin_unix_s + row.timestamp_s),
+            targets: &targets,
+            markers: has_cloud.then_some(&self.cloud[..]),
+            mm_per_px: self.columns.as_ref().and_then(MarkerColumns::mm_per_px),
+            health: health.as_ref().map(|h| (h, Vec::new())),
+            png,
+            ..FrameParts::default()
+        };
+        self.out.write_frame(&self.cfg, frame)
+    }
+}
+
+impl<T: FrameTarget + Send> RecordObserver for RecordingTarget<T> {
+    fn start(&mut self, started_unix_s: f64) -> Result<(), ObserverError> {
+        self.origin_unix_s = started_unix_s;
+        Ok(())
+    }
+
+    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), ObserverError> {
+        Ok(self.write_row(row)?)
+    }
+
+    fn force(&mut self, sample: &ForceSample) -> Result<(), ObserverError> {
+        let frame = FrameParts {
+            stamp_ns: ns_from_s(self.origin_unix_s + sample.timestamp_s),
+            measured: Some(sample.values),
+            ..FrameParts::default()
+        };
+        Ok(self.out.write_frame(&self.cfg, frame)?)
     }
 }

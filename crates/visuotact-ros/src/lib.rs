@@ -13,7 +13,7 @@
 //! with the ROS 2 profile: one file or a rosbag2 folder with `metadata.yaml`; chunks flushed
 //! every second of stamps), `topics` (the documented topic mapping under a namespace: frame
 //! parts → messages, and the `FrameTarget` of every ROS 2 target), `sink` (`McapSink`, the
-//! pipeline's `LiveSink` into a bag; `McapRecorder`, a recording's `RecordObserver`), `dds`
+//! pipeline's `LiveSink` into a bag; `McapRecorder`, its `RecordingTarget` into one), `dds`
 //! (feature `dds`, default: `DdsSink` publishes the topics live with RustDDS, ROS 2 names and
 //! default QoS, loopback unless told an interface), `foxglove` (feature `foxglove`, default:
 //! `FoxgloveSink` serves the same topics live to the Foxglove app over its WebSocket protocol
@@ -41,7 +41,7 @@ pub use dds::{dds_sink, finish_dds, DdsConfig, DdsSink};
 pub use export::{export_mcap, ExportSummary};
 #[cfg(feature = "foxglove")]
 pub use foxglove::{finish_foxglove, foxglove_sink, FoxgloveConfig, FoxgloveSink};
-pub use sink::{finish_mcap, mcap_sink, McapRecorder, McapSink};
+pub use sink::{finish_mcap, finish_recorder, mcap_recorder, mcap_sink, McapRecorder, McapSink};
 pub use topics::{declare_frame_topics, declare_sensor_topics, Declare};
 
 /// Errors of the ROS 2 outputs.

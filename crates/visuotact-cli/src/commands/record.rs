@@ -21,7 +21,7 @@ use visuotact_io::force::ForceLayout;
 use visuotact_pipeline::record::{
     record_observed, ConeRigConfig, ForceSource, RecordConfig, SharedObserver,
 };
-use visuotact_ros::{BagConfig, McapRecorder};
+use visuotact_ros::{finish_recorder, mcap_recorder, BagConfig};
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
@@ -150,7 +150,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         .map(|p| {
             let cal = estimator.as_ref().map(|e| e.calibration().clone());
             let ros = a.bag.ros.config(a.bag.mcap_images);
-            McapRecorder::create(p, ros, &BagConfig::default(), cal).map(Mutex::new)
+            mcap_recorder(p, ros, &BagConfig::default(), cal).map(Mutex::new)
         })
         .transpose()
         .map_err(|e| anyhow::anyhow!("--mcap {e}"))?
@@ -162,7 +162,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             .map_err(|_| anyhow::anyhow!("--mcap: the bag is still in use"))?
             .into_inner()
             .map_err(|_| anyhow::anyhow!("--mcap: a thread panicked while writing"))?;
-        let (path, n) = b.finish().map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
+        let (path, n) = finish_recorder(b).map_err(|e| anyhow::anyhow!("--mcap {e}"))?;
         if recorded.is_err() && n == 0 {
             // Refused before anything was recorded: the corrected re-run finds no bag in the
             // way.
