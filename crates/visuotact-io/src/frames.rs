@@ -248,30 +248,31 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), FrameError> {
         source: std::io::Error::other(e),
     };
     let mut out = crate::output::OutputFile::create(path).map_err(|e| failed(e.to_string()))?;
-    image::ImageEncoder::write_image(
-        image::codecs::png::PngEncoder::new(&mut out),
+    rgb_into(image::codecs::png::PngEncoder::new(&mut out), img)
+        .map_err(|e| failed(e.to_string()))?;
+    out.finish().map_err(|e| failed(e.to_string()))
+}
+
+/// Encodes an RGB image with `encoder`.
+fn rgb_into(encoder: impl image::ImageEncoder, img: &RgbImage) -> image::ImageResult<()> {
+    encoder.write_image(
         img.as_slice(),
-        img.width() as u32,
-        img.height() as u32,
+        u32::try_from(img.width()).unwrap_or(u32::MAX),
+        u32::try_from(img.height()).unwrap_or(u32::MAX),
         image::ExtendedColorType::Rgb8,
     )
-    .map_err(|e| failed(e.to_string()))?;
-    out.finish().map_err(|e| failed(e.to_string()))
 }
 
 /// An RGB image as PNG bytes, encoded fast (live outputs send one per frame).
 pub fn png_bytes_from_rgb(img: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
     let mut out = Vec::new();
-    image::ImageEncoder::write_image(
+    rgb_into(
         image::codecs::png::PngEncoder::new_with_quality(
             &mut out,
             image::codecs::png::CompressionType::Fast,
             image::codecs::png::FilterType::Sub,
         ),
-        img.as_slice(),
-        u32::try_from(img.width()).unwrap_or(u32::MAX),
-        u32::try_from(img.height()).unwrap_or(u32::MAX),
-        image::ExtendedColorType::Rgb8,
+        img,
     )?;
     Ok(out)
 }

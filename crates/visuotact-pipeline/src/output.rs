@@ -272,7 +272,7 @@ impl<P: FrameTarget> LiveSink<P> {
 }
 
 /// Nanoseconds since the UNIX epoch, now.
-pub fn unix_now_ns() -> u64 {
+fn unix_now_ns() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
@@ -280,7 +280,7 @@ pub fn unix_now_ns() -> u64 {
 
 /// A live estimate's messages: targets, the contact rule, the marker cloud (kept in `cloud`),
 /// the frame as PNG when asked, and the health with the run's latency and drops.
-pub fn live_frame<'a>(
+fn live_frame<'a>(
     cfg: &OutputConfig,
     stamp_ns: u64,
     e: &'a LiveEstimate,

@@ -23,9 +23,9 @@ use rustdds::{
     RepresentationIdentifier, TopicKind,
 };
 
-use crate::msg::RosMessage;
 use visuotact_pipeline::output::{FrameParts, FrameTarget, LiveSink, OutputConfig, OutputError};
 
+use crate::msg::RosMessage;
 use crate::topics::{declare_sensor_topics, typed_entry, write_frame, Declare, Publish};
 use crate::RosError;
 
