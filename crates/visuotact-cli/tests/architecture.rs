@@ -1,5 +1,6 @@
 //! ARCHITECTURE.md's checkable claims, checked: a row per crate and a crate per row, each
-//! crate's dependencies above its row, rows of at most 25 words, the command line's source
+//! crate's dependencies above its row, rows of at most 25 words, no document line over 120
+//! characters, the command line's source
 //! under the line count it states, no public function returning `Result<_, String>`, no error
 //! type that is a `String` newtype (one left, listed), and no command module importing another.
 //! Also docs/failure.md's promises: each names the tests that check it, and those exist.
@@ -12,16 +13,42 @@ fn root() -> PathBuf {
 
 /// Every `.rs` file under `dir`, recursively.
 fn rust_files(dir: &Path) -> Vec<PathBuf> {
+    files_ending(dir, "rs")
+}
+
+/// Every file named `*.ext` under `dir`, recursively, leaving out build outputs (`target`)
+/// and hidden folders (`.git`, virtual environments).
+fn files_ending(dir: &Path, ext: &str) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for e in std::fs::read_dir(dir).unwrap() {
         let p = e.unwrap().path();
+        let name = p.file_name().unwrap_or_default().to_string_lossy();
         if p.is_dir() {
-            out.extend(rust_files(&p));
-        } else if p.extension().is_some_and(|x| x == "rs") {
+            if name != "target" && name != "node_modules" && !name.starts_with('.') {
+                out.extend(files_ending(&p, ext));
+            }
+        } else if p.extension().is_some_and(|x| x == ext) {
             out.push(p);
         }
     }
     out
+}
+
+/// No line of any Markdown document is over 120 characters: tables too wide for that become
+/// lists, long commands are continued with `\`.
+#[test]
+fn no_doc_line_is_over_120_characters() {
+    let mut long = Vec::new();
+    for file in files_ending(&root(), "md") {
+        let text = std::fs::read_to_string(&file).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            let chars = line.chars().count();
+            if chars > 120 {
+                long.push(format!("{}:{}: {chars} characters", file.display(), n + 1));
+            }
+        }
+    }
+    assert!(long.is_empty(), "{long:#?}");
 }
 
 fn architecture() -> String {

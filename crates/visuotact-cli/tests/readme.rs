@@ -8,9 +8,20 @@ use std::process::{Command, Output};
 mod common;
 use common::shared_real as real;
 
+/// The README with shell line continuations (`\` at a line's end) joined, as a shell reads it.
 fn readme() -> String {
-    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../README.md"))
-        .expect("README.md")
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../README.md"))
+            .expect("README.md");
+    let mut joined = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(at) = rest.find("\\\n") {
+        joined.push_str(rest[..at].trim_end_matches(' '));
+        joined.push(' ');
+        rest = rest[at + 2..].trim_start_matches(' ');
+    }
+    joined.push_str(rest);
+    joined
 }
 
 fn tmp(name: &str) -> PathBuf {
