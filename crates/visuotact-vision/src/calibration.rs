@@ -448,22 +448,29 @@ fn number_blobs(
     })
 }
 
-/// The blobs of a lattice numbering that are specks, not markers: each hangs on the array by one
-/// neighbour and has under half that neighbour's area. Every marker of a two-dimensional array
-/// has at least two neighbours (a grid's corner two, a hexagonal array's three), and markers
-/// side by side have about one size; a speck beyond the array (the rim of a TacTip in one
-/// in-contact frame: 12 px² beside a 37 px² pin) can still land on a free lattice site.
+/// The blobs of a lattice numbering that are specks, not markers: each hangs on the array by
+/// fewer neighbours than a corner of the array has (a grid's corner two, a hexagonal array's
+/// three), is not cut by the image's border, and has under half its neighbours' mean area
+/// (markers side by side have about one size). A speck beyond the array can still land on a
+/// free lattice site: the rim of a TacTip in one in-contact frame (12 px² beside a 37 px² pin),
+/// a glint above the real 331-pin array (24 px² beside 120 px² pins).
 fn specks_of(numbered: &Ordered) -> Vec<Blob> {
-    if !matches!(numbered.layout, Layout::Hex | Layout::Grid) {
-        return Vec::new();
-    }
+    let corner = match numbered.layout {
+        Layout::Hex => 3,
+        Layout::Grid => 2,
+        _ => return Vec::new(),
+    };
     numbered
         .neighbours
         .iter()
         .zip(&numbered.blobs)
-        .filter_map(|(nb, (b, _, _))| match nb.as_slice() {
-            [k] if 2 * b.area_px < numbered.blobs[*k as usize].0.area_px => Some(*b),
-            _ => None,
+        .filter_map(|(nb, (b, _, _))| {
+            let around: u32 = nb
+                .iter()
+                .map(|&k| numbered.blobs[k as usize].0.area_px)
+                .sum();
+            let small = 2 * b.area_px * (nb.len() as u32) < around;
+            (!nb.is_empty() && nb.len() < corner && !b.touches_border && small).then_some(*b)
         })
         .collect()
 }

@@ -17,7 +17,11 @@
 //! basis, fitted to its links to points already numbered, which it hands on to its neighbours.
 //! Lens distortion, a dome's foreshortening and a slightly rotated grid bend the lattice
 //! gradually, and the walk follows them; a link is accepted only when it is within 0.3 of a
-//! lattice step in both lattice coordinates.
+//! lattice step in both lattice coordinates. The walk decides whether the points are a lattice.
+//! A hexagonal array is then numbered through its Delaunay triangles from the walk's first
+//! triangle, by the parallelogram rule (`triangles`): the same around every loop, so a region
+//! squeezed beyond the walk's tolerance (the crease at a deep contact's edge) is numbered like
+//! the rest instead of being walked around.
 //!
 //! ```
 //! use visuotact_vision::layout::{number_markers, Layout, LayoutChoice};
@@ -34,6 +38,8 @@ use std::collections::{HashMap, VecDeque};
 use serde::{Deserialize, Serialize};
 
 use crate::blobs::{Blob, MomentConvention};
+
+mod triangles;
 
 /// How markers are laid out and numbered (the sensor file's `layout`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -394,7 +400,7 @@ impl Basis {
 }
 
 const GRID_STEPS: [(i64, i64); 4] = [(1, 0), (-1, 0), (0, 1), (0, -1)];
-const HEX_STEPS: [(i64, i64); 6] = [(1, 0), (-1, 0), (0, 1), (0, -1), (-1, 1), (1, -1)];
+pub(crate) const HEX_STEPS: [(i64, i64); 6] = [(1, 0), (-1, 0), (0, 1), (0, -1), (-1, 1), (1, -1)];
 
 /// A lattice walk's result: integer coordinates per point.
 struct Walk {
@@ -411,15 +417,33 @@ fn walk(
     b0: Basis,
     steps: &[(i64, i64)],
 ) -> Walk {
+    let mut coords = vec![None; points.len()];
+    coords[start] = Some((0, 0));
+    walk_on(points, nbrs, coords, &[start], b0, steps)
+}
+
+/// Goes on numbering from the points `coords` holds, `from` first, by the walk of [`walk`]:
+/// each point reached gets its own basis, fitted to its links to numbered points (else `b0`),
+/// and numbers its unnumbered neighbours one lattice step away.
+fn walk_on(
+    points: &[(f64, f64)],
+    nbrs: &[Vec<(usize, f64)>],
+    mut coords: Vec<Option<(i64, i64)>>,
+    from: &[usize],
+    b0: Basis,
+    steps: &[(i64, i64)],
+) -> Walk {
     let n = points.len();
-    let mut coords: Vec<Option<(i64, i64)>> = vec![None; n];
     let mut basis: Vec<Option<Basis>> = vec![None; n];
     let mut site: HashMap<(i64, i64), usize> = HashMap::with_capacity(n);
-    coords[start] = Some((0, 0));
-    basis[start] = Some(b0);
-    site.insert((0, 0), start);
-    let mut queue = VecDeque::from([start]);
-    let mut count = 1;
+    for (p, c) in coords.iter().enumerate() {
+        if let Some(c) = c {
+            site.insert(*c, p);
+        }
+    }
+    let mut queue: VecDeque<usize> = from.iter().copied().collect();
+    queue.extend((0..n).filter(|p| coords[*p].is_some() && !from.contains(p)));
+    let mut count = site.len();
     let mut pairs = Vec::with_capacity(8);
     while let Some(i) = queue.pop_front() {
         let ci = coords[i].unwrap_or((0, 0));
@@ -505,11 +529,15 @@ fn link_along(
         .next()
 }
 
-/// A lattice fit: the walk and its basis kind.
+/// A lattice fit: its numbering and its basis kind.
 struct LatticeFit {
     layout: Layout,
+    /// The numbering: the walk's, and for a hexagonal array its triangles' (see
+    /// [`triangles`]).
     walk: Walk,
-    basis: Basis,
+    /// Points the walk alone numbered, by lengths and angles: whether the points are a lattice
+    /// at all (the triangles also number rings of dots, which are not).
+    walked: usize,
 }
 
 /// Tries the grid (two directions) or hex (three) lattice on the points.
@@ -549,8 +577,8 @@ fn fit_lattice(
             let walk = walk(points, nbrs, start, basis, &GRID_STEPS);
             Some(LatticeFit {
                 layout,
+                walked: walk.count,
                 walk,
-                basis,
             })
         }
         Layout::Hex => {
@@ -575,11 +603,18 @@ fn fit_lattice(
                 return None;
             }
             let basis = Basis { a1, a2 };
-            let walk = walk(points, nbrs, start, basis, &HEX_STEPS);
+            let walked = walk(points, nbrs, start, basis, &HEX_STEPS);
+            let metric = walked.count;
+            // The walk's numbering around the start, carried through the lattice triangles
+            // (the same around every loop), then walked on to points no triangle reaches.
+            let walk = triangles::numbered_by_triangles(points, &walked.coords, start, &HEX_STEPS)
+                .map_or(walked, |c| {
+                    walk_on(points, nbrs, c, &[start], basis, &HEX_STEPS)
+                });
             Some(LatticeFit {
                 layout,
                 walk,
-                basis,
+                walked: metric,
             })
         }
         _ => None,
@@ -730,7 +765,7 @@ pub fn number_markers(
             (h, g) => h.or(g),
         };
         if let Some(f) = best {
-            if f.walk.count == n || fit_dot_rings(points, pitch).is_err() {
+            if f.walked == n || fit_dot_rings(points, pitch).is_err() {
                 return lattice_numbering(points, &nbrs, f, pitch);
             }
         }
@@ -800,7 +835,6 @@ fn lattice_numbering(
         (Some(a), Some(b)) => steps.contains(&(b.0 - a.0, b.1 - a.1)),
         _ => false,
     });
-    let _ = fit.basis;
     Numbering {
         layout: fit.layout,
         left_out: (0..points.len()).filter(|&p| coords[p].is_none()).collect(),
@@ -964,6 +998,42 @@ mod tests {
         let e = number_markers(&input, LayoutChoice::Only(Layout::Grid)).unwrap_err();
         let msg = e.to_string();
         assert!(msg.contains("hexagonal"), "{msg}");
+    }
+
+    /// A hexagonal patch (side 8, 217 pins, pitch 20) bent like a dome's rim and squeezed
+    /// across a crease to 0.45 of its pitch, as at the edge of a deep contact: numbered as
+    /// one lattice, every pin at its own lattice site (rows of 9 … 17 … 9).
+    #[test]
+    fn a_squeezed_hexagonal_array_is_numbered_as_one_lattice() {
+        let mut pts = Vec::new();
+        let mut truth = Vec::new();
+        for j in -8i64..=8 {
+            for i in -8i64..=8 {
+                if (i + j).abs() > 8 {
+                    continue;
+                }
+                let x = (i as f64 + 0.5 * j as f64) * 20.0;
+                let y = j as f64 * 20.0 * 3f64.sqrt() / 2.0;
+                // The crease: x squeezed around x = 30 (local scale 1 − 11/20); the rim bent.
+                let x2 = x - 11.0 * (((x - 30.0) / 20.0).tanh());
+                let y2 = y + 0.0008 * x2 * x2;
+                pts.push((400.0 + x2, 300.0 + y2));
+                truth.push((j, 2 * i + j));
+            }
+        }
+        let (input, idx) = shuffled(&pts);
+        let n = number_markers(&input, LayoutChoice::Only(Layout::Hex)).unwrap();
+        assert_eq!(n.order.len(), pts.len(), "left out: {:?}", n.left_out);
+        assert_eq!(n.rows, 17);
+        // Each pin's (row, col) is its lattice site, up to one offset for all.
+        let site = |k: usize| truth[idx[n.order[k]]];
+        let (r0, c0) = (
+            site(0).0 - i64::from(n.row_col[0].0),
+            site(0).1 - i64::from(n.row_col[0].1),
+        );
+        for (k, &(r, c)) in n.row_col.iter().enumerate() {
+            assert_eq!(site(k), (i64::from(r) + r0, i64::from(c) + c0), "pin {k}");
+        }
     }
 
     #[test]
