@@ -687,8 +687,16 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
         (m.area_px, l1 * l2)
     }));
     if layout == Layout::Hex {
-        // Pin arrays stretched by a reference in contact (TrackReference::take_steps_both_ways).
-        r.take_steps_both_ways();
+        // The pin array's steps as numbered: its six neighbours per pin, in turn around the
+        // circle (`col` counts half pitches along a row, rows run down the image).
+        let sites: Vec<(i64, i64)> = markers
+            .iter()
+            .map(|m| (i64::from(m.row), i64::from(m.col)))
+            .collect();
+        r.take_lattice(
+            &sites,
+            &[(0, 2), (1, 1), (1, -1), (0, -2), (-1, -1), (-1, 1)],
+        );
     }
     if layout == Layout::Rings {
         // Concentric rings share a centre: they are told apart by size.

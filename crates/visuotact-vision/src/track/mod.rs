@@ -314,7 +314,7 @@ impl TrackReference {
             }
         }
         let (lattice_dirs, lattice_steps) =
-            predict::lattice_steps(&positions, &neighbours, &spacing_px, false);
+            predict::lattice_steps(&positions, &neighbours, &spacing_px);
         Self {
             positions,
             areas_px,
@@ -330,16 +330,43 @@ impl TrackReference {
 }
 
 impl TrackReference {
-    /// Takes the markers as a lattice: every step between neighbours is taken both ways, also
-    /// where the reference is stretched so that a step one way is longer than the centre
-    /// marker's near neighbours (a reference in contact). The order-free search can then shift
-    /// a reading back along every step it can shift it forward. Calibration applies it to hex
-    /// layouts only: on the irregular `dots` layout a step back is no step (it gave a second
-    /// swap), and on the real GelSight slip grasps (grid) it changed some readings and cost the
-    /// slip detector 0.800 → 0.797 balanced accuracy held out by object.
-    pub fn take_steps_both_ways(&mut self) {
-        (self.lattice_dirs, self.lattice_steps) =
-            predict::lattice_steps(&self.positions, &self.neighbours, &self.spacing_px, true);
+    /// Takes the lattice's steps from the layout's numbering, as a person reads an array
+    /// neighbour by neighbour: marker `i` sits at lattice site `sites[i]`, and its neighbour
+    /// one step along direction `d` is the marker at `sites[i] + steps[d]` (`steps` in turn
+    /// around the circle, so that consecutive ones span a cell). Every step is then taken both
+    /// ways however the reference is stretched (a reference in contact), and the order-free
+    /// search can shift a reading back along every step it can shift it forward.
+    pub fn take_lattice(&mut self, sites: &[(i64, i64)], steps: &[(i64, i64)]) {
+        let at: std::collections::HashMap<(i64, i64), usize> =
+            sites.iter().enumerate().map(|(i, &s)| (s, i)).collect();
+        self.lattice_steps = sites
+            .iter()
+            .map(|s| {
+                steps
+                    .iter()
+                    .map(|d| at.get(&(s.0 + d.0, s.1 + d.1)).copied())
+                    .collect()
+            })
+            .collect();
+        // Each direction's mean step in spacings (its count is what the search reads).
+        self.lattice_dirs = (0..steps.len())
+            .map(|d| {
+                let (mut sum, mut n) = ((0.0, 0.0), 0.0);
+                for (i, k) in self.lattice_steps.iter().enumerate() {
+                    if let Some(k) = k[d] {
+                        let s = self.spacing_px[i];
+                        sum.0 += (self.positions[k].0 - self.positions[i].0) / s;
+                        sum.1 += (self.positions[k].1 - self.positions[i].1) / s;
+                        n += 1.0;
+                    }
+                }
+                if n > 0.0 {
+                    (sum.0 / n, sum.1 / n)
+                } else {
+                    (0.0, 0.0)
+                }
+            })
+            .collect();
     }
 }
 

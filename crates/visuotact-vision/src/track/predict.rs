@@ -246,16 +246,15 @@ pub(super) fn anchors_from_prior(
         .collect()
 }
 
-/// Lattice steps: the directions of the first ring of neighbours around the marker nearest the
-/// layout's centre (six on a hexagonal array, four on a grid), as unit-spacing vectors in turn
-/// around the circle, and per
-/// marker the neighbour one step away in each (`None` at the layout's edge, or where no
-/// neighbour lies within a third of a spacing of the step).
+/// Lattice steps of markers without a numbered lattice (a hexagonal array takes its own,
+/// [`super::TrackReference::take_lattice`]): the directions of the first ring of neighbours
+/// around the marker nearest the layout's centre (four on a grid), as unit-spacing vectors in
+/// turn around the circle, and per marker the neighbour one step away in each (`None` at the
+/// layout's edge, or where no neighbour lies within a third of a spacing of the step).
 pub(super) fn lattice_steps(
     positions: &[(f64, f64)],
     neighbours: &[Vec<usize>],
     spacing_px: &[f64],
-    both_ways: bool,
 ) -> LatticeSteps {
     let n = positions.len();
     if n < 3 {
@@ -280,21 +279,7 @@ pub(super) fn lattice_steps(
         .filter(|d| d.0.hypot(d.1) < 1.3)
         .take(8)
         .collect();
-    // On a lattice a step back is a step too: where the centre's neighbour one way lies beyond
-    // the cut (a reference stretched by a touch) but the one the other way does not, the step
-    // is taken both ways.
     let max_turn = 25f64.to_radians();
-    let turn_between = |a: (f64, f64), b: (f64, f64)| {
-        ((a.1.atan2(a.0) - b.1.atan2(b.0) + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-            - std::f64::consts::PI)
-            .abs()
-    };
-    let backs: Vec<(f64, f64)> = dirs
-        .iter()
-        .map(|d| (-d.0, -d.1))
-        .filter(|b| both_ways && dirs.iter().all(|d| turn_between(*b, *d) >= max_turn))
-        .collect();
-    dirs.extend(backs);
     // In turn around the circle: consecutive steps span the lattice's cells.
     dirs.sort_by(|a, b| a.1.atan2(a.0).total_cmp(&b.1.atan2(b.0)));
     // Per marker, the nearest neighbour (within 1.9 spacings) whose direction is within 25°
