@@ -213,3 +213,62 @@ fn extract_in_order_writes_the_fields_dynamics_that_slip_detect_reads() {
     assert!(!th.iter().any(|c| c == "shift_pitches"), "{th:?}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A simulated grasp past the friction limit: its labels hold the truth per frame (`slip_state`
+/// 0 at rest and under the press, 1 from the first sideways frame, 2 from the frame at the
+/// limit), and its frames folder is a sequence `slip detect --frames` reads, one row per frame.
+#[test]
+fn a_simulated_grasp_has_its_slip_in_the_truth_and_its_frames_are_a_sequence() {
+    let d = fresh_dir("slip-sim");
+    let session = d.join("grasp");
+    ok(&vt(&[
+        "simulate",
+        "--sensor",
+        "gelsight",
+        "--protocol",
+        "grasp-slip",
+        "--touches",
+        "72",
+        "--seed",
+        "3",
+        "-o",
+        s(&session),
+    ]));
+    let (header, rows) = csv_cells(&session.join("labels.csv"));
+    assert_eq!(header.last().map(String::as_str), Some("slip_state"));
+    let states: Vec<&str> = rows.iter().map(|r| r.last().unwrap().as_str()).collect();
+    assert_eq!(states.len(), 72);
+    // 10 at rest, a press over 10, the sideways load from frame 21, at the limit from 60.
+    assert!(states[..21].iter().all(|s| *s == "0"), "{states:?}");
+    assert!(states[21..60].iter().all(|s| *s == "1"), "{states:?}");
+    assert!(states[60..].iter().all(|s| *s == "2"), "{states:?}");
+    let out = d.join("frames.csv");
+    ok(&vt(&[
+        "slip",
+        "detect",
+        "-q",
+        "--frames",
+        "-o",
+        s(&out),
+        s(&session.join("frames")),
+    ]));
+    let (header, rows) = csv_cells(&out);
+    assert_eq!(
+        &header[..5],
+        ["video", "frame", "timestamp_s", "state", "score"]
+    );
+    assert_eq!(rows.len(), 72);
+    assert!(rows
+        .iter()
+        .all(|r| ["stick", "incipient", "slip"].contains(&r[3].as_str())));
+    fails(&vt(&[
+        "simulate",
+        "--sensor",
+        "iats",
+        "--protocol",
+        "grasp-slip",
+        "-o",
+        s(&d.join("no")),
+    ]));
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -19,7 +19,7 @@ use visuotact_sim::cone::{ConeConfig, ConeLoad};
 use visuotact_sim::iats::{IatsConfig, Touch};
 use visuotact_sim::jr3::{Jr3, Jr3Config};
 use visuotact_sim::pattern::{render_grid, GridPattern, Press};
-use visuotact_sim::protocol::{self, ConePress, PressureGauge};
+use visuotact_sim::protocol::{self, zoo_slip, ConePress, GraspKind, PressureGauge};
 use visuotact_sim::rig::{cone_labels, frame_seed, CONE_LABELS, GAUGE_SEED};
 use visuotact_sim::zoo::{self, ZooConfig, ZooKind, ZooTouch};
 use visuotact_sim::SimError;
@@ -89,7 +89,9 @@ pub struct SimulateConfig {
     /// The sensor.
     pub sensor: SimKind,
     /// The protocol: iats `grid`, `random`, `shear`, `line`; cone `press`, `press-rotate`; zoo
-    /// `grid`, `random`, `shear`.
+    /// `grid`, `random`, `shear`, `drag`, `plate` (domes), and the grasps `grasp-press`,
+    /// `grasp-drag`, `grasp-twist`, `grasp-slip` (one grasp of `touches` frames, at least 60,
+    /// its `slip_state` truth per frame: 0 stick, 1 incipient, 2 slip).
     pub protocol: String,
     /// iats and zoo: the sensor's parameters drawn from their ranges with this seed (0: the
     /// preset).
@@ -98,7 +100,7 @@ pub struct SimulateConfig {
     pub seed: u64,
     /// Session folder to create.
     pub output: PathBuf,
-    /// Touches for the random and shear protocols.
+    /// Touches for the random and shear protocols; a grasp's frames.
     pub touches: usize,
     /// No-contact reference frames written first.
     pub references: usize,
@@ -496,19 +498,31 @@ fn simulate_zoo(a: &SimulateConfig, kind: ZooKind) -> Result<Simulated, Simulate
     let cfg: ZooConfig = sensor_model(a, ZooConfig::variant(kind, a.variant))?;
     cfg.validate()
         .map_err(|e| SimulateError::Config(format!("sensor model: {e}")))?;
-    let touches = protocol::zoo_named(&cfg, &a.protocol, a.touches, a.seed)
-        .ok_or_else(|| unknown_protocol(a, &protocol::ZOO_PROTOCOLS))?;
+    let grasp = GraspKind::from_protocol(&a.protocol).map(|g| zoo_slip(&cfg, g, a.touches, a.seed));
+    let known = || {
+        let mut k = protocol::ZOO_PROTOCOLS.to_vec();
+        k.extend(GraspKind::PROTOCOLS);
+        unknown_protocol(a, &k)
+    };
+    let touches = match &grasp {
+        Some(g) => g.touches.clone(),
+        None => protocol::zoo_named(&cfg, &a.protocol, a.touches, a.seed).ok_or_else(known)?,
+    };
     for (k, t) in touches.iter().enumerate() {
         t.validate(&cfg)
             .map_err(|e| SimulateError::Config(format!("touch {k}: {e}")))?;
     }
-    let shear = a.protocol == "shear";
+    let shear = a.protocol == "shear" || grasp.is_some();
     let rest = ZooTouch::default();
+    let mut cols = touch_columns(shear, &["shear_x_mm", "shear_y_mm", "twist_deg"]);
+    if grasp.is_some() {
+        cols.push("slip_state");
+    }
     write_touch_session(
         a,
         TouchSession {
             config: &cfg,
-            cols: touch_columns(shear, &["shear_x_mm", "shear_y_mm", "twist_deg"]),
+            cols,
             touches: touches.len(),
             reference: |seed| {
                 let (img, truth) = zoo::render(&cfg, &rest, seed)?;
@@ -520,6 +534,9 @@ fn simulate_zoo(a: &SimulateConfig, kind: ZooKind) -> Result<Simulated, Simulate
                 let mut labels = vec![t.x_mm, t.y_mm, t.depth_mm];
                 if shear {
                     labels.extend([t.shear_x_mm, t.shear_y_mm, t.twist_deg]);
+                }
+                if let Some(g) = &grasp {
+                    labels.push(f64::from(g.state_at(k)));
                 }
                 let truth = zoo_truth(&truth);
                 Ok((img, Rendered { labels, truth }))

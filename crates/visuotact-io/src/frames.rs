@@ -76,6 +76,11 @@ pub fn is_video_path(p: &Path) -> bool {
     VIDEO_EXT.contains(&ext_of(p).as_str())
 }
 
+/// Whether `p` names an image file by its extension (png, jpg, jpeg, ppm, pgm, pnm).
+pub fn is_image_path(p: &Path) -> bool {
+    IMAGE_EXT.contains(&ext_of(p).as_str())
+}
+
 fn ext_of(p: &Path) -> String {
     p.extension()
         .and_then(|e| e.to_str())

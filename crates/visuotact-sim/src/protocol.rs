@@ -585,6 +585,42 @@ pub enum GraspKind {
     Slip,
 }
 
+impl GraspKind {
+    /// Every kind, in the order of [`GraspKind::PROTOCOLS`].
+    pub const ALL: [GraspKind; 4] = [
+        GraspKind::Press,
+        GraspKind::Drag,
+        GraspKind::Twist,
+        GraspKind::Slip,
+    ];
+
+    /// The protocol names `simulate` takes for grasps ([`zoo_slip`]).
+    pub const PROTOCOLS: [&'static str; 4] =
+        ["grasp-press", "grasp-drag", "grasp-twist", "grasp-slip"];
+
+    /// The kind of a grasp protocol's name (`grasp-slip`), if it is one.
+    pub fn from_protocol(name: &str) -> Option<Self> {
+        Self::PROTOCOLS
+            .iter()
+            .position(|p| *p == name)
+            .map(|k| Self::ALL[k])
+    }
+}
+
+impl GraspSequence {
+    /// The truth of frame `k`, as the slip detector's states: 0 stick (no sideways load yet),
+    /// 1 incipient (the rim slides, the centre sticks), 2 slip (the whole contact slides).
+    pub fn state_at(&self, k: usize) -> u8 {
+        if self.slip_frame.is_some_and(|s| k >= s) {
+            2
+        } else if self.incipient_frame.is_some_and(|s| k >= s) {
+            1
+        } else {
+            0
+        }
+    }
+}
+
 /// A simulated grasp frame by frame, with when it slipped.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GraspSequence {

@@ -19,7 +19,9 @@ pub(crate) struct Args {
     #[arg(long, value_parser = crate::args::choice::<SimKind>(SimKind::NAMES))]
     sensor: SimKind,
     /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random, drag,
-    /// shear, and on the domes (tactip, tactip-small) plate.
+    /// shear, on the domes (tactip, tactip-small) plate, and one grasp: grasp-press, grasp-drag
+    /// (sideways under the friction limit), grasp-twist or grasp-slip (past it; labels.csv then
+    /// has the truth per frame in `slip_state`: 0 stick, 1 incipient, 2 slip).
     #[arg(long)]
     protocol: String,
     /// iats and zoo sensors: draw the sensor's parameters (pitch, marker size, colours, skin,
@@ -32,7 +34,7 @@ pub(crate) struct Args {
     /// Session folder to create (must not hold a session).
     #[arg(short, long)]
     output: PathBuf,
-    /// Touches for the random and shear protocols.
+    /// Touches for the random and shear protocols; a grasp's frames (at least 60).
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
     touches: u64,
     /// No-contact reference frames written first.

@@ -25,7 +25,7 @@ enum Which {
 
 #[derive(clap::Args, Debug)]
 struct Common {
-    /// Videos, or folders searched for videos.
+    /// Videos, folders of images (one sequence each), or folders searched for both.
     #[arg(required = true)]
     videos: Vec<PathBuf>,
     /// Sensor file for every video (default: each calibrates from its first frames).

@@ -31,7 +31,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use visuotact_io::frames::{is_video_path, FrameError, FrameStream};
+use visuotact_io::frames::{is_image_path, is_video_path, FrameError, FrameStream};
 use visuotact_nn::logistic::{fit_logistic, sigmoid, LogisticConfig};
 use visuotact_vision::calibration::{CalibrationConfig, SensorCalibration};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
@@ -888,13 +888,20 @@ fn fit_rows(rows: &[[f64; EVIDENCE_LEN]], labels: &[bool], like: &SlipSettings) 
     }
 }
 
-/// Videos among `paths`: a video file is one sequence, a folder every video under it (sorted).
+/// The sequences among `paths`: a video file is one, a folder of images is one (its images in
+/// name order, at 25 fps: a recorded or simulated session's `frames/`), and any other folder
+/// holds every video and folder of images under it (sorted).
 pub fn sequences_in(paths: &[PathBuf]) -> Result<Vec<PathBuf>, SlipError> {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
         let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?
             .map(|e| e.map(|e| e.path()))
             .collect::<Result<_, _>>()?;
         entries.sort();
+        // A folder of images (a recorded session's `frames/`) is one sequence.
+        if entries.iter().any(|p| p.is_file() && is_image_path(p)) {
+            out.push(dir.to_path_buf());
+            return Ok(());
+        }
         for p in entries {
             if p.is_dir() {
                 walk(&p, out)?;
@@ -918,7 +925,9 @@ pub fn sequences_in(paths: &[PathBuf]) -> Result<Vec<PathBuf>, SlipError> {
             if out.len() == before {
                 return Err(SlipError::NoSequence {
                     path: p.clone(),
-                    why: "folder has no video (avi, mp4, mkv, mov, webm, m4v, mpg, mpeg) under it",
+                    why:
+                        "folder has no video (avi, mp4, mkv, mov, webm, m4v, mpg, mpeg) nor images \
+                          (png, jpg, ppm) under it",
                 });
             }
         } else if is_video_path(p) {

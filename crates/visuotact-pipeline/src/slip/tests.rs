@@ -169,14 +169,33 @@ fn verdicts_are_written_one_row_per_video_or_per_frame() {
 }
 
 #[test]
-fn sequences_are_videos_or_folders_of_them() {
+fn sequences_are_videos_folders_of_images_or_folders_of_them() {
     let dir = std::env::temp_dir().join(format!("vt-seq-{}", std::process::id()));
     std::fs::create_dir_all(dir.join("b")).unwrap();
-    for f in ["b/2.avi", "1.mp4", "notes.txt"] {
+    std::fs::create_dir_all(dir.join("session/frames")).unwrap();
+    for f in [
+        "b/2.avi",
+        "1.mp4",
+        "notes.txt",
+        "session/frames/frame_000000.png",
+        "session/frames/frame_000001.png",
+    ] {
         std::fs::write(dir.join(f), b"").unwrap();
     }
     let got = sequences_in(std::slice::from_ref(&dir)).unwrap();
-    assert_eq!(got, vec![dir.join("1.mp4"), dir.join("b/2.avi")]);
+    assert_eq!(
+        got,
+        vec![
+            dir.join("1.mp4"),
+            dir.join("b/2.avi"),
+            dir.join("session/frames")
+        ]
+    );
+    let frames = dir.join("session/frames");
+    assert_eq!(
+        sequences_in(std::slice::from_ref(&frames)).unwrap(),
+        vec![frames]
+    );
     let e = sequences_in(&[dir.join("notes.txt")])
         .unwrap_err()
         .to_string();
