@@ -687,16 +687,13 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
         (m.area_px, l1 * l2)
     }));
     if layout == Layout::Hex {
-        // The pin array's steps as numbered: its six neighbours per pin, in turn around the
-        // circle (`col` counts half pitches along a row, rows run down the image).
+        // The pin array's six neighbours per pin, as numbered (grids keep their geometric
+        // steps: the numbering changed nothing there but some slip grasps' readings).
         let sites: Vec<(i64, i64)> = markers
             .iter()
             .map(|m| (i64::from(m.row), i64::from(m.col)))
             .collect();
-        r.take_lattice(
-            &sites,
-            &[(0, 2), (1, 1), (1, -1), (0, -2), (-1, -1), (-1, 1)],
-        );
+        r.take_lattice(&sites, layout.row_col_steps());
     }
     if layout == Layout::Rings {
         // Concentric rings share a centre: they are told apart by size.

@@ -89,6 +89,17 @@ impl Layout {
             Layout::Rings => "concentric annuli",
         }
     }
+
+    /// A lattice's steps between neighbours in the sensor file's `(row, col)`, in turn around
+    /// the circle (consecutive ones span a cell): a hexagonal array's six (`col` counts half
+    /// pitches along a row, rows run down the image), a grid's four; none for the others.
+    pub fn row_col_steps(self) -> &'static [(i64, i64)] {
+        match self {
+            Layout::Hex => &[(0, 2), (1, 1), (1, -1), (0, -2), (-1, -1), (-1, 1)],
+            Layout::Grid => &[(0, 1), (1, 0), (0, -1), (-1, 0)],
+            _ => &[],
+        }
+    }
 }
 
 /// Which layout calibration uses.

@@ -264,9 +264,9 @@ pub struct TrackReference {
     /// For concentric rings, each ring's major axis in pixels: rings share a centre, so they
     /// are matched by size near the reference centre instead of by position.
     pub ring_sizes_px: Option<Vec<f64>>,
-    /// The lattice's step directions (unit-spacing vectors; empty for fewer than 3 markers).
-    lattice_dirs: Vec<(f64, f64)>,
-    /// Per marker, its neighbour one step along each of `lattice_dirs`.
+    /// How many step directions the lattice has (0 for fewer than 3 markers).
+    lattice_dirs: usize,
+    /// Per marker, its neighbour one step along each of the `lattice_dirs` directions.
     lattice_steps: Vec<Vec<Option<usize>>>,
 }
 
@@ -348,25 +348,7 @@ impl TrackReference {
                     .collect()
             })
             .collect();
-        // Each direction's mean step in spacings (its count is what the search reads).
-        self.lattice_dirs = (0..steps.len())
-            .map(|d| {
-                let (mut sum, mut n) = ((0.0, 0.0), 0.0);
-                for (i, k) in self.lattice_steps.iter().enumerate() {
-                    if let Some(k) = k[d] {
-                        let s = self.spacing_px[i];
-                        sum.0 += (self.positions[k].0 - self.positions[i].0) / s;
-                        sum.1 += (self.positions[k].1 - self.positions[i].1) / s;
-                        n += 1.0;
-                    }
-                }
-                if n > 0.0 {
-                    (sum.0 / n, sum.1 / n)
-                } else {
-                    (0.0, 0.0)
-                }
-            })
-            .collect();
+        self.lattice_dirs = steps.len();
     }
 }
 

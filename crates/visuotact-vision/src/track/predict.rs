@@ -31,9 +31,8 @@ pub(super) struct Prediction {
     pub start: (f64, f64),
 }
 
-/// The lattice's step directions (unit-spacing vectors) and, per marker, its neighbour one step
-/// along each.
-pub(super) type LatticeSteps = (Vec<(f64, f64)>, Vec<Vec<Option<usize>>>);
+/// How many step directions the lattice has and, per marker, its neighbour one step along each.
+pub(super) type LatticeSteps = (usize, Vec<Vec<Option<usize>>>);
 
 /// A local affine motion model around one marker.
 #[derive(Clone, Copy, Debug)]
@@ -258,7 +257,7 @@ pub(super) fn lattice_steps(
 ) -> LatticeSteps {
     let n = positions.len();
     if n < 3 {
-        return (Vec::new(), vec![Vec::new(); n]);
+        return (0, vec![Vec::new(); n]);
     }
     let (sx, sy) = positions
         .iter()
@@ -310,5 +309,5 @@ pub(super) fn lattice_steps(
                 .collect()
         })
         .collect();
-    (dirs, steps)
+    (dirs.len(), steps)
 }

@@ -384,7 +384,7 @@ impl Matching<'_> {
 
     /// The best region shift lowering the energy by the margin, and the runner-ups within it.
     fn region_moves(&mut self) -> (Option<Vec<Vec<usize>>>, Vec<RunnerUp>) {
-        let n_dirs = self.reference.lattice_dirs.len();
+        let n_dirs = self.reference.lattice_dirs;
         let margin = self.energy.params.margin;
         let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
         let mut runner_ups = Vec::new();
@@ -479,7 +479,7 @@ impl Matching<'_> {
     /// along the next one around (`a ≥ 1`, `a + b ≤ 2`), as lists of directions. A part is
     /// grown into from its neighbours, so it is read off them by a step or two, not more.
     fn offsets(&self) -> Vec<Vec<usize>> {
-        let n = self.reference.lattice_dirs.len();
+        let n = self.reference.lattice_dirs;
         let reach = 2;
         let mut out = Vec::new();
         for d in 0..n {

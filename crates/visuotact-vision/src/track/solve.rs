@@ -415,7 +415,7 @@ impl<'a> Matching<'a> {
     /// whose plain shift costs least are refined and compared. A reading that explains every
     /// blob and every marker in view is kept as it is.
     pub fn search_offset(&mut self, max_steps: usize) {
-        let n_dirs = self.reference.lattice_dirs.len();
+        let n_dirs = self.reference.lattice_dirs;
         if n_dirs == 0 || !self.leaves_unexplained() {
             return;
         }
