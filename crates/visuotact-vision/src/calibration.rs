@@ -450,7 +450,7 @@ fn number_blobs(
 
 /// The blobs of a lattice numbering that are specks, not markers: each hangs on the array by
 /// fewer neighbours than a corner of the array has (a grid's corner two, a hexagonal array's
-/// three), is not cut by the image's border, and has under half its neighbours' mean area
+/// three) and has under half its neighbours' mean area
 /// (markers side by side have about one size). A speck beyond the array can still land on a
 /// free lattice site: the rim of a TacTip in one in-contact frame (12 px² beside a 37 px² pin),
 /// a glint above the real 331-pin array (24 px² beside 120 px² pins).
@@ -470,7 +470,7 @@ fn specks_of(numbered: &Ordered) -> Vec<Blob> {
                 .map(|&k| numbered.blobs[k as usize].0.area_px)
                 .sum();
             let small = 2 * b.area_px * (nb.len() as u32) < around;
-            (!nb.is_empty() && nb.len() < corner && !b.touches_border && small).then_some(*b)
+            (!nb.is_empty() && nb.len() < corner && small).then_some(*b)
         })
         .collect()
 }
