@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use visuotact_pipeline::slip::{
     cross_validate, detect, evidence_of, fit_detector, labels_of, read_labels, sequences_in,
-    track_sequences, verdicts_csv, Scores, SlipConfig, SlipDetector, SlipSettings, TrackedSequence,
+    track_sequences, verdicts_csv, Scores, SlipConfig, SlipDetector, SlipSettings, SlipTruth,
+    TrackedSequence,
 };
 
 use crate::progress::Reporter;
@@ -46,7 +47,8 @@ struct Common {
 struct FitArgs {
     #[command(flatten)]
     common: Common,
-    /// CSV with columns `video,slip` (paths relative to the current folder, or absolute).
+    /// CSV with columns `video,slip` (paths relative to the current folder, or absolute), and
+    /// optionally `onset_s`: when each slip began (seconds; empty where not known).
     #[arg(long)]
     labels: PathBuf,
     /// Detector file to write.
@@ -105,10 +107,16 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
     let (_, seqs) = tracked(&a.common)?;
     let like = SlipSettings::default();
     let ev: Vec<_> = seqs.iter().map(|s| evidence_of(s, &like)).collect();
-    let y: Vec<bool> = labels.iter().map(|l| l.slip).collect();
+    let y: Vec<SlipTruth> = labels
+        .iter()
+        .map(|l| SlipTruth {
+            slip: l.slip,
+            onset_s: l.onset_s,
+        })
+        .collect();
     let det = fit_detector(&ev, &y, &like)?;
     crate::write_atomically(&a.output, &det.to_json())?;
-    let slips = y.iter().filter(|&&s| s).count();
+    let slips = y.iter().filter(|t| t.slip).count();
     note!(
         "fitted on {} videos ({slips} slip); wrote {}",
         y.len(),

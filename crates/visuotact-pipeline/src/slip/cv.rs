@@ -5,7 +5,9 @@
 
 use visuotact_nn::logistic::{fit_logistic, LogisticConfig};
 
-use super::{fit_detector, SequenceEvidence, SlipDetector, SlipError, SlipSettings, EVIDENCE_LEN};
+use super::{
+    fit_detector, SequenceEvidence, SlipDetector, SlipError, SlipSettings, SlipTruth, EVIDENCE_LEN,
+};
 
 /// Index of `max_shift_pitches` in the evidence.
 const MAX_SHIFT: usize = 0;
@@ -68,15 +70,17 @@ pub struct CrossValidation {
     pub false_alarms: f64,
 }
 
-/// Leave-one-group-out figures on the sequences' `evidence` labelled `slip`, in `groups`, of
+/// Leave-one-group-out figures on the sequences' `evidence` labelled `truth`, in `groups`, of
 /// detectors fitted with `settings` (and of `default` as it is).
 pub fn cross_validate(
     evidence: &[SequenceEvidence],
-    slip: &[bool],
+    truth: &[SlipTruth],
     groups: &[String],
     settings: &SlipSettings,
     default: Option<&SlipDetector>,
 ) -> Result<CrossValidation, SlipError> {
+    let slip: Vec<bool> = truth.iter().map(|t| t.slip).collect();
+    let slip = &slip[..];
     let mut names: Vec<&String> = groups.iter().collect();
     names.sort();
     names.dedup();
@@ -90,7 +94,8 @@ pub fn cross_validate(
         let test: Vec<usize> = (0..n).filter(|&i| &groups[i] == *g).collect();
         let ev: Vec<_> = train.iter().map(|&i| evidence[i].clone()).collect();
         let y: Vec<bool> = train.iter().map(|&i| slip[i]).collect();
-        let d = fit_detector(&ev, &y, settings)?;
+        let t: Vec<SlipTruth> = train.iter().map(|&i| truth[i]).collect();
+        let d = fit_detector(&ev, &t, settings)?;
         let ev_whole: Vec<_> = train.iter().map(|&i| whole[i]).collect();
         let cut = best_threshold(
             &train

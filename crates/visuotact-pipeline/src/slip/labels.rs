@@ -1,19 +1,24 @@
-//! Labels of sequences: a CSV with a header naming `video` and `slip` columns (others, such
-//! as `object`, are kept for grouping). `video` is a path relative to the current folder, or
-//! absolute; `slip` is 0 or 1. Paths are compared after making them absolute and removing `.`
-//! and `..`, so `videos/a.avi`, `./videos/a.avi` and `/data/videos/a.avi` name one video.
+//! Labels of sequences: a CSV with a header naming `video` and `slip` columns, and optionally
+//! `onset_s` (others, such as `object`, are kept for grouping). `video` is a path relative to
+//! the current folder, or absolute; `slip` is 0 or 1; `onset_s`, when the column is there, is
+//! the second the slip began (seconds from the sequence's start, 0 or more) or empty where it
+//! is not known, and only a slipping sequence has one. Paths are compared after making them
+//! absolute and removing `.` and `..`, so `videos/a.avi`, `./videos/a.avi` and
+//! `/data/videos/a.avi` name one video.
 
 use std::path::{Component, Path, PathBuf};
 
 use super::SlipError;
 
 /// One labelled sequence.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Label {
     /// The video, absolute.
     pub video: PathBuf,
     /// Whether it slipped.
     pub slip: bool,
+    /// When the slip began, seconds from the sequence's start (the `onset_s` column).
+    pub onset_s: Option<f64>,
     /// The group column's value (e.g. the object), when one was asked for.
     pub group: Option<String>,
     /// The label's line in the file (1-based).
@@ -73,6 +78,7 @@ pub fn read_labels(path: &Path, group: Option<&str>) -> Result<Vec<Label>, SlipE
         })?),
         None => None,
     };
+    let onset_col = col("onset_s");
     let mut out = Vec::new();
     for (i, l) in lines {
         let line = i + 1;
@@ -91,6 +97,7 @@ pub fn read_labels(path: &Path, group: Option<&str>) -> Result<Vec<Label>, SlipE
         if c[v].is_empty() {
             return Err(bad(line, "empty video path".into()));
         }
+        let onset_s = onset_of(onset_col.map(|k| c[k].as_str()), slip, |why| bad(line, why))?;
         let video = normalised(Path::new(&c[v]));
         if let Some(first) = out.iter().find(|l: &&Label| l.video == video) {
             return Err(bad(
@@ -101,11 +108,32 @@ pub fn read_labels(path: &Path, group: Option<&str>) -> Result<Vec<Label>, SlipE
         out.push(Label {
             video,
             slip,
+            onset_s,
             group: g.map(|g| c[g].clone()),
             line,
         });
     }
     Ok(out)
+}
+
+/// The `onset_s` cell `x` of a sequence that slipped or not (`None`: no column, or empty).
+fn onset_of(
+    x: Option<&str>,
+    slip: bool,
+    bad: impl Fn(String) -> SlipError,
+) -> Result<Option<f64>, SlipError> {
+    let Some(x) = x.filter(|x| !x.is_empty()) else {
+        return Ok(None);
+    };
+    match x.parse::<f64>() {
+        Ok(_) if !slip => Err(bad(format!(
+            "onset_s {x}: a sequence without slip has none"
+        ))),
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(Some(t)),
+        _ => Err(bad(format!(
+            "onset_s {x:?}: expected seconds, 0 or more, or empty"
+        ))),
+    }
 }
 
 /// The label of each of `videos`, in their order: a video without a label, or a labelled video
@@ -175,6 +203,18 @@ mod tests {
             e.contains("labels.csv:2") && e.contains("expected 0 or 1"),
             "{e}"
         );
+        std::fs::write(&f, "video,slip,onset_s\nx.avi,1,2.4\ny.avi,1,\nz.avi,0,\n").unwrap();
+        let l = read_labels(&f, None).unwrap();
+        let onsets: Vec<Option<f64>> = l.iter().map(|l| l.onset_s).collect();
+        assert_eq!(onsets, [Some(2.4), None, None]);
+        for (row, why) in [
+            ("z.avi,0,1.0", "without slip has none"),
+            ("x.avi,1,-1", "expected seconds"),
+        ] {
+            std::fs::write(&f, format!("video,slip,onset_s\n{row}\n")).unwrap();
+            let e = read_labels(&f, None).unwrap_err().to_string();
+            assert!(e.contains("labels.csv:2") && e.contains(why), "{e}");
+        }
         std::fs::write(&f, "clip,slip\nx.avi,1\n").unwrap();
         assert!(read_labels(&f, None)
             .unwrap_err()

@@ -13,7 +13,8 @@
 //! [`SlipDetector::incipient_threshold`], `stick` below. The sequence's verdict is its last
 //! frame's state; the onset is the first frame of the run of `slip` frames that ends the
 //! sequence. The statistics need no onset label: a detector is fitted on sequences labelled
-//! slip or not ([`fit_detector`]).
+//! slip or not ([`fit_detector`]); where the onsets are known ([`SlipTruth::onset_s`]), the
+//! beginnings of slipping sequences teach it when the score must rise.
 //!
 //! Why these: stick moves the markers under an object together with it, slip leaves some
 //! behind (the partial-slip annulus: the increments' residual from a rigid motion grows against
@@ -792,6 +793,26 @@ pub struct SequenceEvidence {
     pub whole: [f64; EVIDENCE_LEN],
     /// Over its first 25, 50, … frames (short of the whole): what the live score read then.
     pub prefixes: Vec<[f64; EVIDENCE_LEN]>,
+    /// The time of each prefix's last frame, seconds from the sequence's start.
+    pub prefix_end_s: Vec<f64>,
+}
+
+/// What is known of a sequence: whether it slipped and, when labelled, when the slip began.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SlipTruth {
+    /// Whether it slipped.
+    pub slip: bool,
+    /// When the slip began, seconds from the sequence's start (`None`: not labelled).
+    pub onset_s: Option<f64>,
+}
+
+impl From<bool> for SlipTruth {
+    fn from(slip: bool) -> Self {
+        Self {
+            slip,
+            onset_s: None,
+        }
+    }
 }
 
 /// The evidence of a tracked sequence under `settings`' lag and smoothing.
@@ -799,57 +820,70 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
     let mut t = FieldTracker::new(&seq.markers_px, seq.pitch_px, settings.lag_frames);
     let mut e = SlipEvidence::new(settings.smooth_frames);
     let mut f = FieldDynamics::default();
-    let mut prefixes = Vec::new();
+    let (mut prefixes, mut prefix_end_s) = (Vec::new(), Vec::new());
     for (k, frame) in seq.frames.iter().enumerate() {
         t.update_into(&frame.displacement_px, &mut f);
         e.push(&f);
         if (k + 1) % PREFIX_EVERY == 0 && k + 1 < seq.frames.len() {
             prefixes.push(e.values());
+            prefix_end_s.push(frame.timestamp_s);
         }
     }
     SequenceEvidence {
         whole: e.values(),
         prefixes,
+        prefix_end_s,
     }
 }
 
 /// Fits a detector with `settings` on sequences labelled slip or not. Each sequence counts by
 /// its whole evidence, and a sequence without slip also by each of its beginnings (no slip
 /// had happened there either): so that the live score stays low through a grasp that holds,
-/// not only at its end. (A slipping sequence's beginnings are left out: when it slipped is
-/// not labelled.) A still field (no marker moved) counts as no slip too, as often as there
-/// are slipping sequences. Both classes weigh the same.
+/// not only at its end. A slipping sequence's beginnings count only when its onset is
+/// labelled ([`SlipTruth::onset_s`]): those ending before it as no slip, the others as slip,
+/// so that the score rises when the slip begins. A still field (no marker moved) counts as no
+/// slip too, as often as there are slipping sequences. Both classes weigh the same.
 pub fn fit_detector(
     evidence: &[SequenceEvidence],
-    slip: &[bool],
+    truth: &[SlipTruth],
     settings: &SlipSettings,
 ) -> Result<SlipDetector, SlipError> {
-    let pos = slip.iter().filter(|&&s| s).count();
-    if pos == 0 || pos == slip.len() {
+    let pos = truth.iter().filter(|t| t.slip).count();
+    if pos == 0 || pos == truth.len() {
         return Err(SlipError::OneClass {
             slip: pos,
-            stick: slip.len() - pos,
+            stick: truth.len() - pos,
         });
     }
     // A skin that has not moved has not slipped: the evidence of a still field (every
     // statistic 0), once per no-slip sequence, so that it weighs as a sequence of its own.
     let still = if settings.stick_prefixes {
-        pos.min(slip.len() - pos)
+        pos.min(truth.len() - pos)
     } else {
         0
     };
     let mut rows: Vec<[f64; EVIDENCE_LEN]> = vec![[0.0; EVIDENCE_LEN]; still];
     let mut labels = vec![false; still];
-    for (e, &y) in evidence.iter().zip(slip) {
+    for (e, t) in evidence.iter().zip(truth) {
         rows.push(e.whole);
-        labels.push(y);
-        if !y && settings.stick_prefixes {
-            rows.extend_from_slice(&e.prefixes);
-            labels.extend(std::iter::repeat_n(false, e.prefixes.len()));
+        labels.push(t.slip);
+        if !settings.stick_prefixes {
+            continue;
+        }
+        match (t.slip, t.onset_s) {
+            (false, _) => {
+                rows.extend_from_slice(&e.prefixes);
+                labels.extend(std::iter::repeat_n(false, e.prefixes.len()));
+            }
+            (true, Some(onset)) => {
+                rows.extend_from_slice(&e.prefixes);
+                labels.extend(e.prefix_end_s.iter().map(|&end| end >= onset));
+            }
+            (true, None) => {}
         }
     }
     let mut d = fit_rows(&rows, &labels, settings);
-    d.fitted_on = [slip.len(), pos];
+    d.fitted_on = [truth.len(), pos];
     Ok(d)
 }
 

@@ -119,7 +119,7 @@ fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
         .map(|k| (sequence(100, k % 2 == 0, k), k % 2 == 0))
         .collect();
     let ev: Vec<_> = train.iter().map(|(q, _)| evidence_of(q, &s)).collect();
-    let y: Vec<bool> = train.iter().map(|(_, l)| *l).collect();
+    let y: Vec<SlipTruth> = train.iter().map(|(_, l)| SlipTruth::from(*l)).collect();
     let d = fit_detector(&ev, &y, &s).unwrap();
     assert_eq!(d.fitted_on, [40, 20]);
     assert_eq!(
@@ -146,11 +146,53 @@ fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
         }
     }
     assert!(right >= 18, "{right} of 20 held-out sequences right");
-    let only_slips = vec![true; ev.len()];
+    let only_slips = vec![SlipTruth::from(true); ev.len()];
     assert!(matches!(
         fit_detector(&ev, &only_slips, &s),
         Err(SlipError::OneClass { .. })
     ));
+}
+
+/// Labelled with their onsets, slipping sequences teach the detector when a slip begins: their
+/// beginnings before the onset count as no slip, the later ones as slip. Held out, the onset is
+/// then found nearer the truth (3.0 s) than by a detector fitted on the verdicts alone (mean
+/// error measured 0.45 s against 0.98 s over ten slips), and every verdict is right.
+#[test]
+fn onsets_in_the_labels_date_the_slip_nearer_the_truth() {
+    let s = SlipSettings::default();
+    let train: Vec<(TrackedSequence, bool)> = (0..40)
+        .map(|k| (sequence(150, k % 2 == 0, k), k % 2 == 0))
+        .collect();
+    let ev: Vec<_> = train.iter().map(|(q, _)| evidence_of(q, &s)).collect();
+    assert_eq!(ev[0].prefix_end_s, [0.96, 1.96, 2.96, 3.96, 4.96]);
+    let plain: Vec<SlipTruth> = train.iter().map(|(_, l)| SlipTruth::from(*l)).collect();
+    let timed: Vec<SlipTruth> = plain
+        .iter()
+        .map(|t| SlipTruth {
+            onset_s: t.slip.then_some(3.0),
+            ..*t
+        })
+        .collect();
+    let (d_plain, d_timed) = (
+        fit_detector(&ev, &plain, &s).unwrap(),
+        fit_detector(&ev, &timed, &s).unwrap(),
+    );
+    assert_ne!(d_timed.weights, d_plain.weights, "the onsets are used");
+    let (mut off_plain, mut off_timed) = (0.0, 0.0);
+    for k in 100..120 {
+        let slip = k % 2 == 0;
+        let q = sequence(150, slip, k);
+        let (a, b) = (detect(&q, &d_plain), detect(&q, &d_timed));
+        assert_eq!(b.slip, slip, "seed {k}");
+        if slip {
+            off_plain += (a.onset_s.unwrap_or(0.0) - 3.0).abs();
+            off_timed += (b.onset_s.unwrap() - 3.0).abs();
+        }
+    }
+    assert!(
+        off_timed < 0.6 * off_plain,
+        "mean onset error {off_timed} s with onsets, {off_plain} s without (10 slips)"
+    );
 }
 
 #[test]
