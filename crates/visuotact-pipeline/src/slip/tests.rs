@@ -112,14 +112,20 @@ fn evidence_of_steady_signals_is_their_value_with_no_rate() {
     assert_eq!(SlipEvidence::names()[25], "max_rate_entropy_nats");
 }
 
+/// Forty training sequences of `n` frames, every second one slipping: their evidence and labels.
+fn training(n: usize, s: &SlipSettings) -> (Vec<SequenceEvidence>, Vec<SlipTruth>) {
+    (0..40u64)
+        .map(|k| {
+            let slip = k % 2 == 0;
+            (evidence_of(&sequence(n, slip, k), s), SlipTruth::from(slip))
+        })
+        .unzip()
+}
+
 #[test]
 fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
     let s = SlipSettings::default();
-    let train: Vec<(TrackedSequence, bool)> = (0..40)
-        .map(|k| (sequence(100, k % 2 == 0, k), k % 2 == 0))
-        .collect();
-    let ev: Vec<_> = train.iter().map(|(q, _)| evidence_of(q, &s)).collect();
-    let y: Vec<SlipTruth> = train.iter().map(|(_, l)| SlipTruth::from(*l)).collect();
+    let (ev, y) = training(100, &s);
     let d = fit_detector(&ev, &y, &s).unwrap();
     assert_eq!(d.fitted_on, [40, 20]);
     assert_eq!(
@@ -160,12 +166,8 @@ fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
 #[test]
 fn onsets_in_the_labels_date_the_slip_nearer_the_truth() {
     let s = SlipSettings::default();
-    let train: Vec<(TrackedSequence, bool)> = (0..40)
-        .map(|k| (sequence(150, k % 2 == 0, k), k % 2 == 0))
-        .collect();
-    let ev: Vec<_> = train.iter().map(|(q, _)| evidence_of(q, &s)).collect();
+    let (ev, plain) = training(150, &s);
     assert_eq!(ev[0].prefix_end_s, [0.96, 1.96, 2.96, 3.96, 4.96]);
-    let plain: Vec<SlipTruth> = train.iter().map(|(_, l)| SlipTruth::from(*l)).collect();
     let timed: Vec<SlipTruth> = plain
         .iter()
         .map(|t| SlipTruth {
