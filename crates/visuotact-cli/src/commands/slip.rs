@@ -151,6 +151,11 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
             "held-out no-slip grasps, every second: {:.1} % scored as slip",
             100.0 * cv.false_alarms
         );
+        say!(
+            "held-out grasps, their first {} frames: {:.1} % scored as slip",
+            visuotact_pipeline::slip::START_FRAMES,
+            100.0 * cv.start_alarms
+        );
         if let Some(s) = cv.default {
             line(
                 "built-in detector (as shipped, fitted on the GelSight set)",

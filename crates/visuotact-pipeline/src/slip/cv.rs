@@ -68,6 +68,9 @@ pub struct CrossValidation {
     /// Share of the held-out beginnings (every second) of sequences without slip that the
     /// fitted detector scored as slip: the live false alarms.
     pub false_alarms: f64,
+    /// Share of the held-out sequences whose start ([`SequenceEvidence::start`]) the fitted
+    /// detector scored as slip: alarms as a grasp begins.
+    pub start_alarms: f64,
 }
 
 /// Leave-one-group-out figures on the sequences' `evidence` labelled `truth`, in `groups`, of
@@ -88,7 +91,7 @@ pub fn cross_validate(
     let whole: Vec<[f64; EVIDENCE_LEN]> = evidence.iter().map(|e| e.whole).collect();
     let (mut fitted, mut shift, mut entropy) = (vec![false; n], vec![false; n], vec![false; n]);
     let mut held_out_scores = vec![0.0; n];
-    let (mut alarms, mut beginnings) = (0usize, 0usize);
+    let (mut alarms, mut beginnings, mut starts) = (0usize, 0usize, 0usize);
     for g in &names {
         let train: Vec<usize> = (0..n).filter(|&i| &groups[i] != *g).collect();
         let test: Vec<usize> = (0..n).filter(|&i| &groups[i] == *g).collect();
@@ -107,6 +110,7 @@ pub fn cross_validate(
         let ent = small_logistic(&ev_whole, &y);
         for &i in &test {
             held_out_scores[i] = d.score(&whole[i]);
+            starts += usize::from(d.score(&evidence[i].start) >= d.threshold);
             fitted[i] = held_out_scores[i] >= d.threshold;
             shift[i] = (whole[i][MAX_SHIFT] >= cut.0) == cut.1;
             entropy[i] = ent(&whole[i]);
@@ -132,6 +136,7 @@ pub fn cross_validate(
         default: by_default,
         held_out_scores,
         false_alarms: alarms as f64 / beginnings.max(1) as f64,
+        start_alarms: starts as f64 / n.max(1) as f64,
     })
 }
 

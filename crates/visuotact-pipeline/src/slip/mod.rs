@@ -795,7 +795,14 @@ pub struct SequenceEvidence {
     pub prefixes: Vec<[f64; EVIDENCE_LEN]>,
     /// The time of each prefix's last frame, seconds from the sequence's start.
     pub prefix_end_s: Vec<f64>,
+    /// Over its first [`START_FRAMES`] frames (or all, if fewer): a grasp's start, before
+    /// anything can have slipped.
+    pub start: [f64; EVIDENCE_LEN],
 }
+
+/// Frames of a sequence's start ([`SequenceEvidence::start`]): the frames a sequence
+/// calibrates its reference from by default.
+pub const START_FRAMES: usize = 5;
 
 /// What is known of a sequence: whether it slipped and, when labelled, when the slip began.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -821,9 +828,13 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
     let mut e = SlipEvidence::new(settings.smooth_frames);
     let mut f = FieldDynamics::default();
     let (mut prefixes, mut prefix_end_s) = (Vec::new(), Vec::new());
+    let mut start = [0.0; EVIDENCE_LEN];
     for (k, frame) in seq.frames.iter().enumerate() {
         t.update_into(&frame.displacement_px, &mut f);
         e.push(&f);
+        if k < START_FRAMES {
+            start = e.values();
+        }
         if (k + 1) % PREFIX_EVERY == 0 && k + 1 < seq.frames.len() {
             prefixes.push(e.values());
             prefix_end_s.push(frame.timestamp_s);
@@ -833,6 +844,7 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
         whole: e.values(),
         prefixes,
         prefix_end_s,
+        start,
     }
 }
 

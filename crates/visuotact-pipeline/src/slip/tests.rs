@@ -168,6 +168,10 @@ fn onsets_in_the_labels_date_the_slip_nearer_the_truth() {
     let s = SlipSettings::default();
     let (ev, plain) = training(150, &s);
     assert_eq!(ev[0].prefix_end_s, [0.96, 1.96, 2.96, 3.96, 4.96]);
+    // A sequence's start is the evidence of its first frames alone.
+    let mut first = sequence(150, true, 0);
+    first.frames.truncate(START_FRAMES);
+    assert_eq!(ev[0].start, evidence_of(&first, &s).whole);
     let timed: Vec<SlipTruth> = plain
         .iter()
         .map(|t| SlipTruth {
@@ -248,4 +252,26 @@ fn sequences_are_videos_folders_of_images_or_folders_of_them() {
     let e = sequences_in(&[dir.join("empty")]).unwrap_err().to_string();
     assert!(e.contains("folder has no video"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Leave-one-group-out on the synthetic grasps: four groups, every sequence answered, the
+/// fitted detector at least as good as the naive threshold on the largest shift, and the start
+/// alarms a count of the sequences.
+#[test]
+fn cross_validation_holds_each_group_out_and_counts_start_alarms() {
+    let s = SlipSettings::default();
+    let (ev, y) = training(100, &s);
+    let groups: Vec<String> = (0..ev.len()).map(|k| format!("g{}", k % 4)).collect();
+    let cv = cross_validate(&ev, &y, &groups, &s, None).unwrap();
+    assert_eq!(cv.folds, 4);
+    assert_eq!(cv.fitted.answered, 40);
+    assert!(cv.fitted.balanced_accuracy >= 0.9, "{:?}", cv.fitted);
+    assert!(cv.fitted.balanced_accuracy >= cv.largest_shift.balanced_accuracy);
+    assert!((0.0..=1.0).contains(&cv.start_alarms));
+    let alarms = 40.0 * cv.start_alarms;
+    assert!(
+        (alarms - alarms.round()).abs() < 1e-9,
+        "{alarms}: a count of the 40"
+    );
+    assert!(cv.default.is_none());
 }
