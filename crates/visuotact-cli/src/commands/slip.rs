@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use visuotact_pipeline::slip::{
     cross_validate, detect, evidence_of, fit_detector, labels_of, read_labels, sequences_in,
-    track_sequences, verdicts_csv, Scores, SlipConfig, SlipDetector, SlipSettings, SlipTruth,
-    TrackedSequence,
+    track_sequences, verdicts_csv, Label, Scores, SlipConfig, SlipDetector, SlipSettings,
+    SlipTruth, TrackedSequence,
 };
 
 use crate::progress::Reporter;
@@ -107,13 +107,7 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
     let (_, seqs) = tracked(&a.common)?;
     let like = SlipSettings::default();
     let ev: Vec<_> = seqs.iter().map(|s| evidence_of(s, &like)).collect();
-    let y: Vec<SlipTruth> = labels
-        .iter()
-        .map(|l| SlipTruth {
-            slip: l.slip,
-            onset_s: l.onset_s,
-        })
-        .collect();
+    let y: Vec<SlipTruth> = labels.iter().map(Label::truth).collect();
     let det = fit_detector(&ev, &y, &like)?;
     crate::write_atomically(&a.output, &det.to_json())?;
     let slips = y.iter().filter(|t| t.slip).count();

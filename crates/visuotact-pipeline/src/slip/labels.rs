@@ -25,6 +25,16 @@ pub struct Label {
     pub line: usize,
 }
 
+impl Label {
+    /// What the label says of its sequence's slip.
+    pub fn truth(&self) -> super::SlipTruth {
+        super::SlipTruth {
+            slip: self.slip,
+            onset_s: self.onset_s,
+        }
+    }
+}
+
 /// `p` absolute, without `.` or `..` (not following links).
 pub fn normalised(p: &Path) -> PathBuf {
     let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());

@@ -832,7 +832,7 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
     for (k, frame) in seq.frames.iter().enumerate() {
         t.update_into(&frame.displacement_px, &mut f);
         e.push(&f);
-        if k < START_FRAMES {
+        if k + 1 == START_FRAMES.min(seq.frames.len()) {
             start = e.values();
         }
         if (k + 1) % PREFIX_EVERY == 0 && k + 1 < seq.frames.len() {
@@ -879,19 +879,14 @@ pub fn fit_detector(
     for (e, t) in evidence.iter().zip(truth) {
         rows.push(e.whole);
         labels.push(t.slip);
-        if !settings.stick_prefixes {
-            continue;
-        }
-        match (t.slip, t.onset_s) {
-            (false, _) => {
-                rows.extend_from_slice(&e.prefixes);
-                labels.extend(std::iter::repeat_n(false, e.prefixes.len()));
-            }
-            (true, Some(onset)) => {
-                rows.extend_from_slice(&e.prefixes);
-                labels.extend(e.prefix_end_s.iter().map(|&end| end >= onset));
-            }
-            (true, None) => {}
+        // A beginning is known not to have slipped, or (onset labelled) whether it had.
+        if settings.stick_prefixes && (!t.slip || t.onset_s.is_some()) {
+            rows.extend_from_slice(&e.prefixes);
+            labels.extend(
+                e.prefix_end_s
+                    .iter()
+                    .map(|&end| t.onset_s.is_some_and(|onset| t.slip && end >= onset)),
+            );
         }
     }
     let mut d = fit_rows(&rows, &labels, settings);
