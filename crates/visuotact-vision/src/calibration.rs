@@ -24,7 +24,7 @@ use crate::layout::{
     annuli_share_centres, median, number_markers, Layout, LayoutChoice, LayoutError,
 };
 use crate::preprocess::gray_from_rgb_into;
-use crate::track::{fill_sigma_from_rest, track, TrackParams, TrackReference};
+use crate::track::{fill_sigma_from_rest, track, unseen_sites, TrackParams, TrackReference};
 use rayon::prelude::*;
 
 /// Identifies sensor files.
@@ -672,10 +672,23 @@ fn rings_order(blobs: &[Blob], convention: MomentConvention) -> Ordered {
 /// ([`TrackReference::fill_sigma`]).
 pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
     let (markers, pitch_px, layout) = (&cal.markers, cal.pitch_px, cal.layout);
-    let mut r = TrackReference::new(
-        markers.iter().map(|m| (m.x_px, m.y_px)).collect(),
-        markers.iter().map(|m| m.area_px).collect(),
-    );
+    let positions: Vec<(f64, f64)> = markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+    let areas_px: Vec<f64> = markers.iter().map(|m| m.area_px).collect();
+    let steps = layout.row_col_steps();
+    let mut sites: Vec<(i64, i64)> = markers
+        .iter()
+        .map(|m| (i64::from(m.row), i64::from(m.col)))
+        .collect();
+    // A numbered array's sites where the reference (taken in contact) saw no pin.
+    let unseen = if steps.is_empty() {
+        Vec::new()
+    } else {
+        unseen_sites(&sites, &positions, steps)
+    };
+    let unseen_area_px = median(&mut areas_px.clone());
+    sites.extend(unseen.iter().map(|u| u.0));
+    let unseen_px: Vec<(f64, f64)> = unseen.iter().map(|u| u.1).collect();
+    let mut r = TrackReference::with_unseen(positions, areas_px, &unseen_px, unseen_area_px);
     // The axes are 4·√λ in the file's convention; the fill counts each pixel as a unit square.
     let square = match cal.moment_convention {
         MomentConvention::Pixel => 1.0 / 12.0,
@@ -689,11 +702,7 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
     if layout == Layout::Hex {
         // The pin array's six neighbours per pin, as numbered (grids keep their geometric
         // steps: the numbering changed nothing there but some slip grasps' readings).
-        let sites: Vec<(i64, i64)> = markers
-            .iter()
-            .map(|m| (i64::from(m.row), i64::from(m.col)))
-            .collect();
-        r.take_lattice(&sites, layout.row_col_steps());
+        r.take_lattice(&sites, steps);
     }
     if layout == Layout::Rings {
         // Concentric rings share a centre: they are told apart by size.

@@ -32,7 +32,8 @@
 //! `(gate / σ)²`, so that a blob at the gate is as likely the marker's as not; the marker's
 //! half is scaled by how visible it is expected to be (0 outside the view, 1 a radius inside
 //! it) where its neighbours or the starting motion put it, whichever is deeper inside — a
-//! reading does not get to push markers out of the view for free — and a blob cut by the
+//! reading does not get to push markers out of the view for free; an unseen lattice site
+//! ([`super::sites`]) is absent for free — and a blob cut by the
 //! border is no clutter (it explains a marker leaving the view), nor, order-free, is a piece of
 //! a marker's dot broken by the threshold or a line drawn across it: the marker is measured on
 //! its pieces together where that costs less ([`super::pieces`]). The total is the energy;
@@ -74,8 +75,11 @@ impl Energy<'_> {
 
     /// The cost of marker `i` without a blob where its neighbours put it (`at`): half the gate
     /// cost times how far the marker is inside the view, in radii (0 at or beyond its edge, 1
-    /// a radius inside).
+    /// a radius inside). An unseen lattice site's costs nothing: its pin was hidden at rest.
     pub fn lost_cost_at(&self, i: usize, p: &Prediction) -> f64 {
+        if self.reference.is_unseen(i) {
+            return 0.0;
+        }
         let seen = self.view.map_or(1.0, |v| {
             let r = (self.reference.areas_px[i] / std::f64::consts::PI).sqrt() * p.scale;
             let depth = v.depth_px(p.at).max(v.depth_px(p.start));
@@ -98,7 +102,14 @@ impl Energy<'_> {
     pub fn sigma_px(&self, i: usize, p: &Prediction) -> f64 {
         let s = self.params.sigma_spacings * self.reference.spacing_px[i] * p.scale;
         let spread = p.spread_px.min(s * self.params.spread_sigmas);
-        (s * s + spread * spread).sqrt()
+        // An unseen site's rest position is a guess from its neighbours: its pin lies within
+        // half a spacing of it (nearer another site, it would be that site's).
+        let rest = if self.reference.is_unseen(i) {
+            0.5 * self.reference.spacing_px[i] * p.scale
+        } else {
+            0.0
+        };
+        (s * s + spread * spread + rest * rest).sqrt()
     }
 
     /// The position term: `(distance / σ_px)²`.

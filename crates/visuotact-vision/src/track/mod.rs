@@ -21,6 +21,10 @@
 //!   measured on its pieces together when that lowers the energy; order-free, every reading
 //!   the search compares is charged so (a broken dot is one marker's, not two markers' a step
 //!   apart).
+//! - `sites`: a numbered array's lattice sites where the reference saw no pin (hidden under a
+//!   reference in contact) are followed as markers absent for free and never reported, so
+//!   that the pin's blob, once it shows, has an owner (test
+//!   `a_pin_hidden_at_rest_is_an_unseen_site_not_a_neighbours_blob`).
 //! - `ambiguity`, `split`: a blob may hold two markers (a hypothesis on the energy, split by
 //!   its moments when they are two discs'); a marker is ambiguous when a runner-up reading
 //!   costs less than one margin more than the best.
@@ -39,6 +43,7 @@ mod index;
 mod pieces;
 mod predict;
 mod rings;
+mod sites;
 mod slide;
 mod solve;
 mod split;
@@ -47,6 +52,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::blobs::Blob;
 use crate::layout::k_nearest_all;
+
+pub use sites::unseen_sites;
 
 /// What happened to one reference marker in one frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -268,6 +275,9 @@ pub struct TrackReference {
     lattice_dirs: usize,
     /// Per marker, its neighbour one step along each of the `lattice_dirs` directions.
     lattice_steps: Vec<Vec<Option<usize>>>,
+    /// How many of the positions are markers; those after them are unseen lattice sites
+    /// ([`unseen_sites`]), followed but never reported.
+    markers: usize,
 }
 
 impl TrackReference {
@@ -325,7 +335,36 @@ impl TrackReference {
             ring_sizes_px: None,
             lattice_dirs,
             lattice_steps,
+            markers: n,
         }
+    }
+
+    /// As [`TrackReference::new`], followed by unseen lattice sites ([`unseen_sites`]) at
+    /// `unseen_px`, each of `unseen_area_px`: the tracker follows them as markers whose absence
+    /// costs nothing (their pins were hidden at rest), so that a pin showing there is not
+    /// clutter a neighbour may take; results report the markers only.
+    pub fn with_unseen(
+        mut positions: Vec<(f64, f64)>,
+        mut areas_px: Vec<f64>,
+        unseen_px: &[(f64, f64)],
+        unseen_area_px: f64,
+    ) -> Self {
+        let markers = positions.len();
+        positions.extend_from_slice(unseen_px);
+        areas_px.extend(std::iter::repeat_n(unseen_area_px, unseen_px.len()));
+        let mut r = Self::new(positions, areas_px);
+        r.markers = markers;
+        r
+    }
+
+    /// How many markers the reference has (its positions less the unseen sites).
+    pub fn markers(&self) -> usize {
+        self.markers
+    }
+
+    /// Whether position `i` is an unseen lattice site rather than a marker.
+    pub(crate) fn is_unseen(&self, i: usize) -> bool {
+        i >= self.markers
     }
 }
 
@@ -361,7 +400,7 @@ pub struct TrackResult {
     pub status: Vec<MarkerStatus>,
     /// Overall motion found by the registration, in pixels.
     pub shift_px: (f64, f64),
-    /// Blobs not given to any marker.
+    /// Blobs given to no marker and no unseen lattice site ([`unseen_sites`]).
     pub spurious: usize,
     /// Estimated position of each [`MarkerStatus::Split`] marker (`None` for the others; empty
     /// when no marker was split).
@@ -398,6 +437,17 @@ impl TrackResult {
                 blobs[j] = b.union(b2);
             }
         }
+    }
+
+    /// Leaves out the unseen lattice sites after the first `markers` (their blobs stay out of
+    /// [`TrackResult::spurious`]: a pin is no clutter), `owner` the holder of each blob.
+    fn keep_markers(&mut self, markers: usize, owner: &[Option<usize>]) {
+        self.pieces
+            .retain(|&(j, _)| owner[j].is_some_and(|i| i < markers));
+        self.assignment.truncate(markers);
+        self.status.truncate(markers);
+        self.split_px.truncate(markers);
+        self.held_px.truncate(markers);
     }
 
     /// Where the next frame of a video starts looking for marker `i`: its
@@ -542,7 +592,18 @@ pub fn track_with(
         return rings::track_rings(reference, sizes, &blobs[..usable]);
     }
     let n = reference.positions.len();
-    let prior = hints.prior.filter(|p| p.len() == n);
+    // The unseen sites start from their neighbours' motion, as a marker with no prior does.
+    let prior: Option<Vec<Option<(f64, f64)>>> = hints
+        .prior
+        .filter(|p| p.len() == reference.markers())
+        .map(|p| {
+            p.iter()
+                .copied()
+                .chain(std::iter::repeat(None))
+                .take(n)
+                .collect()
+        });
+    let prior = prior.as_deref();
     let energy = energy::Energy {
         reference,
         params,
@@ -568,21 +629,28 @@ pub fn track_with(
             }
         }
     }
+    outcome(&m, &runner_ups)
+}
+
+/// The reported outcome of the reading `m` found, with the `runner_ups` within the margin of
+/// it: statuses, split pairs, shared blobs and pieces, the markers only.
+fn outcome(m: &solve::Matching<'_>, runner_ups: &[slide::RunnerUp]) -> TrackResult {
+    let (blobs, usable, n) = (m.blobs, m.usable, m.reference.positions.len());
     let preds = m.predictions();
-    let pieces = pieces::find_pieces(&m, &preds);
+    let pieces = pieces::find_pieces(m, &preds);
     let ambiguity::Classified {
         mut status,
         mut on_blob,
-    } = ambiguity::classify(&m, &preds, &pieces);
-    for r in &runner_ups {
+    } = ambiguity::classify(m, &preds, &pieces);
+    for r in runner_ups {
         for &i in &r.markers {
             if status[i] == MarkerStatus::Ok {
                 status[i] = MarkerStatus::Ambiguous;
             }
         }
     }
-    let split_px = split::split_pairs(&m, &mut on_blob, &mut status);
-    split::lose_cut(&m, &mut status);
+    let split_px = split::split_pairs(m, &mut on_blob, &mut status);
+    split::lose_cut(m, &mut status);
     let mut held_px = Vec::new();
     let mut merged_blob = vec![false; blobs.len()];
     for &(j, i, _) in &on_blob {
@@ -606,7 +674,7 @@ pub fn track_with(
     }
     let pieces: Vec<(usize, usize)> = pieces.into_iter().filter(|&(_, j2)| piece[j2]).collect();
     let taken = |j: usize| m.owner[j].is_some() || merged_blob[j] || piece[j];
-    TrackResult {
+    let mut result = TrackResult {
         assignment,
         status,
         shift_px: m.shift,
@@ -614,5 +682,7 @@ pub fn track_with(
         split_px,
         held_px,
         pieces,
-    }
+    };
+    result.keep_markers(m.reference.markers(), &m.owner);
+    result
 }
