@@ -317,7 +317,9 @@ impl LiveEstimator {
     /// Follows the frames with a slip detector: every frame then carries its slip state
     /// ([`LiveFrame::slip`]), from the markers' displacements from the sensor's reference.
     /// Each contact is one sequence: the detector starts afresh when a contact begins (and on
-    /// re-zeroing). Needs a feature set with `dx` and `dy`.
+    /// re-zeroing). Nothing slips without contact: a frame without one is `stick` with score 0
+    /// and no field signals (the markers' noise at rest is no evidence). Needs a feature set
+    /// with `dx` and `dy`.
     pub fn set_slip(&mut self, detector: SlipDetector) -> Result<(), PipelineError> {
         self.slip = Some(SlipMonitor::for_estimator(detector, &self.est)?);
         Ok(())
@@ -395,13 +397,16 @@ impl LiveEstimator {
     }
 
     /// The slip state of this frame's displacements: each contact is a sequence of its own,
-    /// followed from its first frame until the next contact starts.
+    /// followed from its first frame until it ends; without contact, `stick`.
     fn slip_of(&mut self, contact: bool) -> Option<SlipEstimate> {
         let monitor = self.slip.as_mut()?;
         if contact && !self.was_contact {
             monitor.reset();
         }
         self.was_contact = contact;
+        if !contact {
+            return Some(SlipEstimate::without_contact());
+        }
         Some(monitor.estimate_features(self.est.last_features(), self.est.feature_set()))
     }
 
@@ -549,6 +554,7 @@ impl LiveEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::slip::SlipState;
     use visuotact_nn::fit::{fit, quietly, FitConfig, FitData};
     use visuotact_sim::iats::{render, IatsConfig, Touch};
     use visuotact_vision::calibration::{calibrate, Preset};
@@ -584,7 +590,7 @@ mod tests {
     }
 
     #[test]
-    fn a_slip_detector_gives_every_frame_a_state_and_starts_afresh_with_each_contact() {
+    fn a_slip_detector_gives_every_frame_a_state_sticks_without_contact_and_starts_afresh() {
         let cfg = IatsConfig::SEED000;
         let mut live = LiveEstimator::new(sensor(), vec![], &LiveConfig::default()).unwrap();
         assert!(live
@@ -605,7 +611,11 @@ mod tests {
                 let r = live
                     .process(&render(&cfg, &Touch::default(), 20 + k).unwrap().0, None)
                     .unwrap();
-                assert!(!r.contact && r.slip.is_some());
+                let s = r.slip.unwrap();
+                assert!(
+                    !r.contact && s.state == SlipState::Stick && s.score == 0.0,
+                    "{s:?}"
+                );
             }
             for k in 0..4 {
                 let r = live

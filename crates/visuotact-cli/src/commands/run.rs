@@ -29,7 +29,8 @@ pub(crate) struct Args {
     #[arg(long)]
     temporal: bool,
     /// Slip detection: every estimate carries `slip` (state and score; ROS 2 `NS/slip`), each
-    /// contact followed as one sequence. `builtin`: the built-in detector.
+    /// contact followed as one sequence, a frame without contact `stick`. `builtin`: the
+    /// built-in detector.
     #[arg(long, value_name = "slip.json|builtin")]
     slip: Option<PathBuf>,
     /// sim:iats, sim:cone, video:FILE, frames:DIR (or a path), camera:/dev/videoN.

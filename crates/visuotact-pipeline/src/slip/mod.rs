@@ -636,6 +636,17 @@ pub struct SlipEstimate {
     pub field: FieldDynamics,
 }
 
+impl SlipEstimate {
+    /// A frame without contact: nothing to slip (`stick`, score 0, no field signals).
+    pub fn without_contact() -> Self {
+        Self {
+            state: SlipState::Stick,
+            score: 0.0,
+            field: FieldDynamics::default(),
+        }
+    }
+}
+
 /// A sequence's displacements, frame by frame.
 #[derive(Clone, Debug, Default)]
 pub struct TrackedSequence {
