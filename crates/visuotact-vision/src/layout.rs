@@ -41,6 +41,8 @@ use crate::blobs::{Blob, MomentConvention};
 
 mod triangles;
 
+pub(crate) use triangles::PARALLELOGRAM_TOLERANCE;
+
 /// How markers are laid out and numbered (the sensor file's `layout`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]

@@ -23,7 +23,7 @@ use delaunator::{triangulate, Point, EMPTY};
 
 /// How far the fourth corner may be from the parallelogram of the other three, in the
 /// quadrilateral's mean side (the walk's link tolerance is 0.3 of a lattice step).
-const PARALLELOGRAM_TOLERANCE: f64 = 0.3;
+pub(crate) const PARALLELOGRAM_TOLERANCE: f64 = 0.3;
 
 /// The lattice coordinates of `points` spread from `seed` (the walk's numbering, of which one
 /// triangle is taken: one around `start` whose corners are one of `steps` apart) through the
