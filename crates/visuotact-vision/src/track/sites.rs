@@ -100,8 +100,11 @@ mod tests {
 
     const GRID: [(i64, i64); 4] = [(0, 1), (1, 0), (0, -1), (-1, 0)];
 
+    /// Lattice sites and their positions.
+    type Numbered = (Vec<(i64, i64)>, Vec<(f64, f64)>);
+
     /// A 3 × 3 grid of pitch 10 without its centre, `moved` applied to each pin's position.
-    fn ring(moved: impl Fn((i64, i64)) -> (f64, f64)) -> (Vec<(i64, i64)>, Vec<(f64, f64)>) {
+    fn ring(moved: impl Fn((i64, i64)) -> (f64, f64)) -> Numbered {
         let sites: Vec<(i64, i64)> = (0..9)
             .map(|k| (k / 3, k % 3))
             .filter(|&s| s != (1, 1))
