@@ -6,11 +6,14 @@
 
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+use visuotact_image::Frame;
+
 use visuotact_io::table::{KeyedTable, TableFormat, TableWriter};
 use visuotact_nn::model::Model;
 use visuotact_vision::blobs::MomentConvention;
 use visuotact_vision::detect::Detector;
-use visuotact_vision::features::{FeatureExtractor, FrameFeatures, MmColumns};
+use visuotact_vision::features::{FeatureExtractor, FrameFeatures, FrameSizeError, MmColumns};
 use visuotact_vision::field::FieldDynamics;
 
 use crate::replay::{Pass, PassObserver, ReplayError};
@@ -37,8 +40,9 @@ pub struct Extracted {
 /// in `format`: one row per frame ([`crate::schema`]). With `ex` following the frames in order
 /// ([`FeatureExtractor::set_temporal_prior`]) and features holding x and y, each row ends with
 /// the displacement field's dynamics over the sequence ([`FieldDynamics::NAMES`], as
-/// `slip detect --frames` writes them; an increment spans the slip detector's lag). `obs` hears of the progress and of every frame skipped
-/// or with markers not found.
+/// `slip detect --frames` writes them; an increment spans the slip detector's lag), the frames
+/// one after another; order-free, a batch of frames at a time on every core (the same table).
+/// `obs` hears of the progress and of every frame skipped or with markers not found.
 pub fn extract(
     ex: &mut FeatureExtractor,
     frames: &[PathBuf],
@@ -64,15 +68,19 @@ pub fn extract(
     let mut out = TableWriter::create(output, format, columns).map_err(write_err)?;
     let mut done = Extracted::default();
     let mut first_skip: Option<String> = None;
-    let (mut f, mut row) = (FrameFeatures::default(), Vec::new());
-    while let Some(frame) = pass.next(obs)? {
-        if let Err(e) = ex.extract_into(&frame.image, &mut f) {
-            done.skipped += 1;
-            let why = format!("frame {}: {e}", frame.id);
-            obs.warn(&format!("{why}; skipped"));
-            first_skip.get_or_insert(why);
-            continue;
-        }
+    let mut row = Vec::new();
+    let set = ex.feature_set();
+    each_extracted(ex, &mut pass, obs, |frame, f, obs| {
+        let f = match f {
+            Ok(f) => f,
+            Err(e) => {
+                done.skipped += 1;
+                let why = format!("frame {}: {e}", frame.id);
+                obs.warn(&format!("{why}; skipped"));
+                first_skip.get_or_insert(why);
+                return Ok(());
+            }
+        };
         let missing = n_markers - f.found;
         if missing > 0 {
             done.incomplete += 1;
@@ -85,17 +93,18 @@ pub fn extract(
             obs.warn(&format!(
                 "frame {}: {missing} of {n_markers} markers not found ({}){what}",
                 frame.id,
-                missing_summary(&f)
+                missing_summary(f)
             ));
         }
-        feature_row_into(&mut row, frame.timestamp_s, n_markers, &f, &mm);
+        feature_row_into(&mut row, frame.timestamp_s, n_markers, f, &mm);
         if let Some(follower) = &mut dynamics {
-            row.extend_from_slice(&follower.update_features(&f, ex.feature_set()).signals());
+            row.extend_from_slice(&follower.update_features(f, set).signals());
         }
-        out.write_row(&frame.id, &row, &flags_of(&f))
+        out.write_row(&frame.id, &row, &flags_of(f))
             .map_err(write_err)?;
         done.written += 1;
-    }
+        Ok(())
+    })?;
     done.skipped += pass.unreadable;
     if done.written == 0 {
         // A table of a header only is no result: nothing is left under the output's name.
@@ -107,6 +116,58 @@ pub fn extract(
     }
     out.finish().map_err(write_err)?;
     Ok(done)
+}
+
+/// Frames handed to `each` with their features, in order. Order-free (no temporal prior),
+/// every frame is tracked on its own, so frames are read a batch at a time and a batch is
+/// extracted in parallel, one copy of `ex` per worker: the same features as one after
+/// another, sooner. Followed (the temporal prior), one frame after the other.
+fn each_extracted(
+    ex: &mut FeatureExtractor,
+    pass: &mut Pass,
+    obs: &mut dyn PassObserver,
+    mut each: impl FnMut(
+        &Frame,
+        Result<&FrameFeatures, FrameSizeError>,
+        &mut dyn PassObserver,
+    ) -> Result<(), ReplayError>,
+) -> Result<(), ReplayError> {
+    if ex.temporal_prior() {
+        let mut f = FrameFeatures::default();
+        while let Some(frame) = pass.next(obs)? {
+            let got = ex.extract_into(&frame.image, &mut f).map(|()| &f);
+            each(&frame, got, obs)?;
+        }
+        return Ok(());
+    }
+    let size = 4 * rayon::current_num_threads().max(1);
+    let mut batch: Vec<Frame> = Vec::with_capacity(size);
+    loop {
+        batch.clear();
+        while batch.len() < size {
+            match pass.next(obs)? {
+                Some(frame) => batch.push(frame),
+                None => break,
+            }
+        }
+        if batch.is_empty() {
+            return Ok(());
+        }
+        let shared: &FeatureExtractor = ex;
+        let extracted: Vec<_> = batch
+            .par_iter()
+            .map_init(
+                || shared.clone(),
+                |worker, frame| {
+                    let mut f = FrameFeatures::default();
+                    worker.extract_into(&frame.image, &mut f).map(|()| f)
+                },
+            )
+            .collect();
+        for (frame, got) in batch.iter().zip(extracted) {
+            each(frame, got.as_ref().map_err(Clone::clone), obs)?;
+        }
+    }
 }
 
 /// The features of `frames` (image files, folders, videos at `fps`) as a keyed table, one row
@@ -121,10 +182,10 @@ pub fn features_table(
     let mut columns = ex.column_names();
     let mm = MmColumns::of_sensor(ex.calibration(), &columns);
     let mut pass = Pass::open(frames, fps)?;
-    while let Some(frame) = pass.next(obs)? {
-        match ex.extract(&frame.image) {
+    each_extracted(ex, &mut pass, obs, |frame, f, obs| {
+        match f {
             Ok(f) => {
-                keys.push(frame.id);
+                keys.push(frame.id.clone());
                 let mut row = Vec::with_capacity(f.values.len() + mm.names().len());
                 row.extend_from_slice(&f.values);
                 mm.values_into(&f.values, &mut row);
@@ -132,7 +193,8 @@ pub fn features_table(
             }
             Err(e) => obs.warn(&format!("frame {}: {e}; skipped", frame.id)),
         }
-    }
+        Ok(())
+    })?;
     columns.extend(mm.names().iter().cloned());
     Ok(KeyedTable {
         columns,
@@ -251,4 +313,70 @@ pub fn blobs_table(
     done.skipped = pass.unreadable;
     out.finish().map_err(write_err)?;
     Ok(done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use visuotact_sim::iats::{render, IatsConfig, Touch};
+    use visuotact_vision::calibration::{calibrate, Preset};
+    use visuotact_vision::features::FeatureSet;
+
+    /// Order-free, frames are extracted a batch at a time in parallel: the table holds what one
+    /// extractor gives frame after frame, in the frames' order, and a frame of another size is
+    /// skipped in its place, its warning in order.
+    #[test]
+    fn a_parallel_pass_gives_what_one_frame_after_another_gives() {
+        let cfg = IatsConfig::SEED000;
+        let rest: Vec<_> = (0..2)
+            .map(|k| render(&cfg, &Touch::default(), k).unwrap().0)
+            .collect();
+        let (cal, _) =
+            calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
+        let dir = std::env::temp_dir().join(format!("visuotact-par-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut images = Vec::new();
+        for k in 0..21u32 {
+            let touch = Touch {
+                x_mm: 10.0 + 2.0 * f64::from(k),
+                y_mm: 22.0,
+                depth_mm: f64::from(k % 4),
+                ..Touch::default()
+            };
+            let img = if k == 9 {
+                visuotact_image::RgbImage::new(10, 10)
+            } else {
+                render(&cfg, &touch, 100 + u64::from(k)).unwrap().0
+            };
+            visuotact_io::frames::write_png(&dir.join(format!("f{k:02}.png")), &img).unwrap();
+            images.push(img);
+        }
+        let mut one = FeatureExtractor::new(cal.clone(), FeatureSet::ALL).unwrap();
+        let want: Vec<Option<Vec<f64>>> = images
+            .iter()
+            .map(|img| one.extract(img).ok().map(|f| f.values.clone()))
+            .collect();
+        let mut ex = FeatureExtractor::new(cal, FeatureSet::ALL).unwrap();
+        let mut warnings = Vec::new();
+        let table = features_table(&mut ex, std::slice::from_ref(&dir), 25.0, &mut |w: &str| {
+            warnings.push(w.to_string())
+        })
+        .unwrap();
+        assert_eq!(table.keys.len(), 20);
+        assert!(
+            warnings.len() == 1 && warnings[0].starts_with("frame f09.png"),
+            "{warnings:?}"
+        );
+        let kept: Vec<&Vec<f64>> = want.iter().flatten().collect();
+        for (k, (got, want)) in table.rows.iter().zip(kept).enumerate() {
+            let n = want.len();
+            let same = got[..n]
+                .iter()
+                .zip(want)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "row {k} ({}) differs", table.keys[k]);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
