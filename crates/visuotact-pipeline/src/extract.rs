@@ -319,7 +319,6 @@ pub fn blobs_table(
 mod tests {
     use super::*;
     use visuotact_sim::iats::{render, IatsConfig, Touch};
-    use visuotact_vision::calibration::{calibrate, Preset};
     use visuotact_vision::features::FeatureSet;
 
     /// Order-free, frames are extracted a batch at a time in parallel: the table holds what one
@@ -328,11 +327,7 @@ mod tests {
     #[test]
     fn a_parallel_pass_gives_what_one_frame_after_another_gives() {
         let cfg = IatsConfig::SEED000;
-        let rest: Vec<_> = (0..2)
-            .map(|k| render(&cfg, &Touch::default(), k).unwrap().0)
-            .collect();
-        let (cal, _) =
-            calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
+        let cal = crate::test_support::iats_sensor();
         let dir = std::env::temp_dir().join(format!("visuotact-par-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();

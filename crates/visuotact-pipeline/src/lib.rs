@@ -127,3 +127,21 @@ pub enum Error {
     #[error(transparent)]
     Run(#[from] runner::RunError),
 }
+
+/// What the crate's tests share.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use visuotact_sim::iats::{render, IatsConfig, Touch};
+    use visuotact_vision::calibration::{calibrate, Preset, SensorCalibration};
+
+    /// The seed-000 touch sensor calibrated on two rendered rest frames.
+    pub(crate) fn iats_sensor() -> SensorCalibration {
+        let cfg = IatsConfig::SEED000;
+        let rest: Vec<_> = (0..2)
+            .map(|k| render(&cfg, &Touch::default(), k).unwrap().0)
+            .collect();
+        calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config())
+            .unwrap()
+            .0
+    }
+}

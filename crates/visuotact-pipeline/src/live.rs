@@ -557,16 +557,9 @@ mod tests {
     use crate::slip::SlipState;
     use visuotact_nn::fit::{fit, quietly, FitConfig, FitData};
     use visuotact_sim::iats::{render, IatsConfig, Touch};
-    use visuotact_vision::calibration::{calibrate, Preset};
 
     fn sensor() -> Estimator {
-        let cfg = IatsConfig::SEED000;
-        let rest: Vec<_> = (0..2)
-            .map(|k| render(&cfg, &Touch::default(), k).unwrap().0)
-            .collect();
-        let (cal, _) =
-            calibrate([("a", &rest[0]), ("b", &rest[1])], &Preset::Iats.config()).unwrap();
-        Estimator::new(Some(cal), None).unwrap()
+        Estimator::new(Some(crate::test_support::iats_sensor()), None).unwrap()
     }
 
     /// A one-input model of `target` on the field summary's RMS displacement.
