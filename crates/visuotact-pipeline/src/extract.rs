@@ -118,6 +118,10 @@ pub fn extract(
     Ok(done)
 }
 
+/// The most image bytes a batch of [`each_extracted`] holds (it takes at least one frame): four
+/// frames per worker, short of this (64 frames of 4K video would be 1.6 GB).
+const BATCH_BYTES: usize = 256 << 20;
+
 /// Frames handed to `each` with their features, in order. Order-free (no temporal prior),
 /// every frame is tracked on its own, so frames are read a batch at a time and a batch is
 /// extracted in parallel, one copy of `ex` per worker: the same features as one after
@@ -144,9 +148,13 @@ fn each_extracted(
     let mut batch: Vec<Frame> = Vec::with_capacity(size);
     loop {
         batch.clear();
-        while batch.len() < size {
+        let mut bytes = 0;
+        while batch.len() < size && bytes < BATCH_BYTES {
             match pass.next(obs)? {
-                Some(frame) => batch.push(frame),
+                Some(frame) => {
+                    bytes += frame.image.as_slice().len();
+                    batch.push(frame);
+                }
                 None => break,
             }
         }
