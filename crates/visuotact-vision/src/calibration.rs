@@ -685,7 +685,12 @@ pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
     } else {
         unseen_sites(&sites, &positions, steps)
     };
-    let unseen_area_px = median(&mut areas_px.clone());
+    // An unseen site's pin is expected at the markers' median area.
+    let unseen_area_px = if unseen.is_empty() {
+        0.0
+    } else {
+        median(&mut areas_px.clone())
+    };
     sites.extend(unseen.iter().map(|u| u.0));
     let unseen_px: Vec<(f64, f64)> = unseen.iter().map(|u| u.1).collect();
     let mut r = TrackReference::with_unseen(positions, areas_px, &unseen_px, unseen_area_px);

@@ -592,16 +592,19 @@ pub fn track_with(
         return rings::track_rings(reference, sizes, &blobs[..usable]);
     }
     let n = reference.positions.len();
-    // The unseen sites start from their neighbours' motion, as a marker with no prior does.
-    let prior: Option<Vec<Option<(f64, f64)>>> = hints
+    // The unseen sites start from their neighbours' motion, as a marker with no prior does
+    // (the prior is copied only when there are sites to add: not every frame of a video).
+    let prior = hints
         .prior
         .filter(|p| p.len() == reference.markers())
         .map(|p| {
-            p.iter()
-                .copied()
-                .chain(std::iter::repeat(None))
-                .take(n)
-                .collect()
+            if p.len() == n {
+                std::borrow::Cow::Borrowed(p)
+            } else {
+                let mut all = p.to_vec();
+                all.resize(n, None);
+                std::borrow::Cow::Owned(all)
+            }
         });
     let prior = prior.as_deref();
     let energy = energy::Energy {
