@@ -69,6 +69,7 @@ pub mod schema;
 pub mod session_export;
 pub mod several;
 pub mod slip;
+pub mod source;
 pub mod table;
 
 pub use estimator::{

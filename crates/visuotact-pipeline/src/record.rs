@@ -22,12 +22,10 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use visuotact_image::RgbImage;
-use visuotact_io::camera::{CameraError, CameraRequest};
 use visuotact_io::force::{
     to_recorder, ForceLayout, ForceReceiver, ForceSample, ForceTable, ReceiveStats,
 };
-use visuotact_io::frames::{write_png, FrameError, FrameStream};
-use visuotact_io::queue::{Captured, LatestQueue};
+use visuotact_io::frames::{write_png, FrameError};
 use visuotact_io::session::{
     probe_writable, write_atomically, AppendLog, SessionDescription, SESSION_FORMAT,
     SESSION_VERSION,
@@ -38,6 +36,7 @@ use visuotact_nn::model::Estimate;
 
 use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use crate::schema::{feature_columns, feature_row_into, flags_of};
+use crate::source::{FrameSource, Next, Pacing, SourceConfig, SourceError, SourceFrame};
 use crate::{rate, seconds, Estimator};
 use visuotact_vision::features::MmColumns;
 
@@ -177,12 +176,12 @@ pub enum RecordError {
     /// Reading or writing a file or socket (the message names it).
     #[error("{0}")]
     Io(#[from] std::io::Error),
-    /// A frame source could not be opened or a frame written.
+    /// A frame could not be written.
     #[error(transparent)]
     Frames(#[from] FrameError),
-    /// The camera could not be opened.
+    /// The frame source could not be opened or went wrong.
     #[error(transparent)]
-    Camera(#[from] CameraError),
+    Source(#[from] SourceError),
     /// The simulated rig refused its settings.
     #[cfg(feature = "sim")]
     #[error(transparent)]
@@ -218,7 +217,8 @@ pub struct RecordSummary {
     pub written: usize,
     /// Frames in the session, earlier runs included.
     pub frames: usize,
-    /// Frames the simulated camera could not produce in time.
+    /// Frames lost: the simulated camera could not produce them in time, or the camera's
+    /// driver dropped them while the recorder was behind.
     pub dropped: usize,
     /// Frames that could not be read (each reported through the warning callback).
     pub unreadable: usize,
@@ -346,7 +346,8 @@ pub fn record_observed(
         (clock, t_offset),
         (stop, observer.clone()),
     )?;
-    let mut frames = match Frames::open(cfg, rig, clock, stop) {
+    let start = (tables.first_index as u64, t_offset);
+    let mut frames = match open_frames(cfg, rig, clock, stop, start) {
         Ok(f) => f,
         Err(e) => {
             // Nothing was recorded: the force side stops and a folder this run made goes again,
@@ -357,33 +358,18 @@ pub fn record_observed(
             return Err(e);
         }
     };
-    let mut k = tables.first_index;
-    let result: Result<(), RecordError> = (|| {
-        while !stop.load(Ordering::Relaxed)
-            && cfg.max_frames.is_none_or(|m| summary.written < m)
-            && cfg
-                .duration_s
-                .is_none_or(|d| clock.elapsed().as_secs_f64() < d)
-        {
-            let frame = match frames.next(cfg, k, t_offset, &tables.done, &mut summary, warn)? {
-                Next::Frame(f) => f,
-                Next::Dropped => {
-                    k += 1;
-                    continue;
-                }
-                Next::Skip => continue,
-                Next::End => break,
-            };
-            tables.write(cfg, estimator.as_mut(), &frame, k, warn)?;
-            observe(observer.as_ref(), |o| o.frame(&tables.row_of(&frame)))?;
-            summary.written += 1;
-            k += 1;
-        }
-        Ok(())
-    })();
+    let result = record_frames(
+        cfg,
+        &mut frames,
+        (&mut tables, estimator.as_mut(), observer.as_ref()),
+        (clock, t_offset, stop),
+        &mut summary,
+        warn,
+    );
     // Stop the camera and the force side, whatever happened to the frames.
     stop.store(true, Ordering::Relaxed);
     frames.close();
+    summary.dropped = usize::try_from(frames.dropped()).unwrap_or(usize::MAX);
     (summary.force_packets, summary.force_packets_sent) = force.finish()?;
     tables.sync()?;
     summary.frames = tables.first_index + summary.written;
@@ -391,6 +377,51 @@ pub fn record_observed(
     let none_estimated = estimator.is_some() && summary.written > 0 && tables.processed == 0;
     conclude(cfg, result, &summary, none_estimated, created)?;
     Ok(summary)
+}
+
+/// Writes the source's frames until it ends, a limit is reached or `stop` is set.
+fn record_frames(
+    cfg: &RecordConfig,
+    frames: &mut FrameSource,
+    (tables, mut estimator, observer): (
+        &mut Tables,
+        Option<&mut Estimator>,
+        Option<&SharedObserver>,
+    ),
+    (clock, t_offset, stop): (Instant, f64, &AtomicBool),
+    summary: &mut RecordSummary,
+    warn: &mut dyn FnMut(&str),
+) -> Result<(), RecordError> {
+    let mut k = tables.first_index;
+    while !stop.load(Ordering::Relaxed)
+        && cfg.max_frames.is_none_or(|m| summary.written < m)
+        && cfg
+            .duration_s
+            .is_none_or(|d| clock.elapsed().as_secs_f64() < d)
+    {
+        let frame = match frames.next_frame()? {
+            Next::Frame(f) => recorded(cfg, f, k, (clock, t_offset)),
+            Next::Dropped => {
+                k += 1;
+                continue;
+            }
+            Next::Unreadable(why) => {
+                warn(&format!("{why}; skipped"));
+                summary.unreadable += 1;
+                continue;
+            }
+            Next::End => break,
+        };
+        if tables.done.contains(&frame.id) {
+            // Recorded before the stop this run resumes.
+            continue;
+        }
+        tables.write(cfg, estimator.as_deref_mut(), &frame, k, warn)?;
+        observe(observer, |o| o.frame(&tables.row_of(&frame)))?;
+        summary.written += 1;
+        k += 1;
+    }
+    Ok(())
 }
 
 /// The end of a recording: `session.json` says how it went, and an error says what went
@@ -916,121 +947,58 @@ impl Tables {
     }
 }
 
-enum Next {
-    Frame(RecordedFrame),
-    /// The simulated camera could not keep up: frame `k` is gone (the next is `k + 1`).
-    Dropped,
-    /// Not a frame to record (unreadable, or recorded before a resume).
-    Skip,
-    End,
+/// The frame side: a simulated rig paced on the recorder's clock (late frames dropped), files
+/// as fast as they are written, or a camera capturing on its own thread into a drop-oldest
+/// queue (timestamped on arrival).
+fn open_frames(
+    cfg: &RecordConfig,
+    rig: Option<Rig>,
+    clock: Instant,
+    stop: &Arc<AtomicBool>,
+    start: (u64, f64),
+) -> Result<FrameSource, RecordError> {
+    Ok(match rig {
+        Some(rig) => FrameSource::rig((rig, cfg.seed), cfg.fps, clock, start),
+        None => {
+            let source = SourceConfig {
+                source: cfg.source.clone(),
+                fps: cfg.fps,
+                pacing: Pacing::Free,
+                camera_queue: 4,
+                ..SourceConfig::default()
+            };
+            FrameSource::open(&source, stop)?
+        }
+    })
 }
 
-/// The frame side: a simulated rig on the recorder's clock, files, or a camera capturing on
-/// its own thread into a drop-oldest queue (timestamped on arrival).
-enum Frames {
-    Sim { rig: Box<Rig>, clock: Instant },
-    Stream(Box<FrameStream>),
-    Camera(Arc<LatestQueue<Captured>>, JoinHandle<u64>),
-}
-
-impl Frames {
-    fn open(
-        cfg: &RecordConfig,
-        rig: Option<Rig>,
-        clock: Instant,
-        stop: &Arc<AtomicBool>,
-    ) -> Result<Self, RecordError> {
-        Ok(match (rig, cfg.source.clone()) {
-            (Some(rig), _) => Self::Sim {
-                rig: Box::new(rig),
-                clock,
-            },
-            (None, SourceSpec::Camera(dev)) => {
-                let q = Arc::new(LatestQueue::new(4));
-                let h = visuotact_io::camera::spawn(
-                    &dev,
-                    CameraRequest::default(),
-                    cfg.fps,
-                    q.clone(),
-                    stop.clone(),
-                    clock,
-                    u64::MAX,
-                )?;
-                Self::Camera(q, h)
-            }
-            (None, SourceSpec::Frames(path)) => Self::Stream(Box::new(FrameStream::open(
-                std::slice::from_ref(&path),
-                cfg.fps,
-            )?)),
-            (None, SourceSpec::Sim(kind)) => {
-                return Err(RecordError::Config(format!("source sim:{kind}: no rig")))
-            }
-        })
-    }
-
-    fn next(
-        &mut self,
-        cfg: &RecordConfig,
-        k: usize,
-        t_offset: f64,
-        done: &HashSet<String>,
-        summary: &mut RecordSummary,
-        warn: &mut dyn FnMut(&str),
-    ) -> Result<Next, RecordError> {
-        Ok(match self {
-            Self::Sim { rig, clock } => {
-                let t = k as f64 / cfg.fps;
-                if t > rig.total_s(cfg.fps) {
-                    return Ok(Next::End);
-                }
-                let (due, el) = (t - t_offset, clock.elapsed().as_secs_f64());
-                if el > due + 1.0 / cfg.fps {
-                    // The simulated camera could not keep up: this frame is gone.
-                    summary.dropped += 1;
-                    return Ok(Next::Dropped);
-                }
-                if due > el {
-                    std::thread::sleep(Duration::from_secs_f64(due - el));
-                }
-                let (image, labels) = rig.frame(k, t, frame_seed(cfg.seed, k as u64))?;
-                Next::Frame(RecordedFrame {
-                    id: format!("frame_{k:06}.png"),
-                    timestamp_s: t,
-                    image,
-                    labels,
-                })
-            }
-            Self::Stream(st) => match st.next() {
-                None => Next::End,
-                Some(Err(e)) => {
-                    warn(&format!("{e}; skipped"));
-                    summary.unreadable += 1;
-                    Next::Skip
-                }
-                Some(Ok(fr)) if done.contains(&fr.id) => Next::Skip,
-                Some(Ok(fr)) => Next::Frame(RecordedFrame {
-                    id: fr.id,
-                    timestamp_s: fr.timestamp_s,
-                    image: fr.image,
-                    labels: Vec::new(),
-                }),
-            },
-            Self::Camera(q, _) => match q.pop() {
-                Some(c) => Next::Frame(RecordedFrame {
-                    id: format!("frame_{k:06}.png"),
-                    timestamp_s: t_offset + c.timestamp_s,
-                    image: Arc::try_unwrap(c.image).unwrap_or_else(|a| (*a).clone()),
-                    labels: Vec::new(),
-                }),
-                None => Next::End,
-            },
-        })
-    }
-
-    fn close(self) {
-        if let Self::Camera(q, h) = self {
-            q.close();
-            let _ = h.join();
+/// Frame `k` of the session as it is recorded: a camera's frames are named by their number
+/// and timed by their arrival on the session's clock (`t_offset` later in a resumed session);
+/// files and rigs keep their names and times.
+fn recorded(
+    cfg: &RecordConfig,
+    f: SourceFrame,
+    k: usize,
+    (clock, t_offset): (Instant, f64),
+) -> RecordedFrame {
+    let SourceFrame {
+        frame,
+        labels,
+        delivered,
+    } = f;
+    if matches!(cfg.source, SourceSpec::Camera(_)) {
+        RecordedFrame {
+            id: format!("frame_{k:06}.png"),
+            timestamp_s: t_offset + delivered.saturating_duration_since(clock).as_secs_f64(),
+            image: frame.image,
+            labels,
+        }
+    } else {
+        RecordedFrame {
+            id: frame.id,
+            timestamp_s: frame.timestamp_s,
+            image: frame.image,
+            labels,
         }
     }
 }

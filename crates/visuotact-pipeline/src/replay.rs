@@ -16,10 +16,10 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use visuotact_image::Frame;
-use visuotact_io::frames::{FrameError, FrameStream};
 use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 
 use crate::slip::SlipMonitor;
+use crate::source::{FrameSource, Next, SourceError};
 use crate::{Estimator, PipelineError};
 use visuotact_vision::field::FieldDynamics;
 
@@ -65,7 +65,7 @@ pub enum ReplayError {
     Pipeline(#[from] PipelineError),
     /// The frames do not open.
     #[error(transparent)]
-    Frames(#[from] FrameError),
+    Frames(#[from] SourceError),
     /// The observer stopped the pass.
     #[error("stopped after {frames} frames: nothing written")]
     Stopped {
@@ -126,7 +126,7 @@ impl<F: FnMut(&str)> PassObserver for F {
 /// The frames of a pass: before each frame, and once more when they run out (Ctrl-C also ends
 /// a video's decoder), the observer hears how far the pass is and may stop it.
 pub(crate) struct Pass {
-    stream: FrameStream,
+    source: FrameSource,
     total: Option<usize>,
     done: usize,
     /// Frames that did not read (skipped, each told to the observer).
@@ -136,10 +136,10 @@ pub(crate) struct Pass {
 impl Pass {
     /// `paths` as one frame stream, with how many frames it holds when known.
     pub(crate) fn open(paths: &[PathBuf], fps: f64) -> Result<Self, ReplayError> {
-        let stream = FrameStream::open(paths, fps)?;
-        let total = stream.expected_frames();
+        let source = FrameSource::files(paths, fps)?;
+        let total = source.expected_frames();
         Ok(Self {
-            stream,
+            source,
             total,
             done: 0,
             unreadable: 0,
@@ -157,17 +157,19 @@ impl Pass {
             if obs.frames_done(self.done, self.total).is_break() {
                 return Err(ReplayError::Stopped { frames: self.done });
             }
-            match self.stream.next() {
-                None => return Ok(None),
-                Some(Ok(frame)) => {
+            match self.source.next_frame()? {
+                Next::End => return Ok(None),
+                Next::Frame(f) => {
                     self.done += 1;
-                    return Ok(Some(frame));
+                    return Ok(Some(f.frame));
                 }
-                Some(Err(e)) => {
+                Next::Unreadable(why) => {
                     self.done += 1;
                     self.unreadable += 1;
-                    obs.warn(&format!("{e}; skipped"));
+                    obs.warn(&format!("{why}; skipped"));
                 }
+                // Files are never paced, so never dropped.
+                Next::Dropped => {}
             }
         }
     }

@@ -172,7 +172,7 @@ mod without_sim {
             _: usize,
             _: f64,
             _: u64,
-        ) -> Result<(RgbImage, Vec<f64>), RecordError> {
+        ) -> Result<(RgbImage, Vec<f64>), crate::source::SourceError> {
             match *self {}
         }
     }

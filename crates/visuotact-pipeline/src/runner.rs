@@ -13,18 +13,14 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-#[cfg(feature = "sim")]
-use rayon::prelude::*;
 use serde::Serialize;
 use visuotact_image::RgbImage;
-use visuotact_io::camera::{CameraError, CameraRequest};
-use visuotact_io::frames::{FrameError, FrameStream};
+use visuotact_io::camera::CameraRequest;
 use visuotact_io::queue::{median_p99, Captured, LatestQueue};
 use visuotact_io::source::SourceSpec;
-#[cfg(feature = "sim")]
-use visuotact_sim::rig::LiveFrames;
 
 use crate::live::{LiveEstimate, LiveEstimator, LiveFrame, MarkerView};
+use crate::source::{FrameSource, Next, Pacing, SourceConfig, SourceError};
 
 /// Where frames come from and how fast.
 #[derive(Clone, Debug)]
@@ -51,10 +47,7 @@ pub struct RunConfig {
     pub sim_frames: usize,
 }
 
-/// Simulated frames rendered before a live run starts; later ones of a longer loop are
-/// rendered as the loop reaches them, so memory stays bounded (about 240 MB for seed 000's
-/// 640 × 480 frames).
-pub const SIM_FRAMES_UP_FRONT: usize = 256;
+pub use crate::source::SIM_FRAMES_UP_FRONT;
 
 /// Most distinct frames a simulated source loops over.
 pub const MAX_SIM_FRAMES: usize = 1_000_000;
@@ -113,16 +106,9 @@ pub enum RunError {
     /// A setting is out of range.
     #[error("{0}")]
     Config(String),
-    /// The simulated source refused its settings.
-    #[cfg(feature = "sim")]
-    #[error("source {0}")]
-    Sim(#[from] visuotact_sim::SimError),
-    /// Frames could not be opened.
+    /// The source could not be opened.
     #[error(transparent)]
-    Frames(#[from] FrameError),
-    /// The camera could not be opened.
-    #[error(transparent)]
-    Camera(#[from] CameraError),
+    Source(#[from] SourceError),
     /// The capture thread stopped unexpectedly.
     #[error("the capture thread stopped unexpectedly")]
     Capture,
@@ -260,145 +246,70 @@ pub fn rss_kib() -> Option<u64> {
         .ok()
 }
 
-/// A frame source, opened (simulated frames rendered, files found) but not started.
-enum Source {
-    /// The loop and its first frames, rendered.
-    #[cfg(feature = "sim")]
-    Sim(Box<LiveFrames>, Vec<(String, Arc<RgbImage>)>),
-    Camera(String),
-    Stream(Box<FrameStream>),
-}
-
-impl Source {
-    fn open(cfg: &RunConfig) -> Result<Self, RunError> {
-        Ok(match cfg.source.clone() {
-            #[cfg(not(feature = "sim"))]
-            SourceSpec::Sim(kind) => {
-                return Err(RunError::Config(format!(
-                    "source sim:{kind}: {}",
-                    crate::rig::NO_SIMULATOR
-                )))
-            }
-            #[cfg(feature = "sim")]
-            SourceSpec::Sim(kind) => {
-                let frames = LiveFrames::new(&kind, cfg.sim_frames, cfg.seed)?;
-                let first = (0..frames.len().min(SIM_FRAMES_UP_FRONT))
-                    .into_par_iter()
-                    .map(|k| frames.frame(k).map(|(id, img)| (id, Arc::new(img))))
-                    .collect::<Result<_, _>>()?;
-                Self::Sim(Box::new(frames), first)
-            }
-            SourceSpec::Camera(dev) => Self::Camera(dev),
-            SourceSpec::Frames(path) => {
-                Self::Stream(Box::new(FrameStream::open(&[path], cfg.fps)?))
-            }
-        })
-    }
-
-    /// Starts the capture thread; frames are paced on `clock` unless `unpaced`.
-    fn spawn(
-        self,
-        cfg: &RunConfig,
-        queue: Arc<LatestQueue<Captured>>,
-        stop: Arc<AtomicBool>,
-        clock: Instant,
-        warn: impl Fn(&str) + Send + 'static,
-    ) -> Result<JoinHandle<u64>, RunError> {
-        let feed = Feed {
-            period: Duration::try_from_secs_f64(1.0 / cfg.fps).unwrap_or(Duration::MAX),
-            paced: !cfg.unpaced,
-            clock,
-            queue,
-        };
-        let max = cfg.max_frames.unwrap_or(u64::MAX);
-        Ok(match self {
-            #[cfg(feature = "sim")]
-            Self::Sim(frames, first) => std::thread::spawn(move || {
-                let mut k = 0u64;
-                while k < max && !stop.load(Ordering::Relaxed) {
-                    let at = (k % frames.len() as u64) as usize;
-                    // A camera's driver or decoder writes each frame just before it is
-                    // delivered; so does the simulated camera (a copy, not a shared buffer).
-                    let (id, img) = match first.get(at) {
-                        Some((id, img)) => (id.clone(), RgbImage::clone(img)),
-                        None => match frames.frame(at) {
-                            Ok(f) => f,
-                            Err(e) => {
-                                warn(&format!("simulated frame {at}: {e}; skipped"));
-                                k += 1;
-                                continue;
-                            }
-                        },
-                    };
-                    feed.pace(k);
-                    feed.push(format!("{id}#{k}"), k, Arc::new(img));
-                    k += 1;
-                }
-                feed.queue.close();
-                k
-            }),
-            Self::Camera(dev) => visuotact_io::camera::spawn(
-                &dev, cfg.camera, cfg.fps, feed.queue, stop, clock, max,
-            )?,
-            Self::Stream(stream) => std::thread::spawn(move || {
-                let mut k = 0u64;
-                for item in *stream {
-                    if k >= max || stop.load(Ordering::Relaxed) {
-                        break;
-                    }
-                    match item {
-                        Ok(fr) => {
-                            feed.pace(k);
-                            feed.push(fr.id, k, Arc::new(fr.image));
-                            k += 1;
-                        }
-                        Err(e) => warn(&format!("{e}; skipped")),
-                    }
-                }
-                feed.queue.close();
-                k
-            }),
-        })
+impl RunConfig {
+    /// The source as the run opens it: paced on the run's clock unless `unpaced` (a paced
+    /// source behaves like a camera, whose oldest frame goes when the estimator is behind).
+    pub fn source_config(&self) -> SourceConfig {
+        SourceConfig {
+            source: self.source.clone(),
+            fps: self.fps,
+            pacing: if self.unpaced {
+                Pacing::Free
+            } else {
+                Pacing::Clock { drop_late: false }
+            },
+            camera: self.camera,
+            camera_queue: self.queue,
+            max_frames: self.max_frames,
+            seed: self.seed,
+            sim_frames: self.sim_frames,
+        }
     }
 }
 
-/// How the capture thread feeds the queue.
-struct Feed {
-    period: Duration,
+/// Starts the capture thread: it moves the source's frames into `queue` (paced sources drop
+/// the oldest frame when the estimator is behind, as a camera does; unpaced ones wait for
+/// it, so every frame is estimated) until the source ends or `stop` is set, and returns how
+/// many it delivered and how many the source itself dropped.
+fn spawn_capture(
+    mut source: FrameSource,
     paced: bool,
-    clock: Instant,
     queue: Arc<LatestQueue<Captured>>,
-}
-
-impl Feed {
-    /// Waits until frame `k` is due (paced sources only).
-    fn pace(&self, k: u64) {
-        if self.paced {
-            let due = self.period.mul_f64(k as f64);
-            let el = self.clock.elapsed();
-            if due > el {
-                std::thread::sleep(due - el);
+    (stop, clock): (Arc<AtomicBool>, Instant),
+    warn: impl Fn(&str) + Send + 'static,
+) -> JoinHandle<(u64, u64)> {
+    std::thread::spawn(move || {
+        let mut delivered = 0u64;
+        while !stop.load(Ordering::Relaxed) {
+            match source.next_frame() {
+                Ok(Next::Frame(f)) => {
+                    let c = Captured {
+                        id: f.frame.id,
+                        index: f.frame.index as u64,
+                        timestamp_s: (f.delivered - clock).as_secs_f64(),
+                        captured: f.delivered,
+                        image: Arc::new(f.frame.image),
+                    };
+                    if paced {
+                        queue.push(c);
+                    } else {
+                        queue.push_wait(c);
+                    }
+                    delivered += 1;
+                }
+                Ok(Next::Dropped) => {}
+                Ok(Next::Unreadable(why)) => warn(&format!("{why}; skipped")),
+                Ok(Next::End) => break,
+                Err(e) => {
+                    warn(&format!("{e}; the source stops"));
+                    break;
+                }
             }
         }
-    }
-
-    /// Paced sources behave like cameras (the oldest frame goes when the estimator is behind);
-    /// unpaced ones wait for it, so every frame is estimated.
-    fn push(&self, id: String, index: u64, image: Arc<RgbImage>) {
-        let captured = Instant::now();
-        let c = Captured {
-            id,
-            index,
-            timestamp_s: (captured - self.clock).as_secs_f64(),
-            captured,
-            image,
-        };
-        if self.paced {
-            self.queue.push(c);
-        } else {
-            self.queue.push_wait(c);
-        }
-    }
+        queue.close();
+        source.close();
+        (delivered, source.dropped())
+    })
 }
 
 /// Runs `live` over the source until it ends, a limit is reached, `stop` is set or a sink
@@ -412,9 +323,10 @@ pub fn run(
 ) -> Result<RunSummary, RunError> {
     let run_for = cfg.validate()?;
     let queue = Arc::new(LatestQueue::new(cfg.queue));
-    let source = Source::open(cfg)?;
-    let clock = Instant::now();
-    let capture = source.spawn(cfg, queue.clone(), stop.clone(), clock, warn.clone())?;
+    let source = FrameSource::open(&cfg.source_config(), stop)?;
+    let clock = source.clock();
+    let on = (stop.clone(), clock);
+    let capture = spawn_capture(source, !cfg.unpaced, queue.clone(), on, warn.clone());
     let deadline = run_for.and_then(|d| clock.checked_add(d));
     let mut stats = Stats::default();
     while let Some(cap) = queue.pop() {
@@ -430,7 +342,7 @@ pub fn run(
     }
     stop.store(true, Ordering::Relaxed);
     queue.close();
-    let captured = capture.join().map_err(|_| RunError::Capture)?;
+    let (captured, source_dropped) = capture.join().map_err(|_| RunError::Capture)?;
     if captured == 0 {
         return Err(RunError::NoFrames(cfg.source.to_string()));
     }
@@ -443,7 +355,7 @@ pub fn run(
             });
         }
     }
-    Ok(stats.summary(captured, queue.dropped(), clock))
+    Ok(stats.summary(captured, queue.dropped() + source_dropped, clock))
 }
 
 /// What the loop gathers for the summary.
@@ -552,7 +464,11 @@ fn estimate_one(
 
 #[cfg(all(test, not(feature = "sim")))]
 mod tests {
-    use super::{RunConfig, Source};
+    use std::sync::atomic::AtomicBool;
+    use std::sync::Arc;
+
+    use super::RunConfig;
+    use crate::source::FrameSource;
 
     #[test]
     fn a_simulated_source_is_refused_without_the_simulator() {
@@ -560,7 +476,10 @@ mod tests {
             source: "sim:iats".into(),
             ..RunConfig::default()
         };
-        let err = Source::open(&cfg).err().unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let err = FrameSource::open(&cfg.source_config(), &stop)
+            .err()
+            .unwrap();
         assert!(
             err.to_string()
                 .contains("sim:iats: this build has no simulator"),
