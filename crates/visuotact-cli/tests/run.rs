@@ -757,3 +757,90 @@ fn one_dashboard_shows_every_sensor_of_a_run_under_its_name() {
     assert!(child.wait().unwrap().success(), "{rest}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// `replay --live-rules` gives what `run` sent for the same frames: only the frames in contact
+/// are estimated, from the same drifting baseline, to the last digit; plain `replay`
+/// estimates every frame against the sensor's reference.
+#[test]
+fn replay_with_the_live_rules_gives_what_run_sent() {
+    let d = fresh_dir("replay-live");
+    let model = iats_model(&d);
+    // Rest, touches, rest again: contact begins and ends, and the baseline follows the rest.
+    let mixed = d.join("mixed");
+    std::fs::create_dir_all(&mixed).unwrap();
+    let pick = |from: &str, n: usize| -> Vec<PathBuf> {
+        let mut v: Vec<PathBuf> = std::fs::read_dir(d.join("session").join(from))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "png"))
+            .collect();
+        v.sort();
+        v.truncate(n);
+        v
+    };
+    let (rest, touches) = (pick("reference", 7), pick("frames", 6));
+    for (k, p) in rest[..4]
+        .iter()
+        .chain(&touches)
+        .chain(&rest[4..])
+        .enumerate()
+    {
+        std::fs::copy(p, mixed.join(format!("f{k:02}.png"))).unwrap();
+    }
+    let o = vt(&[
+        "run",
+        "--model",
+        s(&model),
+        "--source",
+        s(&mixed),
+        "--unpaced",
+    ]);
+    let err = ok(&o);
+    let sent: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(sent.len(), 13, "{err}");
+    let table = |extra: &[&str]| -> Vec<Vec<String>> {
+        let out = d.join("replayed.csv");
+        let mut args = vec![
+            "replay",
+            "--model",
+            s(&model),
+            s(&mixed),
+            "-o",
+            s(&out),
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        ok(&vt(&args));
+        std::fs::read_to_string(&out)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect()
+    };
+    let live = table(&["--live-rules"]);
+    assert_eq!(live.len(), 13);
+    let mut in_contact = 0;
+    for (row, e) in live.iter().zip(&sent) {
+        assert_eq!(row[0], e["frame"].as_str().unwrap());
+        let targets = e["targets"].as_array().unwrap();
+        if targets.is_empty() {
+            assert_eq!(row.last().unwrap(), "no contact", "{row:?} {e}");
+            continue;
+        }
+        in_contact += 1;
+        for (k, t) in targets.iter().enumerate() {
+            let v: f64 = row[1 + k].parse().unwrap();
+            assert_eq!(v, t["value"].as_f64().unwrap(), "{row:?} {e}");
+        }
+    }
+    assert_eq!(in_contact, 6, "{live:?}");
+    let every = table(&[]);
+    assert!(
+        every.iter().all(|r| r.last().unwrap().is_empty()),
+        "{every:?}"
+    );
+}

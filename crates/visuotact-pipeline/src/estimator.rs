@@ -1,7 +1,9 @@
 //! The per-frame step: frame → markers' features and field summary → the model's estimate.
 //!
-//! `record --model`, `replay`, `predict --sensor`, `run` and the Python package all call this
-//! one estimator, so the same frame gives the same numbers in each. Buffers are kept between
+//! `predict --sensor` and the Python package call this estimator; `record --model`, `replay`
+//! and `run` call it through the [`crate::LiveEstimator`] around it (with
+//! [`crate::LiveConfig::OFFLINE`] for recorded frames), so the same frame gives the same
+//! numbers in each. Buffers are kept between
 //! frames: after the first frame, [`Estimator::process_with`] does not allocate for the
 //! features.
 //!
@@ -202,7 +204,7 @@ impl<'a> IntoIterator for &'a Estimate {
 
 /// Where one of the model's inputs comes from.
 #[derive(Clone, Copy, Debug)]
-enum Input {
+pub(crate) enum Input {
     /// This position of the frame's feature vector, times this factor (1, or the sensor's
     /// scale for an input in millimetres).
     Feature(usize, f64),
@@ -323,16 +325,7 @@ impl Estimator {
         let ex = FeatureExtractor::new(cal, set).map_err(PipelineError::Features)?;
         let model = match model {
             Some(m) => {
-                let names = ex.column_names();
-                let cal = ex.calibration();
-                let cols = m
-                    .feature_columns
-                    .iter()
-                    .map(|c| match extra_inputs.iter().position(|e| e == c) {
-                        Some(j) => Ok(Input::Extra(j)),
-                        None => feature_index(cal, &names, c).map(|(i, k)| Input::Feature(i, k)),
-                    })
-                    .collect::<Result<_, _>>()?;
+                let cols = inputs_of(&ex, &extra_inputs, &m)?;
                 Some((m, cols))
             }
             None => None,
@@ -411,6 +404,19 @@ impl Estimator {
             .collect()
     }
 
+    /// Where each of `m`'s inputs comes from: this estimator's features, or its extra inputs
+    /// ([`Estimator::extra_inputs`]) given with each frame.
+    pub(crate) fn inputs_of(&self, m: &Model) -> Result<Vec<Input>, PipelineError> {
+        inputs_of(&self.ex, &self.extra_inputs, m)
+    }
+
+    /// This estimator without its model, and the model (the live loop holds its models as an
+    /// ensemble); the extra inputs and the feature set stay the model's.
+    pub(crate) fn without_model(mut self) -> (Self, Option<Model>) {
+        let model = self.model.take().map(|(m, _)| m);
+        (self, model)
+    }
+
     /// The last frame's features ([`Estimator::features`]; empty before the first frame).
     pub fn last_features(&self) -> &FrameFeatures {
         &self.features
@@ -480,6 +486,24 @@ impl Estimator {
         };
         Ok((&self.features, got))
     }
+}
+
+/// Where each of `m`'s inputs comes from: `ex`'s features, or the `extra` inputs given with
+/// each frame.
+fn inputs_of(
+    ex: &FeatureExtractor,
+    extra: &[String],
+    m: &Model,
+) -> Result<Vec<Input>, PipelineError> {
+    let names = ex.column_names();
+    let cal = ex.calibration();
+    m.feature_columns
+        .iter()
+        .map(|c| match extra.iter().position(|e| e == c) {
+            Some(j) => Ok(Input::Extra(j)),
+            None => feature_index(cal, &names, c).map(|(i, k)| Input::Feature(i, k)),
+        })
+        .collect()
 }
 
 /// Where feature `c` sits among `names` (a feature vector in pixels) and the factor that

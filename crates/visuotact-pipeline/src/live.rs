@@ -10,6 +10,7 @@ use visuotact_nn::model::{EstimateScratch, Model};
 use visuotact_vision::features::{FieldSummary, FIELD_COLUMNS};
 use visuotact_vision::track::MarkerStatus;
 
+use crate::estimator::Input;
 use crate::slip::{SlipDetector, SlipEstimate, SlipMonitor};
 use crate::{Estimator, PipelineError};
 
@@ -26,9 +27,33 @@ pub struct LiveConfig {
     /// The baseline follows no-contact frames with this weight per frame (0: only
     /// [`LiveEstimator::rezero_now`] moves it).
     pub rezero_rate: f64,
+    /// Estimate every frame, touched or not. Off, a frame without contact gets no targets and
+    /// its slip state is `stick`: the skin at rest is not read for a load it does not carry.
+    pub estimate_without_contact: bool,
 }
 
 impl LiveConfig {
+    /// A live sensor (`run`): contact when 3 markers move 5 σ and 0.5 px; the baseline
+    /// follows no-contact frames at 0.05 per frame; only frames in contact are estimated.
+    pub const LIVE: Self = Self {
+        contact_sigmas: 5.0,
+        contact_min_px: 0.5,
+        contact_markers: 3,
+        rezero_rate: 0.05,
+        estimate_without_contact: false,
+    };
+
+    /// An offline pass over recorded frames (`record`, `replay`): every frame estimated
+    /// against the sensor's own reference (the baseline never moves), so a table's row
+    /// depends on its frame (and, tracking frames in order, on those before it), never on
+    /// when contact began. Contact and marker health are still reported; slip follows the
+    /// whole pass as one sequence.
+    pub const OFFLINE: Self = Self {
+        rezero_rate: 0.0,
+        estimate_without_contact: true,
+        ..Self::LIVE
+    };
+
     /// Refuses settings that mean nothing: a threshold that is not a number or below 0, no
     /// marker needed for contact, a re-zeroing weight outside 0–1.
     pub fn validate(&self) -> Result<(), PipelineError> {
@@ -64,14 +89,9 @@ impl LiveConfig {
 }
 
 impl Default for LiveConfig {
-    /// 5 σ and 0.5 px on 3 markers; re-zeroing at 0.05 per frame.
+    /// [`LiveConfig::LIVE`].
     fn default() -> Self {
-        Self {
-            contact_sigmas: 5.0,
-            contact_min_px: 0.5,
-            contact_markers: 3,
-            rezero_rate: 0.05,
-        }
+        Self::LIVE
     }
 }
 
@@ -214,8 +234,11 @@ pub struct LiveEstimator {
     rest_px: Vec<(f64, f64)>,
     est: Estimator,
     ensemble: Vec<Model>,
-    cols: Vec<Vec<(usize, f64)>>,
+    /// Where each model's inputs come from.
+    cols: Vec<Vec<Input>>,
     baseline: Vec<f64>,
+    /// Whether the baseline has moved from the calibration (re-zeroed).
+    rezeroed: bool,
     jitter: Vec<f64>,
     /// Indices of each marker's dx and dy in the feature vector.
     xy: Vec<Option<(usize, usize)>>,
@@ -231,6 +254,8 @@ pub struct LiveEstimator {
     x: Vec<f64>,
     /// Each model's estimation buffers (kept between frames).
     scratch: Vec<EstimateScratch>,
+    /// Every network's outputs, one row per network (kept between frames).
+    outputs: Vec<f64>,
     /// The slip detector following the frames, and its displacement buffer.
     slip: Option<SlipMonitor>,
     /// Whether the last frame was in contact (a new contact starts a new slip sequence).
@@ -252,7 +277,7 @@ impl LiveEstimator {
             .iter()
             .enumerate()
             .map(|(k, m)| {
-                est.columns_of(m).map_err(|e| PipelineError::Ensemble {
+                est.inputs_of(m).map_err(|e| PipelineError::Ensemble {
                     model: k + 1,
                     why: e.to_string(),
                 })
@@ -294,6 +319,7 @@ impl LiveEstimator {
         Ok(Self {
             rest_px,
             baseline: vec![0.0; names.len()],
+            rezeroed: false,
             est,
             cols,
             jitter,
@@ -308,10 +334,20 @@ impl LiveEstimator {
             name: None,
             x: Vec::new(),
             scratch: vec![EstimateScratch::default(); models.len()],
+            outputs: Vec::new(),
             ensemble: models,
             slip: None,
             was_contact: false,
         })
+    }
+
+    /// Live estimation with `est` and its own model, if it has one (an ensemble of one), by
+    /// `cfg`'s rules. A model with inputs besides the marker features
+    /// ([`Estimator::with_extra_inputs`]) takes their values with each frame
+    /// ([`LiveEstimator::process_with`]).
+    pub fn from_estimator(est: Estimator, cfg: &LiveConfig) -> Result<Self, PipelineError> {
+        let (est, model) = est.without_model();
+        Self::new(est, model.into_iter().collect(), cfg)
     }
 
     /// Follows the frames with a slip detector: every frame then carries its slip state
@@ -343,8 +379,46 @@ impl LiveEstimator {
             .unwrap_or_default()
     }
 
+    /// The estimate's columns as tables hold them: the targets, then each target's spread
+    /// (`<target>_std`) when the ensemble has several networks or keeps held-out errors
+    /// ([`TargetEstimate::std`]); empty without a model.
+    pub fn estimate_columns(&self) -> Vec<String> {
+        let names = self.target_names();
+        let spread = self.ensemble.len() > 1
+            || self
+                .ensemble
+                .iter()
+                .any(|m| !m.members.is_empty() || m.held_out.is_some());
+        let stds: Vec<String> = names.iter().map(|t| format!("{t}_std")).collect();
+        let mut columns = names;
+        if spread {
+            columns.extend(stds);
+        }
+        columns
+    }
+
+    /// The contact, re-zeroing and estimation rules in use.
+    pub fn config(&self) -> &LiveConfig {
+        &self.cfg
+    }
+
+    /// The per-frame estimator: the features, their columns and the sensor (its model, if it
+    /// had one, is in this ensemble).
+    pub fn estimator(&self) -> &Estimator {
+        &self.est
+    }
+
+    /// The displacement field's signals the slip detector read on the last frame
+    /// ([`visuotact_vision::field::FieldDynamics::NAMES`]); `None` without a detector.
+    pub fn slip_signals(
+        &self,
+    ) -> Option<[f64; visuotact_vision::field::FieldDynamics::NAMES.len()]> {
+        self.slip.as_ref().map(|m| m.field().signals())
+    }
+
     /// Sets the baseline to the current frame's features (the re-zero button).
     pub fn rezero_now(&mut self) {
+        self.rezeroed = true;
         if let Some(m) = self.slip.as_mut() {
             m.reset();
         }
@@ -361,12 +435,25 @@ impl LiveEstimator {
         self.baseline.len().saturating_sub(FIELD_COLUMNS.len())
     }
 
-    /// Processes one frame; `markers` gets the drawing data when asked for. Without contact,
-    /// or when the models cannot estimate the frame (too many markers lost), the targets are
-    /// empty: no estimate rather than a wrong one.
+    /// Processes one frame; `markers` gets the drawing data when asked for. Without contact
+    /// (unless [`LiveConfig::estimate_without_contact`]), or when the models cannot estimate
+    /// the frame (too many markers lost), the targets are empty: no estimate rather than a
+    /// wrong one.
     pub fn process(
         &mut self,
         img: &RgbImage,
+        markers: Option<&mut Vec<MarkerView>>,
+    ) -> Result<LiveFrame, PipelineError> {
+        self.process_with(img, &[], markers)
+    }
+
+    /// As [`LiveEstimator::process`], with the values of the models' inputs besides the
+    /// marker features for this frame (in the order of [`Estimator::extra_inputs`]); a
+    /// missing or NaN value gives no estimate.
+    pub fn process_with(
+        &mut self,
+        img: &RgbImage,
+        extra: &[f64],
         markers: Option<&mut Vec<MarkerView>>,
     ) -> Result<LiveFrame, PipelineError> {
         // Features only: the ensemble below predicts on the re-zeroed ones.
@@ -376,28 +463,33 @@ impl LiveEstimator {
             .extend(f.values.iter().zip(&self.baseline).map(|(v, b)| v - b));
         self.status.clear();
         self.status.extend_from_slice(&f.status);
-        self.rezero_field();
+        if self.rezeroed {
+            self.rezero_field();
+        }
         let (mut health, max_disp, moved) = self.motion();
         let contact = moved >= self.cfg.contact_markers.min(self.marker_px.len().max(1));
-        let slip = self.slip_of(contact);
+        let estimating = contact || self.cfg.estimate_without_contact;
+        let slip = self.slip_of(estimating);
         if let Some(out) = markers {
             self.marker_views(out);
         }
-        // No contact: follow the rest position (automatic re-zeroing), report no targets.
+        // No contact: follow the rest position (automatic re-zeroing).
         if !contact {
             self.follow_rest();
-            let mut out = LiveFrame::new(false, max_disp, Vec::new(), health);
-            out.slip = slip;
-            return Ok(out);
         }
-        let targets = self.ensemble_targets(&mut health);
-        let mut out = LiveFrame::new(true, max_disp, targets, health);
+        let targets = if estimating {
+            self.ensemble_targets(extra, &mut health)
+        } else {
+            Vec::new()
+        };
+        let mut out = LiveFrame::new(contact, max_disp, targets, health);
         out.slip = slip;
         Ok(out)
     }
 
-    /// The slip state of this frame's displacements: each contact is a sequence of its own,
-    /// followed from its first frame until it ends; without contact, `stick`.
+    /// The slip state of this frame's displacements: each contact (each run of frames
+    /// estimated) is a sequence of its own, followed from its first frame until it ends;
+    /// without contact, `stick`.
     fn slip_of(&mut self, contact: bool) -> Option<SlipEstimate> {
         let monitor = self.slip.as_mut()?;
         if contact && !self.was_contact {
@@ -478,6 +570,7 @@ impl LiveEstimator {
     /// Automatic re-zeroing: the baseline follows a no-contact frame.
     fn follow_rest(&mut self) {
         if self.cfg.rezero_rate > 0.0 {
+            self.rezeroed = true;
             let n = self.marker_values();
             for (b, z) in self.baseline[..n].iter_mut().zip(&self.zeroed) {
                 if z.is_finite() {
@@ -487,20 +580,24 @@ impl LiveEstimator {
         }
     }
 
-    /// The ensemble's estimate of the re-zeroed features: every network of every model file
-    /// counts (each file scales and projects its inputs once for all its networks). Lost
-    /// markers are filled by models on principal components; otherwise, or with too many
-    /// lost, no targets this frame.
-    fn ensemble_targets(&mut self, health: &mut Health) -> Vec<TargetEstimate> {
+    /// The ensemble's estimate of the re-zeroed features (and the `extra` inputs): every
+    /// network of every model file counts (each file scales and projects its inputs once for
+    /// all its networks), its mean and standard deviation computed as one model file's
+    /// ([`Model::estimate_into`]), so a single file gives its own numbers. Lost markers are
+    /// filled by models on principal components; otherwise, or with too many lost, no targets
+    /// this frame.
+    fn ensemble_targets(&mut self, extra: &[f64], health: &mut Health) -> Vec<TargetEstimate> {
         let Some(first) = self.ensemble.first() else {
             return Vec::new();
         };
         let width = first.target_columns.len();
-        let (mut sums, mut sq) = (vec![0.0; width], vec![0.0; width]);
-        let mut networks = 0usize;
+        self.outputs.clear();
         for ((m, cols), scratch) in self.ensemble.iter().zip(&self.cols).zip(&mut self.scratch) {
             self.x.clear();
-            self.x.extend(cols.iter().map(|&(c, k)| self.zeroed[c] * k));
+            self.x.extend(cols.iter().map(|&c| match c {
+                Input::Feature(i, k) => self.zeroed[i] * k,
+                Input::Extra(j) => extra.get(j).copied().unwrap_or(f64::NAN),
+            }));
             if self.x.iter().any(|v| v.is_infinite()) {
                 return Vec::new();
             }
@@ -508,35 +605,36 @@ impl LiveEstimator {
                 return Vec::new();
             };
             health.filled = health.filled.max(filled);
-            let outs = scratch.outputs();
-            for o in outs {
-                for (k, v) in o.iter().enumerate() {
-                    sums[k] += v;
-                    sq[k] += v * v;
-                }
-            }
-            networks += outs.len();
+            scratch
+                .outputs()
+                .iter()
+                .for_each(|o| self.outputs.extend_from_slice(o));
         }
+        let networks = self.outputs.len() / width.max(1);
         let n = networks as f64;
-        // In place: the means, then the networks' standard deviations (0 for one network).
-        for (s, q) in sums.iter_mut().zip(&mut sq) {
-            *s /= n;
-            *q = if networks > 1 {
-                ((*q / n - *s * *s).max(0.0) * n / (n - 1.0)).sqrt()
-            } else {
-                0.0
-            };
-        }
+        let column = |j: usize| self.outputs.iter().skip(j).step_by(width.max(1));
+        let means: Vec<f64> = (0..width).map(|j| column(j).sum::<f64>() / n).collect();
+        let mut std: Vec<f64> = means
+            .iter()
+            .enumerate()
+            .map(|(j, mean)| {
+                if networks > 1 {
+                    (column(j).map(|o| (o - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         // As `predict`'s `<target>_std`: raised to the held-out error nearest the estimate (the
         // largest over the files keeping one).
         let mut held = false;
         for (m, scratch) in self.ensemble.iter().zip(&mut self.scratch) {
-            held |= m.widen_spread(&sums, scratch, &mut sq);
+            held |= m.widen_spread(&means, scratch, &mut std);
         }
         first
             .target_columns
             .iter()
-            .zip(sums.iter().zip(&sq))
+            .zip(means.iter().zip(&std))
             .map(|(name, (&value, &std))| TargetEstimate {
                 name: name.clone(),
                 value,
@@ -689,6 +787,38 @@ mod tests {
             (r.targets[0].value - value).abs() < 1e-9,
             "the same networks: {r:?}"
         );
+    }
+
+    /// The offline rules estimate every frame with the numbers of the per-frame estimator,
+    /// spread included; the live rules leave a frame at rest unestimated.
+    #[test]
+    fn an_offline_pass_estimates_every_frame_as_the_per_frame_estimator_does() {
+        let cfg = IatsConfig::SEED000;
+        let model = tiny_model("a_mm");
+        assert!(!model.members.is_empty());
+        let with_model = || sensor().with_model(model.clone()).unwrap();
+        let mut one = with_model();
+        let mut offline =
+            LiveEstimator::from_estimator(with_model(), &LiveConfig::OFFLINE).unwrap();
+        let mut live = LiveEstimator::from_estimator(with_model(), &LiveConfig::LIVE).unwrap();
+        assert_eq!(offline.estimate_columns(), one.target_columns());
+        let press = Touch {
+            x_mm: 30.0,
+            y_mm: 22.0,
+            depth_mm: 3.0,
+            ..Touch::default()
+        };
+        for (touch, seed) in [(Touch::default(), 9), (press, 10)] {
+            let img = render(&cfg, &touch, seed).unwrap().0;
+            let want = one.estimate(&img).unwrap();
+            let got = offline.process(&img, None).unwrap();
+            assert_eq!(got.targets.len(), 1, "{got:?}");
+            assert_eq!(got.targets[0].value, want.get("a_mm").unwrap());
+            assert_eq!(got.targets[0].std, want.spread("a_mm"));
+            let r = live.process(&img, None).unwrap();
+            assert_eq!(r.targets.is_empty(), !r.contact, "{r:?}");
+            assert_eq!(r.contact, seed == 10, "{r:?}");
+        }
     }
 
     #[test]

@@ -32,12 +32,11 @@ use visuotact_io::session::{
 };
 use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row, TableError};
-use visuotact_nn::model::Estimate;
 
 use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use crate::schema::{feature_columns, feature_row_into, flags_of};
 use crate::source::{FrameSource, Next, Pacing, SourceConfig, SourceError, SourceFrame};
-use crate::{rate, seconds, Estimator};
+use crate::{rate, seconds, Estimator, LiveConfig, LiveEstimator, PipelineError};
 use visuotact_vision::features::MmColumns;
 
 /// Where force samples come from.
@@ -192,6 +191,9 @@ pub enum RecordError {
     /// A capture or force thread stopped unexpectedly.
     #[error("the {0} thread stopped unexpectedly")]
     Thread(&'static str),
+    /// The estimator could not take the model.
+    #[error(transparent)]
+    Estimator(#[from] PipelineError),
     /// The [`RecordObserver`] failed (its error, as it says it).
     #[error("{0}")]
     Observer(#[source] ObserverError),
@@ -307,11 +309,16 @@ pub fn record(
 /// [`record`], with `observer` hearing of every frame and force sample as it is written.
 pub fn record_observed(
     cfg: &RecordConfig,
-    mut estimator: Option<Estimator>,
+    estimator: Option<Estimator>,
     stop: &Arc<AtomicBool>,
     warn: &mut dyn FnMut(&str),
     observer: Option<SharedObserver>,
 ) -> Result<RecordSummary, RecordError> {
+    // The live loop's estimator, every frame estimated against the sensor's reference: a
+    // session's rows are the frames' own.
+    let mut estimator = estimator
+        .map(|e| LiveEstimator::from_estimator(e, &LiveConfig::OFFLINE))
+        .transpose()?;
     // Everything that can be checked is checked before anything is created: a corrected
     // re-run is never refused for a folder a failed one left behind.
     validate(cfg)?;
@@ -385,7 +392,7 @@ fn record_frames(
     frames: &mut FrameSource,
     (tables, mut estimator, observer): (
         &mut Tables,
-        Option<&mut Estimator>,
+        Option<&mut LiveEstimator>,
         Option<&SharedObserver>,
     ),
     (clock, t_offset, stop): (Instant, f64, &AtomicBool),
@@ -740,7 +747,6 @@ struct Tables {
     /// Frames already in the session.
     first_index: usize,
     line: String,
-    estimate: Estimate,
     /// The estimates row of a frame without one (NaN per target).
     no_estimate: Vec<f64>,
     /// The value columns of `features.csv` and `estimates.csv`.
@@ -758,7 +764,7 @@ struct Tables {
 impl Tables {
     fn open(
         cfg: &RecordConfig,
-        est: Option<&Estimator>,
+        est: Option<&LiveEstimator>,
         rig: Option<&Rig>,
     ) -> Result<Self, RecordError> {
         let sync = seconds("sync_every_s", cfg.sync_every_s).map_err(RecordError::Config)?;
@@ -778,13 +784,14 @@ impl Tables {
             .fold(f64::NEG_INFINITY, f64::max);
         let with_frame = |cols: &[String]| format!("frame,{},flags", cols.join(","));
         let feature_cols = est.map_or_else(Vec::new, |e| {
+            let e = e.estimator();
             feature_columns(&e.feature_columns(), e.mm_columns())
         });
         let features = est
             .map(|_| open("features.csv", &with_frame(&feature_cols)))
             .transpose()?
             .map(|(log, _)| log);
-        let estimate_cols = est.map_or_else(Vec::new, Estimator::target_columns);
+        let estimate_cols = est.map_or_else(Vec::new, LiveEstimator::estimate_columns);
         let estimates = (!estimate_cols.is_empty())
             .then(|| open("estimates.csv", &with_frame(&estimate_cols)))
             .transpose()?
@@ -815,12 +822,13 @@ impl Tables {
             done,
             last_t,
             line: String::new(),
-            estimate: Estimate::default(),
             no_estimate: vec![f64::NAN; estimate_cols.len()],
             feature_cols,
             estimate_cols,
             feature_row: Vec::new(),
-            mm: est.map(|e| e.mm_columns().clone()).unwrap_or_default(),
+            mm: est
+                .map(|e| e.estimator().mm_columns().clone())
+                .unwrap_or_default(),
             estimate_row: Vec::new(),
             processed: 0,
         })
@@ -839,7 +847,7 @@ impl Tables {
     fn write(
         &mut self,
         cfg: &RecordConfig,
-        est: Option<&mut Estimator>,
+        est: Option<&mut LiveEstimator>,
         f: &RecordedFrame,
         k: usize,
         warn: &mut dyn FnMut(&str),
@@ -872,12 +880,11 @@ impl Tables {
 
     fn write_estimate(
         &mut self,
-        e: &mut Estimator,
+        e: &mut LiveEstimator,
         f: &RecordedFrame,
         warn: &mut dyn FnMut(&str),
     ) -> Result<(), RecordError> {
-        let n_markers = e.n_markers();
-        let (features, got) = match e.estimate_into(&f.image, &[], &mut self.estimate) {
+        let got = match e.process(&f.image, None) {
             Ok(r) => r,
             Err(err) => {
                 warn(&format!("frame {}: {err}", f.id));
@@ -885,6 +892,8 @@ impl Tables {
             }
         };
         self.processed += 1;
+        let n_markers = e.estimator().n_markers();
+        let features = e.estimator().last_features();
         if let Some(log) = self.features.as_mut() {
             feature_row_into(
                 &mut self.feature_row,
@@ -904,13 +913,14 @@ impl Tables {
         }
         if let Some(log) = self.estimates.as_mut() {
             self.line.clear();
-            match got {
-                Some(Ok(_)) => {
-                    self.estimate_row.extend(&self.estimate.values);
-                    self.estimate_row.extend(&self.estimate.spread);
-                    push_csv_row(&mut self.line, &f.id, &self.estimate_row, "");
-                }
-                _ => push_csv_row(&mut self.line, &f.id, &self.no_estimate, "missing features"),
+            if got.targets.is_empty() {
+                push_csv_row(&mut self.line, &f.id, &self.no_estimate, "missing features");
+            } else {
+                let targets = &got.targets;
+                self.estimate_row.extend(targets.iter().map(|t| t.value));
+                self.estimate_row
+                    .extend(targets.iter().filter_map(|t| t.std));
+                push_csv_row(&mut self.line, &f.id, &self.estimate_row, "");
             }
             log.line(&self.line)?;
         }

@@ -2,11 +2,14 @@
 //! paper's Neural Network Testing Model), and the frame pass every table of frames shares.
 //!
 //! [`replay`] reads a session folder (its saved frames in `frames.csv` order) or any videos,
-//! images and folders, estimates every frame with the [`Estimator`], and writes one row per
-//! frame: the estimate, or NaN with the reason in the flags (no estimate rather than a wrong
-//! one). Inputs of the model besides the marker features (a pressure gauge's reading) come
-//! from a readings table keyed by frame. The feature, blob and prediction tables of frames are
-//! in [`crate::extract`].
+//! images and folders, estimates every frame with the [`LiveEstimator`] that `run` uses, and
+//! writes one row per frame: the estimate, or NaN with the reason in the flags (no estimate
+//! rather than a wrong one). The estimator's [`crate::LiveConfig`] says which frames get an
+//! estimate: [`crate::LiveConfig::OFFLINE`] estimates every one against the sensor's reference;
+//! [`crate::LiveConfig::LIVE`] gives what `run` would have sent (only frames in contact, from a
+//! baseline that follows the skin's drift). Inputs of the model besides the marker features
+//! (a pressure gauge's reading) come from a readings table keyed by frame. The feature, blob
+//! and prediction tables of frames are in [`crate::extract`].
 //!
 //! Every pass over frames tells a [`PassObserver`] of each frame skipped and of how far it has
 //! come; the observer may stop it, and a stopped pass writes nothing (its table never takes its
@@ -18,9 +21,9 @@ use std::path::{Path, PathBuf};
 use visuotact_image::Frame;
 use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 
-use crate::slip::SlipMonitor;
+use crate::live::{LiveEstimator, LiveFrame};
 use crate::source::{FrameSource, Next, SourceError};
-use crate::{Estimator, PipelineError};
+use crate::PipelineError;
 use visuotact_vision::field::FieldDynamics;
 
 /// What to replay.
@@ -238,16 +241,16 @@ fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, 
     Ok(frames)
 }
 
-/// Replays `est` over `cfg.inputs` (see the module's documentation); `obs` hears of frames
+/// Replays `live` over `cfg.inputs` (see the module's documentation); `obs` hears of frames
 /// that cannot be read and of the progress.
 pub fn replay(
-    est: &mut Estimator,
+    live: &mut LiveEstimator,
     cfg: &ReplayConfig,
     obs: &mut dyn PassObserver,
 ) -> Result<Replayed, ReplayError> {
     let session = (cfg.inputs.len() == 1 && cfg.inputs[0].join("frames.csv").is_file())
         .then(|| cfg.inputs[0].clone());
-    let extra = est.extra_inputs().to_vec();
+    let extra = live.estimator().extra_inputs().to_vec();
     let readings = if extra.is_empty() {
         None
     } else {
@@ -267,23 +270,18 @@ pub fn replay(
         Some(s) => session_frames(s, &mut |w: &str| obs.warn(w))?,
         None => cfg.inputs.clone(),
     };
-    let targets = est.target_columns();
     let write_err = |source| ReplayError::Write {
         path: cfg.output.clone(),
         source,
     };
-    let mut columns = targets.clone();
-    let mut slip = match cfg.slip.clone() {
-        Some(d) => {
-            columns.extend(["slip_score".to_string(), "slip_state".to_string()]);
-            columns.extend(FieldDynamics::NAMES.iter().map(|n| n.to_string()));
-            Some(SlipMonitor::for_estimator(d, est)?)
-        }
-        None => None,
-    };
-    let set = est.feature_set();
+    let mut columns = live.estimate_columns();
+    let width = columns.len();
+    if let Some(d) = cfg.slip.clone() {
+        columns.extend(["slip_score".to_string(), "slip_state".to_string()]);
+        columns.extend(FieldDynamics::NAMES.iter().map(|n| n.to_string()));
+        live.set_slip(d)?;
+    }
     let mut out = TableWriter::create(&cfg.output, TableFormat::Csv, columns).map_err(write_err)?;
-    let nan = vec![f64::NAN; targets.len()];
     let mut row = Vec::new();
     let mut done = Replayed::default();
     let mut extra_values = Vec::with_capacity(extra.len());
@@ -299,22 +297,9 @@ pub fn replay(
                     .map(|&c| row.map_or(f64::NAN, |row| row[c])),
             );
         }
-        let result = est.process_with(&frame.image, &extra_values);
-        let slip_cells = match (&mut slip, &result) {
-            (Some(monitor), Ok((f, _))) => slip_cells(monitor, f, set),
-            _ => [f64::NAN; SLIP_CELLS],
-        };
-        let (values, flag) = match result {
-            Ok((_, Some(v))) => (v, String::new()),
-            Ok((_, None)) => (nan.clone(), "missing features".to_string()),
-            Err(e) => (nan.clone(), format!("error: {e}")),
-        };
+        let result = live.process_with(&frame.image, &extra_values, None);
+        let flag = frame_row(live, &result, (width, cfg.slip.is_some()), &mut row);
         done.missing += usize::from(!flag.is_empty());
-        row.clear();
-        row.extend_from_slice(&values);
-        if slip.is_some() {
-            row.extend_from_slice(&slip_cells);
-        }
         let written = out.write_row(&frame.id, &row, &flag);
         written.map_err(write_err)?;
         done.frames += 1;
@@ -325,23 +310,47 @@ pub fn replay(
     Ok(done)
 }
 
+/// A replayed frame's row into `row`: the estimate (`width` cells: the targets, then their
+/// spreads; NaN without one) and, with a slip detector, the score, the state (0 stick,
+/// 1 incipient, 2 slip) and the field's signals it read (NaN for a frame not estimated).
+/// Returns the flag: empty, or why the frame has no estimate.
+fn frame_row(
+    live: &LiveEstimator,
+    result: &Result<LiveFrame, PipelineError>,
+    (width, slip): (usize, bool),
+    row: &mut Vec<f64>,
+) -> String {
+    row.clear();
+    let estimated = |r: &LiveFrame| r.contact || live.config().estimate_without_contact;
+    let flag = match result {
+        Ok(r) if !r.targets.is_empty() => {
+            row.extend(r.targets.iter().map(|t| t.value));
+            row.extend(r.targets.iter().filter_map(|t| t.std));
+            String::new()
+        }
+        Ok(r) if !estimated(r) => "no contact".to_string(),
+        Ok(_) => "missing features".to_string(),
+        Err(e) => format!("error: {e}"),
+    };
+    row.resize(width, f64::NAN);
+    if slip {
+        let mut cells = [f64::NAN; SLIP_CELLS];
+        if let Ok(r) = result {
+            if let Some(s) = &r.slip {
+                cells[0] = s.score;
+                cells[1] = f64::from(s.state as u8);
+            }
+            if let (true, Some(signals)) = (estimated(r), live.slip_signals()) {
+                cells[2..].copy_from_slice(&signals);
+            }
+        }
+        row.extend_from_slice(&cells);
+    }
+    flag
+}
+
 /// Cells a slip detector adds to a replayed frame's row.
 const SLIP_CELLS: usize = 2 + FieldDynamics::NAMES.len();
-
-/// A frame's slip cells: the score, the state (0 stick, 1 incipient, 2 slip) and the field's
-/// signals the detector read.
-fn slip_cells(
-    monitor: &mut SlipMonitor,
-    f: &visuotact_vision::features::FrameFeatures,
-    set: visuotact_vision::features::FeatureSet,
-) -> [f64; SLIP_CELLS] {
-    let e = monitor.estimate_features(f, set);
-    let mut cells = [f64::NAN; SLIP_CELLS];
-    cells[0] = e.score;
-    cells[1] = f64::from(e.state as u8);
-    cells[2..].copy_from_slice(&monitor.field().signals());
-    cells
-}
 
 #[cfg(test)]
 mod tests {

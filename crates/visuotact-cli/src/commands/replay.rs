@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use visuotact_pipeline::replay::{replay, ReplayConfig, ReplayError};
+use visuotact_pipeline::{LiveConfig, LiveEstimator};
 
 use crate::progress::{pass_error, FramePass, Reporter};
 
@@ -41,6 +42,11 @@ pub(crate) struct Args {
     /// inputs).
     #[arg(long, value_name = "TABLE")]
     readings: Option<PathBuf>,
+    /// Estimate as `run` does: only frames in contact get an estimate (the others are flagged
+    /// `no contact`), from a baseline that follows the skin's drift between contacts. By
+    /// default every frame is estimated against the sensor's reference.
+    #[arg(long)]
+    live_rules: bool,
     /// No progress lines (by default one every 2 s on stderr, also when it is not a terminal).
     #[arg(long, short)]
     quiet: bool,
@@ -57,6 +63,12 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let sensor = a.sensor.as_deref().map(crate::load_sensor).transpose()?;
     let mut est = visuotact_pipeline::Estimator::with_extra_inputs(sensor, Some(model))?;
     est.set_temporal_prior(a.temporal);
+    let rules = if a.live_rules {
+        LiveConfig::LIVE
+    } else {
+        LiveConfig::OFFLINE
+    };
+    let mut live = LiveEstimator::from_estimator(est, &rules)?;
     let cfg = ReplayConfig {
         inputs: a.input.clone(),
         output: a.output.clone(),
@@ -67,7 +79,7 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let reporter = Reporter::new(a.quiet);
     reporter.stage("replay");
     let mut pass = FramePass::new(&reporter, usize::MAX);
-    let done = replay(&mut est, &cfg, &mut pass).map_err(|e| match e {
+    let done = replay(&mut live, &cfg, &mut pass).map_err(|e| match e {
         ReplayError::NoReadings(names) => anyhow::anyhow!(
             "the model {} needs {names} besides the marker features: give --readings TABLE (keyed by frame)",
             a.model.display()

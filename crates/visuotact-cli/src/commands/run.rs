@@ -136,6 +136,7 @@ impl Args {
             contact_min_px: self.contact_min_px,
             contact_markers: self.contact_markers,
             rezero_rate: self.rezero_rate,
+            ..LiveConfig::LIVE
         }
     }
 
