@@ -9,7 +9,8 @@ use std::time::{Duration, Instant};
 
 use visuotact_nn::fit::FitProgress;
 use visuotact_nn::lm::Control;
-use visuotact_pipeline::replay::{PassObserver, ReplayError};
+use visuotact_pipeline::replay::ReplayError;
+use visuotact_pipeline::sink::FrameSink;
 
 /// Time between two progress lines.
 pub(crate) const EVERY: Duration = Duration::from_secs(2);
@@ -178,7 +179,7 @@ impl<'a> FramePass<'a> {
     }
 }
 
-impl PassObserver for FramePass<'_> {
+impl FrameSink for FramePass<'_> {
     fn warn(&mut self, message: &str) {
         if self.warned < self.max_warnings {
             note!("warning: {message}");
@@ -186,7 +187,7 @@ impl PassObserver for FramePass<'_> {
         self.warned += 1;
     }
 
-    fn frames_done(&mut self, done: usize, total: Option<usize>) -> ControlFlow<()> {
+    fn progress(&mut self, done: usize, total: Option<usize>) -> ControlFlow<()> {
         self.reporter.items(done, total, "frames")
     }
 }

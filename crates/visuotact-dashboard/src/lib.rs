@@ -278,7 +278,7 @@ impl Dashboard {
 
 /// The dashboard as a live runner's sink: markers are drawn only while a client watches; the
 /// re-zero button reaches the estimator.
-impl visuotact_pipeline::runner::Sink for Dashboard {
+impl visuotact_pipeline::sink::FrameSink for Dashboard {
     fn wants_markers(&self) -> bool {
         self.has_clients()
     }
@@ -291,15 +291,14 @@ impl visuotact_pipeline::runner::Sink for Dashboard {
         Dashboard::rezero_applied(self);
     }
 
-    fn send(
+    fn frame(
         &mut self,
-        e: &visuotact_pipeline::LiveEstimate,
-        json: &str,
-        markers: Option<&[MarkerView]>,
-        image: &Arc<RgbImage>,
-    ) -> std::ops::ControlFlow<()> {
-        self.publish(e.sensor.as_deref(), json, markers, image);
-        std::ops::ControlFlow::Continue(())
+        f: &visuotact_pipeline::sink::SinkFrame<'_>,
+    ) -> Result<std::ops::ControlFlow<()>, visuotact_pipeline::sink::SinkError> {
+        if let (Some(e), Some(json)) = (f.estimate, f.json) {
+            self.publish(e.sensor.as_deref(), json, f.markers, f.image);
+        }
+        Ok(std::ops::ControlFlow::Continue(()))
     }
 }
 

@@ -8,14 +8,13 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use visuotact_experiments::synth::{simulate, SimKind, SimulateConfig};
-use visuotact_image::RgbImage;
 use visuotact_io::frames::FrameStream;
 use visuotact_io::table::{KeyedTable, TableFormat};
 use visuotact_pipeline::calibrate::{calibrate_frames, ReferenceSource};
 use visuotact_pipeline::extract::{extract, features_table};
-use visuotact_pipeline::live::MarkerView;
 use visuotact_pipeline::record::{record, RecordConfig};
-use visuotact_pipeline::runner::{run, RunConfig, Sink};
+use visuotact_pipeline::runner::{run, RunConfig};
+use visuotact_pipeline::sink::{FrameSink, SinkError, SinkFrame};
 use visuotact_pipeline::{Estimator, LiveConfig, LiveEstimate, LiveEstimator};
 use visuotact_vision::calibration::{Preset, SensorCalibration};
 use visuotact_vision::features::FeatureExtractor;
@@ -129,17 +128,11 @@ fn record_a_simulated_rig_with_live_features() {
 #[derive(Default)]
 struct Keep(Vec<LiveEstimate>);
 
-impl Sink for Keep {
-    fn send(
-        &mut self,
-        e: &LiveEstimate,
-        json: &str,
-        _: Option<&[MarkerView]>,
-        _: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        assert!(json.starts_with('{'));
-        self.0.push(e.clone());
-        ControlFlow::Continue(())
+impl FrameSink for Keep {
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        assert!(f.json.unwrap().starts_with('{'));
+        self.0.push(f.estimate.unwrap().clone());
+        Ok(ControlFlow::Continue(()))
     }
 }
 
@@ -168,5 +161,102 @@ fn the_live_runner_feeds_every_frame_to_its_sinks() {
     let idx: Vec<u64> = keep.0.iter().map(|e| e.index).collect();
     assert_eq!(idx, (0..20).collect::<Vec<_>>());
     assert!(keep.0.iter().all(|e| e.health.ok + e.health.lost > 100));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Fails on its `n`th frame with a disk-full error.
+struct FailsAt(usize);
+
+impl FrameSink for FailsAt {
+    fn frame(&mut self, _: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        self.0 -= 1;
+        if self.0 == 0 {
+            return Err(std::io::Error::new(std::io::ErrorKind::StorageFull, "disk full").into());
+        }
+        Ok(ControlFlow::Continue(()))
+    }
+}
+
+/// A sink's failure stops the run at that frame and is the run's error; the other sinks heard
+/// every frame up to it. A recording's sink hears each frame it writes, its rows and its
+/// estimate, and its failure ends the recording with the frames written kept.
+#[test]
+fn a_failing_sink_stops_the_loop_with_its_error() {
+    let d = tmp("failing-sink");
+    let cal = session(&d, 6);
+    let live_of = || {
+        let est = Estimator::new(Some(cal.clone()), None).unwrap();
+        LiveEstimator::new(est, Vec::new(), &LiveConfig::default()).unwrap()
+    };
+    let cfg = RunConfig {
+        source: "sim:iats".into(),
+        unpaced: true,
+        max_frames: Some(20),
+        sim_frames: 5,
+        ..RunConfig::default()
+    };
+    let (mut keep, mut fails) = (Keep::default(), FailsAt(7));
+    let stop = Arc::new(AtomicBool::new(false));
+    let err = run(
+        &mut live_of(),
+        &cfg,
+        &stop,
+        &mut [&mut keep, &mut fails],
+        |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(err, "disk full");
+    assert_eq!(keep.0.len(), 7);
+    /// Keeps what a recording tells.
+    #[derive(Default)]
+    struct Rows(Vec<(String, usize, bool)>);
+    impl FrameSink for Rows {
+        fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+            let width = f.rows.and_then(|r| r.features).map_or(0, |(c, v)| {
+                assert_eq!(c.len(), v.len());
+                v.len()
+            });
+            self.0.push((f.id.to_string(), width, f.estimate.is_some()));
+            if self.0.len() == 4 {
+                return Err(SinkError::other(std::io::Error::other("bag closed")));
+            }
+            Ok(ControlFlow::Continue(()))
+        }
+    }
+    let rows = Arc::new(std::sync::Mutex::new(Rows::default()));
+    let rec = RecordConfig {
+        source: d
+            .join("frames")
+            .into_os_string()
+            .into_string()
+            .unwrap()
+            .into(),
+        output: d.join("recorded"),
+        ..RecordConfig::default()
+    };
+    let est = Estimator::new(Some(cal.clone()), None).unwrap();
+    let shared: visuotact_pipeline::sink::SharedSink = rows.clone();
+    // The run above set its stop flag when its sink failed.
+    let stop = Arc::new(AtomicBool::new(false));
+    let err = visuotact_pipeline::record::record_observed(
+        &rec,
+        Some(est),
+        &stop,
+        &mut |_| {},
+        Some(shared),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("bag closed"), "{err}");
+    let told = &rows.lock().unwrap().0;
+    assert_eq!(told.len(), 4);
+    assert!(
+        told.iter()
+            .all(|(_, width, estimated)| *width > 100 && *estimated),
+        "{told:?}"
+    );
+    let kept = std::fs::read_to_string(d.join("recorded").join("features.csv")).unwrap();
+    assert_eq!(kept.lines().count(), 1 + 4, "the frames written stay");
     std::fs::remove_dir_all(&d).unwrap();
 }

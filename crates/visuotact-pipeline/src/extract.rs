@@ -1,7 +1,7 @@
 //! Tables of frames: [`extract`] writes the feature table of frames (image files, folders,
 //! videos), [`features_table`] keeps it in memory, [`predict_table`] runs a model over a feature
 //! table, and [`blobs_table`] writes every blob of every frame. Each is one pass over the frames
-//! whose [`PassObserver`] hears of each frame skipped and may stop it; a stopped pass writes
+//! whose [`FrameSink`] hears of each frame skipped and may stop it; a stopped pass writes
 //! nothing.
 
 use std::path::{Path, PathBuf};
@@ -16,10 +16,11 @@ use visuotact_vision::detect::Detector;
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures, FrameSizeError, MmColumns};
 use visuotact_vision::field::FieldDynamics;
 
-use crate::replay::{Pass, PassObserver, ReplayError};
+use crate::replay::{Pass, ReplayError};
 use crate::schema::{
     blob_row, feature_columns, feature_row_into, flags_of, missing_summary, BLOB_COLUMNS,
 };
+use crate::sink::FrameSink;
 use crate::slip::{FieldFollower, SlipMonitor, SlipSettings};
 use crate::table::InputSources;
 
@@ -48,7 +49,7 @@ pub fn extract(
     frames: &[PathBuf],
     fps: f64,
     (output, format): (&Path, TableFormat),
-    obs: &mut dyn PassObserver,
+    obs: &mut dyn FrameSink,
 ) -> Result<Extracted, ReplayError> {
     let n_markers = ex.calibration().markers.len();
     let mut pass = Pass::open(frames, fps)?;
@@ -129,11 +130,11 @@ const BATCH_BYTES: usize = 256 << 20;
 fn each_extracted(
     ex: &mut FeatureExtractor,
     pass: &mut Pass,
-    obs: &mut dyn PassObserver,
+    obs: &mut dyn FrameSink,
     mut each: impl FnMut(
         &Frame,
         Result<&FrameFeatures, FrameSizeError>,
-        &mut dyn PassObserver,
+        &mut dyn FrameSink,
     ) -> Result<(), ReplayError>,
 ) -> Result<(), ReplayError> {
     if ex.temporal_prior() {
@@ -184,7 +185,7 @@ pub fn features_table(
     ex: &mut FeatureExtractor,
     frames: &[PathBuf],
     fps: f64,
-    obs: &mut dyn PassObserver,
+    obs: &mut dyn FrameSink,
 ) -> Result<KeyedTable, ReplayError> {
     let (mut keys, mut rows) = (Vec::new(), Vec::new());
     let mut columns = ex.column_names();
@@ -297,7 +298,7 @@ pub fn blobs_table(
     conv: MomentConvention,
     frames: &[PathBuf],
     (output, format): (&Path, TableFormat),
-    obs: &mut dyn PassObserver,
+    obs: &mut dyn FrameSink,
 ) -> Result<BlobsWritten, ReplayError> {
     let write_err = |source| ReplayError::Write {
         path: output.to_path_buf(),

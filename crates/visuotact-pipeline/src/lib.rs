@@ -68,6 +68,7 @@ pub mod runner;
 pub mod schema;
 pub mod session_export;
 pub mod several;
+pub mod sink;
 pub mod slip;
 pub mod source;
 pub mod table;

@@ -1,6 +1,6 @@
 //! A frame's parts and where they go: the one mapping every output shares. A live run's
-//! estimate ([`LiveSink`], a [`Sink`] of the runner), a recording's rows as they are written
-//! ([`RecordingTarget`], a [`RecordObserver`]) or a recorded session's tables
+//! estimate ([`LiveSink`]), a recording's rows as they are written ([`RecordingTarget`]) —
+//! both [`FrameSink`]s — or a recorded session's tables
 //! ([`crate::session_export`]) become [`FrameParts`] — the targets, the contact rule, the
 //! measured force, the marker cloud, the image, the health, the slip state — and a
 //! [`FrameTarget`] writes them: as ROS 2 messages into a bag, over DDS or to Foxglove (crate
@@ -9,16 +9,14 @@
 
 use std::ops::ControlFlow;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use visuotact_image::RgbImage;
 use visuotact_io::force::ForceSample;
 use visuotact_vision::calibration::SensorCalibration;
 
 use crate::live::{Health, MarkerView, TargetEstimate};
-use crate::record::{ObserverError, RecordObserver, RecordedRow};
-use crate::runner::Sink;
 use crate::session_export::{targets_from_row, MarkerColumns};
+use crate::sink::{FrameSink, RecordedRow, SinkError, SinkFrame};
 use crate::slip::SlipEstimate;
 use crate::LiveEstimate;
 
@@ -218,13 +216,12 @@ pub fn ns_from_s(s: f64) -> u64 {
 /// A live run's estimates as frame parts into any [`FrameTarget`] — a ROS 2 bag, DDS or
 /// Foxglove (crate `visuotact-ros`), a Rerun recording (crate `visuotact-rerun`) — stamped on
 /// the wall clock: the time the sink was made plus the run's capture time. The first error
-/// stops the run and is returned by [`LiveSink::finish_with`].
+/// stops the run (the run returns it); [`LiveSink::finish_with`] closes the target.
 pub struct LiveSink<P> {
     out: P,
     cfg: SensorConfigs,
     origin_ns: u64,
     markers: Vec<MarkerPoint>,
-    error: Option<OutputError>,
 }
 
 impl<P: FrameTarget> LiveSink<P> {
@@ -236,7 +233,6 @@ impl<P: FrameTarget> LiveSink<P> {
             cfg: SensorConfigs::new(cfg),
             origin_ns: unix_now_ns(),
             markers: Vec::new(),
-            error: None,
         })
     }
 
@@ -245,17 +241,9 @@ impl<P: FrameTarget> LiveSink<P> {
         &self.out
     }
 
-    /// Closes the target with `close`, then gives the run's first error if there was one,
-    /// else what `close` returned (the target is closed either way).
-    pub fn finish_with<T, E: From<OutputError>>(
-        self,
-        close: impl FnOnce(P) -> Result<T, E>,
-    ) -> Result<T, E> {
-        let closed = close(self.out);
-        match self.error {
-            Some(e) => Err(e.into()),
-            None => closed,
-        }
+    /// Closes the target with `close` and gives what it returned.
+    pub fn finish_with<T, E>(self, close: impl FnOnce(P) -> Result<T, E>) -> Result<T, E> {
+        close(self.out)
     }
 
     fn write(
@@ -321,30 +309,21 @@ fn live_frame<'a>(
     })
 }
 
-impl<P: FrameTarget> Sink for LiveSink<P> {
+impl<P: FrameTarget> FrameSink for LiveSink<P> {
     fn wants_markers(&self) -> bool {
         true
     }
 
-    fn send(
-        &mut self,
-        estimate: &LiveEstimate,
-        _json: &str,
-        markers: Option<&[MarkerView]>,
-        image: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        match self.write(estimate, markers, image) {
-            Ok(()) => ControlFlow::Continue(()),
-            Err(e) => {
-                self.error = Some(e);
-                ControlFlow::Break(())
-            }
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        if let Some(e) = f.estimate {
+            self.write(e, f.markers, f.image)?;
         }
+        Ok(ControlFlow::Continue(()))
     }
 }
 
-/// A recording into any [`FrameTarget`] while it is recorded: a [`RecordObserver`] that
-/// writes what [`crate::session_export`] reads from the finished session — estimates, marker
+/// A recording into any [`FrameTarget`] while it is recorded: a [`FrameSink`] that writes
+/// what [`crate::session_export`] reads from the finished session — estimates, marker
 /// cloud and health from the rows as they are written, the frame as PNG, each force sample —
 /// stamped with the session's start plus its clock.
 pub struct RecordingTarget<T> {
@@ -381,7 +360,7 @@ impl<T: FrameTarget> RecordingTarget<T> {
         self.out
     }
 
-    fn write_row(&mut self, row: &RecordedRow<'_>) -> Result<(), OutputError> {
+    fn write_row(&mut self, f: &SinkFrame<'_>, row: RecordedRow<'_>) -> Result<(), OutputError> {
         let targets = row
             .estimates
             .map(|(c, r)| targets_from_row(c, r))
@@ -394,13 +373,13 @@ impl<T: FrameTarget> RecordingTarget<T> {
             health = columns.cloud_from_row(values, &mut self.cloud);
         }
         let png = if self.cfg.images {
-            Some(png_from_rgb(row.image)?)
+            Some(png_from_rgb(f.image)?)
         } else {
             None
         };
         let has_cloud = health.is_some() && !self.cloud.is_empty();
         let frame = FrameParts {
-            stamp_ns: ns_from_s(self.origin_unix_s + row.timestamp_s),
+            stamp_ns: ns_from_s(self.origin_unix_s + f.timestamp_s),
             targets: &targets,
             markers: has_cloud.then_some(&self.cloud[..]),
             mm_per_px: self.columns.as_ref().and_then(MarkerColumns::mm_per_px),
@@ -412,17 +391,20 @@ impl<T: FrameTarget> RecordingTarget<T> {
     }
 }
 
-impl<T: FrameTarget + Send> RecordObserver for RecordingTarget<T> {
-    fn start(&mut self, started_unix_s: f64) -> Result<(), ObserverError> {
+impl<T: FrameTarget> FrameSink for RecordingTarget<T> {
+    fn start(&mut self, started_unix_s: f64) -> Result<(), SinkError> {
         self.origin_unix_s = started_unix_s;
         Ok(())
     }
 
-    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), ObserverError> {
-        Ok(self.write_row(row)?)
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        if let Some(row) = f.rows {
+            self.write_row(f, row)?;
+        }
+        Ok(ControlFlow::Continue(()))
     }
 
-    fn force(&mut self, sample: &ForceSample) -> Result<(), ObserverError> {
+    fn force(&mut self, sample: &ForceSample) -> Result<(), SinkError> {
         let frame = FrameParts {
             stamp_ns: ns_from_s(self.origin_unix_s + sample.timestamp_s),
             measured: Some(sample.values),

@@ -16,7 +16,7 @@
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -33,10 +33,12 @@ use visuotact_io::session::{
 use visuotact_io::source::SourceSpec;
 use visuotact_io::table::{format_number, push_csv_row, TableError};
 
+use crate::live::LiveFrame;
 use crate::rig::{frame_seed, spawn_jr3, Jr3Stream, Rig};
 use crate::schema::{feature_columns, feature_row_into, flags_of};
+use crate::sink::{FrameSink, RecordedRow, SharedSink, SinkError, SinkFrame};
 use crate::source::{FrameSource, Next, Pacing, SourceConfig, SourceError, SourceFrame};
-use crate::{rate, seconds, Estimator, LiveConfig, LiveEstimator, PipelineError};
+use crate::{rate, seconds, Estimator, LiveConfig, LiveEstimate, LiveEstimator, PipelineError};
 use visuotact_vision::features::MmColumns;
 
 /// Where force samples come from.
@@ -194,10 +196,10 @@ pub enum RecordError {
     /// The estimator could not take the model.
     #[error(transparent)]
     Estimator(#[from] PipelineError),
-    /// The [`RecordObserver`] failed (its error, as it says it).
+    /// The [`FrameSink`] failed (its error, as it says it).
     #[error("{0}")]
-    Observer(#[source] ObserverError),
-    /// A thread panicked while it held the [`RecordObserver`].
+    Observer(#[source] SinkError),
+    /// A thread panicked while it held the [`FrameSink`].
     #[error("a thread panicked while writing")]
     ObserverPanicked,
     /// The recording ended without a frame written (the session says so too).
@@ -240,50 +242,16 @@ pub struct RecordSummary {
 struct RecordedFrame {
     id: String,
     timestamp_s: f64,
-    image: RgbImage,
+    image: Arc<RgbImage>,
     labels: Vec<f64>,
 }
 
-/// A recorded frame as the session's tables hold it, for a [`RecordObserver`].
-pub struct RecordedRow<'a> {
-    /// The frame's id (its name in `frames.csv`).
-    pub frame: &'a str,
-    /// The session clock, s.
-    pub timestamp_s: f64,
-    /// The frame.
-    pub image: &'a RgbImage,
-    /// `features.csv`'s value columns and this frame's row (without an estimator, or a frame
-    /// the extractor refused: `None`).
-    pub features: Option<(&'a [String], &'a [f64])>,
-    /// `estimates.csv`'s value columns and this frame's row, likewise.
-    pub estimates: Option<(&'a [String], &'a [f64])>,
-}
-
-/// What a [`RecordObserver`] fails with: its own error type, kept whole (message and source
-/// chain) in [`RecordError::Observer`].
-pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
-
-/// Hears of what a recording writes as it writes it — a bag writer, a monitor. Frames come
-/// from the recording thread, force samples from the force receiver's, each after its row is
-/// written. The first error ends the recording as a failed write would.
-pub trait RecordObserver: Send {
-    /// The recording starts; its clock's zero is `started_unix_s` (UNIX time, s).
-    fn start(&mut self, started_unix_s: f64) -> Result<(), ObserverError> {
-        let _ = started_unix_s;
-        Ok(())
-    }
-    /// A frame's rows were written.
-    fn frame(&mut self, row: &RecordedRow<'_>) -> Result<(), ObserverError>;
-    /// A force sample was written (its `timestamp_s` on the session clock).
-    fn force(&mut self, sample: &ForceSample) -> Result<(), ObserverError>;
-}
-
-/// A [`RecordObserver`] shared by the recording and force threads.
-pub type SharedObserver = Arc<Mutex<dyn RecordObserver>>;
+/// The recording's [`FrameSink`], shared with the force receiver's thread.
+pub type SharedObserver = SharedSink;
 
 fn observe<T>(
     observer: Option<&SharedObserver>,
-    f: impl FnOnce(&mut dyn RecordObserver) -> Result<T, ObserverError>,
+    f: impl FnOnce(&mut dyn FrameSink) -> Result<T, SinkError>,
 ) -> Result<Option<T>, RecordError> {
     let Some(o) = observer else {
         return Ok(None);
@@ -423,9 +391,42 @@ fn record_frames(
             // Recorded before the stop this run resumes.
             continue;
         }
-        tables.write(cfg, estimator.as_deref_mut(), &frame, k, warn)?;
-        observe(observer, |o| o.frame(&tables.row_of(&frame)))?;
+        let got = tables.write(cfg, estimator.as_deref_mut(), &frame, k, warn)?;
         summary.written += 1;
+        if let Some(o) = observer {
+            let estimate = got.map(|(f, ms)| LiveEstimate {
+                sensor: None,
+                frame: frame.id.clone(),
+                index: k as u64,
+                timestamp_s: frame.timestamp_s,
+                latency_ms: ms,
+                processing_ms: ms,
+                contact: f.contact,
+                max_displacement_px: f.max_displacement_px,
+                targets: f.targets,
+                health: f.health,
+                dropped_frames: frames.dropped(),
+                slip: f.slip,
+                mm_per_px: estimator.as_ref().and_then(|e| e.calibration().mm_per_px()),
+            });
+            // An estimate is plain numbers and strings: it always serialises.
+            let json = estimate
+                .as_ref()
+                .map(|e| serde_json::to_string(e).unwrap_or_default());
+            let told = SinkFrame {
+                id: &frame.id,
+                index: k as u64,
+                timestamp_s: frame.timestamp_s,
+                image: &frame.image,
+                estimate: estimate.as_ref(),
+                json: json.as_deref(),
+                markers: None,
+                rows: Some(tables.row_of()),
+            };
+            if observe(Some(o), |o| o.frame(&told))?.is_some_and(|f| f.is_break()) {
+                break;
+            }
+        }
         k += 1;
     }
     Ok(())
@@ -844,6 +845,8 @@ impl Tables {
     }
 
     /// Writes frame `k`: its PNG if asked, its features and estimate, labels and index row.
+    /// Returns the estimator's result and the milliseconds it took, when it processed the
+    /// frame.
     fn write(
         &mut self,
         cfg: &RecordConfig,
@@ -851,7 +854,7 @@ impl Tables {
         f: &RecordedFrame,
         k: usize,
         warn: &mut dyn FnMut(&str),
-    ) -> Result<(), RecordError> {
+    ) -> Result<Option<(LiveFrame, f64)>, RecordError> {
         if cfg.save_frames {
             let name = if f.id.ends_with(".png") {
                 f.id.clone()
@@ -862,9 +865,10 @@ impl Tables {
         }
         self.feature_row.clear();
         self.estimate_row.clear();
-        if let Some(e) = est {
-            self.write_estimate(e, f, warn)?;
-        }
+        let got = match est {
+            Some(e) => self.write_estimate(e, f, warn)?,
+            None => None,
+        };
         if let Some(log) = self.labels.as_mut() {
             let cells: Vec<String> = f.labels.iter().map(|v| format_number(*v)).collect();
             log.line(&format!("{},{}", f.id, cells.join(",")))?;
@@ -875,7 +879,7 @@ impl Tables {
             k,
             format_number(f.timestamp_s)
         ))?;
-        Ok(())
+        Ok(got)
     }
 
     fn write_estimate(
@@ -883,14 +887,16 @@ impl Tables {
         e: &mut LiveEstimator,
         f: &RecordedFrame,
         warn: &mut dyn FnMut(&str),
-    ) -> Result<(), RecordError> {
+    ) -> Result<Option<(LiveFrame, f64)>, RecordError> {
+        let t0 = Instant::now();
         let got = match e.process(&f.image, None) {
             Ok(r) => r,
             Err(err) => {
                 warn(&format!("frame {}: {err}", f.id));
-                return Ok(());
+                return Ok(None);
             }
         };
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
         self.processed += 1;
         let n_markers = e.estimator().n_markers();
         let features = e.estimator().last_features();
@@ -924,18 +930,15 @@ impl Tables {
             }
             log.line(&self.line)?;
         }
-        Ok(())
+        Ok(Some((got, ms)))
     }
 
     /// The frame just written, as its rows say it.
-    fn row_of<'a>(&'a self, f: &'a RecordedFrame) -> RecordedRow<'a> {
-        let part = |cols: &'a [String], row: &'a [f64]| {
+    fn row_of(&self) -> RecordedRow<'_> {
+        fn part<'a>(cols: &'a [String], row: &'a [f64]) -> Option<(&'a [String], &'a [f64])> {
             (!row.is_empty() && row.len() == cols.len()).then_some((cols, row))
-        };
+        }
         RecordedRow {
-            frame: &f.id,
-            timestamp_s: f.timestamp_s,
-            image: &f.image,
             features: part(&self.feature_cols, &self.feature_row),
             estimates: part(&self.estimate_cols, &self.estimate_row),
         }
@@ -1000,14 +1003,14 @@ fn recorded(
         RecordedFrame {
             id: format!("frame_{k:06}.png"),
             timestamp_s: t_offset + delivered.saturating_duration_since(clock).as_secs_f64(),
-            image: frame.image,
+            image: Arc::new(frame.image),
             labels,
         }
     } else {
         RecordedFrame {
             id: frame.id,
             timestamp_s: frame.timestamp_s,
-            image: frame.image,
+            image: Arc::new(frame.image),
             labels,
         }
     }

@@ -11,17 +11,17 @@
 //! (a pressure gauge's reading) come from a readings table keyed by frame. The feature, blob
 //! and prediction tables of frames are in [`crate::extract`].
 //!
-//! Every pass over frames tells a [`PassObserver`] of each frame skipped and of how far it has
-//! come; the observer may stop it, and a stopped pass writes nothing (its table never takes its
+//! Every pass over frames tells a [`FrameSink`] of each frame skipped and of how far it has
+//! come; the sink may stop it, and a stopped pass writes nothing (its table never takes its
 //! name, [`TableWriter::finish`]).
 
-use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use visuotact_image::Frame;
 use visuotact_io::table::{KeyedTable, TableError, TableFormat, TableWriter};
 
 use crate::live::{LiveEstimator, LiveFrame};
+use crate::sink::FrameSink;
 use crate::source::{FrameSource, Next, SourceError};
 use crate::PipelineError;
 use visuotact_vision::field::FieldDynamics;
@@ -105,27 +105,6 @@ pub enum ReplayError {
     },
 }
 
-/// What a pass over frames tells its caller: each frame skipped or incomplete, and after every
-/// frame how far it has come (the caller may stop it there). A closure `FnMut(&str)` is an
-/// observer that hears the warnings and never stops.
-pub trait PassObserver {
-    /// A frame skipped or incomplete, in words.
-    fn warn(&mut self, message: &str);
-
-    /// `done` frames of `total` (when known) are through; [`ControlFlow::Break`] stops the pass,
-    /// which then writes nothing and returns [`ReplayError::Stopped`].
-    fn frames_done(&mut self, done: usize, total: Option<usize>) -> ControlFlow<()> {
-        let _ = (done, total);
-        ControlFlow::Continue(())
-    }
-}
-
-impl<F: FnMut(&str)> PassObserver for F {
-    fn warn(&mut self, message: &str) {
-        self(message);
-    }
-}
-
 /// The frames of a pass: before each frame, and once more when they run out (Ctrl-C also ends
 /// a video's decoder), the observer hears how far the pass is and may stop it.
 pub(crate) struct Pass {
@@ -152,12 +131,9 @@ impl Pass {
     /// The next frame that reads, after telling `obs` how far the pass is;
     /// [`ReplayError::Stopped`] when it stops the pass. A frame that does not read is told to
     /// `obs`, counted in [`Pass::unreadable`] and passed over.
-    pub(crate) fn next(
-        &mut self,
-        obs: &mut dyn PassObserver,
-    ) -> Result<Option<Frame>, ReplayError> {
+    pub(crate) fn next(&mut self, obs: &mut dyn FrameSink) -> Result<Option<Frame>, ReplayError> {
         loop {
-            if obs.frames_done(self.done, self.total).is_break() {
+            if obs.progress(self.done, self.total).is_break() {
                 return Err(ReplayError::Stopped { frames: self.done });
             }
             match self.source.next_frame()? {
@@ -246,7 +222,7 @@ fn session_frames(s: &Path, warn: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>, 
 pub fn replay(
     live: &mut LiveEstimator,
     cfg: &ReplayConfig,
-    obs: &mut dyn PassObserver,
+    obs: &mut dyn FrameSink,
 ) -> Result<Replayed, ReplayError> {
     let session = (cfg.inputs.len() == 1 && cfg.inputs[0].join("frames.csv").is_file())
         .then(|| cfg.inputs[0].clone());

@@ -1,7 +1,7 @@
 //! The live runner: a source thread captures frames into a small queue that never holds stale
 //! frames (when full, the oldest frame is dropped and counted); the [`LiveEstimator`] takes the
-//! newest, and each estimate goes to the [`Sink`]s (standard output, UDP, a dashboard) as one
-//! JSON line.
+//! newest, and each estimate goes to the [`FrameSink`]s (standard output, UDP, a dashboard) with
+//! its JSON line.
 //!
 //! Latency is measured per frame from the capture timestamp to the finished estimate, and the
 //! processing time from the frame in memory to the estimate; both are summarised (median, p99)
@@ -14,12 +14,12 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
-use visuotact_image::RgbImage;
 use visuotact_io::camera::CameraRequest;
 use visuotact_io::queue::{median_p99, Captured, LatestQueue};
 use visuotact_io::source::SourceSpec;
 
 use crate::live::{LiveEstimate, LiveEstimator, LiveFrame, MarkerView};
+use crate::sink::{FrameSink, SinkError, SinkFrame};
 use crate::source::{FrameSource, Next, Pacing, SourceConfig, SourceError};
 
 /// Where frames come from and how fast.
@@ -109,6 +109,9 @@ pub enum RunError {
     /// The source could not be opened.
     #[error(transparent)]
     Source(#[from] SourceError),
+    /// A sink failed: the run stopped there (what the sinks wrote stays).
+    #[error(transparent)]
+    Sink(#[from] SinkError),
     /// The capture thread stopped unexpectedly.
     #[error("the capture thread stopped unexpectedly")]
     Capture,
@@ -129,44 +132,21 @@ pub enum RunError {
     },
 }
 
-/// Where estimates go.
-pub trait Sink {
-    /// Whether this sink wants the markers' positions with each estimate (drawing them costs).
-    fn wants_markers(&self) -> bool {
-        false
-    }
-    /// Whether the user asked to re-zero since the last call.
-    fn take_rezero(&mut self) -> bool {
-        false
-    }
-    /// The estimator re-zeroed at the sink's request.
-    fn rezero_applied(&mut self) {}
-    /// One estimate, also as its JSON line; [`ControlFlow::Break`] ends the run.
-    fn send(
-        &mut self,
-        estimate: &LiveEstimate,
-        json: &str,
-        markers: Option<&[MarkerView]>,
-        image: &Arc<RgbImage>,
-    ) -> ControlFlow<()>;
-}
-
 /// JSON lines to a writer (standard output); a write error (the consumer went away, a closed
 /// pipe) ends the run.
 pub struct LineSink<W: std::io::Write>(pub W);
 
-impl<W: std::io::Write> Sink for LineSink<W> {
-    fn send(
-        &mut self,
-        _: &LiveEstimate,
-        json: &str,
-        _: Option<&[MarkerView]>,
-        _: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        match writeln!(self.0, "{json}").and_then(|()| self.0.flush()) {
-            Ok(()) => ControlFlow::Continue(()),
-            Err(_) => ControlFlow::Break(()),
-        }
+impl<W: std::io::Write> FrameSink for LineSink<W> {
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        let Some(json) = f.json else {
+            return Ok(ControlFlow::Continue(()));
+        };
+        Ok(
+            match writeln!(self.0, "{json}").and_then(|()| self.0.flush()) {
+                Ok(()) => ControlFlow::Continue(()),
+                Err(_) => ControlFlow::Break(()),
+            },
+        )
     }
 }
 
@@ -189,18 +169,14 @@ impl UdpSink {
     }
 }
 
-impl Sink for UdpSink {
-    fn send(
-        &mut self,
-        _: &LiveEstimate,
-        json: &str,
-        _: Option<&[MarkerView]>,
-        _: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
-        if self.socket.send(json.as_bytes()).is_err() {
-            self.errors += 1;
+impl FrameSink for UdpSink {
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        if let Some(json) = f.json {
+            if self.socket.send(json.as_bytes()).is_err() {
+                self.errors += 1;
+            }
         }
-        ControlFlow::Continue(())
+        Ok(ControlFlow::Continue(()))
     }
 }
 
@@ -318,7 +294,7 @@ pub fn run(
     live: &mut LiveEstimator,
     cfg: &RunConfig,
     stop: &Arc<AtomicBool>,
-    sinks: &mut [&mut dyn Sink],
+    sinks: &mut [&mut dyn FrameSink],
     warn: impl Fn(&str) + Send + Clone + 'static,
 ) -> Result<RunSummary, RunError> {
     let run_for = cfg.validate()?;
@@ -334,7 +310,9 @@ pub fn run(
             stop.store(true, Ordering::Relaxed);
         }
         if estimate_one(live, cap, &queue, sinks, &mut stats, &warn).is_break() {
+            // A sink asked to stop or failed: no sink hears a later frame.
             stop.store(true, Ordering::Relaxed);
+            break;
         }
         if stop.load(Ordering::Relaxed) && deadline.is_some() {
             break;
@@ -343,6 +321,9 @@ pub fn run(
     stop.store(true, Ordering::Relaxed);
     queue.close();
     let (captured, source_dropped) = capture.join().map_err(|_| RunError::Capture)?;
+    if let Some(e) = stats.sink_error.take() {
+        return Err(e.into());
+    }
     if captured == 0 {
         return Err(RunError::NoFrames(cfg.source.to_string()));
     }
@@ -369,6 +350,8 @@ struct Stats {
     markers: Vec<MarkerView>,
     /// Why the first frame that could not be estimated could not.
     first_error: Option<String>,
+    /// The first sink's failure (it stopped the run).
+    sink_error: Option<SinkError>,
 }
 
 impl Stats {
@@ -394,7 +377,7 @@ fn estimate_one(
     live: &mut LiveEstimator,
     cap: Captured,
     queue: &LatestQueue<Captured>,
-    sinks: &mut [&mut dyn Sink],
+    sinks: &mut [&mut dyn FrameSink],
     stats: &mut Stats,
     warn: &impl Fn(&str),
 ) -> ControlFlow<()> {
@@ -452,11 +435,25 @@ fn estimate_one(
     }
     // An estimate is plain numbers and strings: it always serialises (once, for every sink).
     let json = serde_json::to_string(&e).unwrap_or_default();
-    let markers = want_markers.then_some(&stats.markers[..]);
+    let frame = SinkFrame {
+        id: &e.frame,
+        index: e.index,
+        timestamp_s: e.timestamp_s,
+        image: &cap.image,
+        estimate: Some(&e),
+        json: Some(&json),
+        markers: want_markers.then_some(&stats.markers[..]),
+        rows: None,
+    };
     let mut flow = ControlFlow::Continue(());
     for s in sinks.iter_mut() {
-        if s.send(&e, &json, markers, &cap.image).is_break() {
-            flow = ControlFlow::Break(());
+        match s.frame(&frame) {
+            Ok(ControlFlow::Continue(())) => {}
+            Ok(ControlFlow::Break(())) => flow = ControlFlow::Break(()),
+            Err(e) => {
+                stats.sink_error.get_or_insert(e);
+                flow = ControlFlow::Break(());
+            }
         }
     }
     flow

@@ -17,7 +17,8 @@ use serde::Serialize;
 use visuotact_image::RgbImage;
 
 use crate::live::{LiveEstimate, LiveEstimator, MarkerView};
-use crate::runner::{run, RunConfig, RunError, RunSummary, Sink};
+use crate::runner::{run, RunConfig, RunError, RunSummary};
+use crate::sink::{FrameSink, SinkError, SinkFrame};
 
 /// One sensor of a run of several.
 pub struct NamedSensor {
@@ -78,7 +79,7 @@ struct Forward {
     rezero: Arc<AtomicBool>,
 }
 
-impl Sink for Forward {
+impl FrameSink for Forward {
     fn wants_markers(&self) -> bool {
         self.markers.load(Ordering::Relaxed)
     }
@@ -87,24 +88,57 @@ impl Sink for Forward {
         self.rezero.swap(false, Ordering::Relaxed)
     }
 
-    fn send(
-        &mut self,
-        estimate: &LiveEstimate,
-        json: &str,
-        markers: Option<&[MarkerView]>,
-        image: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        let (Some(estimate), Some(json)) = (f.estimate, f.json) else {
+            return Ok(ControlFlow::Continue(()));
+        };
         let m = (
             estimate.clone(),
             json.to_string(),
-            markers.map(<[MarkerView]>::to_vec),
-            image.clone(),
+            f.markers.map(<[MarkerView]>::to_vec),
+            f.image.clone(),
         );
-        match self.tx.send(m) {
+        Ok(match self.tx.send(m) {
             Ok(()) => ControlFlow::Continue(()),
             Err(_) => ControlFlow::Break(()),
+        })
+    }
+}
+
+/// Tells every sink one sensor's estimate (a re-zero a sink asks for goes to every sensor's
+/// `rezero` flag first); the first failure is kept in `error`. Returns whether a sink asked
+/// to stop (or failed).
+fn tell_sinks(
+    sinks: &mut [&mut dyn FrameSink],
+    (estimate, json, views, image): &Message,
+    rezero: &[Arc<AtomicBool>],
+    error: &mut Option<SinkError>,
+) -> bool {
+    if sinks.iter_mut().any(|s| s.take_rezero()) {
+        rezero.iter().for_each(|r| r.store(true, Ordering::Relaxed));
+        sinks.iter_mut().for_each(|s| s.rezero_applied());
+    }
+    let frame = SinkFrame {
+        id: &estimate.frame,
+        index: estimate.index,
+        timestamp_s: estimate.timestamp_s,
+        image,
+        estimate: Some(estimate),
+        json: Some(json),
+        markers: views.as_deref(),
+        rows: None,
+    };
+    let mut stop = false;
+    for s in sinks.iter_mut() {
+        match s.frame(&frame) {
+            Ok(flow) => stop |= flow.is_break(),
+            Err(e) => {
+                error.get_or_insert(e);
+                stop = true;
+            }
         }
     }
+    stop
 }
 
 /// Runs every sensor of `sensors` at once until each source ends, a limit is reached, `stop`
@@ -114,7 +148,7 @@ impl Sink for Forward {
 pub fn run_several(
     sensors: &mut [NamedSensor],
     stop: &Arc<AtomicBool>,
-    sinks: &mut [&mut dyn Sink],
+    sinks: &mut [&mut dyn FrameSink],
     warn: impl Fn(&str) + Send + Clone + 'static,
 ) -> Result<Vec<SensorSummary>, RunError> {
     if sensors.is_empty() {
@@ -139,6 +173,9 @@ pub fn run_several(
         .collect();
     let failed = Arc::new(AtomicBool::new(false));
     let (tx, rx) = sync_channel::<Message>(64);
+    let mut sink_error = None;
+    // Once a sink asked to stop or failed, no sink hears a later estimate.
+    let mut told_to_stop = false;
     std::thread::scope(|scope| {
         let threads: Vec<_> = sensors
             .iter_mut()
@@ -168,17 +205,11 @@ pub fn run_several(
         // within a tenth of a second.
         loop {
             match rx.recv_timeout(Duration::from_millis(100)) {
-                Ok((estimate, json, views, image)) => {
-                    if sinks.iter_mut().any(|s| s.take_rezero()) {
-                        rezero.iter().for_each(|r| r.store(true, Ordering::Relaxed));
-                        sinks.iter_mut().for_each(|s| s.rezero_applied());
-                    }
-                    for s in sinks.iter_mut() {
-                        if s.send(&estimate, &json, views.as_deref(), &image)
-                            .is_break()
-                        {
-                            stop.store(true, Ordering::Relaxed);
-                        }
+                Ok(_) if told_to_stop => {}
+                Ok(message) => {
+                    if tell_sinks(sinks, &message, &rezero, &mut sink_error) {
+                        told_to_stop = true;
+                        stop.store(true, Ordering::Relaxed);
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -191,14 +222,18 @@ pub fn run_several(
                     .for_each(|s| s.store(true, Ordering::Relaxed));
             }
         }
-        names
+        let summaries = names
             .into_iter()
             .zip(threads)
             .map(|(name, t)| {
                 let summary = t.join().map_err(|_| RunError::Capture)??;
                 Ok(SensorSummary { name, summary })
             })
-            .collect()
+            .collect();
+        match sink_error {
+            Some(e) => Err(e.into()),
+            None => summaries,
+        }
     })
 }
 

@@ -223,7 +223,7 @@ impl Publish for DdsPublisher {
     }
 }
 
-/// A live run's estimates published over DDS: a [`Sink`](visuotact_pipeline::runner::Sink)
+/// A live run's estimates published over DDS: a [`FrameSink`](visuotact_pipeline::sink::FrameSink)
 /// of the live runner, stamped on the wall clock like [`crate::McapSink`].
 pub type DdsSink = LiveSink<DdsPublisher>;
 

@@ -179,7 +179,7 @@ impl Publish for FoxglovePublisher {
     }
 }
 
-/// A live run's estimates served to Foxglove: a [`Sink`](visuotact_pipeline::runner::Sink)
+/// A live run's estimates served to Foxglove: a [`FrameSink`](visuotact_pipeline::sink::FrameSink)
 /// of the live runner, stamped on the wall clock like [`crate::McapSink`].
 pub type FoxgloveSink = LiveSink<FoxglovePublisher>;
 

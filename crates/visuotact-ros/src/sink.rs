@@ -1,6 +1,6 @@
-//! Into a bag: [`McapSink`] is a [`LiveSink`] (a `Sink` of the live runner) whose target is a
+//! Into a bag: [`McapSink`] is a [`LiveSink`] (a `FrameSink` of the live runner) whose target is a
 //! bag, stamped on the wall clock (the time the sink was made plus the run's capture time);
-//! [`McapRecorder`] is a [`RecordingTarget`] (a recording's `RecordObserver`) whose target is a
+//! [`McapRecorder`] is a [`RecordingTarget`] (a recording's `FrameSink`) whose target is a
 //! bag, from the session's rows as they are written.
 
 use std::path::{Path, PathBuf};

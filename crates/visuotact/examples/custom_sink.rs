@@ -1,6 +1,6 @@
 //! A sink of your own in the live runner: here, a line each time a touch starts or ends, with
 //! the largest marker motion, on the simulated 117-marker membrane (no camera needed). A ROS
-//! node would publish in `send` instead.
+//! node would publish in `frame` instead.
 //!
 //! `cargo run --release -p visuotact --example custom_sink`
 
@@ -8,9 +8,8 @@ use std::ops::ControlFlow;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use visuotact::image::RgbImage;
-use visuotact::pipeline::live::{LiveEstimate, MarkerView};
-use visuotact::pipeline::runner::{run, RunConfig, Sink};
+use visuotact::pipeline::runner::{run, RunConfig};
+use visuotact::pipeline::sink::{FrameSink, SinkError, SinkFrame};
 use visuotact::sim::iats::{render, IatsConfig, Touch};
 use visuotact::vision::calibration::{calibrate, Preset};
 use visuotact::{Estimator, LiveConfig, LiveEstimator};
@@ -22,14 +21,11 @@ struct Touches {
     touches: usize,
 }
 
-impl Sink for Touches {
-    fn send(
-        &mut self,
-        e: &LiveEstimate,
-        _json: &str,
-        _markers: Option<&[MarkerView]>,
-        _image: &Arc<RgbImage>,
-    ) -> ControlFlow<()> {
+impl FrameSink for Touches {
+    fn frame(&mut self, f: &SinkFrame<'_>) -> Result<ControlFlow<()>, SinkError> {
+        let Some(e) = f.estimate else {
+            return Ok(ControlFlow::Continue(()));
+        };
         if e.contact != self.in_contact {
             self.in_contact = e.contact;
             let what = if e.contact { "touch" } else { "released" };
@@ -41,11 +37,11 @@ impl Sink for Touches {
                 self.seen += 1;
             }
         }
-        if self.seen >= self.touches {
+        Ok(if self.seen >= self.touches {
             ControlFlow::Break(())
         } else {
             ControlFlow::Continue(())
-        }
+        })
     }
 }
 

@@ -60,7 +60,7 @@
 //! ```
 //!
 //! A live runner on a camera, each estimate a JSON line on standard output (the README's
-//! example; a ROS node would give its own [`Sink`] that publishes):
+//! example; a ROS node would give its own [`FrameSink`] that publishes):
 //!
 //! ```no_run
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -101,6 +101,7 @@ pub use visuotact_sim as sim;
 pub use visuotact_vision as vision;
 
 pub use visuotact_pipeline::record::{record, RecordConfig};
-pub use visuotact_pipeline::runner::{RunConfig, Sink};
+pub use visuotact_pipeline::runner::RunConfig;
+pub use visuotact_pipeline::sink::{FrameSink, SinkFrame};
 pub use visuotact_pipeline::{Estimate, Estimator, LiveConfig, LiveEstimator, PipelineError};
 pub use visuotact_vision::calibration::{Preset, SensorCalibration};

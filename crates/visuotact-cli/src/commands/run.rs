@@ -7,8 +7,9 @@ use std::sync::Arc;
 
 use visuotact_dashboard::DashboardSensor;
 use visuotact_io::camera::CameraRequest;
-use visuotact_pipeline::runner::{LineSink, RunConfig, Sink, UdpSink};
+use visuotact_pipeline::runner::{LineSink, RunConfig, UdpSink};
 use visuotact_pipeline::several::{check_sensor_names, run_several, NamedSensor, RunFile};
+use visuotact_pipeline::sink::FrameSink;
 use visuotact_pipeline::{LiveConfig, LiveEstimator};
 use visuotact_ros::{
     dds_sink, finish_dds, finish_foxglove, finish_mcap, foxglove_sink, mcap_sink, BagConfig,
@@ -194,11 +195,13 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         None => None,
     };
     let mut out = Outputs::open(a, dashboard, &[])?;
-    let mut summary =
-        visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut out.sinks(), |w| {
-            note!("warning: {w}")
-        })?;
-    let (udp_errors, dashboard) = out.finish()?;
+    let ran = visuotact_pipeline::runner::run(&mut live, &cfg, &stop, &mut out.sinks(), |w| {
+        note!("warning: {w}")
+    });
+    // The outputs are closed whatever happened: what they hold stays readable.
+    let finished = out.finish();
+    let mut summary = ran?;
+    let (udp_errors, dashboard) = finished?;
     summary.udp_send_errors = udp_errors;
     summary.websocket_messages_dropped = dashboard.as_ref().map_or(0, |d| d.dropped());
     print_summary(&summary);
@@ -309,10 +312,12 @@ fn several(a: &Args, file: &std::path::Path) -> anyhow::Result<()> {
     };
     let names: Vec<String> = sensors.iter().map(|s| s.name.clone()).collect();
     let mut out = Outputs::open(a, dashboard, &names)?;
-    let mut summaries = run_several(&mut sensors, &stop, &mut out.sinks(), |w| {
+    let ran = run_several(&mut sensors, &stop, &mut out.sinks(), |w| {
         note!("warning: {w}")
-    })?;
-    let (udp_errors, _) = out.finish()?;
+    });
+    let finished = out.finish();
+    let mut summaries = ran?;
+    let (udp_errors, _) = finished?;
     for s in &mut summaries {
         s.summary.udp_send_errors = udp_errors;
         note!("sensor {}:", s.name);
@@ -446,8 +451,8 @@ impl Outputs {
     }
 
     /// Every output as a sink of the runner.
-    fn sinks(&mut self) -> Vec<&mut dyn Sink> {
-        let mut sinks: Vec<&mut dyn Sink> = Vec::new();
+    fn sinks(&mut self) -> Vec<&mut dyn FrameSink> {
+        let mut sinks: Vec<&mut dyn FrameSink> = Vec::new();
         if let Some(s) = self.stdout.as_mut() {
             sinks.push(s);
         }
