@@ -136,19 +136,29 @@ impl FrameSink for Keep {
     }
 }
 
-#[test]
-fn the_live_runner_feeds_every_frame_to_its_sinks() {
-    let d = tmp("live");
-    let cal = session(&d, 1);
-    let est = Estimator::new(Some(cal), None).unwrap();
-    let mut live = LiveEstimator::new(est, Vec::new(), &LiveConfig::default()).unwrap();
-    let cfg = RunConfig {
+/// Contact and health only, on `cal`.
+fn live_of(cal: &SensorCalibration) -> LiveEstimator {
+    let est = Estimator::new(Some(cal.clone()), None).unwrap();
+    LiveEstimator::new(est, Vec::new(), &LiveConfig::default()).unwrap()
+}
+
+/// Twenty frames of the simulated membrane's five-frame loop, every one estimated.
+fn twenty_unpaced() -> RunConfig {
+    RunConfig {
         source: "sim:iats".into(),
         unpaced: true,
         max_frames: Some(20),
         sim_frames: 5,
         ..RunConfig::default()
-    };
+    }
+}
+
+#[test]
+fn the_live_runner_feeds_every_frame_to_its_sinks() {
+    let d = tmp("live");
+    let cal = session(&d, 1);
+    let mut live = live_of(&cal);
+    let cfg = twenty_unpaced();
     let mut keep = Keep::default();
     let stop = Arc::new(AtomicBool::new(false));
     let summary = run(&mut live, &cfg, &stop, &mut [&mut keep], |w| panic!("{w}")).unwrap();
@@ -184,21 +194,11 @@ impl FrameSink for FailsAt {
 fn a_failing_sink_stops_the_loop_with_its_error() {
     let d = tmp("failing-sink");
     let cal = session(&d, 6);
-    let live_of = || {
-        let est = Estimator::new(Some(cal.clone()), None).unwrap();
-        LiveEstimator::new(est, Vec::new(), &LiveConfig::default()).unwrap()
-    };
-    let cfg = RunConfig {
-        source: "sim:iats".into(),
-        unpaced: true,
-        max_frames: Some(20),
-        sim_frames: 5,
-        ..RunConfig::default()
-    };
+    let cfg = twenty_unpaced();
     let (mut keep, mut fails) = (Keep::default(), FailsAt(7));
     let stop = Arc::new(AtomicBool::new(false));
     let err = run(
-        &mut live_of(),
+        &mut live_of(&cal),
         &cfg,
         &stop,
         &mut [&mut keep, &mut fails],
