@@ -3,6 +3,7 @@
 
 mod common;
 use common::{fails, fresh_dir, ok, s, shared_real, vt};
+use std::path::Path;
 
 #[test]
 fn labels_must_cover_the_videos_exactly_and_name_what_is_missing() {
@@ -91,8 +92,8 @@ fn a_detector_fitted_on_real_grasps_is_read_back_and_run_per_video_and_per_frame
     let mut args = vec!["slip", "detect", "-q", "--detector", s(&det), "-o", s(&out)];
     args.extend(videos.iter().map(String::as_str));
     ok(&vt(&args));
-    let rows = std::fs::read_to_string(&out).unwrap();
-    let rows: Vec<&str> = rows.lines().collect();
+    let each = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<&str> = each.lines().collect();
     assert_eq!(rows[0], "video,slip,onset_s,score");
     assert_eq!(rows.len(), 5, "one row per video");
     for (r, v) in rows[1..].iter().zip(&videos) {
@@ -106,6 +107,7 @@ fn a_detector_fitted_on_real_grasps_is_read_back_and_run_per_video_and_per_frame
             "an onset exactly when slipping: {r}"
         );
     }
+    grasps_sensors_fused(&det, &out, &videos, &rows);
     // The built-in detector, one row per frame: the 49 frames of the first video.
     ok(&vt(&[
         "slip",
@@ -271,4 +273,89 @@ fn a_simulated_grasp_has_its_slip_in_the_truth_and_its_frames_are_a_sequence() {
         s(&d.join("no")),
     ]));
     std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// `slip fit --cv-by object --cv-table`: one row per video with its held-out score and the
+/// thirty statistics; `--grasp-per-folder` adds the held-out figure of each folder's sensors
+/// fused.
+#[test]
+fn the_cross_validation_table_and_the_fused_grasps_are_written() {
+    let Some(root) = shared_real("gelsight_slip/videos") else {
+        return;
+    };
+    let d = fresh_dir("slip-cv-table");
+    let videos = [
+        ("nylon_thread/exp_num_1/camera_0.avi", 1, "nylon_thread"),
+        ("marker_pen/exp_num_2/camera_0.avi", 1, "marker_pen"),
+        ("blue_mug/exp_num_5/camera_0.avi", 0, "blue_mug"),
+        ("blue_mug/exp_num_5/camera_2.avi", 0, "blue_mug"),
+        (
+            "artificial_strawberry/exp_num_1/camera_0.avi",
+            0,
+            "strawberry",
+        ),
+    ];
+    let mut labels = String::from("video,slip,object\n");
+    for (v, y, o) in &videos {
+        labels.push_str(&format!("{},{y},{o}\n", s(&root.join(v))));
+    }
+    let l = d.join("labels.csv");
+    std::fs::write(&l, labels).unwrap();
+    let (det, table) = (d.join("slip.json"), d.join("cv.csv"));
+    let paths: Vec<String> = videos
+        .iter()
+        .map(|(v, _, _)| s(&root.join(v)).to_string())
+        .collect();
+    let mut args = vec!["slip", "fit", "-q", "--labels", s(&l), "-o", s(&det)];
+    args.extend([
+        "--cv-by",
+        "object",
+        "--cv-table",
+        s(&table),
+        "--grasp-per-folder",
+    ]);
+    args.extend(paths.iter().map(String::as_str));
+    let o = vt(&args);
+    let e = ok(&o);
+    let said = String::from_utf8_lossy(&o.stdout).to_string() + &e;
+    assert!(
+        said.contains("cross-validated by object (4 folds, 5 videos)"),
+        "{said}"
+    );
+    assert!(
+        said.contains("each folder's sensors fused (held out)"),
+        "{said}"
+    );
+    let (header, rows) = csv_cells(&table);
+    assert_eq!(header.len(), 5 + 30, "{header:?}");
+    assert_eq!(
+        header[..5],
+        ["video", "slip", "group", "frames", "held_out_score"]
+    );
+    assert_eq!(rows.len(), 5);
+    for (r, (v, y, o)) in rows.iter().zip(&videos) {
+        assert_eq!(r[0], s(&root.join(v)));
+        assert_eq!((r[1].as_str(), r[2].as_str()), (&*y.to_string(), *o));
+        assert!(r[3].parse::<usize>().unwrap() > 5);
+        assert!((0.0..=1.0).contains(&r[4].parse::<f64>().unwrap()));
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The two sensors of one grasp (blue_mug/exp_num_5, the last two videos) fused: one verdict for
+/// both rows, its score their log-odds summed; the videos alone in their folders keep theirs.
+fn grasps_sensors_fused(det: &Path, out: &Path, videos: &[String], rows: &[&str]) {
+    let mut args = vec!["slip", "detect", "-q", "--grasp-per-folder", "--detector"];
+    args.extend([s(det), "-o", s(out)]);
+    args.extend(videos.iter().map(String::as_str));
+    ok(&vt(&args));
+    let fused = std::fs::read_to_string(out).unwrap();
+    let fused: Vec<&str> = fused.lines().collect();
+    assert_eq!(fused[1..3], rows[1..3]);
+    let tail = |r: &str| r.split_once(',').unwrap().1.to_string();
+    assert_eq!(tail(fused[3]), tail(fused[4]));
+    let score = |r: &str| -> f64 { r.rsplit(',').next().unwrap().parse().unwrap() };
+    let logit = |p: f64| (p / (1.0 - p)).ln();
+    let want = 1.0 / (1.0 + (-(logit(score(rows[3])) + logit(score(rows[4])))).exp());
+    assert!((score(fused[3]) - want).abs() < 2e-3, "{fused:?} {rows:?}");
 }

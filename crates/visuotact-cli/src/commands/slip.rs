@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use visuotact_pipeline::slip::{
-    cross_validate, detect, evidence_of, fit_detector, labels_of, read_labels, sequences_in,
-    track_sequences, verdicts_csv, Label, Scores, SlipConfig, SlipDetector, SlipSettings,
-    SlipTruth, TrackedSequence,
+    cross_validate, cv_table, detect, evidence_of, fit_detector, fuse, fused_scores, labels_of,
+    read_labels, sequences_in, track_sequences, verdicts_csv, Label, Scores, SlipConfig,
+    SlipDetector, SlipSettings, SlipTruth, TrackedSequence,
 };
 
 use crate::progress::Reporter;
@@ -38,6 +38,10 @@ struct Common {
     /// Track each frame from the last one's positions (as `extract --temporal`).
     #[arg(long)]
     temporal: bool,
+    /// The videos in one folder are one grasp filmed by several sensors at once (a gripper's
+    /// fingers): each takes the grasp's verdict, the sensors' scores fused (their log-odds add).
+    #[arg(long)]
+    grasp_per_folder: bool,
     /// No progress lines.
     #[arg(long, short)]
     quiet: bool,
@@ -57,6 +61,10 @@ struct FitArgs {
     /// Also cross-validate leaving one value of this labels column out at a time (e.g. object).
     #[arg(long, value_name = "COLUMN")]
     cv_by: Option<String>,
+    /// With --cv-by: write one row per video — its label, group, frames, held-out score and
+    /// the thirty statistics the detector reads — to this CSV.
+    #[arg(long, value_name = "FILE.csv", requires = "cv_by")]
+    cv_table: Option<PathBuf>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -123,6 +131,16 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
             .collect();
         let shipped = SlipDetector::try_default();
         let cv = cross_validate(&ev, &y, &groups, &like, shipped.as_ref())?;
+        if let Some(p) = &a.cv_table {
+            let rows: Vec<_> = videos
+                .iter()
+                .zip(&y)
+                .zip(&groups)
+                .zip(&seqs)
+                .map(|(((v, t), g), s)| (v.as_path(), t, g.as_str(), s.frames.len()))
+                .collect();
+            crate::write_atomically(p, &cv_table(&rows, &cv, &ev))?;
+        }
         say!(
             "cross-validated by {} ({} folds, {} videos):",
             a.cv_by.as_deref().unwrap_or(""),
@@ -150,6 +168,12 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
             visuotact_pipeline::slip::START_FRAMES,
             100.0 * cv.start_alarms
         );
+        if a.common.grasp_per_folder {
+            line(
+                "fitted detector, each folder's sensors fused (held out)",
+                fused_scores(&cv, &y, &grasps_of(&videos), det.threshold),
+            );
+        }
         if let Some(s) = cv.default {
             line(
                 "built-in detector (as shipped, fitted on the GelSight set)",
@@ -160,16 +184,43 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Each video's grasp: the index of its folder among the videos' folders.
+fn grasps_of(videos: &[PathBuf]) -> Vec<usize> {
+    let mut folders: Vec<&std::path::Path> = Vec::new();
+    videos
+        .iter()
+        .map(|v| {
+            let f = v.parent().unwrap_or(std::path::Path::new(""));
+            folders.iter().position(|&g| g == f).unwrap_or_else(|| {
+                folders.push(f);
+                folders.len() - 1
+            })
+        })
+        .collect()
+}
+
 fn detect_videos(a: &DetectArgs) -> anyhow::Result<()> {
     let det = crate::load_slip(&a.detector)?;
     let (videos, seqs) = tracked(&a.common)?;
+    let mut each: Vec<_> = seqs.iter().map(|s| detect(s, &det)).collect();
+    if a.common.grasp_per_folder {
+        let grasp = grasps_of(&videos);
+        let fused: Vec<_> = (0..each.len())
+            .map(|i| {
+                let same: Vec<_> = (0..each.len())
+                    .filter(|&j| grasp[j] == grasp[i])
+                    .map(|j| &each[j])
+                    .collect();
+                fuse(&same, &det)
+            })
+            .collect();
+        each = fused;
+    }
     let verdicts: Vec<_> = videos
         .into_iter()
         .zip(&seqs)
-        .map(|(v, s)| {
-            let d = detect(s, &det);
-            (v, s, d)
-        })
+        .zip(each)
+        .map(|((v, s), d)| (v, s, d))
         .collect();
     let slips = verdicts.iter().filter(|(_, _, v)| v.slip).count();
     crate::write_atomically(&a.output, &verdicts_csv(&verdicts, a.frames))?;

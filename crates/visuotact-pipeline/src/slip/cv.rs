@@ -140,6 +140,27 @@ pub fn cross_validate(
     })
 }
 
+/// The held-out figures of grasps seen by several sensors: each sequence takes its grasp's
+/// [`super::fused_score`] of the held-out scores (`grasp_of[i]`: sequence `i`'s grasp), slip
+/// at or above `threshold`. Every sequence of a grasp must be in the same fold (a group holds
+/// whole grasps), as grouping by object gives.
+pub fn fused_scores(
+    cv: &CrossValidation,
+    truth: &[SlipTruth],
+    grasp_of: &[usize],
+    threshold: f64,
+) -> Scores {
+    let n = cv.held_out_scores.len();
+    let predicted: Vec<bool> = (0..n)
+        .map(|i| {
+            let same = (0..n).filter(|&j| grasp_of[j] == grasp_of[i]);
+            super::fused_score(same.map(|j| cv.held_out_scores[j])) >= threshold
+        })
+        .collect();
+    let slip: Vec<bool> = truth.iter().map(|t| t.slip).collect();
+    Scores::of(&predicted, &slip)
+}
+
 /// The threshold on `x` (and whether slip lies at or above it) of best balanced accuracy.
 fn best_threshold(x: &[f64], y: &[bool]) -> (f64, bool) {
     let mut cuts: Vec<f64> = x.to_vec();
@@ -179,6 +200,37 @@ fn small_logistic(ev: &[[f64; EVIDENCE_LEN]], y: &[bool]) -> impl Fn(&[f64; EVID
     let rows: Vec<Vec<f64>> = ev.iter().map(&row).collect();
     let fit = fit_logistic(&rows, y, &LogisticConfig::default());
     move |e| fit.probability(&row(e)) >= 0.5
+}
+
+/// The cross-validation as a table, one row per sequence: `video,slip,group,frames,held_out_score`
+/// and the thirty statistics of its evidence ([`super::SlipEvidence::names`]), to see which
+/// sequences the held-out detector gets wrong and why.
+pub fn cv_table(
+    rows: &[(&std::path::Path, &SlipTruth, &str, usize)],
+    cv: &CrossValidation,
+    evidence: &[SequenceEvidence],
+) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from("video,slip,group,frames,held_out_score");
+    for n in super::SlipEvidence::names() {
+        let _ = write!(s, ",{n}");
+    }
+    s.push('\n');
+    for ((&(video, truth, group, frames), score), e) in
+        rows.iter().zip(&cv.held_out_scores).zip(evidence)
+    {
+        let _ = write!(
+            s,
+            "{},{},{group},{frames},{score:.6}",
+            video.display(),
+            u8::from(truth.slip)
+        );
+        for v in e.whole {
+            let _ = write!(s, ",{v:.6}");
+        }
+        s.push('\n');
+    }
+    s
 }
 
 #[cfg(test)]

@@ -45,7 +45,7 @@ use crate::calibrate::{calibrate_frames, CalibrateError, ReferenceSource};
 mod cv;
 mod labels;
 
-pub use cv::{cross_validate, CrossValidation, Scores};
+pub use cv::{cross_validate, cv_table, fused_scores, CrossValidation, Scores};
 pub use labels::{labels_of, normalised, read_labels, Label};
 
 /// Statistics per signal in [`SlipEvidence`].
@@ -774,6 +774,12 @@ pub fn detect(seq: &TrackedSequence, detector: &SlipDetector) -> SlipVerdict {
         .iter()
         .map(|f| m.update(&f.displacement_px, f.timestamp_s))
         .collect();
+    verdict_of(frames, m.evidence().values())
+}
+
+/// The verdict of a sequence's frames: its last frame's state and score, and when the final
+/// run of `slip` frames began.
+fn verdict_of(frames: Vec<SlipFrame>, evidence: [f64; EVIDENCE_LEN]) -> SlipVerdict {
     let score = frames.last().map_or(0.0, |f| f.score);
     let slip = frames.last().is_some_and(|f| f.state == SlipState::Slip);
     let onset_s = slip
@@ -790,8 +796,46 @@ pub fn detect(seq: &TrackedSequence, detector: &SlipDetector) -> SlipVerdict {
         onset_s,
         score,
         frames,
-        evidence: m.evidence().values(),
+        evidence,
     }
+}
+
+/// The score of one grasp seen by several sensors at once (a gripper's fingers, filmed
+/// together) from each sensor's `scores`: the object slips against all of them, so each score
+/// is evidence of the same event, taken as independent — their log-odds add.
+pub fn fused_score(scores: impl IntoIterator<Item = f64>) -> f64 {
+    let logit = |p: f64| {
+        let p = p.clamp(1e-9, 1.0 - 1e-9);
+        (p / (1.0 - p)).ln()
+    };
+    sigmoid(scores.into_iter().map(logit).sum())
+}
+
+/// One grasp's verdict from its sensors' `verdicts` ([`fused_score`] frame by frame, frames
+/// matched by their place in each sequence, up to the shortest; each fused frame keeps the
+/// first sensor's time and field signals, and the evidence is the sensors' mean).
+pub fn fuse(verdicts: &[&SlipVerdict], detector: &SlipDetector) -> SlipVerdict {
+    let Some(first) = verdicts.first() else {
+        return verdict_of(Vec::new(), [0.0; EVIDENCE_LEN]);
+    };
+    let len = verdicts.iter().map(|v| v.frames.len()).min().unwrap_or(0);
+    let frames = (0..len)
+        .map(|k| {
+            let score = fused_score(verdicts.iter().map(|v| v.frames[k].score));
+            SlipFrame {
+                state: detector.state_of(score),
+                score,
+                ..first.frames[k]
+            }
+        })
+        .collect();
+    let mut evidence = [0.0; EVIDENCE_LEN];
+    for v in verdicts {
+        for (e, x) in evidence.iter_mut().zip(&v.evidence) {
+            *e += x / verdicts.len() as f64;
+        }
+    }
+    verdict_of(frames, evidence)
 }
 
 /// Frames between two snapshots of [`SequenceEvidence::prefixes`] (1 s at 25 fps).

@@ -275,3 +275,63 @@ fn cross_validation_holds_each_group_out_and_counts_start_alarms() {
     );
     assert!(cv.default.is_none());
 }
+
+/// Two sensors' scores of one grasp: equal evidence either way cancels, agreement
+/// strengthens, one sensor alone is itself; the fused verdict runs to the shorter sequence and
+/// takes the detector's states.
+#[test]
+fn a_grasps_sensors_add_their_log_odds() {
+    assert!((fused_score([0.9, 0.1]) - 0.5).abs() < 1e-12);
+    assert!((fused_score([0.7]) - 0.7).abs() < 1e-12);
+    let both = fused_score([0.8, 0.8]);
+    assert!((both - 16.0 / 17.0).abs() < 1e-12, "{both}");
+    assert!(fused_score([0.4, 0.4]) < 0.4);
+    let s = SlipSettings::default();
+    let (ev, y) = training(100, &s);
+    let d = fit_detector(&ev, &y, &s).unwrap();
+    let (a, b) = (
+        detect(&sequence(100, true, 200), &d),
+        detect(&sequence(90, true, 201), &d),
+    );
+    let f = fuse(&[&a, &b], &d);
+    assert_eq!(f.frames.len(), 90);
+    for (k, fr) in f.frames.iter().enumerate() {
+        let want = fused_score([a.frames[k].score, b.frames[k].score]);
+        assert!((fr.score - want).abs() < 1e-12);
+        assert_eq!(fr.state, d.state_of(want));
+        assert_eq!(fr.timestamp_s, a.frames[k].timestamp_s);
+    }
+    assert_eq!(f.score, f.frames[89].score);
+    assert_eq!(f.slip, f.frames[89].state == SlipState::Slip);
+}
+
+/// Held out by group, a grasp's two sensors fused: on synthetic grasps where each sensor alone
+/// is noisy, the fused figure is at least the single sensors'.
+#[test]
+fn fused_held_out_scores_judge_each_grasp_once() {
+    let s = SlipSettings::default();
+    let (ev, y) = training(100, &s);
+    let groups: Vec<String> = (0..ev.len()).map(|k| format!("g{}", k % 4)).collect();
+    let cv = cross_validate(&ev, &y, &groups, &s, None).unwrap();
+    // Sequences k and k + 4 share a group; pair them as one grasp's two sensors when their
+    // labels agree, else alone.
+    let grasp: Vec<usize> = (0..ev.len())
+        .map(|k| {
+            let partner = if k % 8 < 4 { k + 4 } else { k - 4 };
+            if partner < ev.len() && y[partner].slip == y[k].slip {
+                k.min(partner)
+            } else {
+                k
+            }
+        })
+        .collect();
+    let fused = fused_scores(&cv, &y, &grasp, 0.5);
+    assert_eq!(fused.answered, cv.fitted.answered);
+    let alone = fused_scores(&cv, &y, &(0..ev.len()).collect::<Vec<_>>(), 0.5);
+    assert_eq!(alone, cv.fitted, "a grasp of one sensor is that sensor");
+    assert!(fused.balanced_accuracy >= 0.9, "{fused:?}");
+    assert!(
+        fused.balanced_accuracy >= cv.fitted.balanced_accuracy,
+        "{fused:?} {cv:?}"
+    );
+}
