@@ -327,7 +327,12 @@ fn the_cross_validation_table_and_the_fused_grasps_are_written() {
         "{said}"
     );
     let (header, rows) = csv_cells(&table);
-    assert_eq!(header.len(), 5 + 30, "{header:?}");
+    assert_eq!(header.len(), 5 + 33, "{header:?}");
+    // Without --imprint the imprint's slide is not measured: its statistics are 0.
+    let imprint: Vec<usize> = (0..header.len())
+        .filter(|&j| header[j].ends_with("imprint_slide_pitches"))
+        .collect();
+    assert_eq!(imprint.len(), 3);
     assert_eq!(
         header[..5],
         ["video", "slip", "group", "frames", "held_out_score"]
@@ -338,6 +343,7 @@ fn the_cross_validation_table_and_the_fused_grasps_are_written() {
         assert_eq!((r[1].as_str(), r[2].as_str()), (&*y.to_string(), *o));
         assert!(r[3].parse::<usize>().unwrap() > 5);
         assert!((0.0..=1.0).contains(&r[4].parse::<f64>().unwrap()));
+        assert!(imprint.iter().all(|&j| r[j].parse::<f64>().unwrap() == 0.0));
     }
     std::fs::remove_dir_all(&d).unwrap();
 }

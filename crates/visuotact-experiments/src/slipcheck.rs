@@ -15,6 +15,7 @@ use visuotact_sim::SimError;
 use visuotact_vision::calibration::{calibrate, CalibrationConfig, CalibrationError};
 use visuotact_vision::detect::Centroid;
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
+use visuotact_vision::imprint::{ImprintFollower, ImprintParams};
 use visuotact_vision::options::DetectorOptions;
 
 use crate::trackcheck::SimSensor;
@@ -96,6 +97,9 @@ pub fn check_grasp(
     })?;
     ex.set_temporal_prior(true);
     let mut f = FrameFeatures::default();
+    let mut imprint = detector
+        .reads_imprint()
+        .then(|| ImprintFollower::new(ImprintParams::DEFAULT, 1));
     for (k, img) in images.iter().enumerate() {
         ex.extract_into(img, &mut f)
             .map_err(|e| SlipCheckError::Frame {
@@ -108,6 +112,7 @@ pub fn check_grasp(
             timestamp_s: k as f64 / 25.0,
             id: k.to_string(),
             displacement_px: d,
+            imprint_slide_px: imprint.as_mut().map_or((0.0, 0.0), |f| f.update(img)),
         });
     }
     let v = detect(&seq, detector);

@@ -469,7 +469,7 @@ impl LiveEstimator {
         let (mut health, max_disp, moved) = self.motion();
         let contact = moved >= self.cfg.contact_markers.min(self.marker_px.len().max(1));
         let estimating = contact || self.cfg.estimate_without_contact;
-        let slip = self.slip_of(estimating);
+        let slip = self.slip_of(estimating, img);
         if let Some(out) = markers {
             self.marker_views(out);
         }
@@ -490,7 +490,7 @@ impl LiveEstimator {
     /// The slip state of this frame's displacements: each contact (each run of frames
     /// estimated) is a sequence of its own, followed from its first frame until it ends;
     /// without contact, `stick`.
-    fn slip_of(&mut self, contact: bool) -> Option<SlipEstimate> {
+    fn slip_of(&mut self, contact: bool, img: &RgbImage) -> Option<SlipEstimate> {
         let monitor = self.slip.as_mut()?;
         if contact && !self.was_contact {
             monitor.reset();
@@ -499,6 +499,7 @@ impl LiveEstimator {
         if !contact {
             return Some(SlipEstimate::without_contact());
         }
+        monitor.observe_frame(img);
         Some(monitor.estimate_features(self.est.last_features(), self.est.feature_set()))
     }
 

@@ -612,10 +612,10 @@ impl Live {
                 .est
                 .estimate_with(&frame.image, &[])
                 .map_err(|e| error(format!("frame {}: {e}", frame.id)))?;
-            let slip = self
-                .slip
-                .as_mut()
-                .map(|m| (m.estimate_features(f, set), m.field().signals()));
+            let slip = self.slip.as_mut().map(|m| {
+                m.observe_frame(&frame.image);
+                (m.estimate_features(f, set), m.field().signals())
+            });
             (f.found, e.map(|r| r.map_err(|why| why.to_string())), slip)
         };
         let d = PyDict::new(py);
@@ -714,6 +714,7 @@ fn slip_detect<'py>(
     let cal = sensor.map(|s| s.est.calibration().clone());
     let cfg = SlipConfig {
         calibration_frames: calibration_frames.max(1),
+        imprint: det.reads_imprint(),
         ..SlipConfig::default()
     };
     let seqs = py

@@ -112,6 +112,7 @@ pub mod calibration;
 pub mod detect;
 pub mod features;
 pub mod field;
+pub mod imprint;
 pub mod kernels;
 pub mod layout;
 pub mod options;

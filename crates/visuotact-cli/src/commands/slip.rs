@@ -42,6 +42,11 @@ struct Common {
     /// fingers): each takes the grasp's verdict, the sensors' scores fused (their log-odds add).
     #[arg(long)]
     grasp_per_folder: bool,
+    /// Also measure the object's imprint sliding against the markers, an eleventh signal, on
+    /// sensors whose image shows the imprint (GelSight-type); about half the tracking's
+    /// time again. `detect` measures it whenever the detector reads it.
+    #[arg(long)]
+    imprint: bool,
     /// No progress lines.
     #[arg(long, short)]
     quiet: bool,
@@ -62,7 +67,7 @@ struct FitArgs {
     #[arg(long, value_name = "COLUMN")]
     cv_by: Option<String>,
     /// With --cv-by: write one row per video — its label, group, frames, held-out score and
-    /// the thirty statistics the detector reads — to this CSV.
+    /// the 33 statistics the detector reads — to this CSV.
     #[arg(long, value_name = "FILE.csv", requires = "cv_by")]
     cv_table: Option<PathBuf>,
 }
@@ -89,13 +94,15 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     }
 }
 
-/// The videos' tracked markers, with progress lines.
-fn tracked(c: &Common) -> anyhow::Result<(Vec<PathBuf>, Vec<TrackedSequence>)> {
+/// The videos' tracked markers (and the imprint's slide when `c.imprint` or `imprint`), with
+/// progress lines.
+fn tracked(c: &Common, imprint: bool) -> anyhow::Result<(Vec<PathBuf>, Vec<TrackedSequence>)> {
     let videos = sequences_in(&c.videos)?;
     let sensor = c.sensor.as_deref().map(crate::load_sensor).transpose()?;
     let cfg = SlipConfig {
         calibration_frames: c.calibration_frames.max(1),
         temporal: c.temporal,
+        imprint: c.imprint || imprint,
     };
     let r = Reporter::new(c.quiet);
     r.stage("tracking");
@@ -112,7 +119,7 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
         &read_labels(&a.labels, a.cv_by.as_deref())?,
         &a.labels,
     )?;
-    let (_, seqs) = tracked(&a.common)?;
+    let (_, seqs) = tracked(&a.common, false)?;
     let like = SlipSettings::default();
     let ev: Vec<_> = seqs.iter().map(|s| evidence_of(s, &like)).collect();
     let y: Vec<SlipTruth> = labels.iter().map(Label::truth).collect();
@@ -201,7 +208,7 @@ fn grasps_of(videos: &[PathBuf]) -> Vec<usize> {
 
 fn detect_videos(a: &DetectArgs) -> anyhow::Result<()> {
     let det = crate::load_slip(&a.detector)?;
-    let (videos, seqs) = tracked(&a.common)?;
+    let (videos, seqs) = tracked(&a.common, det.reads_imprint())?;
     let mut each: Vec<_> = seqs.iter().map(|s| detect(s, &det)).collect();
     if a.common.grasp_per_folder {
         let grasp = grasps_of(&videos);

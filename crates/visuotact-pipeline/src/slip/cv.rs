@@ -12,7 +12,7 @@ use super::{
 /// Index of `max_shift_pitches` in the evidence.
 const MAX_SHIFT: usize = 0;
 /// Indices of `max_entropy_nats` and `max_rate_entropy_nats`.
-const ENTROPY: [usize; 2] = [5, 25];
+const ENTROPY: [usize; 2] = [5, 2 * super::SIGNALS + 5];
 
 /// Accuracy figures of one classifier.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -203,7 +203,7 @@ fn small_logistic(ev: &[[f64; EVIDENCE_LEN]], y: &[bool]) -> impl Fn(&[f64; EVID
 }
 
 /// The cross-validation as a table, one row per sequence: `video,slip,group,frames,held_out_score`
-/// and the thirty statistics of its evidence ([`super::SlipEvidence::names`]), to see which
+/// and the 33 statistics of its evidence ([`super::SlipEvidence::names`]), to see which
 /// sequences the held-out detector gets wrong and why.
 pub fn cv_table(
     rows: &[(&std::path::Path, &SlipTruth, &str, usize)],

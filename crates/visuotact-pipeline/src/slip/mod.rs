@@ -3,11 +3,14 @@
 //!
 //! Contract. Each frame's displacement field gives ten signals
 //! ([`visuotact_vision::field::FieldDynamics`]: shift, spread, curl, divergence, affine
-//! residual, entropy, and the rigid motion of the increments with the residual from it). Each
+//! residual, entropy, and the rigid motion of the increments with the residual from it); an
+//! eleventh, where measured ([`SlipConfig::imprint`], zero otherwise), is the object's imprint
+//! sliding against the markers over the lag ([`visuotact_vision::imprint`]). Each
 //! signal `x` is taken as `ln(1 + 10 |x|)`, averaged over the last `smooth_frames` frames, and
 //! summed up over the sequence so far by three statistics — its largest value, its mean and its
-//! largest change between frames — the thirty numbers of the [`SlipEvidence`]. The detector is a
-//! logistic regression on them, standardised ([`SlipDetector`], a JSON file of thirty weights):
+//! largest change between frames — the 33 numbers of the [`SlipEvidence`]. The detector is a
+//! logistic regression on them, standardised ([`SlipDetector`], a JSON file of 33 weights; a
+//! file of the 30 before the imprint reads it with weight 0):
 //! the frame's score is the probability of slip given the sequence up to that frame, its state
 //! `slip` at or above [`SlipDetector::threshold`], `incipient` at or above
 //! [`SlipDetector::incipient_threshold`], `stick` below. The sequence's verdict is its last
@@ -26,17 +29,20 @@
 //! beginnings of the no-slip grasps); its figures on that set are not held out.
 //! [`cross_validate`] gives held-out ones, by group (object).
 
+use std::collections::VecDeque;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use visuotact_image::RgbImage;
 use visuotact_io::frames::{is_image_path, is_video_path, FrameError, FrameStream};
 use visuotact_nn::logistic::{fit_logistic, sigmoid, LogisticConfig};
 use visuotact_vision::calibration::{CalibrationConfig, SensorCalibration};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet, FrameFeatures};
 use visuotact_vision::field::{FieldDynamics, FieldTracker};
+use visuotact_vision::imprint::{ImprintFollower, ImprintParams};
 use visuotact_vision::options::{DetectorOptions, Purpose};
 use visuotact_vision::track::TrackParams;
 
@@ -50,8 +56,14 @@ pub use labels::{labels_of, normalised, read_labels, Label};
 
 /// Statistics per signal in [`SlipEvidence`].
 pub const STATISTICS: [&str; 3] = ["max", "mean", "max_rate"];
-/// Numbers in [`SlipEvidence`]: ten signals × three statistics.
-pub const EVIDENCE_LEN: usize = 30;
+/// Signals per frame in [`SlipEvidence`]: the field's ten ([`FieldDynamics::NAMES`]) and the
+/// imprint's slide against the markers ([`IMPRINT_SIGNAL`]).
+pub const SIGNALS: usize = 11;
+/// Numbers in [`SlipEvidence`]: eleven signals × three statistics.
+pub const EVIDENCE_LEN: usize = SIGNALS * STATISTICS.len();
+/// The eleventh signal's name: the object's imprint sliding against the markers over the lag,
+/// pitches ([`visuotact_vision::imprint`]).
+pub const IMPRINT_SIGNAL: &str = "imprint_slide_pitches";
 /// The frame rate assumed for a folder of images (videos carry their own).
 const IMAGE_FPS: f64 = 25.0;
 
@@ -156,6 +168,10 @@ pub struct SlipConfig {
     /// Track each frame from the last one's positions (the temporal prior) rather than from
     /// the reference.
     pub temporal: bool,
+    /// Also measure the object's imprint sliding against the markers
+    /// ([`TrackedFrame::imprint_slide_px`]; zero when off): on sensors that show the imprint
+    /// (GelSight-type). About half the tracking's time again.
+    pub imprint: bool,
 }
 
 impl Default for SlipConfig {
@@ -163,6 +179,7 @@ impl Default for SlipConfig {
         Self {
             calibration_frames: 5,
             temporal: false,
+            imprint: false,
         }
     }
 }
@@ -172,11 +189,11 @@ impl Default for SlipConfig {
 pub struct SlipEvidence {
     smooth: usize,
     /// The last `smooth` frames' transformed signals.
-    window: std::collections::VecDeque<[f64; 10]>,
-    last: Option<[f64; 10]>,
-    max: [f64; 10],
-    sum: [f64; 10],
-    max_rate: [f64; 10],
+    window: VecDeque<[f64; SIGNALS]>,
+    last: Option<[f64; SIGNALS]>,
+    max: [f64; SIGNALS],
+    sum: [f64; SIGNALS],
+    max_rate: [f64; SIGNALS],
     frames: usize,
 }
 
@@ -185,30 +202,33 @@ impl SlipEvidence {
     pub fn new(smooth_frames: usize) -> Self {
         Self {
             smooth: smooth_frames.max(1),
-            window: std::collections::VecDeque::new(),
+            window: VecDeque::new(),
             last: None,
-            max: [0.0; 10],
-            sum: [0.0; 10],
-            max_rate: [0.0; 10],
+            max: [0.0; SIGNALS],
+            sum: [0.0; SIGNALS],
+            max_rate: [0.0; SIGNALS],
             frames: 0,
         }
     }
 
-    /// Adds one frame's signals.
-    pub fn push(&mut self, f: &FieldDynamics) {
+    /// Adds one frame's signals: the field's, and the imprint's slide against the markers over
+    /// the lag (pitches; 0 where not measured).
+    pub fn push(&mut self, f: &FieldDynamics, imprint_slide_pitches: f64) {
         if self.window.len() == self.smooth {
             self.window.pop_front();
         }
-        self.window
-            .push_back(f.signals().map(|x| (10.0 * x.abs()).ln_1p()));
+        let mut x = [0.0; SIGNALS];
+        x[..10].copy_from_slice(&f.signals());
+        x[10] = imprint_slide_pitches;
+        self.window.push_back(x.map(|x| (10.0 * x.abs()).ln_1p()));
         let n = self.window.len() as f64;
-        let mut s = [0.0; 10];
+        let mut s = [0.0; SIGNALS];
         for w in &self.window {
             for (a, b) in s.iter_mut().zip(w) {
                 *a += b / n;
             }
         }
-        for j in 0..10 {
+        for j in 0..SIGNALS {
             self.max[j] = self.max[j].max(s[j]);
             self.sum[j] += s[j];
             if let Some(l) = self.last {
@@ -219,23 +239,36 @@ impl SlipEvidence {
         self.frames += 1;
     }
 
-    /// The thirty numbers, [`STATISTICS`] by [`FieldDynamics::NAMES`].
+    /// The thirty-three numbers, [`STATISTICS`] by signal.
     pub fn values(&self) -> [f64; EVIDENCE_LEN] {
         let mut v = [0.0; EVIDENCE_LEN];
         let n = self.frames.max(1) as f64;
-        for j in 0..10 {
+        for j in 0..SIGNALS {
             v[j] = self.max[j];
-            v[10 + j] = self.sum[j] / n;
-            v[20 + j] = self.max_rate[j];
+            v[SIGNALS + j] = self.sum[j] / n;
+            v[2 * SIGNALS + j] = self.max_rate[j];
         }
         v
     }
 
-    /// The evidence's names: `max_shift_pitches`, …, `max_rate_nonrigid`.
+    /// The evidence's names: `max_shift_pitches`, …, `max_rate_imprint_slide_pitches`.
     pub fn names() -> Vec<String> {
         STATISTICS
             .iter()
-            .flat_map(|s| FieldDynamics::NAMES.iter().map(move |n| format!("{s}_{n}")))
+            .flat_map(|s| {
+                FieldDynamics::NAMES
+                    .iter()
+                    .chain([&IMPRINT_SIGNAL])
+                    .map(move |n| format!("{s}_{n}"))
+            })
+            .collect()
+    }
+
+    /// The names of the evidence before the imprint's slide (detector files of 30 inputs).
+    fn names_without_imprint() -> Vec<String> {
+        Self::names()
+            .into_iter()
+            .filter(|n| !n.ends_with(IMPRINT_SIGNAL))
             .collect()
     }
 }
@@ -355,7 +388,7 @@ impl SlipDetector {
             source_name: source_name.to_string(),
             why,
         };
-        let d: Self = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let mut d: Self = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
         if d.format != FORMAT || d.version != 1 {
             return Err(bad(format!(
                 "format {:?} version {}: expected {FORMAT:?} version 1",
@@ -363,6 +396,15 @@ impl SlipDetector {
             )));
         }
         let n = EVIDENCE_LEN;
+        // A file written before the imprint's slide was measured reads it with weight 0.
+        let earlier = SlipEvidence::names_without_imprint();
+        if d.inputs == earlier
+            && [&d.center, &d.scale, &d.weights]
+                .iter()
+                .all(|v| v.len() == earlier.len())
+        {
+            d.with_every_input();
+        }
         if d.inputs != SlipEvidence::names()
             || d.center.len() != n
             || d.scale.len() != n
@@ -394,6 +436,30 @@ impl SlipDetector {
             return Err(bad("lag_frames and smooth_frames must be at least 1".into()));
         }
         Ok(d)
+    }
+
+    /// Every input of this version's evidence, those the file lacks with weight 0.
+    fn with_every_input(&mut self) {
+        let names = SlipEvidence::names();
+        let mut center = vec![0.0; names.len()];
+        let mut scale = vec![1.0; names.len()];
+        let mut weights = vec![0.0; names.len()];
+        for (k, name) in names.iter().enumerate() {
+            if let Some(j) = self.inputs.iter().position(|i| i == name) {
+                (center[k], scale[k], weights[k]) =
+                    (self.center[j], self.scale[j], self.weights[j]);
+            }
+        }
+        (self.inputs, self.center, self.scale, self.weights) = (names, center, scale, weights);
+    }
+
+    /// Whether it reads the imprint's slide (a weight on it): only then is it measured, from
+    /// the frames themselves ([`SlipMonitor::observe_frame`]).
+    pub fn reads_imprint(&self) -> bool {
+        self.inputs
+            .iter()
+            .zip(&self.weights)
+            .any(|(i, w)| i.ends_with(IMPRINT_SIGNAL) && *w != 0.0)
     }
 
     /// Its settings that are not fitted.
@@ -502,12 +568,47 @@ impl FieldFollower {
     }
 }
 
+/// The imprint's slide over the last `lag` frames, from each frame's slide.
+#[derive(Clone, Debug)]
+struct LagSum {
+    lag: usize,
+    recent: VecDeque<(f64, f64)>,
+}
+
+impl LagSum {
+    fn new(lag: usize) -> Self {
+        Self {
+            lag: lag.max(1),
+            recent: VecDeque::new(),
+        }
+    }
+
+    /// The length of the last `lag` frames' slides summed, this frame's `slide_px` the last.
+    fn push(&mut self, slide_px: (f64, f64)) -> f64 {
+        if self.recent.len() == self.lag {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(slide_px);
+        let (x, y) = self
+            .recent
+            .iter()
+            .fold((0.0, 0.0), |(x, y), (a, b)| (x + a, y + b));
+        x.hypot(y)
+    }
+}
+
 /// The live form: frame after frame, the slip state ([`SlipMonitor::update`]).
 #[derive(Clone, Debug)]
 pub struct SlipMonitor {
     detector: SlipDetector,
     follower: FieldFollower,
     evidence: SlipEvidence,
+    /// Measures the imprint's slide from the frames (when the detector reads it).
+    imprint: Option<ImprintFollower>,
+    imprint_lag: LagSum,
+    /// This frame's imprint slide, pixels, until it is scored.
+    imprint_px: (f64, f64),
+    pitch_px: f64,
 }
 
 impl SlipMonitor {
@@ -516,6 +617,12 @@ impl SlipMonitor {
         Self {
             follower: FieldFollower::new(reference_px, pitch_px, detector.lag_frames),
             evidence: SlipEvidence::new(detector.smooth_frames),
+            imprint: detector
+                .reads_imprint()
+                .then(|| ImprintFollower::new(ImprintParams::DEFAULT, 1)),
+            imprint_lag: LagSum::new(detector.lag_frames),
+            imprint_px: (0.0, 0.0),
+            pitch_px,
             detector,
         }
     }
@@ -535,17 +642,33 @@ impl SlipMonitor {
 
     /// A monitor of `sensor`'s markers.
     pub fn of_sensor(detector: SlipDetector, sensor: &SensorCalibration) -> Self {
-        Self {
-            follower: FieldFollower::of_sensor(sensor, detector.lag_frames),
-            evidence: SlipEvidence::new(detector.smooth_frames),
-            detector,
-        }
+        let reference: Vec<(f64, f64)> = sensor.markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+        Self::new(detector, &reference, sensor.pitch_px)
     }
 
     /// Starts a new sequence.
     pub fn reset(&mut self) {
         self.follower.reset();
         self.evidence = SlipEvidence::new(self.detector.smooth_frames);
+        if let Some(f) = &mut self.imprint {
+            f.reset();
+        }
+        self.imprint_lag = LagSum::new(self.detector.lag_frames);
+        self.imprint_px = (0.0, 0.0);
+    }
+
+    /// Reads this frame's image for the imprint's slide, before its markers are scored
+    /// ([`SlipMonitor::estimate`] and the like); nothing when the detector does not read it.
+    pub fn observe_frame(&mut self, img: &RgbImage) {
+        if let Some(f) = &mut self.imprint {
+            self.imprint_px = f.update(img);
+        }
+    }
+
+    /// This frame's imprint slide since the last frame, `(dx, dy)` pixels, measured elsewhere
+    /// (a [`TrackedFrame`]'s), before its markers are scored.
+    pub fn set_imprint_slide(&mut self, slide_px: (f64, f64)) {
+        self.imprint_px = slide_px;
     }
 
     /// This frame's state from the markers' displacements (pixels, `None`: not tracked).
@@ -571,7 +694,8 @@ impl SlipMonitor {
 
     /// The state and score once `field` is this frame's dynamics.
     fn score(&mut self, field: FieldDynamics) -> SlipEstimate {
-        self.evidence.push(&field);
+        let slide_px = self.imprint_lag.push(std::mem::take(&mut self.imprint_px));
+        self.evidence.push(&field, slide_px / self.pitch_px);
         let score = self.detector.score(&self.evidence.values());
         SlipEstimate {
             state: self.detector.state_of(score),
@@ -667,6 +791,9 @@ pub struct TrackedFrame {
     pub id: String,
     /// Each marker's displacement from the reference, pixels (`None`: not tracked).
     pub displacement_px: Vec<Option<(f64, f64)>>,
+    /// The object's imprint slide against the markers since the last frame, `(dx, dy)` pixels
+    /// ([`visuotact_vision::imprint`]; zero unless [`SlipConfig::imprint`]).
+    pub imprint_slide_px: (f64, f64),
 }
 
 /// The sensor a sequence calibrates from its first frames.
@@ -736,6 +863,9 @@ pub fn track_sequence(
         source,
     };
     let mut f = FrameFeatures::default();
+    let mut imprint = cfg
+        .imprint
+        .then(|| ImprintFollower::new(ImprintParams::DEFAULT, 1));
     for frame in FrameStream::open(&[video.to_path_buf()], IMAGE_FPS).map_err(frames_err)? {
         let frame = frame.map_err(frames_err)?;
         ex.extract_into(&frame.image, &mut f)
@@ -746,6 +876,9 @@ pub fn track_sequence(
             timestamp_s: frame.timestamp_s,
             id: frame.id,
             displacement_px: d,
+            imprint_slide_px: imprint
+                .as_mut()
+                .map_or((0.0, 0.0), |f| f.update(&frame.image)),
         });
     }
     Ok(out)
@@ -772,7 +905,10 @@ pub fn detect(seq: &TrackedSequence, detector: &SlipDetector) -> SlipVerdict {
     let frames: Vec<SlipFrame> = seq
         .frames
         .iter()
-        .map(|f| m.update(&f.displacement_px, f.timestamp_s))
+        .map(|f| {
+            m.set_imprint_slide(f.imprint_slide_px);
+            m.update(&f.displacement_px, f.timestamp_s)
+        })
         .collect();
     verdict_of(frames, m.evidence().values())
 }
@@ -882,11 +1018,12 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
     let mut t = FieldTracker::new(&seq.markers_px, seq.pitch_px, settings.lag_frames);
     let mut e = SlipEvidence::new(settings.smooth_frames);
     let mut f = FieldDynamics::default();
+    let mut imprint = LagSum::new(settings.lag_frames);
     let (mut prefixes, mut prefix_end_s) = (Vec::new(), Vec::new());
     let mut start = [0.0; EVIDENCE_LEN];
     for (k, frame) in seq.frames.iter().enumerate() {
         t.update_into(&frame.displacement_px, &mut f);
-        e.push(&f);
+        e.push(&f, imprint.push(frame.imprint_slide_px) / seq.pitch_px);
         if k + 1 == START_FRAMES.min(seq.frames.len()) {
             start = e.values();
         }

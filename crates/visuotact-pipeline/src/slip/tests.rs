@@ -48,6 +48,7 @@ fn sequence(n: usize, slip: bool, seed: u64) -> TrackedSequence {
                 timestamp_s: k as f64 / 25.0,
                 id: k.to_string(),
                 displacement_px: d,
+                imprint_slide_px: (0.0, 0.0),
             }
         })
         .collect();
@@ -74,7 +75,7 @@ fn the_built_in_detector_reads_and_broken_files_are_named() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.starts_with("x.json: not a slip detector") && e.contains("30 inputs"),
+        e.starts_with("x.json: not a slip detector") && e.contains("33 inputs"),
         "{e}"
     );
     let mut bad = d.clone();
@@ -99,17 +100,78 @@ fn evidence_of_steady_signals_is_their_value_with_no_rate() {
         ..FieldDynamics::default()
     };
     for _ in 0..10 {
-        e.push(&f);
+        e.push(&f, 0.25);
     }
     let v = e.values();
     let g = |x: f64| (10.0 * x).ln_1p();
-    assert!((v[0] - g(0.5)).abs() < 1e-12 && (v[10] - g(0.5)).abs() < 1e-12);
+    assert!((v[0] - g(0.5)).abs() < 1e-12 && (v[11] - g(0.5)).abs() < 1e-12);
     assert!(
         (v[2] - g(0.2)).abs() < 1e-12,
         "the curl's size counts, not its sign"
     );
-    assert!(v[20..].iter().all(|&r| r == 0.0));
-    assert_eq!(SlipEvidence::names()[25], "max_rate_entropy_nats");
+    assert!((v[10] - g(0.25)).abs() < 1e-12 && (v[21] - g(0.25)).abs() < 1e-12);
+    assert!(v[22..].iter().all(|&r| r == 0.0));
+    let names = SlipEvidence::names();
+    assert_eq!(names[27], "max_rate_entropy_nats");
+    assert_eq!(names[10], "max_imprint_slide_pitches");
+}
+
+#[test]
+fn a_detector_file_without_the_imprint_reads_it_with_weight_zero() {
+    let d = SlipDetector::default();
+    assert!(
+        !d.reads_imprint(),
+        "the built-in detector reads the markers only"
+    );
+    // The same detector written as a file of thirty inputs, before the imprint was measured.
+    let mut v: serde_json::Value = serde_json::from_str(&d.to_json()).unwrap();
+    let keep: Vec<bool> = d
+        .inputs
+        .iter()
+        .map(|i| !i.ends_with(IMPRINT_SIGNAL))
+        .collect();
+    for key in ["inputs", "center", "scale", "weights"] {
+        let a = v[key].as_array_mut().unwrap();
+        let mut k = keep.iter();
+        a.retain(|_| *k.next().unwrap());
+        assert_eq!(a.len(), 30);
+    }
+    assert_eq!(
+        SlipDetector::from_json(&v.to_string(), "old.json").unwrap(),
+        d
+    );
+}
+
+/// Sequences whose slips also move the imprint against the markers from their middle on
+/// (0.3 px per frame); the others' imprint sticks.
+fn with_imprint(mut seq: TrackedSequence, slip: bool) -> TrackedSequence {
+    let n = seq.frames.len();
+    for f in &mut seq.frames[n / 2..] {
+        f.imprint_slide_px = if slip { (0.3, 0.0) } else { (0.0, 0.0) };
+    }
+    seq
+}
+
+#[test]
+fn a_detector_fitted_with_the_imprint_reads_it_and_one_fitted_without_does_not() {
+    let s = SlipSettings::default();
+    let (ev, y) = training(60, &s);
+    assert!(!fit_detector(&ev, &y, &s).unwrap().reads_imprint());
+    let ev: Vec<_> = (0..40u64)
+        .map(|k| evidence_of(&with_imprint(sequence(60, k % 2 == 0, k), k % 2 == 0), &s))
+        .collect();
+    let d = fit_detector(&ev, &y, &s).unwrap();
+    assert!(d.reads_imprint());
+    // The imprint's statistics: the slide over the lag (2 frames × 0.3 px) in pitches (30 px).
+    let want = (10.0f64 * 0.6 / 30.0).ln_1p();
+    assert!((ev[0].whole[10] - want).abs() < 1e-9 && ev[1].whole[10] == 0.0);
+    let right = (100..110u64)
+        .filter(|&k| {
+            let slip = k % 2 == 0;
+            detect(&with_imprint(sequence(60, slip, k), slip), &d).slip == slip
+        })
+        .count();
+    assert!(right >= 9, "{right} of 10 held-out sequences right");
 }
 
 /// Forty training sequences of `n` frames, every second one slipping: their evidence and labels.
