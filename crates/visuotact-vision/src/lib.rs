@@ -22,7 +22,9 @@
 //! lightest frames), `features` (feature vectors, and the field summary every row ends with:
 //! how much the markers moved and where), `field` (the displacement field's dynamics frame to
 //! frame: shift, spread, curl, divergence, affine residual, entropy, the increments' rigid motion
-//! and the residual from it — what the slip detector reads), `options` (`DetectorOptions`: a preset, or `auto`
+//! and the residual from it — what the slip detector reads), `imprint` (the object's imprint
+//! sliding against the markers, from the image: a slip signal on GelSight-type sensors),
+//! `options` (`DetectorOptions`: a preset, or `auto`
 //! told from the first frame, with settings changed over it — what the CLI's detection options
 //! and Python's keyword arguments build; `sized` fits the opening and smallest blob to the
 //! markers), `sizing` (`MarkerSize`: the markers' size and spacing measured in a frame, and the
