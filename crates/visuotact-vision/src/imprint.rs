@@ -58,6 +58,43 @@ impl Default for ImprintParams {
 /// The fewest contact pixels (halved image) a slide is measured over.
 const MIN_CONTACT_PX: f32 = 50.0;
 
+/// A Gaussian of `sigma` pixels cut at 3σ, its weights summing to 1.
+#[derive(Clone, Debug)]
+struct Kernel {
+    radius: usize,
+    weights: Vec<f32>,
+}
+
+impl Kernel {
+    fn gaussian(sigma: f32) -> Self {
+        let r = (3.0 * sigma) as isize;
+        let mut weights: Vec<f32> = (-r..=r)
+            .map(|i| (-((i * i) as f32) / (2.0 * sigma * sigma)).exp())
+            .collect();
+        let total: f32 = weights.iter().sum();
+        for k in &mut weights {
+            *k /= total;
+        }
+        Self {
+            radius: r as usize,
+            weights,
+        }
+    }
+}
+
+/// The blurs of the measurement (module docs): the background (4 px), the markers' mask
+/// widened (1 px), the normalised convolution (2 px) and the contact widened (3 px).
+#[derive(Clone, Debug)]
+struct Blurs {
+    background: Kernel,
+    mask: Kernel,
+    fill: Kernel,
+    contact: Kernel,
+    /// Scratch: a row with its edges repeated, and the rows blurred.
+    padded: Vec<f32>,
+    rows: Vec<f32>,
+}
+
 /// One frame's planes, halved: the shading change since the first frame, where no marker is
 /// (1) and the marker image (how much darker than around).
 #[derive(Clone, Debug, Default)]
@@ -81,6 +118,9 @@ pub struct ImprintFollower {
     b: Vec<f32>,
     tmp: Vec<f32>,
     weight: Vec<f32>,
+    blurs: Blurs,
+    /// Scratch: the weighted pixels [`shift_between`] compares.
+    pixels: Vec<(usize, f32)>,
 }
 
 impl ImprintFollower {
@@ -98,6 +138,15 @@ impl ImprintFollower {
             b: Vec::new(),
             tmp: Vec::new(),
             weight: Vec::new(),
+            blurs: Blurs {
+                background: Kernel::gaussian(4.0),
+                mask: Kernel::gaussian(1.0),
+                fill: Kernel::gaussian(2.0),
+                contact: Kernel::gaussian(3.0),
+                padded: Vec::new(),
+                rows: Vec::new(),
+            },
+            pixels: Vec::new(),
         }
     }
 
@@ -136,9 +185,17 @@ impl ImprintFollower {
     fn planes_into(&mut self, img: &RgbImage, out: &mut Planes) {
         let (w, h) = self.size;
         let p = &self.params;
+        let bl = &mut self.blurs;
         halved_gray_into(img, &mut self.gray);
         // The background (a) and the markers: darker than it by the contrast.
-        blurred_into(&self.gray, w, h, 4.0, &mut self.tmp, &mut self.a);
+        blurred_into(
+            &self.gray,
+            (w, h),
+            &bl.background,
+            &mut bl.padded,
+            &mut bl.rows,
+            &mut self.a,
+        );
         out.dots.clear();
         out.dots
             .extend(self.a.iter().zip(&self.gray).map(|(bg, g)| bg - g));
@@ -148,7 +205,14 @@ impl ImprintFollower {
                 .iter()
                 .map(|&d| if d > p.dot_contrast { 1.0 } else { 0.0 }),
         );
-        blurred_into(&self.b, w, h, 1.0, &mut self.tmp, &mut out.keep);
+        blurred_into(
+            &self.b,
+            (w, h),
+            &bl.mask,
+            &mut bl.padded,
+            &mut bl.rows,
+            &mut out.keep,
+        );
         for k in &mut out.keep {
             *k = 1.0 - (4.0 * *k).clamp(0.0, 1.0);
         }
@@ -156,8 +220,22 @@ impl ImprintFollower {
         self.b.clear();
         self.b
             .extend(self.gray.iter().zip(&out.keep).map(|(g, k)| g * k));
-        blurred_into(&self.b, w, h, 2.0, &mut self.tmp, &mut self.a);
-        blurred_into(&out.keep, w, h, 2.0, &mut self.tmp, &mut self.b);
+        blurred_into(
+            &self.b,
+            (w, h),
+            &bl.fill,
+            &mut bl.padded,
+            &mut bl.rows,
+            &mut self.a,
+        );
+        blurred_into(
+            &out.keep,
+            (w, h),
+            &bl.fill,
+            &mut bl.padded,
+            &mut bl.rows,
+            &mut self.b,
+        );
         out.change.clear();
         out.change
             .extend(self.a.iter().zip(&self.b).map(|(s, k)| s / (k + 1e-3)));
@@ -189,13 +267,28 @@ impl ImprintFollower {
         if self.weight.iter().sum::<f32>() < MIN_CONTACT_PX {
             return (0.0, 0.0);
         }
-        let imprint = shift_between(&new.change, &old.change, &self.weight, (w, h), p.reach_px);
-        let (new_dots, old_dots) = (&new.dots, &old.dots);
-        blurred_into(&self.weight, w, h, 3.0, &mut self.tmp, &mut self.a);
+        let px = &mut self.pixels;
+        let imprint = shift_between(
+            &new.change,
+            &old.change,
+            &self.weight,
+            (w, h),
+            p.reach_px,
+            px,
+        );
+        let bl = &mut self.blurs;
+        blurred_into(
+            &self.weight,
+            (w, h),
+            &bl.contact,
+            &mut bl.padded,
+            &mut bl.rows,
+            &mut self.a,
+        );
         for a in &mut self.a {
             *a = (3.0 * *a).clamp(0.0, 1.0);
         }
-        let markers = shift_between(new_dots, old_dots, &self.a, (w, h), p.reach_px);
+        let markers = shift_between(&new.dots, &old.dots, &self.a, (w, h), p.reach_px, px);
         (2.0 * (imprint.0 - markers.0), 2.0 * (imprint.1 - markers.1))
     }
 }
@@ -217,39 +310,38 @@ fn halved_gray_into(img: &RgbImage, out: &mut Vec<f32>) {
     }
 }
 
-/// `src` (`w` × `h`) blurred by a Gaussian of `sigma` pixels (cut at 3σ, edges repeated),
-/// into `dst`; `tmp` is scratch.
+/// `src` (`size` = (w, h)) blurred by `kernel` (edges repeated), into `dst`; `padded` and
+/// `rows` are scratch.
 fn blurred_into(
     src: &[f32],
-    w: usize,
-    h: usize,
-    sigma: f32,
-    tmp: &mut Vec<f32>,
+    size: (usize, usize),
+    kernel: &Kernel,
+    padded: &mut Vec<f32>,
+    rows: &mut Vec<f32>,
     dst: &mut Vec<f32>,
 ) {
-    let r = (3.0 * sigma) as isize;
-    let kernel: Vec<f32> = (-r..=r)
-        .map(|i| (-((i * i) as f32) / (2.0 * sigma * sigma)).exp())
-        .collect();
-    let total: f32 = kernel.iter().sum();
+    let (w, h) = size;
+    let r = kernel.radius as isize;
     let clamp = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
-    tmp.clear();
-    let mut padded = Vec::with_capacity(w + 2 * r as usize);
+    rows.clear();
     for y in 0..h {
         let row = &src[y * w..(y + 1) * w];
         padded.clear();
         padded.extend((-r..w as isize + r).map(|x| row[clamp(x, w)]));
-        tmp.extend(padded.windows(kernel.len()).map(|win| {
-            let s: f32 = kernel.iter().zip(win).map(|(k, v)| k * v).sum();
-            s / total
+        rows.extend(padded.windows(kernel.weights.len()).map(|win| {
+            kernel
+                .weights
+                .iter()
+                .zip(win)
+                .map(|(k, v)| k * v)
+                .sum::<f32>()
         }));
     }
     dst.clear();
     dst.resize(w * h, 0.0);
-    for (k, d) in kernel.iter().zip(-r..=r) {
-        let k = k / total;
+    for (k, d) in kernel.weights.iter().zip(-r..=r) {
         for y in 0..h {
-            let from = &tmp[clamp(y as isize + d, h) * w..][..w];
+            let from = &rows[clamp(y as isize + d, h) * w..][..w];
             for (o, v) in dst[y * w..(y + 1) * w].iter_mut().zip(from) {
                 *o += k * v;
             }
@@ -259,21 +351,24 @@ fn blurred_into(
 
 /// The shift `(dx, dy)` within `reach` that minimises the `weight`-weighted mean squared
 /// difference between `a(p)` and `b(p − shift)` (`size` = (w, h)), refined by a parabola
-/// through the best shift's neighbours along each axis.
+/// through the best shift's neighbours along each axis; `pixels` is scratch.
 fn shift_between(
     a: &[f32],
     b: &[f32],
     weight: &[f32],
     size: (usize, usize),
     reach: usize,
+    pixels: &mut Vec<(usize, f32)>,
 ) -> (f64, f64) {
     let (w, h) = size;
     let n = 2 * reach + 1;
     // The weighted pixels, at least `reach` from every edge: only they are compared.
-    let pixels: Vec<(usize, f32)> = (reach..h - reach)
-        .flat_map(|y| (reach..w - reach).map(move |x| y * w + x))
-        .filter_map(|i| (weight[i] > 0.0).then_some((i, weight[i])))
-        .collect();
+    pixels.clear();
+    pixels.extend(
+        (reach..h - reach)
+            .flat_map(|y| (reach..w - reach).map(move |x| y * w + x))
+            .filter_map(|i| (weight[i] > 0.0).then_some((i, weight[i]))),
+    );
     let total: f64 = pixels.iter().map(|&(_, v)| f64::from(v)).sum();
     if total <= 0.0 {
         return (0.0, 0.0);
@@ -390,8 +485,16 @@ mod tests {
     #[test]
     fn the_blur_keeps_a_constant_and_the_shift_is_found_to_a_fraction_of_a_pixel() {
         let (w, h) = (40, 30);
-        let (mut tmp, mut out) = (Vec::new(), Vec::new());
-        blurred_into(&vec![7.0; w * h], w, h, 2.0, &mut tmp, &mut out);
+        let (mut padded, mut rows, mut out) = (Vec::new(), Vec::new(), Vec::new());
+        let k = Kernel::gaussian(2.0);
+        blurred_into(
+            &vec![7.0; w * h],
+            (w, h),
+            &k,
+            &mut padded,
+            &mut rows,
+            &mut out,
+        );
         assert!(out.iter().all(|v| (v - 7.0).abs() < 1e-4));
         let bump = |cx: f64| -> Vec<f32> {
             (0..w * h)
@@ -401,7 +504,8 @@ mod tests {
                 })
                 .collect()
         };
-        let s = shift_between(&bump(21.5), &bump(20.0), &vec![1.0; w * h], (w, h), 3);
+        let ones = vec![1.0; w * h];
+        let s = shift_between(&bump(21.5), &bump(20.0), &ones, (w, h), 3, &mut Vec::new());
         assert!((s.0 - 1.5).abs() < 0.2 && s.1.abs() < 0.05, "{s:?}");
     }
 }

@@ -3,9 +3,9 @@
 use std::path::PathBuf;
 
 use visuotact_pipeline::slip::{
-    cross_validate, cv_table, detect, evidence_of, fit_detector, fuse, fused_scores, labels_of,
-    read_labels, sequences_in, track_sequences, verdicts_csv, Label, Scores, SlipConfig,
-    SlipDetector, SlipSettings, SlipTruth, TrackedSequence,
+    cross_validate, cv_table, detect, evidence_of, fit_detector, fuse_grasps, fused_scores,
+    grasps_of, labels_of, read_labels, sequences_in, track_sequences, verdicts_csv, Label, Scores,
+    SlipConfig, SlipDetector, SlipSettings, SlipTruth, TrackedSequence,
 };
 
 use crate::progress::Reporter;
@@ -191,37 +191,12 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Each video's grasp: the index of its folder among the videos' folders.
-fn grasps_of(videos: &[PathBuf]) -> Vec<usize> {
-    let mut folders: Vec<&std::path::Path> = Vec::new();
-    videos
-        .iter()
-        .map(|v| {
-            let f = v.parent().unwrap_or(std::path::Path::new(""));
-            folders.iter().position(|&g| g == f).unwrap_or_else(|| {
-                folders.push(f);
-                folders.len() - 1
-            })
-        })
-        .collect()
-}
-
 fn detect_videos(a: &DetectArgs) -> anyhow::Result<()> {
     let det = crate::load_slip(&a.detector)?;
     let (videos, seqs) = tracked(&a.common, det.reads_imprint())?;
     let mut each: Vec<_> = seqs.iter().map(|s| detect(s, &det)).collect();
     if a.common.grasp_per_folder {
-        let grasp = grasps_of(&videos);
-        let fused: Vec<_> = (0..each.len())
-            .map(|i| {
-                let same: Vec<_> = (0..each.len())
-                    .filter(|&j| grasp[j] == grasp[i])
-                    .map(|j| &each[j])
-                    .collect();
-                fuse(&same, &det)
-            })
-            .collect();
-        each = fused;
+        each = fuse_grasps(&each, &grasps_of(&videos), &det);
     }
     let verdicts: Vec<_> = videos
         .into_iter()

@@ -58,7 +58,7 @@ pub use labels::{labels_of, normalised, read_labels, Label};
 pub const STATISTICS: [&str; 3] = ["max", "mean", "max_rate"];
 /// Signals per frame in [`SlipEvidence`]: the field's ten ([`FieldDynamics::NAMES`]) and the
 /// imprint's slide against the markers ([`IMPRINT_SIGNAL`]).
-pub const SIGNALS: usize = 11;
+pub const SIGNALS: usize = FieldDynamics::NAMES.len() + 1;
 /// Numbers in [`SlipEvidence`]: eleven signals × three statistics.
 pub const EVIDENCE_LEN: usize = SIGNALS * STATISTICS.len();
 /// The eleventh signal's name: the object's imprint sliding against the markers over the lag,
@@ -217,9 +217,8 @@ impl SlipEvidence {
         if self.window.len() == self.smooth {
             self.window.pop_front();
         }
-        let mut x = [0.0; SIGNALS];
-        x[..10].copy_from_slice(&f.signals());
-        x[10] = imprint_slide_pitches;
+        let mut x = [imprint_slide_pitches; SIGNALS];
+        x[..SIGNALS - 1].copy_from_slice(&f.signals());
         self.window.push_back(x.map(|x| (10.0 * x.abs()).ln_1p()));
         let n = self.window.len() as f64;
         let mut s = [0.0; SIGNALS];
@@ -972,6 +971,40 @@ pub fn fuse(verdicts: &[&SlipVerdict], detector: &SlipDetector) -> SlipVerdict {
         }
     }
     verdict_of(frames, evidence)
+}
+
+/// Each video's grasp, when the videos in one folder are one grasp filmed by several sensors:
+/// the index of its folder among the videos' folders, in order of first appearance.
+pub fn grasps_of(videos: &[PathBuf]) -> Vec<usize> {
+    let mut folders: Vec<&Path> = Vec::new();
+    videos
+        .iter()
+        .map(|v| {
+            let f = v.parent().unwrap_or(Path::new(""));
+            folders.iter().position(|&g| g == f).unwrap_or_else(|| {
+                folders.push(f);
+                folders.len() - 1
+            })
+        })
+        .collect()
+}
+
+/// Each sequence's verdict fused with those of the other sequences of its grasp ([`fuse`];
+/// `grasp_of[i]`: sequence `i`'s grasp, as [`grasps_of`] gives).
+pub fn fuse_grasps(
+    verdicts: &[SlipVerdict],
+    grasp_of: &[usize],
+    detector: &SlipDetector,
+) -> Vec<SlipVerdict> {
+    (0..verdicts.len())
+        .map(|i| {
+            let same: Vec<&SlipVerdict> = (0..verdicts.len())
+                .filter(|&j| grasp_of[j] == grasp_of[i])
+                .map(|j| &verdicts[j])
+                .collect();
+            fuse(&same, detector)
+        })
+        .collect()
 }
 
 /// Frames between two snapshots of [`SequenceEvidence::prefixes`] (1 s at 25 fps).

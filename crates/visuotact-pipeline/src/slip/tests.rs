@@ -397,3 +397,12 @@ fn fused_held_out_scores_judge_each_grasp_once() {
         "{fused:?} {cv:?}"
     );
 }
+
+#[test]
+fn a_grasp_is_a_folder_of_videos() {
+    let v: Vec<PathBuf> = ["g1/c0.avi", "g1/c2.avi", "g2/c0.avi", "g1/c4.avi", "c.avi"]
+        .iter()
+        .map(PathBuf::from)
+        .collect();
+    assert_eq!(grasps_of(&v), [0, 0, 1, 0, 2]);
+}
