@@ -2,6 +2,12 @@
 //! their layout ([`crate::layout`]), and every setting needed to measure later frames the same
 //! way. Saved as JSON.
 //!
+//! A reference in contact can squeeze two markers into one blob; such a blob (about twice a
+//! marker's area, its moments those of two discs) is split in two where the lattice agrees:
+//! numbered with the halves, the array is a grid or hexagonal array holding both
+//! (`split_touching_pairs`; tests `tests/touching_pairs.rs` and the 331-pin TacTip's `image_200`
+//! in `tests/real_frames.rs`).
+//!
 //! The reference image is the per-pixel mean of N still frames in the chosen channel (seed 001's
 //! Calibration Data Model), on which markers are detected once; each still frame is then
 //! tracked against it to measure each marker's jitter (RMS, pixels), the noise floor of the
@@ -17,7 +23,7 @@
 use serde::{Deserialize, Serialize};
 use visuotact_image::{GrayImage, RgbImage};
 
-use crate::blobs::{Blob, MomentConvention};
+use crate::blobs::{BBox, Blob, MomentConvention};
 use crate::detect::{Detector, DetectorConfig};
 use crate::features::FeatureSet;
 use crate::layout::{
@@ -402,6 +408,132 @@ fn drop_specks(blobs: &mut Vec<Blob>) {
     }
 }
 
+/// The two halves of each blob that may be two markers touching at rest (a reference frame in
+/// contact squeezes neighbours together): a blob nearer twice the median interior blob's area
+/// than once or four times (in ratio) whose largest variance puts the centres of two discs of half its area
+/// between three quarters of a diameter and one and a half diameters apart. One round blob of
+/// that area puts them half a diameter apart, two touching discs one diameter; a blob longer
+/// than two discs can span is a marker with a tail. Each half is a disc of half the area centred
+/// where the moments put it (the variance along the line through two equal discs `d` apart is
+/// `a/(8π) + d²/4`, `a` their total area; as the tracker splits a merged pair). Returns the
+/// blob's index and its halves.
+fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
+    let mut interior: Vec<u32> = blobs
+        .iter()
+        .filter(|b| !b.touches_border)
+        .map(|b| b.area_px)
+        .collect();
+    if interior.len() < 3 {
+        return Vec::new();
+    }
+    interior.sort_unstable();
+    let one = f64::from(interior[interior.len() / 2]);
+    let pi = std::f64::consts::PI;
+    let mut pairs = Vec::new();
+    for (k, b) in blobs.iter().enumerate() {
+        let a = f64::from(b.area_px);
+        if b.touches_border
+            || a < std::f64::consts::SQRT_2 * one
+            || a > 2.0 * std::f64::consts::SQRT_2 * one
+        {
+            continue;
+        }
+        let (xx, xy, yy) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
+        let l1 = 0.5 * (xx + yy) + (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
+        let d = 2.0 * (l1 - a / (8.0 * pi)).max(0.0).sqrt();
+        let diameter = 2.0 * (0.5 * a / pi).sqrt();
+        if !(0.75 * diameter..=1.5 * diameter).contains(&d) {
+            continue;
+        }
+        let theta = 0.5 * (2.0 * xy).atan2(xx - yy);
+        let half_area = 0.5 * a;
+        let (var, r) = (half_area / (4.0 * pi), (half_area / pi).sqrt());
+        let half = |s: f64| {
+            let (x, y) = (b.x_px + s * d * theta.cos(), b.y_px + s * d * theta.sin());
+            let clip = |v: f64, lo: u32, hi: u32| (v.max(0.0) as u32).clamp(lo, hi);
+            Blob {
+                area_px: (half_area.round() as u32).max(1),
+                x_px: x,
+                y_px: y,
+                mu20_px2: var,
+                mu11_px2: 0.0,
+                mu02_px2: var,
+                bbox: BBox {
+                    x0: clip((x - r).floor(), b.bbox.x0, b.bbox.x1),
+                    y0: clip((y - r).floor(), b.bbox.y0, b.bbox.y1),
+                    x1: clip((x + r).ceil() + 1.0, b.bbox.x0, b.bbox.x1),
+                    y1: clip((y + r).ceil() + 1.0, b.bbox.y0, b.bbox.y1),
+                },
+                touches_border: false,
+            }
+        };
+        pairs.push((k, [half(-0.5), half(0.5)]));
+    }
+    pairs
+}
+
+/// Splits the blobs of two touching markers ([`touching_pairs`]) where the lattice agrees: a
+/// split is kept when both halves are numbered and the numbering gains one marker for it
+/// (the pair sat on two lattice sites); otherwise the blob stays whole. The lattice is the
+/// judge: the numbering with the splits must be a grid or a hexagonal array, as the one without
+/// them, or where a merged pair kept the array from being numbered as one, irregular.
+fn split_touching_pairs(
+    blobs: &mut Vec<Blob>,
+    numbered: &mut Ordered,
+    layout: LayoutChoice,
+    convention: MomentConvention,
+    report: &mut CalibrationReport,
+) {
+    let lattice = |l: Layout| matches!(l, Layout::Hex | Layout::Grid);
+    if !matches!(
+        numbered.layout,
+        Layout::Hex | Layout::Grid | Layout::Irregular
+    ) {
+        return;
+    }
+    let mut pairs = touching_pairs(blobs);
+    let numbered_has = |o: &Ordered, b: &Blob| {
+        o.blobs
+            .iter()
+            .any(|(n, _, _)| n.x_px == b.x_px && n.y_px == b.y_px)
+    };
+    // At most two rounds: all candidates, then those whose halves were both numbered.
+    for _ in 0..2 {
+        if pairs.is_empty() {
+            return;
+        }
+        let split: Vec<Blob> = blobs
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !pairs.iter().any(|(p, _)| p == k))
+            .map(|(_, b)| *b)
+            .chain(pairs.iter().flat_map(|(_, h)| h.iter().copied()))
+            .collect();
+        let mut trial_report = CalibrationReport::default();
+        let Ok(trial) = number_blobs(&split, layout, convention, &mut trial_report) else {
+            return;
+        };
+        let kept: Vec<(usize, [Blob; 2])> = pairs
+            .iter()
+            .filter(|(_, h)| h.iter().all(|b| numbered_has(&trial, b)))
+            .copied()
+            .collect();
+        if kept.len() == pairs.len() {
+            let same = trial.layout == numbered.layout || numbered.layout == Layout::Irregular;
+            if lattice(trial.layout)
+                && same
+                && trial.blobs.len() >= numbered.blobs.len() + kept.len()
+            {
+                *blobs = split;
+                *numbered = trial;
+                report.off_grid = trial_report.off_grid;
+            }
+            return;
+        }
+        pairs = kept;
+    }
+}
+
 /// The blobs numbered by `layout`: concentric annuli in ring order, else by the layout found
 /// (the blobs off it listed in `report`).
 fn number_blobs(
@@ -574,6 +706,13 @@ where
         ..Default::default()
     };
     let mut numbered = number_blobs(&blobs, cfg.layout, convention, &mut report)?;
+    split_touching_pairs(
+        &mut blobs,
+        &mut numbered,
+        cfg.layout,
+        convention,
+        &mut report,
+    );
     let specks = specks_of(&numbered);
     if !specks.is_empty() {
         blobs.retain(|b| !specks.iter().any(|s| s.x_px == b.x_px && s.y_px == b.y_px));

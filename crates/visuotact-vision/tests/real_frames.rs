@@ -9,6 +9,9 @@
 //!   the first 50 frames, and the displacement field has a peak around the press near frame 133.
 //! - 9DTact `camera_calibration/sample.png` (blurred, low contrast): all 63 dots of the 7 × 9
 //!   grid found and numbered in grid order.
+//! - The 331-pin TacTip's `image_200.png` (in contact 1.0 mm deep, tilted 24°): two pins at the
+//!   rim squeezed into one blob are split, and all 331 pins are numbered (329 with the pair
+//!   whole); `image_1.png`, with no pair, gives 331 as before.
 
 #![allow(
     clippy::too_many_lines,
@@ -18,7 +21,7 @@
 use std::path::PathBuf;
 
 use visuotact_io::frames::FrameStream;
-use visuotact_vision::calibration::{calibrate, CalibrationConfig};
+use visuotact_vision::calibration::{calibrate, CalibrationConfig, Preset};
 use visuotact_vision::detect::{BlobFilter, DetectorConfig};
 use visuotact_vision::features::{FeatureExtractor, FeatureSet};
 use visuotact_vision::layout::{Layout, LayoutChoice};
@@ -178,6 +181,30 @@ fn ninedtact_grid_of_63_dots_in_grid_order() {
                 m.y_px > up.y_px + 0.6 * cal.pitch_px
                     && (m.x_px - up.x_px).abs() < 0.3 * cal.pitch_px
             );
+        }
+    }
+}
+
+#[test]
+fn tactip331_pins_squeezed_together_at_rest_are_two_markers() {
+    let Some(dir) = real_dir() else { return };
+    for (frame, pins) in [("image_200.png", 331), ("image_1.png", 331)] {
+        let path = dir.join("tactip331_franka/frames").join(frame);
+        let img = visuotact_io::frames::read_image(&path).unwrap();
+        let (cal, _) = calibrate([(frame, &img)], &Preset::Iats.config()).unwrap();
+        assert_eq!(cal.layout, Layout::Hex, "{frame}");
+        assert_eq!(cal.markers.len(), pins, "{frame}");
+        // No two markers nearer than half a pitch: a split pair is two pins, not one twice.
+        for (k, a) in cal.markers.iter().enumerate() {
+            for b in &cal.markers[k + 1..] {
+                let d = (a.x_px - b.x_px).hypot(a.y_px - b.y_px);
+                assert!(
+                    d > 0.5 * cal.pitch_px,
+                    "{frame}: markers {} and {} {d:.1} px apart",
+                    a.id,
+                    b.id
+                );
+            }
         }
     }
 }

@@ -1,0 +1,95 @@
+//! A reference frame in contact can squeeze two markers into one blob. Calibration splits such
+//! a blob by its second moments when the lattice agrees (both halves fall on lattice sites),
+//! and leaves a round swollen marker or a marker with a tail whole.
+//!
+//! Frames: a 9 × 9 grid of white discs (radius 7 px) on black, drawn with 4 × 4 supersampling.
+
+use visuotact_image::RgbImage;
+use visuotact_vision::calibration::{calibrate, Preset};
+
+const RADIUS: f64 = 7.0;
+
+/// The grid's site centres, `pitch` apart, row by row.
+fn sites(pitch: f64) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    for r in 0..9 {
+        for c in 0..9 {
+            out.push((30.0 + pitch * f64::from(c), 30.0 + pitch * f64::from(r)));
+        }
+    }
+    out
+}
+
+/// A frame of the discs at `centres` (radius `RADIUS`, or the given radius) and the extra
+/// shapes `inside` says are white.
+fn frame(discs: &[((f64, f64), f64)], inside: impl Fn(f64, f64) -> bool) -> RgbImage {
+    let size = 250;
+    RgbImage::from_fn(size, size, |x, y| {
+        let mut hits = 0u32;
+        for sy in 0..4 {
+            for sx in 0..4 {
+                let (px, py) = (
+                    x as f64 + (sx as f64 - 1.5) / 4.0,
+                    y as f64 + (sy as f64 - 1.5) / 4.0,
+                );
+                let disc = discs
+                    .iter()
+                    .any(|&((cx, cy), r)| (px - cx).hypot(py - cy) <= r);
+                hits += u32::from(disc || inside(px, py));
+            }
+        }
+        let v = (20 + hits * 235 / 16) as u8;
+        [v, v, v]
+    })
+}
+
+fn calibrated_markers(img: &RgbImage) -> Vec<(f64, f64)> {
+    let (cal, _) = calibrate([("rest", img)], &Preset::Iats.config()).unwrap();
+    cal.markers.iter().map(|m| (m.x_px, m.y_px)).collect()
+}
+
+fn nearest(markers: &[(f64, f64)], p: (f64, f64)) -> f64 {
+    markers
+        .iter()
+        .map(|m| (m.0 - p.0).hypot(m.1 - p.1))
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn two_markers_squeezed_into_one_blob_are_two_markers() {
+    // 18 px apart: markers nearly touch at rest, as a TacTip's pins.
+    let mut centres = sites(18.0);
+    // Markers (4, 3) and (4, 4) pushed 2.5 px towards each other: 13 px apart, radius 7, one blob.
+    centres[4 * 9 + 3].0 += 2.5;
+    centres[4 * 9 + 4].0 -= 2.5;
+    let discs: Vec<_> = centres.iter().map(|&c| (c, RADIUS)).collect();
+    let markers = calibrated_markers(&frame(&discs, |_, _| false));
+    assert_eq!(markers.len(), 81);
+    for k in [4 * 9 + 3, 4 * 9 + 4] {
+        let off = nearest(&markers, centres[k]);
+        assert!(off < 1.0, "marker {k} placed {off:.2} px from its disc");
+    }
+}
+
+#[test]
+fn a_swollen_marker_or_one_with_a_speck_stays_one_marker() {
+    let pitch = 24.0;
+    let centres = sites(pitch);
+    let mut discs: Vec<_> = centres.iter().map(|&c| (c, RADIUS)).collect();
+    // (2, 2) swollen to twice its area: round, one marker.
+    discs[2 * 9 + 2].1 = RADIUS * std::f64::consts::SQRT_2;
+    // (6, 6) joined by a speck of 0.6 its area 10 px above its centre: half as big again as
+    // a marker and elongated as two discs would be, but the halves of a split would not both
+    // lie on lattice sites.
+    let (sx, sy) = centres[6 * 9 + 6];
+    discs.push(((sx, sy - 10.0), RADIUS * 0.6f64.sqrt()));
+    let markers = calibrated_markers(&frame(&discs, |_, _| false));
+    assert_eq!(markers.len(), 81);
+    assert!(nearest(&markers, centres[2 * 9 + 2]) < 1.0);
+    // One marker near the disc, its centroid pulled towards the speck.
+    let off = nearest(&markers, centres[6 * 9 + 6]);
+    assert!(
+        off < 4.0,
+        "the marker with a speck {off:.2} px from its disc"
+    );
+}
