@@ -2,9 +2,11 @@
 //! a blob by its second moments when the lattice agrees (both halves fall on lattice sites),
 //! and leaves a round swollen marker or a marker with a tail whole.
 //!
-//! Frames: a 9 × 9 grid of white discs (radius 7 px) on black, drawn with 4 × 4 supersampling.
+//! Frames: a 9 × 9 grid of discs of radius 7 px rendered by the simulator (`render_markers`).
 
 use visuotact_image::RgbImage;
+use visuotact_sim::pattern::{render_markers, Look};
+use visuotact_sim::render::Ellipse;
 use visuotact_vision::calibration::{calibrate, Preset};
 
 const RADIUS: f64 = 7.0;
@@ -20,27 +22,14 @@ fn sites(pitch: f64) -> Vec<(f64, f64)> {
     out
 }
 
-/// A frame of the discs at `centres` (radius `RADIUS`, or the given radius) and the extra
-/// shapes `inside` says are white.
-fn frame(discs: &[((f64, f64), f64)], inside: impl Fn(f64, f64) -> bool) -> RgbImage {
-    let size = 250;
-    RgbImage::from_fn(size, size, |x, y| {
-        let mut hits = 0u32;
-        for sy in 0..4 {
-            for sx in 0..4 {
-                let (px, py) = (
-                    x as f64 + (sx as f64 - 1.5) / 4.0,
-                    y as f64 + (sy as f64 - 1.5) / 4.0,
-                );
-                let disc = discs
-                    .iter()
-                    .any(|&((cx, cy), r)| (px - cx).hypot(py - cy) <= r);
-                hits += u32::from(disc || inside(px, py));
-            }
-        }
-        let v = (20 + hits * 235 / 16) as u8;
-        [v, v, v]
-    })
+/// A frame of the discs `(centre, radius)`: green on dark fabric with noise and vignetting, as
+/// the simulator renders seed 000's membrane.
+fn frame(discs: &[((f64, f64), f64)]) -> RgbImage {
+    let shapes: Vec<_> = discs
+        .iter()
+        .map(|&((x, y), r)| (Ellipse::circle(x, y, r), None))
+        .collect();
+    render_markers(250, 250, &shapes, &Look::GREEN_ON_DARK, 7)
 }
 
 fn calibrated_markers(img: &RgbImage) -> Vec<(f64, f64)> {
@@ -63,7 +52,7 @@ fn two_markers_squeezed_into_one_blob_are_two_markers() {
     centres[4 * 9 + 3].0 += 2.5;
     centres[4 * 9 + 4].0 -= 2.5;
     let discs: Vec<_> = centres.iter().map(|&c| (c, RADIUS)).collect();
-    let markers = calibrated_markers(&frame(&discs, |_, _| false));
+    let markers = calibrated_markers(&frame(&discs));
     assert_eq!(markers.len(), 81);
     for k in [4 * 9 + 3, 4 * 9 + 4] {
         let off = nearest(&markers, centres[k]);
@@ -83,7 +72,7 @@ fn a_swollen_marker_or_one_with_a_speck_stays_one_marker() {
     // lie on lattice sites.
     let (sx, sy) = centres[6 * 9 + 6];
     discs.push(((sx, sy - 10.0), RADIUS * 0.6f64.sqrt()));
-    let markers = calibrated_markers(&frame(&discs, |_, _| false));
+    let markers = calibrated_markers(&frame(&discs));
     assert_eq!(markers.len(), 81);
     assert!(nearest(&markers, centres[2 * 9 + 2]) < 1.0);
     // One marker near the disc, its centroid pulled towards the speck.
