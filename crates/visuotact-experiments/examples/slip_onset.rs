@@ -15,12 +15,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let det = SlipDetector::default();
     let cfg = ZooConfig::GELSIGHT;
     println!("kind\tgrasps\tending in slip\tany alarm\tmedian latency (frames)\tlatencies");
-    for kind in [
-        GraspKind::Press,
-        GraspKind::Drag,
-        GraspKind::Twist,
-        GraspKind::Slip,
-    ] {
+    for kind in GraspKind::ALL {
         let mut out = Vec::new();
         for seed in 0..seeds {
             out.push(check_grasp(&cfg, kind, 100, seed, &det)?);

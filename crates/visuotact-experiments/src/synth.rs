@@ -90,8 +90,8 @@ pub struct SimulateConfig {
     pub sensor: SimKind,
     /// The protocol: iats `grid`, `random`, `shear`, `line`; cone `press`, `press-rotate`; zoo
     /// `grid`, `random`, `shear`, `drag`, `plate` (domes), and the grasps `grasp-press`,
-    /// `grasp-drag`, `grasp-twist`, `grasp-slip` (one grasp of `touches` frames, at least 60,
-    /// its `slip_state` truth per frame: 0 stick, 1 incipient, 2 slip).
+    /// `grasp-drag`, `grasp-twist`, `grasp-slip`, `grasp-shake` (one grasp of `touches` frames,
+    /// at least 60, its `slip_state` truth per frame: 0 stick, 1 incipient, 2 slip).
     pub protocol: String,
     /// iats and zoo: the sensor's parameters drawn from their ranges with this seed (0: the
     /// preset).

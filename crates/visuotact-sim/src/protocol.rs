@@ -583,20 +583,31 @@ pub enum GraspKind {
     /// A press, then a sideways load that reaches the friction limit: the sliding annulus
     /// grows inwards until the whole contact slides, and the object slides over the skin.
     Slip,
+    /// A press, then the grip shaken with the object held: a sideways load swinging back and
+    /// forth within 60 % of the friction limit (a period of 12 frames, about 2 Hz at 25 fps):
+    /// the rim slides a little at each swing, the centre sticks, the object does not slip (the
+    /// real GelSight grasps' negatives are shakes).
+    Shake,
 }
 
 impl GraspKind {
     /// Every kind, in the order of [`GraspKind::PROTOCOLS`].
-    pub const ALL: [GraspKind; 4] = [
+    pub const ALL: [GraspKind; 5] = [
         GraspKind::Press,
         GraspKind::Drag,
         GraspKind::Twist,
         GraspKind::Slip,
+        GraspKind::Shake,
     ];
 
     /// The protocol names `simulate` takes for grasps ([`zoo_slip`]).
-    pub const PROTOCOLS: [&'static str; 4] =
-        ["grasp-press", "grasp-drag", "grasp-twist", "grasp-slip"];
+    pub const PROTOCOLS: [&'static str; 5] = [
+        "grasp-press",
+        "grasp-drag",
+        "grasp-twist",
+        "grasp-slip",
+        "grasp-shake",
+    ];
 
     /// The kind of a grasp protocol's name (`grasp-slip`), if it is one.
     pub fn from_protocol(name: &str) -> Option<Self> {
@@ -637,7 +648,9 @@ pub struct GraspSequence {
 /// `q` (a share of the friction limit) rises linearly over 40 frames; by Cattaneo–Mindlin the
 /// sticking centre's radius is `a (1 − q)^{1/3}` and the skin's drag `δ (1 − (1 − q)^{2/3})`,
 /// with `δ` 0.6 marker pitches at the limit. Past the limit (`Slip`) the drag stays at `δ`
-/// and the contact slides over the skin by 0.04 pitches a frame.
+/// and the contact slides over the skin by 0.04 pitches a frame. A shake swings `q` as
+/// `0.6 sin(2π k / 12)` from the press on, the drag and the annulus following `|q|`, the drag
+/// its sign.
 pub fn zoo_slip(cfg: &ZooConfig, kind: GraspKind, frames: usize, seed: u64) -> GraspSequence {
     let frames = frames.max(60);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x511F_0400);
@@ -653,7 +666,7 @@ pub fn zoo_slip(cfg: &ZooConfig, kind: GraspKind, frames: usize, seed: u64) -> G
     let (rest, pressed, ramp) = (10, 20, 40.0);
     let q_end = match kind {
         GraspKind::Slip => 1.0,
-        GraspKind::Drag => 0.6,
+        GraspKind::Drag | GraspKind::Shake => 0.6,
         GraspKind::Press | GraspKind::Twist => 0.0,
     };
     let mut out = GraspSequence {
@@ -673,15 +686,19 @@ pub fn zoo_slip(cfg: &ZooConfig, kind: GraspKind, frames: usize, seed: u64) -> G
         }
         if k > pressed {
             let along = (k - pressed) as f64 / ramp;
-            let q = (q_end * along).min(q_end);
+            let q = if kind == GraspKind::Shake {
+                q_end * (std::f64::consts::TAU * (k - pressed) as f64 / 12.0).sin()
+            } else {
+                (q_end * along).min(q_end)
+            };
             if q >= 1.0 {
                 out.slip_frame.get_or_insert(k);
                 slid += 0.04 * cfg.pitch_mm;
             }
-            let drag = delta * (1.0 - (1.0 - q).max(0.0).powf(2.0 / 3.0));
+            let drag = q.signum() * delta * (1.0 - (1.0 - q.abs()).max(0.0).powf(2.0 / 3.0));
             t.shear_x_mm = drag * cx;
             t.shear_y_mm = drag * sy;
-            t.slip_annulus = 1.0 - (1.0 - q).max(0.0).cbrt();
+            t.slip_annulus = 1.0 - (1.0 - q.abs()).max(0.0).cbrt();
             t.x_mm += slid * cx;
             t.y_mm += slid * sy;
             if kind == GraspKind::Twist {
@@ -722,6 +739,23 @@ mod slip_tests {
         assert_eq!(d.slip_frame, None);
         let most = d.touches.iter().map(|t| t.slip_annulus).fold(0.0, f64::max);
         assert!((most - (1.0 - 0.4f64.cbrt())).abs() < 1e-12, "{most}");
+        // A shake swings the drag both ways, within the drag's limit, and never slips.
+        let k = zoo_slip(&cfg, GraspKind::Shake, 90, 3);
+        assert_eq!((k.incipient_frame, k.slip_frame), (Some(21), None));
+        let first = k.touches[22];
+        let along: Vec<f64> = k
+            .touches
+            .iter()
+            .map(|t| t.shear_x_mm * first.shear_x_mm + t.shear_y_mm * first.shear_y_mm)
+            .collect();
+        assert!(along.iter().any(|&a| a > 0.0) && along.iter().any(|&a| a < 0.0));
+        let widest = k.touches.iter().map(|t| t.slip_annulus).fold(0.0, f64::max);
+        assert!((widest - (1.0 - 0.4f64.cbrt())).abs() < 1e-12, "{widest}");
+        let moved = |t: &ZooTouch| (t.x_mm - k.touches[0].x_mm).hypot(t.y_mm - k.touches[0].y_mm);
+        assert!(k.touches.iter().all(|t| moved(t) == 0.0));
+        for t in &k.touches {
+            t.validate(&cfg).unwrap();
+        }
         for kind in [GraspKind::Press, GraspKind::Twist] {
             let p = zoo_slip(&cfg, kind, 60, 3);
             assert_eq!((p.incipient_frame, p.slip_frame), (None, None));

@@ -20,8 +20,9 @@ pub(crate) struct Args {
     sensor: SimKind,
     /// iats: grid, random, shear, line; cone: press, press-rotate; zoo sensors: grid, random, drag,
     /// shear, on the domes (tactip, tactip-small) plate, and one grasp: grasp-press, grasp-drag
-    /// (sideways under the friction limit), grasp-twist or grasp-slip (past it; labels.csv then
-    /// has the truth per frame in `slip_state`: 0 stick, 1 incipient, 2 slip).
+    /// (sideways under the friction limit), grasp-twist, grasp-slip (past it) or grasp-shake
+    /// (swung both ways under it; labels.csv then has the truth per frame in `slip_state`: 0
+    /// stick, 1 incipient, 2 slip).
     #[arg(long)]
     protocol: String,
     /// iats and zoo sensors: draw the sensor's parameters (pitch, marker size, colours, skin,
