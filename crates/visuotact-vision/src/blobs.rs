@@ -212,6 +212,23 @@ impl Blob {
     pub fn eccentricity(&self) -> f64 {
         self.shape(MomentConvention::Pixel).eccentricity
     }
+
+    /// The blob read as two discs of areas `a1`, `a2`: the distance between their centres and
+    /// the unit vector along the line through them (the moments' major axis), or `None` when
+    /// the moments allow no separation. Along that line two discs `d` apart have the variance
+    /// `(a1² + a2²)/(4π(a1 + a2)) + d²·a1·a2/(a1 + a2)²`, so `d` follows from the blob's largest
+    /// variance; the centroid divides it in the ratio of the areas.
+    pub(crate) fn two_discs(&self, a1: f64, a2: f64) -> Option<(f64, (f64, f64))> {
+        let a = a1 + a2;
+        let (xx, xy, yy) = (self.mu20_px2, self.mu11_px2, self.mu02_px2);
+        let half = 0.5 * (xx + yy);
+        let root = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
+        let l1 = half + root;
+        let theta = 0.5 * (2.0 * xy).atan2(xx - yy);
+        let own = (a1 * a1 + a2 * a2) / (4.0 * std::f64::consts::PI * a);
+        let d2 = (l1 - own) * a * a / (a1 * a2);
+        (d2 > 0.0).then(|| (d2.sqrt(), (theta.cos(), theta.sin())))
+    }
 }
 
 /// The threshold level(s) the fused pass compares against: foreground is `v > level`.

@@ -23,7 +23,7 @@
 use serde::{Deserialize, Serialize};
 use visuotact_image::{GrayImage, RgbImage};
 
-use crate::blobs::{BBox, Blob, MomentConvention};
+use crate::blobs::{Blob, MomentConvention};
 use crate::detect::{Detector, DetectorConfig};
 use crate::features::FeatureSet;
 use crate::layout::{
@@ -414,9 +414,8 @@ fn drop_specks(blobs: &mut Vec<Blob>) {
 /// between three quarters of a diameter and one and a half diameters apart. One round blob of
 /// that area puts them half a diameter apart, two touching discs one diameter; a blob longer
 /// than two discs can span is a marker with a tail. Each half is a disc of half the area centred
-/// where the moments put it (the variance along the line through two equal discs `d` apart is
-/// `a/(8π) + d²/4`, `a` their total area; as the tracker splits a merged pair). Returns the
-/// blob's index and its halves.
+/// where the moments put it ([`Blob::two_discs`], as the tracker splits a merged pair; its box
+/// the whole blob's). Returns the blob's index and its halves.
 fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
     let mut interior: Vec<u32> = blobs
         .iter()
@@ -438,34 +437,23 @@ fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
         {
             continue;
         }
-        let (xx, xy, yy) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
-        let l1 = 0.5 * (xx + yy) + (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
-        let d = 2.0 * (l1 - a / (8.0 * pi)).max(0.0).sqrt();
         let diameter = 2.0 * (0.5 * a / pi).sqrt();
+        let Some((d, u)) = b.two_discs(0.5 * a, 0.5 * a) else {
+            continue;
+        };
         if !(0.75 * diameter..=1.5 * diameter).contains(&d) {
             continue;
         }
-        let theta = 0.5 * (2.0 * xy).atan2(xx - yy);
-        let half_area = 0.5 * a;
-        let (var, r) = (half_area / (4.0 * pi), (half_area / pi).sqrt());
-        let half = |s: f64| {
-            let (x, y) = (b.x_px + s * d * theta.cos(), b.y_px + s * d * theta.sin());
-            let clip = |v: f64, lo: u32, hi: u32| (v.max(0.0) as u32).clamp(lo, hi);
-            Blob {
-                area_px: (half_area.round() as u32).max(1),
-                x_px: x,
-                y_px: y,
-                mu20_px2: var,
-                mu11_px2: 0.0,
-                mu02_px2: var,
-                bbox: BBox {
-                    x0: clip((x - r).floor(), b.bbox.x0, b.bbox.x1),
-                    y0: clip((y - r).floor(), b.bbox.y0, b.bbox.y1),
-                    x1: clip((x + r).ceil() + 1.0, b.bbox.x0, b.bbox.x1),
-                    y1: clip((y + r).ceil() + 1.0, b.bbox.y0, b.bbox.y1),
-                },
-                touches_border: false,
-            }
+        let var = 0.5 * a / (4.0 * pi);
+        let half = |s: f64| Blob {
+            area_px: ((0.5 * a).round() as u32).max(1),
+            x_px: b.x_px + s * d * u.0,
+            y_px: b.y_px + s * d * u.1,
+            mu20_px2: var,
+            mu11_px2: 0.0,
+            mu02_px2: var,
+            bbox: b.bbox,
+            touches_border: false,
         };
         pairs.push((k, [half(-0.5), half(0.5)]));
     }

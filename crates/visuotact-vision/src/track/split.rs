@@ -8,10 +8,8 @@ use super::solve::Matching;
 use super::MarkerStatus;
 
 /// Splits each blob holding exactly two merged markers (`on_blob`: blob, marker, prediction)
-/// along its major axis: two discs of areas `a1`, `a2` (the markers' areas scaled by their
-/// magnification) whose centres lie `d` apart have, along the line through them, the variance
-/// `(a1² + a2²)/(4π(a1 + a2)) + d²·a1·a2/(a1 + a2)²`, so `d` follows from the blob's largest
-/// variance, and the centroid divides it in the ratio of the areas (≈ 0.4 px from the truth for
+/// along its major axis as two discs of the markers' areas scaled by their magnification
+/// ([`Blob::two_discs`](crate::blobs::Blob::two_discs); ≈ 0.4 px from the truth for
 /// two touching discs of radius 10 px). Each split marker takes its side (the side its
 /// prediction lies on) when the blob has the pair's area within one area tolerance (else the
 /// moments are not two discs'), both positions lie within their markers' gates, the blob is as
@@ -37,19 +35,13 @@ pub(super) fn split_pairs(
         let b = &m.blobs[j];
         let (a1, a2) = (areas[i1] * s1 * s1, areas[i2] * s2 * s2);
         let a = a1 + a2;
-        let (xx, xy, yy) = (b.mu20_px2, b.mu11_px2, b.mu02_px2);
-        let half = 0.5 * (xx + yy);
-        let root = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
-        let l1 = half + root;
-        let theta = 0.5 * (2.0 * xy).atan2(xx - yy);
-        let u = (theta.cos(), theta.sin());
-        let own = (a1 * a1 + a2 * a2) / (4.0 * std::f64::consts::PI * a);
-        let d2 = (l1 - own) * a * a / (a1 * a2);
         // The moments are those of two discs only when the blob has their two areas.
-        if d2.is_nan() || d2 <= 0.0 || m.energy.area_misfit(b, a).abs() > 1.0 {
+        let Some((d, u)) = b.two_discs(a1, a2) else {
+            continue;
+        };
+        if m.energy.area_misfit(b, a).abs() > 1.0 {
             continue;
         }
-        let d = d2.sqrt();
         // Marker 1 on the +u side if its prediction is.
         let sign = if (p1.0 - p2.0) * u.0 + (p1.1 - p2.1) * u.1 >= 0.0 {
             1.0
