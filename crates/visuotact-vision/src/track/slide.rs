@@ -111,17 +111,7 @@ impl Matching<'_> {
             .filter(|&&j| j < self.usable && self.owner[j].is_none())
             .count() as f64
             * self.energy.clutter_cost();
-        let markers: f64 = area
-            .iter()
-            .map(|&i| {
-                let pred = self.predict_or_start(i);
-                match self.assignment[i] {
-                    Some(j) => self.cost(i, pred, j),
-                    None => self.energy.lost_cost_at(i, &pred),
-                }
-            })
-            .sum();
-        clutter + markers
+        clutter + area.iter().map(|&i| self.term(i)).sum::<f64>()
     }
 
     /// The markers a change of `path` can affect (it and its neighbours) and the blobs it
@@ -159,49 +149,67 @@ struct Chain {
 }
 
 impl Matching<'_> {
-    /// Shifts `c` cut to `len`: each marker takes the next one's blob, the last the free blob
-    /// of least cost within its gate (or none). `c` must be as before the move.
-    fn apply_chain(&mut self, c: &mut Chain, len: usize) {
-        c.len = len;
-        if len < 2 {
-            return;
-        }
-        for &i in &c.path[..len] {
-            self.release(i);
-        }
-        for k in 0..len - 1 {
-            if let Some(j) = c.held[k + 1] {
-                self.take(c.path[k], j);
+    /// Sets `c` to be shifted cut to `len`: each of its first `len - 1` markers takes the
+    /// next one's blob, the `len`-th the free blob of least cost within its gate (or none),
+    /// the rest their blobs from before the move (all of them for `len < 2`). Only the
+    /// markers whose blob changes are moved.
+    fn set_chain_len(&mut self, c: &mut Chain, len: usize) {
+        let target = |k: usize| {
+            if k + 1 < len {
+                c.held[k + 1]
+            } else {
+                c.held[k]
+            }
+        };
+        let last = (len >= 2).then(|| c.path[len - 1]);
+        for (k, &i) in c.path.iter().enumerate() {
+            // Every blob the chain held is another marker's now: the last leaves it too.
+            let moves = if Some(i) == last {
+                self.assignment[i].is_some_and(|j| c.held.contains(&Some(j)))
+            } else {
+                self.assignment[i] != target(k)
+            };
+            if moves {
+                self.release(i);
             }
         }
-        let last = c.path[len - 1];
+        for (k, &i) in c.path.iter().enumerate() {
+            if Some(i) != last && self.assignment[i] != target(k) {
+                if let Some(j) = target(k) {
+                    self.take(i, j);
+                }
+            }
+        }
+        c.len = len;
+        let Some(last) = last else {
+            return;
+        };
+        // Its own blob aside (a marker's prediction never uses its own blob), the free blob
+        // that suits it best.
         let pred = self.predict_or_start(last);
+        let own = self.assignment[last];
         let mut cands = Vec::new();
-        self.candidates(last, pred, |j| self.owner[j].is_some(), &mut cands);
-        if let Some(&(j, cost)) = cands.iter().min_by(|a, b| a.1.total_cmp(&b.1)) {
-            if cost < self.energy.unmatched_cost_at(last, &pred) {
+        self.candidates(
+            last,
+            pred,
+            |j| self.owner[j].is_some() && Some(j) != own,
+            &mut cands,
+        );
+        let best = cands
+            .iter()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|b| b.1 < self.energy.unmatched_cost_at(last, &pred))
+            .map(|b| b.0);
+        if best != own {
+            self.release(last);
+            if let Some(j) = best {
                 self.take(last, j);
             }
         }
     }
 
-    /// Puts `c`'s markers back on their blobs from before the move.
-    fn undo_chain(&mut self, c: &mut Chain) {
-        if c.len < 2 {
-            return;
-        }
-        for &i in &c.path[..c.len] {
-            self.release(i);
-        }
-        for k in 0..c.len {
-            if let Some(j) = c.held[k] {
-                self.take(c.path[k], j);
-            }
-        }
-        c.len = 1;
-    }
-
-    /// Sets every chain's length (undoing first), returning the energy of `area`/`blobs`.
+    /// Sets every chain's length (all back first, then each in turn), returning the energy
+    /// of `area`/`blobs`.
     fn set_lengths(
         &mut self,
         chains: &mut [Chain],
@@ -209,10 +217,10 @@ impl Matching<'_> {
         area: (&[usize], &[usize]),
     ) -> f64 {
         for c in chains.iter_mut() {
-            self.undo_chain(c);
+            self.set_chain_len(c, 1);
         }
         for (c, &l) in chains.iter_mut().zip(lens) {
-            self.apply_chain(c, l);
+            self.set_chain_len(c, l);
         }
         self.local_energy(area.0, area.1)
     }
@@ -237,15 +245,13 @@ impl Matching<'_> {
                     }
                     let e0 = *before.get_or_insert_with(|| self.local_energy(&ar, &bl));
                     let old = chains[k].len;
-                    self.undo_chain(&mut chains[k]);
-                    self.apply_chain(&mut chains[k], len);
+                    self.set_chain_len(&mut chains[k], len);
                     let e = self.local_energy(&ar, &bl);
                     if e < e0 - 1e-9 {
                         changed = true;
                         before = Some(e);
                     } else {
-                        self.undo_chain(&mut chains[k]);
-                        self.apply_chain(&mut chains[k], old);
+                        self.set_chain_len(&mut chains[k], old);
                     }
                 }
             }
@@ -314,7 +320,7 @@ impl Matching<'_> {
             }
         }
         for c in chains.iter_mut() {
-            self.undo_chain(c);
+            self.set_chain_len(c, 1);
         }
         let Some((e, lens)) = best else {
             return (Vec::new(), 0.0);
@@ -343,7 +349,7 @@ impl Matching<'_> {
             .collect();
         for c in &mut chains {
             let l = c.path.len();
-            self.apply_chain(c, l);
+            self.set_chain_len(c, l);
         }
     }
 

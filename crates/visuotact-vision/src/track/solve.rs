@@ -56,6 +56,9 @@ pub(super) struct Matching<'a> {
     /// Each marker's prediction from its neighbours as last computed (`None`: to compute),
     /// cleared when a neighbour takes or leaves a blob.
     predicted: Vec<Cell<Option<Option<Prediction>>>>,
+    /// Each marker's term of the energy as last computed (`None`: to compute), cleared with
+    /// its prediction and when it takes or leaves a blob.
+    terms: Vec<Cell<Option<f64>>>,
 }
 
 impl<'a> Matching<'a> {
@@ -84,6 +87,7 @@ impl<'a> Matching<'a> {
             disp: vec![(0.0, 0.0); n],
             support: vec![0; n],
             predicted: vec![Cell::new(None); n],
+            terms: vec![Cell::new(None); n],
         }
     }
 
@@ -95,9 +99,7 @@ impl<'a> Matching<'a> {
                 self.support[k] += 1;
             }
         }
-        for &k in &self.reference.neighbours[i] {
-            self.predicted[k].set(None);
-        }
+        self.forget_around(i);
         self.assignment[i] = Some(j);
         self.owner[j] = Some(i);
         let a = self.anchors[i];
@@ -109,19 +111,33 @@ impl<'a> Matching<'a> {
             self.owner[j] = None;
             for &k in &self.reference.neighbours[i] {
                 self.support[k] -= 1;
-                self.predicted[k].set(None);
             }
+            self.forget_around(i);
         }
     }
 
-    /// Replaces the whole assignment.
+    /// Clears what `i` taking or leaving a blob changes: its own energy term, and its
+    /// neighbours' predictions and terms (the layout's neighbours are mutual).
+    fn forget_around(&self, i: usize) {
+        self.terms[i].set(None);
+        for &k in &self.reference.neighbours[i] {
+            self.predicted[k].set(None);
+            self.terms[k].set(None);
+        }
+    }
+
+    /// Replaces the whole assignment (only the markers whose blob changes are moved).
     pub fn set_assignment(&mut self, a: &[Option<usize>]) {
-        for i in 0..a.len() {
-            self.release(i);
+        for (i, col) in a.iter().enumerate() {
+            if self.assignment[i] != *col {
+                self.release(i);
+            }
         }
         for (i, col) in a.iter().enumerate() {
             if let Some(j) = *col {
-                self.take(i, j);
+                if self.assignment[i] != Some(j) {
+                    self.take(i, j);
+                }
             }
         }
     }
@@ -388,14 +404,23 @@ impl<'a> Matching<'a> {
             * self.energy.clutter_cost();
         clutter
             + (0..self.assignment.len())
-                .map(|i| {
-                    let pred = self.predict_or_start(i);
-                    match self.assignment[i] {
-                        Some(j) => self.cost(i, pred, j),
-                        None => self.energy.lost_cost_at(i, &pred),
-                    }
-                })
+                .map(|i| self.term(i))
                 .sum::<f64>()
+    }
+
+    /// Marker `i`'s term of the energy: its blob's cost against its prediction, or its lost
+    /// cost.
+    pub fn term(&self, i: usize) -> f64 {
+        if let Some(t) = self.terms[i].get() {
+            return t;
+        }
+        let pred = self.predict_or_start(i);
+        let t = match self.assignment[i] {
+            Some(j) => self.cost(i, pred, j),
+            None => self.energy.lost_cost_at(i, &pred),
+        };
+        self.terms[i].set(Some(t));
+        t
     }
 
     /// Whether the reading leaves anything unexplained: a usable blob no marker takes, or a
