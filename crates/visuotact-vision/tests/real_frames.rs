@@ -12,6 +12,10 @@
 //! - The 331-pin TacTip's `image_200.png` (in contact 1.0 mm deep, tilted 24°): two pins at the
 //!   rim squeezed into one blob are split, and all 331 pins are numbered (329 with the pair
 //!   whole); `image_1.png`, with no pair, gives 331 as before.
+//! - The same set calibrated from `image_1.png` (its shallowest training frame, itself in
+//!   contact): five deep, tilted, slid frames once read with every ring of pins turned a step
+//!   about the centre (the array's mean tangential displacement 0.7–1.3 pitches; a twist of
+//!   5° moves the rim by a tenth of one) are read unturned, each with at least 310 pins.
 
 #![allow(
     clippy::too_many_lines,
@@ -206,5 +210,52 @@ fn tactip331_pins_squeezed_together_at_rest_are_two_markers() {
                 );
             }
         }
+    }
+}
+
+#[test]
+fn tactip331_rings_are_not_read_turned_a_step() {
+    let Some(dir) = real_dir() else { return };
+    let frames = dir.join("tactip331_franka/frames");
+    let rest = visuotact_io::frames::read_image(&frames.join("image_1.png")).unwrap();
+    let (cal, _) = calibrate([("image_1.png", &rest)], &Preset::Iats.config()).unwrap();
+    assert_eq!(cal.markers.len(), 331);
+    let n = cal.markers.len() as f64;
+    let centre = cal
+        .markers
+        .iter()
+        .fold((0.0, 0.0), |c, m| (c.0 + m.x_px / n, c.1 + m.y_px / n));
+    let radius = |m: &visuotact_vision::calibration::ReferenceMarker| {
+        (m.x_px - centre.0).hypot(m.y_px - centre.1)
+    };
+    let rim = cal.markers.iter().map(radius).fold(0.0, f64::max);
+    let mut ex = FeatureExtractor::new(cal.clone(), FeatureSet::IATS).unwrap();
+    for frame in [
+        "image_1530.png",
+        "image_1630.png",
+        "image_1830.png",
+        "image_1960.png",
+        "image_2000.png",
+    ] {
+        let img = visuotact_io::frames::read_image(&frames.join(frame)).unwrap();
+        let feat = ex.extract(&img).unwrap();
+        // The mean tangential displacement about the centre, pins beyond a fifth of the rim.
+        let (mut sum, mut count, mut found) = (0.0, 0.0, 0);
+        for (i, m) in cal.markers.iter().enumerate() {
+            if feat.status[i] != MarkerStatus::Ok {
+                continue;
+            }
+            found += 1;
+            let r = radius(m);
+            if r < 0.2 * rim {
+                continue;
+            }
+            let d = (feat.values[3 * i], feat.values[3 * i + 1]);
+            sum += ((m.x_px - centre.0) * d.1 - (m.y_px - centre.1) * d.0) / r;
+            count += 1.0;
+        }
+        let turn = sum / count / cal.pitch_px;
+        assert!(turn.abs() < 0.3, "{frame}: rings turned {turn:.2} pitches");
+        assert!(found >= 310, "{frame}: {found} pins");
     }
 }

@@ -13,7 +13,9 @@
 //!   order-free on a lattice, the reading shifted by whole lattice steps is compared too. A
 //!   multi-start search: a reading that leaves a blob or a marker unexplained is searched
 //!   again from a firmer motion prior, then from seeds judged each on its own, the lowest
-//!   energy kept.
+//!   energy kept; a reading torn where lattice neighbours disagree by about a step is regrown
+//!   from a patch of itself (its largest smooth parts, its centre shifted by each step: a
+//!   dome's rings each read turned a step, test `tactip331_rings_are_not_read_turned_a_step`).
 //! - `slide`: the runner-ups a lattice tracker must compare — regions read a lattice step
 //!   off (chains from markers without a blob) and smooth parts shifted by a step or two —
 //!   kept when they lower the energy by the margin.
@@ -362,6 +364,18 @@ impl TrackReference {
         self.markers
     }
 
+    /// The marker nearest the markers' centroid (`None` without markers).
+    pub(crate) fn central_marker(&self) -> Option<usize> {
+        let n = self.markers;
+        let sum = self.positions[..n]
+            .iter()
+            .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+        let c = (sum.0 / n as f64, sum.1 / n as f64);
+        (0..n).min_by(|&a, &b| {
+            index::dist(self.positions[a], c).total_cmp(&index::dist(self.positions[b], c))
+        })
+    }
+
     /// Whether position `i` is an unseen lattice site rather than a marker.
     pub(crate) fn is_unseen(&self, i: usize) -> bool {
         i >= self.markers
@@ -535,6 +549,67 @@ fn search(m: &mut solve::Matching<'_>, order_free: bool, start: Start) -> Vec<sl
     runner_ups
 }
 
+/// Order-free, readings regrown from a patch of the one found, for a reading torn where
+/// lattice neighbours disagree by about a step: the largest two parts that move smoothly (a
+/// reading torn into parts read a step apart), and the central marker with its lattice
+/// neighbours as read shifted by each lattice step (rings each read turned a step about the
+/// centre, the tears along the rays where their sides meet). Each start is grown, refined
+/// and offset-searched; the lowest is slid as a search is, and kept when its energy is lower
+/// by the margin; then returns the runner-ups of the reading kept.
+fn regrow(m: &mut solve::Matching<'_>) -> Option<Vec<slide::RunnerUp>> {
+    let (saved, e0) = (m.assignment.clone(), m.total_energy());
+    let mut starts: Vec<Vec<Option<usize>>> = Vec::new();
+    let parts = m.smooth_parts();
+    if parts.len() >= 2 {
+        for part in parts.iter().take(2) {
+            let mut only = vec![None; saved.len()];
+            for &i in part {
+                only[i] = saved[i];
+            }
+            starts.push(only);
+        }
+    }
+    let r = m.reference;
+    if let Some(centre) = r.central_marker() {
+        let patch: Vec<usize> = std::iter::once(centre)
+            .chain(r.lattice_steps[centre].iter().flatten().copied())
+            .collect();
+        for d in 0..r.lattice_dirs {
+            let mut only = vec![None; saved.len()];
+            for &i in &patch {
+                only[i] = r.lattice_steps[i][d].and_then(|k| saved[k]);
+            }
+            if only.iter().flatten().count() >= 3 {
+                starts.push(only);
+            }
+        }
+    }
+    let mut best: Option<(f64, Vec<Option<usize>>)> = None;
+    for only in starts {
+        m.set_assignment(&only);
+        m.grow();
+        m.refine(6);
+        if m.assignment == saved {
+            continue;
+        }
+        m.search_offset(m.energy.params.reach_pitches.ceil() as usize);
+        let e = m.total_energy();
+        if best.as_ref().is_none_or(|b| e < b.0) {
+            best = Some((e, m.assignment.clone()));
+        }
+    }
+    if let Some((_, a)) = best {
+        m.set_assignment(&a);
+        let mut runner_ups = m.slide_regions();
+        runner_ups.extend(m.shift_parts());
+        if m.total_energy() < e0 - m.energy.params.margin {
+            return Some(runner_ups);
+        }
+    }
+    m.set_assignment(&saved);
+    None
+}
+
 /// Order-free, another start from the registration. Its reading replaces `m`'s when its
 /// energy (the one energy, with `m`'s own parameters) is lower by the margin; then returns
 /// the runner-ups of the reading kept.
@@ -630,6 +705,11 @@ pub fn track_with(
             if let Some(r) = restart(&mut m, hints.view, start) {
                 runner_ups = r;
             }
+        }
+    }
+    if order_free && m.torn() {
+        if let Some(r) = regrow(&mut m) {
+            runner_ups = r;
         }
     }
     outcome(&m, &runner_ups)

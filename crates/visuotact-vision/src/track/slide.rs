@@ -464,21 +464,41 @@ impl Matching<'_> {
     /// (one step apart) whose displacements differ by under half a spacing share a part. A
     /// region read a lattice step off is a part of its own (its displacements differ by a step
     /// from its neighbours' across its sides). Parts of three or more markers, largest first.
-    fn smooth_parts(&self) -> Vec<Vec<usize>> {
+    pub fn smooth_parts(&self) -> Vec<Vec<usize>> {
         let r = self.reference;
         let mut out = parts(
             self.assignment.len(),
             |i| self.assignment[i].is_some(),
             |i| r.lattice_steps[i].iter().flatten().copied(),
-            |i, k| {
-                let s = 0.5 * r.spacing_px[i].min(r.spacing_px[k]);
-                let (a, b) = (self.disp[i], self.disp[k]);
-                (a.0 - b.0).hypot(a.1 - b.1) < s
-            },
+            |i, k| self.move_together(i, k, 0.5),
         );
         out.retain(|p| p.len() >= 3);
         out.sort_by_key(|p| std::cmp::Reverse(p.len()));
         out
+    }
+
+    /// Whether the displacements of markers `i` and `k` (both matched) differ by under
+    /// `spacings` of their spacing.
+    fn move_together(&self, i: usize, k: usize, spacings: f64) -> bool {
+        let s = spacings * self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
+        let (a, b) = (self.disp[i], self.disp[k]);
+        (a.0 - b.0).hypot(a.1 - b.1) < s
+    }
+
+    /// Whether the reading is torn: two matched lattice neighbours' displacements differ by
+    /// more than the spread the energy allows a prediction (`spread_sigmas · σ`): a skin
+    /// strains that far, it does not tear.
+    pub fn torn(&self) -> bool {
+        let r = self.reference;
+        let p = self.energy.params;
+        let spread = p.spread_sigmas * p.sigma_spacings;
+        (0..self.assignment.len()).any(|i| {
+            self.assignment[i].is_some()
+                && r.lattice_steps[i]
+                    .iter()
+                    .flatten()
+                    .any(|&k| self.assignment[k].is_some() && !self.move_together(i, k, spread))
+        })
     }
 
     /// The lattice offsets a part may be read off by: `a` steps along one direction and `b`
