@@ -482,7 +482,7 @@ impl Matching<'_> {
     fn move_together(&self, i: usize, k: usize, spacings: f64) -> bool {
         let s = spacings * self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
         let (a, b) = (self.disp[i], self.disp[k]);
-        (a.0 - b.0).hypot(a.1 - b.1) < s
+        (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2) < s * s
     }
 
     /// Whether the reading is torn: two matched lattice neighbours' displacements differ by
