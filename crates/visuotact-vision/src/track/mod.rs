@@ -13,7 +13,8 @@
 //!   order-free on a lattice, the reading shifted by whole lattice steps is compared too. A
 //!   multi-start search: a reading that leaves a blob or a marker unexplained is searched
 //!   again from a firmer motion prior, then from seeds judged each on its own, the lowest
-//!   energy kept; a reading torn where lattice neighbours disagree by about a step is regrown
+//!   energy kept.
+//! - `regrow`: a reading torn where lattice neighbours disagree by about a step is grown again
 //!   from a patch of itself (its largest smooth parts, its centre shifted by each step: a
 //!   dome's rings each read turned a step, test `tactip331_rings_are_not_read_turned_a_step`).
 //! - `slide`: the runner-ups a lattice tracker must compare — regions read a lattice step
@@ -44,6 +45,7 @@ mod energy;
 mod index;
 mod pieces;
 mod predict;
+mod regrow;
 mod rings;
 mod sites;
 mod slide;
@@ -549,67 +551,6 @@ fn search(m: &mut solve::Matching<'_>, order_free: bool, start: Start) -> Vec<sl
     runner_ups
 }
 
-/// Order-free, readings regrown from a patch of the one found, for a reading torn where
-/// lattice neighbours disagree by about a step: the largest two parts that move smoothly (a
-/// reading torn into parts read a step apart), and the central marker with its lattice
-/// neighbours as read shifted by each lattice step (rings each read turned a step about the
-/// centre, the tears along the rays where their sides meet). Each start is grown, refined
-/// and offset-searched; the lowest is slid as a search is, and kept when its energy is lower
-/// by the margin; then returns the runner-ups of the reading kept.
-fn regrow(m: &mut solve::Matching<'_>) -> Option<Vec<slide::RunnerUp>> {
-    let (saved, e0) = (m.assignment.clone(), m.total_energy());
-    let mut starts: Vec<Vec<Option<usize>>> = Vec::new();
-    let parts = m.smooth_parts();
-    if parts.len() >= 2 {
-        for part in parts.iter().take(2) {
-            let mut only = vec![None; saved.len()];
-            for &i in part {
-                only[i] = saved[i];
-            }
-            starts.push(only);
-        }
-    }
-    let r = m.reference;
-    if let Some(centre) = r.central_marker() {
-        let patch: Vec<usize> = std::iter::once(centre)
-            .chain(r.lattice_steps[centre].iter().flatten().copied())
-            .collect();
-        for d in 0..r.lattice_dirs {
-            let mut only = vec![None; saved.len()];
-            for &i in &patch {
-                only[i] = r.lattice_steps[i][d].and_then(|k| saved[k]);
-            }
-            if only.iter().flatten().count() >= 3 {
-                starts.push(only);
-            }
-        }
-    }
-    let mut best: Option<(f64, Vec<Option<usize>>)> = None;
-    for only in starts {
-        m.set_assignment(&only);
-        m.grow();
-        m.refine(6);
-        if m.assignment == saved {
-            continue;
-        }
-        m.search_offset(m.energy.params.reach_pitches.ceil() as usize);
-        let e = m.total_energy();
-        if best.as_ref().is_none_or(|b| e < b.0) {
-            best = Some((e, m.assignment.clone()));
-        }
-    }
-    if let Some((_, a)) = best {
-        m.set_assignment(&a);
-        let mut runner_ups = m.slide_regions();
-        runner_ups.extend(m.shift_parts());
-        if m.total_energy() < e0 - m.energy.params.margin {
-            return Some(runner_ups);
-        }
-    }
-    m.set_assignment(&saved);
-    None
-}
-
 /// Order-free, another start from the registration. Its reading replaces `m`'s when its
 /// energy (the one energy, with `m`'s own parameters) is lower by the margin; then returns
 /// the runner-ups of the reading kept.
@@ -708,7 +649,7 @@ pub fn track_with(
         }
     }
     if order_free && m.torn() {
-        if let Some(r) = regrow(&mut m) {
+        if let Some(r) = regrow::regrow(&mut m) {
             runner_ups = r;
         }
     }
