@@ -648,9 +648,15 @@ pub fn track_with(
             }
         }
     }
-    if order_free && m.torn() {
-        if let Some(r) = regrow::regrow(&mut m) {
-            runner_ups = r;
+    // Each regrown reading kept may still be torn: regrown again while that lowers the energy
+    // (at most three times).
+    for _ in 0..3 {
+        if !(order_free && m.torn()) {
+            break;
+        }
+        match regrow::regrow(&mut m) {
+            Some(r) => runner_ups = r,
+            None => break,
         }
     }
     outcome(&m, &runner_ups)
