@@ -542,8 +542,20 @@ fn search(m: &mut solve::Matching<'_>, order_free: bool, start: Start) -> Vec<sl
     m.grow();
     m.refine(6);
     if order_free {
-        m.search_offset(m.energy.params.reach_pitches.ceil() as usize);
+        search_offset(m);
     }
+    settle(m, order_free)
+}
+
+/// Order-free, the whole reading shifted by lattice steps, up to
+/// [`TrackParams::reach_pitches`].
+fn search_offset(m: &mut solve::Matching<'_>) {
+    m.search_offset(m.energy.params.reach_pitches.ceil() as usize);
+}
+
+/// The moves after a reading is grown: region shifts and, order-free, part shifts. Returns
+/// the runner-ups within the margin of the reading kept.
+fn settle(m: &mut solve::Matching<'_>, order_free: bool) -> Vec<slide::RunnerUp> {
     let mut runner_ups = m.slide_regions();
     if order_free {
         runner_ups.extend(m.shift_parts());
@@ -580,9 +592,7 @@ fn restart(
     let (first, e_first) = (m.assignment.clone(), m.total_energy());
     m.set_assignment(&second.assignment);
     if m.total_energy() < e_first - params.margin {
-        let mut runner_ups = m.slide_regions();
-        runner_ups.extend(m.shift_parts());
-        Some(runner_ups)
+        Some(settle(m, true))
     } else {
         m.set_assignment(&first);
         None

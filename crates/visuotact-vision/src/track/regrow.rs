@@ -55,7 +55,7 @@ pub(super) fn regrow(m: &mut Matching<'_>) -> Option<Vec<RunnerUp>> {
         if m.assignment == saved {
             continue;
         }
-        m.search_offset(m.energy.params.reach_pitches.ceil() as usize);
+        super::search_offset(m);
         let e = m.total_energy();
         if best.as_ref().is_none_or(|b| e < b.0) {
             best = Some((e, m.assignment.clone()));
@@ -63,8 +63,7 @@ pub(super) fn regrow(m: &mut Matching<'_>) -> Option<Vec<RunnerUp>> {
     }
     if let Some((_, a)) = best {
         m.set_assignment(&a);
-        let mut runner_ups = m.slide_regions();
-        runner_ups.extend(m.shift_parts());
+        let runner_ups = super::settle(m, true);
         if m.total_energy() < e0 - m.energy.params.margin {
             return Some(runner_ups);
         }
