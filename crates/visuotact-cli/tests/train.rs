@@ -379,6 +379,7 @@ fn the_field_summary_passes_by_the_projection() {
         .collect();
     assert_eq!(picked.len(), 1, "{selection}");
     let (won, lost) = (&scores[picked[0]], &scores[1 - picked[0]]);
+    assert!(scores.iter().all(|s| s["folds"] == 5), "{selection}");
     assert!(
         won["error"].as_f64() <= lost["error"].as_f64(),
         "{selection}"

@@ -325,18 +325,19 @@ fn inputs_of_rows(
 
 /// The inputs `model` was trained on (from `samples` samples), in words.
 fn inputs_of(model: &Model, (sets, folds): (&[InputSet], usize), samples: usize) -> String {
+    let selection = &model.training.selection;
     let how = if folds_trained(samples, folds) == folds {
         format!("{folds}-fold cross-validation")
+    } else if selection.iter().any(|s| s.folds == folds) {
+        format!("one network each on a held-out fold of {folds}, the closest on all {folds}")
     } else {
         format!("one network each on a held-out fold of {folds}")
     };
-    match model.training.selection.iter().find(|s| s.chosen) {
+    match selection.iter().find(|s| s.chosen) {
         Some(chosen) => format!(
             "{} (chosen by {how}; held-out error / variance {})",
             chosen.inputs,
-            model
-                .training
-                .selection
+            selection
                 .iter()
                 .map(|s| format!("{:.2e}", s.error))
                 .collect::<Vec<_>>()

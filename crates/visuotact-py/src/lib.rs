@@ -473,7 +473,8 @@ impl Model {
 
     /// The input sets training compared by cross-validation (empty when there was no
     /// choice): dicts with `inputs`, `error` (held-out squared error over the target's
-    /// variance, mean over targets), `normalised_mse` per target and `chosen`.
+    /// variance, mean over targets), `normalised_mse` per target, `folds` (how many folds' held
+    /// out samples the score is over) and `chosen`.
     #[getter]
     fn selection<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         self.m
@@ -485,6 +486,7 @@ impl Model {
                 d.set_item("inputs", &s.inputs)?;
                 d.set_item("error", s.error)?;
                 d.set_item("normalised_mse", s.normalised_mse.clone())?;
+                d.set_item("folds", s.folds)?;
                 d.set_item("chosen", s.chosen)?;
                 Ok(d)
             })

@@ -149,6 +149,7 @@ def test_training_and_prediction_match_the_cli(session):
         np.testing.assert_allclose(first[TARGETS[0]], est[TARGETS[0]][:1], rtol=0, atol=1e-12)
     # The inputs were chosen by cross-validation; the scores travel with the model.
     assert [s["chosen"] for s in model.selection].count(True) == 1
+    assert all(s["folds"] >= 1 for s in model.selection)
     assert model.selection == loaded.selection
     with pytest.raises(vt.VisuotactError, match="no column"):
         model.predict(table[:, :3], columns=header[7:10])

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::bail;
 use visuotact_nn::fit::{
     choose_inputs, fit_set, folds_trained, with_held_out_errors, FitConfig, FitData, InputScore,
-    InputSet,
+    InputSet, ONE_FOLD_RESOLUTION,
 };
 use visuotact_nn::model::Model;
 use visuotact_nn::plan::{Plan, Wanted};
@@ -185,8 +185,11 @@ fn choose(
                 )
             } else {
                 format!(
-                    "one network each, scored on a fifth of the {} frames held out",
-                    data.x.len()
+                    "one network each, scored on a fifth of the {} frames held out (sets \
+                     within {:.0} % of the best then on all {} fifths)",
+                    data.x.len(),
+                    100.0 * (ONE_FOLD_RESOLUTION - 1.0),
+                    plan.folds
                 )
             },
             sets.iter()
@@ -199,17 +202,18 @@ fn choose(
     let (best, selection) =
         choose_inputs(data, cfg, sets, plan.folds, |p: &_| reporter.training(p))
             .map_err(fit_error)?;
-    for (score, set) in selection.iter().zip(sets) {
+    let all_folds = selection.iter().any(|s| s.folds == plan.folds);
+    for score in &selection {
         note!(
-            "  {} {}{}: held-out error / variance {:.3e} (per target {})",
+            "  {} {}: held-out error / variance {:.3e}{} (per target {})",
             if score.chosen { "chose" } else { "     " },
             score.inputs,
-            if set.handicap > 1.0 {
-                format!(" (only if {:.0} % better)", 100.0 * (set.handicap - 1.0))
+            score.error,
+            if all_folds && score.folds < plan.folds {
+                format!(" on {} fold", score.folds)
             } else {
                 String::new()
             },
-            score.error,
             score
                 .normalised_mse
                 .iter()
