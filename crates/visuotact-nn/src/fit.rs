@@ -1097,7 +1097,7 @@ pub fn folds_trained(samples: usize, folds: usize) -> usize {
 /// ([`folds_trained`]) every set is first scored on one fold; the sets that fold cannot tell
 /// from the best ([`ONE_FOLD_RESOLUTION`]) are then scored on every fold, and the choice is
 /// theirs. One set (or too few samples for the folds): the first, with no scores. `progress`
-/// numbers the networks of each round over its sets and folds.
+/// numbers the networks over all sets and folds, those of the second round after the first's.
 pub fn choose_inputs(
     data: &FitData<'_>,
     cfg: &FitConfig,
@@ -1116,7 +1116,7 @@ pub fn choose_inputs(
         fold_of[i] = place % folds;
     }
     let first = folds_trained(n, folds);
-    let mut held = held_out_estimates(data, cfg, sets, (&fold_of, 0..first), &progress)?;
+    let mut held = held_out_estimates(data, cfg, sets, (&fold_of, 0..first), (0, &progress))?;
     let mut scores: Vec<InputScore> = sets
         .iter()
         .zip(&held)
@@ -1137,7 +1137,14 @@ pub fn choose_inputs(
         .collect();
     if first < folds && close.len() > 1 {
         let contenders: Vec<InputSet> = close.iter().map(|&s| sets[s].clone()).collect();
-        let more = held_out_estimates(data, cfg, &contenders, (&fold_of, first..folds), &progress)?;
+        let done = sets.len() * first;
+        let more = held_out_estimates(
+            data,
+            cfg,
+            &contenders,
+            (&fold_of, first..folds),
+            (done, &progress),
+        )?;
         for (&s, extra) in close.iter().zip(more) {
             held[s].extend(extra);
             scores[s] = score_of(data, &sets[s], &held[s], folds);
@@ -1220,13 +1227,13 @@ type HeldOut = Vec<(usize, Vec<f64>)>;
 
 /// Per set, each sample held out by the folds `trained` of `fold_of` (a sample's fold) with
 /// the estimate of the network trained without that fold (target units). Every set sees the
-/// same folds and initial weights.
+/// same folds and initial weights. `progress` numbers the networks after the first `done`.
 fn held_out_estimates(
     data: &FitData<'_>,
     cfg: &FitConfig,
     sets: &[InputSet],
     (fold_of, trained): (&[usize], std::ops::Range<usize>),
-    progress: &impl Progress,
+    (done, progress): (usize, &impl Progress),
 ) -> Result<Vec<HeldOut>, FitError> {
     let n = data.x.len();
     let fold_cfg = FitConfig {
@@ -1243,8 +1250,8 @@ fn held_out_estimates(
             let train: Vec<usize> = (0..n).filter(|&i| fold_of[i] != k).collect();
             let model = fit_rows(data, &sets[s], &train, &fold_cfg, |p: &FitProgress| {
                 progress(&FitProgress {
-                    network: job,
-                    networks: jobs.len(),
+                    network: done + job,
+                    networks: done + jobs.len(),
                     ..*p
                 })
             })?;
