@@ -1116,40 +1116,39 @@ pub fn choose_inputs(
         fold_of[i] = place % folds;
     }
     let first = folds_trained(n, folds);
-    let mut held = held_out_estimates(data, cfg, sets, (&fold_of, 0..first), (0, &progress))?;
+    let variance = target_variances(data.t, data.targets.len());
+    let held = held_out_estimates(data, cfg, sets, (&fold_of, 0..first), (0, &progress))?;
     let mut scores: Vec<InputScore> = sets
         .iter()
-        .zip(&held)
-        .map(|(set, h)| score_of(data, set, h, first))
+        .zip(held)
+        .map(|(set, h)| score_of(data.t, &variance, (&set.name, h), first))
         .collect();
-    let lowest = |scores: &[InputScore], among: &[usize]| {
+    let lowest = |scores: &[InputScore], among: &mut dyn Iterator<Item = usize>| {
         among
-            .iter()
-            .copied()
             .min_by(|&a, &b| scores[a].error.total_cmp(&scores[b].error))
             .unwrap_or(0)
     };
-    let all: Vec<usize> = (0..sets.len()).collect();
-    let mut best = lowest(&scores, &all);
-    let close: Vec<usize> = all
-        .into_iter()
-        .filter(|&s| scores[s].error <= ONE_FOLD_RESOLUTION * scores[best].error)
-        .collect();
-    if first < folds && close.len() > 1 {
-        let contenders: Vec<InputSet> = close.iter().map(|&s| sets[s].clone()).collect();
-        let done = sets.len() * first;
-        let more = held_out_estimates(
-            data,
-            cfg,
-            &contenders,
-            (&fold_of, first..folds),
-            (done, &progress),
-        )?;
-        for (&s, extra) in close.iter().zip(more) {
-            held[s].extend(extra);
-            scores[s] = score_of(data, &sets[s], &held[s], folds);
+    let mut best = lowest(&scores, &mut (0..sets.len()));
+    if first < folds {
+        let close: Vec<usize> = (0..sets.len())
+            .filter(|&s| scores[s].error <= ONE_FOLD_RESOLUTION * scores[best].error)
+            .collect();
+        if close.len() > 1 {
+            let contenders: Vec<InputSet> = close.iter().map(|&s| sets[s].clone()).collect();
+            let more = held_out_estimates(
+                data,
+                cfg,
+                &contenders,
+                (&fold_of, first..folds),
+                (sets.len() * first, &progress),
+            )?;
+            for (&s, extra) in close.iter().zip(more) {
+                let mut h = std::mem::take(&mut scores[s].held_out);
+                h.extend(extra);
+                scores[s] = score_of(data.t, &variance, (&sets[s].name, h), folds);
+            }
+            best = lowest(&scores, &mut close.into_iter());
         }
-        best = lowest(&scores, &close);
     }
     scores[best].chosen = true;
     Ok((best, scores))
@@ -1274,34 +1273,45 @@ fn held_out_estimates(
     Ok(per_set)
 }
 
-/// `set`'s score from the samples `held` out (over `folds` folds) with their estimates: per
-/// target the squared error over the target's variance (over every sample), and their mean.
+/// The score of the set `name` from the samples `held` out (over `folds` folds) with their
+/// estimates: per target the squared error over the target's `variance` (over every sample of
+/// `targets`), and their mean.
 fn score_of(
-    data: &FitData<'_>,
-    set: &InputSet,
-    held: &[(usize, Vec<f64>)],
+    targets: &[Vec<f64>],
+    variance: &[f64],
+    (name, held): (&str, HeldOut),
     folds: usize,
 ) -> InputScore {
-    let n = data.t.len();
-    let normalised_mse: Vec<f64> = (0..data.targets.len())
-        .map(|j| {
-            let mean = data.t.iter().map(|r| r[j]).sum::<f64>() / n as f64;
-            let variance = data.t.iter().map(|r| (r[j] - mean).powi(2)).sum::<f64>() / n as f64;
+    let normalised_mse: Vec<f64> = variance
+        .iter()
+        .enumerate()
+        .map(|(j, v)| {
             let se: f64 = held
                 .iter()
-                .map(|(i, e)| (e[j] - data.t[*i][j]).powi(2))
+                .map(|(i, e)| (e[j] - targets[*i][j]).powi(2))
                 .sum();
-            se / held.len().max(1) as f64 / variance.max(f64::MIN_POSITIVE)
+            se / held.len().max(1) as f64 / v.max(f64::MIN_POSITIVE)
         })
         .collect();
     InputScore {
-        inputs: set.name.clone(),
+        inputs: name.to_string(),
         error: normalised_mse.iter().sum::<f64>() / normalised_mse.len().max(1) as f64,
         normalised_mse,
         folds,
         chosen: false,
-        held_out: held.to_vec(),
+        held_out: held,
     }
+}
+
+/// Each of the `count` targets' variance over the samples `targets`.
+fn target_variances(targets: &[Vec<f64>], count: usize) -> Vec<f64> {
+    let n = targets.len() as f64;
+    (0..count)
+        .map(|j| {
+            let mean = targets.iter().map(|r| r[j]).sum::<f64>() / n;
+            targets.iter().map(|r| (r[j] - mean).powi(2)).sum::<f64>() / n
+        })
+        .collect()
 }
 
 #[cfg(test)]

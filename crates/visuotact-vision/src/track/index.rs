@@ -10,6 +10,16 @@ pub(super) fn dist_sq(a: (f64, f64), b: (f64, f64)) -> f64 {
     (a.0 - b.0) * (a.0 - b.0) + (a.1 - b.1) * (a.1 - b.1)
 }
 
+/// The point of `points` nearest their centroid (the first of equals; `None` without points).
+pub(super) fn nearest_centroid(points: &[(f64, f64)]) -> Option<usize> {
+    let n = points.len() as f64;
+    let sum = points
+        .iter()
+        .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+    let c = (sum.0 / n, sum.1 / n);
+    (0..points.len()).min_by(|&a, &b| dist(points[a], c).total_cmp(&dist(points[b], c)))
+}
+
 /// The connected parts of the items `0..n` that are `member`s, two items linked when one is
 /// among the other's `near` items and `linked(from, to)` holds: each part starts at its lowest
 /// item and lists its members in the order a depth-first walk finds them; parts in the order

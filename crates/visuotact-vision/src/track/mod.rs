@@ -368,14 +368,7 @@ impl TrackReference {
 
     /// The marker nearest the markers' centroid (`None` without markers).
     pub(crate) fn central_marker(&self) -> Option<usize> {
-        let n = self.markers;
-        let sum = self.positions[..n]
-            .iter()
-            .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-        let c = (sum.0 / n as f64, sum.1 / n as f64);
-        (0..n).min_by(|&a, &b| {
-            index::dist(self.positions[a], c).total_cmp(&index::dist(self.positions[b], c))
-        })
+        index::nearest_centroid(&self.positions[..self.markers])
     }
 
     /// Whether position `i` is an unseen lattice site rather than a marker.

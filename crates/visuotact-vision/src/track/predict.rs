@@ -13,7 +13,7 @@
 //! majority (a vote histogram of each marker's nearest blob); followed, the last frame's
 //! positions.
 
-use super::index::{dist, BlobIndex};
+use super::index::{nearest_centroid, BlobIndex};
 use super::TrackReference;
 
 /// A prediction: position, local magnification and how far the neighbours it comes from
@@ -259,13 +259,7 @@ pub(super) fn lattice_steps(
     if n < 3 {
         return (0, vec![Vec::new(); n]);
     }
-    let (sx, sy) = positions
-        .iter()
-        .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-    let c = (sx / n as f64, sy / n as f64);
-    let centre = (0..n)
-        .min_by(|&a, &b| dist(positions[a], c).total_cmp(&dist(positions[b], c)))
-        .unwrap_or(0);
+    let centre = nearest_centroid(positions).unwrap_or(0);
     let s0 = spacing_px[centre];
     let mut dirs: Vec<(f64, f64)> = neighbours[centre]
         .iter()
