@@ -240,10 +240,13 @@ fn a_simulated_grasp_has_its_slip_in_the_truth_and_its_frames_are_a_sequence() {
     assert_eq!(header.last().map(String::as_str), Some("slip_state"));
     let states: Vec<&str> = rows.iter().map(|r| r.last().unwrap().as_str()).collect();
     assert_eq!(states.len(), 72);
-    // 10 at rest, a press over 10, the sideways load from frame 21, at the limit from 60.
+    // 10 at rest, a press over 10, the sideways load from frame 21, at the limit from a frame
+    // the seed draws among 50–70.
+    let at = states.iter().position(|s| *s == "2").unwrap_or(72);
+    assert!((50..=70).contains(&at), "{states:?}");
     assert!(states[..21].iter().all(|s| *s == "0"), "{states:?}");
-    assert!(states[21..60].iter().all(|s| *s == "1"), "{states:?}");
-    assert!(states[60..].iter().all(|s| *s == "2"), "{states:?}");
+    assert!(states[21..at].iter().all(|s| *s == "1"), "{states:?}");
+    assert!(states[at..].iter().all(|s| *s == "2"), "{states:?}");
     let out = d.join("frames.csv");
     ok(&vt(&[
         "slip",

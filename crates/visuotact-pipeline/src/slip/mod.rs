@@ -17,7 +17,8 @@
 //! frame's state; the onset is the first frame of the run of `slip` frames that ends the
 //! sequence. The statistics need no onset label: a detector is fitted on sequences labelled
 //! slip or not ([`fit_detector`]); where the onsets are known ([`SlipTruth::onset_s`]), the
-//! beginnings of slipping sequences teach it when the score must rise.
+//! beginnings of slipping sequences, frame by frame around each onset, teach it when the score
+//! must rise.
 //!
 //! Why these: stick moves the markers under an object together with it, slip leaves some
 //! behind (the partial-slip annulus: the increments' residual from a rigid motion grows against
@@ -1022,7 +1023,15 @@ pub struct SequenceEvidence {
     /// Over its first [`START_FRAMES`] frames (or all, if fewer): a grasp's start, before
     /// anything can have slipped.
     pub start: [f64; EVIDENCE_LEN],
+    /// Over its first 1, 2, … frames, and the time of each one's last frame: where a slip's
+    /// onset is labelled, the beginnings within [`ONSET_FRAMES`] frames of it.
+    pub every_frame: Vec<([f64; EVIDENCE_LEN], f64)>,
 }
+
+/// Frames either side of a labelled onset whose beginnings each count in a fit
+/// ([`fit_detector`]), so that the score is taught to rise at the onset's frame, not only
+/// within the second of [`PREFIX_EVERY`].
+pub const ONSET_FRAMES: usize = 5;
 
 /// Frames of a sequence's start ([`SequenceEvidence::start`]): the frames a sequence
 /// calibrates its reference from by default.
@@ -1054,9 +1063,11 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
     let mut imprint = LagSum::new(settings.lag_frames);
     let (mut prefixes, mut prefix_end_s) = (Vec::new(), Vec::new());
     let mut start = [0.0; EVIDENCE_LEN];
+    let mut every_frame = Vec::with_capacity(seq.frames.len());
     for (k, frame) in seq.frames.iter().enumerate() {
         t.update_into(&frame.displacement_px, &mut f);
         e.push(&f, imprint.push(frame.imprint_slide_px) / seq.pitch_px);
+        every_frame.push((e.values(), frame.timestamp_s));
         if k + 1 == START_FRAMES.min(seq.frames.len()) {
             start = e.values();
         }
@@ -1070,6 +1081,7 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
         prefixes,
         prefix_end_s,
         start,
+        every_frame,
     }
 }
 
@@ -1078,7 +1090,8 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
 /// had happened there either): so that the live score stays low through a grasp that holds,
 /// not only at its end. A slipping sequence's beginnings count only when its onset is
 /// labelled ([`SlipTruth::onset_s`]): those ending before it as no slip, the others as slip,
-/// so that the score rises when the slip begins. A still field (no marker moved) counts as no
+/// every second and at every frame within [`ONSET_FRAMES`] of the onset, so that the score
+/// rises at the frame the slip begins. A still field (no marker moved) counts as no
 /// slip too, as often as there are slipping sequences. Both classes weigh the same.
 pub fn fit_detector(
     evidence: &[SequenceEvidence],
@@ -1112,6 +1125,14 @@ pub fn fit_detector(
                     .iter()
                     .map(|&end| t.onset_s.is_some_and(|onset| t.slip && end >= onset)),
             );
+        }
+        if let (true, Some(onset)) = (settings.stick_prefixes && t.slip, t.onset_s) {
+            let k = e.every_frame.partition_point(|&(_, end)| end < onset);
+            let near = e.every_frame.iter().skip(k.saturating_sub(ONSET_FRAMES));
+            for &(v, end) in near.take(2 * ONSET_FRAMES) {
+                rows.push(v);
+                labels.push(end >= onset);
+            }
         }
     }
     let mut d = fit_rows(&rows, &labels, settings);

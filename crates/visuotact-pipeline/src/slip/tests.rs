@@ -222,9 +222,11 @@ fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
 }
 
 /// Labelled with their onsets, slipping sequences teach the detector when a slip begins: their
-/// beginnings before the onset count as no slip, the later ones as slip. Held out, the onset is
-/// then found nearer the truth (3.0 s) than by a detector fitted on the verdicts alone (mean
-/// error measured 0.45 s against 0.98 s over ten slips), and every verdict is right.
+/// beginnings before the onset count as no slip, the later ones as slip, and every frame within
+/// [`ONSET_FRAMES`] of the onset counts. Held out, the onset is then found nearer the truth
+/// (3.0 s) than by a detector fitted on the verdicts alone (mean error measured 0.096 s, 2.4
+/// frames, against 0.98 s over ten slips; 0.45 s with the 1 s beginnings alone), and every
+/// verdict is right.
 #[test]
 fn onsets_in_the_labels_date_the_slip_nearer_the_truth() {
     let s = SlipSettings::default();
@@ -258,8 +260,8 @@ fn onsets_in_the_labels_date_the_slip_nearer_the_truth() {
         }
     }
     assert!(
-        off_timed < 0.6 * off_plain,
-        "mean onset error {off_timed} s with onsets, {off_plain} s without (10 slips)"
+        off_timed < 0.15 * 10.0 && off_timed < 0.2 * off_plain,
+        "onset errors summed over 10 slips: {off_timed} s with onsets, {off_plain} s without"
     );
 }
 
