@@ -353,8 +353,9 @@ impl LiveEstimator {
     /// Follows the frames with a slip detector: every frame then carries its slip state
     /// ([`LiveFrame::slip`]), from the markers' displacements from the sensor's reference.
     /// Each contact is one sequence: the detector starts afresh when a contact begins (and on
-    /// re-zeroing). Nothing slips without contact: a frame without one is `stick` with score 0
-    /// and no field signals (the markers' noise at rest is no evidence). Needs a feature set
+    /// re-zeroing), and reads it from its [`SlipDetector::min_frames`]-th frame. Nothing slips
+    /// without contact: a frame without one is `stick` with score 0 and no field signals (the
+    /// markers' noise at rest is no evidence). Needs a feature set
     /// with `dx` and `dy`.
     pub fn set_slip(&mut self, detector: SlipDetector) -> Result<(), PipelineError> {
         self.slip = Some(SlipMonitor::for_estimator(detector, &self.est)?);

@@ -7,6 +7,7 @@ use visuotact_nn::logistic::{fit_logistic, LogisticConfig};
 
 use super::{
     fit_detector, SequenceEvidence, SlipDetector, SlipError, SlipSettings, SlipTruth, EVIDENCE_LEN,
+    START_FRAMES,
 };
 
 /// Index of `max_shift_pitches` in the evidence.
@@ -69,7 +70,8 @@ pub struct CrossValidation {
     /// fitted detector scored as slip: the live false alarms.
     pub false_alarms: f64,
     /// Share of the held-out sequences whose start ([`SequenceEvidence::start`]) the fitted
-    /// detector scored as slip: alarms as a grasp begins.
+    /// detector scored as slip: alarms as a grasp begins (none where it reads a sequence only
+    /// from a later frame, [`SlipDetector::min_frames`]).
     pub start_alarms: f64,
 }
 
@@ -109,8 +111,10 @@ pub fn cross_validate(
         );
         let ent = small_logistic(&ev_whole, &y);
         for &i in &test {
-            held_out_scores[i] = d.score(&whole[i]);
-            starts += usize::from(d.score(&evidence[i].start) >= d.threshold);
+            let frames = evidence[i].every_frame.len();
+            held_out_scores[i] = d.live_score(&whole[i], frames);
+            let start = d.live_score(&evidence[i].start, START_FRAMES.min(frames));
+            starts += usize::from(start >= d.threshold);
             fitted[i] = held_out_scores[i] >= d.threshold;
             shift[i] = (whole[i][MAX_SHIFT] >= cut.0) == cut.1;
             entropy[i] = ent(&whole[i]);
@@ -125,7 +129,11 @@ pub fn cross_validate(
         }
     }
     let by_default = default.map(|d| {
-        let p: Vec<bool> = whole.iter().map(|e| d.score(e) >= d.threshold).collect();
+        let p: Vec<bool> = whole
+            .iter()
+            .zip(evidence)
+            .map(|(w, e)| d.live_score(w, e.every_frame.len()) >= d.threshold)
+            .collect();
         Scores::of(&p, slip)
     });
     Ok(CrossValidation {

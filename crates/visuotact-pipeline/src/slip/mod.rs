@@ -350,6 +350,17 @@ pub struct SlipDetector {
     pub incipient_threshold: f64,
     /// Sequences it was fitted on, and of them labelled slip.
     pub fitted_on: [usize; 2],
+    /// The fewest frames of evidence it was fitted on (the shortest beginning or sequence):
+    /// it reads a sequence from this frame on, and calls the frames before it `stick` with
+    /// score 0 rather than read evidence shorter than any it has seen (a sequence's first
+    /// frames are its rest, its reference calibrated from them). Files without it: 25.
+    #[serde(default = "prefix_every")]
+    pub min_frames: usize,
+}
+
+/// [`PREFIX_EVERY`], the shortest evidence of a fit when no sequence is shorter.
+fn prefix_every() -> usize {
+    PREFIX_EVERY
 }
 
 const FORMAT: &str = "visuotact-slip";
@@ -432,8 +443,10 @@ impl SlipDetector {
                 "expected 0 ≤ incipient_threshold ≤ threshold ≤ 1".into()
             ));
         }
-        if d.lag_frames == 0 || d.smooth_frames == 0 {
-            return Err(bad("lag_frames and smooth_frames must be at least 1".into()));
+        if d.lag_frames == 0 || d.smooth_frames == 0 || d.min_frames == 0 {
+            return Err(bad(
+                "lag_frames, smooth_frames and min_frames must be at least 1".into(),
+            ));
         }
         Ok(d)
     }
@@ -488,6 +501,16 @@ impl SlipDetector {
             .map(|(((x, c), s), w)| w * (x - c) / s)
             .sum();
         sigmoid(z + self.bias)
+    }
+
+    /// The probability of slip given `evidence` of a sequence's first `frames` frames: 0
+    /// before [`SlipDetector::min_frames`], [`SlipDetector::score`] from it on.
+    pub fn live_score(&self, evidence: &[f64; EVIDENCE_LEN], frames: usize) -> f64 {
+        if frames < self.min_frames {
+            0.0
+        } else {
+            self.score(evidence)
+        }
     }
 
     /// The state a score stands for.
@@ -696,7 +719,9 @@ impl SlipMonitor {
     fn score(&mut self, field: FieldDynamics) -> SlipEstimate {
         let slide_px = self.imprint_lag.push(std::mem::take(&mut self.imprint_px));
         self.evidence.push(&field, slide_px / self.pitch_px);
-        let score = self.detector.score(&self.evidence.values());
+        let score = self
+            .detector
+            .live_score(&self.evidence.values(), self.evidence.frames);
         SlipEstimate {
             state: self.detector.state_of(score),
             score,
@@ -1114,9 +1139,11 @@ pub fn fit_detector(
     };
     let mut rows: Vec<[f64; EVIDENCE_LEN]> = vec![[0.0; EVIDENCE_LEN]; still];
     let mut labels = vec![false; still];
+    let mut min_frames = PREFIX_EVERY;
     for (e, t) in evidence.iter().zip(truth) {
         rows.push(e.whole);
         labels.push(t.slip);
+        min_frames = min_frames.min(e.every_frame.len().max(1));
         // A beginning is known not to have slipped, or (onset labelled) whether it had.
         if settings.stick_prefixes && (!t.slip || t.onset_s.is_some()) {
             rows.extend_from_slice(&e.prefixes);
@@ -1128,8 +1155,9 @@ pub fn fit_detector(
         }
         if let (true, Some(onset)) = (settings.stick_prefixes && t.slip, t.onset_s) {
             let k = e.every_frame.partition_point(|&(_, end)| end < onset);
-            let near = e.every_frame.iter().skip(k.saturating_sub(ONSET_FRAMES));
-            for &(v, end) in near.take(2 * ONSET_FRAMES) {
+            let first = k.saturating_sub(ONSET_FRAMES);
+            min_frames = min_frames.min(first + 1);
+            for &(v, end) in e.every_frame.iter().skip(first).take(2 * ONSET_FRAMES) {
                 rows.push(v);
                 labels.push(end >= onset);
             }
@@ -1137,6 +1165,7 @@ pub fn fit_detector(
     }
     let mut d = fit_rows(&rows, &labels, settings);
     d.fitted_on = [truth.len(), pos];
+    d.min_frames = min_frames;
     Ok(d)
 }
 
@@ -1172,6 +1201,7 @@ fn fit_rows(rows: &[[f64; EVIDENCE_LEN]], labels: &[bool], like: &SlipSettings) 
         threshold: like.threshold,
         incipient_threshold: like.incipient_threshold,
         fitted_on: [rows.len(), labels.iter().filter(|&&y| y).count()],
+        min_frames: PREFIX_EVERY,
     }
 }
 
