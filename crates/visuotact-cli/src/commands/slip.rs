@@ -121,8 +121,12 @@ fn fit(a: &FitArgs) -> anyhow::Result<()> {
     )?;
     let (_, seqs) = tracked(&a.common, false)?;
     let like = SlipSettings::default();
-    let ev: Vec<_> = seqs.iter().map(|s| evidence_of(s, &like)).collect();
     let y: Vec<SlipTruth> = labels.iter().map(Label::truth).collect();
+    let ev: Vec<_> = seqs
+        .iter()
+        .zip(&y)
+        .map(|(s, t)| evidence_of(s, &like, t.onset_s.filter(|_| t.slip)))
+        .collect();
     let det = fit_detector(&ev, &y, &like)?;
     crate::write_atomically(&a.output, &det.to_json())?;
     let slips = y.iter().filter(|t| t.slip).count();

@@ -111,7 +111,7 @@ pub fn cross_validate(
         );
         let ent = small_logistic(&ev_whole, &y);
         for &i in &test {
-            let frames = evidence[i].every_frame.len();
+            let frames = evidence[i].frames;
             held_out_scores[i] = d.live_score(&whole[i], frames);
             let start = d.live_score(&evidence[i].start, START_FRAMES.min(frames));
             starts += usize::from(start >= d.threshold);
@@ -132,7 +132,7 @@ pub fn cross_validate(
         let p: Vec<bool> = whole
             .iter()
             .zip(evidence)
-            .map(|(w, e)| d.live_score(w, e.every_frame.len()) >= d.threshold)
+            .map(|(w, e)| d.live_score(w, e.frames) >= d.threshold)
             .collect();
         Scores::of(&p, slip)
     });

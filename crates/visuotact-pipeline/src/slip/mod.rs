@@ -1048,9 +1048,12 @@ pub struct SequenceEvidence {
     /// Over its first [`START_FRAMES`] frames (or all, if fewer): a grasp's start, before
     /// anything can have slipped.
     pub start: [f64; EVIDENCE_LEN],
-    /// Over its first 1, 2, … frames, and the time of each one's last frame: where a slip's
-    /// onset is labelled, the beginnings within [`ONSET_FRAMES`] frames of it.
-    pub every_frame: Vec<([f64; EVIDENCE_LEN], f64)>,
+    /// Its frames.
+    pub frames: usize,
+    /// Where its slip's onset was given ([`evidence_of`]), its beginnings ending within
+    /// [`ONSET_FRAMES`] frames of it (before it and from it), each with the time of its last
+    /// frame and its length in frames.
+    pub near_onset: Vec<([f64; EVIDENCE_LEN], f64, usize)>,
 }
 
 /// Frames either side of a labelled onset whose beginnings each count in a fit
@@ -1080,19 +1083,30 @@ impl From<bool> for SlipTruth {
     }
 }
 
-/// The evidence of a tracked sequence under `settings`' lag and smoothing.
-pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEvidence {
+/// The evidence of a tracked sequence under `settings`' lag and smoothing; with `onset_s`,
+/// when its slip began, also its beginnings near the onset.
+pub fn evidence_of(
+    seq: &TrackedSequence,
+    settings: &SlipSettings,
+    onset_s: Option<f64>,
+) -> SequenceEvidence {
     let mut t = FieldTracker::new(&seq.markers_px, seq.pitch_px, settings.lag_frames);
     let mut e = SlipEvidence::new(settings.smooth_frames);
     let mut f = FieldDynamics::default();
     let mut imprint = LagSum::new(settings.lag_frames);
     let (mut prefixes, mut prefix_end_s) = (Vec::new(), Vec::new());
     let mut start = [0.0; EVIDENCE_LEN];
-    let mut every_frame = Vec::with_capacity(seq.frames.len());
+    let near = onset_s.map_or(0..0, |onset| {
+        let k = seq.frames.partition_point(|f| f.timestamp_s < onset);
+        k.saturating_sub(ONSET_FRAMES)..k + ONSET_FRAMES
+    });
+    let mut near_onset = Vec::with_capacity(near.len());
     for (k, frame) in seq.frames.iter().enumerate() {
         t.update_into(&frame.displacement_px, &mut f);
         e.push(&f, imprint.push(frame.imprint_slide_px) / seq.pitch_px);
-        every_frame.push((e.values(), frame.timestamp_s));
+        if near.contains(&k) {
+            near_onset.push((e.values(), frame.timestamp_s, k + 1));
+        }
         if k + 1 == START_FRAMES.min(seq.frames.len()) {
             start = e.values();
         }
@@ -1106,7 +1120,8 @@ pub fn evidence_of(seq: &TrackedSequence, settings: &SlipSettings) -> SequenceEv
         prefixes,
         prefix_end_s,
         start,
-        every_frame,
+        frames: seq.frames.len(),
+        near_onset,
     }
 }
 
@@ -1143,7 +1158,7 @@ pub fn fit_detector(
     for (e, t) in evidence.iter().zip(truth) {
         rows.push(e.whole);
         labels.push(t.slip);
-        min_frames = min_frames.min(e.every_frame.len().max(1));
+        min_frames = min_frames.min(e.frames.max(1));
         // A beginning is known not to have slipped, or (onset labelled) whether it had.
         if settings.stick_prefixes && (!t.slip || t.onset_s.is_some()) {
             rows.extend_from_slice(&e.prefixes);
@@ -1154,10 +1169,8 @@ pub fn fit_detector(
             );
         }
         if let (true, Some(onset)) = (settings.stick_prefixes && t.slip, t.onset_s) {
-            let k = e.every_frame.partition_point(|&(_, end)| end < onset);
-            let first = k.saturating_sub(ONSET_FRAMES);
-            min_frames = min_frames.min(first + 1);
-            for &(v, end) in e.every_frame.iter().skip(first).take(2 * ONSET_FRAMES) {
+            for &(v, end, frames) in &e.near_onset {
+                min_frames = min_frames.min(frames);
                 rows.push(v);
                 labels.push(end >= onset);
             }

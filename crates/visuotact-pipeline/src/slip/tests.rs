@@ -155,10 +155,13 @@ fn with_imprint(mut seq: TrackedSequence, slip: bool) -> TrackedSequence {
 #[test]
 fn a_detector_fitted_with_the_imprint_reads_it_and_one_fitted_without_does_not() {
     let s = SlipSettings::default();
-    let (ev, y) = training(60, &s);
+    let (ev, y) = training(60, &s, None);
     assert!(!fit_detector(&ev, &y, &s).unwrap().reads_imprint());
     let ev: Vec<_> = (0..40u64)
-        .map(|k| evidence_of(&with_imprint(sequence(60, k % 2 == 0, k), k % 2 == 0), &s))
+        .map(|k| {
+            let q = with_imprint(sequence(60, k % 2 == 0, k), k % 2 == 0);
+            evidence_of(&q, &s, None)
+        })
         .collect();
     let d = fit_detector(&ev, &y, &s).unwrap();
     assert!(d.reads_imprint());
@@ -174,12 +177,19 @@ fn a_detector_fitted_with_the_imprint_reads_it_and_one_fitted_without_does_not()
     assert!(right >= 9, "{right} of 10 held-out sequences right");
 }
 
-/// Forty training sequences of `n` frames, every second one slipping: their evidence and labels.
-fn training(n: usize, s: &SlipSettings) -> (Vec<SequenceEvidence>, Vec<SlipTruth>) {
+/// Forty training sequences of `n` frames, every second one slipping (labelled with `onset_s`
+/// when given): their evidence and labels.
+fn training(
+    n: usize,
+    s: &SlipSettings,
+    onset_s: Option<f64>,
+) -> (Vec<SequenceEvidence>, Vec<SlipTruth>) {
     (0..40u64)
         .map(|k| {
             let slip = k % 2 == 0;
-            (evidence_of(&sequence(n, slip, k), s), SlipTruth::from(slip))
+            let onset_s = onset_s.filter(|_| slip);
+            let t = SlipTruth { slip, onset_s };
+            (evidence_of(&sequence(n, slip, k), s, onset_s), t)
         })
         .unzip()
 }
@@ -187,7 +197,7 @@ fn training(n: usize, s: &SlipSettings) -> (Vec<SequenceEvidence>, Vec<SlipTruth
 #[test]
 fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
     let s = SlipSettings::default();
-    let (ev, y) = training(100, &s);
+    let (ev, y) = training(100, &s, None);
     let d = fit_detector(&ev, &y, &s).unwrap();
     assert_eq!(d.fitted_on, [40, 20]);
     assert_eq!(
@@ -230,22 +240,18 @@ fn a_fitted_detector_tells_held_out_slips_from_shakes_and_dates_the_onset() {
 #[test]
 fn onsets_in_the_labels_date_the_slip_nearer_the_truth() {
     let s = SlipSettings::default();
-    let (ev, plain) = training(150, &s);
+    let (ev, plain) = training(150, &s, None);
     assert_eq!(ev[0].prefix_end_s, [0.96, 1.96, 2.96, 3.96, 4.96]);
     // A sequence's start is the evidence of its first frames alone.
     let mut first = sequence(150, true, 0);
     first.frames.truncate(START_FRAMES);
-    assert_eq!(ev[0].start, evidence_of(&first, &s).whole);
-    let timed: Vec<SlipTruth> = plain
-        .iter()
-        .map(|t| SlipTruth {
-            onset_s: t.slip.then_some(3.0),
-            ..*t
-        })
-        .collect();
+    assert_eq!(ev[0].start, evidence_of(&first, &s, None).whole);
+    let (ev_timed, timed) = training(150, &s, Some(3.0));
+    assert_eq!(ev_timed[0].near_onset.len(), 2 * ONSET_FRAMES);
+    assert!(ev[0].near_onset.is_empty() && ev_timed[1].near_onset.is_empty());
     let (d_plain, d_timed) = (
         fit_detector(&ev, &plain, &s).unwrap(),
-        fit_detector(&ev, &timed, &s).unwrap(),
+        fit_detector(&ev_timed, &timed, &s).unwrap(),
     );
     assert_ne!(d_timed.weights, d_plain.weights, "the onsets are used");
     let (mut off_plain, mut off_timed) = (0.0, 0.0);
@@ -324,7 +330,7 @@ fn sequences_are_videos_folders_of_images_or_folders_of_them() {
 #[test]
 fn cross_validation_holds_each_group_out_and_counts_start_alarms() {
     let s = SlipSettings::default();
-    let (ev, y) = training(100, &s);
+    let (ev, y) = training(100, &s, None);
     let groups: Vec<String> = (0..ev.len()).map(|k| format!("g{}", k % 4)).collect();
     let cv = cross_validate(&ev, &y, &groups, &s, None).unwrap();
     assert_eq!(cv.folds, 4);
@@ -368,16 +374,10 @@ fn a_detector_reads_a_sequence_from_the_fewest_frames_it_was_fitted_on() {
     }
     assert!(read > 0, "the evidence is kept from the first frame");
     let s = SlipSettings::default();
-    let (ev, y) = training(100, &s);
+    let (ev, y) = training(100, &s, None);
     assert_eq!(fit_detector(&ev, &y, &s).unwrap().min_frames, PREFIX_EVERY);
     // A slip labelled at 0.4 s is taught from the frames 5 before it: from frame 6 on.
-    let early: Vec<SlipTruth> = y
-        .iter()
-        .map(|t| SlipTruth {
-            onset_s: t.slip.then_some(0.4),
-            ..*t
-        })
-        .collect();
+    let (ev, early) = training(100, &s, Some(0.4));
     assert_eq!(fit_detector(&ev, &early, &s).unwrap().min_frames, 6);
     let text = d
         .to_json()
@@ -404,7 +404,7 @@ fn a_grasps_sensors_add_their_log_odds() {
     assert!((both - 16.0 / 17.0).abs() < 1e-12, "{both}");
     assert!(fused_score([0.4, 0.4]) < 0.4);
     let s = SlipSettings::default();
-    let (ev, y) = training(100, &s);
+    let (ev, y) = training(100, &s, None);
     let d = fit_detector(&ev, &y, &s).unwrap();
     let (a, b) = (
         detect(&sequence(100, true, 200), &d),
@@ -427,7 +427,7 @@ fn a_grasps_sensors_add_their_log_odds() {
 #[test]
 fn fused_held_out_scores_judge_each_grasp_once() {
     let s = SlipSettings::default();
-    let (ev, y) = training(100, &s);
+    let (ev, y) = training(100, &s, None);
     let groups: Vec<String> = (0..ev.len()).map(|k| format!("g{}", k % 4)).collect();
     let cv = cross_validate(&ev, &y, &groups, &s, None).unwrap();
     // Sequences k and k + 4 share a group; pair them as one grasp's two sensors when their
