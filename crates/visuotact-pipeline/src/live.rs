@@ -355,8 +355,7 @@ impl LiveEstimator {
     /// Each contact is one sequence: the detector starts afresh when a contact begins (and on
     /// re-zeroing), and reads it from its [`SlipDetector::min_frames`]-th frame. Nothing slips
     /// without contact: a frame without one is `stick` with score 0 and no field signals (the
-    /// markers' noise at rest is no evidence). Needs a feature set
-    /// with `dx` and `dy`.
+    /// markers' noise at rest is no evidence). Needs a feature set with `dx` and `dy`.
     pub fn set_slip(&mut self, detector: SlipDetector) -> Result<(), PipelineError> {
         self.slip = Some(SlipMonitor::for_estimator(detector, &self.est)?);
         Ok(())
