@@ -371,10 +371,11 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
         // any other run, or more of these, fails.
         // Charging a dot's pieces in every order-free reading (issue 60: the real GelSight
         // videos' dots broken by drawn arrows) took seed 8 from 1 to 3 and seed 43 from 2 to 3.
+        // Shifting a reading along every step both ways (below) took seeds 8 and 43 to 1, 21
+        // to 0 and 9 from 0 to 1.
         let allowed = match (name, variant, seed) {
-            ("dots", 3, 21) => 1,
             ("dots", 3, 16) => 2,
-            ("dots", 3, 8 | 43) => 3,
+            ("dots", 3, 8 | 9 | 43) => 1,
             _ => 0,
         };
         assert!(
@@ -382,7 +383,20 @@ fn drags_beyond_a_pitch_lose_markers_rather_than_swap_them() {
             "{what}: {:#?}",
             r.examples
         );
-        assert_eq!(r.lost, r.beyond_lost, "{what}: {:#?}", r.examples);
+        // The order-free search shifts an unnumbered reference's reading along every step both
+        // ways (issue 60: a plate-stretched dome read a step off): over dots variants 1–5
+        // dragged on seeds 1–20, within 1.5 pitches 9 → 6 wrong and 48 → 39 lost
+        // marker-frames, and one runner-up more within the margin here (a large dot in a
+        // frame moved 0.93 pitches, `ambiguous`).
+        let lost_within = match (name, variant, seed) {
+            ("dots", 3, 12) => 1,
+            _ => 0,
+        };
+        assert!(
+            r.lost - r.beyond_lost <= lost_within,
+            "{what}: {:#?}",
+            r.examples
+        );
         assert!(r.beyond_frames > 0, "{what}: no frame moved beyond a pitch");
     }
 }
@@ -525,6 +539,37 @@ fn a_plate_tilted_and_slid_on_a_dome_in_contact_keeps_every_pin() {
         assert_eq!(r.wrong, 0, "{what}: wrong identities: {:#?}", r.examples);
         assert_eq!(r.lost, 0, "{what}: visible pins lost: {:#?}", r.examples);
     }
+}
+
+/// A dome calibrated under a plate's press that calibration cannot number as a hexagonal
+/// array (the scorecard's `plate` reference of TacTip variant 8, seed 127, a seed the scorecard
+/// tests do not use): the tracker takes the lattice's steps from the central pin's neighbours,
+/// which the stretched reference had left along one axis. 4 of the 20 frames were read whole a
+/// step off (292 of 313 pins wrong, 21 lost) where the search could not shift them back.
+#[test]
+fn a_dome_calibrated_unnumbered_under_a_plate_is_not_read_a_step_off() {
+    use visuotact_sim::protocol::zoo_plate;
+    let (variant, seed) = (8, 127);
+    let sensor = SimSensor::named("tactip", variant).unwrap();
+    let SimSensor::Zoo(cfg) = sensor else {
+        unreachable!("tactip is a zoo sensor")
+    };
+    // As the scorecard draws a plate row's reference.
+    let reference = zoo_plate(&cfg, 1, seed ^ 0x5EF0).unwrap()[0];
+    let r = check(&CheckConfig {
+        reference_touch: Some(reference),
+        ..config(sensor, "plate", 20, seed)
+    })
+    .unwrap();
+    assert_eq!(r.layout, Some(Layout::Irregular));
+    assert!(
+        r.max_motion_pitches > 2.0,
+        "moved only {:.2}",
+        r.max_motion_pitches
+    );
+    assert_eq!(r.uncalibrated, 0);
+    assert_eq!(r.wrong, 0, "wrong identities: {:#?}", r.examples);
+    assert_eq!(r.lost, 0, "visible pins lost: {:#?}", r.examples);
 }
 
 /// A dome calibrated under a plate's press (tilted, slid and twisted, as the scorecard's `plate`

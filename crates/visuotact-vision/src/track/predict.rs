@@ -247,9 +247,10 @@ pub(super) fn anchors_from_prior(
 
 /// Lattice steps of markers without a numbered lattice (a hexagonal array takes its own,
 /// [`super::TrackReference::take_lattice`]): the directions of the first ring of neighbours
-/// around the marker nearest the layout's centre (four on a grid), as unit-spacing vectors in
-/// turn around the circle, and per marker the neighbour one step away in each (`None` at the
-/// layout's edge, or where no neighbour lies within a third of a spacing of the step).
+/// around the marker nearest the layout's centre (four on a grid), each taken both ways (and
+/// the ring widened up to 1.9 spacings while that gives fewer than four), as unit-spacing
+/// vectors in turn around the circle, and per marker the neighbour one step away in each
+/// (`None` at the layout's edge, or where none lies within 25° of the step and 1.9 spacings).
 pub(super) fn lattice_steps(
     positions: &[(f64, f64)],
     neighbours: &[Vec<usize>],
@@ -261,18 +262,41 @@ pub(super) fn lattice_steps(
     }
     let centre = nearest_centroid(positions).unwrap_or(0);
     let s0 = spacing_px[centre];
-    let mut dirs: Vec<(f64, f64)> = neighbours[centre]
-        .iter()
-        .map(|&k| {
-            (
-                (positions[k].0 - positions[centre].0) / s0,
-                (positions[k].1 - positions[centre].1) / s0,
-            )
-        })
-        .filter(|d| d.0.hypot(d.1) < 1.3)
-        .take(8)
-        .collect();
     let max_turn = 25f64.to_radians();
+    // Whether two directions (vectors) lie within `max_turn` of each other.
+    let within = |a: (f64, f64), b: (f64, f64)| {
+        let turn = (a.1.atan2(a.0) - b.1.atan2(b.0) + std::f64::consts::PI)
+            .rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        turn.abs() < max_turn
+    };
+    // The central marker's neighbours within 1.3 spacings, each step taken both ways; where
+    // that leaves fewer than two axes (a reference taken in contact, stretched across the
+    // centre), within up to 1.9 spacings: a reading shifted along any axis must be shiftable
+    // back.
+    let mut dirs: Vec<(f64, f64)> = Vec::new();
+    for reach in [1.3, 1.6, 1.9] {
+        dirs = neighbours[centre]
+            .iter()
+            .map(|&k| {
+                (
+                    (positions[k].0 - positions[centre].0) / s0,
+                    (positions[k].1 - positions[centre].1) / s0,
+                )
+            })
+            .filter(|d| d.0.hypot(d.1) < reach)
+            .take(8)
+            .collect();
+        for k in 0..dirs.len() {
+            let back = (-dirs[k].0, -dirs[k].1);
+            if !dirs.iter().any(|&d| within(d, back)) {
+                dirs.push(back);
+            }
+        }
+        if dirs.len() >= 4 {
+            break;
+        }
+    }
     // In turn around the circle: consecutive steps span the lattice's cells.
     dirs.sort_by(|a, b| a.1.atan2(a.0).total_cmp(&b.1.atan2(b.0)));
     // Per marker, the nearest neighbour (within 1.9 spacings) whose direction is within 25°
@@ -282,8 +306,7 @@ pub(super) fn lattice_steps(
         .map(|i| {
             let s = spacing_px[i];
             dirs.iter()
-                .map(|d| {
-                    let want = d.1.atan2(d.0);
+                .map(|&d| {
                     neighbours[i]
                         .iter()
                         .filter_map(|&q| {
@@ -292,10 +315,7 @@ pub(super) fn lattice_steps(
                                 positions[q].1 - positions[i].1,
                             );
                             let len = o.0.hypot(o.1);
-                            let turn = (o.1.atan2(o.0) - want + std::f64::consts::PI)
-                                .rem_euclid(std::f64::consts::TAU)
-                                - std::f64::consts::PI;
-                            (len < 1.9 * s && turn.abs() < max_turn).then_some((q, len))
+                            (len < 1.9 * s && within(o, d)).then_some((q, len))
                         })
                         .min_by(|a, b| a.1.total_cmp(&b.1))
                         .map(|(q, _)| q)
@@ -304,4 +324,38 @@ pub(super) fn lattice_steps(
         })
         .collect();
     (dirs.len(), steps)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::TrackReference;
+
+    /// A grid stretched half as far again across its rows as along them (a reference taken
+    /// under a drag): the central marker's neighbours within 1.3 spacings lie along the rows
+    /// only. The steps still span both axes, each both ways, so that a reading shifted a row
+    /// or a column either way can be shifted back.
+    #[test]
+    fn a_stretched_reference_keeps_both_axes_both_ways() {
+        let positions: Vec<(f64, f64)> = (0..7)
+            .flat_map(|r| (0..7).map(move |c| (10.0 * f64::from(c), 15.0 * f64::from(r))))
+            .collect();
+        let r = TrackReference::new(positions.clone(), vec![12.0; positions.len()]);
+        assert_eq!(r.lattice_dirs, 4);
+        let centre = 3 * 7 + 3;
+        let mut to: Vec<(i64, i64)> = r.lattice_steps[centre]
+            .iter()
+            .map(|k| {
+                let k = k.expect("the centre has a neighbour every way");
+                let d = (
+                    positions[k].0 - positions[centre].0,
+                    positions[k].1 - positions[centre].1,
+                );
+                ((d.0 / 10.0).round() as i64, (d.1 / 15.0).round() as i64)
+            })
+            .collect();
+        to.sort_unstable();
+        assert_eq!(to, [(-1, 0), (0, -1), (0, 1), (1, 0)]);
+        // A corner has no neighbour beyond the grid's edge.
+        assert_eq!(r.lattice_steps[0].iter().filter(|k| k.is_none()).count(), 2);
+    }
 }
