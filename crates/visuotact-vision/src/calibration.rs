@@ -246,6 +246,13 @@ pub struct SensorCalibration {
     /// millimetres beside the pixels, comparable between sensors of one design.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<PixelScale>,
+    /// Hexagonal arrays: blobs of the reference the numbering left out, `(x_px, y_px,
+    /// area_px)` (pins on a seam where the numbering skipped a row, in a reference taken in
+    /// contact). Not markers (no column of features); the tracker follows them as markers it
+    /// never reports, so that a reading shifted a lattice step onto their pins pays for the
+    /// pins it leaves without their owner.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unnumbered: Vec<(f64, f64, f64)>,
 }
 
 /// The skin's scale in the image: from the markers' pitch measured in millimetres on the skin
@@ -595,6 +602,75 @@ fn specks_of(numbered: &Ordered) -> Vec<Blob> {
         .collect()
 }
 
+/// A hexagonal numbering's left-out blobs that are pins it skipped
+/// ([`SensorCalibration::unnumbered`]): not cut by the border, and where a pin of the array
+/// can be that no numbered pin already is —
+/// - no numbered pin within three quarters of the pins' spacing there (a pin's site is a
+///   spacing from its neighbours; a piece of a pin, or a speck in the middle of a lattice
+///   triangle, 0.58 spacings from its corners, lies nearer);
+/// - numbered pins all around within 1.6 spacings: no gap of half a turn between their
+///   directions (a blob beside the array, a screw or a glint past its rim, is no pin of it);
+/// - an area within a factor of four of those pins' median (not a speck, not a glare).
+fn unnumbered_of(blobs: &[Blob], numbered: &Ordered) -> Vec<(f64, f64, f64)> {
+    if numbered.layout != Layout::Hex {
+        return Vec::new();
+    }
+    let pins: Vec<(f64, f64, f64)> = numbered
+        .blobs
+        .iter()
+        .map(|(b, _, _)| (b.x_px, b.y_px, f64::from(b.area_px)))
+        .collect();
+    let is_pin = |b: &Blob| {
+        let dist = |p: &(f64, f64, f64)| (p.0 - b.x_px).hypot(p.1 - b.y_px);
+        let near: Vec<(f64, f64, f64)> = pins
+            .iter()
+            .filter(|p| dist(p) < 1.6 * numbered.pitch_px)
+            .copied()
+            .collect();
+        if near.len() < 3 {
+            return false;
+        }
+        // The pins' own spacing here (a dome's pitch varies across the image, a crease
+        // squeezes it).
+        let mut spacings: Vec<f64> = near
+            .iter()
+            .map(|p| {
+                pins.iter()
+                    .map(|q| (q.0 - p.0).hypot(q.1 - p.1))
+                    .filter(|&d| d > 0.0)
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        let spacing = median(&mut spacings);
+        let nearest = near.iter().map(dist).fold(f64::INFINITY, f64::min);
+        let mut angles: Vec<f64> = near
+            .iter()
+            .map(|p| (p.1 - b.y_px).atan2(p.0 - b.x_px))
+            .collect();
+        angles.sort_by(f64::total_cmp);
+        let turn = 2.0 * std::f64::consts::PI;
+        let widest = angles
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(angles[0] + turn - angles[angles.len() - 1], f64::max);
+        let mut areas: Vec<f64> = near.iter().map(|p| p.2).collect();
+        let area = f64::from(b.area_px) / median(&mut areas);
+        nearest >= 0.75 * spacing && widest < 0.5 * turn && (0.25..=4.0).contains(&area)
+    };
+    blobs
+        .iter()
+        .filter(|b| {
+            !b.touches_border
+                && !numbered
+                    .blobs
+                    .iter()
+                    .any(|(n, _, _)| n.x_px == b.x_px && n.y_px == b.y_px)
+                && is_pin(b)
+        })
+        .map(|b| (b.x_px, b.y_px, f64::from(b.area_px)))
+        .collect()
+}
+
 /// The reference markers of numbered blobs (jitter still unknown).
 fn reference_markers(numbered: &Ordered, convention: MomentConvention) -> Vec<ReferenceMarker> {
     numbered
@@ -729,6 +805,7 @@ where
         markers: reference_markers(&numbered, convention),
         marker_size: None,
         scale: None,
+        unnumbered: unnumbered_of(&blobs, &numbered),
     };
     measure_jitter(&frames, &mut det, &mut cal, &mut report);
     Ok((cal, report))
@@ -799,28 +876,32 @@ fn rings_order(blobs: &[Blob], convention: MomentConvention) -> Ordered {
 /// ([`TrackReference::fill_sigma`]).
 pub fn track_reference(cal: &SensorCalibration) -> TrackReference {
     let (markers, pitch_px, layout) = (&cal.markers, cal.pitch_px, cal.layout);
-    let positions: Vec<(f64, f64)> = markers.iter().map(|m| (m.x_px, m.y_px)).collect();
-    let areas_px: Vec<f64> = markers.iter().map(|m| m.area_px).collect();
+    let mut positions: Vec<(f64, f64)> = markers.iter().map(|m| (m.x_px, m.y_px)).collect();
+    let mut areas_px: Vec<f64> = markers.iter().map(|m| m.area_px).collect();
+    // An unseen site's pin is expected at the markers' median area.
+    let unseen_area_px = median(&mut areas_px.clone());
     let steps = layout.row_col_steps();
     let mut sites: Vec<(i64, i64)> = markers
         .iter()
         .map(|m| (i64::from(m.row), i64::from(m.col)))
         .collect();
+    // The unnumbered pins, followed after the markers: each at a site of its own far off the
+    // lattice (no step reaches it), and no site is unseen where one of them lies.
+    for (k, &(x, y, area)) in cal.unnumbered.iter().enumerate() {
+        positions.push((x, y));
+        areas_px.push(area);
+        sites.push((i64::MIN / 4 - 16 * k as i64, 0));
+    }
     // A numbered array's sites where the reference (taken in contact) saw no pin.
     let unseen = if steps.is_empty() {
         Vec::new()
     } else {
         unseen_sites(&sites, &positions, steps)
     };
-    // An unseen site's pin is expected at the markers' median area.
-    let unseen_area_px = if unseen.is_empty() {
-        0.0
-    } else {
-        median(&mut areas_px.clone())
-    };
     sites.extend(unseen.iter().map(|u| u.0));
     let unseen_px: Vec<(f64, f64)> = unseen.iter().map(|u| u.1).collect();
     let mut r = TrackReference::with_unseen(positions, areas_px, &unseen_px, unseen_area_px);
+    r.set_unnumbered(cal.unnumbered.len());
     // The axes are 4·√λ in the file's convention; the fill counts each pixel as a unit square.
     let square = match cal.moment_convention {
         MomentConvention::Pixel => 1.0 / 12.0,

@@ -152,6 +152,12 @@ fn print_calibrated(done: &Calibrated) {
         report.raw_blobs,
         report.off_grid.len()
     );
+    if !cal.unnumbered.is_empty() {
+        note!(
+            "{} of those off the layout lie where pins of the array can be (a seam the numbering skipped): tracking follows them, never reports them",
+            cal.unnumbered.len()
+        );
+    }
     if let Some(s) = cal.scale {
         note!(
             "scale: {:.5} mm per px (pitch {} mm over {:.2} px): feature tables carry displacements in mm beside px",

@@ -27,7 +27,10 @@
 //! - `sites`: a numbered array's lattice sites where the reference saw no pin (hidden under a
 //!   reference in contact) are followed as markers absent for free and never reported, so
 //!   that the pin's blob, once it shows, has an owner (test
-//!   `a_pin_hidden_at_rest_is_an_unseen_site_not_a_neighbours_blob`).
+//!   `a_pin_hidden_at_rest_is_an_unseen_site_not_a_neighbours_blob`). Pins the reference
+//!   showed but the numbering skipped (a seam in a reference in contact) are followed the same
+//!   way, their absence charged as any marker's (test
+//!   `pins_the_numbering_left_out_are_followed_not_taken`).
 //! - `ambiguity`, `split`: a blob may hold two markers (a hypothesis on the energy, split by
 //!   its moments when they are two discs'); a marker is ambiguous when a runner-up reading
 //!   costs less than one margin more than the best.
@@ -279,9 +282,11 @@ pub struct TrackReference {
     lattice_dirs: usize,
     /// Per marker, its neighbour one step along each of the `lattice_dirs` directions.
     lattice_steps: Vec<Vec<Option<usize>>>,
-    /// How many of the positions are markers; those after them are unseen lattice sites
-    /// ([`unseen_sites`]), followed but never reported.
+    /// How many of the positions are markers; those after them are followed but never
+    /// reported: pins the numbering left out, then unseen lattice sites ([`unseen_sites`]).
     markers: usize,
+    /// Where the unseen lattice sites begin (after the markers and the unnumbered pins).
+    unseen_from: usize,
 }
 
 impl TrackReference {
@@ -340,6 +345,7 @@ impl TrackReference {
             lattice_dirs,
             lattice_steps,
             markers: n,
+            unseen_from: n,
         }
     }
 
@@ -358,10 +364,19 @@ impl TrackReference {
         areas_px.extend(std::iter::repeat_n(unseen_area_px, unseen_px.len()));
         let mut r = Self::new(positions, areas_px);
         r.markers = markers;
+        r.unseen_from = markers;
         r
     }
 
-    /// How many markers the reference has (its positions less the unseen sites).
+    /// Takes the last `count` of the markers as pins the numbering left out: followed and
+    /// never reported, as the unseen sites after them, but seen at rest, so absent at the cost
+    /// of any marker.
+    pub fn set_unnumbered(&mut self, count: usize) {
+        self.markers -= count.min(self.markers);
+    }
+
+    /// How many markers the reference has (its positions less the unnumbered pins and the
+    /// unseen sites).
     pub fn markers(&self) -> usize {
         self.markers
     }
@@ -373,7 +388,7 @@ impl TrackReference {
 
     /// Whether position `i` is an unseen lattice site rather than a marker.
     pub(crate) fn is_unseen(&self, i: usize) -> bool {
-        i >= self.markers
+        i >= self.unseen_from
     }
 }
 
