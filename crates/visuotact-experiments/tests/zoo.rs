@@ -541,6 +541,22 @@ fn a_plate_tilted_and_slid_on_a_dome_in_contact_keeps_every_pin() {
     }
 }
 
+/// TacTip `variant` through 20 `plate` touches of `seed` against a reference drawn as the
+/// scorecard's `plate` rows draw it (itself a plate press).
+fn scorecard_plate(variant: u64, seed: u64) -> CheckReport {
+    use visuotact_sim::protocol::zoo_plate;
+    let sensor = SimSensor::named("tactip", variant).unwrap();
+    let SimSensor::Zoo(cfg) = sensor else {
+        unreachable!("tactip is a zoo sensor")
+    };
+    let reference = zoo_plate(&cfg, 1, seed ^ 0x5EF0).unwrap()[0];
+    check(&CheckConfig {
+        reference_touch: Some(reference),
+        ..config(sensor, "plate", 20, seed)
+    })
+    .unwrap()
+}
+
 /// A dome calibrated under a plate's press that calibration cannot number as a hexagonal
 /// array (the scorecard's `plate` reference of TacTip variant 8, seed 127, a seed the scorecard
 /// tests do not use): the tracker takes the lattice's steps from the central pin's neighbours,
@@ -548,19 +564,7 @@ fn a_plate_tilted_and_slid_on_a_dome_in_contact_keeps_every_pin() {
 /// step off (292 of 313 pins wrong, 21 lost) where the search could not shift them back.
 #[test]
 fn a_dome_calibrated_unnumbered_under_a_plate_is_not_read_a_step_off() {
-    use visuotact_sim::protocol::zoo_plate;
-    let (variant, seed) = (8, 127);
-    let sensor = SimSensor::named("tactip", variant).unwrap();
-    let SimSensor::Zoo(cfg) = sensor else {
-        unreachable!("tactip is a zoo sensor")
-    };
-    // As the scorecard draws a plate row's reference.
-    let reference = zoo_plate(&cfg, 1, seed ^ 0x5EF0).unwrap()[0];
-    let r = check(&CheckConfig {
-        reference_touch: Some(reference),
-        ..config(sensor, "plate", 20, seed)
-    })
-    .unwrap();
+    let r = scorecard_plate(8, 127);
     assert_eq!(r.layout, Some(Layout::Irregular));
     assert!(
         r.max_motion_pitches > 2.0,
@@ -579,19 +583,7 @@ fn a_dome_calibrated_unnumbered_under_a_plate_is_not_read_a_step_off() {
 /// them: 279 of 4 849 pin-frames wrong, 20 in most of the 20 frames; now 81, 1 in most frames.
 #[test]
 fn pins_the_numbering_left_out_are_followed_not_taken() {
-    use visuotact_sim::protocol::zoo_plate;
-    let (variant, seed) = (4, 115);
-    let sensor = SimSensor::named("tactip", variant).unwrap();
-    let SimSensor::Zoo(cfg) = sensor else {
-        unreachable!("tactip is a zoo sensor")
-    };
-    // As the scorecard draws a plate row's reference.
-    let reference = zoo_plate(&cfg, 1, seed ^ 0x5EF0).unwrap()[0];
-    let r = check(&CheckConfig {
-        reference_touch: Some(reference),
-        ..config(sensor, "plate", 20, seed)
-    })
-    .unwrap();
+    let r = scorecard_plate(4, 115);
     assert_eq!(r.layout, Some(Layout::Hex));
     assert!(
         r.uncalibrated >= 3,

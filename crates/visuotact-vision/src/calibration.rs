@@ -608,7 +608,7 @@ fn specks_of(numbered: &Ordered) -> Vec<Blob> {
 /// - no numbered pin within three quarters of the pins' spacing there (a pin's site is a
 ///   spacing from its neighbours; a piece of a pin, or a speck in the middle of a lattice
 ///   triangle, 0.58 spacings from its corners, lies nearer);
-/// - numbered pins all around within 1.6 spacings: no gap of half a turn between their
+/// - numbered pins all around within 1.6 pitches: no gap of half a turn between their
 ///   directions (a blob beside the array, a screw or a glint past its rim, is no pin of it);
 /// - an area within a factor of four of those pins' median (not a speck, not a glare).
 fn unnumbered_of(blobs: &[Blob], numbered: &Ordered) -> Vec<(f64, f64, f64)> {
