@@ -27,7 +27,7 @@ use crate::blobs::{Blob, MomentConvention};
 use crate::detect::{Detector, DetectorConfig};
 use crate::features::FeatureSet;
 use crate::layout::{
-    annuli_share_centres, median, number_markers, Layout, LayoutChoice, LayoutError,
+    annuli_share_centres, k_nearest_all, median, number_markers, Layout, LayoutChoice, LayoutError,
 };
 use crate::preprocess::gray_from_rgb_into;
 use crate::track::{fill_sigma_from_rest, track, unseen_sites, TrackParams, TrackReference};
@@ -615,49 +615,7 @@ fn unnumbered_of(blobs: &[Blob], numbered: &Ordered) -> Vec<(f64, f64, f64)> {
     if numbered.layout != Layout::Hex {
         return Vec::new();
     }
-    let pins: Vec<(f64, f64, f64)> = numbered
-        .blobs
-        .iter()
-        .map(|(b, _, _)| (b.x_px, b.y_px, f64::from(b.area_px)))
-        .collect();
-    let is_pin = |b: &Blob| {
-        let dist = |p: &(f64, f64, f64)| (p.0 - b.x_px).hypot(p.1 - b.y_px);
-        let near: Vec<(f64, f64, f64)> = pins
-            .iter()
-            .filter(|p| dist(p) < 1.6 * numbered.pitch_px)
-            .copied()
-            .collect();
-        if near.len() < 3 {
-            return false;
-        }
-        // The pins' own spacing here (a dome's pitch varies across the image, a crease
-        // squeezes it).
-        let mut spacings: Vec<f64> = near
-            .iter()
-            .map(|p| {
-                pins.iter()
-                    .map(|q| (q.0 - p.0).hypot(q.1 - p.1))
-                    .filter(|&d| d > 0.0)
-                    .fold(f64::INFINITY, f64::min)
-            })
-            .collect();
-        let spacing = median(&mut spacings);
-        let nearest = near.iter().map(dist).fold(f64::INFINITY, f64::min);
-        let mut angles: Vec<f64> = near
-            .iter()
-            .map(|p| (p.1 - b.y_px).atan2(p.0 - b.x_px))
-            .collect();
-        angles.sort_by(f64::total_cmp);
-        let turn = 2.0 * std::f64::consts::PI;
-        let widest = angles
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .fold(angles[0] + turn - angles[angles.len() - 1], f64::max);
-        let mut areas: Vec<f64> = near.iter().map(|p| p.2).collect();
-        let area = f64::from(b.area_px) / median(&mut areas);
-        nearest >= 0.75 * spacing && widest < 0.5 * turn && (0.25..=4.0).contains(&area)
-    };
-    blobs
+    let left_out: Vec<&Blob> = blobs
         .iter()
         .filter(|b| {
             !b.touches_border
@@ -665,8 +623,52 @@ fn unnumbered_of(blobs: &[Blob], numbered: &Ordered) -> Vec<(f64, f64, f64)> {
                     .blobs
                     .iter()
                     .any(|(n, _, _)| n.x_px == b.x_px && n.y_px == b.y_px)
-                && is_pin(b)
         })
+        .collect();
+    if left_out.is_empty() {
+        return Vec::new();
+    }
+    let pins: Vec<(f64, f64)> = numbered
+        .blobs
+        .iter()
+        .map(|(b, _, _)| (b.x_px, b.y_px))
+        .collect();
+    // Each pin's spacing: the distance to its nearest pin (a dome's pitch varies across the
+    // image, a crease squeezes it).
+    let spacing: Vec<f64> = k_nearest_all(&pins, 1)
+        .iter()
+        .map(|v| v.first().map_or(f64::NAN, |x| x.1))
+        .collect();
+    let is_pin = |b: &Blob| {
+        let dist = |k: usize| (pins[k].0 - b.x_px).hypot(pins[k].1 - b.y_px);
+        let near: Vec<usize> = (0..pins.len())
+            .filter(|&k| dist(k) < 1.6 * numbered.pitch_px)
+            .collect();
+        if near.len() < 3 {
+            return false;
+        }
+        let local_spacing = median(&mut near.iter().map(|&k| spacing[k]).collect::<Vec<_>>());
+        let nearest = near.iter().map(|&k| dist(k)).fold(f64::INFINITY, f64::min);
+        let mut angles: Vec<f64> = near
+            .iter()
+            .map(|&k| (pins[k].1 - b.y_px).atan2(pins[k].0 - b.x_px))
+            .collect();
+        angles.sort_by(f64::total_cmp);
+        let turn = std::f64::consts::TAU;
+        let widest = angles
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(angles[0] + turn - angles[angles.len() - 1], f64::max);
+        let mut areas: Vec<f64> = near
+            .iter()
+            .map(|&k| f64::from(numbered.blobs[k].0.area_px))
+            .collect();
+        let area = f64::from(b.area_px) / median(&mut areas);
+        nearest >= 0.75 * local_spacing && widest < 0.5 * turn && (0.25..=4.0).contains(&area)
+    };
+    left_out
+        .into_iter()
+        .filter(|b| is_pin(b))
         .map(|b| (b.x_px, b.y_px, f64::from(b.area_px)))
         .collect()
 }

@@ -371,7 +371,7 @@ impl TrackReference {
     /// Takes the last `count` of the markers as pins the numbering left out: followed and
     /// never reported, as the unseen sites after them, but seen at rest, so absent at the cost
     /// of any marker.
-    pub fn set_unnumbered(&mut self, count: usize) {
+    pub(crate) fn set_unnumbered(&mut self, count: usize) {
         self.markers -= count.min(self.markers);
     }
 

@@ -271,9 +271,9 @@ pub(super) fn lattice_steps(
         turn.abs() < max_turn
     };
     // The central marker's neighbours within 1.3 spacings, each step taken both ways; where
-    // that leaves fewer than two axes (a reference taken in contact, stretched across the
-    // centre), within up to 1.9 spacings: a reading shifted along any axis must be shiftable
-    // back.
+    // that leaves fewer than four steps (two axes both ways; a reference taken in contact,
+    // stretched across the centre), within up to 1.9 spacings: a reading shifted along any
+    // axis must be shiftable back.
     let mut dirs: Vec<(f64, f64)> = Vec::new();
     for reach in [1.3, 1.6, 1.9] {
         dirs = neighbours[centre]
