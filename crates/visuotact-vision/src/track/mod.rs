@@ -571,35 +571,45 @@ fn settle(m: &mut solve::Matching<'_>, order_free: bool) -> Vec<slide::RunnerUp>
     runner_ups
 }
 
-/// Order-free, another start from the registration. Its reading replaces `m`'s when its
-/// energy (the one energy, with `m`'s own parameters) is lower by the margin; then returns
-/// the runner-ups of the reading kept.
-fn restart(
-    m: &mut solve::Matching<'_>,
+/// Order-free, the reading another start from the registration finds, searched with `m`'s
+/// parameters, the motion prior twice as firm for [`Start::ChainedFirm`]. It reads nothing of
+/// `m`'s reading, so the starts are searched side by side.
+fn restarted<'a>(
+    m: &solve::Matching<'a>,
     view: Option<View>,
     start: Start,
-) -> Option<Vec<slide::RunnerUp>> {
-    let params = m.energy.params;
-    let firmness = if start == Start::ChainedFirm {
-        0.5
-    } else {
-        1.0
-    };
-    let own = TrackParams {
-        motion_spacings: firmness * params.motion_spacings,
-        ..*params
-    };
-    let energy = energy::Energy {
-        reference: m.reference,
-        params: &own,
-        view,
-    };
-    let anchors = m.reference.positions.clone();
-    let mut second = solve::Matching::new(m.reference, m.blobs, m.usable, energy, anchors, m.shift);
-    search(&mut second, true, start);
+) -> impl FnOnce() -> Vec<Option<usize>> + Send + 'a {
+    let (reference, blobs, usable, shift) = (m.reference, m.blobs, m.usable, m.shift);
+    let params = *m.energy.params;
+    move || {
+        let firmness = if start == Start::ChainedFirm {
+            0.5
+        } else {
+            1.0
+        };
+        let own = TrackParams {
+            motion_spacings: firmness * params.motion_spacings,
+            ..params
+        };
+        let energy = energy::Energy {
+            reference,
+            params: &own,
+            view,
+        };
+        let anchors = reference.positions.clone();
+        let mut other = solve::Matching::new(reference, blobs, usable, energy, anchors, shift);
+        search(&mut other, true, start);
+        other.assignment
+    }
+}
+
+/// Order-free, another start's reading replaces `m`'s when its energy (the one energy, with
+/// `m`'s own parameters) is lower by the margin; then returns the runner-ups of the reading
+/// kept.
+fn adopt(m: &mut solve::Matching<'_>, other: &[Option<usize>]) -> Option<Vec<slide::RunnerUp>> {
     let (first, e_first) = (m.assignment.clone(), m.total_energy());
-    m.set_assignment(&second.assignment);
-    if m.total_energy() < e_first - params.margin {
+    m.set_assignment(other);
+    if m.total_energy() < e_first - m.energy.params.margin {
         Some(settle(m, true))
     } else {
         m.set_assignment(&first);
@@ -659,10 +669,18 @@ pub fn track_with(
     // A multi-start search on the one energy: while a reading leaves a blob or a marker in
     // view unexplained, another start may find a lower energy.
     let mut runner_ups = search(&mut m, order_free, Start::Chained);
-    for start in [Start::ChainedFirm, Start::Independent] {
-        if order_free && m.leaves_unexplained() {
-            if let Some(r) = restart(&mut m, hints.view, start) {
-                runner_ups = r;
+    if order_free && m.leaves_unexplained() {
+        // Both other starts are searched side by side (the second one's reading may explain
+        // everything, and the third is not needed then), and taken in turn.
+        let (firm, independent) = rayon::join(
+            restarted(&m, hints.view, Start::ChainedFirm),
+            restarted(&m, hints.view, Start::Independent),
+        );
+        for other in [firm, independent] {
+            if m.leaves_unexplained() {
+                if let Some(r) = adopt(&mut m, &other) {
+                    runner_ups = r;
+                }
             }
         }
     }
