@@ -365,7 +365,10 @@ pub fn video_info_from_probe(path: &Path, text: &str, err: &str) -> Result<Video
     let rate = |s: &str| -> Option<f64> {
         let (a, b) = s.split_once('/').unwrap_or((s, "1"));
         let (a, b): (f64, f64) = (a.parse().ok()?, b.parse().ok()?);
-        (b > 0.0 && a > 0.0).then_some(a / b)
+        // A rate written past f64's range (`3000e530/1`) is no rate.
+        (b > 0.0 && a > 0.0)
+            .then_some(a / b)
+            .filter(|r| r.is_finite())
     };
     let fps = field("avg_frame_rate")
         .and_then(rate)
@@ -817,6 +820,12 @@ mod tests {
         assert!((ok.fps - 29.97).abs() < 0.01, "{}", ok.fps);
         let odd_rate = video_info_from_probe(p, "width=4\nheight=2\navg_frame_rate=0/0\n", "");
         assert_eq!(odd_rate.unwrap().fps, 25.0);
+        // Found by the fuzz target `video_probe`: a rate that overflows to infinity.
+        for rate in ["3000e530/1", "1e308/1e-308"] {
+            let text = format!("width=640\nheight=480\navg_frame_rate={rate}\nr_frame_rate=30/1\n");
+            let v = video_info_from_probe(p, &text, "").unwrap();
+            assert_eq!(v.fps, 30.0, "{rate}");
+        }
         for (text, why) in [
             ("width=4294967296\nheight=4294967296\n", "over the limit"),
             ("width=18446744073709551615\nheight=2\n", "over the limit"),
