@@ -9,10 +9,11 @@
 //! holes' chains along `d` — the hole takes the blob of its neighbour one step along `d`,
 //! that neighbour the next one's, and so on to the first marker whose next one holds no
 //! blob, which takes the free blob of least cost near its new prediction (or none) — and the
-//! whole reading with those chains shifted is refined and compared by energy. A move that
-//! lowers the energy by the margin is kept (and the search repeated); the others are the
-//! runner-ups: a region whose shift costs less than the margin more leaves its markers
-//! ambiguous.
+//! whole reading with those chains shifted is refined and compared by energy. The holes of
+//! one region may lie far apart (at the back of each row): the chains along `d` of holes in
+//! different clusters that touch make a region too. A move that lowers the energy by the
+//! margin is kept (and the search repeated); the others are the runner-ups: a region whose
+//! shift costs less than the margin more leaves its markers ambiguous.
 
 use super::index::parts;
 use super::solve::Matching;
@@ -135,6 +136,14 @@ impl Matching<'_> {
         blobs.dedup();
         (area, blobs)
     }
+}
+
+/// The region moves measured so far: the best lowering the energy by the margin (with its
+/// energy change), and the runner-ups within it.
+#[derive(Default)]
+struct Moves {
+    best: Option<(f64, Vec<Vec<usize>>)>,
+    runner_ups: Vec<RunnerUp>,
 }
 
 /// One chain of a move: its markers, their blobs before the move, the length it starts at and
@@ -389,54 +398,93 @@ impl Matching<'_> {
     }
 
     /// The best region shift lowering the energy by the margin, and the runner-ups within it.
+    /// A region is the chains of one cluster of holes along one direction, or the chains of
+    /// holes in different clusters that touch (a region read a step off may have holes far
+    /// apart: at the back of each row).
     fn region_moves(&mut self) -> (Option<Vec<Vec<usize>>>, Vec<RunnerUp>) {
         let n_dirs = self.reference.lattice_dirs;
-        let margin = self.energy.params.margin;
-        let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
-        let mut runner_ups = Vec::new();
         let holes = self.holes();
+        let mut moves = Moves::default();
         if holes.is_empty() {
-            return (None, runner_ups);
+            return (None, moves.runner_ups);
         }
-        let mut best: Option<(f64, Vec<Vec<usize>>)> = None;
-        let mut clusters = self.clusters(&holes);
-        if clusters.len() > 1 {
-            // A region read a step off may have holes far apart (at the back of each row).
-            clusters.push(holes.clone());
-        }
-        for cluster in clusters {
-            // Each lattice direction, and the chains that follow each marker's best other
-            // blob (any layout, random dots included).
+        let clusters = self.clusters(&holes);
+        // Each lattice direction, and the chains that follow each marker's best other blob
+        // (any layout, random dots included).
+        for cluster in &clusters {
             for d in 0..=n_dirs {
-                let paths: Vec<(Vec<usize>, usize)> = cluster
-                    .iter()
-                    .map(|&h| {
-                        if d < n_dirs {
-                            self.chain(h, d, max_len)
-                        } else {
-                            self.chain_by_cost(h, max_len)
-                        }
-                    })
-                    .filter(|c| c.0.len() > 1)
-                    .collect();
-                if paths.is_empty() {
-                    continue;
+                let paths = self.paths(cluster, d);
+                self.consider(paths, &mut moves);
+            }
+        }
+        if clusters.len() > 1 {
+            let mut cluster_of = vec![0; self.assignment.len()];
+            for (c, cluster) in clusters.iter().enumerate() {
+                for &h in cluster {
+                    cluster_of[h] = c;
                 }
-                let (moved, de) = self.best_lengths(paths);
-                if moved.is_empty() {
-                    continue;
-                }
-                if de <= -margin {
-                    if best.as_ref().is_none_or(|b| de < b.0) {
-                        best = Some((de, moved));
+            }
+            for d in 0..=n_dirs {
+                let paths = self.paths(&holes, d);
+                for part in self.touching(&paths) {
+                    let c0 = cluster_of[paths[part[0]].0[0]];
+                    if part.iter().any(|&a| cluster_of[paths[a].0[0]] != c0) {
+                        let region = part.into_iter().map(|a| paths[a].clone()).collect();
+                        self.consider(region, &mut moves);
                     }
-                } else if de < margin {
-                    let markers = moved.iter().flat_map(|p| p[1..].iter().copied()).collect();
-                    runner_ups.push(RunnerUp { markers });
                 }
             }
         }
-        (best.map(|b| b.1), runner_ups)
+        (moves.best.map(|b| b.1), moves.runner_ups)
+    }
+
+    /// The chains from `holes` along direction `d` (following costs for `d` past the
+    /// lattice's directions), those of more than the hole.
+    fn paths(&self, holes: &[usize], d: usize) -> Vec<(Vec<usize>, usize)> {
+        let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
+        holes
+            .iter()
+            .map(|&h| {
+                if d < self.reference.lattice_dirs {
+                    self.chain(h, d, max_len)
+                } else {
+                    self.chain_by_cost(h, max_len)
+                }
+            })
+            .filter(|c| c.0.len() > 1)
+            .collect()
+    }
+
+    /// The chains that touch (share a marker or a neighbour), in connected parts.
+    fn touching(&self, paths: &[(Vec<usize>, usize)]) -> Vec<Vec<usize>> {
+        let r = self.reference;
+        let linked = |a: usize, b: usize| {
+            let (pa, pb): (&Vec<usize>, &Vec<usize>) = (&paths[a].0, &paths[b].0);
+            pa.iter()
+                .any(|&i| pb.iter().any(|&k| k == i || r.neighbours[i].contains(&k)))
+        };
+        parts(paths.len(), |_| true, |_| 0..paths.len(), linked)
+    }
+
+    /// Measures the region of `paths` shifted: the best so far when it lowers the energy by
+    /// the margin, a runner-up when it costs less than the margin more.
+    fn consider(&mut self, paths: Vec<(Vec<usize>, usize)>, moves: &mut Moves) {
+        let margin = self.energy.params.margin;
+        if paths.is_empty() {
+            return;
+        }
+        let (moved, de) = self.best_lengths(paths);
+        if moved.is_empty() {
+            return;
+        }
+        if de <= -margin {
+            if moves.best.as_ref().is_none_or(|b| de < b.0) {
+                moves.best = Some((de, moved));
+            }
+        } else if de < margin {
+            let markers = moved.iter().flat_map(|p| p[1..].iter().copied()).collect();
+            moves.runner_ups.push(RunnerUp { markers });
+        }
     }
 
     /// Groups holes lying within two lattice steps of each other.
