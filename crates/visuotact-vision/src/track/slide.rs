@@ -402,19 +402,46 @@ impl Matching<'_> {
     /// holes in different clusters that touch (a region read a step off may have holes far
     /// apart: at the back of each row).
     fn region_moves(&mut self) -> (Option<Vec<Vec<usize>>>, Vec<RunnerUp>) {
-        let n_dirs = self.reference.lattice_dirs;
         let holes = self.holes();
         let mut moves = Moves::default();
         if holes.is_empty() {
             return (None, moves.runner_ups);
         }
+        // Each hole's chain along each lattice direction, and the chain that follows each
+        // marker's best other blob (any layout, random dots included): the moves below leave
+        // the matching as it was, so each is found once.
+        let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
+        let n_dirs = self.reference.lattice_dirs;
+        let chains: Vec<Vec<(Vec<usize>, usize)>> = (0..=n_dirs)
+            .map(|d| {
+                holes
+                    .iter()
+                    .map(|&h| {
+                        if d < n_dirs {
+                            self.chain(h, d, max_len)
+                        } else {
+                            self.chain_by_cost(h, max_len)
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
         let clusters = self.clusters(&holes);
-        // Each lattice direction, and the chains that follow each marker's best other blob
-        // (any layout, random dots included).
+        let mut slot = vec![0; self.assignment.len()];
+        for (a, &h) in holes.iter().enumerate() {
+            slot[h] = a;
+        }
+        let of = |along: &[(Vec<usize>, usize)], members: &[usize]| -> Vec<(Vec<usize>, usize)> {
+            members
+                .iter()
+                .map(|&h| &along[slot[h]])
+                .filter(|c| c.0.len() > 1)
+                .cloned()
+                .collect()
+        };
         for cluster in &clusters {
-            for d in 0..=n_dirs {
-                let paths = self.paths(cluster, d);
-                self.consider(paths, &mut moves);
+            for along in &chains {
+                self.consider(of(along, cluster), &mut moves);
             }
         }
         if clusters.len() > 1 {
@@ -424,8 +451,8 @@ impl Matching<'_> {
                     cluster_of[h] = c;
                 }
             }
-            for d in 0..=n_dirs {
-                let paths = self.paths(&holes, d);
+            for along in &chains {
+                let paths = of(along, &holes);
                 for part in self.touching(&paths) {
                     let c0 = cluster_of[paths[part[0]].0[0]];
                     if part.iter().any(|&a| cluster_of[paths[a].0[0]] != c0) {
@@ -438,31 +465,25 @@ impl Matching<'_> {
         (moves.best.map(|b| b.1), moves.runner_ups)
     }
 
-    /// The chains from `holes` along direction `d` (following costs for `d` past the
-    /// lattice's directions), those of more than the hole.
-    fn paths(&self, holes: &[usize], d: usize) -> Vec<(Vec<usize>, usize)> {
-        let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
-        holes
-            .iter()
-            .map(|&h| {
-                if d < self.reference.lattice_dirs {
-                    self.chain(h, d, max_len)
-                } else {
-                    self.chain_by_cost(h, max_len)
-                }
-            })
-            .filter(|c| c.0.len() > 1)
-            .collect()
-    }
-
-    /// The chains that touch (share a marker or a neighbour), in connected parts.
+    /// The chains that touch (share a marker, or one's marker is the other's neighbour), in
+    /// connected parts.
     fn touching(&self, paths: &[(Vec<usize>, usize)]) -> Vec<Vec<usize>> {
         let r = self.reference;
-        let linked = |a: usize, b: usize| {
-            let (pa, pb): (&Vec<usize>, &Vec<usize>) = (&paths[a].0, &paths[b].0);
-            pa.iter()
-                .any(|&i| pb.iter().any(|&k| k == i || r.neighbours[i].contains(&k)))
-        };
+        // Per chain, its markers and their neighbours.
+        let reach: Vec<Vec<bool>> = paths
+            .iter()
+            .map(|(path, _)| {
+                let mut near = vec![false; self.assignment.len()];
+                for &i in path {
+                    near[i] = true;
+                    for &k in &r.neighbours[i] {
+                        near[k] = true;
+                    }
+                }
+                near
+            })
+            .collect();
+        let linked = |a: usize, b: usize| paths[b].0.iter().any(|&k| reach[a][k]);
         parts(paths.len(), |_| true, |_| 0..paths.len(), linked)
     }
 
