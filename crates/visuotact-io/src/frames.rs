@@ -365,10 +365,10 @@ pub fn video_info_from_probe(path: &Path, text: &str, err: &str) -> Result<Video
     let rate = |s: &str| -> Option<f64> {
         let (a, b) = s.split_once('/').unwrap_or((s, "1"));
         let (a, b): (f64, f64) = (a.parse().ok()?, b.parse().ok()?);
-        // A rate written past f64's range (`3000e530/1`) is no rate.
+        // A rate written past f64's range (`3000e530/1`, `5/9E7296`) is no rate.
         (b > 0.0 && a > 0.0)
             .then_some(a / b)
-            .filter(|r| r.is_finite())
+            .filter(|r| r.is_finite() && *r > 0.0)
     };
     let fps = field("avg_frame_rate")
         .and_then(rate)
@@ -821,7 +821,7 @@ mod tests {
         let odd_rate = video_info_from_probe(p, "width=4\nheight=2\navg_frame_rate=0/0\n", "");
         assert_eq!(odd_rate.unwrap().fps, 25.0);
         // Found by the fuzz target `video_probe`: a rate that overflows to infinity.
-        for rate in ["3000e530/1", "1e308/1e-308"] {
+        for rate in ["3000e530/1", "1e308/1e-308", "5/9E7296"] {
             let text = format!("width=640\nheight=480\navg_frame_rate={rate}\nr_frame_rate=30/1\n");
             let v = video_info_from_probe(p, &text, "").unwrap();
             assert_eq!(v.fps, 30.0, "{rate}");
