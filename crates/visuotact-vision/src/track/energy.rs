@@ -47,6 +47,7 @@ use super::{TrackParams, TrackReference, View};
 use crate::blobs::Blob;
 
 /// The energy's terms for one frame.
+#[derive(Clone, Copy)]
 pub(super) struct Energy<'a> {
     pub reference: &'a TrackReference,
     pub params: &'a TrackParams,

@@ -54,6 +54,8 @@ mod sites;
 mod slide;
 mod solve;
 mod split;
+#[cfg(test)]
+mod testkit;
 
 use serde::{Deserialize, Serialize};
 

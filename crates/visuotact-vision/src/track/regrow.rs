@@ -75,67 +75,23 @@ pub(super) fn regrow(m: &mut Matching<'_>) -> Option<Vec<RunnerUp>> {
 #[cfg(test)]
 mod tests {
     use super::regrow;
-    use crate::blobs::{BBox, Blob};
     use crate::track::energy::Energy;
     use crate::track::solve::Matching;
-    use crate::track::{TrackParams, TrackReference};
-
-    /// The six axial steps of a hexagonal lattice, in turn around the circle.
-    const HEX: [(i64, i64); 6] = [(1, 0), (0, 1), (-1, 1), (-1, 0), (0, -1), (1, -1)];
-
-    /// Ring `k`'s sites of a hexagonal array in turn around it (the centre for `k = 0`).
-    fn ring(k: i64) -> Vec<(i64, i64)> {
-        if k == 0 {
-            return vec![(0, 0)];
-        }
-        let mut at = (HEX[4].0 * k, HEX[4].1 * k);
-        let mut out = Vec::new();
-        for d in HEX {
-            for _ in 0..k {
-                out.push(at);
-                at = (at.0 + d.0, at.1 + d.1);
-            }
-        }
-        out
-    }
-
-    fn disc(x: f64, y: f64, area_px: u32) -> Blob {
-        let r = (f64::from(area_px) / std::f64::consts::PI).sqrt();
-        Blob {
-            area_px,
-            x_px: x,
-            y_px: y,
-            mu20_px2: r * r / 4.0,
-            mu11_px2: 0.0,
-            mu02_px2: r * r / 4.0,
-            bbox: BBox {
-                x0: (x - r) as u32,
-                y0: (y - r) as u32,
-                x1: (x + r) as u32 + 1,
-                y1: (y + r) as u32 + 1,
-            },
-            touches_border: false,
-        }
-    }
+    use crate::track::testkit::{disc, hex_array, ring, HexArray};
+    use crate::track::TrackParams;
 
     /// A 91-pin hexagonal array slid 0.3 and 0.2 pitches, read with every ring turned one
     /// step: the reading is torn, and regrown it is the right one, every pin on its own blob.
     #[test]
     fn rings_read_turned_a_step_are_regrown_whole() {
         let pitch = 12.0;
-        let sites: Vec<(i64, i64)> = (0..=5).flat_map(ring).collect();
-        let at = |s: (i64, i64)| {
-            let (q, r) = (s.0 as f64, s.1 as f64);
-            (
-                100.0 + pitch * (q + 0.5 * r),
-                100.0 + pitch * r * 0.75_f64.sqrt(),
-            )
-        };
-        let positions: Vec<(f64, f64)> = sites.iter().map(|&s| at(s)).collect();
+        let HexArray {
+            sites,
+            positions,
+            reference,
+        } = hex_array(5, pitch);
         let n = positions.len();
-        let mut reference = TrackReference::new(positions.clone(), vec![50.0; n]);
-        reference.take_lattice(&sites, &HEX);
-        let blobs: Vec<Blob> = positions
+        let blobs: Vec<_> = positions
             .iter()
             .map(|p| disc(p.0 + 0.3 * pitch, p.1 + 0.2 * pitch, 50))
             .collect();

@@ -400,16 +400,26 @@ impl Matching<'_> {
     /// The best region shift lowering the energy by the margin, and the runner-ups within it.
     /// A region is the chains of one cluster of holes along one direction, or the chains of
     /// holes in different clusters that touch (a region read a step off may have holes far
-    /// apart: at the back of each row).
+    /// apart: at the back of each row). Each region is measured on its own copy of the
+    /// matching, side by side; the outcome is as if measured one after another.
     fn region_moves(&mut self) -> (Option<Vec<Vec<usize>>>, Vec<RunnerUp>) {
-        let holes = self.holes();
         let mut moves = Moves::default();
+        for (moved, de) in self.measure(self.regions()) {
+            self.consider(moved, de, &mut moves);
+        }
+        (moves.best.map(|b| b.1), moves.runner_ups)
+    }
+
+    /// Every region a move may shift, in a fixed order (see [`Matching::region_moves`]).
+    fn regions(&self) -> Vec<Vec<(Vec<usize>, usize)>> {
+        let holes = self.holes();
+        let mut regions = Vec::new();
         if holes.is_empty() {
-            return (None, moves.runner_ups);
+            return regions;
         }
         // Each hole's chain along each lattice direction, and the chain that follows each
-        // marker's best other blob (any layout, random dots included): the moves below leave
-        // the matching as it was, so each is found once.
+        // marker's best other blob (any layout, random dots included): the moves leave the
+        // matching as it was, so each is found once.
         let max_len = 2 * self.energy.params.reach_pitches.ceil() as usize + 2;
         let n_dirs = self.reference.lattice_dirs;
         let chains: Vec<Vec<(Vec<usize>, usize)>> = (0..=n_dirs)
@@ -441,7 +451,7 @@ impl Matching<'_> {
         };
         for cluster in &clusters {
             for along in &chains {
-                self.consider(of(along, cluster), &mut moves);
+                regions.push(of(along, cluster));
             }
         }
         if clusters.len() > 1 {
@@ -456,13 +466,37 @@ impl Matching<'_> {
                 for part in self.touching(&paths) {
                     let c0 = cluster_of[paths[part[0]].0[0]];
                     if part.iter().any(|&a| cluster_of[paths[a].0[0]] != c0) {
-                        let region = part.into_iter().map(|a| paths[a].clone()).collect();
-                        self.consider(region, &mut moves);
+                        regions.push(part.into_iter().map(|a| paths[a].clone()).collect());
                     }
                 }
             }
         }
-        (moves.best.map(|b| b.1), moves.runner_ups)
+        regions.retain(|r| !r.is_empty());
+        regions
+    }
+
+    /// Each region's best shift ([`Matching::best_lengths`]): the chains' moving parts and
+    /// the energy change, in the regions' order. Several regions are measured side by side,
+    /// each worker on its own copy of the matching (a measurement leaves it as it was).
+    fn measure(&mut self, regions: Vec<Vec<(Vec<usize>, usize)>>) -> Vec<(Vec<Vec<usize>>, f64)> {
+        use rayon::prelude::*;
+        if regions.len() < 2 || rayon::current_num_threads() < 2 {
+            return regions
+                .into_iter()
+                .map(|paths| self.best_lengths(paths))
+                .collect();
+        }
+        let original = std::sync::Mutex::new(self.clone());
+        regions
+            .into_par_iter()
+            .map_init(
+                || original.lock().map(|m| m.clone()).ok(),
+                |copy, paths| match copy {
+                    Some(m) => m.best_lengths(paths),
+                    None => (Vec::new(), 0.0),
+                },
+            )
+            .collect()
     }
 
     /// The chains that touch (share a marker, or one's marker is the other's neighbour), in
@@ -487,14 +521,10 @@ impl Matching<'_> {
         parts(paths.len(), |_| true, |_| 0..paths.len(), linked)
     }
 
-    /// Measures the region of `paths` shifted: the best so far when it lowers the energy by
-    /// the margin, a runner-up when it costs less than the margin more.
-    fn consider(&mut self, paths: Vec<(Vec<usize>, usize)>, moves: &mut Moves) {
+    /// Counts a measured region shift: the best so far when it lowers the energy by the
+    /// margin, a runner-up when it costs less than the margin more.
+    fn consider(&self, moved: Vec<Vec<usize>>, de: f64, moves: &mut Moves) {
         let margin = self.energy.params.margin;
-        if paths.is_empty() {
-            return;
-        }
-        let (moved, de) = self.best_lengths(paths);
         if moved.is_empty() {
             return;
         }
@@ -662,5 +692,63 @@ impl Matching<'_> {
             }
         }
         (best.map(|b| b.1), runner_ups)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::track::energy::Energy;
+    use crate::track::solve::Matching;
+    use crate::track::testkit::{disc, hex_array, HexArray};
+    use crate::track::TrackParams;
+
+    /// Two rows of a 91-pin array, far apart, each read one step off along the row (a hole at
+    /// one end, a blob without a marker at the other): the regions measured side by side give
+    /// what one after another gives, and the best move shifts a row back.
+    #[test]
+    fn regions_measured_side_by_side_equal_one_after_another() {
+        let pitch = 12.0;
+        let HexArray {
+            sites,
+            positions,
+            reference,
+        } = hex_array(5, pitch);
+        let n = positions.len();
+        let blobs: Vec<_> = positions
+            .iter()
+            .map(|p| disc(p.0 + 0.3 * pitch, p.1 + 0.2 * pitch, 50))
+            .collect();
+        let index = |s: (i64, i64)| sites.iter().position(|&t| t == s);
+        let mut reading: Vec<Option<usize>> = (0..n).map(Some).collect();
+        for (r, q0, q1) in [(-3, -2, 5), (3, -5, 2)] {
+            for q in q0..q1 {
+                reading[index((q, r)).unwrap()] = index((q + 1, r));
+            }
+            reading[index((q1, r)).unwrap()] = None;
+        }
+        let params = TrackParams::default();
+        let energy = Energy {
+            reference: &reference,
+            params: &params,
+            view: None,
+        };
+        let mut m = Matching::new(&reference, &blobs, n, energy, positions, (0.0, 0.0));
+        m.set_assignment(&reading);
+        let regions = m.regions();
+        assert!(regions.len() >= 2, "{} regions", regions.len());
+        let pool = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+        };
+        let alone = pool(1).install(|| m.measure(regions.clone()));
+        let side_by_side = pool(3).install(|| m.measure(regions.clone()));
+        assert_eq!(alone, side_by_side);
+        assert_eq!(
+            m.assignment, reading,
+            "measuring leaves the matching as it was"
+        );
+        assert!(alone.iter().any(|(_, de)| *de <= -params.margin));
     }
 }

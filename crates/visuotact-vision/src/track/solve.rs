@@ -18,6 +18,7 @@
 
 use std::cell::Cell;
 use std::collections::BinaryHeap;
+use std::sync::Arc;
 
 use super::energy::fill_short;
 use super::energy::Energy;
@@ -28,19 +29,21 @@ use crate::assign::{assign_min_cost, Candidates};
 use crate::blobs::Blob;
 
 /// The working state of one frame's matching.
+#[derive(Clone)]
 pub(super) struct Matching<'a> {
     pub reference: &'a TrackReference,
     pub blobs: &'a [Blob],
     /// Blobs from this index on are markers cut by the border.
     pub usable: usize,
-    pub index: BlobIndex,
+    /// Shared by the copies a side-by-side measurement makes (fixed for the frame).
+    pub index: Arc<BlobIndex>,
     pub energy: Energy<'a>,
     /// Where each marker was before the motion being followed (reference or prior).
     pub anchors: Vec<(f64, f64)>,
     /// The anchors' neighbours, offsets and weights for the affine fits.
-    around: Around,
+    around: Arc<Around>,
     /// Per blob, how far under 1 it fills its moments' ellipse (the shape term's misfit).
-    fill_short: Vec<f64>,
+    fill_short: Arc<[f64]>,
     /// The starting motion added to the anchors (registration; zero when followed).
     pub shift: (f64, f64),
     /// Whether the energy measures a marker on its dot's pieces together: order-free only.
@@ -75,9 +78,9 @@ impl<'a> Matching<'a> {
             reference,
             blobs,
             usable,
-            index: BlobIndex::new(blobs, reference.pitch_px.max(1.0)),
+            index: Arc::new(BlobIndex::new(blobs, reference.pitch_px.max(1.0))),
             energy,
-            around: Around::new(reference, &anchors),
+            around: Arc::new(Around::new(reference, &anchors)),
             fill_short: blobs.iter().map(fill_short).collect(),
             anchors,
             shift,
