@@ -465,10 +465,13 @@ impl FeatureExtractor {
     /// and the last frame found markers, else (or when that loses track) from the reference.
     fn track(&self) -> TrackResult {
         let view = Some(self.view);
+        // A frame after one whose first start left something unexplained is searched from
+        // every start at once (the frames of a video are alike).
         let from_reference = TrackHints {
             cut: self.cut,
             prior: None,
             view,
+            starts_side_by_side: self.last_track.searched_again,
         };
         if self.temporal && self.prior.iter().any(Option::is_some) {
             let t = track_with(
@@ -476,9 +479,8 @@ impl FeatureExtractor {
                 &self.blobs,
                 &self.cal.track,
                 TrackHints {
-                    cut: self.cut,
                     prior: Some(&self.prior),
-                    view,
+                    ..from_reference
                 },
             );
             // The prior lost track (far fewer markers than the last frame had): start again

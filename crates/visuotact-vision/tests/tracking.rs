@@ -1021,3 +1021,31 @@ fn a_pin_hidden_at_rest_is_an_unseen_site_not_a_neighbours_blob() {
         "without the site its pin's blob is clutter"
     );
 }
+
+/// Order-free, a frame missing one marker's blob leaves it unexplained: the other starts are
+/// searched (`searched_again`), and searching them beside the first instead of after it
+/// (`starts_side_by_side`, what a video's next frame asks for) gives the same reading.
+#[test]
+fn starts_searched_side_by_side_read_the_same() {
+    use visuotact_vision::track::{track_with, TrackHints, TrackParams};
+    let (positions, reference) = grid_reference();
+    let slid = |&(x, y): &(f64, f64)| disc_blob(x + 2.0, y + 1.0, 30, false);
+    let params = TrackParams::default();
+    let all: Vec<_> = positions.iter().map(slid).collect();
+    let whole = track_with(&reference, &all, &params, TrackHints::default());
+    assert!(!whole.searched_again);
+    let one_short: Vec<_> = positions
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != 7)
+        .map(|(_, p)| slid(p))
+        .collect();
+    let after = track_with(&reference, &one_short, &params, TrackHints::default());
+    assert!(after.searched_again);
+    assert_eq!(after.status[7], MarkerStatus::Lost);
+    let beside = TrackHints {
+        starts_side_by_side: true,
+        ..TrackHints::default()
+    };
+    assert_eq!(after, track_with(&reference, &one_short, &params, beside));
+}

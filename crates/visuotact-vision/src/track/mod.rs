@@ -13,7 +13,8 @@
 //!   order-free on a lattice, the reading shifted by whole lattice steps is compared too. A
 //!   multi-start search: a reading that leaves a blob or a marker unexplained is searched
 //!   again from a firmer motion prior, then from seeds judged each on its own, the lowest
-//!   energy kept.
+//!   energy kept; the other starts are searched side by side, and beside the first where the
+//!   last frame of a video needed them (the same reading, sooner).
 //! - `regrow`: a reading torn where lattice neighbours disagree by about a step is grown again
 //!   from a patch of itself (its largest smooth parts, its centre shifted by each step: a
 //!   dome's rings each read turned a step, test `tactip331_rings_are_not_read_turned_a_step`).
@@ -439,6 +440,10 @@ pub struct TrackResult {
     /// measurement is of its pieces together: apply [`TrackResult::merge_pieces`] to the blobs
     /// before reading positions and areas from them.
     pub pieces: Vec<(usize, usize)>,
+    /// Order-free: whether the first start left a blob or a marker in view unexplained, so
+    /// that the other starts were compared. The next frame of a video likely does too: a hint
+    /// for its [`TrackHints::starts_side_by_side`].
+    pub searched_again: bool,
 }
 
 impl TrackResult {
@@ -528,6 +533,11 @@ pub struct TrackHints<'a> {
     /// Where markers can be seen: a marker its neighbours put outside is expected to have no
     /// blob (being lost there costs nothing).
     pub view: Option<View>,
+    /// Order-free: search the other starts beside the first instead of after it, when it
+    /// likely leaves something unexplained (the last frame's [`TrackResult::searched_again`]).
+    /// The reading is the same either way: sooner on several cores, more work where the first
+    /// start explains everything.
+    pub starts_side_by_side: bool,
 }
 
 /// Where a search starts: how its seeds are judged and how firm its motion prior is.
@@ -669,15 +679,29 @@ pub fn track_with(
         m.shift = predict::register(reference, &m.index);
     }
     // A multi-start search on the one energy: while a reading leaves a blob or a marker in
-    // view unexplained, another start may find a lower energy.
-    let mut runner_ups = search(&mut m, order_free, Start::Chained);
-    if order_free && m.leaves_unexplained() {
-        // Both other starts are searched side by side (the second one's reading may explain
-        // everything, and the third is not needed then), and taken in turn.
-        let (firm, independent) = rayon::join(
-            restarted(&m, hints.view, Start::ChainedFirm),
-            restarted(&m, hints.view, Start::Independent),
+    // view unexplained, another start may find a lower energy. Both other starts are searched
+    // side by side (the second one's reading may explain everything, and the third is not
+    // needed then), beside the first too when asked, and taken in turn.
+    let (firm, independent) = (
+        restarted(&m, hints.view, Start::ChainedFirm),
+        restarted(&m, hints.view, Start::Independent),
+    );
+    let together = order_free && hints.starts_side_by_side;
+    let (mut runner_ups, others) = if together {
+        let (r, o) = rayon::join(
+            || search(&mut m, true, Start::Chained),
+            || rayon::join(firm, independent),
         );
+        (r, Ok(o))
+    } else {
+        (
+            search(&mut m, order_free, Start::Chained),
+            Err((firm, independent)),
+        )
+    };
+    let searched_again = order_free && m.leaves_unexplained();
+    if searched_again {
+        let (firm, independent) = others.unwrap_or_else(|(f, i)| rayon::join(f, i));
         for other in [firm, independent] {
             if m.leaves_unexplained() {
                 if let Some(r) = adopt(&mut m, &other) {
@@ -697,7 +721,9 @@ pub fn track_with(
             None => break,
         }
     }
-    outcome(&m, &runner_ups)
+    let mut result = outcome(&m, &runner_ups);
+    result.searched_again = searched_again;
+    result
 }
 
 /// The reported outcome of the reading `m` found, with the `runner_ups` within the margin of
@@ -750,6 +776,7 @@ fn outcome(m: &solve::Matching<'_>, runner_ups: &[slide::RunnerUp]) -> TrackResu
         split_px,
         held_px,
         pieces,
+        searched_again: false,
     };
     result.keep_markers(m.reference.markers(), &m.owner);
     result

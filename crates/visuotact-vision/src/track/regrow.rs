@@ -75,9 +75,7 @@ pub(super) fn regrow(m: &mut Matching<'_>) -> Option<Vec<RunnerUp>> {
 #[cfg(test)]
 mod tests {
     use super::regrow;
-    use crate::track::energy::Energy;
-    use crate::track::solve::Matching;
-    use crate::track::testkit::{disc, hex_array, ring, HexArray};
+    use crate::track::testkit::{hex_array, ring};
     use crate::track::TrackParams;
 
     /// A 91-pin hexagonal array slid 0.3 and 0.2 pitches, read with every ring turned one
@@ -85,16 +83,9 @@ mod tests {
     #[test]
     fn rings_read_turned_a_step_are_regrown_whole() {
         let pitch = 12.0;
-        let HexArray {
-            sites,
-            positions,
-            reference,
-        } = hex_array(5, pitch);
-        let n = positions.len();
-        let blobs: Vec<_> = positions
-            .iter()
-            .map(|p| disc(p.0 + 0.3 * pitch, p.1 + 0.2 * pitch, 50))
-            .collect();
+        let array = hex_array(5, pitch);
+        let (sites, n) = (&array.sites, array.positions.len());
+        let blobs = array.blobs_slid(0.3 * pitch, 0.2 * pitch);
         // Each ring's pin takes the blob of the next pin around it.
         let index = |s: (i64, i64)| sites.iter().position(|&t| t == s).unwrap();
         let mut turned = vec![None; n];
@@ -105,12 +96,7 @@ mod tests {
             }
         }
         let params = TrackParams::default();
-        let energy = Energy {
-            reference: &reference,
-            params: &params,
-            view: None,
-        };
-        let mut m = Matching::new(&reference, &blobs, n, energy, positions, (0.0, 0.0));
+        let mut m = array.matching(&blobs, &params);
         m.set_assignment(&turned);
         assert!(m.torn());
         let e_turned = m.total_energy();

@@ -59,5 +59,6 @@ pub(super) fn track_rings(
         split_px: Vec::new(),
         held_px: Vec::new(),
         pieces: Vec::new(),
+        searched_again: false,
     }
 }

@@ -697,9 +697,7 @@ impl Matching<'_> {
 
 #[cfg(test)]
 mod tests {
-    use crate::track::energy::Energy;
-    use crate::track::solve::Matching;
-    use crate::track::testkit::{disc, hex_array, HexArray};
+    use crate::track::testkit::hex_array;
     use crate::track::TrackParams;
 
     /// Two rows of a 91-pin array, far apart, each read one step off along the row (a hole at
@@ -708,16 +706,9 @@ mod tests {
     #[test]
     fn regions_measured_side_by_side_equal_one_after_another() {
         let pitch = 12.0;
-        let HexArray {
-            sites,
-            positions,
-            reference,
-        } = hex_array(5, pitch);
-        let n = positions.len();
-        let blobs: Vec<_> = positions
-            .iter()
-            .map(|p| disc(p.0 + 0.3 * pitch, p.1 + 0.2 * pitch, 50))
-            .collect();
+        let array = hex_array(5, pitch);
+        let (sites, n) = (&array.sites, array.positions.len());
+        let blobs = array.blobs_slid(0.3 * pitch, 0.2 * pitch);
         let index = |s: (i64, i64)| sites.iter().position(|&t| t == s);
         let mut reading: Vec<Option<usize>> = (0..n).map(Some).collect();
         for (r, q0, q1) in [(-3, -2, 5), (3, -5, 2)] {
@@ -727,12 +718,7 @@ mod tests {
             reading[index((q1, r)).unwrap()] = None;
         }
         let params = TrackParams::default();
-        let energy = Energy {
-            reference: &reference,
-            params: &params,
-            view: None,
-        };
-        let mut m = Matching::new(&reference, &blobs, n, energy, positions, (0.0, 0.0));
+        let mut m = array.matching(&blobs, &params);
         m.set_assignment(&reading);
         let regions = m.regions();
         assert!(regions.len() >= 2, "{} regions", regions.len());

@@ -1,7 +1,9 @@
 //! Test arrays shared by the tracker's unit tests.
 
 use crate::blobs::{BBox, Blob};
-use crate::track::TrackReference;
+use crate::track::energy::Energy;
+use crate::track::solve::Matching;
+use crate::track::{TrackParams, TrackReference};
 
 /// The six axial steps of a hexagonal lattice, in turn around the circle.
 pub const HEX: [(i64, i64); 6] = [(1, 0), (0, 1), (-1, 1), (-1, 0), (0, -1), (1, -1)];
@@ -51,6 +53,34 @@ pub fn hex_array(rings: i64, pitch: f64) -> HexArray {
         sites,
         positions,
         reference,
+    }
+}
+
+impl HexArray {
+    /// Every pin's blob, a disc of 50 px², slid by `(dx, dy)` pixels.
+    pub fn blobs_slid(&self, dx: f64, dy: f64) -> Vec<Blob> {
+        self.positions
+            .iter()
+            .map(|p| disc(p.0 + dx, p.1 + dy, 50))
+            .collect()
+    }
+
+    /// The order-free matching of `blobs` with `params`, nothing taken yet.
+    pub fn matching<'a>(&'a self, blobs: &'a [Blob], params: &'a TrackParams) -> Matching<'a> {
+        let energy = Energy {
+            reference: &self.reference,
+            params,
+            view: None,
+        };
+        let anchors = self.positions.clone();
+        Matching::new(
+            &self.reference,
+            blobs,
+            blobs.len(),
+            energy,
+            anchors,
+            (0.0, 0.0),
+        )
     }
 }
 
