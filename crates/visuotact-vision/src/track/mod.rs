@@ -615,6 +615,20 @@ fn restarted<'a>(
     }
 }
 
+/// The two other starts' searches ([`restarted`]): the firmer chained one, the independent one.
+fn other_starts<'a>(
+    m: &solve::Matching<'a>,
+    view: Option<View>,
+) -> (
+    impl FnOnce() -> Vec<Option<usize>> + Send + 'a,
+    impl FnOnce() -> Vec<Option<usize>> + Send + 'a,
+) {
+    (
+        restarted(m, view, Start::ChainedFirm),
+        restarted(m, view, Start::Independent),
+    )
+}
+
 /// Order-free, another start's reading replaces `m`'s when its energy (the one energy, with
 /// `m`'s own parameters) is lower by the margin; then returns the runner-ups of the reading
 /// kept.
@@ -682,26 +696,24 @@ pub fn track_with(
     // view unexplained, another start may find a lower energy. Both other starts are searched
     // side by side (the second one's reading may explain everything, and the third is not
     // needed then), beside the first too when asked, and taken in turn.
-    let (firm, independent) = (
-        restarted(&m, hints.view, Start::ChainedFirm),
-        restarted(&m, hints.view, Start::Independent),
-    );
-    let together = order_free && hints.starts_side_by_side;
-    let (mut runner_ups, others) = if together {
+    let mut others = None;
+    let mut runner_ups = if order_free && hints.starts_side_by_side {
+        let (firm, independent) = other_starts(&m, hints.view);
         let (r, o) = rayon::join(
             || search(&mut m, true, Start::Chained),
             || rayon::join(firm, independent),
         );
-        (r, Ok(o))
+        others = Some(o);
+        r
     } else {
-        (
-            search(&mut m, order_free, Start::Chained),
-            Err((firm, independent)),
-        )
+        search(&mut m, order_free, Start::Chained)
     };
     let searched_again = order_free && m.leaves_unexplained();
     if searched_again {
-        let (firm, independent) = others.unwrap_or_else(|(f, i)| rayon::join(f, i));
+        let (firm, independent) = others.unwrap_or_else(|| {
+            let (firm, independent) = other_starts(&m, hints.view);
+            rayon::join(firm, independent)
+        });
         for other in [firm, independent] {
             if m.leaves_unexplained() {
                 if let Some(r) = adopt(&mut m, &other) {

@@ -486,16 +486,9 @@ impl Matching<'_> {
                 .map(|paths| self.best_lengths(paths))
                 .collect();
         }
-        let original = std::sync::Mutex::new(self.clone());
         regions
             .into_par_iter()
-            .map_init(
-                || original.lock().map(|m| m.clone()).ok(),
-                |copy, paths| match copy {
-                    Some(m) => m.best_lengths(paths),
-                    None => (Vec::new(), 0.0),
-                },
-            )
+            .map_with(self.clone(), |m, paths| m.best_lengths(paths))
             .collect()
     }
 
