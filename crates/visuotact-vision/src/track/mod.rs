@@ -166,6 +166,20 @@ impl TrackParams {
         margin: 2.0,
     };
 
+    /// Each setting: its name (as the field's), where it is held and the largest value it
+    /// may take.
+    fn settings(&mut self) -> [(&'static str, &mut f64, f64); 7] {
+        [
+            ("reach_pitches", &mut self.reach_pitches, 100.0),
+            ("motion_spacings", &mut self.motion_spacings, 100.0),
+            ("gate_spacings", &mut self.gate_spacings, 100.0),
+            ("sigma_spacings", &mut self.sigma_spacings, 100.0),
+            ("spread_sigmas", &mut self.spread_sigmas, 1e6),
+            ("area_sigma", &mut self.area_sigma, 100.0),
+            ("margin", &mut self.margin, 1e6),
+        ]
+    }
+
     /// The defaults with the settings of `text` over them: `name=value` pairs separated by
     /// commas (`margin=3,gate_spacings=0.45`), names as the fields; checked.
     pub fn parse_over(mut self, text: &str) -> Result<Self, crate::ConfigError> {
@@ -180,45 +194,31 @@ impl TrackParams {
                     name: format!("tracker {name}"),
                     value: value.to_string(),
                 })?;
-            let slot = match name.trim() {
-                "reach_pitches" => &mut self.reach_pitches,
-                "motion_spacings" => &mut self.motion_spacings,
-                "gate_spacings" => &mut self.gate_spacings,
-                "sigma_spacings" => &mut self.sigma_spacings,
-                "spread_sigmas" => &mut self.spread_sigmas,
-                "area_sigma" => &mut self.area_sigma,
-                "margin" => &mut self.margin,
-                other => {
-                    return Err(crate::ConfigError::unknown(
-                        "tracker setting",
-                        other,
-                        "reach_pitches, motion_spacings, gate_spacings, sigma_spacings, \
-                         spread_sigmas, area_sigma or margin",
-                    ))
-                }
+            let mut settings = self.settings();
+            let names: Vec<&str> = settings.iter().map(|s| s.0).collect();
+            let Some(slot) = settings.iter_mut().find(|s| s.0 == name.trim()) else {
+                let (rest, last) = names.split_at(names.len() - 1);
+                let expected = format!("{} or {}", rest.join(", "), last.join(""));
+                return Err(crate::ConfigError::unknown(
+                    "tracker setting",
+                    name.trim(),
+                    expected,
+                ));
             };
-            *slot = v;
+            *slot.1 = v;
         }
         self.validate()?;
         Ok(self)
     }
 
-    /// Checks the settings: every distance positive and finite, the area scale and margin
-    /// positive.
+    /// Checks the settings: each positive, finite and at most its largest value.
     pub fn validate(&self) -> Result<(), crate::ConfigError> {
-        for (name, v, hi) in [
-            ("reach_pitches", self.reach_pitches, 100.0),
-            ("motion_spacings", self.motion_spacings, 100.0),
-            ("gate_spacings", self.gate_spacings, 100.0),
-            ("sigma_spacings", self.sigma_spacings, 100.0),
-            ("spread_sigmas", self.spread_sigmas, 1e6),
-            ("area_sigma", self.area_sigma, 100.0),
-            ("margin", self.margin, 1e6),
-        ] {
-            if !(v.is_finite() && v > 0.0 && v <= hi) {
+        let mut copy = *self;
+        for (name, v, hi) in copy.settings() {
+            if !(v.is_finite() && *v > 0.0 && *v <= hi) {
                 return Err(crate::ConfigError::out_of_range(
                     name,
-                    v,
+                    *v,
                     format!("in (0, {hi}] (a tracker setting)"),
                 ));
             }
