@@ -495,3 +495,62 @@ fn rows_and_empty_cells(features: &Path, markers: usize) -> (usize, usize) {
     }
     (rows, empty)
 }
+
+/// `check-tracking --reference-pressed` runs one of the scorecard's `plate` cases alone (a dome
+/// calibrated on frames pressed by a plate drawn from the seed): its row is the library's check
+/// of that case, not the one calibrated at rest; without a plate to press the reference with, it
+/// is refused.
+#[test]
+fn one_scorecard_plate_case_runs_alone() {
+    use visuotact_experiments::scorecard::touched_reference;
+    use visuotact_experiments::trackcheck::{check, CheckConfig, SimSensor};
+    let sensor = SimSensor::named("tactip-small", 2).unwrap();
+    let touch = touched_reference(&sensor, "plate", 5);
+    assert!(touch.is_some());
+    let case = CheckConfig::zoo(sensor, "plate", 2, 5);
+    let pressed = check(&CheckConfig {
+        reference_touch: touch,
+        ..case.clone()
+    })
+    .unwrap()
+    .tsv_row("tactip-small", 2);
+    let at_rest = check(&case).unwrap().tsv_row("tactip-small", 2);
+    assert_ne!(pressed, at_rest);
+    let args = [
+        "check-tracking",
+        "--sensor",
+        "tactip-small",
+        "--variants",
+        "2",
+        "--protocol",
+        "plate",
+        "--touches",
+        "2",
+        "--seed",
+        "5",
+    ];
+    let o = vt(&[&args[..], &["--reference-pressed"]].concat());
+    ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.lines().any(|l| l == pressed),
+        "{out}\nexpected {pressed}"
+    );
+    let o = vt(&args);
+    ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.lines().any(|l| l == at_rest),
+        "{out}\nexpected {at_rest}"
+    );
+    let err = fails(&vt(&[
+        "check-tracking",
+        "--touches",
+        "1",
+        "--reference-pressed",
+    ]));
+    assert!(
+        err.contains("--reference-pressed") && err.contains("plate"),
+        "{err}"
+    );
+}

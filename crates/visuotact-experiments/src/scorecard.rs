@@ -225,8 +225,9 @@ pub fn scorecard_table(
 }
 
 /// The reference of a `plate` run: itself a plate press drawn from `seed` (as a sensor that is
-/// never out of contact is calibrated); `None` (rest) for every other protocol.
-fn touched_reference(sensor: &SimSensor, protocol: &str, seed: u64) -> Option<ZooTouch> {
+/// never out of contact is calibrated); `None` (rest) for every other protocol and for a
+/// sensor that is no dome. `check-tracking --reference-pressed` runs one such case alone.
+pub fn touched_reference(sensor: &SimSensor, protocol: &str, seed: u64) -> Option<ZooTouch> {
     match sensor {
         SimSensor::Zoo(cfg) if protocol == "plate" => {
             zoo_plate(cfg, 1, seed ^ 0x5EF0).and_then(|t| t.first().copied())

@@ -2,7 +2,7 @@
 //! table row per variant.
 
 use anyhow::{bail, Context};
-use visuotact_experiments::scorecard::scorecard_table;
+use visuotact_experiments::scorecard::{scorecard_table, touched_reference};
 use visuotact_experiments::trackcheck::{
     check, CheckConfig, CheckReport, SimSensor, MOTION_LIMIT_PITCHES,
 };
@@ -13,7 +13,7 @@ use visuotact_vision::track::TrackParams;
 
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// iats, tactip, gelsight or dots.
+    /// iats, tactip, tactip-small, gelsight or dots.
     #[arg(long, default_value = "tactip")]
     sensor: String,
     /// Sensor variants: a number or a range `A..B` (inclusive; 0 is the preset).
@@ -31,6 +31,10 @@ pub(crate) struct Args {
     /// Rest frames averaged into the reference.
     #[arg(long, default_value_t = 10)]
     references: usize,
+    /// With `--protocol plate` on a dome: calibrate on frames pressed by a plate drawn from the
+    /// seed, not at rest, as the scorecard's `plate` rows do (a sensor never out of contact).
+    #[arg(long)]
+    reference_pressed: bool,
     /// Centroids: grey (calibrate's default), weighted or binary.
     #[arg(long, default_value = "grey", value_parser = crate::args::choice::<Centroid>(Centroid::NAMES))]
     centroid: Centroid,
@@ -113,13 +117,22 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             let choice = ThresholdChoice::parse(t).map_err(anyhow::Error::msg)?;
             detector.preprocess.threshold = choice.over(detector.preprocess.threshold);
         }
+        let reference_touch = if a.reference_pressed {
+            let touch = touched_reference(&sensor, &a.protocol, a.seed);
+            if touch.is_none() {
+                bail!("--reference-pressed: expected --protocol plate on a dome (tactip or tactip-small)");
+            }
+            touch
+        } else {
+            None
+        };
         let cfg = CheckConfig {
             sensor,
             protocol: a.protocol.clone(),
             touches: a.touches as usize,
             seed: a.seed,
             references: a.references,
-            reference_touch: None,
+            reference_touch,
             detector,
             layout: LayoutChoice::Auto,
             motion_limit_pitches: a.motion_limit,
