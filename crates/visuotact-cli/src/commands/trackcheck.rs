@@ -118,11 +118,10 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
             detector.preprocess.threshold = choice.over(detector.preprocess.threshold);
         }
         let reference_touch = if a.reference_pressed {
-            let touch = touched_reference(&sensor, &a.protocol, a.seed);
-            if touch.is_none() {
-                bail!("--reference-pressed: expected --protocol plate on a dome (tactip or tactip-small)");
-            }
-            touch
+            let touch = touched_reference(&sensor, &a.protocol, a.seed).context(
+                "--reference-pressed: expected --protocol plate on a dome (tactip or tactip-small)",
+            )?;
+            Some(touch)
         } else {
             None
         };

@@ -195,14 +195,14 @@ impl TrackParams {
                     value: value.to_string(),
                 })?;
             let mut settings = self.settings();
-            let names: Vec<&str> = settings.iter().map(|s| s.0).collect();
             let Some(slot) = settings.iter_mut().find(|s| s.0 == name.trim()) else {
-                let (rest, last) = names.split_at(names.len() - 1);
-                let expected = format!("{} or {}", rest.join(", "), last.join(""));
+                let mut defaults = Self::DEFAULT;
+                let names = defaults.settings().map(|s| s.0);
+                let (last, rest) = (names[names.len() - 1], &names[..names.len() - 1]);
                 return Err(crate::ConfigError::unknown(
                     "tracker setting",
                     name.trim(),
-                    expected,
+                    format!("{} or {last}", rest.join(", ")),
                 ));
             };
             *slot.1 = v;
