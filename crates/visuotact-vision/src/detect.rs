@@ -16,7 +16,6 @@ use crate::preprocess::{
     open3_from_rgb_into, otsu_level, HistogramPixels, MorphScratch, Open3Scratch, PreprocessConfig,
     Threshold,
 };
-use crate::separate::{separate_touching, SeparateScratch};
 
 /// The integer level `t` with `v > t` ⟺ `v > level · 255` for 8-bit `v` (MATLAB `im2bw`):
 /// `floor(level · 255)` (0.25 → 63, so 64 is foreground and 63 is not).
@@ -145,8 +144,6 @@ pub struct Detector {
     cut: Vec<Blob>,
     /// Background ring columns for the grey-level centroid.
     ring: Vec<u8>,
-    /// Scratch for parting touching markers.
-    separate: SeparateScratch,
 }
 
 impl Detector {
@@ -170,7 +167,6 @@ impl Detector {
             hist: None,
             cut: Vec::new(),
             ring: Vec::new(),
-            separate: SeparateScratch::default(),
         })
     }
 
@@ -292,13 +288,6 @@ impl Detector {
             }
             weighted = true;
         }
-        // Touching markers a threshold joined, parted where the grey image dips between them.
-        let (w, levels) = (self.gray.width(), &self.levels);
-        let level_at = |x: usize, y: usize| match level {
-            Some(t) => f32::from(t),
-            None => levels[y * w + x],
-        };
-        separate_touching(out, &self.gray, level_at, connectivity, &mut self.separate);
         let f = &self.cfg.filter;
         self.cut.clear();
         self.cut.extend(

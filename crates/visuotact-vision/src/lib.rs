@@ -119,7 +119,6 @@ pub mod kernels;
 pub mod layout;
 pub mod options;
 pub mod preprocess;
-pub mod separate;
 pub mod sizing;
 pub mod track;
 
