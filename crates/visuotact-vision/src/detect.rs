@@ -16,6 +16,7 @@ use crate::preprocess::{
     open3_from_rgb_into, otsu_level, HistogramPixels, MorphScratch, Open3Scratch, PreprocessConfig,
     Threshold,
 };
+use crate::separate::{separate_touching, SeparateScratch};
 
 /// The integer level `t` with `v > t` ⟺ `v > level · 255` for 8-bit `v` (MATLAB `im2bw`):
 /// `floor(level · 255)` (0.25 → 63, so 64 is foreground and 63 is not).
@@ -144,6 +145,10 @@ pub struct Detector {
     cut: Vec<Blob>,
     /// Background ring columns for the grey-level centroid.
     ring: Vec<u8>,
+    /// The last frame's global level (`None`: per-pixel levels, in `levels`).
+    level: Option<u8>,
+    /// Scratch for parting touching markers.
+    separate: SeparateScratch,
 }
 
 impl Detector {
@@ -167,6 +172,8 @@ impl Detector {
             hist: None,
             cut: Vec::new(),
             ring: Vec::new(),
+            level: None,
+            separate: SeparateScratch::default(),
         })
     }
 
@@ -230,6 +237,20 @@ impl Detector {
         self.blobs_of_gray(out)
     }
 
+    /// Parts the blobs of the last frame (`blobs`, as it returned them) that hold touching
+    /// markers where its grey image dips between them ([`crate::separate`]); `max_fill` is
+    /// the least share of its moments' ellipse one of the sensor's markers fills. Returns how
+    /// many blobs were parted.
+    pub fn part_touching(&mut self, blobs: &mut Vec<Blob>, max_fill: f64) -> usize {
+        let (w, levels, level) = (self.gray.width(), &self.levels, self.level);
+        let level_at = |x: usize, y: usize| match level {
+            Some(t) => f32::from(t),
+            None => levels[y * w + x],
+        };
+        let how = (self.cfg.filter.connectivity, max_fill);
+        separate_touching(blobs, &self.gray, level_at, how, &mut self.separate)
+    }
+
     /// Allocating form of [`Detector::detect_into`].
     pub fn detect(&mut self, rgb: &RgbImage) -> Vec<Blob> {
         let mut out = Vec::new();
@@ -288,6 +309,7 @@ impl Detector {
             }
             weighted = true;
         }
+        self.level = level;
         let f = &self.cfg.filter;
         self.cut.clear();
         self.cut.extend(

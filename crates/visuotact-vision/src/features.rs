@@ -567,6 +567,10 @@ impl FeatureExtractor {
             });
         }
         self.detector.detect_into(rgb, &mut self.blobs);
+        // Markers a threshold joined are parted where the grey image dips between them, when
+        // the blob fills its ellipse less than the sensor's own markers do.
+        let max_fill = 1.0 - self.reference.fill_sigma;
+        self.detector.part_touching(&mut self.blobs, max_fill);
         // Markers cut by the border go after the measurable blobs: they explain an absence.
         self.cut = self.detector.last_cut().len();
         self.blobs.extend_from_slice(self.detector.last_cut());

@@ -119,6 +119,7 @@ pub mod kernels;
 pub mod layout;
 pub mod options;
 pub mod preprocess;
+pub mod separate;
 pub mod sizing;
 pub mod track;
 
