@@ -3,20 +3,22 @@
 //! A threshold joins markers that touch into one blob, yet the grey image between them still
 //! dips: a downscaled frame's pixels are only partly covered where two pins meet, and two
 //! blurred discs leave a saddle. A blob that could hold two markers — at least 1.6 times the
-//! frame's median blob area, and filling its moments' ellipse less than the sensor's own
-//! markers do (`max_fill`: 1 less the tracker's shape tolerance,
-//! [`TrackReference::fill_sigma`](crate::track::TrackReference::fill_sigma); a clean pin fills
-//! nearly all of it, two touching equal discs 0.89, three packed pins 0.7) — is cut again at
+//! frame's median blob area (at most 8: more is light or shade), and filling its moments'
+//! ellipse less than the sensor's own markers do (`max_fill`: 1 less the tracker's shape
+//! tolerance, [`TrackReference::fill_sigma`](crate::track::TrackReference::fill_sigma); a clean
+//! pin fills nearly all of it, two touching equal discs 0.89, three packed pins 0.7) — is cut at
 //! higher levels, one grey value at a time, until it falls apart into two or more parts each
 //! holding a quarter of the median area and each peaking a quarter of the blob's height above
 //! the level where they part (a noise peak does not). Its pixels then flood from the parts,
 //! highest first (a watershed), so that the parts keep the pixels they had and meet along the
-//! valley. A blob with a flat top (a binarised frame), one peak, or the shape of the sensor's
-//! own ragged markers is kept whole; the tracker's two-markers-in-one-blob hypothesis still
-//! reads it.
+//! valley, and each part still as large is cut the same way. The blob is replaced by its parts
+//! only when every part comes down to under 1.6 median areas: it is explained as markers, one
+//! per part. A blob with a flat top (a binarised frame), one peak, the shape of the sensor's
+//! own ragged markers, or a part that stays large (a dot joined by a line drawn across the
+//! frame) is kept whole; the tracker's two-markers-in-one-blob hypothesis still reads it.
 //!
-//! On the real 331-pin TacTip frames scaled to 128 × 128 (pins 3.7 px across, crowded near the
-//! rim) this halves the pin-frames missing (docs/benchmarks.md).
+//! On the real 331-pin TacTip frames scaled to 128 × 128 (pins 3.7 px across, packed near the
+//! rim of a tilted dome) this cuts the pin-frames missing by about half (docs/benchmarks.md).
 //!
 //! ```
 //! use visuotact_image::GrayImage;
@@ -49,6 +51,10 @@ use crate::blobs::{BBox, Blob, Connectivity};
 /// How many times the frame's median blob area a blob must hold to be cut again: a pair's
 /// two areas, less what a squeeze takes off them.
 const LARGE: f64 = 1.6;
+/// The most median areas a blob may hold to be cut again: more than eight markers' worth is
+/// light or shade (a reflection on the dome, its rim), not markers packed together, and
+/// would only be searched to be kept whole.
+const MOST: f64 = 8.0;
 /// The least share of the median blob area a part must hold.
 const PART: f64 = 0.5;
 /// The least share of the blob's height over the level by which each part's peak must stand
@@ -85,8 +91,11 @@ pub fn separate_touching(
         large: (LARGE * median).ceil() as usize,
         least: ((PART * median).round() as usize).max(2),
     };
+    let most = (MOST * median) as usize;
     let candidate = |b: &Blob| {
-        b.area_px as usize >= sizes.large && !b.touches_border && ellipse_fill(b) < max_fill
+        (sizes.large..=most).contains(&(b.area_px as usize))
+            && !b.touches_border
+            && ellipse_fill(b) < max_fill
     };
     if !blobs.iter().any(candidate) {
         return 0;
@@ -214,31 +223,92 @@ impl BoxOf {
     /// its pixels are flooded from them and each part still large is cut the same way. `None`
     /// when it does not fall apart, or a part stays large: the region is kept whole.
     fn split(&self, of: &[usize], from: i32, sizes: Sizes) -> Option<Vec<Vec<usize>>> {
+        let t = self.parting_level(of, from, sizes)?;
         let top = of.iter().map(|&k| self.heights[k]).max()?;
         let clear = (f64::from(top) * DYNAMIC).ceil() as i32;
-        for t in from..top {
-            let seeds: Vec<Vec<usize>> = self
-                .components(of, |k| self.heights[k] > t)
-                .into_iter()
-                .filter(|c| {
-                    let peak = c.iter().map(|&k| self.heights[k]).max().unwrap_or(0);
-                    c.len() >= sizes.least && peak - t >= clear
-                })
-                .collect();
-            if seeds.len() < 2 {
+        let seeds: Vec<Vec<usize>> = self
+            .components(of, |k| self.heights[k] > t)
+            .into_iter()
+            .filter(|c| {
+                let peak = c.iter().map(|&k| self.heights[k]).max().unwrap_or(0);
+                c.len() >= sizes.least && peak - t >= clear
+            })
+            .collect();
+        let mut parts = Vec::new();
+        for region in self.flood(of, &seeds) {
+            if region.len() < sizes.large {
+                parts.push(region);
+            } else {
+                parts.extend(self.split(&region, t + 1, sizes)?);
+            }
+        }
+        Some(parts)
+    }
+
+    /// The lowest level from `from` on at which region `of` falls into two or more parts
+    /// that count: its pixels added highest first (a union–find of the parts above each
+    /// level), the parts counted at each height the region has.
+    fn parting_level(&self, of: &[usize], from: i32, sizes: Sizes) -> Option<i32> {
+        let h = &self.heights;
+        let mut order = of.to_vec();
+        order.sort_unstable_by_key(|&k| Reverse(h[k]));
+        let top = h[*order.first()?];
+        let clear = (f64::from(top) * DYNAMIC).ceil() as i32;
+        // Per pixel of the box: its parent (u32::MAX: not added yet); per root, its part's size
+        // and peak (its first pixel's height).
+        let mut parent = vec![u32::MAX; self.w * self.h];
+        let mut size = vec![0u32; self.w * self.h];
+        let find = |parent: &mut [u32], mut x: usize| {
+            while parent[x] as usize != x {
+                let up = parent[x] as usize;
+                parent[x] = parent[up];
+                x = up;
+            }
+            x
+        };
+        let mut large: Vec<usize> = Vec::new();
+        let mut lowest = None;
+        let mut i = 0;
+        while i < order.len() {
+            let v = h[order[i]];
+            while i < order.len() && h[order[i]] == v {
+                let k = order[i];
+                parent[k] = k as u32;
+                size[k] = 1;
+                self.neighbours(k, |q| {
+                    if parent[q] != u32::MAX {
+                        let (a, b) = (find(&mut parent, k), find(&mut parent, q));
+                        if a != b {
+                            // The part that peaked first keeps its root (and its peak).
+                            let (keep, gone) = if h[a] >= h[b] { (a, b) } else { (b, a) };
+                            parent[gone] = keep as u32;
+                            size[keep] += size[gone];
+                        }
+                    }
+                });
+                let r = find(&mut parent, k);
+                if size[r] as usize >= sizes.least && !large.contains(&r) {
+                    large.push(r);
+                }
+                i += 1;
+            }
+            // The pixels added are those above every level from the next height down to this
+            // one: the lowest of them (not under `from`) gives these parts.
+            let next = order.get(i).map_or(i32::MIN, |&k| h[k]);
+            let t = next.max(from);
+            if t >= top {
                 continue;
             }
-            let mut parts = Vec::new();
-            for region in self.flood(of, &seeds) {
-                if region.len() < sizes.large {
-                    parts.push(region);
-                } else {
-                    parts.extend(self.split(&region, t + 1, sizes)?);
-                }
+            large.retain(|&r| parent[r] as usize == r);
+            let counted = large.iter().filter(|&&r| h[r] - t >= clear).count();
+            if counted >= 2 {
+                lowest = Some(t);
             }
-            return Some(parts);
+            if next < from {
+                break;
+            }
         }
-        None
+        lowest
     }
 }
 
@@ -407,5 +477,61 @@ mod tests {
         );
         let flat = GrayImage::from_fn(50, 20, |x, y| if flat.get(x, y) > 125 { 255 } else { 0 });
         assert_eq!(parted(&flat, 125).0, 0);
+    }
+
+    /// Three pins packed in a row are one blob; parted, each part is one pin (within 0.3 px
+    /// of its centre). Asked with a sensor whose own markers fill their ellipse no better than
+    /// the pair does, the same blob is kept whole.
+    #[test]
+    fn three_packed_pins_become_three_parts() {
+        let pins = [(10.0, 10.0), (14.2, 10.3), (18.4, 10.0)];
+        let others = [(30.0, 10.0), (36.0, 10.0), (42.0, 10.0), (48.0, 10.0)];
+        let all: Vec<(f64, f64)> = pins.iter().chain(&others).copied().collect();
+        let img = discs(56, 20, &all, 2.0);
+        let (n, blobs) = parted(&img, 125);
+        assert_eq!((n, blobs.len()), (1, 7));
+        for c in &pins {
+            let d = blobs
+                .iter()
+                .map(|b| (b.x_px - c.0).hypot(b.y_px - c.1))
+                .fold(f64::MAX, f64::min);
+            assert!(d < 0.3, "part {d:.3} px from {c:?}");
+        }
+        let mut whole = blobs_from_gray(&img, Level::Scalar(125), Connectivity::Eight);
+        let how = (Connectivity::Eight, 0.5);
+        let n = separate_touching(
+            &mut whole,
+            &img,
+            |_, _| 125.0,
+            how,
+            &mut SeparateScratch::default(),
+        );
+        assert_eq!((n, whole.len()), (0, 5));
+    }
+
+    /// A dot joined by a line drawn across the frame (dimmer where they meet) parts into the
+    /// dot and a line far larger than a marker, which does not part: the blob is kept whole.
+    #[test]
+    fn a_dot_joined_by_a_line_stays_whole() {
+        let dots = discs(
+            60,
+            20,
+            &[(10.0, 10.0), (40.0, 10.0), (46.0, 10.0), (52.0, 10.0)],
+            2.0,
+        );
+        let img = GrayImage::from_fn(60, 20, |x, y| {
+            let line = if (13..34).contains(&x) && (9..11).contains(&y) {
+                200
+            } else {
+                0
+            };
+            let neck = if x == 12 && (9..11).contains(&y) {
+                140
+            } else {
+                0
+            };
+            dots.get(x, y).max(line).max(neck)
+        });
+        assert_eq!(parted(&img, 125).0, 0);
     }
 }

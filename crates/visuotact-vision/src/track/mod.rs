@@ -34,7 +34,9 @@
 //!   `pins_the_numbering_left_out_are_followed_not_taken`).
 //! - `ambiguity`, `split`: a blob may hold two markers (a hypothesis on the energy, split by
 //!   its moments when they are two discs'); a marker is ambiguous when a runner-up reading
-//!   costs less than one margin more than the best.
+//!   costs less than one margin more than the best. Before tracking, a blob of markers packed
+//!   together is parted where the grey image dips between them when every part comes down
+//!   to one marker's size ([`crate::separate`]).
 //!
 //! All tuning is [`TrackParams`] (stored in the sensor file). No marker is ever given a blob
 //! just because it is the nearest one to its rest position; markers left without a blob are
