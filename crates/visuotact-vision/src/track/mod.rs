@@ -43,8 +43,9 @@
 //! reported [`MarkerStatus::Lost`], [`MarkerStatus::Merged`] (their blob holds a neighbour
 //! too) or [`MarkerStatus::Ambiguous`]; their feature cells stay empty and other markers'
 //! columns never shift. Two merged markers whose blob has about their two areas are split by
-//! the blob's second moments ([`MarkerStatus::Split`]: a position, no area; ≈ 0.4 px from the
-//! truth for two touching discs of radius 10 px, test `a_merged_pair_is_split_by_its_moments`).
+//! the blob's second moments ([`MarkerStatus::Split`]: a position, no area; under 0.6 px from
+//! the truth for two discs of radius 10 px overlapping by a pixel; touching, the grey image
+//! parts them first; test `a_merged_pair_is_parted_or_split_by_its_moments`).
 
 mod ambiguity;
 mod energy;
