@@ -837,37 +837,46 @@ pub fn blobs_reference(
                 }
             }
         }
-        let n = pixels.len() as f64;
-        let cx = pixels.iter().map(|p| p.0 as f64).sum::<f64>() / n;
-        let cy = pixels.iter().map(|p| p.1 as f64).sum::<f64>() / n;
-        let (mut m20, mut m02, mut m11) = (0.0, 0.0, 0.0);
-        for &(x, y) in &pixels {
-            let (dx, dy) = (x as f64 - cx, y as f64 - cy);
-            m20 += dx * dx;
-            m02 += dy * dy;
-            m11 += dx * dy;
-        }
-        let x0 = pixels.iter().map(|p| p.0).min().unwrap_or(0);
-        let x1 = pixels.iter().map(|p| p.0).max().unwrap_or(0) + 1;
-        let y0 = pixels.iter().map(|p| p.1).min().unwrap_or(0);
-        let y1 = pixels.iter().map(|p| p.1).max().unwrap_or(0) + 1;
-        out.push(Blob {
-            area_px: pixels.len() as u32,
-            x_px: cx,
-            y_px: cy,
-            mu20_px2: m20 / n,
-            mu11_px2: m11 / n,
-            mu02_px2: m02 / n,
-            bbox: BBox {
-                x0: x0 as u32,
-                y0: y0 as u32,
-                x1: x1 as u32,
-                y1: y1 as u32,
-            },
-            touches_border: x0 == 0 || y0 == 0 || x1 == width || y1 == height,
-        });
+        let mut b = blob_of_pixels(&pixels);
+        let BBox { x0, y0, x1, y1 } = b.bbox;
+        b.touches_border = x0 == 0 || y0 == 0 || x1 as usize == width || y1 as usize == height;
+        out.push(b);
     }
     out
+}
+
+/// The blob of the pixels `(column, row)`, its moments computed pixel by pixel in floating
+/// point (not flagged as touching the border).
+pub fn blob_of_pixels(pixels: &[(usize, usize)]) -> Blob {
+    let n = pixels.len() as f64;
+    let cx = pixels.iter().map(|p| p.0 as f64).sum::<f64>() / n;
+    let cy = pixels.iter().map(|p| p.1 as f64).sum::<f64>() / n;
+    let (mut m20, mut m02, mut m11) = (0.0, 0.0, 0.0);
+    for &(x, y) in pixels {
+        let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+        m20 += dx * dx;
+        m02 += dy * dy;
+        m11 += dx * dy;
+    }
+    let x0 = pixels.iter().map(|p| p.0).min().unwrap_or(0);
+    let x1 = pixels.iter().map(|p| p.0).max().unwrap_or(0) + 1;
+    let y0 = pixels.iter().map(|p| p.1).min().unwrap_or(0);
+    let y1 = pixels.iter().map(|p| p.1).max().unwrap_or(0) + 1;
+    Blob {
+        area_px: pixels.len() as u32,
+        x_px: cx,
+        y_px: cy,
+        mu20_px2: m20 / n,
+        mu11_px2: m11 / n,
+        mu02_px2: m02 / n,
+        bbox: BBox {
+            x0: x0 as u32,
+            y0: y0 as u32,
+            x1: x1 as u32,
+            y1: y1 as u32,
+        },
+        touches_border: false,
+    }
 }
 
 #[cfg(test)]

@@ -7,9 +7,9 @@
 //! ellipse less than the sensor's own markers do (`max_fill`: 1 less the tracker's shape
 //! tolerance, [`TrackReference::fill_sigma`](crate::track::TrackReference::fill_sigma); a clean
 //! pin fills nearly all of it, two touching equal discs 0.89, three packed pins 0.7) — is cut at
-//! higher levels, one grey value at a time, until it falls apart into two or more parts each
-//! holding a quarter of the median area and each peaking a quarter of the blob's height above
-//! the level where they part (a noise peak does not). Its pixels then flood from the parts,
+//! the lowest level over its threshold where it falls apart into two or more parts each
+//! holding half the median area and each peaking a quarter of the blob's height above that
+//! level (a noise peak does not; the level is found in one sweep of its pixels). Its pixels then flood from the parts,
 //! highest first (a watershed), so that the parts keep the pixels they had and meet along the
 //! valley, and each part still as large is cut the same way. The blob is replaced by its parts
 //! only when every part comes down to under 1.6 median areas: it is explained as markers, one
@@ -46,7 +46,8 @@ use std::collections::BinaryHeap;
 
 use visuotact_image::GrayImage;
 
-use crate::blobs::{BBox, Blob, Connectivity};
+use crate::blobs::{blob_of_pixels, BBox, Blob, Connectivity};
+use crate::track::ellipse_fill;
 
 /// How many times the frame's median blob area a blob must hold to be cut again: a pair's
 /// two areas, less what a squeeze takes off them.
@@ -121,14 +122,6 @@ pub fn separate_touching(
 struct Sizes {
     large: usize,
     least: usize,
-}
-
-/// The share of its moments' ellipse blob `b` fills (each variance counting the pixel as a
-/// unit square).
-fn ellipse_fill(b: &Blob) -> f64 {
-    let pixel = 1.0 / 12.0;
-    let det = (b.mu20_px2 + pixel) * (b.mu02_px2 + pixel) - b.mu11_px2 * b.mu11_px2;
-    f64::from(b.area_px) / (4.0 * std::f64::consts::PI * det.max(0.0).sqrt())
 }
 
 /// A blob's box: its pixels' heights over the level (0: background) and the connectivity.
@@ -355,42 +348,11 @@ fn parts_of(
         return false;
     };
     parts.clear();
-    parts.extend(regions.iter().map(|r| blob_of(r, (x0, y0, w))));
+    parts.extend(regions.iter().map(|r| {
+        let px: Vec<(usize, usize)> = r.iter().map(|&k| (x0 + k % w, y0 + k / w)).collect();
+        blob_of_pixels(&px)
+    }));
     true
-}
-
-/// The blob of the box pixels `px` (row-major in a box at `(x0, y0)`, `w` wide).
-fn blob_of(px: &[usize], (x0, y0, w): (usize, usize, usize)) -> Blob {
-    let at = |k: usize| ((x0 + k % w) as f64, (y0 + k / w) as f64);
-    let n = px.len() as f64;
-    let (cx, cy) = px
-        .iter()
-        .map(|&k| at(k))
-        .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
-    let (cx, cy) = (cx / n, cy / n);
-    let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
-    let (mut bx0, mut by0, mut bx1, mut by1) = (f64::MAX, f64::MAX, 0.0f64, 0.0f64);
-    for (x, y) in px.iter().map(|&k| at(k)) {
-        xx += (x - cx) * (x - cx);
-        xy += (x - cx) * (y - cy);
-        yy += (y - cy) * (y - cy);
-        (bx0, by0, bx1, by1) = (bx0.min(x), by0.min(y), bx1.max(x), by1.max(y));
-    }
-    Blob {
-        area_px: px.len() as u32,
-        x_px: cx,
-        y_px: cy,
-        mu20_px2: xx / n,
-        mu11_px2: xy / n,
-        mu02_px2: yy / n,
-        bbox: BBox {
-            x0: bx0 as u32,
-            y0: by0 as u32,
-            x1: bx1 as u32 + 1,
-            y1: by1 as u32 + 1,
-        },
-        touches_border: false,
-    }
 }
 
 #[cfg(test)]

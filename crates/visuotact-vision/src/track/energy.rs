@@ -213,7 +213,7 @@ pub(super) fn outline_noise(area_px: f64) -> f64 {
 /// The share of the ellipse with a blob's second moments (`4π·√(λ1·λ2)`, each variance
 /// widened by the pixel's own 1/12) that its area fills: 1 for an ellipse, 0.89 for two
 /// touching equal discs, less for two lobes joined by a thinner bridge.
-pub(super) fn ellipse_fill(b: &Blob) -> f64 {
+pub(crate) fn ellipse_fill(b: &Blob) -> f64 {
     let pixel = 1.0 / 12.0;
     let (xx, xy, yy) = (b.mu20_px2 + pixel, b.mu11_px2, b.mu02_px2 + pixel);
     fill_of(f64::from(b.area_px), xx * yy - xy * xy)

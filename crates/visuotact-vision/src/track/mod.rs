@@ -66,6 +66,7 @@ use serde::{Deserialize, Serialize};
 use crate::blobs::Blob;
 use crate::layout::k_nearest_all;
 
+pub(crate) use energy::ellipse_fill;
 pub use sites::unseen_sites;
 
 /// What happened to one reference marker in one frame.
