@@ -576,18 +576,20 @@ fn a_dome_calibrated_unnumbered_under_a_plate_is_not_read_a_step_off() {
     assert_eq!(r.lost, 0, "visible pins lost: {:#?}", r.examples);
 }
 
-/// A dome calibrated under a plate's press where the numbering skips a line of pins (the
-/// scorecard's `plate` reference of TacTip variant 4, seed 115, a seed its tests do not use: 5
-/// pins in a seam from the contact's edge): the pins left out are followed as markers never
-/// reported. Without them a region shifted a lattice step onto their blobs paid nothing for
-/// them: 279 of 4 849 pin-frames wrong, 20 in most of the 20 frames; now 81, 1 in most frames.
+/// A dome calibrated under a plate's press where the numbering leaves pins out (the
+/// scorecard's `plate` reference of TacTip variant 4, seed 115, a seed its tests do not use):
+/// the pins left out are followed as markers never reported. Spread breadth-first, the
+/// numbering left a seam of 5 pins from the contact's edge; without following them a region
+/// shifted a lattice step onto their blobs paid nothing for them (279 of 4 849 pin-frames wrong,
+/// 81 with them). Crossing the crushed rhombi last, it leaves 1 pin out: 84 of 4 949 wrong
+/// without following it, 47 with.
 #[test]
 fn pins_the_numbering_left_out_are_followed_not_taken() {
     let r = scorecard_plate(4, 115);
     assert_eq!(r.layout, Some(Layout::Hex));
     assert!(
-        r.uncalibrated >= 3,
-        "the seam is numbered now: {}",
+        r.uncalibrated <= 1,
+        "the seam is back: {} pins left out",
         r.uncalibrated
     );
     let many = r.per_frame.iter().filter(|(_, c)| c.wrong > 3).count();
@@ -596,7 +598,7 @@ fn pins_the_numbering_left_out_are_followed_not_taken() {
         "{many} frames with over 3 wrong: {:#?}",
         r.examples
     );
-    assert!(r.wrong <= 100, "{} wrong: {:#?}", r.wrong, r.examples);
+    assert!(r.wrong <= 60, "{} wrong: {:#?}", r.wrong, r.examples);
 }
 
 /// A dome calibrated under a plate's press (tilted, slid and twisted, as the scorecard's `plate`
