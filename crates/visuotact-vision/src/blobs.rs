@@ -837,7 +837,7 @@ pub fn blobs_reference(
                 }
             }
         }
-        let mut b = blob_of_pixels(&pixels);
+        let mut b = blob_of_pixels(pixels.iter().copied());
         let BBox { x0, y0, x1, y1 } = b.bbox;
         b.touches_border = x0 == 0 || y0 == 0 || x1 as usize == width || y1 as usize == height;
         out.push(b);
@@ -845,25 +845,30 @@ pub fn blobs_reference(
     out
 }
 
-/// The blob of the pixels `(column, row)`, its moments computed pixel by pixel in floating
-/// point (not flagged as touching the border).
-pub fn blob_of_pixels(pixels: &[(usize, usize)]) -> Blob {
-    let n = pixels.len() as f64;
-    let cx = pixels.iter().map(|p| p.0 as f64).sum::<f64>() / n;
-    let cy = pixels.iter().map(|p| p.1 as f64).sum::<f64>() / n;
+/// The blob of the pixels `(column, row)` (any source that can be walked more than once: a
+/// slice's `iter().copied()`, or a map over pixel indices), its moments computed pixel by
+/// pixel in floating point (not flagged as touching the border).
+pub fn blob_of_pixels<I>(pixels: I) -> Blob
+where
+    I: Iterator<Item = (usize, usize)> + Clone,
+{
+    let n = pixels.clone().count() as f64;
+    let cx = pixels.clone().map(|p| p.0 as f64).sum::<f64>() / n;
+    let cy = pixels.clone().map(|p| p.1 as f64).sum::<f64>() / n;
     let (mut m20, mut m02, mut m11) = (0.0, 0.0, 0.0);
-    for &(x, y) in pixels {
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for (x, y) in pixels {
         let (dx, dy) = (x as f64 - cx, y as f64 - cy);
         m20 += dx * dx;
         m02 += dy * dy;
         m11 += dx * dy;
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
     }
-    let x0 = pixels.iter().map(|p| p.0).min().unwrap_or(0);
-    let x1 = pixels.iter().map(|p| p.0).max().unwrap_or(0) + 1;
-    let y0 = pixels.iter().map(|p| p.1).min().unwrap_or(0);
-    let y1 = pixels.iter().map(|p| p.1).max().unwrap_or(0) + 1;
+    if n == 0.0 {
+        (x0, y0, x1, y1) = (0, 0, 1, 1);
+    }
     Blob {
-        area_px: pixels.len() as u32,
+        area_px: n as u32,
         x_px: cx,
         y_px: cy,
         mu20_px2: m20 / n,

@@ -9,9 +9,9 @@
 //! pin fills nearly all of it, two touching equal discs 0.89, three packed pins 0.7) — is cut at
 //! the lowest level over its threshold where it falls apart into two or more parts each
 //! holding half the median area and each peaking a quarter of the blob's height above that
-//! level (a noise peak does not; the level is found in one sweep of its pixels). Its pixels then flood from the parts,
-//! highest first (a watershed), so that the parts keep the pixels they had and meet along the
-//! valley, and each part still as large is cut the same way. The blob is replaced by its parts
+//! level (a noise peak does not; the level is found in one sweep of its pixels). Its pixels
+//! then flood from the parts, highest first (a watershed), so that the parts keep the pixels
+//! they had and meet along the valley, and each part still as large is cut the same way. The blob is replaced by its parts
 //! only when every part comes down to under 1.6 median areas: it is explained as markers, one
 //! per part. A blob with a flat top (a binarised frame), one peak, the shape of the sensor's
 //! own ragged markers, or a part that stays large (a dot joined by a line drawn across the
@@ -348,10 +348,11 @@ fn parts_of(
         return false;
     };
     parts.clear();
-    parts.extend(regions.iter().map(|r| {
-        let px: Vec<(usize, usize)> = r.iter().map(|&k| (x0 + k % w, y0 + k / w)).collect();
-        blob_of_pixels(&px)
-    }));
+    parts.extend(
+        regions
+            .iter()
+            .map(|r| blob_of_pixels(r.iter().map(|&k| (x0 + k % w, y0 + k / w)))),
+    );
     true
 }
 

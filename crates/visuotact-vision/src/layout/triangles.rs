@@ -253,9 +253,9 @@ mod tests {
     /// around the crease and every pin keeps its site, wherever the numbering starts. Spread
     /// breadth-first, it crossed the crease when it started near it: from site (4, 1), below the
     /// crease, 57 of the 121 pins kept their site and 7 were left out where it eases over two
-    /// pitches, 85 of 121 over four. (A crease pulled
-    /// shut, 0.8 of a row and more within two pitches of its end, looks like an unbroken
-    /// lattice: it is numbered as one, a row off beyond it.)
+    /// pitches, 85 of 121 over four. (A crease pulled shut, 0.8 of a row and more within two
+    /// pitches of its end, looks like an unbroken lattice: it is numbered as one, a row off
+    /// beyond it.)
     #[test]
     fn a_crease_is_crossed_last_wherever_the_numbering_starts() {
         for pull in [0.7, 0.75] {
