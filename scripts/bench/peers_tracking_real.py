@@ -9,11 +9,13 @@ either reports a position or not, and a reported one is compared with the vendor
 
 - visuotact: `calibrate VIDEO --first 5 --keep-border` and `extract` with its defaults (the
   driver, scripts/bench/peers-tracking-real, runs them); a marker is reported when its cells are filled;
+- visuotact followed: the same sensor file, `extract --temporal` (each frame tracked from the
+  last one's positions, as `run --temporal` live), when a second features file is given;
 - peer NN: the OpenCV peer's blobs (../shared/peers/opencv_pipeline.py `process` on the inverted
   frame: dark markers) of the first frame are the markers, each taking the nearest blob within
   half a pitch in every frame (scripts/bench/peers_tracking.py's rule).
 
-Usage: peers_tracking_real.py SHARED_PEERS VIDEO MARKERS_CSV SENSOR_JSON FEATURES_CSV
+Usage: peers_tracking_real.py SHARED_PEERS VIDEO MARKERS_CSV SENSOR_JSON FEATURES_CSV [FOLLOWED_CSV]
 The vendor's positions are not truth: in some frames of video 5 they repeat the previous
 frame's exactly while the gel moves (its tracker held stale positions), and the videos carry
 that tracker's drawing (red arrows, dark in luma, across the markers). The last three columns
@@ -82,8 +84,24 @@ def score(name, ref_xy, tracks, keys, vendor):
             f"| {len(frozen)} | {live.mean():.2f} | {int((live > 10).sum())} |")
 
 
+def positions_from_features(ref, features):
+    """Per frame, each marker's position (the sensor file's plus the displacement; NaN where
+    its cells are empty)."""
+    out = {}
+    for r in read_rows(features):
+        f = int(r["frame"].split("#")[-1])
+        p = np.full((len(ref), 2), np.nan)
+        for k in range(len(ref)):
+            dx, dy = r.get(f"m{k:03d}_dx_px", ""), r.get(f"m{k:03d}_dy_px", "")
+            if dx != "" and dy != "":
+                p[k] = ref[k] + (float(dx), float(dy))
+        out[f] = p
+    return out
+
+
 def main():
     peers, video, markers, sensor, features = sys.argv[1:6]
+    followed = sys.argv[6] if len(sys.argv) > 6 else None
     sys.path.insert(0, peers)
     import cv2
     import opencv_pipeline as op
@@ -92,15 +110,7 @@ def main():
     # visuotact: positions are the sensor file's markers plus the displacements.
     cal = json.load(open(sensor))
     ref = np.array([(m["x_px"], m["y_px"]) for m in cal["markers"]])
-    vt = {}
-    for r in read_rows(features):
-        f = int(r["frame"].split("#")[-1])
-        p = np.full((len(ref), 2), np.nan)
-        for k in range(len(ref)):
-            dx, dy = r.get(f"m{k:03d}_dx_px", ""), r.get(f"m{k:03d}_dy_px", "")
-            if dx != "" and dy != "":
-                p[k] = ref[k] + (float(dx), float(dy))
-        vt[f] = p
+    vt = positions_from_features(ref, features)
     # The peer: blobs of every frame, nearest-blob tracking from the first frame's blobs.
     cap = cv2.VideoCapture(video)
     blobs = []
@@ -121,6 +131,9 @@ def main():
         p[ok] = b[j[ok]]
         peer[f] = p
     print(score(f"visuotact ({os.path.basename(video)})", ref, vt, keys, vendor))
+    if followed:
+        vt_followed = positions_from_features(ref, followed)
+        print(score(f"visuotact followed ({os.path.basename(video)})", ref, vt_followed, keys, vendor))
     print(score(f"peer NN ({os.path.basename(video)})", peer_ref, peer, keys, vendor))
 
 

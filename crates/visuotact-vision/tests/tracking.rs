@@ -1061,3 +1061,56 @@ fn starts_searched_side_by_side_read_the_same() {
     };
     assert_eq!(after, track_with(&reference, &one_short, &params, beside));
 }
+
+/// Followed (a temporal prior), a block of markers the last frame read a row off — a whole
+/// corner of an 8 × 10 grid, its far row then beyond the view's edge, so that nothing there is
+/// left without its blob — is read right again in a frame at rest: the seam where the block
+/// meets the rest leaves blobs unexplained, and the frame read on its own explains every blob
+/// at a lower energy. Without that, each frame started where the last one ended, and the
+/// block stayed a row off for as long as the video lasted (a real GelSight Mini video, its
+/// last 90 frames).
+#[test]
+fn a_block_followed_a_row_off_is_read_right_again() {
+    use visuotact_vision::track::{track_with, TrackHints, TrackParams, TrackReference, View};
+    let (rows, cols, pitch) = (8, 10, 20.0);
+    let at = |r: usize, c: usize| (30.0 + pitch * c as f64, 30.0 + pitch * r as f64);
+    let positions: Vec<(f64, f64)> = (0..rows * cols).map(|k| at(k / cols, k % cols)).collect();
+    let reference = TrackReference::new(positions.clone(), vec![30.0; rows * cols]);
+    let blobs: Vec<_> = positions
+        .iter()
+        .map(|&(x, y)| disc_blob(x, y, 30, false))
+        .collect();
+    let view = View {
+        x0: 0.0,
+        y0: 0.0,
+        x1: 30.0 + pitch * (cols as f64 - 0.5),
+        y1: 30.0 + pitch * (rows as f64 - 0.5),
+        circle: None,
+    };
+    for (r0, c0) in [(3, 5), (2, 4), (4, 6)] {
+        // The block from row r0, column c0 to the far corner, read a row down.
+        let prior: Vec<Option<(f64, f64)>> = (0..rows * cols)
+            .map(|k| {
+                let (r, c) = (k / cols, k % cols);
+                Some(if r >= r0 && c >= c0 {
+                    at(r + 1, c)
+                } else {
+                    at(r, c)
+                })
+            })
+            .collect();
+        let hints = TrackHints {
+            prior: Some(&prior),
+            view: Some(view),
+            ..TrackHints::default()
+        };
+        let t = track_with(&reference, &blobs, &TrackParams::default(), hints);
+        for k in 0..rows * cols {
+            assert_eq!(
+                (t.status[k], t.assignment[k]),
+                (MarkerStatus::Ok, Some(k)),
+                "block from ({r0}, {c0}): marker {k}"
+            );
+        }
+    }
+}

@@ -14,7 +14,10 @@
 //!   multi-start search: a reading that leaves a blob or a marker unexplained is searched
 //!   again from a firmer motion prior, then from seeds judged each on its own, the lowest
 //!   energy kept; the other starts are searched side by side, and beside the first where the
-//!   last frame of a video needed them (the same reading, sooner).
+//!   last frame of a video needed them (the same reading, sooner). Followed, a reading torn
+//!   from the reference that leaves something unexplained (carried a lattice step off by an
+//!   earlier frame) is compared with the frame read on its own, on the energy from the
+//!   reference (test `a_block_followed_a_row_off_is_read_right_again`).
 //! - `regrow`: a reading torn where lattice neighbours disagree by about a step is grown again
 //!   from a patch of itself (its largest smooth parts, its centre shifted by each step: a
 //!   dome's rings each read turned a step, test `tactip331_rings_are_not_read_turned_a_step`).
@@ -686,22 +689,53 @@ pub fn track_with(
         params,
         view: hints.view,
     };
-    let anchors = match prior {
-        Some(p) => predict::anchors_from_prior(reference, p),
-        None => reference.positions.clone(),
+    let Some(prior) = prior else {
+        let (m, runner_ups, searched_again) =
+            read_order_free(reference, blobs, usable, energy, hints);
+        let mut result = outcome(&m, &runner_ups);
+        result.searched_again = searched_again;
+        return result;
     };
-    let order_free = prior.is_none();
+    let anchors = predict::anchors_from_prior(reference, prior);
     let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
-    m.charge_pieces = order_free;
-    if order_free {
-        m.shift = predict::register(reference, &m.index);
+    m.charge_pieces = false;
+    let runner_ups = search(&mut m, false, Start::Chained);
+    // Each frame starts where the last one ended, and the fits are of the motion since the
+    // last frame, so a reading carried a lattice step off keeps itself: nothing in the
+    // followed energy tears at its seams. Its displacements from the reference do (a skin
+    // does not tear), and it leaves blobs or markers in view unexplained there. The frame is
+    // then also read on its own, and its energy (the deformation from the reference) judges
+    // the two readings: the frame's own is kept when lower by the margin.
+    if m.torn_from_rest() && m.leaves_unexplained() {
+        let (mut own, own_runner_ups, _) = read_order_free(reference, blobs, usable, energy, hints);
+        let (kept, e_own) = (own.assignment.clone(), own.total_energy());
+        own.set_assignment(&m.assignment);
+        if e_own < own.total_energy() - params.margin {
+            own.set_assignment(&kept);
+            return outcome(&own, &own_runner_ups);
+        }
     }
+    outcome(&m, &runner_ups)
+}
+
+/// The reading of one frame on its own (order-free), with the runner-ups within the margin
+/// of it and whether other starts were searched.
+fn read_order_free<'a>(
+    reference: &'a TrackReference,
+    blobs: &'a [Blob],
+    usable: usize,
+    energy: energy::Energy<'a>,
+    hints: TrackHints<'_>,
+) -> (solve::Matching<'a>, Vec<slide::RunnerUp>, bool) {
+    let anchors = reference.positions.clone();
+    let mut m = solve::Matching::new(reference, blobs, usable, energy, anchors, (0.0, 0.0));
+    m.shift = predict::register(reference, &m.index);
     // A multi-start search on the one energy: while a reading leaves a blob or a marker in
     // view unexplained, another start may find a lower energy. Both other starts are searched
     // side by side (the second one's reading may explain everything, and the third is not
     // needed then), beside the first too when asked, and taken in turn.
     let mut others = None;
-    let mut runner_ups = if order_free && hints.starts_side_by_side {
+    let mut runner_ups = if hints.starts_side_by_side {
         let (firm, independent) = other_starts(&m, hints.view);
         let (r, o) = rayon::join(
             || search(&mut m, true, Start::Chained),
@@ -710,9 +744,9 @@ pub fn track_with(
         others = Some(o);
         r
     } else {
-        search(&mut m, order_free, Start::Chained)
+        search(&mut m, true, Start::Chained)
     };
-    let searched_again = order_free && m.leaves_unexplained();
+    let searched_again = m.leaves_unexplained();
     if searched_again {
         let (firm, independent) = others.unwrap_or_else(|| {
             let (firm, independent) = other_starts(&m, hints.view);
@@ -729,7 +763,7 @@ pub fn track_with(
     // Each regrown reading kept may still be torn: regrown again while that lowers the energy
     // (at most three times).
     for _ in 0..3 {
-        if !(order_free && m.torn()) {
+        if !m.torn() {
             break;
         }
         match regrow::regrow(&mut m) {
@@ -737,9 +771,7 @@ pub fn track_with(
             None => break,
         }
     }
-    let mut result = outcome(&m, &runner_ups);
-    result.searched_again = searched_again;
-    result
+    (m, runner_ups, searched_again)
 }
 
 /// The reported outcome of the reading `m` found, with the `runner_ups` within the margin of

@@ -572,8 +572,13 @@ impl Matching<'_> {
     /// Whether the displacements of markers `i` and `k` (both matched) differ by under
     /// `spacings` of their spacing.
     fn move_together(&self, i: usize, k: usize, spacings: f64) -> bool {
+        self.together_in(&self.disp, i, k, spacings)
+    }
+
+    /// [`Matching::move_together`] for the displacements `disp`.
+    fn together_in(&self, disp: &[(f64, f64)], i: usize, k: usize, spacings: f64) -> bool {
         let s = spacings * self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
-        let (a, b) = (self.disp[i], self.disp[k]);
+        let (a, b) = (disp[i], disp[k]);
         (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2) < s * s
     }
 
@@ -581,6 +586,24 @@ impl Matching<'_> {
     /// more than the spread the energy allows a prediction (`spread_sigmas · σ`): a skin
     /// strains that far, it does not tear.
     pub fn torn(&self) -> bool {
+        self.torn_in(&self.disp)
+    }
+
+    /// [`Matching::torn`] for the displacements from the reference rather than from the
+    /// anchors (which, followed, are the last frame's positions, as torn as its reading).
+    pub fn torn_from_rest(&self) -> bool {
+        let rest = self.reference.positions.iter().zip(&self.assignment);
+        let disp: Vec<(f64, f64)> = rest
+            .map(|(p, a)| {
+                a.map_or((0.0, 0.0), |j| {
+                    (self.blobs[j].x_px - p.0, self.blobs[j].y_px - p.1)
+                })
+            })
+            .collect();
+        self.torn_in(&disp)
+    }
+
+    fn torn_in(&self, disp: &[(f64, f64)]) -> bool {
         let r = self.reference;
         let p = self.energy.params;
         let spread = p.spread_sigmas * p.sigma_spacings;
@@ -589,7 +612,7 @@ impl Matching<'_> {
                 && r.lattice_steps[i]
                     .iter()
                     .flatten()
-                    .any(|&k| self.assignment[k].is_some() && !self.move_together(i, k, spread))
+                    .any(|&k| self.assignment[k].is_some() && !self.together_in(disp, i, k, spread))
         })
     }
 
