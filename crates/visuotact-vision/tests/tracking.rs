@@ -1114,3 +1114,61 @@ fn a_block_followed_a_row_off_is_read_right_again() {
         }
     }
 }
+
+/// A dot joined by a line drawn across it (a tracker's displacement arrow burned into a video,
+/// as in the GelSight Mini demo recordings) is one blob of about twice the dot's area with two
+/// lobes. Its marker takes it: the blob is at worst the marker and a clutter joined, so its
+/// size and shape together cost no more than a clutter's cost — while every neighbour holds
+/// its own blob, none can be the other lobe. Before, area and shape were charged apart and the
+/// marker cost more taking its blob than leaving it as clutter: lost (and, in a sheared field,
+/// its row read a column off to avoid it).
+#[test]
+fn a_dot_joined_by_a_drawn_line_keeps_its_marker() {
+    use visuotact_vision::track::{track, TrackParams, TrackReference};
+    let (pitch, dot) = (30.0, 100.0);
+    let positions: Vec<(f64, f64)> = (0..25)
+        .map(|k| {
+            (
+                40.0 + pitch * f64::from(k % 5),
+                40.0 + pitch * f64::from(k / 5),
+            )
+        })
+        .collect();
+    let reference = TrackReference::new(positions.clone(), vec![dot; 25]);
+    let mut blobs: Vec<_> = positions
+        .iter()
+        .map(|&(x, y)| disc_blob(x, y, 100, false))
+        .collect();
+    // Marker 12's dot (radius 5.6 px, variance r²/4) joined by a line 4 px wide from its rim
+    // to 30 px out along the diagonal between its neighbours (variance L²/12 along, w²/12
+    // across): the parts' moments added about their common centroid.
+    let r = (dot / std::f64::consts::PI).sqrt();
+    let (t0, t1, w) = (r, 30.0, 4.0);
+    let line = (t1 - t0) * w;
+    let total = dot + line;
+    let along = line * (t0 + t1) / 2.0 / total;
+    let var_along = (dot * (r * r / 4.0 + along * along)
+        + line * ((t1 - t0).powi(2) / 12.0 + ((t0 + t1) / 2.0 - along).powi(2)))
+        / total;
+    let var_across = (dot * r * r / 4.0 + line * w * w / 12.0) / total;
+    // Rotated by 45°: x and y each take half of both, their covariance half the difference.
+    let b = &mut blobs[12];
+    let u = std::f64::consts::FRAC_1_SQRT_2;
+    b.area_px = total.round() as u32;
+    b.x_px += along * u;
+    b.y_px += along * u;
+    b.mu20_px2 = (var_along + var_across) / 2.0;
+    b.mu02_px2 = (var_along + var_across) / 2.0;
+    b.mu11_px2 = (var_along - var_across) / 2.0;
+    let det = b.mu20_px2 * b.mu02_px2 - b.mu11_px2 * b.mu11_px2;
+    let fill = total / (4.0 * std::f64::consts::PI * det.sqrt());
+    assert!((0.6..0.8).contains(&fill), "{fill}");
+    let t = track(&reference, &blobs, &TrackParams::default());
+    for k in 0..25 {
+        assert_eq!(
+            (t.status[k], t.assignment[k]),
+            (MarkerStatus::Ok, Some(k)),
+            "marker {k}"
+        );
+    }
+}

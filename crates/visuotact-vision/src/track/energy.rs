@@ -21,9 +21,11 @@
 //! noise of a small marker's outline. A blob cut by the image border (dropped as cut, or kept
 //! though it touches the border) carries no area or shape term; a blob of two lobes pays a
 //! shape term (how far under 1 it fills its moments' ellipse, in the sensor's own markers'
-//! shortfall at rest) — bounded by a speck of clutter's cost when the blob holds at least the
-//! marker's area and no neighbour is without a blob (then the second lobe can only be a speck
-//! joined to the marker, not another marker). A weak motion prior adds
+//! shortfall at rest). What area and shape add together is bounded by a clutter's cost when
+//! the blob holds at least the marker's area and no neighbour is without a blob: the rest of
+//! the blob can then only be clutter joined to the marker (a speck, a line drawn across the
+//! dot), not another marker, and the marker with its clutter costs no more than the two
+//! apart (test `a_dot_joined_by_a_drawn_line_keeps_its_marker`). A weak motion prior adds
 //! `(|b_j − o_i| / (M · s_i))²`, `o_i` where the starting motion puts the marker and `M`
 //! [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings): it decides between
 //! readings the rest cannot tell apart (half a grid hidden, the other half read
@@ -61,10 +63,10 @@ impl Energy<'_> {
         (self.params.gate_spacings / self.params.sigma_spacings).powi(2)
     }
 
-    /// The most a blob's shape may cost one marker when no neighbour without a blob could be
-    /// its other lobe: the blob is then at worst the marker joined by a speck of clutter, and
-    /// costs no more than that speck alone (a binarised TacTip pin frays in contact into a
-    /// pin with a tail, filling 0.8 of its ellipse).
+    /// The most a blob's size and shape may cost one marker when no neighbour without a blob
+    /// could be its other part: the blob is then at worst the marker joined by clutter, and
+    /// costs no more than that clutter alone (a binarised TacTip pin frays in contact into a
+    /// pin with a tail, filling 0.8 of its ellipse; a line drawn across a dot joins it).
     pub fn speck_cost(&self) -> f64 {
         self.clutter_cost()
     }
@@ -146,45 +148,45 @@ impl Energy<'_> {
     /// alone: position, area and shape (a blob of two lobes is not one marker).
     pub fn cost(&self, i: usize, p: &Prediction, b: &Blob, cut: bool) -> f64 {
         let short = if cut { 0.0 } else { fill_short(b) };
-        self.cost_with(i, p, b, cut, (short, f64::INFINITY))
+        self.cost_with(i, p, b, cut, (short, || f64::INFINITY))
     }
 
-    /// [`Energy::cost`] with the blob's [`fill_short`] given (computed once per blob) and the
-    /// shape term bounded by `shape_cap` ([`Energy::speck_cost`] where no second marker
-    /// can be the blob's other lobe, infinite otherwise).
+    /// [`Energy::cost`] with the blob's [`fill_short`] given (computed once per blob) and
+    /// what its size and shape add bounded by `clutter_cap()` when the blob holds at least
+    /// the marker's area ([`Energy::speck_cost`] where no second marker can be the blob's
+    /// other part, infinite otherwise; asked only when the bound would matter).
     pub fn cost_with(
         &self,
         i: usize,
         p: &Prediction,
         b: &Blob,
         cut: bool,
-        (short, shape_cap): (f64, f64),
+        (short, clutter_cap): (f64, impl FnOnce() -> f64),
     ) -> f64 {
         let expected = self.reference.areas_px[i] * p.scale * p.scale;
-        let shape = if cut {
+        let form = if cut {
             0.0
         } else {
             let (f, o) = (self.reference.fill_sigma, outline_noise(expected.max(1.0)));
-            let shape = (short / (f * f + o * o).sqrt()).powi(2);
-            // A marker joined by a speck holds at least the marker's own area.
-            if f64::from(b.area_px) >= expected {
-                shape.min(shape_cap)
+            let form = (short / (f * f + o * o).sqrt()).powi(2) + self.area_cost(b, expected, cut);
+            // A marker joined by clutter (a speck, a line drawn across it) holds at least the
+            // marker's own area: what its size and shape add is then at most the clutter's
+            // own cost.
+            if f64::from(b.area_px) >= expected && form > self.speck_cost() {
+                form.min(clutter_cap())
             } else {
-                shape
+                form
             }
         };
         let at = (b.x_px, b.y_px);
-        self.position_cost(i, dist(at, p.at), p)
-            + self.area_cost(b, expected, cut)
-            + shape
-            + self.motion_cost(i, dist(at, p.start))
+        self.position_cost(i, dist(at, p.at), p) + form + self.motion_cost(i, dist(at, p.start))
     }
 
     /// The cost of marker `i` taking `b`, the union of pieces of its dot: position and area
     /// as [`Energy::cost`], no shape term (the pieces leave the gap that broke them between
     /// them; that they are one marker's is the pieces' own test).
     pub fn pieces_cost(&self, i: usize, p: &Prediction, b: &Blob) -> f64 {
-        self.cost_with(i, p, b, false, (0.0, f64::INFINITY))
+        self.cost_with(i, p, b, false, (0.0, || f64::INFINITY))
     }
 
     /// The motion prior: a marker `moved_px` from where the starting motion puts it (the

@@ -212,13 +212,12 @@ impl<'a> Matching<'a> {
     pub fn cost(&self, i: usize, pred: Prediction, j: usize) -> f64 {
         let cut = self.outline_cut(j);
         let short = if cut { 0.0 } else { self.fill_short[j] };
-        // The shape term is at most (short / fill_sigma)²: the cap matters only above it.
-        let f = self.reference.fill_sigma;
-        let capped = short * short > self.energy.speck_cost() * f * f;
-        let cap = if !capped || self.lobe_of_another(i) {
-            f64::INFINITY
-        } else {
-            self.energy.speck_cost()
+        let cap = || {
+            if self.lobe_of_another(i) {
+                f64::INFINITY
+            } else {
+                self.energy.speck_cost()
+            }
         };
         self.energy
             .cost_with(i, &pred, &self.blobs[j], cut, (short, cap))
