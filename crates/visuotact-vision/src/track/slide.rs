@@ -603,6 +603,7 @@ impl Matching<'_> {
         self.torn_in(&disp)
     }
 
+    /// [`Matching::torn`] for the displacements `disp`.
     fn torn_in(&self, disp: &[(f64, f64)]) -> bool {
         let r = self.reference;
         let p = self.energy.params;
