@@ -551,6 +551,11 @@ impl Matching<'_> {
     }
 }
 
+/// Whether displacements `a` and `b` differ by under `within_px`.
+fn together(a: (f64, f64), b: (f64, f64), within_px: f64) -> bool {
+    (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2) < within_px * within_px
+}
+
 impl Matching<'_> {
     /// The matched markers in connected parts whose displacements agree: lattice neighbours
     /// (one step apart) whose displacements differ by under half a spacing share a part. A
@@ -572,48 +577,44 @@ impl Matching<'_> {
     /// Whether the displacements of markers `i` and `k` (both matched) differ by under
     /// `spacings` of their spacing.
     fn move_together(&self, i: usize, k: usize, spacings: f64) -> bool {
-        self.together_in(&self.disp, i, k, spacings)
+        together(self.disp[i], self.disp[k], self.together_px(i, k, spacings))
     }
 
-    /// [`Matching::move_together`] for the displacements `disp`.
-    fn together_in(&self, disp: &[(f64, f64)], i: usize, k: usize, spacings: f64) -> bool {
-        let s = spacings * self.reference.spacing_px[i].min(self.reference.spacing_px[k]);
-        let (a, b) = (disp[i], disp[k]);
-        (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2) < s * s
+    /// `spacings` of the smaller spacing of markers `i` and `k`, pixels.
+    fn together_px(&self, i: usize, k: usize, spacings: f64) -> f64 {
+        spacings * self.reference.spacing_px[i].min(self.reference.spacing_px[k])
     }
 
     /// Whether the reading is torn: two matched lattice neighbours' displacements differ by
     /// more than the spread the energy allows a prediction (`spread_sigmas · σ`): a skin
     /// strains that far, it does not tear.
     pub fn torn(&self) -> bool {
-        self.torn_in(&self.disp)
+        self.torn_by(|i| self.disp[i])
     }
 
     /// [`Matching::torn`] for the displacements from the reference rather than from the
     /// anchors (which, followed, are the last frame's positions, as torn as its reading).
     pub fn torn_from_rest(&self) -> bool {
-        let rest = self.reference.positions.iter().zip(&self.assignment);
-        let disp: Vec<(f64, f64)> = rest
-            .map(|(p, a)| {
-                a.map_or((0.0, 0.0), |j| {
-                    (self.blobs[j].x_px - p.0, self.blobs[j].y_px - p.1)
-                })
-            })
-            .collect();
-        self.torn_in(&disp)
+        self.torn_by(|i| match self.assignment[i] {
+            Some(j) => {
+                let p = self.reference.positions[i];
+                (self.blobs[j].x_px - p.0, self.blobs[j].y_px - p.1)
+            }
+            None => (0.0, 0.0),
+        })
     }
 
-    /// [`Matching::torn`] for the displacements `disp`.
-    fn torn_in(&self, disp: &[(f64, f64)]) -> bool {
+    /// [`Matching::torn`] for the displacements `disp(i)` of the matched markers.
+    fn torn_by(&self, disp: impl Fn(usize) -> (f64, f64)) -> bool {
         let r = self.reference;
         let p = self.energy.params;
         let spread = p.spread_sigmas * p.sigma_spacings;
         (0..self.assignment.len()).any(|i| {
             self.assignment[i].is_some()
-                && r.lattice_steps[i]
-                    .iter()
-                    .flatten()
-                    .any(|&k| self.assignment[k].is_some() && !self.together_in(disp, i, k, spread))
+                && r.lattice_steps[i].iter().flatten().any(|&k| {
+                    self.assignment[k].is_some()
+                        && !together(disp(i), disp(k), self.together_px(i, k, spread))
+                })
         })
     }
 
