@@ -18,8 +18,11 @@ either reports a position or not, and a reported one is compared with the vendor
 Usage: peers_tracking_real.py SHARED_PEERS VIDEO MARKERS_CSV SENSOR_JSON FEATURES_CSV [FOLLOWED_CSV]
 The vendor's positions are not truth: in some frames of video 5 they repeat the previous
 frame's exactly while the gel moves (its tracker held stale positions), and the videos carry
-that tracker's drawing (red arrows, dark in luma, across the markers). The last three columns
-count those frames and score without them.
+that tracker's drawing (red arrows and crosses, dark in luma, across the markers). The last three
+columns count those frames and score without them. `unreported under the drawing` counts the
+vendor marker-frames a tracker left without a position where at least a fifth of the dot's disc
+at the vendor's position is the drawing's red (saturated red pixels, R over 1.4 × G and B and
+over 90): there the dot is hidden or broken by the burned-in drawing, not by the gel.
 
 Prints one Markdown row per tracker.
 """
@@ -54,12 +57,33 @@ def frozen_frames(vendor):
             and np.nanmax(np.abs(vendor[b] - vendor[fs[0]])) > 1}
 
 
-def score(name, ref_xy, tracks, keys, vendor):
+def drawn_over(frames, vendor, radius_px):
+    """Per frame, whether each vendor marker's dot (a disc of `radius_px` at the vendor's
+    position) is at least a fifth the drawing's red."""
+    out = {}
+    for f, img in enumerate(frames):
+        if f not in vendor:
+            continue
+        b, g, r = (img[..., k].astype(int) for k in range(3))
+        red = (r > 1.4 * g) & (r > 1.4 * b) & (r > 90)
+        h, w = red.shape
+        yy, xx = np.mgrid[0:h, 0:w]
+        hidden = np.zeros(len(vendor[f]), bool)
+        for j, (x, y) in enumerate(vendor[f]):
+            if np.isnan(x):
+                continue
+            disc = (xx - x) ** 2 + (yy - y) ** 2 <= radius_px ** 2
+            hidden[j] = disc.any() and red[disc].mean() >= 0.2
+        out[f] = hidden
+    return out
+
+
+def score(name, ref_xy, tracks, keys, vendor, drawn):
     pitch = pitch_of(vendor[0])
     d = np.hypot(ref_xy[:, None, 0] - vendor[0][None, :, 0], ref_xy[:, None, 1] - vendor[0][None, :, 1])
     near = d.argmin(axis=0)
     paired = d[near, np.arange(len(keys))] < 0.5 * pitch
-    seen = reported = 0
+    seen = reported = under_drawing = 0
     dist = []
     live = []
     frozen = frozen_frames(vendor)
@@ -72,6 +96,7 @@ def score(name, ref_xy, tracks, keys, vendor):
             seen += 1
             p = tracks[f][near[j]]
             if np.isnan(p[0]):
+                under_drawing += int(drawn[f][j])
                 continue
             reported += 1
             dist.append(np.hypot(*(p - v[j])))
@@ -81,7 +106,8 @@ def score(name, ref_xy, tracks, keys, vendor):
     live = np.array(live)
     return (f"| {name} | {int(paired.sum())}/{len(keys)} | {seen} | {reported} ({100 * reported / max(seen, 1):.1f} %) "
             f"| {dist.mean():.2f} | {np.percentile(dist, 95):.2f} | {int((dist > 3).sum())} "
-            f"| {len(frozen)} | {live.mean():.2f} | {int((live > 10).sum())} |")
+            f"| {len(frozen)} | {live.mean():.2f} | {int((live > 10).sum())} "
+            f"| {seen - reported} ({under_drawing}) |")
 
 
 def positions_from_features(ref, features):
@@ -114,10 +140,12 @@ def main():
     # The peer: blobs of every frame, nearest-blob tracking from the first frame's blobs.
     cap = cv2.VideoCapture(video)
     blobs = []
+    frames = []
     while True:
         ok, img = cap.read()
         if not ok:
             break
+        frames.append(img)
         _, stats, cents, _ = op.process(255 - img, "tactile")
         blobs.append(cents[stats[:, 4] >= 5])
     peer_ref = blobs[0]
@@ -130,11 +158,15 @@ def main():
         p = np.full((len(peer_ref), 2), np.nan)
         p[ok] = b[j[ok]]
         peer[f] = p
-    print(score(f"visuotact ({os.path.basename(video)})", ref, vt, keys, vendor))
+    # The dot's radius: the sensor file's median marker area as a disc.
+    radius_px = float(np.sqrt(np.median([m["area_px"] for m in cal["markers"]]) / np.pi))
+    drawn = drawn_over(frames, vendor, radius_px)
+    name = os.path.basename(video)
+    print(score(f"visuotact ({name})", ref, vt, keys, vendor, drawn))
     if followed:
         vt_followed = positions_from_features(ref, followed)
-        print(score(f"visuotact followed ({os.path.basename(video)})", ref, vt_followed, keys, vendor))
-    print(score(f"peer NN ({os.path.basename(video)})", peer_ref, peer, keys, vendor))
+        print(score(f"visuotact followed ({name})", ref, vt_followed, keys, vendor, drawn))
+    print(score(f"peer NN ({name})", peer_ref, peer, keys, vendor, drawn))
 
 
 if __name__ == "__main__":
