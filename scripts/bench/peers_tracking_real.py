@@ -105,7 +105,7 @@ def score(name, ref_xy, tracks, keys, vendor, drawn):
     dist = np.array(dist)
     live = np.array(live)
     return (f"| {name} | {int(paired.sum())}/{len(keys)} | {seen} | {reported} ({100 * reported / max(seen, 1):.1f} %) "
-            f"| {dist.mean():.2f} | {np.percentile(dist, 95):.2f} | {int((dist > 3).sum())} "
+            f"| {dist.mean():.2f} ({np.median(dist):.3f}) | {np.percentile(dist, 95):.2f} | {int((dist > 3).sum())} "
             f"| {len(frozen)} | {live.mean():.2f} | {int((live > 10).sum())} "
             f"| {seen - reported} ({under_drawing}) |")
 
