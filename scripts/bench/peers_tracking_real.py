@@ -57,23 +57,32 @@ def frozen_frames(vendor):
             and np.nanmax(np.abs(vendor[b] - vendor[fs[0]])) > 1}
 
 
-def drawn_over(frames, vendor, radius_px):
+def red_of(img):
+    """Where a BGR frame shows the drawing's saturated red."""
+    b, g, r = (img[..., k].astype(int) for k in range(3))
+    return (r > 1.4 * g) & (r > 1.4 * b) & (r > 90)
+
+
+def drawn_over(reds, vendor, radius_px):
     """Per frame, whether each vendor marker's dot (a disc of `radius_px` at the vendor's
-    position) is at least a fifth the drawing's red."""
+    position, its part inside the image) is at least a fifth the drawing's red."""
     out = {}
-    for f, img in enumerate(frames):
+    for f, red in enumerate(reds):
         if f not in vendor:
             continue
-        b, g, r = (img[..., k].astype(int) for k in range(3))
-        red = (r > 1.4 * g) & (r > 1.4 * b) & (r > 90)
         h, w = red.shape
-        yy, xx = np.mgrid[0:h, 0:w]
         hidden = np.zeros(len(vendor[f]), bool)
         for j, (x, y) in enumerate(vendor[f]):
             if np.isnan(x):
                 continue
+            # The disc's bounding window, clipped to the image.
+            x0, x1 = max(int(np.floor(x - radius_px)), 0), min(int(np.ceil(x + radius_px)) + 1, w)
+            y0, y1 = max(int(np.floor(y - radius_px)), 0), min(int(np.ceil(y + radius_px)) + 1, h)
+            if x0 >= x1 or y0 >= y1:
+                continue
+            yy, xx = np.mgrid[y0:y1, x0:x1]
             disc = (xx - x) ** 2 + (yy - y) ** 2 <= radius_px ** 2
-            hidden[j] = disc.any() and red[disc].mean() >= 0.2
+            hidden[j] = disc.any() and red[y0:y1, x0:x1][disc].mean() >= 0.2
         out[f] = hidden
     return out
 
@@ -140,12 +149,12 @@ def main():
     # The peer: blobs of every frame, nearest-blob tracking from the first frame's blobs.
     cap = cv2.VideoCapture(video)
     blobs = []
-    frames = []
+    reds = []
     while True:
         ok, img = cap.read()
         if not ok:
             break
-        frames.append(img)
+        reds.append(red_of(img))
         _, stats, cents, _ = op.process(255 - img, "tactile")
         blobs.append(cents[stats[:, 4] >= 5])
     peer_ref = blobs[0]
@@ -160,7 +169,7 @@ def main():
         peer[f] = p
     # The dot's radius: the sensor file's median marker area as a disc.
     radius_px = float(np.sqrt(np.median([m["area_px"] for m in cal["markers"]]) / np.pi))
-    drawn = drawn_over(frames, vendor, radius_px)
+    drawn = drawn_over(reds, vendor, radius_px)
     name = os.path.basename(video)
     print(score(f"visuotact ({name})", ref, vt, keys, vendor, drawn))
     if followed:

@@ -13,9 +13,10 @@
 //! then flood from the parts, highest first (a watershed), so that the parts keep the pixels
 //! they had and meet along the valley, and each part still as large is cut the same way. The
 //! blob is replaced by its parts only when every part comes down to under 1.6 median areas:
-//! it is explained as markers, one per part. A blob with a flat top (a binarised frame), one peak, the shape of the sensor's
-//! own ragged markers, or a part that stays large (a dot joined by a line drawn across the
-//! frame) is kept whole; the tracker's two-markers-in-one-blob hypothesis still reads it.
+//! it is explained as markers, one per part. A blob with a flat top (a binarised frame), one
+//! peak, the shape of the sensor's own ragged markers, or a part that stays large (a dot joined
+//! by a line drawn across the frame) is kept whole; the tracker's two-markers-in-one-blob
+//! hypothesis still reads it.
 //!
 //! On the real 331-pin TacTip frames scaled to 128 × 128 (pins 3.7 px across, packed near the
 //! rim of a tilted dome) this cuts the pin-frames missing by about half (docs/benchmarks.md).
