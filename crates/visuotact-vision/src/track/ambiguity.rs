@@ -97,19 +97,19 @@ pub(super) fn elongation_cost(
     (((var + 1.0 / 12.0) / expected).ln() / (2.0 * e.params.area_sigma)).powi(2)
 }
 
-/// What marker `k` (predicted `pk`, now on `not`) can do instead, relative to its cost
-/// now: another free blob (which stops being clutter), `swap` (the blob the marker taking
-/// `not` gives up), or nothing. Returns the change and whether it swapped.
+/// What marker `k` (predicted `pk`, its [`Matching::predict_or_start`], now on `not`) can
+/// do instead, relative to its cost now: another free blob (which stops being clutter),
+/// `swap` (the blob the marker taking `not` gives up), or nothing. Returns the change and
+/// whether it swapped.
 fn instead(m: &Matching<'_>, k: usize, pk: Prediction, not: usize, swap: usize) -> (f64, bool) {
-    let now = m.cost(k, pk, not);
+    let now = cost_of(m, k, pk, not);
     let clutter = m.energy.clutter_cost();
     let mut best = (m.energy.lost_cost_at(k, &pk) - now, false);
-    let gate = m.energy.gate_px(k, &pk);
-    m.index.near(pk.at, gate, |j, _| {
+    m.each_candidate(k, |j, cost| {
         let c = if j == swap {
-            (m.cost(k, pk, j) - now, true)
+            (cost - now, true)
         } else if j != not && m.owner[j].is_none() && j < m.usable {
-            (m.cost(k, pk, j) - clutter - now, false)
+            (cost - clutter - now, false)
         } else {
             return;
         };
@@ -120,9 +120,22 @@ fn instead(m: &Matching<'_>, k: usize, pk: Prediction, not: usize, swap: usize) 
     best
 }
 
+/// The cost of marker `i` (predicted `p`, its [`Matching::predict_or_start`]) taking blob
+/// `j`: from its candidates when `j` is one of them.
+fn cost_of(m: &Matching<'_>, i: usize, p: Prediction, j: usize) -> f64 {
+    let mut cost = None;
+    m.each_candidate(i, |j2, c| {
+        if j2 == j {
+            cost = Some(c);
+        }
+    });
+    cost.unwrap_or_else(|| m.cost(i, p, j))
+}
+
 /// How much more than its current reading marker `i`'s best runner-up costs: `i` taking
 /// another free blob, or another marker's blob (that marker doing its best instead), or
 /// nothing; its blob then becomes clutter or goes to the blobless marker it suits best.
+/// `preds` are every marker's [`Matching::predict_or_start`].
 fn runner_up_margin(
     m: &Matching<'_>,
     i: usize,
@@ -134,7 +147,7 @@ fn runner_up_margin(
         return f64::INFINITY;
     };
     let pi = preds[i];
-    let c0 = m.cost(i, pi, j);
+    let c0 = cost_of(m, i, pi, j);
     let clutter = m.energy.clutter_cost();
     // What becomes of `j` once `i` leaves it.
     let mut left = clutter;
@@ -152,15 +165,14 @@ fn runner_up_margin(
     } else {
         f64::INFINITY
     };
-    let gate = m.energy.gate_px(i, &pi);
     // Whether the marker's own blob lies nearer its prediction than any neighbour's (asked
     // only of a free blob near it).
     let mut own_cell: Option<bool> = None;
-    m.index.near(pi.at, gate, |j2, _| {
+    m.each_candidate(i, |j2, cost| {
         if j2 == j || j2 >= m.usable {
             return;
         }
-        let c1 = m.cost(i, pi, j2) - c0;
+        let c1 = cost - c0;
         let extra = match m.owner[j2] {
             // A piece of the marker's own dot, or a free blob within the prediction's
             // uncertainty of its blob, both nearer its prediction than any neighbour's, with

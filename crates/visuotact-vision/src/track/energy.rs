@@ -43,7 +43,7 @@
 //! field leaves a row of markers at one edge without blobs or a row of blobs at the other edge
 //! without markers: either costs.
 
-use super::index::dist;
+use super::index::dist_sq;
 use super::predict::Prediction;
 use super::{TrackParams, TrackReference, View};
 use crate::blobs::Blob;
@@ -103,6 +103,11 @@ impl Energy<'_> {
     /// tear: a spread that widened without bound would excuse a reading torn by a lattice step
     /// at its seam (a region read a step off would cost little more than the right reading).
     pub fn sigma_px(&self, i: usize, p: &Prediction) -> f64 {
+        self.sigma_sq_px2(i, p).sqrt()
+    }
+
+    /// [`Energy::sigma_px`] squared (what the position term divides by: no square root).
+    fn sigma_sq_px2(&self, i: usize, p: &Prediction) -> f64 {
         let s = self.params.sigma_spacings * self.reference.spacing_px[i] * p.scale;
         let spread = p.spread_px.min(s * self.params.spread_sigmas);
         // An unseen site's rest position is a guess from its neighbours: its pin lies within
@@ -112,35 +117,43 @@ impl Energy<'_> {
         } else {
             0.0
         };
-        (s * s + spread * spread + rest * rest).sqrt()
+        s * s + spread * spread + rest * rest
     }
 
     /// The position term: `(distance / σ_px)²`.
     pub fn position_cost(&self, i: usize, d_px: f64, p: &Prediction) -> f64 {
-        (d_px / self.sigma_px(i, p)).powi(2)
+        self.position_cost_sq(i, d_px * d_px, p)
+    }
+
+    /// [`Energy::position_cost`] from the squared distance.
+    fn position_cost_sq(&self, i: usize, d_sq_px2: f64, p: &Prediction) -> f64 {
+        d_sq_px2 / self.sigma_sq_px2(i, p)
     }
 
     /// How far blob `b`'s area is from `expected_px`, in area tolerances (signed: negative
     /// when smaller). The tolerance is [`TrackParams::area_sigma`](super::TrackParams) widened
     /// by the pixel noise of the marker's outline (about the square root of its length).
     pub fn area_misfit(&self, b: &Blob, expected_px: f64) -> f64 {
-        let (a, o) = (self.params.area_sigma, outline_noise(expected_px));
-        (f64::from(b.area_px.max(1)) / expected_px).ln() / (a * a + o * o).sqrt()
+        let a = self.params.area_sigma;
+        log_area_ratio(b, expected_px) / (a * a + outline_noise_sq(expected_px)).sqrt()
     }
 
-    /// The area term of blob `b` holding markers of expected total area `expected_px`
-    /// (0 for a blob cut by the border). A marker squeezed at the edge of a contact, or in
-    /// the shade, shrinks to a sliver of itself; only a merge makes one grow: shrinking is
-    /// three times as likely.
-    fn area_cost(&self, b: &Blob, expected_px: f64, cut: bool) -> f64 {
-        if cut || expected_px <= 0.0 {
+    /// The area term of blob `b` holding markers of expected total area `expected_px`, its
+    /// outline's squared relative noise `noise_sq` ([`outline_noise`] squared): the squared
+    /// [`Energy::area_misfit`] (0 for a blob cut by the border). A marker squeezed at the edge
+    /// of a contact, or in the shade, shrinks to a sliver of itself; only a merge makes one
+    /// grow: shrinking is three times as likely.
+    fn area_cost(&self, b: &Blob, expected_px: f64, noise_sq: f64) -> f64 {
+        if expected_px <= 0.0 {
             return 0.0;
         }
-        let z = self.area_misfit(b, expected_px);
-        if z < 0.0 {
-            (z / 3.0).powi(2)
+        let a = self.params.area_sigma;
+        let l = log_area_ratio(b, expected_px);
+        let z_sq = l * l / (a * a + noise_sq);
+        if l < 0.0 {
+            z_sq / 9.0
         } else {
-            z * z
+            z_sq
         }
     }
 
@@ -167,8 +180,15 @@ impl Energy<'_> {
         let form = if cut {
             0.0
         } else {
-            let (f, o) = (self.reference.fill_sigma, outline_noise(expected.max(1.0)));
-            let form = (short / (f * f + o * o).sqrt()).powi(2) + self.area_cost(b, expected, cut);
+            let f = self.reference.fill_sigma;
+            let noise_sq = outline_noise_sq(expected.max(1.0));
+            let area_noise_sq = if expected >= 1.0 {
+                noise_sq
+            } else {
+                outline_noise_sq(expected)
+            };
+            let form =
+                short * short / (f * f + noise_sq) + self.area_cost(b, expected, area_noise_sq);
             // A marker joined by clutter (a speck, a line drawn across it) holds at least the
             // marker's own area: what its size and shape add is then at most the clutter's
             // own cost.
@@ -179,7 +199,9 @@ impl Energy<'_> {
             }
         };
         let at = (b.x_px, b.y_px);
-        self.position_cost(i, dist(at, p.at), p) + form + self.motion_cost(i, dist(at, p.start))
+        self.position_cost_sq(i, dist_sq(at, p.at), p)
+            + form
+            + self.motion_cost_sq(i, dist_sq(at, p.start))
     }
 
     /// The cost of marker `i` taking `b`, the union of pieces of its dot: position and area
@@ -189,14 +211,15 @@ impl Energy<'_> {
         self.cost_with(i, p, b, false, (0.0, || f64::INFINITY))
     }
 
-    /// The motion prior: a marker `moved_px` from where the starting motion puts it (the
-    /// reference after the registration's overall shift, or its last position when followed)
-    /// costs `(moved / (M · s_i))²`, `M`
+    /// The motion prior: a marker the squared distance `moved_sq_px2` from where the starting
+    /// motion puts it (the reference after the registration's overall shift, or its last
+    /// position when followed) costs `moved² / (M · s_i)²`, `M`
     /// [`TrackParams::motion_spacings`](super::TrackParams::motion_spacings). Weak (a pitch costs
     /// 1/16), it decides between readings the rest of the energy cannot tell apart, such as
     /// half a grid hidden and the visible half read where it is or a step along.
-    pub fn motion_cost(&self, i: usize, moved_px: f64) -> f64 {
-        (moved_px / (self.params.motion_spacings * self.reference.spacing_px[i])).powi(2)
+    fn motion_cost_sq(&self, i: usize, moved_sq_px2: f64) -> f64 {
+        let scale = self.params.motion_spacings * self.reference.spacing_px[i];
+        moved_sq_px2 / (scale * scale)
     }
 
     /// The gate around marker `i`'s prediction, pixels: `gate / σ` of its uncertainties.
@@ -208,8 +231,17 @@ impl Energy<'_> {
 /// The relative noise of the area of a blob of `area_px` from the pixels of its outline (about
 /// the square root of the outline's length, over the area).
 pub(super) fn outline_noise(area_px: f64) -> f64 {
-    let outline_px = 2.0 * (std::f64::consts::PI * area_px).sqrt();
-    outline_px.sqrt() / area_px
+    outline_noise_sq(area_px).sqrt()
+}
+
+/// [`outline_noise`] squared: the outline's length over the squared area (one square root).
+fn outline_noise_sq(area_px: f64) -> f64 {
+    2.0 * (std::f64::consts::PI * area_px).sqrt() / (area_px * area_px)
+}
+
+/// The logarithm of blob `b`'s area (at least a pixel) over `expected_px`.
+fn log_area_ratio(b: &Blob, expected_px: f64) -> f64 {
+    (f64::from(b.area_px.max(1)) / expected_px).ln()
 }
 
 /// The share of the ellipse with a blob's second moments (`4π·√(λ1·λ2)`, each variance
@@ -235,9 +267,8 @@ pub(super) fn fill_of(area_px: f64, det_px4: f64) -> f64 {
 /// fill anything from that to 1 (overlapping discs): the shape says nothing against a pair,
 /// whose separation the elongation term weighs.
 pub(super) fn shape_cost(b: &Blob, one_px: f64, fill_sigma: f64) -> f64 {
-    let o = outline_noise(one_px.max(1.0));
-    let sigma = (fill_sigma * fill_sigma + o * o).sqrt();
-    (fill_short(b) / sigma).powi(2)
+    let short = fill_short(b);
+    short * short / (fill_sigma * fill_sigma + outline_noise_sq(one_px.max(1.0)))
 }
 
 /// How far under 1 blob `b` fills its moments' ellipse ([`ellipse_fill`]; 0 at or over 1).

@@ -297,6 +297,9 @@ pub struct TrackReference {
     markers: usize,
     /// Where the unseen lattice sites begin (after the markers and the unnumbered pins).
     unseen_from: usize,
+    /// The neighbours' offsets and weights at rest, for the affine fits of a frame read on its
+    /// own (computed with the neighbours, once).
+    rest_around: std::sync::Arc<predict::Around>,
 }
 
 impl TrackReference {
@@ -344,6 +347,11 @@ impl TrackReference {
         }
         let (lattice_dirs, lattice_steps) =
             predict::lattice_steps(&positions, &neighbours, &spacing_px);
+        let rest_around = std::sync::Arc::new(predict::Around::from_parts(
+            &positions,
+            &neighbours,
+            &spacing_px,
+        ));
         Self {
             positions,
             areas_px,
@@ -356,6 +364,7 @@ impl TrackReference {
             lattice_steps,
             markers: n,
             unseen_from: n,
+            rest_around,
         }
     }
 

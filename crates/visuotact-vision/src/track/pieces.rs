@@ -35,6 +35,10 @@ pub(super) fn pieces_and_gain(
 ) -> (Vec<(usize, usize)>, f64) {
     let mut saved = 0.0;
     let mut pieces = Vec::new();
+    // A piece is a free blob: without one, there is none to look for.
+    if (0..m.usable).all(|j| m.owner[j].is_some()) {
+        return (pieces, saved);
+    }
     let mut used = vec![false; m.blobs.len()];
     let clutter = m.energy.clutter_cost();
     let radius = |a: f64| (a / std::f64::consts::PI).sqrt();

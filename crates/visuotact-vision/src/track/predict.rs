@@ -13,6 +13,8 @@
 //! majority (a vote histogram of each marker's nearest blob); followed, the last frame's
 //! positions.
 
+use std::sync::Arc;
+
 use super::index::{nearest_centroid, BlobIndex};
 use super::TrackReference;
 
@@ -50,6 +52,7 @@ pub(super) struct LocalMotion {
 /// Each marker's neighbours with their offsets from it before the motion (`anchors`) and
 /// their weights in its affine fit, `1 / (|o|² + s²/4)` (`s` its spacing): fixed for a frame,
 /// computed once.
+#[derive(Debug)]
 pub(super) struct Around {
     /// Where marker `i`'s entries start in `items` (`n + 1` offsets).
     start: Vec<usize>,
@@ -58,13 +61,31 @@ pub(super) struct Around {
 }
 
 impl Around {
-    pub fn new(reference: &TrackReference, anchors: &[(f64, f64)]) -> Self {
+    /// Around `anchors`: the reference's own at rest ([`TrackReference`] computes them once),
+    /// otherwise afresh.
+    pub fn new(reference: &TrackReference, anchors: &[(f64, f64)]) -> Arc<Self> {
+        if anchors == reference.positions.as_slice() {
+            return Arc::clone(&reference.rest_around);
+        }
+        Arc::new(Self::from_parts(
+            anchors,
+            &reference.neighbours,
+            &reference.spacing_px,
+        ))
+    }
+
+    /// Around `anchors` with the layout's `neighbours` and `spacing_px`.
+    pub fn from_parts(
+        anchors: &[(f64, f64)],
+        neighbours: &[Vec<usize>],
+        spacing_px: &[f64],
+    ) -> Self {
         let mut start = Vec::with_capacity(anchors.len() + 1);
         let mut items = Vec::new();
         for (i, ai) in anchors.iter().enumerate() {
             start.push(items.len());
-            let s = reference.spacing_px[i];
-            items.extend(reference.neighbours[i].iter().map(|&k| {
+            let s = spacing_px[i];
+            items.extend(neighbours[i].iter().map(|&k| {
                 let o = (anchors[k].0 - ai.0, anchors[k].1 - ai.1);
                 (k, o, 1.0 / (o.0 * o.0 + o.1 * o.1 + 0.25 * s * s))
             }));

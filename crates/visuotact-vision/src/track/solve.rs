@@ -62,6 +62,20 @@ pub(super) struct Matching<'a> {
     /// Each marker's term of the energy as last computed (`None`: to compute), cleared with
     /// its prediction and when it takes or leaves a blob.
     terms: Vec<Cell<Option<f64>>>,
+    /// Each marker's candidates ([`Matching::each_candidate`]) as last computed (`None`: to
+    /// compute, or more than a row holds), cleared with its prediction.
+    rows: Vec<Cell<Option<Row>>>,
+}
+
+/// The most candidates a marker's cached row holds (a marker has one or two blobs within its
+/// gate; a crowd of more is computed each time it is asked).
+const ROW_CAP: usize = 6;
+
+/// A marker's blobs within its gate with their costs.
+#[derive(Clone, Copy)]
+struct Row {
+    len: u8,
+    items: [(u32, f64); ROW_CAP],
 }
 
 impl<'a> Matching<'a> {
@@ -80,7 +94,7 @@ impl<'a> Matching<'a> {
             usable,
             index: Arc::new(BlobIndex::new(blobs, reference.pitch_px.max(1.0))),
             energy,
-            around: Arc::new(Around::new(reference, &anchors)),
+            around: Around::new(reference, &anchors),
             fill_short: blobs.iter().map(fill_short).collect(),
             anchors,
             shift,
@@ -91,6 +105,7 @@ impl<'a> Matching<'a> {
             support: vec![0; n],
             predicted: vec![Cell::new(None); n],
             terms: vec![Cell::new(None); n],
+            rows: vec![Cell::new(None); n],
         }
     }
 
@@ -126,6 +141,7 @@ impl<'a> Matching<'a> {
         for &k in &self.reference.neighbours[i] {
             self.predicted[k].set(None);
             self.terms[k].set(None);
+            self.rows[k].set(None);
         }
     }
 
@@ -250,6 +266,40 @@ impl<'a> Matching<'a> {
         });
     }
 
+    /// Calls `f(blob, cost)` for each blob within the gate of marker `i`'s prediction
+    /// ([`Matching::predict_or_start`]), in the index's order: [`Matching::candidates`] with
+    /// nothing skipped, computed once for each prediction (the refinement and the runner-ups
+    /// ask the same).
+    pub(super) fn each_candidate(&self, i: usize, mut f: impl FnMut(usize, f64)) {
+        if let Some(row) = self.rows[i].get() {
+            for &(j, c) in &row.items[..usize::from(row.len)] {
+                f(j as usize, c);
+            }
+            return;
+        }
+        let pred = self.predict_or_start(i);
+        let mut row = Row {
+            len: 0,
+            items: [(0, 0.0); ROW_CAP],
+        };
+        let mut fits = true;
+        self.index
+            .near(pred.at, self.energy.gate_px(i, &pred), |j, _| {
+                let c = self.cost(i, pred, j);
+                match row.items.get_mut(usize::from(row.len)) {
+                    Some(slot) => {
+                        *slot = (j as u32, c);
+                        row.len += 1;
+                    }
+                    None => fits = false,
+                }
+                f(j, c);
+            });
+        if fits {
+            self.rows[i].set(Some(row));
+        }
+    }
+
     /// Seeds: markers whose blob near where they are expected is unmistakable. Expected:
     /// `independent`, where the starting motion puts each; otherwise from the seeds already
     /// taken among its neighbours (in marker order), the starting motion for the first.
@@ -366,7 +416,8 @@ impl<'a> Matching<'a> {
             cands.clear();
             for (i, &pred) in preds.iter().enumerate() {
                 if self.support[i] > 0 {
-                    self.candidates(i, pred, |_| false, &mut row);
+                    row.clear();
+                    self.each_candidate(i, |j, c| row.push((j, c)));
                 } else {
                     row.clear();
                     if let Some(j) = self.assignment[i] {
