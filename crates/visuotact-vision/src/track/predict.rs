@@ -111,20 +111,22 @@ pub(super) fn local_motion(
     disp: &[(f64, f64)],
 ) -> Option<LocalMotion> {
     let s = reference.spacing_px[i];
-    // Normal equations for [t, g1, g2] per axis: Σ w [1 o][1 o]ᵀ + diag(0, λ, λ).
+    // Normal equations for [t, g1, g2] per axis: Σ w [1 o][1 o]ᵀ + diag(0, λ, λ); with the
+    // weighted squares of the displacements, the residuals' sum in the same pass. The
+    // displacements are taken relative to the first neighbour's (a translation, which the
+    // fit absorbs), so that the squares stay small beside the residuals.
     let (mut m00, mut m01, mut m02, mut m11, mut m12, mut m22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let (mut bx0, mut bx1, mut bx2) = (0.0, 0.0, 0.0);
     let (mut by0, mut by1, mut by2) = (0.0, 0.0, 0.0);
+    let (mut uxx, mut uyy) = (0.0, 0.0);
+    let mut origin = None;
     let mut count = 0;
-    // Each matched neighbour's offset from `i`, weight and displacement.
-    let around = || {
-        around
-            .of(i)
-            .iter()
-            .filter(|e| matched(e.0))
-            .map(|&(k, o, w)| (o, w, disp[k]))
-    };
-    for (o, w, u) in around() {
+    for &(k, o, w) in around.of(i) {
+        if !matched(k) {
+            continue;
+        }
+        let c = *origin.get_or_insert(disp[k]);
+        let u = (disp[k].0 - c.0, disp[k].1 - c.1);
         m00 += w;
         m01 += w * o.0;
         m02 += w * o.1;
@@ -137,22 +139,22 @@ pub(super) fn local_motion(
         by0 += w * u.1;
         by1 += w * u.1 * o.0;
         by2 += w * u.1 * o.1;
+        uxx += w * u.0 * u.0;
+        uyy += w * u.1 * u.1;
         count += 1;
     }
-    if count == 0 {
-        return None;
-    }
+    // No neighbour held: no prediction.
+    let c = origin?;
     // Ridge: a third of a typical neighbour's leverage.
     let lambda = 0.3 * m00 * s * s;
-    m11 += lambda;
-    m22 += lambda;
+    let (r11, r22) = (m11 + lambda, m22 + lambda);
     // Solve the symmetric 3 × 3 system by cofactors.
-    let c00 = m11 * m22 - m12 * m12;
-    let c01 = m02 * m12 - m01 * m22;
-    let c02 = m01 * m12 - m02 * m11;
-    let c11 = m00 * m22 - m02 * m02;
+    let c00 = r11 * r22 - m12 * m12;
+    let c01 = m02 * m12 - m01 * r22;
+    let c02 = m01 * m12 - m02 * r11;
+    let c11 = m00 * r22 - m02 * m02;
     let c12 = m01 * m02 - m00 * m12;
-    let c22 = m00 * m11 - m01 * m01;
+    let c22 = m00 * r11 - m01 * m01;
     let det = m00 * c00 + m01 * c01 + m02 * c02;
     if det.is_nan() || det.abs() <= 1e-300 {
         return None;
@@ -167,19 +169,22 @@ pub(super) fn local_motion(
     let (tx, gxx, gxy) = solve(bx0, bx1, bx2);
     let (ty, gyx, gyy) = solve(by0, by1, by2);
     let jac = (1.0 + gxx) * (1.0 + gyy) - gxy * gyx;
-    // Residuals about the fit, weighted as the fit was; with fewer than four neighbours the
-    // affine fit explains them by construction: no evidence of spread.
+    // Residuals about the fit, weighted as the fit was (Σ w (u − aᵀφ)² = Σ w u² − 2 aᵀb +
+    // aᵀ M a, M without the ridge); with fewer than four neighbours the affine fit explains
+    // them by construction: no evidence of spread.
     let mut spread = 0.0;
     if count >= 4 {
-        let (mut sw, mut sr) = (0.0, 0.0);
-        for (o, w, u) in around() {
-            let rx = u.0 - (tx + gxx * o.0 + gxy * o.1);
-            let ry = u.1 - (ty + gyx * o.0 + gyy * o.1);
-            sw += w;
-            sr += w * (rx * rx + ry * ry);
-        }
-        spread = (sr / sw).sqrt();
+        let residual = |(t, g1, g2): (f64, f64, f64), (b0, b1, b2): (f64, f64, f64), uu: f64| {
+            let quad = t * (m00 * t + 2.0 * (m01 * g1 + m02 * g2))
+                + g1 * (m11 * g1 + 2.0 * m12 * g2)
+                + m22 * g2 * g2;
+            uu - 2.0 * (t * b0 + g1 * b1 + g2 * b2) + quad
+        };
+        let sr = residual((tx, gxx, gxy), (bx0, bx1, bx2), uxx)
+            + residual((ty, gyx, gyy), (by0, by1, by2), uyy);
+        spread = (sr.max(0.0) / m00).sqrt();
     }
+    let (tx, ty) = (tx + c.0, ty + c.1);
     Some(LocalMotion {
         disp: (tx, ty),
         scale: jac.abs().sqrt().clamp(0.5, 2.0),
@@ -350,6 +355,107 @@ pub(super) fn lattice_steps(
 #[cfg(test)]
 mod tests {
     use super::super::TrackReference;
+    use super::{local_motion, Around};
+
+    /// The ridge-damped affine fit of the displacements `disp` of `items` (neighbour, offset,
+    /// weight), solved by Cramer's rule: `[t, g1, g2]` for x and for y.
+    fn fit_directly(
+        items: &[(usize, (f64, f64), f64)],
+        disp: &[(f64, f64)],
+        s: f64,
+    ) -> ([f64; 3], [f64; 3]) {
+        let mut a = [[0.0; 3]; 3];
+        let (mut bx, mut by) = ([0.0; 3], [0.0; 3]);
+        for &(k, o, w) in items {
+            let phi = [1.0, o.0, o.1];
+            for (row, &pr) in phi.iter().enumerate() {
+                for (cell, &pc) in a[row].iter_mut().zip(&phi) {
+                    *cell += w * pr * pc;
+                }
+                bx[row] += w * pr * disp[k].0;
+                by[row] += w * pr * disp[k].1;
+            }
+        }
+        let lambda = 0.3 * a[0][0] * s * s;
+        a[1][1] += lambda;
+        a[2][2] += lambda;
+        let det = |m: [[f64; 3]; 3]| {
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+        };
+        let solve = |b: [f64; 3]| {
+            let mut x = [0.0; 3];
+            for (col, xc) in x.iter_mut().enumerate() {
+                let mut m = a;
+                for (row, &br) in m.iter_mut().zip(&b) {
+                    row[col] = br;
+                }
+                *xc = det(m) / det(a);
+            }
+            x
+        };
+        (solve(bx), solve(by))
+    }
+
+    /// The affine fit's residual spread, computed in one pass from sums, against the residuals
+    /// summed directly (a field far from the origin, as a slide of pitches moves it, plus a
+    /// shear, a twist and seeded noise); and a translation, predicted exactly with no spread.
+    #[test]
+    fn the_fits_spread_matches_the_residuals_summed_directly() {
+        let positions: Vec<(f64, f64)> = (0..5)
+            .flat_map(|r| (0..5).map(move |c| (10.0 * f64::from(c), 10.0 * f64::from(r))))
+            .collect();
+        let r = TrackReference::new(positions.clone(), vec![12.0; positions.len()]);
+        let around = Around::new(&r, &positions);
+        let centre = 12;
+        // A translation far from the origin (a slide of pitches): read exactly, no spread.
+        let moved: Vec<(f64, f64)> = vec![(80.0, -35.0); positions.len()];
+        let m = local_motion(centre, &r, &around, |k| k != centre, &moved).unwrap();
+        assert!(m.spread_px < 1e-6, "{m:?}");
+        assert!(
+            (m.disp.0 - 80.0).abs() < 1e-9 && (m.disp.1 + 35.0).abs() < 1e-9,
+            "{m:?}"
+        );
+        // An affine field, the ridge pulling its gradient towards none, plus noise.
+        let affine = |p: (f64, f64)| (80.0 + 0.02 * p.0 - 0.05 * p.1, -35.0 + 0.05 * p.0);
+        let disp: Vec<(f64, f64)> = positions.iter().map(|&p| affine(p)).collect();
+        // Noise (a seeded linear congruential sequence, ±1 px): the spread against a fit
+        // recomputed here, its residuals summed one by one.
+        let mut state = 12_345_u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let disp: Vec<(f64, f64)> = disp
+            .iter()
+            .map(|d| (d.0 + noise(), d.1 + noise()))
+            .collect();
+        let m = local_motion(centre, &r, &around, |k| k != centre, &disp).unwrap();
+        // The same fit, solved here with the ridge, then the residuals summed directly.
+        let items = around.of(centre);
+        let (fx, fy) = fit_directly(items, &disp, r.spacing_px[centre]);
+        let (mut sw, mut sr) = (0.0, 0.0);
+        for &(k, o, w) in items {
+            let rx = disp[k].0 - (fx[0] + fx[1] * o.0 + fx[2] * o.1);
+            let ry = disp[k].1 - (fy[0] + fy[1] * o.0 + fy[2] * o.1);
+            sw += w;
+            sr += w * (rx * rx + ry * ry);
+        }
+        let spread = (sr / sw).sqrt();
+        assert!(spread > 0.3, "{spread}");
+        assert!(
+            (m.spread_px - spread).abs() < 1e-9,
+            "{} against {spread}",
+            m.spread_px
+        );
+        assert!(
+            (m.disp.0 - fx[0]).abs() < 1e-9 && (m.disp.1 - fy[0]).abs() < 1e-9,
+            "{m:?}"
+        );
+    }
 
     /// A grid stretched half as far again across its rows as along them (a reference taken
     /// under a drag): the central marker's neighbours within 1.3 spacings lie along the rows
