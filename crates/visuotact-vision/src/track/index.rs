@@ -116,13 +116,13 @@ impl BlobIndex {
     /// The blob nearest to `p` within `r` (ties to the lower index).
     pub(super) fn nearest(&self, p: (f64, f64), r: f64) -> Option<usize> {
         let mut best: Option<(usize, f64)> = None;
-        for radius in [r.min(self.cell), r] {
+        for radius in [r.min(0.5 * self.cell), r.min(self.cell), r] {
             self.near(p, radius, |j, d| {
                 if best.is_none_or(|(bj, bd)| d < bd || (d == bd && j < bj)) {
                     best = Some((j, d));
                 }
             });
-            // A blob found within one cell is nearer than any outside it.
+            // A blob found within a radius is nearer than any outside it.
             if best.is_some() || radius >= r {
                 break;
             }
