@@ -357,6 +357,15 @@ mod tests {
     use super::super::TrackReference;
     use super::{local_motion, Around};
 
+    /// An `n` × `n` grid of markers `step` apart (x, y), each of 12 px², and its reference.
+    fn grid(n: u32, step: (f64, f64)) -> (Vec<(f64, f64)>, TrackReference) {
+        let positions: Vec<(f64, f64)> = (0..n)
+            .flat_map(|r| (0..n).map(move |c| (step.0 * f64::from(c), step.1 * f64::from(r))))
+            .collect();
+        let r = TrackReference::new(positions.clone(), vec![12.0; positions.len()]);
+        (positions, r)
+    }
+
     /// The ridge-damped affine fit of the displacements `disp` of `items` (neighbour, offset,
     /// weight), solved by Cramer's rule: `[t, g1, g2]` for x and for y.
     fn fit_directly(
@@ -403,10 +412,7 @@ mod tests {
     /// shear, a twist and seeded noise); and a translation, predicted exactly with no spread.
     #[test]
     fn the_fits_spread_matches_the_residuals_summed_directly() {
-        let positions: Vec<(f64, f64)> = (0..5)
-            .flat_map(|r| (0..5).map(move |c| (10.0 * f64::from(c), 10.0 * f64::from(r))))
-            .collect();
-        let r = TrackReference::new(positions.clone(), vec![12.0; positions.len()]);
+        let (positions, r) = grid(5, (10.0, 10.0));
         let around = Around::new(&r, &positions);
         let centre = 12;
         // A translation far from the origin (a slide of pitches): read exactly, no spread.
@@ -463,10 +469,7 @@ mod tests {
     /// or a column either way can be shifted back.
     #[test]
     fn a_stretched_reference_keeps_both_axes_both_ways() {
-        let positions: Vec<(f64, f64)> = (0..7)
-            .flat_map(|r| (0..7).map(move |c| (10.0 * f64::from(c), 15.0 * f64::from(r))))
-            .collect();
-        let r = TrackReference::new(positions.clone(), vec![12.0; positions.len()]);
+        let (positions, r) = grid(7, (10.0, 15.0));
         assert_eq!(r.lattice_dirs, 4);
         let centre = 3 * 7 + 3;
         let mut to: Vec<(i64, i64)> = r.lattice_steps[centre]
