@@ -225,12 +225,16 @@ impl Matching<'_> {
         lens: &[usize],
         area: (&[usize], &[usize]),
     ) -> f64 {
+        // The chains change markers of the area only: where the lengths leave a marker and its
+        // neighbours as they were, its prediction and term are kept.
+        let saved = self.save_caches(area.0);
         for c in chains.iter_mut() {
             self.set_chain_len(c, 1);
         }
         for (c, &l) in chains.iter_mut().zip(lens) {
             self.set_chain_len(c, l);
         }
+        self.restore_caches(area.0, &saved);
         self.local_energy(area.0, area.1)
     }
 
@@ -254,6 +258,9 @@ impl Matching<'_> {
                     }
                     let e0 = *before.get_or_insert_with(|| self.local_energy(&ar, &bl));
                     let old = chains[k].len;
+                    // The chain changes markers of its reach only: undone, the reach's
+                    // predictions and terms are as they were.
+                    let saved = self.save_caches(&ar);
                     self.set_chain_len(&mut chains[k], len);
                     let e = self.local_energy(&ar, &bl);
                     if e < e0 - 1e-9 {
@@ -261,6 +268,7 @@ impl Matching<'_> {
                         before = Some(e);
                     } else {
                         self.set_chain_len(&mut chains[k], old);
+                        self.restore_caches(&ar, &saved);
                     }
                 }
             }
@@ -307,6 +315,7 @@ impl Matching<'_> {
         blobs.sort_unstable();
         blobs.dedup();
         let e0 = self.local_energy(&area, &blobs);
+        let at_start = self.save_caches(&area);
         let longest = chains.iter().map(|c| c.path.len()).max().unwrap_or(1);
         let mut common: Option<(f64, Vec<usize>)> = None;
         for l in 2..=longest {
@@ -331,6 +340,7 @@ impl Matching<'_> {
         for c in chains.iter_mut() {
             self.set_chain_len(c, 1);
         }
+        self.restore_caches(&area, &at_start);
         let Some((e, lens)) = best else {
             return (Vec::new(), 0.0);
         };

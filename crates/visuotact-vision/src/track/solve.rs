@@ -67,6 +67,14 @@ pub(super) struct Matching<'a> {
     rows: Vec<Cell<Option<Row>>>,
 }
 
+/// The cached predictions and energy terms of some markers, with the blobs they held
+/// ([`Matching::save_caches`]).
+pub(super) struct SavedCaches {
+    held: Vec<Option<usize>>,
+    predicted: Vec<Option<Option<Prediction>>>,
+    terms: Vec<Option<f64>>,
+}
+
 /// The most candidates a marker's cached row holds (a marker has one or two blobs within its
 /// gate; a crowd of more is computed each time it is asked).
 const ROW_CAP: usize = 6;
@@ -142,6 +150,51 @@ impl<'a> Matching<'a> {
             self.predicted[k].set(None);
             self.terms[k].set(None);
             self.rows[k].set(None);
+        }
+    }
+
+    /// The cached predictions and terms of the markers of `area`, to restore after moves that
+    /// change markers of `area` only ([`Matching::restore_caches`]).
+    pub(super) fn save_caches(&self, area: &[usize]) -> SavedCaches {
+        SavedCaches {
+            held: area.iter().map(|&i| self.assignment[i]).collect(),
+            predicted: area.iter().map(|&i| self.predicted[i].get()).collect(),
+            terms: area.iter().map(|&i| self.terms[i].get()).collect(),
+        }
+    }
+
+    /// Puts back what [`Matching::save_caches`] saved of `area` where it is still true, the
+    /// markers outside `area` holding the blobs they held then: a marker's prediction
+    /// and term depend only on its own blob and its neighbours' (their displacements, and
+    /// whether they hold one), so a marker that holds the blob it held then, among neighbours
+    /// that do too, has them as they were, however many moves were made and undone between.
+    pub(super) fn restore_caches(&self, area: &[usize], saved: &SavedCaches) {
+        // The markers whose own or a neighbour's blob changed.
+        let mut touched = vec![false; self.assignment.len()];
+        let mut any = false;
+        for (&i, &held) in area.iter().zip(&saved.held) {
+            if self.assignment[i] != held {
+                touched[i] = true;
+                for &n in &self.reference.neighbours[i] {
+                    touched[n] = true;
+                }
+            } else {
+                any = true;
+            }
+        }
+        if !any {
+            return;
+        }
+        for (k, &i) in area.iter().enumerate() {
+            if touched[i] {
+                continue;
+            }
+            if self.predicted[i].get().is_none() {
+                self.predicted[i].set(saved.predicted[k]);
+            }
+            if self.terms[i].get().is_none() {
+                self.terms[i].set(saved.terms[k]);
+            }
         }
     }
 
@@ -536,5 +589,75 @@ impl<'a> Matching<'a> {
         (0..a.len())
             .map(|i| steps[i].get(d).copied().flatten().and_then(|k| a[k]))
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::track::testkit::hex_array;
+    use crate::track::TrackParams;
+
+    /// Caches put back after a move and its undoing hold what computing afresh gives, and
+    /// those of markers the move left changed are not put back.
+    #[test]
+    fn caches_put_back_after_an_undone_move_equal_fresh_ones() {
+        let array = hex_array(4, 12.0);
+        let n = array.positions.len();
+        let blobs = array.blobs_slid(1.5, -1.0);
+        let params = TrackParams::default();
+        let mut m = array.matching(&blobs, &params);
+        m.set_assignment(&(0..n).map(Some).collect::<Vec<_>>());
+        let e0 = m.total_energy();
+        let area: Vec<usize> = (0..n).collect();
+        let saved = m.save_caches(&area);
+        // Two neighbours swap blobs, then swap back: every cache is put back.
+        let (a, b) = (0, m.reference.neighbours[0][0]);
+        m.set_assignment(
+            &(0..n)
+                .map(|i| {
+                    Some(if i == a {
+                        b
+                    } else if i == b {
+                        a
+                    } else {
+                        i
+                    })
+                })
+                .collect::<Vec<_>>(),
+        );
+        let swapped = m.total_energy();
+        m.set_assignment(&(0..n).map(Some).collect::<Vec<_>>());
+        m.restore_caches(&area, &saved);
+        assert!((0..n).all(|i| m.terms[i].get().is_some()));
+        assert_eq!(m.total_energy().to_bits(), e0.to_bits());
+        // Swapped again and restored from the unswapped state: the pair and its neighbours
+        // keep no cache of the state they are no longer in.
+        m.set_assignment(
+            &(0..n)
+                .map(|i| {
+                    Some(if i == a {
+                        b
+                    } else if i == b {
+                        a
+                    } else {
+                        i
+                    })
+                })
+                .collect::<Vec<_>>(),
+        );
+        m.restore_caches(&area, &saved);
+        for i in [a, b]
+            .iter()
+            .flat_map(|&x| std::iter::once(x).chain(m.reference.neighbours[x].iter().copied()))
+        {
+            assert!(m.terms[i].get().is_none(), "marker {i}");
+        }
+        let fresh = {
+            let mut f = array.matching(&blobs, &params);
+            f.set_assignment(&m.assignment);
+            f.total_energy()
+        };
+        assert_eq!(m.total_energy().to_bits(), fresh.to_bits());
+        assert_eq!(fresh.to_bits(), swapped.to_bits());
     }
 }
