@@ -171,19 +171,13 @@ impl<'a> Matching<'a> {
     pub(super) fn restore_caches(&self, area: &[usize], saved: &SavedCaches) {
         // The markers whose own or a neighbour's blob changed.
         let mut touched = vec![false; self.assignment.len()];
-        let mut any = false;
         for (&i, &held) in area.iter().zip(&saved.held) {
             if self.assignment[i] != held {
                 touched[i] = true;
                 for &n in &self.reference.neighbours[i] {
                     touched[n] = true;
                 }
-            } else {
-                any = true;
             }
-        }
-        if !any {
-            return;
         }
         for (k, &i) in area.iter().enumerate() {
             if touched[i] {
@@ -606,45 +600,24 @@ mod tests {
         let blobs = array.blobs_slid(1.5, -1.0);
         let params = TrackParams::default();
         let mut m = array.matching(&blobs, &params);
-        m.set_assignment(&(0..n).map(Some).collect::<Vec<_>>());
+        let own: Vec<Option<usize>> = (0..n).map(Some).collect();
+        m.set_assignment(&own);
         let e0 = m.total_energy();
         let area: Vec<usize> = (0..n).collect();
         let saved = m.save_caches(&area);
         // Two neighbours swap blobs, then swap back: every cache is put back.
         let (a, b) = (0, m.reference.neighbours[0][0]);
-        m.set_assignment(
-            &(0..n)
-                .map(|i| {
-                    Some(if i == a {
-                        b
-                    } else if i == b {
-                        a
-                    } else {
-                        i
-                    })
-                })
-                .collect::<Vec<_>>(),
-        );
+        let mut swapped_pair = own.clone();
+        swapped_pair.swap(a, b);
+        m.set_assignment(&swapped_pair);
         let swapped = m.total_energy();
-        m.set_assignment(&(0..n).map(Some).collect::<Vec<_>>());
+        m.set_assignment(&own);
         m.restore_caches(&area, &saved);
         assert!((0..n).all(|i| m.terms[i].get().is_some()));
         assert_eq!(m.total_energy().to_bits(), e0.to_bits());
         // Swapped again and restored from the unswapped state: the pair and its neighbours
         // keep no cache of the state they are no longer in.
-        m.set_assignment(
-            &(0..n)
-                .map(|i| {
-                    Some(if i == a {
-                        b
-                    } else if i == b {
-                        a
-                    } else {
-                        i
-                    })
-                })
-                .collect::<Vec<_>>(),
-        );
+        m.set_assignment(&swapped_pair);
         m.restore_caches(&area, &saved);
         for i in [a, b]
             .iter()
