@@ -3,10 +3,10 @@
 //! way. Saved as JSON.
 //!
 //! A reference in contact can squeeze two markers into one blob; such a blob (about twice a
-//! marker's area, its moments those of two discs) is split in two where the lattice agrees:
-//! numbered with the halves, the array is a grid or hexagonal array holding both
-//! (`split_touching_pairs`; tests `tests/touching_pairs.rs` and the 331-pin TacTip's `image_200`
-//! in `tests/real_frames.rs`).
+//! marker's area, the array's or its neighbours' where a crease squeezes them to slivers, its
+//! moments those of two discs) is split in two where the lattice agrees: numbered with the
+//! halves, the array is a grid or hexagonal array holding both (`split_touching_pairs`; tests
+//! `tests/touching_pairs.rs` and the 331-pin TacTip's `image_200` in `tests/real_frames.rs`).
 //!
 //! The reference image is the per-pixel mean of N still frames in the chosen channel (seed 001's
 //! Calibration Data Model), on which markers are detected once; each still frame is then
@@ -416,13 +416,15 @@ fn drop_specks(blobs: &mut Vec<Blob>) {
 }
 
 /// The two halves of each blob that may be two markers touching at rest (a reference frame in
-/// contact squeezes neighbours together): a blob nearer twice the median interior blob's area
-/// than once or four times (in ratio) whose largest variance puts the centres of two discs of half its area
-/// between three quarters of a diameter and one and a half diameters apart. One round blob of
-/// that area puts them half a diameter apart, two touching discs one diameter; a blob longer
-/// than two discs can span is a marker with a tail. Each half is a disc of half the area centred
-/// where the moments put it ([`Blob::two_discs`], as the tracker splits a merged pair; its box
-/// the whole blob's). Returns the blob's index and its halves.
+/// contact squeezes neighbours together): a blob nearer twice a marker's area than once or four
+/// times (in ratio) whose largest variance puts the centres of two discs of half its area
+/// between three quarters of a diameter and one and a half diameters apart. A marker's area is
+/// the median interior blob's, or the median of the six blobs nearest it: a contact squeezes a
+/// crease of markers to slivers, and two slivers merged there are one whole marker's area. One
+/// round blob of that area puts the discs half a diameter apart, two touching discs one
+/// diameter; a blob longer than two discs can span is a marker with a tail. Each half is a disc
+/// of half the area centred where the moments put it ([`Blob::two_discs`], as the tracker
+/// splits a merged pair; its box the whole blob's). Returns the blob's index and its halves.
 fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
     let mut interior: Vec<u32> = blobs
         .iter()
@@ -435,13 +437,13 @@ fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
     interior.sort_unstable();
     let one = f64::from(interior[interior.len() / 2]);
     let pi = std::f64::consts::PI;
+    let about_two = |a: f64, one: f64| {
+        (std::f64::consts::SQRT_2 * one..=2.0 * std::f64::consts::SQRT_2 * one).contains(&a)
+    };
     let mut pairs = Vec::new();
     for (k, b) in blobs.iter().enumerate() {
         let a = f64::from(b.area_px);
-        if b.touches_border
-            || a < std::f64::consts::SQRT_2 * one
-            || a > 2.0 * std::f64::consts::SQRT_2 * one
-        {
+        if b.touches_border || !(about_two(a, one) || about_two(a, nearby_area(blobs, k))) {
             continue;
         }
         let diameter = 2.0 * (0.5 * a / pi).sqrt();
@@ -465,6 +467,25 @@ fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
         pairs.push((k, [half(-0.5), half(0.5)]));
     }
     pairs
+}
+
+/// The median area of the six blobs nearest blob `k` (of fewer where there are fewer; its own
+/// where it is alone).
+fn nearby_area(blobs: &[Blob], k: usize) -> f64 {
+    let b = &blobs[k];
+    let mut near: Vec<(f64, u32)> = blobs
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != k)
+        .map(|(_, o)| ((o.x_px - b.x_px).hypot(o.y_px - b.y_px), o.area_px))
+        .collect();
+    near.sort_unstable_by(|p, q| p.0.total_cmp(&q.0));
+    near.truncate(6);
+    let mut areas: Vec<u32> = near.iter().map(|p| p.1).collect();
+    areas.sort_unstable();
+    areas
+        .get(areas.len() / 2)
+        .map_or(f64::from(b.area_px), |&a| f64::from(a))
 }
 
 /// Splits the blobs of two touching markers ([`touching_pairs`]) where the lattice agrees: a

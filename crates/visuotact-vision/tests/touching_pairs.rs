@@ -82,3 +82,35 @@ fn a_swollen_marker_or_one_with_a_speck_stays_one_marker() {
         "the marker with a speck {off:.2} px from its disc"
     );
 }
+
+#[test]
+fn two_slivers_squeezed_into_one_blob_in_a_crease_are_two_markers() {
+    // A crease down the middle squeezes columns 3–6 together (12–15 px apart where the others
+    // are 18) and their markers to half their area; in it, markers (4, 4) and (4, 5) are pushed
+    // 1.5 px towards each other into one blob of about one whole marker's area: twice its
+    // neighbours' area, not the array's.
+    let columns_px = [30.0, 48.0, 66.0, 81.0, 93.0, 105.0, 120.0, 138.0, 156.0];
+    let squeezed = RADIUS / std::f64::consts::SQRT_2;
+    let mut discs = Vec::new();
+    for r in 0..9 {
+        for (c, &x) in columns_px.iter().enumerate() {
+            let push = match (r, c) {
+                (4, 4) => 1.5,
+                (4, 5) => -1.5,
+                _ => 0.0,
+            };
+            let radius = if (3..=6).contains(&c) {
+                squeezed
+            } else {
+                RADIUS
+            };
+            discs.push(((x + push, 30.0 + 18.0 * f64::from(r)), radius));
+        }
+    }
+    let markers = calibrated_markers(&frame(&discs));
+    assert_eq!(markers.len(), 81);
+    for k in [4 * 9 + 4, 4 * 9 + 5] {
+        let off = nearest(&markers, discs[k].0);
+        assert!(off < 1.0, "marker {k} placed {off:.2} px from its disc");
+    }
+}
