@@ -443,14 +443,17 @@ fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
     let mut pairs = Vec::new();
     for (k, b) in blobs.iter().enumerate() {
         let a = f64::from(b.area_px);
-        if b.touches_border || !(about_two(a, one) || about_two(a, nearby_area(blobs, k))) {
+        if b.touches_border {
             continue;
         }
         let diameter = 2.0 * (0.5 * a / pi).sqrt();
         let Some((d, u)) = b.two_discs(0.5 * a, 0.5 * a) else {
             continue;
         };
-        if !(0.75 * diameter..=1.5 * diameter).contains(&d) {
+        // The shape first: the neighbours' areas are looked up only for a blob shaped as two.
+        if !(0.75 * diameter..=1.5 * diameter).contains(&d)
+            || !(about_two(a, one) || about_two(a, nearby_area(blobs, k)))
+        {
             continue;
         }
         let var = 0.5 * a / (4.0 * pi);
