@@ -400,8 +400,11 @@ fn mean_frame(
     .map_err(CalibrationError::Image)
 }
 
-/// Markers are alike in size: interior blobs under a fifth of the median interior area are
-/// specks, not markers (border blobs are cut markers and may be any size).
+/// Markers are alike in size: interior blobs under a fifth of the median interior area, and
+/// under a fifth of the median of the six blobs nearest them, are specks, not markers (border
+/// blobs are cut markers and may be any size). A reference in contact squeezes a crease of
+/// markers to slivers: such a sliver is judged beside its squeezed neighbours (test
+/// `markers_a_crease_squeezes_to_slivers_are_markers_not_specks`).
 fn drop_specks(blobs: &mut Vec<Blob>) {
     let mut interior: Vec<u32> = blobs
         .iter()
@@ -411,7 +414,19 @@ fn drop_specks(blobs: &mut Vec<Blob>) {
     if !interior.is_empty() {
         interior.sort_unstable();
         let floor = interior[interior.len() / 2] / 5;
-        blobs.retain(|b| b.touches_border || b.area_px >= floor);
+        let keep: Vec<bool> = (0..blobs.len())
+            .map(|k| {
+                let b = &blobs[k];
+                b.touches_border
+                    || b.area_px >= floor
+                    || f64::from(b.area_px) >= nearby_area(blobs, k) / 5.0
+            })
+            .collect();
+        let mut k = 0;
+        blobs.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
     }
 }
 

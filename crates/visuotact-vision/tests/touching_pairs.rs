@@ -114,3 +114,25 @@ fn two_slivers_squeezed_into_one_blob_in_a_crease_are_two_markers() {
         assert!(off < 1.0, "marker {k} placed {off:.2} px from its disc");
     }
 }
+
+#[test]
+fn markers_a_crease_squeezes_to_slivers_are_markers_not_specks() {
+    // A crease squeezes column 4 to slivers of under a sixth of a whole marker's area (under
+    // the floor, a fifth, below which a blob of a frame at rest is a speck) and columns 3 and 5
+    // to half of it: among their neighbours the slivers are markers all the same.
+    let mut discs = Vec::new();
+    for (k, &c) in sites(18.0).iter().enumerate() {
+        let radius = match k % 9 {
+            4 => 2.8,
+            3 | 5 => RADIUS / std::f64::consts::SQRT_2,
+            _ => RADIUS,
+        };
+        discs.push((c, radius));
+    }
+    let markers = calibrated_markers(&frame(&discs));
+    assert_eq!(markers.len(), 81);
+    for (k, &(c, _)) in discs.iter().enumerate() {
+        let off = nearest(&markers, c);
+        assert!(off < 1.0, "marker {k} placed {off:.2} px from its disc");
+    }
+}
