@@ -406,28 +406,34 @@ fn mean_frame(
 /// markers to slivers: such a sliver is judged beside its squeezed neighbours (test
 /// `markers_a_crease_squeezes_to_slivers_are_markers_not_specks`).
 fn drop_specks(blobs: &mut Vec<Blob>) {
+    let Some(median) = interior_median_area(blobs, 1) else {
+        return;
+    };
+    let floor = median / 5;
+    let kept: Vec<Blob> = (0..blobs.len())
+        .filter(|&k| {
+            let b = &blobs[k];
+            b.touches_border
+                || b.area_px >= floor
+                || f64::from(b.area_px) >= nearby_area(blobs, k) / 5.0
+        })
+        .map(|k| blobs[k])
+        .collect();
+    *blobs = kept;
+}
+
+/// The median area of the blobs not touching the border, when there are at least `least`.
+fn interior_median_area(blobs: &[Blob], least: usize) -> Option<u32> {
     let mut interior: Vec<u32> = blobs
         .iter()
         .filter(|b| !b.touches_border)
         .map(|b| b.area_px)
         .collect();
-    if !interior.is_empty() {
-        interior.sort_unstable();
-        let floor = interior[interior.len() / 2] / 5;
-        let keep: Vec<bool> = (0..blobs.len())
-            .map(|k| {
-                let b = &blobs[k];
-                b.touches_border
-                    || b.area_px >= floor
-                    || f64::from(b.area_px) >= nearby_area(blobs, k) / 5.0
-            })
-            .collect();
-        let mut k = 0;
-        blobs.retain(|_| {
-            k += 1;
-            keep[k - 1]
-        });
+    if interior.len() < least.max(1) {
+        return None;
     }
+    interior.sort_unstable();
+    Some(interior[interior.len() / 2])
 }
 
 /// The two halves of each blob that may be two markers touching at rest (a reference frame in
@@ -441,16 +447,9 @@ fn drop_specks(blobs: &mut Vec<Blob>) {
 /// of half the area centred where the moments put it ([`Blob::two_discs`], as the tracker
 /// splits a merged pair; its box the whole blob's). Returns the blob's index and its halves.
 fn touching_pairs(blobs: &[Blob]) -> Vec<(usize, [Blob; 2])> {
-    let mut interior: Vec<u32> = blobs
-        .iter()
-        .filter(|b| !b.touches_border)
-        .map(|b| b.area_px)
-        .collect();
-    if interior.len() < 3 {
+    let Some(one) = interior_median_area(blobs, 3).map(f64::from) else {
         return Vec::new();
-    }
-    interior.sort_unstable();
-    let one = f64::from(interior[interior.len() / 2]);
+    };
     let pi = std::f64::consts::PI;
     let about_two = |a: f64, one: f64| {
         (std::f64::consts::SQRT_2 * one..=2.0 * std::f64::consts::SQRT_2 * one).contains(&a)
