@@ -1,6 +1,7 @@
-//! The experiments around the estimator, all on the simulator: what `visuotact demo`,
-//! `simulate`, `pattern` and `check-tracking` run. The estimator itself (`visuotact-pipeline`)
-//! needs none of this; a program that only estimates does not depend on this crate.
+//! The experiments around the estimator, on the simulator and on the real sets of
+//! `shared/reference/real`: what `visuotact demo`, `simulate`, `pattern` and `check-tracking`
+//! run. The estimator itself (`visuotact-pipeline`) needs none of this; a program that only
+//! estimates does not depend on this crate.
 //!
 //! ## Modules and what each owns
 //!
@@ -13,11 +14,13 @@
 //! the simulator's per-marker truth: lost markers, wrong identities, displacement error, per
 //! motion band; `CheckConfig`, `CheckReport`), `scorecard` (the tracking scorecard: the zoo's
 //! drawn variants through every protocol, per family × motion band, held to a baseline table),
-//! `slipcheck` (simulated grasps that slip or hold, tracked and run through a slip detector:
-//! the first alarm against the true slip frame)
+//! `realcard` (the scorecard's real half: the real sets tracked as a user would, counts that
+//! need no labels, held to a baseline table), `slipcheck` (simulated grasps that slip or hold,
+//! tracked and run through a slip detector: the first alarm against the true slip frame)
 
 pub mod demo;
 pub mod pages;
+pub mod realcard;
 pub mod scorecard;
 pub mod slipcheck;
 pub mod synth;
@@ -37,4 +40,7 @@ pub enum Error {
     /// [`synth::SimulateError`].
     #[error(transparent)]
     Simulate(#[from] synth::SimulateError),
+    /// [`realcard::RealCardError`].
+    #[error(transparent)]
+    RealCard(#[from] realcard::RealCardError),
 }

@@ -2,6 +2,7 @@
 //! table row per variant.
 
 use anyhow::{bail, Context};
+use visuotact_experiments::realcard::{real_card_table, RealCardConfig};
 use visuotact_experiments::scorecard::{scorecard_table, touched_reference};
 use visuotact_experiments::trackcheck::{
     check, CheckConfig, CheckReport, SimSensor, MOTION_LIMIT_PITCHES,
@@ -60,7 +61,14 @@ pub(crate) struct Args {
     /// ambiguous marker-frames per sensor family and motion band.
     #[arg(long)]
     scorecard: bool,
-    /// With `--scorecard`: fail where it is worse than this baseline table.
+    /// Print the scorecard's real half instead: the real sets in this folder
+    /// (`../shared/reference/real`) tracked as a user would, with counts that need no labels.
+    #[arg(long, value_name = "DIR")]
+    real: Option<std::path::PathBuf>,
+    /// With `--real`: every N-th frame of the TacTip sets (1: all of them).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    stride: u64,
+    /// With `--scorecard` or `--real`: fail where it is worse than this baseline table.
     #[arg(long)]
     baseline: Option<std::path::PathBuf>,
     /// Print the first problems found.
@@ -85,8 +93,18 @@ pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let track =
         (TrackParams::DEFAULT.parse_over(&a.track)).map_err(|e| anyhow::anyhow!("--track: {e}"))?;
-    if a.scorecard {
-        let (table, worse) = scorecard_table(a.seed, track, a.baseline.as_deref())?;
+    if a.scorecard || a.real.is_some() {
+        let (table, worse) = match &a.real {
+            Some(dir) => real_card_table(
+                &RealCardConfig {
+                    stride: a.stride as usize,
+                    track,
+                    ..RealCardConfig::new(dir)
+                },
+                a.baseline.as_deref(),
+            )?,
+            None => scorecard_table(a.seed, track, a.baseline.as_deref())?,
+        };
         say!("{table}");
         anyhow::ensure!(
             worse.is_empty(),
