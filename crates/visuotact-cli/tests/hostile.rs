@@ -66,6 +66,12 @@ fn durations_rates_and_counts_are_checked_first() {
         );
         assert!(!session.exists());
     }
+    // The scorecard's real half on a folder without the real sets names what it looked for.
+    let err = fails(&vt(&["check-tracking", "--real", s(&d)]));
+    assert!(
+        err.contains("tactip127_surface") && err.contains("not found"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }
 
