@@ -227,14 +227,22 @@ impl RealCard {
     }
 }
 
-/// Runs the real card over the sets in `c.dir`.
-pub fn real_card(c: &RealCardConfig) -> Result<RealCard, RealCardError> {
+/// Runs the real card over the sets in `c.dir`; `stage` hears the name of each set as it
+/// starts (a progress line: the whole card takes minutes at `stride` 1).
+pub fn real_card(
+    c: &RealCardConfig,
+    stage: &mut dyn FnMut(&str),
+) -> Result<RealCard, RealCardError> {
     let mut card = RealCard::default();
+    stage("tactip127");
     tactip127(c, &mut card)?;
+    stage("tactip331");
     tactip331(c, &mut card)?;
     for video in [0, 1, 2, 3, 5] {
+        stage(&format!("gelsight video_{video}"));
         gelsight(c, video, &mut card)?;
     }
+    stage("9dtact");
     let sample = existing(c.dir.join("9dtact/camera_calibration/sample.png"))?;
     let options = DetectorOptions {
         preset: Some(Preset::DarkMarkers),
@@ -255,12 +263,13 @@ pub fn real_card(c: &RealCardConfig) -> Result<RealCard, RealCardError> {
 }
 
 /// The real card, as a table, and where it is worse than `baseline` (what
-/// `check-tracking --real` prints).
+/// `check-tracking --real` prints); `stage` as [`real_card`]'s.
 pub fn real_card_table(
     c: &RealCardConfig,
     baseline: Option<&Path>,
+    stage: &mut dyn FnMut(&str),
 ) -> Result<(String, Vec<String>), RealCardError> {
-    let card = real_card(c)?;
+    let card = real_card(c, stage)?;
     let worse = match baseline {
         Some(path) => {
             let text = std::fs::read_to_string(path).map_err(|source| RealCardError::Read {

@@ -30,10 +30,13 @@ fn real_card_holds_its_baseline() {
         "/../../testdata/scorecard/real.tsv"
     );
     let baseline = RealCard::from_tsv(&std::fs::read_to_string(path).unwrap(), path).unwrap();
-    let card = real_card(&RealCardConfig {
-        stride: 5,
-        ..RealCardConfig::new(dir)
-    })
+    let card = real_card(
+        &RealCardConfig {
+            stride: 5,
+            ..RealCardConfig::new(dir)
+        },
+        &mut |set| eprintln!("real card: {set}"),
+    )
     .unwrap();
     eprintln!("{}", card.to_tsv());
     let worse = card.regressions(&baseline);

@@ -95,14 +95,18 @@ pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
         (TrackParams::DEFAULT.parse_over(&a.track)).map_err(|e| anyhow::anyhow!("--track: {e}"))?;
     if a.scorecard || a.real.is_some() {
         let (table, worse) = match &a.real {
-            Some(dir) => real_card_table(
-                &RealCardConfig {
-                    stride: a.stride as usize,
-                    track,
-                    ..RealCardConfig::new(dir)
-                },
-                a.baseline.as_deref(),
-            )?,
+            Some(dir) => {
+                let reporter = crate::progress::Reporter::new(false);
+                real_card_table(
+                    &RealCardConfig {
+                        stride: a.stride as usize,
+                        track,
+                        ..RealCardConfig::new(dir)
+                    },
+                    a.baseline.as_deref(),
+                    &mut |set| reporter.stage(set),
+                )?
+            }
             None => scorecard_table(a.seed, track, a.baseline.as_deref())?,
         };
         say!("{table}");
