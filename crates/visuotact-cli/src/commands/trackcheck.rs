@@ -90,32 +90,37 @@ pub(crate) fn parse_range(s: &str) -> anyhow::Result<Vec<u64>> {
     }
 }
 
+/// `--scorecard` or `--real`: the table, failing where it is worse than `--baseline`.
+fn scorecards(a: &Args, track: TrackParams) -> anyhow::Result<()> {
+    let (table, worse) = match &a.real {
+        Some(dir) => {
+            let reporter = crate::progress::Reporter::new(false);
+            real_card_table(
+                &RealCardConfig {
+                    stride: a.stride as usize,
+                    track,
+                    ..RealCardConfig::new(dir)
+                },
+                a.baseline.as_deref(),
+                &mut |set| reporter.stage(set),
+            )?
+        }
+        None => scorecard_table(a.seed, track, a.baseline.as_deref())?,
+    };
+    say!("{table}");
+    anyhow::ensure!(
+        worse.is_empty(),
+        "worse than the baseline: {}",
+        worse.join("; ")
+    );
+    Ok(())
+}
+
 pub(crate) fn run(a: &Args) -> anyhow::Result<()> {
     let track =
         (TrackParams::DEFAULT.parse_over(&a.track)).map_err(|e| anyhow::anyhow!("--track: {e}"))?;
     if a.scorecard || a.real.is_some() {
-        let (table, worse) = match &a.real {
-            Some(dir) => {
-                let reporter = crate::progress::Reporter::new(false);
-                real_card_table(
-                    &RealCardConfig {
-                        stride: a.stride as usize,
-                        track,
-                        ..RealCardConfig::new(dir)
-                    },
-                    a.baseline.as_deref(),
-                    &mut |set| reporter.stage(set),
-                )?
-            }
-            None => scorecard_table(a.seed, track, a.baseline.as_deref())?,
-        };
-        say!("{table}");
-        anyhow::ensure!(
-            worse.is_empty(),
-            "worse than the baseline: {}",
-            worse.join("; ")
-        );
-        return Ok(());
+        return scorecards(a, track);
     }
     if !(a.motion_limit.is_finite() && a.motion_limit > 0.0) {
         bail!(
