@@ -42,7 +42,8 @@ impl Candidates {
     }
 
     /// Adds a row with its `(column, cost)` candidates and the cost of leaving it unassigned.
-    /// Costs must be finite and non-negative.
+    /// Costs are finite and non-negative; a candidate cost that is not finite is never taken,
+    /// and an opt-out cost that is not finite counts as twice the largest finite cost plus one.
     pub fn push_row(&mut self, candidates: &[(usize, f64)], unassigned_cost: f64) {
         self.begin_row();
         self.edges.extend_from_slice(candidates);
@@ -177,12 +178,31 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
     let mut owner: Vec<Option<usize>> = vec![None; nodes];
     let mut matched: Vec<usize> = vec![usize::MAX; n];
     let mut s = Search::new(nodes);
+    // Costs that are not finite (a garbled sensor file's numbers give them) must not break
+    // the search: such a candidate is never taken, and such an opt-out costs twice the largest
+    // finite cost (capped far from overflow), so every row's private node stays reachable.
+    let largest = c
+        .edges
+        .iter()
+        .map(|e| e.1)
+        .chain(c.unassigned.iter().copied())
+        .filter(|x| x.is_finite())
+        .fold(0.0f64, |a, x| a.max(x.abs()));
+    let opt_out = |i: usize| {
+        let x = c.unassigned[i];
+        if x.is_finite() {
+            x
+        } else {
+            2.0 * largest.min(1e300) + 1.0
+        }
+    };
     // Rows' edges including the private node: (node, cost).
     let edges = |i: usize| {
         c.row(i)
             .iter()
             .copied()
-            .chain(std::iter::once((columns + i, c.unassigned[i])))
+            .filter(|e| e.1.is_finite())
+            .chain(std::iter::once((columns + i, opt_out(i))))
     };
     for r in 0..n {
         s.relax(edges(r), r, 0.0, &u, &v);
@@ -201,7 +221,12 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
                 Some(k) => s.relax(edges(k), k, d, &u, &v),
             }
         }
-        // The private node is always reachable, so a sink exists.
+        // The private node is always reachable, so a sink exists; were it not (costs out of
+        // any range), the row stays unassigned rather than the search failing.
+        if sink == usize::MAX {
+            s.reset();
+            continue;
+        }
         let big = s.dist[sink];
         // Potentials: nodes finalised before the sink move by how much shorter their path was.
         u[r] += big;
@@ -237,7 +262,7 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
                 cost += c.row(i).iter().find(|e| e.0 == j).map_or(0.0, |e| e.1);
                 Some(j)
             } else {
-                cost += c.unassigned[i];
+                cost += opt_out(i);
                 None
             }
         })
@@ -274,6 +299,21 @@ mod tests {
         let mut best = f64::INFINITY;
         go(c, 0, &mut vec![false; columns], 0.0, &mut best);
         best
+    }
+
+    /// Costs out of range (infinite, NaN: what a garbled sensor file's numbers give) leave
+    /// such candidates untaken, and every row assigned or not: no panic.
+    #[test]
+    fn costs_out_of_range_are_survived() {
+        let mut c = Candidates::default();
+        c.push_row(&[(0, f64::INFINITY), (1, f64::NAN)], f64::INFINITY);
+        c.push_row(&[(0, 1.0)], f64::NAN);
+        c.push_row(&[(1, 5.0)], f64::INFINITY);
+        c.push_row(&[], f64::INFINITY);
+        let a = assign_min_cost(&c, 2);
+        assert_eq!(a.columns, vec![None, Some(0), Some(1), None]);
+        // The opt-outs out of range cost twice the largest finite cost, plus one.
+        assert_eq!(a.cost, 11.0 + 1.0 + 5.0 + 11.0);
     }
 
     #[test]
