@@ -76,6 +76,30 @@ impl Candidates {
     fn row(&self, i: usize) -> &[(usize, f64)] {
         &self.edges[self.starts[i]..self.starts[i + 1]]
     }
+
+    /// Each row's cost of staying unassigned, as the search takes it. Costs that are not
+    /// finite (a garbled sensor file's numbers give them) must not break the search: such an
+    /// opt-out costs twice the largest finite cost plus one (capped far from overflow), so
+    /// every row's private node stays reachable (and such a candidate is never taken).
+    fn opt_out_costs(&self) -> Vec<f64> {
+        let largest = self
+            .edges
+            .iter()
+            .map(|e| e.1)
+            .chain(self.unassigned.iter().copied())
+            .filter(|x| x.is_finite())
+            .fold(0.0f64, |a, x| a.max(x.abs()));
+        self.unassigned
+            .iter()
+            .map(|&x| {
+                if x.is_finite() {
+                    x
+                } else {
+                    2.0 * largest.min(1e300) + 1.0
+                }
+            })
+            .collect()
+    }
 }
 
 /// An optimal assignment.
@@ -178,24 +202,8 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
     let mut owner: Vec<Option<usize>> = vec![None; nodes];
     let mut matched: Vec<usize> = vec![usize::MAX; n];
     let mut s = Search::new(nodes);
-    // Costs that are not finite (a garbled sensor file's numbers give them) must not break
-    // the search: such a candidate is never taken, and such an opt-out costs twice the largest
-    // finite cost (capped far from overflow), so every row's private node stays reachable.
-    let largest = c
-        .edges
-        .iter()
-        .map(|e| e.1)
-        .chain(c.unassigned.iter().copied())
-        .filter(|x| x.is_finite())
-        .fold(0.0f64, |a, x| a.max(x.abs()));
-    let opt_out = |i: usize| {
-        let x = c.unassigned[i];
-        if x.is_finite() {
-            x
-        } else {
-            2.0 * largest.min(1e300) + 1.0
-        }
-    };
+    let opt_out = c.opt_out_costs();
+    let opt_out = |i: usize| opt_out[i];
     // Rows' edges including the private node: (node, cost).
     let edges = |i: usize| {
         c.row(i)
