@@ -14,10 +14,23 @@ use visuotact_io::read::MAX_IMAGE_PIXELS;
 use visuotact_io::session::SessionDescription;
 use visuotact_io::table::KeyedTable;
 
+/// The cases' seed: fixed, so every run (CI's too) tries the same cases, unless
+/// `PROPTEST_RNG_SEED` names another one for a long run (docs/failure.md).
+fn seed() -> proptest::test_runner::RngSeed {
+    match std::env::var("PROPTEST_RNG_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        Some(s) => proptest::test_runner::RngSeed::Fixed(s),
+        None => proptest::test_runner::RngSeed::Fixed(17),
+    }
+}
+
 fn config() -> ProptestConfig {
     // 256 cases unless PROPTEST_CASES says otherwise (the long run: docs/failure.md).
     ProptestConfig {
         failure_persistence: None,
+        rng_seed: seed(),
         ..ProptestConfig::default()
     }
 }
