@@ -40,7 +40,7 @@ use visuotact_vision::calibration::{
     calibrate, CalibrationConfig, CalibrationError, Preset, SensorCalibration,
 };
 use visuotact_vision::features::{FeatureExtractor, FrameFeatures, FrameSizeError};
-use visuotact_vision::layout::LayoutChoice;
+use visuotact_vision::layout::{median, LayoutChoice};
 use visuotact_vision::options::{DetectorOptions, Purpose};
 use visuotact_vision::track::{MarkerStatus, TrackParams};
 use visuotact_vision::ConfigError;
@@ -663,20 +663,6 @@ fn pitch_of(xy: &[(f64, f64)]) -> f64 {
         })
         .collect();
     median(&mut d)
-}
-
-/// The median (the mean of the middle two of an even count); NaN when empty.
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// A GelSight Mini video's two rows, each frame on its own and followed, beside the vendor's.

@@ -244,8 +244,15 @@ pub(crate) fn k_nearest_all(points: &[(f64, f64)], k: usize) -> Vec<Vec<(usize, 
     out
 }
 
-/// The median of `v` (sorted in place; NaN when empty).
-pub(crate) fn median(v: &mut [f64]) -> f64 {
+/// The median of `v` (sorted in place; the mean of the middle two of an even count; NaN when
+/// empty).
+///
+/// ```
+/// let mut v = [3.0, 1.0, 4.0, 2.0];
+/// assert_eq!(visuotact_vision::layout::median(&mut v), 2.5);
+/// assert!(visuotact_vision::layout::median(&mut []).is_nan());
+/// ```
+pub fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {

@@ -27,6 +27,7 @@
 use visuotact_image::RgbImage;
 
 use crate::detect::{BlobFilter, Detector, DetectorConfig};
+use crate::layout::median;
 
 /// The markers' typical size and spacing in a frame.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -112,20 +113,6 @@ impl MarkerSize {
             },
             cfg.filter.min_area_px
         )
-    }
-}
-
-/// The median of `v` (reordered); NaN when empty.
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }
 
