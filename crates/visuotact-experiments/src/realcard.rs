@@ -276,13 +276,10 @@ pub fn real_card_table(
 ) -> Result<(String, Vec<String>), RealCardError> {
     let card = real_card(c, stage)?;
     let worse = match baseline {
-        Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|source| RealCardError::Read {
-                path: path.to_path_buf(),
-                source,
-            })?;
-            card.regressions(&RealCard::from_tsv(&text, &path.display().to_string())?)
-        }
+        Some(path) => card.regressions(&RealCard::from_tsv(
+            &text_of(path)?,
+            &path.display().to_string(),
+        )?),
         None => Vec::new(),
     };
     Ok((card.to_tsv().trim_end().to_string(), worse))
@@ -296,14 +293,21 @@ fn existing(p: PathBuf) -> Result<PathBuf, RealCardError> {
     }
 }
 
+/// The text of `path`, or why not.
+fn text_of(path: &Path) -> Result<String, RealCardError> {
+    std::fs::read_to_string(existing(path.to_path_buf())?).map_err(|source| RealCardError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 /// Each marker's position in one frame (`None`: no position).
 type Positions = Vec<Option<(f64, f64)>>;
 
-/// Each marker's position per frame, and how many marker-frames had each status (in the
-/// order of [`MarkerStatus::ALL`]).
+/// Each marker's position per frame, and how many marker-frames had each status (by name).
 struct Reading {
     frames: Vec<Positions>,
-    status: [u64; MarkerStatus::ALL.len()],
+    status: BTreeMap<&'static str, u64>,
 }
 
 /// A sensor calibrated as `visuotact calibrate` does with `options`: on `paths` (the first
@@ -383,12 +387,11 @@ fn reading(
     let mut stream = FrameStream::open(paths, 25.0)?;
     let mut out = Reading {
         frames: Vec::new(),
-        status: [0; MarkerStatus::ALL.len()],
+        status: BTreeMap::new(),
     };
     let mut add = |(p, status): (Positions, Vec<MarkerStatus>)| {
         for s in status {
-            let k = MarkerStatus::ALL.iter().position(|&a| a == s).unwrap_or(0);
-            out.status[k] += 1;
+            *out.status.entry(s.name()).or_default() += 1;
         }
         out.frames.push(p);
     };
@@ -439,10 +442,7 @@ fn frame_files(folder: &Path, stride: usize) -> Result<Vec<PathBuf>, RealCardErr
 fn missing_counts(reading: &Reading) -> BTreeMap<String, u64> {
     let r = &reading.frames;
     let missing = |f: &Positions| f.iter().filter(|p| p.is_none()).count() as u64;
-    let status = |s: MarkerStatus| {
-        let k = MarkerStatus::ALL.iter().position(|&a| a == s).unwrap_or(0);
-        reading.status[k]
-    };
+    let status = |s: MarkerStatus| reading.status.get(s.name()).copied().unwrap_or(0);
     BTreeMap::from([
         ("lost".into(), status(MarkerStatus::Lost)),
         ("ambiguous".into(), status(MarkerStatus::Ambiguous)),
@@ -460,15 +460,23 @@ fn missing_counts(reading: &Reading) -> BTreeMap<String, u64> {
     ])
 }
 
-/// The first comma-separated column of every line of `path` after its header, and the
-/// `column`-th when given, parsed as a number.
-fn labels(path: &Path, column: Option<usize>) -> Result<Vec<(String, f64)>, RealCardError> {
-    let text = std::fs::read_to_string(existing(path.to_path_buf())?).map_err(|source| {
-        RealCardError::Read {
-            path: path.to_path_buf(),
-            source,
-        }
-    })?;
+/// The first comma-separated column of every line of `path` after its header, and the column
+/// the header names `column`, when given, parsed as a number.
+fn labels(path: &Path, column: Option<&str>) -> Result<Vec<(String, f64)>, RealCardError> {
+    let text = text_of(path)?;
+    let column = match column {
+        Some(name) => Some(
+            text.lines()
+                .next()
+                .and_then(|h| h.split(',').position(|c| c.trim() == name))
+                .ok_or(RealCardError::Line {
+                    path: path.to_path_buf(),
+                    line: 1,
+                    expected: "a header naming the frame and label columns",
+                })?,
+        ),
+        None => None,
+    };
     let mut out = Vec::new();
     for (n, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -522,31 +530,13 @@ fn tactip127(c: &RealCardConfig, card: &mut RealCard) -> Result<(), RealCardErro
 fn tactip331(c: &RealCardConfig, card: &mut RealCard) -> Result<(), RealCardError> {
     let set = c.dir.join("tactip331_franka");
     let labels_path = set.join("labels.csv");
-    let header = std::fs::read_to_string(existing(labels_path.clone())?)
-        .map_err(|source| RealCardError::Read {
-            path: labels_path.clone(),
-            source,
-        })?
-        .lines()
-        .next()
-        .unwrap_or_default()
-        .to_string();
-    let depth =
-        header
-            .split(',')
-            .position(|h| h.trim() == "pose_z")
-            .ok_or(RealCardError::Line {
-                path: labels_path.clone(),
-                line: 1,
-                expected: "a header naming sensor_image and pose_z",
-            })?;
     let number = |name: &str| {
         name.trim_end_matches(".png")
             .rsplit('_')
             .next()
             .and_then(|n| n.parse::<u64>().ok())
     };
-    let shallowest = labels(&labels_path, Some(depth))?
+    let shallowest = labels(&labels_path, Some("pose_z"))?
         .into_iter()
         .filter(|(name, _)| number(name).is_some_and(|n| n % 5 != 0))
         .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -606,12 +596,7 @@ fn tactip331(c: &RealCardConfig, card: &mut RealCard) -> Result<(), RealCardErro
 /// The vendor tracker's positions of one video: per frame (0-based), each marker's position
 /// (in the first frame's marker order; `None` where that frame lacks it).
 fn vendor_positions(path: &Path) -> Result<Vec<Positions>, RealCardError> {
-    let text = std::fs::read_to_string(existing(path.to_path_buf())?).map_err(|source| {
-        RealCardError::Read {
-            path: path.to_path_buf(),
-            source,
-        }
-    })?;
+    let text = text_of(path)?;
     // Per frame, per (row, column), the position.
     type Marks = BTreeMap<(i64, i64), (f64, f64)>;
     let mut frames: BTreeMap<usize, Marks> = BTreeMap::new();

@@ -15,14 +15,12 @@ use visuotact_io::session::SessionDescription;
 use visuotact_io::table::KeyedTable;
 
 /// The cases' seed: fixed, so every run (CI's too) tries the same cases, unless
-/// `PROPTEST_RNG_SEED` names another one for a long run (docs/failure.md).
+/// `PROPTEST_RNG_SEED` names another one for a long run (docs/failure.md; proptest reads it).
 fn seed() -> proptest::test_runner::RngSeed {
-    match std::env::var("PROPTEST_RNG_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-    {
-        Some(s) => proptest::test_runner::RngSeed::Fixed(s),
-        None => proptest::test_runner::RngSeed::Fixed(17),
+    use proptest::test_runner::RngSeed;
+    match ProptestConfig::default().rng_seed {
+        RngSeed::Random => RngSeed::Fixed(17),
+        named => named,
     }
 }
 

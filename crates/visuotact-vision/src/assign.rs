@@ -77,11 +77,14 @@ impl Candidates {
         &self.edges[self.starts[i]..self.starts[i + 1]]
     }
 
-    /// Each row's cost of staying unassigned, as the search takes it. Costs that are not
-    /// finite (a garbled sensor file's numbers give them) must not break the search: such an
-    /// opt-out costs twice the largest finite cost plus one (capped far from overflow), so
-    /// every row's private node stays reachable (and such a candidate is never taken).
-    fn opt_out_costs(&self) -> Vec<f64> {
+    /// What an opt-out cost that is not finite counts as (`None` when every one is finite, the
+    /// usual case: nothing to scan). Such costs (a garbled sensor file's numbers give them)
+    /// must not break the search: twice the largest finite cost plus one (capped far from
+    /// overflow) keeps every row's private node reachable.
+    fn opt_out_cap(&self) -> Option<f64> {
+        if self.unassigned.iter().all(|x| x.is_finite()) {
+            return None;
+        }
         let largest = self
             .edges
             .iter()
@@ -89,16 +92,15 @@ impl Candidates {
             .chain(self.unassigned.iter().copied())
             .filter(|x| x.is_finite())
             .fold(0.0f64, |a, x| a.max(x.abs()));
-        self.unassigned
-            .iter()
-            .map(|&x| {
-                if x.is_finite() {
-                    x
-                } else {
-                    2.0 * largest.min(1e300) + 1.0
-                }
-            })
-            .collect()
+        Some(2.0 * largest.min(1e300) + 1.0)
+    }
+
+    /// Row `i`'s opt-out cost as the search takes it: its own, or `cap` where that is not finite.
+    fn opt_out(&self, i: usize, cap: Option<f64>) -> f64 {
+        match cap {
+            Some(cap) if !self.unassigned[i].is_finite() => cap,
+            _ => self.unassigned[i],
+        }
     }
 }
 
@@ -202,8 +204,8 @@ pub fn assign_min_cost(c: &Candidates, columns: usize) -> Assignment {
     let mut owner: Vec<Option<usize>> = vec![None; nodes];
     let mut matched: Vec<usize> = vec![usize::MAX; n];
     let mut s = Search::new(nodes);
-    let opt_out = c.opt_out_costs();
-    let opt_out = |i: usize| opt_out[i];
+    let cap = c.opt_out_cap();
+    let opt_out = |i: usize| c.opt_out(i, cap);
     // Rows' edges including the private node: (node, cost).
     let edges = |i: usize| {
         c.row(i)
